@@ -1,0 +1,54 @@
+# bandada: the two commands a new user runs are `make demo` and `make test`.
+# Every target creates .venv (python3 -m venv) and installs the project into it first.
+
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.bandada-installed
+BENCH  ?=
+PYTEST_ARGS ?=
+
+.PHONY: all demo test lint typecheck unit bench soak scale docs clean install
+
+all: test
+
+$(STAMP): pyproject.toml
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
+	@touch $(STAMP)
+
+install: $(STAMP)
+
+## demo: a simulated swarm flying a mission, on this machine, in fast time
+demo: $(STAMP)
+	$(BIN)/swarm-sim demo
+
+## test: lint, type check and the test suite (CI runs exactly this)
+test: lint typecheck unit
+
+lint: $(STAMP)
+	$(BIN)/ruff check swarm_proto swarm_node radio_gateway gcs_cli swarm_sim bench tests
+
+typecheck: $(STAMP)
+	$(BIN)/mypy
+
+unit: $(STAMP)
+	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+
+## bench: every benchmark, or one with BENCH=<topic>; writes bench/results/<topic>.json
+bench: $(STAMP)
+	$(BIN)/python -m bench $(BENCH)
+
+## soak / scale: the long suites, kept out of `make test`
+soak: $(STAMP)
+	$(BIN)/python -m pytest -q -m soak $(PYTEST_ARGS)
+
+scale: $(STAMP)
+	$(BIN)/python -m pytest -q -m scale $(PYTEST_ARGS)
+
+## docs: regenerate the generated documents (keyspace, state diagrams)
+docs: $(STAMP)
+	$(BIN)/python -m swarm_proto.topics > docs/keyspace.md
+
+clean:
+	rm -rf $(VENV) .mypy_cache .ruff_cache .pytest_cache .hypothesis *.egg-info

@@ -1,0 +1,1 @@
+"""gcs_cli: the Typer ground station (fleet status and every operator command)."""

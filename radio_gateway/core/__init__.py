@@ -1,0 +1,1 @@
+"""Pure radio protocol logic: bytes, messages and `now` in, actions out."""

@@ -1,0 +1,1 @@
+"""Serial port and Zenoh shell of the radio gateway."""

@@ -1,0 +1,68 @@
+"""What a node knows about a vehicle's airframe and payload: resolved from the swarm
+database (swarm_node.database) and handed to the pure cores (planners, voting,
+monitoring, avoidance) as plain data. Units in the names."""
+
+from __future__ import annotations
+
+import math
+
+import msgspec
+
+from swarm_proto import VehicleType
+
+G_M_S2 = 9.80665
+
+
+class CameraProfile(msgspec.Struct, frozen=True):
+    hfov_deg: float
+    vfov_deg: float
+    resolution_px: tuple[int, int] = (0, 0)  # width, height
+    gimbal_axes: int = 0
+
+
+class VehicleProfile(msgspec.Struct, frozen=True):
+    """Airframe + payload parameters of one vehicle (paper section 2.3.1 tables)."""
+
+    vehicle_id: int  # the database's internal system id = swarm node id
+    user_id: str
+    model: str
+    vehicle_type: VehicleType
+    system_type: str = ""  # e.g. "UAV", "UGV", "USV", "GCS"
+    system_subtype: str = ""  # e.g. "fixed-wing", "multirotor"
+    payload_model: str = ""
+    payload_subtype: str = ""
+    payload_type: str = ""
+    cruise_speed_m_s: float = 0.0
+    min_speed_m_s: float = 0.0  # stall speed for fixed-wing, 0 for hover-capable
+    max_speed_m_s: float = 0.0
+    max_bank_deg: float = 45.0
+    climb_rate_m_s: float = 0.0
+    sink_rate_m_s: float = 0.0
+    loiter_radius_m: float = 0.0
+    has_parachute: bool = False
+    battery_low_pct: int = 30
+    battery_critical_pct: int = 15
+    max_tilt_deg: float = 60.0  # abnormal-attitude threshold (roll or pitch)
+    camera: CameraProfile | None = None
+
+    @property
+    def is_fixed_wing(self) -> bool:
+        return self.vehicle_type in (VehicleType.PLANE, VehicleType.VTOL)
+
+    @property
+    def can_hover(self) -> bool:
+        return self.vehicle_type in (
+            VehicleType.COPTER,
+            VehicleType.VTOL,
+            VehicleType.ROVER,
+            VehicleType.BOAT,
+        )
+
+    def turn_radius_m(self, speed_m_s: float | None = None) -> float:
+        """Minimum turn radius at `speed_m_s` (default cruise): v^2 / (g tan(max bank)),
+        and never below the loiter radius. 0 for vehicles that turn on the spot."""
+        if not self.is_fixed_wing:
+            return 0.0
+        v = self.cruise_speed_m_s if speed_m_s is None else speed_m_s
+        r = v * v / (G_M_S2 * math.tan(math.radians(self.max_bank_deg)))
+        return max(r, self.loiter_radius_m)

@@ -1,0 +1,1 @@
+"""The I/O shell of a vehicle node: Zenoh, MAVLink and SQLite at the edges."""

@@ -1,0 +1,462 @@
+"""The message contract of bandada: msgspec Structs, one per kind of data.
+
+Every field carries its unit in its name or in its type's description (see `units`).
+Messages are frozen. Range constraints are checked when decoding; cross-field rules
+(`__post_init__`) are checked on construction and on decoding. Use `validate(msg)` to
+check a message you produced before you send it.
+
+Evolution rule (both encodings): append fields with defaults at the end; never change a
+field's type or meaning; never reuse an enum value.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated
+
+import msgspec
+from msgspec import Meta, Struct
+
+from .enums import (
+    AckReason,
+    AckRef,
+    AlertCode,
+    AlertFlag,
+    CommandKind,
+    FsmState,
+    GeometryKind,
+    GpsFix,
+    MissionState,
+    MissionType,
+    SelectorKind,
+    Severity,
+    TargetSource,
+    VehicleType,
+)
+from .units import (
+    AltitudeM,
+    DistanceM,
+    DurationS,
+    Fixed,
+    FleetId,
+    Fraction,
+    HeadingDeg,
+    HeightM,
+    LatitudeDeg,
+    LongitudeDeg,
+    MissionId,
+    Name,
+    OptVehicleId,
+    Percent,
+    Saturate,
+    Score,
+    Seq,
+    ShortText,
+    SpeedMS,
+    Uint8,
+    Uint16,
+    UnixTimeS,
+    VehicleId,
+    VelocityMS,
+    VoltageV,
+    ZoneId,
+)
+
+# --------------------------------------------------------------------------- geometry
+
+
+class LatLon(Struct, frozen=True, array_like=True):
+    """A horizontal position (WGS84). Encoded as a 2-element array [lat_deg, lon_deg]."""
+
+    lat_deg: LatitudeDeg
+    lon_deg: LongitudeDeg
+
+
+class GeoPoint(Struct, frozen=True):
+    """A 3-D position: WGS84 latitude/longitude and altitude above mean sea level."""
+
+    lat_deg: LatitudeDeg
+    lon_deg: LongitudeDeg
+    alt_msl_m: AltitudeM
+
+
+def _ring_problem(ring: tuple[LatLon, ...], what: str) -> str | None:
+    if len(ring) < 3:
+        return f"{what} needs at least 3 vertices, got {len(ring)}"
+    if ring[0] == ring[-1]:
+        return f"{what} must be an open ring (do not repeat the first vertex)"
+    lons = [p.lon_deg for p in ring]
+    if max(lons) - min(lons) > 180.0:
+        return f"{what} spans more than 180 degrees of longitude (antimeridian is unsupported)"
+    return None
+
+
+def polygon_problem(
+    shell: tuple[LatLon, ...], holes: tuple[tuple[LatLon, ...], ...] = ()
+) -> str | None:
+    """Why `shell` with `holes` is not a valid simple polygon, or None if it is.
+
+    Topology is checked in (lon, lat) degrees with shapely: self-intersection, zero area,
+    holes outside the shell or overlapping each other.
+    """
+    problem = _ring_problem(shell, "polygon shell")
+    if problem:
+        return problem
+    for i, hole in enumerate(holes):
+        problem = _ring_problem(hole, f"hole {i}")
+        if problem:
+            return problem
+    from shapely.geometry import Polygon
+    from shapely.validation import explain_validity
+
+    poly = Polygon(
+        [(p.lon_deg, p.lat_deg) for p in shell],
+        [[(p.lon_deg, p.lat_deg) for p in h] for h in holes],
+    )
+    if not poly.is_valid:
+        return f"polygon is not simple: {explain_validity(poly)}"
+    if poly.area <= 0.0:
+        return "polygon has zero area"
+    return None
+
+
+class Geometry(Struct, frozen=True):
+    """Where a mission or a zone is. Which fields are used depends on `kind`:
+
+    - POINT: `points[0]`; POINTS: one or more `points`; POLYLINE: two or more `points`.
+    - POLYGON: `points` is the shell (>= 3 vertices, open ring), `holes` are inner rings.
+    - CIRCLE: `points[0]` is the centre and `radius_m` the radius.
+    """
+
+    kind: GeometryKind
+    points: tuple[LatLon, ...] = ()
+    holes: tuple[tuple[LatLon, ...], ...] = ()
+    radius_m: DistanceM | None = None
+
+    def __post_init__(self) -> None:
+        problem = self.problem()
+        if problem:
+            raise ValueError(f"invalid {self.kind.name} geometry: {problem}")
+
+    def problem(self) -> str | None:
+        k, n = self.kind, len(self.points)
+        if k != GeometryKind.POLYGON and self.holes:
+            return "only a POLYGON may have holes"
+        if k != GeometryKind.CIRCLE and self.radius_m is not None:
+            return "only a CIRCLE has a radius"
+        if k == GeometryKind.POINT and n != 1:
+            return f"needs exactly 1 point, got {n}"
+        if k == GeometryKind.POINTS and n < 1:
+            return "needs at least 1 point"
+        if k == GeometryKind.POLYLINE and n < 2:
+            return f"needs at least 2 points, got {n}"
+        if k == GeometryKind.CIRCLE:
+            if n != 1:
+                return f"needs exactly 1 centre point, got {n}"
+            if self.radius_m is None or self.radius_m <= 0.0:
+                return "needs a positive radius_m"
+        if k == GeometryKind.POLYGON:
+            return polygon_problem(self.points, self.holes)
+        return None
+
+    @classmethod
+    def point(cls, lat_deg: float, lon_deg: float) -> Geometry:
+        return cls(GeometryKind.POINT, (LatLon(lat_deg, lon_deg),))
+
+    @classmethod
+    def polygon(
+        cls,
+        shell: list[tuple[float, float]],
+        holes: list[list[tuple[float, float]]] | None = None,
+    ) -> Geometry:
+        """A polygon from (lat, lon) pairs."""
+        return cls(
+            GeometryKind.POLYGON,
+            tuple(LatLon(a, b) for a, b in shell),
+            tuple(tuple(LatLon(a, b) for a, b in h) for h in (holes or [])),
+        )
+
+    @classmethod
+    def circle(cls, lat_deg: float, lon_deg: float, radius_m: float) -> Geometry:
+        return cls(GeometryKind.CIRCLE, (LatLon(lat_deg, lon_deg),), radius_m=radius_m)
+
+
+# --------------------------------------------------------------------------- telemetry
+
+
+class VehicleStatus(Struct, frozen=True):
+    """Fast telemetry of one vehicle (5 Hz). Radio: a fixed 40-byte layout."""
+
+    vehicle_id: VehicleId
+    time_unix_s: UnixTimeS  # GPS-derived UNIX time of the sample
+    lat_deg: LatitudeDeg
+    lon_deg: LongitudeDeg
+    alt_msl_m: AltitudeM  # above mean sea level
+    alt_rel_m: AltitudeM  # above home
+    vel_north_m_s: VelocityMS = 0.0
+    vel_east_m_s: VelocityMS = 0.0
+    vel_down_m_s: VelocityMS = 0.0
+    heading_deg: HeadingDeg = 0.0  # vehicle yaw, from true north
+    airspeed_m_s: SpeedMS = 0.0
+    battery_pct: Annotated[int, Meta(ge=-1, le=100, description="remaining %, -1 unknown")] = -1
+    battery_v: VoltageV = 0.0
+    gps_fix: GpsFix = GpsFix.NO_GPS
+    gps_sats: Annotated[int, Meta(ge=0, le=255), Saturate(31)] = 0  # radio saturates at 31
+    ap_mode: Uint8 = 0  # ArduPilot custom_mode number (meaning depends on VehicleType)
+    armed: bool = False
+    fsm_state: FsmState = FsmState.INACTIVE
+    mission_state: MissionState = MissionState.IDLE
+    mission_progress_pct: Percent = 0
+    fleet_id: FleetId = 0
+    alerts: Annotated[AlertFlag, Meta(description="active AlertFlag bits")] = AlertFlag.NONE
+
+    def __post_init__(self) -> None:
+        if not 0 <= int(self.alerts) <= 0xFFFF:
+            raise ValueError("alerts must fit 16 bits")
+
+    @property
+    def groundspeed_m_s(self) -> float:
+        """Horizontal speed over ground, m/s (derived from the NED velocity)."""
+        return math.hypot(self.vel_north_m_s, self.vel_east_m_s)
+
+    @property
+    def course_deg(self) -> float:
+        """Course over ground, degrees from true north (derived from the NED velocity)."""
+        return math.degrees(math.atan2(self.vel_east_m_s, self.vel_north_m_s)) % 360.0
+
+
+class VehicleInfo(Struct, frozen=True):
+    """Identity and slower state of a node (1 Hz): the paper's VehicleInfo."""
+
+    vehicle_id: VehicleId
+    vehicle_type: VehicleType
+    model: Name  # system model name, e.g. "Albatross 250 VTOL"
+    user_id: Name  # the operator's id of this airframe
+    mav_sysid: Annotated[int, Meta(ge=0, le=255, description="MAVLink system id, 0 = none")] = 0
+    payload_model: Name = ""  # "" = no payload
+    payload_subtype: Name = ""
+    payload_type: Name = ""
+    cruise_speed_m_s: SpeedMS = 0.0
+    home: GeoPoint | None = None  # autopilot home
+    base: GeoPoint | None = None  # swarm base (set by the operator), where it returns
+    fleet_id: FleetId = 0
+    mission_id: MissionId = 0  # current mission, 0 = none
+    fsm_state: FsmState = FsmState.INACTIVE
+    errors: tuple[AlertCode, ...] = ()  # active error conditions
+
+
+# --------------------------------------------------------------------------- control
+
+
+class Selector(Struct, frozen=True):
+    """Which vehicles a command or mission addresses (paper section 3.5.2)."""
+
+    kind: SelectorKind = SelectorKind.ALL
+    vehicle_ids: tuple[VehicleId, ...] = ()  # IDS
+    fleet_id: FleetId = 0  # FLEET; for QUANTITY the fleet to choose from (0 = any)
+    quantity: Uint8 = 0  # QUANTITY: how many vehicles voting selects
+    payload_model: Name = ""  # QUANTITY: required payload model ("" = none)
+
+    def __post_init__(self) -> None:
+        if self.kind == SelectorKind.IDS and not self.vehicle_ids:
+            raise ValueError("an IDS selector needs at least one vehicle id")
+        if self.kind != SelectorKind.IDS and self.vehicle_ids:
+            raise ValueError("vehicle_ids are only used by an IDS selector")
+        if self.kind == SelectorKind.FLEET and self.fleet_id == 0:
+            raise ValueError("a FLEET selector needs a fleet_id > 0")
+        if self.kind == SelectorKind.QUANTITY and self.quantity == 0:
+            raise ValueError("a QUANTITY selector needs quantity > 0")
+
+    def addresses(self, vehicle_id: int, fleet_id: int) -> bool:
+        """Whether this vehicle is addressed (QUANTITY: whether it is a candidate)."""
+        if self.kind == SelectorKind.ALL:
+            return True
+        if self.kind == SelectorKind.IDS:
+            return vehicle_id in self.vehicle_ids
+        if self.kind == SelectorKind.FLEET:
+            return fleet_id == self.fleet_id
+        return self.fleet_id == 0 or fleet_id == self.fleet_id
+
+    @classmethod
+    def ids(cls, *vehicle_ids: int) -> Selector:
+        return cls(SelectorKind.IDS, vehicle_ids=tuple(vehicle_ids))
+
+    @classmethod
+    def fleet(cls, fleet_id: int) -> Selector:
+        return cls(SelectorKind.FLEET, fleet_id=fleet_id)
+
+
+class CommandArgs(Struct, frozen=True):
+    """Arguments of a command; which are used depends on CommandKind."""
+
+    point: GeoPoint | None = None
+    value: Annotated[float, Meta(ge=-1.0e6, le=1.0e6), Fixed(0.001)] | None = None  # unit per kind
+    text: ShortText = ""
+    fleet_id: FleetId = 0
+    mission_id: MissionId = 0
+    other_mission_id: MissionId = 0
+
+
+class Command(Struct, frozen=True):
+    """An operator (or peer) command. Every addressed node answers with an Ack."""
+
+    issuer_id: VehicleId
+    seq: Seq  # per issuer, increasing; (issuer_id, seq) identifies the command
+    kind: CommandKind
+    target: Selector = Selector()
+    args: CommandArgs = CommandArgs()
+    time_unix_s: UnixTimeS = 0.0
+
+
+class Ack(Struct, frozen=True):
+    """A node's answer to a command, mission, zone or fleet assignment."""
+
+    vehicle_id: VehicleId  # who answers
+    issuer_id: VehicleId  # who sent what is answered
+    ref: AckRef
+    ref_id: Seq  # command seq, mission id, zone id or fleet id
+    accepted: bool
+    reason: AckReason = AckReason.OK
+    text: ShortText = ""
+
+
+class Alert(Struct, frozen=True):
+    vehicle_id: VehicleId
+    time_unix_s: UnixTimeS
+    severity: Severity
+    code: AlertCode
+    text: ShortText = ""
+
+
+# --------------------------------------------------------------------------- missions
+
+
+class MissionParams(Struct, frozen=True):
+    """Planning parameters. Unused ones keep their defaults; None = the vehicle's own."""
+
+    altitude_rel_m: HeightM = 100.0  # flight altitude above home
+    speed_m_s: SpeedMS | None = None  # None: each vehicle's cruise speed
+    side_overlap: Annotated[float, Meta(ge=0.0, le=0.95), Fixed(1e-4)] = (
+        0.7  # camera lanes, fraction
+    )
+    radius_m: DistanceM | None = None  # target / perimeter / circle radius
+    altitude_step_m: HeightM = 0.0  # vertical separation between vehicles
+    loops: Uint16 = 0  # perimeter / target orbits, 0 = until told otherwise
+    duration_s: DurationS | None = None  # how long to hold (target, objective)
+    heading_deg: HeadingDeg | None = None  # approach / landing heading
+    lead_vehicle_id: OptVehicleId = 0  # MUM-T lead
+    separation_s: DurationS = 0.0  # autoland time separation between vehicles
+
+
+class Mission(Struct, frozen=True):
+    """A mission for the swarm (paper section 2.3.5)."""
+
+    mission_id: MissionId
+    issuer_id: VehicleId
+    mission_type: MissionType
+    geometry: Geometry
+    params: MissionParams = MissionParams()
+    selection: Selector = Selector()
+    name: Name = ""
+    time_unix_s: UnixTimeS = 0.0
+
+    def __post_init__(self) -> None:
+        if self.mission_id == 0:
+            raise ValueError("mission_id 0 is reserved for 'no mission'")
+
+
+class VoteScore(Struct, frozen=True, array_like=True):
+    vehicle_id: VehicleId
+    score: Score
+
+
+class Vote(Struct, frozen=True):
+    """A voter's scores of the candidates for a QUANTITY mission (paper Figure 18)."""
+
+    mission_id: MissionId
+    voter_id: VehicleId
+    scores: tuple[VoteScore, ...]
+    round: Uint8 = 0
+
+
+class FleetAssignment(Struct, frozen=True):
+    """The vehicles that fly a mission together as one fleet."""
+
+    fleet_id: Annotated[int, Meta(ge=1, le=255)]
+    mission_id: MissionId
+    vehicle_ids: tuple[VehicleId, ...]
+    issuer_id: VehicleId
+    time_unix_s: UnixTimeS = 0.0
+
+
+class NoFlyZone(Struct, frozen=True):
+    """Airspace that routes and coverage plans must never enter."""
+
+    zone_id: ZoneId
+    geometry: Geometry  # POLYGON (without holes) or CIRCLE
+    floor_alt_msl_m: AltitudeM = -1000.0
+    ceiling_alt_msl_m: AltitudeM = 8000.0
+    valid_from_unix_s: UnixTimeS = 0.0
+    valid_until_unix_s: UnixTimeS | None = None  # None: until removed
+    active: bool = True
+    name: Name = ""
+
+    def __post_init__(self) -> None:
+        if self.geometry.kind not in (GeometryKind.POLYGON, GeometryKind.CIRCLE):
+            raise ValueError("a no-fly zone is a POLYGON or a CIRCLE")
+        if self.geometry.holes:
+            raise ValueError("a no-fly zone polygon has no holes (declare two zones)")
+        if not self.floor_alt_msl_m < self.ceiling_alt_msl_m:
+            raise ValueError("zone floor must be below its ceiling")
+        if (
+            self.valid_until_unix_s is not None
+            and self.valid_until_unix_s <= self.valid_from_unix_s
+        ):
+            raise ValueError("zone validity ends before it starts")
+
+    def in_force(self, now_unix_s: float) -> bool:
+        if not self.active or now_unix_s < self.valid_from_unix_s:
+            return False
+        return self.valid_until_unix_s is None or now_unix_s < self.valid_until_unix_s
+
+
+class TargetReport(Struct, frozen=True):
+    """A target detected by a payload or marked by the operator."""
+
+    target_id: Seq
+    source_id: VehicleId
+    source: TargetSource
+    time_unix_s: UnixTimeS
+    position: GeoPoint
+    target_class: Name = ""  # autodetection class, e.g. "person", "vehicle"
+    confidence: Fraction = 1.0
+    vel_north_m_s: VelocityMS = 0.0
+    vel_east_m_s: VelocityMS = 0.0
+
+
+#: Every message type, in radio type-tag order (index + 1 is the tag). Append only.
+MESSAGE_TYPES: tuple[type[Struct], ...] = (
+    VehicleStatus,
+    VehicleInfo,
+    Command,
+    Ack,
+    Alert,
+    Mission,
+    Vote,
+    FleetAssignment,
+    NoFlyZone,
+    TargetReport,
+)
+
+
+def validate(msg: Struct) -> None:
+    """Check every constraint of a message we produced (msgspec only checks on decode).
+
+    Raises `swarm_proto.EncodeError` naming the field. Cheap enough for 5 Hz telemetry.
+    """
+    from .errors import EncodeError
+
+    try:
+        msgspec.convert(msgspec.to_builtins(msg), type(msg))
+    except (msgspec.ValidationError, ValueError, TypeError) as exc:
+        raise EncodeError(f"{type(msg).__name__}: {exc}") from exc

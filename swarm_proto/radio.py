@@ -1,0 +1,446 @@
+"""Compact encoding for the 900 MHz radio.
+
+Every encoded message starts with two bytes: the radio schema version and the message
+type tag (1-based index in `MESSAGE_TYPES`). Then:
+
+- `VehicleStatus` (the 5 Hz hot path): a fixed 40-byte little-endian layout of
+  fixed-point integers (see `STATUS_LAYOUT` and docs/radio-encoding.md).
+- every other message: a MessagePack array of its fields by position (nested structs
+  are nested arrays), floats as fixed-point integers at the resolution their type
+  declares with `units.Fixed`, enums as integers, times as integer milliseconds.
+
+Evolution is append-only: a decoder fills missing trailing fields with their defaults
+and ignores extra trailing fields, so old and new nodes interoperate.
+
+Decoding never raises anything but `swarm_proto.DecodeError`, whatever the bytes.
+"""
+
+from __future__ import annotations
+
+import decimal
+import enum
+import math
+import struct
+import types
+import typing
+from dataclasses import dataclass
+from typing import Any, Union
+
+import msgspec
+
+from .enums import AlertFlag, FsmState, GpsFix, MissionState
+from .errors import DecodeError, EncodeError
+from .messages import MESSAGE_TYPES, VehicleStatus
+from .units import Fixed, Saturate
+
+RADIO_SCHEMA_VERSION = 1
+TAG_OF: dict[type, int] = {cls: i + 1 for i, cls in enumerate(MESSAGE_TYPES)}
+TYPE_OF: dict[int, type] = {tag: cls for cls, tag in TAG_OF.items()}
+
+_DECODE_FAILURES = (
+    msgspec.MsgspecError,
+    ValueError,
+    TypeError,
+    IndexError,
+    KeyError,
+    OverflowError,
+    AttributeError,
+    RecursionError,
+    struct.error,
+)
+
+# --------------------------------------------------------------------------- fixed point
+
+
+@dataclass(frozen=True)
+class _Bounds:
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    lt: float | None = None
+
+    def contains(self, x: float) -> bool:
+        """False for NaN and for anything outside the bounds."""
+        return (
+            (self.ge is None or x >= self.ge)
+            and (self.gt is None or x > self.gt)
+            and (self.le is None or x <= self.le)
+            and (self.lt is None or x < self.lt)
+            and x == x
+        )
+
+
+def _bounds(meta_items: tuple[Any, ...]) -> _Bounds:
+    ge = gt = le = lt = None
+    for m in meta_items:
+        if isinstance(m, msgspec.Meta):
+            ge = m.ge if m.ge is not None else ge
+            gt = m.gt if m.gt is not None else gt
+            le = m.le if m.le is not None else le
+            lt = m.lt if m.lt is not None else lt
+    return _Bounds(ge, gt, le, lt)
+
+
+def _digits(res: float) -> int:
+    """Decimal places that represent multiples of `res` exactly (0.25 -> 2, 1e-7 -> 7)."""
+    exponent = decimal.Decimal(repr(res)).as_tuple().exponent
+    return max(0, -int(exponent))
+
+
+class _Fixed:
+    """Fixed-point codec of one bounded float: value = integer * res.
+
+    A value inside the bounds always encodes to an integer whose value is inside the
+    bounds too (rounding next to a strict bound, e.g. heading < 360, steps back one
+    unit). A value outside the bounds, NaN or infinite is an EncodeError.
+    """
+
+    def __init__(self, res: float, bounds: _Bounds) -> None:
+        self.res, self.bounds, self.digits = res, bounds, _digits(res)
+        lo = bounds.ge if bounds.ge is not None else bounds.gt
+        hi = bounds.le if bounds.le is not None else bounds.lt
+        self.lo_q = None if lo is None else math.ceil(lo / res - 1e-9)
+        self.hi_q = None if hi is None else math.floor(hi / res + 1e-9)
+        if self.lo_q is not None and bounds.gt is not None and self.lo_q * res <= bounds.gt:
+            self.lo_q += 1
+        if self.hi_q is not None and bounds.lt is not None and self.hi_q * res >= bounds.lt:
+            self.hi_q -= 1
+
+    def enc(self, x: float) -> int:
+        if not self.bounds.contains(x):
+            raise EncodeError(f"value {x!r} outside {self.bounds}")
+        q = round(x / self.res)
+        if self.hi_q is not None and q > self.hi_q:
+            q = self.hi_q
+        if self.lo_q is not None and q < self.lo_q:
+            q = self.lo_q
+        return q
+
+    def dec(self, q: Any) -> float:
+        if type(q) is not int:
+            raise TypeError(f"expected a fixed-point integer, got {type(q).__name__}")
+        return round(q * self.res, self.digits)
+
+
+# --------------------------------------------------------------------------- generic plan
+
+
+class _Codec:
+    def enc(self, v: Any) -> Any:
+        raise NotImplementedError
+
+    def dec(self, v: Any) -> Any:
+        raise NotImplementedError
+
+
+class _Plain(_Codec):
+    def __init__(self, saturate: int | None = None) -> None:
+        self.saturate = saturate
+
+    def enc(self, v: Any) -> Any:
+        if isinstance(v, enum.Enum):
+            v = v.value
+        if self.saturate is not None and v > self.saturate:
+            v = self.saturate
+        return v
+
+    def dec(self, v: Any) -> Any:
+        return v
+
+
+class _FixedFloat(_Codec):
+    def __init__(self, res: float, bounds: _Bounds) -> None:
+        self.fixed = _Fixed(res, bounds)
+
+    def enc(self, v: Any) -> Any:
+        return self.fixed.enc(float(v))
+
+    def dec(self, v: Any) -> Any:
+        return self.fixed.dec(v)
+
+
+class _Optional(_Codec):
+    def __init__(self, inner: _Codec) -> None:
+        self.inner = inner
+
+    def enc(self, v: Any) -> Any:
+        return None if v is None else self.inner.enc(v)
+
+    def dec(self, v: Any) -> Any:
+        return None if v is None else self.inner.dec(v)
+
+
+class _Seq(_Codec):
+    def __init__(self, inner: _Codec) -> None:
+        self.inner = inner
+
+    def enc(self, v: Any) -> Any:
+        return [self.inner.enc(x) for x in v]
+
+    def dec(self, v: Any) -> Any:
+        if not isinstance(v, list):
+            raise TypeError("expected an array")
+        return [self.inner.dec(x) for x in v]
+
+
+class _StructCodec(_Codec):
+    def __init__(self, cls: type) -> None:
+        self.cls = cls
+        self.fields: list[tuple[str, _Codec, bool]] = []  # name, codec, required
+        info = msgspec.inspect.type_info(cls)
+        self.array_like = isinstance(info, msgspec.inspect.StructType) and info.array_like
+
+    def enc(self, v: Any) -> Any:
+        return [codec.enc(getattr(v, name)) for name, codec, _ in self.fields]
+
+    def dec(self, v: Any) -> Any:
+        if not isinstance(v, list):
+            raise TypeError(f"expected an array for {self.cls.__name__}")
+        out: dict[str, Any] = {}
+        for i, (name, codec, required) in enumerate(self.fields):
+            if i < len(v):
+                out[name] = codec.dec(v[i])
+            elif required:
+                raise ValueError(f"{self.cls.__name__}.{name} missing")
+        return list(out.values()) if self.array_like else out
+
+
+_PLANS: dict[type, _StructCodec] = {}
+
+
+def _codec_for(tp: Any) -> _Codec:
+    origin = typing.get_origin(tp)
+    if origin is typing.Annotated:
+        base, *extras = typing.get_args(tp)
+        fixed = next((e for e in extras if isinstance(e, Fixed)), None)
+        sat = next((e for e in extras if isinstance(e, Saturate)), None)
+        if base is float:
+            if fixed is None:
+                raise EncodeError(f"float field without a Fixed resolution: {tp}")
+            return _FixedFloat(fixed.resolution, _bounds(tuple(extras)))
+        if sat is not None:
+            return _Plain(sat.maximum)
+        return _codec_for(base)
+    if origin in (Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) != 1:
+            raise EncodeError(f"unsupported union {tp}")
+        return _Optional(_codec_for(args[0]))
+    if origin is tuple:
+        targs = typing.get_args(tp)
+        if len(targs) != 2 or targs[1] is not Ellipsis:
+            raise EncodeError(f"only tuple[X, ...] is supported, got {tp}")
+        return _Seq(_codec_for(targs[0]))
+    if isinstance(tp, type) and issubclass(tp, msgspec.Struct):
+        return _plan(tp)
+    if tp is float:
+        raise EncodeError("float field without a Fixed resolution")
+    if tp in (int, bool, str) or (isinstance(tp, type) and issubclass(tp, enum.Enum)):
+        return _Plain()
+    raise EncodeError(f"unsupported field type {tp!r}")
+
+
+def _plan(cls: type) -> _StructCodec:
+    plan = _PLANS.get(cls)
+    if plan is None:
+        plan = _PLANS[cls] = _StructCodec(cls)  # registered first: recursive types
+        hints = typing.get_type_hints(cls, include_extras=True)
+        info = msgspec.inspect.type_info(cls)
+        assert isinstance(info, msgspec.inspect.StructType)
+        for f in info.fields:
+            plan.fields.append((f.name, _codec_for(hints[f.name]), f.required))
+    return plan
+
+
+# --------------------------------------------------------------------------- status layout
+
+#: version, tag, vehicle_id, time_ms mod 2^32, lat e7, lon e7, alt_msl/4, alt_rel/4,
+#: vn, ve, vd (cm/s), heading (cdeg), airspeed (cm/s), battery % (255 unknown),
+#: voltage (10 mV), gps (fix | sats << 3), ap_mode, flags, progress %, fleet, alerts
+STATUS_LAYOUT = struct.Struct("<BBHIiihhhhhHHBHBBBBBH")
+STATUS_BYTES = STATUS_LAYOUT.size
+_STATUS_TAG = TAG_OF[VehicleStatus]
+_MS_WRAP = 1 << 32
+
+
+def _status_fixed(name: str) -> _Fixed:
+    hint = typing.get_type_hints(VehicleStatus, include_extras=True)[name]
+    extras = typing.get_args(hint)[1:]
+    fixed = next(e for e in extras if isinstance(e, Fixed))
+    return _Fixed(fixed.resolution, _bounds(tuple(extras)))
+
+
+_LAT, _LON, _ALT, _REL, _VN, _VE, _VD, _HDG, _ASPD, _VOLT = (
+    _status_fixed(n)
+    for n in (
+        "lat_deg",
+        "lon_deg",
+        "alt_msl_m",
+        "alt_rel_m",
+        "vel_north_m_s",
+        "vel_east_m_s",
+        "vel_down_m_s",
+        "heading_deg",
+        "airspeed_m_s",
+        "battery_v",
+    )
+)
+_TIME = _status_fixed("time_unix_s")
+
+
+def _encode_status(s: VehicleStatus) -> bytes:
+    flags = (
+        (1 if s.armed else 0) | (int(s.fsm_state) & 0x3) << 1 | (int(s.mission_state) & 0xF) << 3
+    )
+    gps = (int(s.gps_fix) & 0x7) | min(s.gps_sats, 31) << 3
+    try:
+        return STATUS_LAYOUT.pack(
+            RADIO_SCHEMA_VERSION,
+            _STATUS_TAG,
+            s.vehicle_id,
+            _TIME.enc(s.time_unix_s) % _MS_WRAP,
+            _LAT.enc(s.lat_deg),
+            _LON.enc(s.lon_deg),
+            _ALT.enc(s.alt_msl_m),
+            _REL.enc(s.alt_rel_m),
+            _VN.enc(s.vel_north_m_s),
+            _VE.enc(s.vel_east_m_s),
+            _VD.enc(s.vel_down_m_s),
+            _HDG.enc(s.heading_deg),
+            _ASPD.enc(s.airspeed_m_s),
+            255 if s.battery_pct < 0 else s.battery_pct,
+            _VOLT.enc(s.battery_v),
+            gps,
+            s.ap_mode,
+            flags,
+            s.mission_progress_pct,
+            s.fleet_id,
+            int(s.alerts),
+        )
+    except (struct.error, TypeError) as exc:
+        raise EncodeError(f"VehicleStatus out of range for the radio layout: {exc}") from exc
+
+
+def unwrap_time_ms(ms_mod: int, now_unix_s: float) -> float:
+    """The UNIX time (s) whose milliseconds mod 2^32 are `ms_mod`, nearest to `now`."""
+    now_ms = int(now_unix_s * 1000.0)
+    k = round((now_ms - ms_mod) / _MS_WRAP)
+    t = ms_mod + k * _MS_WRAP
+    if t < 0:
+        t += _MS_WRAP
+    return t / 1000.0
+
+
+def _decode_status(data: bytes, now_unix_s: float) -> VehicleStatus:
+    if len(data) < STATUS_BYTES:
+        raise DecodeError(
+            f"VehicleStatus needs {STATUS_BYTES} bytes, got {len(data)}", reason="truncated"
+        )
+    values: tuple[int, ...] = STATUS_LAYOUT.unpack_from(data)
+    (
+        _v,
+        _t,
+        vid,
+        t_ms,
+        lat,
+        lon,
+        alt,
+        rel,
+        vn,
+        ve,
+        vd,
+        hdg,
+        aspd,
+        batt,
+        volt,
+        gps,
+        mode,
+        flags,
+        prog,
+        fleet,
+        alerts,
+    ) = values
+    fields = {
+        "vehicle_id": vid,
+        "time_unix_s": unwrap_time_ms(t_ms, now_unix_s),
+        "lat_deg": _LAT.dec(lat),
+        "lon_deg": _LON.dec(lon),
+        "alt_msl_m": _ALT.dec(alt),
+        "alt_rel_m": _REL.dec(rel),
+        "vel_north_m_s": _VN.dec(vn),
+        "vel_east_m_s": _VE.dec(ve),
+        "vel_down_m_s": _VD.dec(vd),
+        "heading_deg": _HDG.dec(hdg),
+        "airspeed_m_s": _ASPD.dec(aspd),
+        "battery_pct": -1 if batt == 255 else batt,
+        "battery_v": _VOLT.dec(volt),
+        "gps_fix": GpsFix(gps & 0x7),
+        "gps_sats": gps >> 3,
+        "ap_mode": mode,
+        "armed": bool(flags & 1),
+        "fsm_state": FsmState((flags >> 1) & 0x3),
+        "mission_state": MissionState((flags >> 3) & 0xF),
+        "mission_progress_pct": prog,
+        "fleet_id": fleet,
+        "alerts": AlertFlag(alerts),
+    }
+    return msgspec.convert(fields, VehicleStatus)
+
+
+# --------------------------------------------------------------------------- public API
+
+_packer = msgspec.msgpack.Encoder()
+
+
+def encode(msg: msgspec.Struct) -> bytes:
+    """Encode a message for the radio. Raises EncodeError for unregistered types or
+    values the radio cannot carry."""
+    tag = TAG_OF.get(type(msg))
+    if tag is None:
+        raise EncodeError(f"{type(msg).__name__} has no radio type tag")
+    if isinstance(msg, VehicleStatus):
+        return _encode_status(msg)
+    try:
+        body = _plan(type(msg)).enc(msg)
+        data = bytes((RADIO_SCHEMA_VERSION, tag)) + _packer.encode(body)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise EncodeError(f"{type(msg).__name__}: {exc}") from exc
+    try:  # rare messages: prove the receiver can decode what we send
+        msgspec.convert(_plan(type(msg)).dec(msgspec.msgpack.decode(data[2:])), type(msg))
+    except _DECODE_FAILURES as exc:
+        raise EncodeError(f"{type(msg).__name__} is not valid at radio resolution: {exc}") from exc
+    return data
+
+
+def peek_type(data: bytes) -> type:
+    """The message type of an encoded radio message, without decoding it."""
+    if len(data) < 2:
+        raise DecodeError("radio message shorter than its 2-byte header", reason="truncated")
+    if data[0] != RADIO_SCHEMA_VERSION:
+        raise DecodeError(f"unsupported radio schema version {data[0]}", reason="version")
+    cls = TYPE_OF.get(data[1])
+    if cls is None:
+        raise DecodeError(f"unknown radio message type tag {data[1]}", reason="unknown-type")
+    return cls
+
+
+def decode(data: bytes | bytearray | memoryview, *, now_unix_s: float) -> msgspec.Struct:
+    """Decode one radio message. `now_unix_s` resolves the 32-bit millisecond time of a
+    VehicleStatus (the nearest match to now; unambiguous within +-24 days)."""
+    data = bytes(data)
+    cls = peek_type(data)
+    try:
+        if cls is VehicleStatus:
+            return _decode_status(data, now_unix_s)
+        raw = msgspec.msgpack.decode(data[2:])
+        return msgspec.convert(_plan(cls).dec(raw), cls)
+    except DecodeError:
+        raise
+    except _DECODE_FAILURES as exc:
+        raise DecodeError(f"invalid {cls.__name__} radio payload: {exc}") from exc
+
+
+def quantized(msg: msgspec.Struct, *, now_unix_s: float | None = None) -> msgspec.Struct:
+    """What a receiver decodes from `msg`: the message at radio resolution."""
+    now = now_unix_s if now_unix_s is not None else getattr(msg, "time_unix_s", 0.0)
+    return decode(encode(msg), now_unix_s=now)

@@ -1,0 +1,49 @@
+"""Shared test fixtures: paths, free loopback ports, Zenoh sessions on 127.0.0.1."""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("BANDADA_SHARED", REPO.parent / "shared"))
+
+# Shared, noisy 2-core machines: no per-example deadlines; derandomized on CI.
+settings.register_profile(
+    "default", deadline=None, suppress_health_check=[HealthCheck.too_slow], max_examples=100
+)
+settings.register_profile(
+    "ci", parent=settings.get_profile("default"), derandomize=True, print_blob=True
+)
+settings.load_profile("ci" if os.environ.get("CI") else "default")
+
+
+def free_tcp_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture
+def shared_dir() -> Path:
+    if not SHARED.is_dir():
+        pytest.skip(f"../shared not found at {SHARED}")
+    return SHARED
+
+
+@pytest.fixture
+def zenoh_router() -> Iterator[str]:
+    """A router-mode Zenoh session on a free 127.0.0.1 port; yields its endpoint."""
+    from swarm_proto.session import ZenohSettings, open_session
+
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    session = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+    try:
+        yield endpoint
+    finally:
+        session.close()

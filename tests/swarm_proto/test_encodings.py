@@ -1,0 +1,227 @@
+"""Both encodings: round trips for every message (hypothesis), fuzzed decoders, the
+radio's size, resolution, versioning and append-only evolution."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import typing
+from typing import Any
+
+import msgspec
+import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
+
+from swarm_proto import (
+    MESSAGE_TYPES,
+    AlertFlag,
+    DecodeError,
+    EncodeError,
+    Geometry,
+    GpsFix,
+    Mission,
+    MissionParams,
+    MissionType,
+    VehicleStatus,
+    lan,
+    radio,
+)
+from swarm_proto.testing import message_of, messages
+from swarm_proto.units import Fixed, Saturate
+
+NOW = 1.75e9
+
+
+# --------------------------------------------------------------------------- LAN
+
+
+@pytest.mark.parametrize("cls", MESSAGE_TYPES, ids=lambda c: c.__name__)
+@given(data=st.data())
+def test_lan_round_trip(cls: type, data: st.DataObject) -> None:
+    msg = data.draw(message_of(cls))
+    assert lan.decode(lan.encode(msg), cls) == msg
+
+
+@pytest.mark.parametrize("cls", MESSAGE_TYPES, ids=lambda c: c.__name__)
+@given(blob=st.binary(max_size=512))
+def test_lan_decoder_survives_random_bytes(cls: type, blob: bytes) -> None:
+    with contextlib.suppress(DecodeError):
+        lan.decode(blob, cls)
+
+
+@given(msg=messages(), data=st.data())
+def test_lan_decoder_survives_mutated_payloads(msg: Any, data: st.DataObject) -> None:
+    blob = bytearray(lan.encode(msg))
+    for _ in range(data.draw(st.integers(1, 4))):
+        i = data.draw(st.integers(0, len(blob) - 1))
+        blob[i] = data.draw(st.integers(0, 255))
+    cut = data.draw(st.integers(0, len(blob)))
+    with contextlib.suppress(DecodeError):
+        lan.decode(bytes(blob[:cut]), type(msg))
+
+
+# --------------------------------------------------------------------------- radio
+
+
+def _close(cls: type, a: Any, b: Any) -> None:
+    """b (decoded from radio) equals a (sent) to within one step of each field's radio
+    resolution (half a step, except next to a strict bound such as heading < 360)."""
+    hints = typing.get_type_hints(cls, include_extras=True)
+    for name in cls.__struct_fields__:
+        _close_value(hints[name], getattr(a, name), getattr(b, name), f"{cls.__name__}.{name}")
+
+
+def _close_value(hint: Any, a: Any, b: Any, where: str) -> None:
+    origin = typing.get_origin(hint)
+    if origin is typing.Annotated:
+        base, *extras = typing.get_args(hint)
+        fixed = next((e for e in extras if isinstance(e, Fixed)), None)
+        sat = next((e for e in extras if isinstance(e, Saturate)), None)
+        if fixed is not None:
+            assert math.isclose(a, b, abs_tol=fixed.resolution * (1 + 1e-6)), (where, a, b)
+            return
+        if sat is not None:
+            assert b == min(a, sat.maximum), where
+            return
+        _close_value(base, a, b, where)
+        return
+    if origin in (typing.Union, __import__("types").UnionType):
+        if a is None or b is None:
+            assert a is None and b is None, where
+            return
+        (inner,) = [x for x in typing.get_args(hint) if x is not type(None)]
+        _close_value(inner, a, b, where)
+        return
+    if origin is tuple:
+        assert len(a) == len(b), where
+        (inner, _) = typing.get_args(hint)
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _close_value(inner, x, y, f"{where}[{i}]")
+        return
+    if isinstance(hint, type) and issubclass(hint, msgspec.Struct):
+        _close(hint, a, b)
+        return
+    assert a == b, (where, a, b)
+
+
+@pytest.mark.parametrize("cls", MESSAGE_TYPES, ids=lambda c: c.__name__)
+@given(data=st.data())
+def test_radio_round_trip_within_resolution(cls: type, data: st.DataObject) -> None:
+    msg = data.draw(message_of(cls))
+    now = getattr(msg, "time_unix_s", NOW)
+    try:
+        blob = radio.encode(msg)
+    except EncodeError as exc:  # e.g. a 1 mm zone thickness: refused at the sender
+        assert "radio resolution" in str(exc)
+        assume(False)
+        raise
+    back = radio.decode(blob, now_unix_s=now + data.draw(st.floats(-86400, 86400)))
+    assert type(back) is cls
+    _close(cls, msg, back)
+    assert radio.encode(back) == blob  # quantization is idempotent
+
+
+@given(msg=message_of(VehicleStatus))
+def test_radio_status_is_40_bytes(msg: VehicleStatus) -> None:
+    assert len(radio.encode(msg)) == radio.STATUS_BYTES == 40
+
+
+@given(blob=st.binary(max_size=256))
+def test_radio_decoder_survives_random_bytes(blob: bytes) -> None:
+    with contextlib.suppress(DecodeError):
+        radio.decode(blob, now_unix_s=NOW)
+
+
+@given(blob=st.binary(max_size=256), tag=st.sampled_from(sorted(radio.TYPE_OF)))
+def test_radio_decoder_survives_random_bodies(blob: bytes, tag: int) -> None:
+    with contextlib.suppress(DecodeError):
+        radio.decode(bytes((radio.RADIO_SCHEMA_VERSION, tag)) + blob, now_unix_s=NOW)
+
+
+@given(msg=messages(), data=st.data())
+def test_radio_decoder_survives_mutated_messages(msg: Any, data: st.DataObject) -> None:
+    blob = bytearray(radio.encode(msg))
+    for _ in range(data.draw(st.integers(1, 4))):
+        i = data.draw(st.integers(0, len(blob) - 1))
+        blob[i] ^= 1 << data.draw(st.integers(0, 7))
+    cut = data.draw(st.integers(0, len(blob)))
+    with contextlib.suppress(DecodeError):
+        radio.decode(bytes(blob[:cut]), now_unix_s=NOW)
+
+
+def _status(**kw: Any) -> VehicleStatus:
+    base: dict[str, Any] = dict(
+        vehicle_id=7,
+        time_unix_s=NOW,
+        lat_deg=37.4112,
+        lon_deg=-5.9889,
+        alt_msl_m=110.0,
+        alt_rel_m=100.0,
+    )
+    base.update(kw)
+    return VehicleStatus(**base)
+
+
+def test_radio_header_errors_are_typed() -> None:
+    blob = radio.encode(_status())
+    with pytest.raises(DecodeError) as e:
+        radio.decode(b"\x09" + blob[1:], now_unix_s=NOW)
+    assert e.value.reason == "version"
+    with pytest.raises(DecodeError) as e:
+        radio.decode(blob[:1] + b"\xee" + blob[2:], now_unix_s=NOW)
+    assert e.value.reason == "unknown-type"
+    with pytest.raises(DecodeError) as e:
+        radio.decode(blob[:20], now_unix_s=NOW)
+    assert e.value.reason == "truncated"
+
+
+def test_status_fields_survive_the_radio() -> None:
+    s = _status(
+        heading_deg=359.999,
+        gps_sats=40,
+        gps_fix=GpsFix.RTK_FIXED,
+        battery_pct=-1,
+        alerts=AlertFlag.GPS_LOSS | AlertFlag.BATTERY_LOW,
+        vel_down_m_s=-2.5,
+        armed=True,
+    )
+    back = radio.decode(radio.encode(s), now_unix_s=NOW + 3600)
+    assert isinstance(back, VehicleStatus)
+    assert back.heading_deg == pytest.approx(359.99)  # stays below 360
+    assert back.gps_sats == 31  # saturates
+    assert back.battery_pct == -1 and back.gps_fix == GpsFix.RTK_FIXED and back.armed
+    assert back.alerts == AlertFlag.GPS_LOSS | AlertFlag.BATTERY_LOW
+    assert back.vel_down_m_s == -2.5
+
+
+@given(t=st.floats(0, 4e9), skew=st.floats(-20 * 86400, 20 * 86400))
+def test_status_time_unwraps_near_now(t: float, skew: float) -> None:
+    ms = round(t * 1000) % (1 << 32)
+    assert radio.unwrap_time_ms(ms, t + skew) == pytest.approx(round(t * 1000) / 1000, abs=1e-3)
+
+
+def test_radio_is_append_only() -> None:
+    m = Mission(
+        5, 1, MissionType.TARGET, Geometry.point(37.4, -5.9), MissionParams(radius_m=80.0), name="t"
+    )
+    raw = msgspec.msgpack.decode(radio.encode(m)[2:])
+    header = bytes((radio.RADIO_SCHEMA_VERSION, radio.TAG_OF[Mission]))
+    # an older sender without the trailing optional fields
+    older = radio.decode(header + msgspec.msgpack.encode(raw[:-2]), now_unix_s=NOW)
+    assert isinstance(older, Mission) and older.name == "" and older.geometry == m.geometry
+    # a newer sender with fields we do not know yet
+    newer = radio.decode(header + msgspec.msgpack.encode([*raw, 42, "future"]), now_unix_s=NOW)
+    assert newer == m
+    # but required fields cannot be dropped
+    with pytest.raises(DecodeError, match="missing"):
+        radio.decode(header + msgspec.msgpack.encode(raw[:2]), now_unix_s=NOW)
+
+
+def test_radio_refuses_values_it_cannot_carry() -> None:
+    with pytest.raises(EncodeError):
+        radio.encode(_status(lat_deg=math.nan))
+    with pytest.raises(EncodeError):
+        radio.encode(_status(ap_mode=999))
+    with pytest.raises(EncodeError, match="no radio type tag"):
+        radio.encode(MissionParams())

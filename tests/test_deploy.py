@@ -1,0 +1,32 @@
+"""The shipped deployment files are valid for the tools that read them."""
+
+from __future__ import annotations
+
+import configparser
+
+import pytest
+import zenoh
+
+from tests.conftest import REPO
+
+
+@pytest.mark.parametrize("name", ["router.json5", "peer.json5"])
+def test_zenoh_configs_load(name: str) -> None:
+    conf = zenoh.Config.from_file(str(REPO / "deploy" / "zenoh" / name))
+    assert '"' + name.split(".")[0] + '"' in conf.get_json("mode")
+    assert conf.get_json("transport/link/tx/lease") == "2000"
+
+
+@pytest.mark.parametrize(
+    "unit", sorted((REPO / "deploy" / "systemd").glob("*.service")), ids=lambda p: p.name
+)
+def test_service_units_parse_and_stop_cleanly(unit: object) -> None:
+    cp = configparser.ConfigParser(strict=False, interpolation=None)
+    cp.read(unit)  # type: ignore[arg-type]
+    assert cp["Service"]["ExecStart"].startswith("/opt/bandada/.venv/bin/")
+    assert cp["Service"]["KillSignal"] == "SIGINT"
+
+
+def test_udev_rules_name_the_devices() -> None:
+    text = (REPO / "deploy" / "udev" / "99-bandada.rules").read_text()
+    assert 'SYMLINK+="bandada-radio"' in text and 'SYMLINK+="bandada-autopilot"' in text
