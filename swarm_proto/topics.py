@@ -213,6 +213,19 @@ ALIVE = Topic(
     "Liveliness token of every running node (vehicle, ground station, gateway).",
 )
 
+DATABASE = Topic(
+    "database",
+    "db/{node_id}",
+    None,
+    "Swarm database queryable of a node; selectors beneath it name tables and rows.",
+)
+RADIO_STATS = Topic(
+    "radio_stats",
+    "radio/{node_id}/stats",
+    None,
+    "Radio gateway statistics per peer (LAN only).",
+)
+
 TOPICS: tuple[Topic, ...] = (
     STATUS,
     INFO,
@@ -225,6 +238,8 @@ TOPICS: tuple[Topic, ...] = (
     ZONE,
     TARGET,
     ALIVE,
+    DATABASE,
+    RADIO_STATS,
 )
 TOPIC_OF_TYPE: dict[type, Topic] = {t.msg_type: t for t in TOPICS if t.msg_type is not None}
 

@@ -12,7 +12,17 @@ from tests.conftest import REPO
 FORBIDDEN = {"zenoh", "serial", "asyncio", "socket", "time", "threading", "sqlite3", "subprocess"}
 FORBIDDEN_FROM = {"pymavlink.mavutil"}  # the MAVLink parser (pymavlink.dialects) is pure
 
-PURE_PROTO = ["messages", "enums", "units", "errors", "lan", "radio", "topics", "keyspace_doc"]
+PURE_PROTO = [
+    "messages",
+    "enums",
+    "units",
+    "errors",
+    "lan",
+    "radio",
+    "topics",
+    "keyspace_doc",
+    "ardupilot",
+]
 
 
 def pure_files() -> list[Path]:
