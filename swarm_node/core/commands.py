@@ -1,0 +1,320 @@
+"""Command manager (paper section 2.3.4, "CommandManager") and the swarm manager's
+acceptance checks (section 2.3.3).
+
+`plan_command` turns an operator command into autopilot requests (run in order), node
+effects (set base, fleet, active flag, cancel) and, for anything decided at once, an
+immediate Ack. `CommandTracker` runs the requests one after another and answers every
+command with exactly one Ack: accepted when all its requests succeed, rejected with the
+autopilot's reason when one fails, TIMEOUT when the link never answers.
+`check_mission` applies the paper's three rejection rules to a mission.
+
+Pure: no I/O; `now` is passed in.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import msgspec
+
+from swarm_proto import (
+    Ack,
+    AckReason,
+    AckRef,
+    AlertCode,
+    Command,
+    CommandKind,
+    FsmState,
+    GeoPoint,
+    Mission,
+    SelectorKind,
+    VehicleType,
+)
+
+from .autopilot.requests import (
+    ApRequest,
+    ApResult,
+    Arm,
+    Calibrate,
+    ChangeAltitude,
+    ChangeSpeed,
+    Disarm,
+    Goto,
+    Land,
+    Parachute,
+    ReturnToLaunch,
+    SetMode,
+    Takeoff,
+    UploadRally,
+)
+from .autopilot.state import AutopilotState
+from .profile import VehicleProfile
+
+ABORT_LANDING_MIN_ALT_M = 30.0  # climb to at least this (above home) when aborting a landing
+
+
+@dataclass(frozen=True)
+class NodeView:
+    """What command and acceptance decisions look at (a snapshot taken by the node)."""
+
+    self_id: int
+    fleet_id: int
+    profile: VehicleProfile
+    autopilot: AutopilotState
+    fsm_state: FsmState
+    mission_id: int | None
+    base: GeoPoint | None
+    ready: bool  # vehicle monitoring says the vehicle is ready
+
+
+# ----------------------------------------------------------------------- node effects
+
+
+@dataclass(frozen=True)
+class SetBase:
+    point: GeoPoint
+
+
+@dataclass(frozen=True)
+class SetFleet:
+    fleet_id: int
+
+
+@dataclass(frozen=True)
+class SetActive:
+    active: bool
+
+
+@dataclass(frozen=True)
+class CancelMission:
+    mission_id: int
+
+
+Effect = SetBase | SetFleet | SetActive | CancelMission
+
+
+@dataclass(frozen=True)
+class CommandPlan:
+    requests: tuple[ApRequest, ...] = ()
+    effects: tuple[Effect, ...] = ()
+    ack: Ack | None = None  # set: answered now (rejection, or nothing to ask the autopilot)
+
+
+def _ack(
+    cmd: Command, view: NodeView, ok: bool, reason: AckReason = AckReason.OK, text: str = ""
+) -> Ack:
+    return Ack(view.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, text[:64])
+
+
+def _land_request(profile: VehicleProfile) -> tuple[ApRequest, ...]:
+    if profile.vehicle_type in (VehicleType.ROVER, VehicleType.BOAT):
+        return (SetMode(mode="HOLD"),)
+    return (Land(),)
+
+
+def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
+    """What to do with a command; None when it does not address this vehicle."""
+    if (
+        not cmd.target.addresses(view.self_id, view.fleet_id)
+        or cmd.target.kind == SelectorKind.QUANTITY
+    ):
+        return None
+    k, a, p, ap = cmd.kind, cmd.args, view.profile, view.autopilot
+
+    def reject(reason: AckReason, text: str = "") -> CommandPlan:
+        return CommandPlan(ack=_ack(cmd, view, False, reason, text))
+
+    def done(*effects: Effect) -> CommandPlan:
+        return CommandPlan(effects=effects, ack=_ack(cmd, view, True))
+
+    # ---- swarm-level commands: decided here
+    if k == CommandKind.SET_BASE:
+        if a.point is None:
+            return reject(AckReason.INVALID, "SET_BASE needs a point")
+        reqs: tuple[ApRequest, ...] = ()
+        if ap.link_ok and ap.home is not None:  # RTL goes to the nearest rally point: the base
+            reqs = (
+                UploadRally(
+                    points=(
+                        (a.point.lat_deg, a.point.lon_deg, a.point.alt_msl_m - ap.home.alt_msl_m),
+                    )
+                ),
+            )
+        return CommandPlan(
+            requests=reqs, effects=(SetBase(a.point),), ack=None if reqs else _ack(cmd, view, True)
+        )
+    if k == CommandKind.SET_FLEET:
+        return done(SetFleet(a.fleet_id))
+    if k == CommandKind.ACTIVATE:
+        return done(SetActive(True))
+    if k == CommandKind.SHUTDOWN:
+        return done(SetActive(False))
+    if k == CommandKind.CANCEL_MISSION:
+        if view.mission_id is None or a.mission_id != view.mission_id:
+            return reject(AckReason.NOT_FOUND, f"not flying mission {a.mission_id}")
+        return done(CancelMission(a.mission_id))
+    if k in (CommandKind.JOIN_MISSION, CommandKind.SWAP_MISSION):
+        return reject(AckReason.UNSUPPORTED, "add/swap are handled by the mission manager")
+
+    # ---- autopilot commands
+    if not ap.link_ok:
+        return reject(AckReason.NOT_READY, "autopilot link is down")
+    if k == CommandKind.ARM:
+        return CommandPlan(requests=(Arm(),))
+    if k == CommandKind.DISARM:
+        return CommandPlan(requests=(Disarm(),))
+    if k == CommandKind.TAKEOFF:
+        if a.value is None or a.value <= 0:
+            return reject(AckReason.INVALID, "TAKEOFF needs an altitude > 0 (m above home)")
+        if not p.can_hover and p.vehicle_type == VehicleType.PLANE and not ap.armed:
+            return reject(AckReason.NOT_READY, "arm the plane first")
+        return CommandPlan(requests=(Takeoff(alt_rel_m=a.value),))
+    if k == CommandKind.SET_MODE:
+        if not a.text:
+            return reject(AckReason.INVALID, "SET_MODE needs a mode name")
+        return CommandPlan(requests=(SetMode(mode=a.text.upper()),))
+    if k == CommandKind.GOTO:
+        if a.point is None:
+            return reject(AckReason.INVALID, "GOTO needs a point")
+        if ap.home is None:
+            return reject(AckReason.HOME_NOT_SET)
+        alt_rel = a.point.alt_msl_m - ap.home.alt_msl_m
+        return CommandPlan(
+            requests=(Goto(lat_deg=a.point.lat_deg, lon_deg=a.point.lon_deg, alt_rel_m=alt_rel),)
+        )
+    if k == CommandKind.SET_SPEED:
+        if a.value is None or a.value <= 0:
+            return reject(AckReason.INVALID, "SET_SPEED needs a speed > 0 m/s")
+        if p.is_fixed_wing and p.min_speed_m_s and a.value < p.min_speed_m_s:
+            return reject(AckReason.INVALID, f"below the stall speed {p.min_speed_m_s:g} m/s")
+        return CommandPlan(requests=(ChangeSpeed(speed_m_s=a.value, airspeed=p.is_fixed_wing),))
+    if k == CommandKind.SET_ALTITUDE:
+        if a.value is None:
+            return reject(AckReason.INVALID, "SET_ALTITUDE needs an altitude (m above home)")
+        return CommandPlan(requests=(ChangeAltitude(alt_rel_m=a.value),))
+    if k == CommandKind.RTL:
+        return CommandPlan(requests=(ReturnToLaunch(),))
+    if k in (CommandKind.LAND, CommandKind.EMERGENCY_LAND):
+        return CommandPlan(requests=_land_request(p))
+    if k == CommandKind.ABORT_LANDING:
+        if ap.lat_deg is None or ap.lon_deg is None:
+            return reject(AckReason.NOT_READY, "no position")
+        alt = max(ap.alt_rel_m or 0.0, ABORT_LANDING_MIN_ALT_M)
+        return CommandPlan(
+            requests=(
+                SetMode(mode="GUIDED"),
+                Goto(lat_deg=ap.lat_deg, lon_deg=ap.lon_deg, alt_rel_m=alt),
+            )
+        )
+    if k == CommandKind.PARACHUTE:
+        if not p.has_parachute:
+            return reject(AckReason.UNSUPPORTED, "no parachute fitted")
+        return CommandPlan(requests=(Parachute(),))
+    if k == CommandKind.CALIBRATE:
+        if ap.armed:
+            return reject(AckReason.BUSY, "calibrate on the ground, disarmed")
+        return CommandPlan(requests=(Calibrate(what=a.text or "gyro"),))
+    return reject(AckReason.UNSUPPORTED, k.name)
+
+
+def emergency_requests(code: AlertCode, profile: VehicleProfile) -> tuple[ApRequest, ...]:
+    """The emergency procedure for an alert (docs/state-machine.md lists the choices).
+
+    Link loss: nothing can be sent; ArduPilot's own failsafes are the backstop.
+    """
+    if code == AlertCode.AUTOPILOT_LINK_LOSS:
+        return ()
+    if code == AlertCode.ATTITUDE_ABNORMAL:
+        return (Parachute(),) if profile.has_parachute else ()
+    if code == AlertCode.GEOFENCE_BREACH:
+        return (ReturnToLaunch(),)
+    if code in (AlertCode.BATTERY_CRITICAL, AlertCode.GPS_LOSS, AlertCode.EKF_FAILURE):
+        if profile.vehicle_type == VehicleType.PLANE:
+            # a plane cannot land where it is: battery -> home; GPS/EKF -> leave it to the autopilot
+            return (ReturnToLaunch(),) if code == AlertCode.BATTERY_CRITICAL else ()
+        return _land_request(profile)
+    return (ReturnToLaunch(),)
+
+
+def check_mission(mission: Mission, view: NodeView) -> AckReason | None:
+    """The swarm manager's acceptance checks. None: the mission does not address this
+    vehicle (no answer). Otherwise OK or the first reason to reject, in the paper's
+    order: home not defined, vehicle not ready."""
+    sel = mission.selection
+    if sel.kind == SelectorKind.QUANTITY:
+        if not sel.addresses(view.self_id, view.fleet_id):
+            return None
+        return AckReason.UNSUPPORTED  # voting selects vehicles: the mission manager's job
+    if not sel.addresses(view.self_id, view.fleet_id):
+        return None
+    if view.autopilot.home is None:
+        return AckReason.HOME_NOT_SET
+    if view.base is None:
+        return AckReason.NO_BASE
+    if view.fsm_state == FsmState.EMERGENCY:
+        return AckReason.EMERGENCY
+    if not view.ready or view.fsm_state == FsmState.INACTIVE:
+        return AckReason.NOT_READY
+    return AckReason.OK
+
+
+# ----------------------------------------------------------------------- the tracker
+
+
+@dataclass
+class _Running:
+    cmd: Command
+    remaining: list[ApRequest]
+    waiting_for: int
+    deadline: float
+
+
+@dataclass
+class CommandTracker:
+    """Runs each command's autopilot requests in order and answers it exactly once."""
+
+    self_id: int
+    timeout_s: float = 30.0  # the link retries itself; this only catches a link that never answers
+    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
+    _running: dict[int, _Running] = field(default_factory=dict)  # request_id -> command
+
+    def start(self, cmd: Command, requests: tuple[ApRequest, ...], now: float) -> list[ApRequest]:
+        """Submit the first request (with a fresh request_id); [] if there is none."""
+        if not requests:
+            return []
+        return [self._submit(cmd, list(requests), now)]
+
+    def _submit(self, cmd: Command, requests: list[ApRequest], now: float) -> ApRequest:
+        rid = next(self._ids)
+        req = msgspec.structs.replace(requests[0], request_id=rid)
+        self._running[rid] = _Running(cmd, requests[1:], rid, now + self.timeout_s)
+        return req
+
+    def on_result(self, result: ApResult, now: float) -> tuple[list[ApRequest], list[Ack]]:
+        run = self._running.pop(result.request_id, None)
+        if run is None:
+            return [], []  # not ours (emergency or mission requests), or already timed out
+        if not result.ok:
+            return [], [self._ack(run.cmd, False, AckReason.AUTOPILOT_REJECTED, result.reason)]
+        if run.remaining:
+            return [self._submit(run.cmd, run.remaining, now)], []
+        return [], [self._ack(run.cmd, True, AckReason.OK, result.reason)]
+
+    def on_timer(self, now: float) -> list[Ack]:
+        late = [rid for rid, r in self._running.items() if now >= r.deadline]
+        return [
+            self._ack(
+                self._running.pop(rid).cmd,
+                False,
+                AckReason.TIMEOUT,
+                "no answer from the autopilot link",
+            )
+            for rid in late
+        ]
+
+    def next_deadline(self) -> float | None:
+        return min((r.deadline for r in self._running.values()), default=None)
+
+    def _ack(self, cmd: Command, ok: bool, reason: AckReason, text: str) -> Ack:
+        return Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, text[:64])

@@ -1,0 +1,268 @@
+"""Vehicle monitoring (paper section 2.3.2): watches the autopilot state and raises
+alerts with severities when a safety parameter leaves its expected range.
+
+Pure: `update(state, now, ...)` returns the alerts raised or cleared this step; the
+active conditions are `flags` (VehicleStatus.alerts), `emergency` (the most severe
+condition at CRITICAL or above, which drives the state machine to STATE_EMERGENCY)
+and `ready` (the vehicle has started correctly: link, GPS, EKF and home).
+
+Each condition has hysteresis in time: it is raised after holding for `raise_after_s`
+and cleared after being absent for `clear_after_s`, so a voltage sag or one late
+packet does not flap alerts. Autopilot link loss is raised at once (the link itself
+already waited its timeout).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from swarm_proto import (
+    Alert,
+    AlertCode,
+    AlertFlag,
+    Geometry,
+    GeometryKind,
+    GpsFix,
+    NoFlyZone,
+    Severity,
+)
+
+from .autopilot.state import AutopilotState
+from .profile import VehicleProfile
+from .state_machine import Emergency
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    battery_low_pct: int = 30
+    battery_critical_pct: int = 15
+    max_tilt_deg: float = 60.0
+    min_sats: int = 6
+    raise_after_s: float = 1.0
+    clear_after_s: float = 3.0
+
+    @classmethod
+    def from_profile(cls, profile: VehicleProfile) -> Thresholds:
+        return cls(
+            battery_low_pct=profile.battery_low_pct,
+            battery_critical_pct=profile.battery_critical_pct,
+            max_tilt_deg=profile.max_tilt_deg,
+        )
+
+
+@dataclass(frozen=True)
+class ConditionSpec:
+    code: AlertCode
+    flag: AlertFlag
+    armed_severity: Severity  # while armed
+    ground_severity: Severity  # while disarmed
+    immediate: bool = False
+
+
+SPECS: dict[AlertCode, ConditionSpec] = {
+    s.code: s
+    for s in (
+        ConditionSpec(
+            AlertCode.BATTERY_LOW, AlertFlag.BATTERY_LOW, Severity.WARNING, Severity.WARNING
+        ),
+        ConditionSpec(
+            AlertCode.BATTERY_CRITICAL,
+            AlertFlag.BATTERY_CRITICAL,
+            Severity.CRITICAL,
+            Severity.WARNING,
+        ),
+        ConditionSpec(AlertCode.GPS_LOSS, AlertFlag.GPS_LOSS, Severity.CRITICAL, Severity.WARNING),
+        ConditionSpec(
+            AlertCode.EKF_FAILURE, AlertFlag.EKF_FAILURE, Severity.CRITICAL, Severity.WARNING
+        ),
+        ConditionSpec(
+            AlertCode.AUTOPILOT_LINK_LOSS,
+            AlertFlag.AUTOPILOT_LINK_LOSS,
+            Severity.EMERGENCY,
+            Severity.CRITICAL,
+            immediate=True,
+        ),
+        ConditionSpec(
+            AlertCode.GEOFENCE_BREACH,
+            AlertFlag.GEOFENCE_BREACH,
+            Severity.CRITICAL,
+            Severity.WARNING,
+        ),
+        ConditionSpec(
+            AlertCode.ATTITUDE_ABNORMAL,
+            AlertFlag.ATTITUDE_ABNORMAL,
+            Severity.CRITICAL,
+            Severity.INFO,
+        ),
+    )
+}
+
+
+@dataclass
+class _Tracked:
+    since: float | None = None  # condition observed continuously since
+    clear_since: float | None = None  # absent continuously since
+    active: bool = False
+    severity: Severity = Severity.INFO
+
+
+def _haversine_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
+    r = 6_371_008.8
+    p1, p2 = math.radians(lat1), math.radians(lat2)
+    dp, dl = p2 - p1, math.radians(lon2 - lon1)
+    a = math.sin(dp / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(dl / 2) ** 2
+    return 2 * r * math.asin(min(1.0, math.sqrt(a)))
+
+
+def inside(geometry: Geometry, lat_deg: float, lon_deg: float) -> bool:
+    """Whether a point is inside a POLYGON (holes excluded) or CIRCLE geometry."""
+    if geometry.kind == GeometryKind.CIRCLE:
+        c = geometry.points[0]
+        return _haversine_m(c.lat_deg, c.lon_deg, lat_deg, lon_deg) <= (geometry.radius_m or 0.0)
+    if geometry.kind == GeometryKind.POLYGON:
+        from shapely.geometry import Point, Polygon
+
+        poly = Polygon(
+            [(p.lon_deg, p.lat_deg) for p in geometry.points],
+            [[(p.lon_deg, p.lat_deg) for p in h] for h in geometry.holes],
+        )
+        return bool(poly.covers(Point(lon_deg, lat_deg)))
+    return False
+
+
+@dataclass
+class VehicleMonitor:
+    vehicle_id: int
+    thresholds: Thresholds = field(default_factory=Thresholds)
+    zones: dict[int, NoFlyZone] = field(default_factory=dict)
+    operating_area: Geometry | None = None  # leaving it is a geofence breach
+    _tracked: dict[AlertCode, _Tracked] = field(default_factory=dict)
+    _had_gps: bool = False
+    _had_ekf: bool = False
+    ready: bool = False
+
+    # ------------------------------------------------------------------ conditions
+    def _observe(self, s: AutopilotState, now: float) -> set[AlertCode]:
+        t = self.thresholds
+        seen: set[AlertCode] = set()
+        if not s.link_ok:
+            seen.add(AlertCode.AUTOPILOT_LINK_LOSS)
+            return seen  # everything else is stale while the link is down
+        if 0 <= s.battery_pct <= t.battery_critical_pct:
+            seen.add(AlertCode.BATTERY_CRITICAL)
+        elif 0 <= s.battery_pct <= t.battery_low_pct:
+            seen.add(AlertCode.BATTERY_LOW)
+        gps_good = s.gps_fix >= GpsFix.FIX_3D and s.gps_sats >= t.min_sats
+        self._had_gps |= gps_good
+        if self._had_gps and not gps_good:
+            seen.add(AlertCode.GPS_LOSS)
+        self._had_ekf |= s.ekf_ok
+        if self._had_ekf and not s.ekf_ok:
+            seen.add(AlertCode.EKF_FAILURE)
+        if s.armed and (abs(s.roll_deg) > t.max_tilt_deg or abs(s.pitch_deg) > t.max_tilt_deg):
+            seen.add(AlertCode.ATTITUDE_ABNORMAL)
+        if s.lat_deg is not None and s.lon_deg is not None and self._breach(s, now):
+            seen.add(AlertCode.GEOFENCE_BREACH)
+        return seen
+
+    def _breach(self, s: AutopilotState, now: float) -> bool:
+        assert s.lat_deg is not None and s.lon_deg is not None
+        if self.operating_area is not None and not inside(
+            self.operating_area, s.lat_deg, s.lon_deg
+        ):
+            return True
+        alt = s.alt_msl_m if s.alt_msl_m is not None else 0.0
+        for z in self.zones.values():
+            if (
+                z.in_force(now)
+                and z.floor_alt_msl_m <= alt <= z.ceiling_alt_msl_m
+                and inside(z.geometry, s.lat_deg, s.lon_deg)
+            ):
+                return True
+        return False
+
+    # ------------------------------------------------------------------ step
+    def update(self, s: AutopilotState, now: float) -> list[Alert]:
+        """Alerts raised (with their severity) or cleared (CONDITION_CLEARED) now."""
+        seen = self._observe(s, now)
+        out: list[Alert] = []
+        t = self.thresholds
+        for code, spec in SPECS.items():
+            tr = self._tracked.setdefault(code, _Tracked())
+            severity = spec.armed_severity if s.armed else spec.ground_severity
+            if code in seen:
+                tr.clear_since = None
+                if tr.since is None:
+                    tr.since = now
+                due = spec.immediate or now - tr.since >= t.raise_after_s
+                if due and (not tr.active or severity > tr.severity):
+                    tr.active, tr.severity = True, severity
+                    out.append(self._alert(now, severity, code, _describe(code, s)))
+            else:
+                tr.since = None
+                if tr.active:
+                    if tr.clear_since is None:
+                        tr.clear_since = now
+                    if spec.immediate or now - tr.clear_since >= t.clear_after_s:
+                        tr.active, tr.clear_since = False, None
+                        out.append(
+                            self._alert(
+                                now,
+                                Severity.INFO,
+                                AlertCode.CONDITION_CLEARED,
+                                f"{code.name} cleared",
+                            )
+                        )
+        self.ready = (
+            s.link_ok
+            and s.gps_fix >= GpsFix.FIX_3D
+            and s.ekf_ok
+            and s.home is not None
+            and all(tr.severity < Severity.CRITICAL for tr in self._tracked.values() if tr.active)
+        )
+        return out
+
+    def _alert(self, now: float, severity: Severity, code: AlertCode, text: str) -> Alert:
+        return Alert(self.vehicle_id, max(0.0, now), severity, code, text[:64])
+
+    # ------------------------------------------------------------------ views
+    @property
+    def flags(self) -> AlertFlag:
+        f = AlertFlag.NONE
+        for code, tr in self._tracked.items():
+            if tr.active:
+                f |= SPECS[code].flag
+        return f
+
+    @property
+    def active_codes(self) -> tuple[AlertCode, ...]:
+        return tuple(sorted(c for c, tr in self._tracked.items() if tr.active))
+
+    @property
+    def emergency(self) -> Emergency | None:
+        worst: Emergency | None = None
+        for code, tr in self._tracked.items():
+            if (
+                tr.active
+                and tr.severity >= Severity.CRITICAL
+                and (worst is None or tr.severity > worst.severity)
+            ):
+                worst = Emergency(code, tr.severity)
+        return worst
+
+
+def _describe(code: AlertCode, s: AutopilotState) -> str:
+    if code in (AlertCode.BATTERY_LOW, AlertCode.BATTERY_CRITICAL):
+        return f"battery {s.battery_pct}% {s.battery_v:.1f} V"
+    if code == AlertCode.GPS_LOSS:
+        return f"GPS fix {s.gps_fix.name} sats {s.gps_sats}"
+    if code == AlertCode.ATTITUDE_ABNORMAL:
+        return f"roll {s.roll_deg:.0f} pitch {s.pitch_deg:.0f} deg"
+    if code == AlertCode.AUTOPILOT_LINK_LOSS:
+        return "no HEARTBEAT from the autopilot"
+    if code == AlertCode.EKF_FAILURE:
+        return "EKF position/velocity estimate bad"
+    if code == AlertCode.GEOFENCE_BREACH:
+        return "outside the operating area or inside a no-fly zone"
+    return code.name

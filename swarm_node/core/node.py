@@ -1,0 +1,454 @@
+"""The vehicle node as one pure object: vehicle monitoring, swarm manager (membership,
+acceptance checks, VehicleInfo), state machine and command manager wired together.
+
+The runtime (swarm_node.runtime.node) feeds it inputs from Zenoh and the autopilot link
+and carries out its outputs; tests and fast-time simulations join several NodeCores
+with an in-memory bus and jump time from deadline to deadline.
+
+    core.handle(input, now) -> list[Output]
+    core.on_timer(now)      -> list[Output]
+    core.next_deadline()    -> float
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from dataclasses import dataclass, field
+
+import msgspec
+
+from swarm_proto import (
+    Ack,
+    AckReason,
+    AckRef,
+    Alert,
+    AlertCode,
+    Command,
+    FleetAssignment,
+    FsmState,
+    GeoPoint,
+    Mission,
+    MissionState,
+    NoFlyZone,
+    Severity,
+    VehicleInfo,
+    VehicleStatus,
+)
+
+from . import state_machine as fsm
+from .autopilot.requests import ApRequest, ApResult, ReturnToLaunch
+from .autopilot.state import AutopilotState
+from .commands import (
+    CancelMission,
+    CommandTracker,
+    NodeView,
+    SetActive,
+    SetBase,
+    SetFleet,
+    check_mission,
+    emergency_requests,
+    plan_command,
+)
+from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
+from .monitoring import Thresholds, VehicleMonitor
+from .profile import VehicleProfile
+
+log = logging.getLogger(__name__)
+
+# ----------------------------------------------------------------------------- I/O
+
+
+@dataclass(frozen=True)
+class AutopilotUpdate:
+    state: AutopilotState
+
+
+@dataclass(frozen=True)
+class AutopilotResult:
+    result: ApResult
+
+
+@dataclass(frozen=True)
+class PeerAlive:
+    node_id: int
+    alive: bool
+
+
+@dataclass(frozen=True)
+class Received:
+    msg: msgspec.Struct
+
+
+@dataclass(frozen=True)
+class BadInput:
+    key: str
+    error: str
+
+
+Input = AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput
+
+
+@dataclass(frozen=True)
+class Publish:
+    msg: msgspec.Struct
+
+
+@dataclass(frozen=True)
+class Submit:
+    request: ApRequest
+
+
+@dataclass(frozen=True)
+class Note:
+    """Something worth a log line (membership changes, transitions, rejections)."""
+
+    level: int
+    text: str
+
+
+Output = Publish | Submit | Note
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    status_period_s: float = 0.2  # 5 Hz
+    info_period_s: float = 1.0  # 1 Hz
+    plan_timeout_s: float = 60.0
+    stale_after_s: float = 2.0
+    thresholds: Thresholds | None = None  # default: from the profile
+
+
+# ----------------------------------------------------------------------------- core
+
+
+@dataclass
+class NodeCore:
+    profile: VehicleProfile
+    settings: NodeSettings = field(default_factory=NodeSettings)
+    now: float = 0.0
+
+    def __post_init__(self) -> None:
+        vid = self.profile.vehicle_id
+        self.self_id = vid
+        self.autopilot = AutopilotState()
+        self.monitor = VehicleMonitor(
+            vid, self.settings.thresholds or Thresholds.from_profile(self.profile)
+        )
+        self.members = SwarmMembership(vid, stale_after_s=self.settings.stale_after_s)
+        self.fsm = fsm.StateMachine(plan_timeout_s=self.settings.plan_timeout_s, now=self.now)
+        self.commands = CommandTracker(vid)
+        self.active = True
+        self.base: GeoPoint | None = None
+        self.fleet_id = 0
+        self.fleet_members: tuple[int, ...] = ()
+        self.missions: dict[int, Mission] = {}
+        self.mission_state = MissionState.IDLE
+        self.mission_progress_pct = 0
+        self.bad_input: Counter[str] = Counter()
+        self._next_status = self.now
+        self._next_info = self.now
+
+    # ------------------------------------------------------------------ views
+    def view(self) -> NodeView:
+        return NodeView(
+            self_id=self.self_id,
+            fleet_id=self.fleet_id,
+            profile=self.profile,
+            autopilot=self.autopilot,
+            fsm_state=self.fsm.state,
+            mission_id=self.fsm.mission_id,
+            base=self.base,
+            ready=self.monitor.ready,
+        )
+
+    def status(self, now: float) -> VehicleStatus | None:
+        s = self.autopilot
+        if s.lat_deg is None or s.lon_deg is None:
+            return None
+        t = s.gps_time_unix_s if s.gps_time_unix_s is not None else now
+        return VehicleStatus(
+            vehicle_id=self.self_id,
+            time_unix_s=max(0.0, t),
+            lat_deg=s.lat_deg,
+            lon_deg=s.lon_deg,
+            alt_msl_m=_clamp(s.alt_msl_m or 0.0, -1000.0, 8000.0),
+            alt_rel_m=_clamp(s.alt_rel_m or 0.0, -1000.0, 8000.0),
+            vel_north_m_s=_clamp(s.vel_north_m_s, -300.0, 300.0),
+            vel_east_m_s=_clamp(s.vel_east_m_s, -300.0, 300.0),
+            vel_down_m_s=_clamp(s.vel_down_m_s, -300.0, 300.0),
+            heading_deg=s.heading_deg % 360.0,
+            airspeed_m_s=_clamp(s.airspeed_m_s, 0.0, 300.0),
+            battery_pct=s.battery_pct if -1 <= s.battery_pct <= 100 else -1,
+            battery_v=_clamp(s.battery_v, 0.0, 655.0),
+            gps_fix=s.gps_fix,
+            gps_sats=min(max(s.gps_sats, 0), 255),
+            ap_mode=s.mode_number & 0xFF,
+            armed=s.armed,
+            fsm_state=self.fsm.state,
+            mission_state=self.mission_state,
+            mission_progress_pct=self.mission_progress_pct,
+            fleet_id=self.fleet_id,
+            alerts=self.monitor.flags,
+        )
+
+    def info(self) -> VehicleInfo:
+        p = self.profile
+        mid = self.fsm.mission_id
+        return VehicleInfo(
+            vehicle_id=self.self_id,
+            vehicle_type=p.vehicle_type,
+            model=p.model[:48],
+            user_id=p.user_id[:48],
+            mav_sysid=self.autopilot.sysid & 0xFF,
+            payload_model=p.payload_model[:48],
+            payload_subtype=p.payload_subtype[:48],
+            payload_type=p.payload_type[:48],
+            cruise_speed_m_s=_clamp(p.cruise_speed_m_s, 0.0, 300.0),
+            home=self.autopilot.home,
+            base=self.base,
+            fleet_id=self.fleet_id,
+            mission_id=mid if mid is not None and mid > 0 else 0,
+            fsm_state=self.fsm.state,
+            errors=self.monitor.active_codes,
+        )
+
+    # ------------------------------------------------------------------ inputs
+    def handle(self, event: Input, now: float) -> list[Output]:
+        self.now = now
+        if isinstance(event, AutopilotUpdate):
+            return self._on_autopilot(event.state, now)
+        if isinstance(event, AutopilotResult):
+            reqs, acks = self.commands.on_result(event.result, now)
+            out: list[Output] = [Submit(r) for r in reqs]
+            return out + [Publish(a) for a in acks]
+        if isinstance(event, PeerAlive):
+            return self._peer_events(self.members.on_alive(event.node_id, event.alive, now))
+        if isinstance(event, BadInput):
+            self.bad_input[event.key] += 1
+            return [Note(logging.WARNING, f"dropped malformed input on {event.key}: {event.error}")]
+        return self._on_message(event.msg, now)
+
+    def _on_autopilot(self, state: AutopilotState, now: float) -> list[Output]:
+        was_landed = self.autopilot.armed and not state.armed
+        self.autopilot = state
+        out: list[Output] = [Publish(a) for a in self.monitor.update(state, now)]
+        if was_landed and self.fsm.state == FsmState.GO_MISSION:
+            self.fsm.post(fsm.LandingComplete())
+        return out
+
+    def _on_message(self, msg: msgspec.Struct, now: float) -> list[Output]:
+        if isinstance(msg, VehicleStatus):
+            return self._peer_events(self.members.on_status(msg, now))
+        if isinstance(msg, VehicleInfo):
+            return self._peer_events(self.members.on_info(msg, now))
+        if isinstance(msg, Command):
+            return self._on_command(msg, now)
+        if isinstance(msg, Mission):
+            return self._on_mission(msg)
+        if isinstance(msg, NoFlyZone):
+            self.monitor.zones[msg.zone_id] = msg
+            return []
+        if isinstance(msg, FleetAssignment):
+            return self._on_fleet(msg)
+        return []  # acks, alerts, votes, targets: not for the node core (yet)
+
+    def _on_command(self, cmd: Command, now: float) -> list[Output]:
+        plan = plan_command(cmd, self.view())
+        if plan is None:
+            return []
+        for effect in plan.effects:
+            self._apply(effect)
+        out: list[Output] = [Submit(r) for r in self.commands.start(cmd, plan.requests, now)]
+        if plan.ack is not None:
+            out.append(Publish(plan.ack))
+            if not plan.ack.accepted:
+                out.append(
+                    Note(
+                        logging.INFO,
+                        f"command {cmd.kind.name} #{cmd.seq} rejected: {plan.ack.reason.name}",
+                    )
+                )
+        return out
+
+    def _apply(self, effect: SetBase | SetFleet | SetActive | CancelMission) -> None:
+        if isinstance(effect, SetBase):
+            self.base = effect.point
+        elif isinstance(effect, SetFleet):
+            self.fleet_id = effect.fleet_id
+        elif isinstance(effect, SetActive):
+            self.active = effect.active
+        elif isinstance(effect, CancelMission):
+            self.fsm.post(fsm.LeftFleet(f"mission {effect.mission_id} cancelled"))
+
+    def _on_mission(self, mission: Mission) -> list[Output]:
+        reason = check_mission(mission, self.view())
+        if reason is None:
+            return []
+        ok = reason == AckReason.OK
+        ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason)
+        out: list[Output] = [Publish(ack)]
+        if ok:
+            self.missions[mission.mission_id] = mission
+            self.fleet_members = tuple(mission.selection.vehicle_ids) or (self.self_id,)
+            self.fsm.post(fsm.NewMission(mission.mission_id))
+        return out
+
+    def _on_fleet(self, msg: FleetAssignment) -> list[Output]:
+        if self.self_id in msg.vehicle_ids:
+            self.fleet_id = msg.fleet_id
+            if msg.mission_id == self.fsm.mission_id:
+                self.fleet_members = msg.vehicle_ids
+        elif self.fleet_id == msg.fleet_id:
+            self.fleet_id = 0  # dropped from the fleet
+            self.fsm.post(fsm.LeftFleet("removed from the fleet"))
+        return []
+
+    def _peer_events(self, events: list[PeerEvent]) -> list[Output]:
+        out: list[Output] = []
+        for ev in events:
+            if isinstance(ev, PeerJoined):
+                out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
+            elif isinstance(ev, PeerLeft):
+                out.append(Note(logging.WARNING, f"peer {ev.node_id} lost ({ev.why})"))
+        return out
+
+    # ------------------------------------------------------------------ time
+    def next_deadline(self) -> float:
+        candidates = [self._next_status, self._next_info, self.fsm.next_deadline()]
+        for d in (self.members.next_deadline(), self.commands.next_deadline()):
+            if d is not None:
+                candidates.append(d)
+        return min(candidates)
+
+    def on_timer(self, now: float) -> list[Output]:
+        self.now = now
+        out: list[Output] = []
+        out += self._peer_events(self.members.on_timer(now))
+        out += [Publish(a) for a in self.commands.on_timer(now)]
+        if now >= self.fsm.next_deadline():
+            out += self._tick_fsm(now)
+        if now >= self._next_status:
+            self._next_status = max(self._next_status + self.settings.status_period_s, now)
+            st = self.status(now)
+            if st is not None:
+                out.append(Publish(st))
+        if now >= self._next_info:
+            self._next_info = max(self._next_info + self.settings.info_period_s, now)
+            out.append(Publish(self.info()))
+        return out
+
+    def facts(self) -> fsm.Facts:
+        return fsm.Facts(
+            active=self.active,
+            base_set=self.base is not None,
+            vehicle_ready=self.monitor.ready,
+            emergency=self.monitor.emergency,
+            fleet_ready=self._fleet_ready(),
+        )
+
+    def _fleet_ready(self) -> bool:
+        """Every live member of this mission's fleet has reached PLAN for the same
+        mission (or already left it for GO_MISSION: a fast member must not strand the
+        others). Members that are lost do not hold the fleet back."""
+        mid = self.fsm.mission_id
+        if self.fsm.state != FsmState.PLAN or mid is None:
+            return False
+        for vid in self.fleet_members:
+            if vid == self.self_id:
+                continue
+            peer = self.members.peers.get(vid)
+            if peer is None or not peer.present:
+                continue  # lost members do not hold the fleet back
+            info = peer.info
+            if info is None or info.fsm_state not in (FsmState.PLAN, FsmState.GO_MISSION):
+                return False
+            if mid > 0 and info.mission_id != mid:
+                return False
+            if mid <= 0 and info.fsm_state != FsmState.PLAN:  # return-to-base: all in PLAN
+                return False
+        return True
+
+    def _tick_fsm(self, now: float) -> list[Output]:
+        tr = self.fsm.tick(now, self.facts())
+        if tr is None:
+            return []
+        out: list[Output] = [Note(logging.INFO, f"{tr.before.name} -> {tr.after.name} ({tr.rule})")]
+        for o in tr.outputs:
+            out += self._carry_out(o, now)
+        if tr.before != tr.after or any(isinstance(o, fsm.BeginPlan) for o in tr.outputs):
+            out.append(Publish(self.info()))  # peers waiting on our state should not wait 1 s
+        return out
+
+    def _carry_out(self, o: fsm.Output, now: float) -> list[Output]:
+        if isinstance(o, fsm.RaiseAlert):
+            return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, o.text[:64]))]
+        if isinstance(o, fsm.StartEmergency):
+            alert = Alert(
+                self.self_id, max(0.0, now), o.severity, o.code, f"emergency: {o.code.name}"
+            )
+            out: list[Output] = [Publish(alert)]
+            return out + [Submit(r) for r in emergency_requests(o.code, self.profile)]
+        if isinstance(o, fsm.ReturnHome):
+            self.mission_state = MissionState.IDLE
+            return [Submit(ReturnToLaunch()), Note(logging.WARNING, f"returning home: {o.reason}")]
+        if isinstance(o, fsm.LeaveFleet):
+            self.fleet_id = 0
+            self.fleet_members = (self.self_id,)
+            return []
+        if isinstance(o, fsm.BeginPlan):
+            self.mission_state = MissionState.PLANNING
+            self.mission_progress_pct = 0
+            return []
+        if isinstance(o, fsm.ReleaseMission):
+            return self._release(o.mission_id, now)
+        if isinstance(o, fsm.MissionStarted):
+            self.mission_state = MissionState.MISSION
+            return []
+        if isinstance(o, fsm.MissionFinished):
+            self.mission_state = MissionState.IDLE
+            self.mission_progress_pct = 100
+            mission = self.missions.pop(o.mission_id, None)
+            if mission is not None:
+                return [
+                    Publish(
+                        Alert(
+                            self.self_id,
+                            max(0.0, now),
+                            Severity.INFO,
+                            AlertCode.MISSION_COMPLETE,
+                            f"mission {o.mission_id}",
+                        )
+                    )
+                ]
+            return []
+        if isinstance(o, fsm.Deactivated):
+            self.mission_state = MissionState.IDLE
+            return [Note(logging.INFO, f"state machine deactivated: {o.reason}")]
+        return []
+
+    def _release(self, mission_id: int, now: float) -> list[Output]:
+        """The fleet is synchronised: hand the mission to the mission manager. The
+        return-to-base mission is flown with RTL (the base is the rally point)."""
+        if mission_id == fsm.RETURN_MISSION:
+            self.fsm.post(fsm.PlanSucceeded(mission_id))
+            return [Submit(ReturnToLaunch())]
+        mission = self.missions.get(mission_id)
+        if mission is None:
+            self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
+            return []
+        return self.release_mission(mission, now)
+
+    def release_mission(self, mission: Mission, now: float) -> list[Output]:
+        """Plan and start a mission. The full mission manager (planners, voting,
+        pre-mission) plugs in here; until then a mission is reported as unplannable."""
+        self.fsm.post(
+            fsm.PlanFailed(mission.mission_id, "no mission manager for this mission type")
+        )
+        return []
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    if x != x:  # NaN from a broken autopilot value: report the low bound, never crash
+        return lo
+    return min(max(x, lo), hi)

@@ -1,0 +1,108 @@
+"""A fleet harness for pure node cores (like h11's ConnectionPair, for N nodes).
+
+`Fleet` joins NodeCores with an in-memory broadcast bus, lets a seeded random source
+drop or delay messages per link, answers autopilot requests through a pluggable
+function, and advances time by jumping to the earliest deadline: a long scenario runs
+in milliseconds and every run with the same seed is the same.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import msgspec
+
+from swarm_node.core.autopilot.requests import ApRequest, ApResult
+from swarm_node.core.node import (
+    AutopilotResult,
+    AutopilotUpdate,
+    Input,
+    NodeCore,
+    Note,
+    Publish,
+    Received,
+    Submit,
+)
+
+AutopilotFn = Callable[[int, ApRequest], ApResult | None]  # (node id, request) -> answer
+
+
+def always_ok(node_id: int, req: ApRequest) -> ApResult:
+    return ApResult(req.request_id, True)
+
+
+@dataclass
+class Fleet:
+    nodes: dict[int, NodeCore]
+    now: float = 0.0
+    seed: int = 0
+    loss: float = 0.0  # probability a message is lost on a link
+    delay_s: tuple[float, float] = (0.0, 0.0)  # uniform delay range per link
+    autopilot: AutopilotFn = always_ok
+    published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
+    submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
+    notes: list[tuple[float, int, str]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.rng = random.Random(self.seed)
+        self._queue: list[tuple[float, int, int, Input]] = []
+        self._seq = itertools.count()
+
+    def deliver(self, node_id: int, event: Input, at: float | None = None) -> None:
+        t = self.now if at is None else at
+        heapq.heappush(self._queue, (t, next(self._seq), node_id, event))
+
+    def set_autopilot(self, node_id: int, state: object) -> None:
+        assert isinstance(state, msgspec.Struct)
+        self.deliver(node_id, AutopilotUpdate(state))  # type: ignore[arg-type]
+
+    def _execute(self, node_id: int, outputs: list) -> None:
+        for o in outputs:
+            if isinstance(o, Publish):
+                self.published.append((self.now, node_id, o.msg))
+                for other in self.nodes:
+                    if other == node_id or self.rng.random() < self.loss:
+                        continue
+                    delay = self.rng.uniform(*self.delay_s)
+                    self.deliver(other, Received(o.msg), self.now + delay)
+            elif isinstance(o, Submit):
+                self.submitted.append((self.now, node_id, o.request))
+                answer = self.autopilot(node_id, o.request)
+                if answer is not None:
+                    self.deliver(node_id, AutopilotResult(answer))
+            elif isinstance(o, Note):
+                self.notes.append((self.now, node_id, o.text))
+
+    def run_until(self, t_end: float) -> None:
+        """Process inputs and timers in time order up to t_end."""
+        while True:
+            next_timer = min(n.next_deadline() for n in self.nodes.values())
+            next_input = self._queue[0][0] if self._queue else float("inf")
+            t = min(next_timer, next_input)
+            if t > t_end:
+                self.now = t_end
+                return
+            self.now = max(self.now, t)
+            if next_input <= next_timer:
+                _, _, nid, event = heapq.heappop(self._queue)
+                if nid in self.nodes:  # a node removed from the fleet hears nothing
+                    self._execute(nid, self.nodes[nid].handle(event, self.now))
+            else:
+                for nid, node in list(self.nodes.items()):
+                    if node.next_deadline() <= self.now:
+                        self._execute(nid, node.on_timer(self.now))
+                        if node.next_deadline() <= self.now:
+                            raise RuntimeError(
+                                f"node {nid} did not move its deadline past {self.now}"
+                            )
+
+    def messages(self, cls: type, sender: int | None = None) -> list:
+        return [
+            m
+            for _, s, m in self.published
+            if isinstance(m, cls) and (sender is None or s == sender)
+        ]

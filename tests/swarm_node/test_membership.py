@@ -1,0 +1,50 @@
+from __future__ import annotations
+
+from swarm_node.core.membership import PeerJoined, PeerLeft, SwarmMembership
+from swarm_proto import FsmState, VehicleInfo, VehicleStatus, VehicleType
+
+
+def status(
+    vid: int, t: float, fleet: int = 0, fsm: FsmState = FsmState.GO_MISSION
+) -> VehicleStatus:
+    return VehicleStatus(vid, t, 37.0, -6.0, 100.0, 90.0, fleet_id=fleet, fsm_state=fsm)
+
+
+def test_join_by_liveliness_and_leave_at_once() -> None:
+    m = SwarmMembership(1)
+    assert m.on_alive(2, True, 0.0) == [PeerJoined(2, "liveliness")]
+    assert m.on_alive(2, True, 0.1) == []
+    assert m.on_status(status(2, 0.2), 0.2) == []
+    assert m.on_timer(100.0) == []  # a live token keeps it, telemetry or not
+    assert m.on_alive(2, False, 100.0) == [PeerLeft(2, "liveliness")]
+    assert m.live_ids() == []
+    assert m.on_alive(2, True, 101.0) == [PeerJoined(2, "liveliness")]  # restarted: rejoins
+
+
+def test_radio_peers_join_by_telemetry_and_go_stale() -> None:
+    m = SwarmMembership(1, stale_after_s=2.0)
+    assert m.on_status(status(5, 0.0), 0.0) == [PeerJoined(5, "telemetry")]
+    assert m.next_deadline() == 2.0
+    assert m.on_timer(1.9) == []
+    m.on_status(status(5, 1.9), 1.9)
+    assert m.on_timer(3.5) == []
+    assert m.on_timer(4.0) == [PeerLeft(5, "stale")]
+    assert m.next_deadline() is None
+
+
+def test_self_is_never_a_peer() -> None:
+    m = SwarmMembership(1)
+    assert m.on_alive(1, True, 0.0) == [] and m.on_status(status(1, 0.0), 0.0) == []
+    assert m.live_ids() == []
+
+
+def test_fleets_and_ground_stations() -> None:
+    m = SwarmMembership(1)
+    m.on_status(status(2, 0.0, fleet=3, fsm=FsmState.PLAN), 0.0)
+    m.on_status(status(4, 0.0, fleet=3), 0.0)
+    m.on_status(status(6, 0.0, fleet=1), 0.0)
+    m.on_info(VehicleInfo(900, VehicleType.GCS, "GCS", "ground"), 0.0)
+    assert [p.node_id for p in m.fleet(3)] == [2, 4]
+    assert [p.node_id for p in m.vehicles()] == [2, 4, 6]
+    assert m.peers[900].is_ground_station
+    assert m.peers[2].fsm_state == FsmState.PLAN

@@ -1,0 +1,149 @@
+"""Vehicle monitoring: thresholds, hysteresis, severities, readiness, geofence."""
+
+from __future__ import annotations
+
+from swarm_node.core.autopilot.state import AutopilotState
+from swarm_node.core.monitoring import Thresholds, VehicleMonitor, inside
+from swarm_proto import AlertCode, AlertFlag, Geometry, GeoPoint, GpsFix, NoFlyZone, Severity
+
+HOME = GeoPoint(37.4112, -5.9889, 10.0)
+
+
+def healthy(**kw: object) -> AutopilotState:
+    base: dict[str, object] = dict(
+        link_ok=True,
+        lat_deg=37.4112,
+        lon_deg=-5.9889,
+        alt_msl_m=110.0,
+        alt_rel_m=100.0,
+        battery_pct=90,
+        battery_v=25.0,
+        gps_fix=GpsFix.FIX_3D,
+        gps_sats=14,
+        ekf_ok=True,
+        home=HOME,
+        armed=True,
+    )
+    base.update(kw)
+    return AutopilotState(**base)  # type: ignore[arg-type]
+
+
+def run(
+    mon: VehicleMonitor, states: list[tuple[float, AutopilotState]]
+) -> list[tuple[float, AlertCode, Severity]]:
+    out = []
+    for t, s in states:
+        out += [(t, a.code, a.severity) for a in mon.update(s, t)]
+    return out
+
+
+def test_ready_needs_link_gps_ekf_and_home() -> None:
+    mon = VehicleMonitor(3)
+    mon.update(healthy(), 0.0)
+    assert mon.ready
+    for bad in (
+        dict(home=None),
+        dict(ekf_ok=False),
+        dict(gps_fix=GpsFix.FIX_2D),
+        dict(link_ok=False),
+    ):
+        m = VehicleMonitor(3)
+        m.update(healthy(**bad), 0.0)
+        assert not m.ready, bad
+
+
+def test_battery_thresholds_with_hysteresis() -> None:
+    mon = VehicleMonitor(
+        3,
+        Thresholds(
+            battery_low_pct=30, battery_critical_pct=15, raise_after_s=1.0, clear_after_s=3.0
+        ),
+    )
+    events = run(
+        mon,
+        [
+            (0.0, healthy(battery_pct=25)),
+            (0.5, healthy(battery_pct=25)),  # not yet: needs 1 s
+            (1.0, healthy(battery_pct=25)),  # raised
+            (1.5, healthy(battery_pct=12)),  # critical starts
+            (2.6, healthy(battery_pct=12)),  # critical raised
+        ],
+    )
+    assert events == [
+        (1.0, AlertCode.BATTERY_LOW, Severity.WARNING),
+        (2.6, AlertCode.BATTERY_CRITICAL, Severity.CRITICAL),
+    ]
+    assert mon.emergency is not None and mon.emergency.code == AlertCode.BATTERY_CRITICAL
+    assert AlertFlag.BATTERY_CRITICAL in mon.flags and not mon.ready
+
+
+def test_a_short_sag_does_not_raise() -> None:
+    mon = VehicleMonitor(3)
+    assert (
+        run(mon, [(0.0, healthy(battery_pct=10)), (0.5, healthy()), (2.0, healthy(battery_pct=10))])
+        == []
+    )
+
+
+def test_link_loss_is_an_immediate_emergency_in_flight() -> None:
+    mon = VehicleMonitor(3)
+    mon.update(healthy(), 0.0)
+    events = run(mon, [(0.2, healthy(link_ok=False))])
+    assert events == [(0.2, AlertCode.AUTOPILOT_LINK_LOSS, Severity.EMERGENCY)]
+    assert mon.emergency is not None and mon.emergency.severity == Severity.EMERGENCY
+    events = run(mon, [(0.4, healthy())])
+    assert events == [(0.4, AlertCode.CONDITION_CLEARED, Severity.INFO)]
+    assert mon.emergency is None
+
+
+def test_gps_loss_only_after_a_fix() -> None:
+    mon = VehicleMonitor(3)
+    no_fix = healthy(gps_fix=GpsFix.NO_FIX, armed=False)
+    assert run(mon, [(0.0, no_fix), (5.0, no_fix)]) == []  # never had a fix: not ready, no alert
+    assert not mon.ready
+    events = run(
+        mon,
+        [
+            (6.0, healthy()),
+            (7.0, healthy(gps_fix=GpsFix.NO_FIX)),
+            (8.0, healthy(gps_fix=GpsFix.NO_FIX)),
+        ],
+    )
+    assert events == [(8.0, AlertCode.GPS_LOSS, Severity.CRITICAL)]
+
+
+def test_attitude_and_severity_on_the_ground() -> None:
+    mon = VehicleMonitor(3, Thresholds(max_tilt_deg=45.0))
+    events = run(mon, [(0.0, healthy(roll_deg=70.0)), (1.0, healthy(roll_deg=70.0))])
+    assert events == [(1.0, AlertCode.ATTITUDE_ABNORMAL, Severity.CRITICAL)]
+    mon2 = VehicleMonitor(3)
+    assert run(
+        mon2,
+        [(0.0, healthy(battery_pct=5, armed=False)), (1.0, healthy(battery_pct=5, armed=False))],
+    ) == [(1.0, AlertCode.BATTERY_CRITICAL, Severity.WARNING)]
+    assert mon2.emergency is None  # critical battery on the ground is not an emergency
+    # arming escalates it
+    assert run(mon2, [(2.0, healthy(battery_pct=5))]) == [
+        (2.0, AlertCode.BATTERY_CRITICAL, Severity.CRITICAL)
+    ]
+
+
+def test_geofence_breach_in_a_zone_between_floor_and_ceiling() -> None:
+    zone = NoFlyZone(
+        1, Geometry.circle(37.4112, -5.9889, 200.0), floor_alt_msl_m=0.0, ceiling_alt_msl_m=300.0
+    )
+    mon = VehicleMonitor(3, Thresholds(raise_after_s=0.0), zones={1: zone})
+    assert run(mon, [(0.0, healthy(alt_msl_m=500.0))]) == []  # above the ceiling
+    assert run(mon, [(1.0, healthy(alt_msl_m=100.0))]) == [
+        (1.0, AlertCode.GEOFENCE_BREACH, Severity.CRITICAL)
+    ]
+
+
+def test_leaving_the_operating_area() -> None:
+    area = Geometry.polygon([(37.40, -6.00), (37.40, -5.97), (37.42, -5.97), (37.42, -6.00)])
+    assert inside(area, 37.41, -5.99) and not inside(area, 37.43, -5.99)
+    mon = VehicleMonitor(3, Thresholds(raise_after_s=0.0), operating_area=area)
+    assert run(mon, [(0.0, healthy())]) == []
+    assert run(mon, [(1.0, healthy(lat_deg=37.43))]) == [
+        (1.0, AlertCode.GEOFENCE_BREACH, Severity.CRITICAL)
+    ]

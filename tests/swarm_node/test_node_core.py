@@ -1,0 +1,240 @@
+"""Node cores joined in a fleet harness: membership, commands and acks, mission
+acceptance, fleet synchronisation in PLAN, link loss -> emergency."""
+
+from __future__ import annotations
+
+import pytest
+
+from swarm_node.core.autopilot.requests import (
+    ApRequest,
+    ApResult,
+    Goto,
+    Land,
+    ReturnToLaunch,
+    SetMode,
+)
+from swarm_node.core.autopilot.state import AutopilotState
+from swarm_node.core.node import BadInput, NodeCore, NodeSettings, Received
+from swarm_node.core.profile import VehicleProfile
+from swarm_node.testing import Fleet
+from swarm_proto import (
+    Ack,
+    AckReason,
+    Alert,
+    AlertCode,
+    Command,
+    CommandArgs,
+    CommandKind,
+    FsmState,
+    Geometry,
+    GeoPoint,
+    GpsFix,
+    Mission,
+    MissionType,
+    Selector,
+    VehicleType,
+)
+
+HOME = GeoPoint(37.4112, -5.9889, 10.0)
+GCS = 900
+
+
+def profile(vid: int, vt: VehicleType = VehicleType.COPTER) -> VehicleProfile:
+    return VehicleProfile(vid, f"U{vid}", "Generic Quad", vt, cruise_speed_m_s=12.0)
+
+
+def flying(**kw: object) -> AutopilotState:
+    base: dict[str, object] = dict(
+        sysid=1,
+        link_ok=True,
+        lat_deg=37.4112,
+        lon_deg=-5.9889,
+        alt_msl_m=110.0,
+        alt_rel_m=100.0,
+        battery_pct=90,
+        battery_v=16.0,
+        gps_fix=GpsFix.FIX_3D,
+        gps_sats=12,
+        ekf_ok=True,
+        home=HOME,
+        armed=True,
+        mode_number=4,
+    )
+    base.update(kw)
+    return AutopilotState(**base)  # type: ignore[arg-type]
+
+
+def fleet(n: int = 3, **kw: object) -> Fleet:
+    nodes = {i: NodeCore(profile(i), NodeSettings(plan_timeout_s=20.0)) for i in range(1, n + 1)}
+    f = Fleet(nodes, **kw)  # type: ignore[arg-type]
+    for i in nodes:
+        f.set_autopilot(i, flying())
+    return f
+
+
+def command(seq: int, kind: CommandKind, target: Selector | None = None, **args: object) -> Command:
+    return Command(GCS, seq, kind, target or Selector(), CommandArgs(**args))  # type: ignore[arg-type]
+
+
+def send(f: Fleet, msg: object, to: list[int] | None = None) -> None:
+    for nid in to or list(f.nodes):
+        f.deliver(nid, Received(msg))  # type: ignore[arg-type]
+
+
+def acks(f: Fleet, seq: int) -> dict[int, Ack]:
+    return {a.vehicle_id: a for a in f.messages(Ack) if a.ref_id == seq}
+
+
+def test_every_node_lists_the_others() -> None:
+    f = fleet(4)
+    f.run_until(1.0)
+    for nid, node in f.nodes.items():
+        assert node.members.live_ids() == [i for i in f.nodes if i != nid]
+
+
+def test_commands_get_exactly_one_ack_each() -> None:
+    f = fleet(3)
+    f.run_until(0.5)
+    send(f, command(1, CommandKind.SET_BASE, point=HOME))
+    send(f, command(2, CommandKind.GOTO, Selector.ids(2), point=GeoPoint(37.42, -5.98, 60.0)))
+    send(f, command(3, CommandKind.PARACHUTE, Selector.fleet(5)))  # nobody in fleet 5
+    send(f, command(4, CommandKind.SET_SPEED, Selector.ids(1)))  # no value
+    f.run_until(1.0)
+    assert {v: a.accepted for v, a in acks(f, 1).items()} == {1: True, 2: True, 3: True}
+    assert list(acks(f, 2)) == [2] and acks(f, 2)[2].accepted
+    goto = [r for _, n, r in f.submitted if n == 2 and isinstance(r, Goto)]
+    assert goto and goto[0].alt_rel_m == pytest.approx(50.0)
+    assert acks(f, 3) == {}
+    assert acks(f, 4)[1].reason == AckReason.INVALID
+
+
+def test_autopilot_refusal_and_silence_become_acks() -> None:
+    def refuse_modes(nid: int, req: ApRequest) -> ApResult | None:
+        if isinstance(req, SetMode):
+            return ApResult(req.request_id, False, "COMMAND_ACK FAILED (EKF has no position)", 4)
+        if isinstance(req, Land):
+            return None  # the link never answers
+        return ApResult(req.request_id, True)
+
+    f = fleet(1, autopilot=refuse_modes)
+    send(f, command(7, CommandKind.SET_MODE, text="guided"))
+    send(f, command(8, CommandKind.LAND))
+    f.run_until(40.0)
+    a7, a8 = acks(f, 7)[1], acks(f, 8)[1]
+    assert (a7.accepted, a7.reason) == (False, AckReason.AUTOPILOT_REJECTED) and "EKF" in a7.text
+    assert (a8.accepted, a8.reason) == (False, AckReason.TIMEOUT)
+
+
+def test_commands_need_the_autopilot_link() -> None:
+    f = fleet(1)
+    f.set_autopilot(1, flying(link_ok=False))
+    send(f, command(9, CommandKind.RTL))
+    f.run_until(1.0)
+    assert acks(f, 9)[1].reason == AckReason.NOT_READY
+
+
+def mission(mid: int, ids: tuple[int, ...]) -> Mission:
+    return Mission(
+        mid, GCS, MissionType.OBJECTIVE, Geometry.point(37.42, -5.98), selection=Selector.ids(*ids)
+    )
+
+
+def activate(f: Fleet) -> None:
+    send(f, command(100, CommandKind.SET_BASE, point=HOME))
+    f.run_until(f.now + 1.0)
+    assert all(n.fsm.state == FsmState.GO_MISSION for n in f.nodes.values())
+
+
+def test_mission_acceptance_checks_in_the_papers_order() -> None:
+    f = fleet(3)
+    f.set_autopilot(1, flying(home=None))
+    f.run_until(0.5)
+    send(f, mission(5, (1, 2, 3)))
+    f.run_until(1.0)
+    reasons = {v: a.reason for v, a in acks(f, 5).items()}
+    assert reasons == {1: AckReason.HOME_NOT_SET, 2: AckReason.NO_BASE, 3: AckReason.NO_BASE}
+    send(f, command(100, CommandKind.SET_BASE, point=HOME), to=[2])
+    f.set_autopilot(3, flying(ekf_ok=False))
+    f.run_until(2.0)
+    send(f, mission(6, (2, 3, 4)), to=[2, 3])
+    f.run_until(3.0)
+    reasons = {v: a.reason for v, a in acks(f, 6).items()}
+    assert reasons == {2: AckReason.OK, 3: AckReason.NO_BASE}
+    send(f, mission(7, (9,)))  # not addressed: no answer
+    f.run_until(4.0)
+    assert acks(f, 7) == {}
+
+
+def test_fleet_waits_in_plan_until_all_members_are_there() -> None:
+    f = fleet(3)
+    activate(f)
+    m = mission(11, (1, 2, 3))
+    send(f, m, to=[1, 2])  # vehicle 3 has not heard of it yet
+    f.run_until(f.now + 5.0)
+    assert [f.nodes[i].fsm.state for i in (1, 2)] == [FsmState.PLAN, FsmState.PLAN]
+    assert not any(f.nodes[i].fsm.released for i in (1, 2))
+    send(f, m, to=[3])
+    f.run_until(f.now + 3.0)
+    # all three released the mission; with no mission manager yet each reports the
+    # planning failure and returns home (paper: alert, leave the fleet, return)
+    for i in (1, 2, 3):
+        assert any("PLAN -> GO_MISSION (plan failed)" in t for _, n, t in f.notes if n == i)
+        assert any(isinstance(r, ReturnToLaunch) for _, n, r in f.submitted if n == i)
+    assert {a.code for a in f.messages(Alert)} >= {AlertCode.PLAN_FAILED}
+
+
+def test_a_lost_member_does_not_hold_the_fleet_back() -> None:
+    f = fleet(3)
+    activate(f)
+    send(f, mission(12, (1, 2, 3)), to=[1, 2])
+    f.nodes.pop(3)  # vehicle 3 dies before it hears the mission
+    f.run_until(f.now + 4.0)
+    for i in (1, 2):
+        assert any(n == i and "peer 3 lost" in t for _, n, t in f.notes)
+        assert any(n == i and "(fleet synced)" in t for _, n, t in f.notes)
+
+
+def test_plan_timeout_sends_the_vehicle_home() -> None:
+    f = fleet(2)
+    activate(f)
+    send(f, mission(13, (1, 2)), to=[1])
+    f.run_until(f.now + 25.0)  # plan timeout is 20 s; vehicle 2 never plans
+    assert any(a.code == AlertCode.PLAN_TIMEOUT for a in f.messages(Alert, sender=1))
+    assert any(isinstance(r, ReturnToLaunch) for _, n, r in f.submitted if n == 1)
+
+
+def test_link_loss_drives_emergency_within_one_second() -> None:
+    f = fleet(1)
+    activate(f)
+    t_loss = f.now
+    f.set_autopilot(1, flying(link_ok=False))
+    f.run_until(t_loss + 1.0)
+    node = f.nodes[1]
+    assert node.fsm.state == FsmState.EMERGENCY
+    t_emergency = next(t for t, n, text in f.notes if "-> EMERGENCY" in text)
+    assert t_emergency - t_loss <= 0.4  # the next 5 Hz tick
+    assert any(a.code == AlertCode.AUTOPILOT_LINK_LOSS for a in f.messages(Alert))
+
+
+def test_bad_input_is_counted() -> None:
+    f = fleet(1)
+    f.deliver(1, BadInput("bandada/default/cmd/900", "invalid Command"))
+    f.run_until(0.5)
+    assert f.nodes[1].bad_input["bandada/default/cmd/900"] == 1
+    assert f.nodes[1].fsm.state == FsmState.INACTIVE
+
+
+def test_status_and_info_rates() -> None:
+    f = fleet(1)
+    f.run_until(10.0)
+    from swarm_proto import VehicleInfo, VehicleStatus
+
+    assert 49 <= len(f.messages(VehicleStatus)) <= 52
+    assert 10 <= len(f.messages(VehicleInfo)) <= 11
+
+
+def test_messy_network_still_converges() -> None:
+    f = fleet(5, seed=3, loss=0.3, delay_s=(0.0, 0.3))
+    f.run_until(5.0)
+    for nid, node in f.nodes.items():
+        assert node.members.live_ids() == [i for i in f.nodes if i != nid]

@@ -1,0 +1,239 @@
+"""Every rule of the paper's state machine, table-driven, plus reachability."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pytest
+
+from swarm_node.core.state_machine import (
+    ACTION_TARGET,
+    RETURN_MISSION,
+    RULES,
+    TICK_S,
+    Action,
+    Activated,
+    BeginPlan,
+    Deactivated,
+    Emergency,
+    Event,
+    Facts,
+    LandingComplete,
+    LeaveFleet,
+    LeftFleet,
+    MissionComplete,
+    MissionFinished,
+    MissionStarted,
+    NewMission,
+    PlanFailed,
+    PlanSucceeded,
+    RaiseAlert,
+    ReleaseMission,
+    Replan,
+    ReturnHome,
+    StartEmergency,
+    StateMachine,
+    mermaid,
+)
+from swarm_proto import AlertCode, FsmState, Severity
+
+P, G, E, INACT = FsmState.PLAN, FsmState.GO_MISSION, FsmState.EMERGENCY, FsmState.INACTIVE
+OK = Facts(active=True, base_set=True, vehicle_ready=True)
+BATT = Emergency(AlertCode.BATTERY_CRITICAL, Severity.CRITICAL)
+
+
+def machine(state: FsmState, mission: int | None = 7, released: bool = False) -> StateMachine:
+    fsm = StateMachine(plan_timeout_s=30.0, now=0.0)
+    fsm.state, fsm.mission_id, fsm.released = state, mission, released
+    if state == E:
+        fsm.emergency = Emergency(AlertCode.GPS_LOSS, Severity.WARNING)
+    return fsm
+
+
+@dataclass
+class Case:
+    rule: str
+    start: FsmState
+    facts: Facts = OK
+    events: list[Event] = field(default_factory=list)
+    now: float = 1.0
+    expect: FsmState = G
+    outputs: tuple[type, ...] = ()
+    released: bool = False
+
+
+CASES = [
+    Case("activate", INACT, expect=G, outputs=(Activated,)),
+    Case(
+        "deactivate",
+        G,
+        facts=Facts(active=False, base_set=True, vehicle_ready=True),
+        expect=INACT,
+        outputs=(Deactivated,),
+    ),
+    Case(
+        "deactivate",
+        P,
+        facts=Facts(active=True, base_set=False, vehicle_ready=True),
+        expect=INACT,
+        outputs=(Deactivated,),
+    ),
+    Case(
+        "deactivate",
+        E,
+        facts=Facts(active=False, base_set=True),
+        expect=INACT,
+        outputs=(Deactivated,),
+    ),
+    Case("emergency", G, facts=Facts(True, True, True, BATT), expect=E, outputs=(StartEmergency,)),
+    Case("emergency", P, facts=Facts(True, True, True, BATT), expect=E, outputs=(StartEmergency,)),
+    Case("escalate", E, facts=Facts(True, True, True, BATT), expect=E, outputs=(StartEmergency,)),
+    Case(
+        "landed",
+        G,
+        events=[LandingComplete()],
+        expect=INACT,
+        outputs=(MissionFinished, Deactivated),
+    ),
+    Case(
+        "mission complete",
+        G,
+        events=[MissionComplete(7)],
+        expect=P,
+        outputs=(MissionFinished, BeginPlan),
+    ),
+    Case(
+        "left fleet",
+        G,
+        events=[LeftFleet("lost")],
+        expect=P,
+        outputs=(LeaveFleet, RaiseAlert, BeginPlan),
+    ),
+    Case("new mission", G, events=[NewMission(9)], expect=P, outputs=(BeginPlan,)),
+    Case("new mission", P, events=[NewMission(9)], expect=P, outputs=(BeginPlan,)),
+    Case("replan", G, events=[Replan(7)], expect=P, outputs=(BeginPlan,)),
+    Case("replan", P, events=[Replan(7)], expect=P, outputs=(BeginPlan,)),
+    Case(
+        "plan ok", P, events=[PlanSucceeded(7)], expect=G, outputs=(MissionStarted,), released=True
+    ),
+    Case(
+        "plan failed",
+        P,
+        events=[PlanFailed(7, "no route")],
+        expect=G,
+        outputs=(RaiseAlert, LeaveFleet, ReturnHome),
+    ),
+    Case("plan timeout", P, now=31.0, expect=G, outputs=(RaiseAlert, LeaveFleet, ReturnHome)),
+    Case(
+        "fleet synced",
+        P,
+        facts=Facts(True, True, True, None, fleet_ready=True),
+        expect=P,
+        outputs=(ReleaseMission,),
+    ),
+]
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda c: f"{c.start.name}:{c.rule}")
+def test_every_transition(case: Case) -> None:
+    fsm = machine(case.start, released=case.released)
+    for ev in case.events:
+        fsm.post(ev)
+    t = fsm.tick(case.now, case.facts)
+    assert t is not None and t.rule == case.rule
+    target = ACTION_TARGET[t.action]
+    assert fsm.state == case.expect == (case.start if target is None else target)
+    assert tuple(type(o) for o in t.outputs) == case.outputs
+
+
+def test_every_rule_and_state_pair_is_covered() -> None:
+    covered = {(c.rule, c.start) for c in CASES}
+    for rule in RULES:
+        for s in rule.states:
+            assert (rule.name, s) in covered, f"no test for {rule.name} in {s.name}"
+
+
+def test_every_state_is_reachable_from_inactive() -> None:
+    seen, frontier = {INACT}, [INACT]
+    while frontier:
+        s = frontier.pop()
+        for rule in RULES:
+            if s in rule.states:
+                target = ACTION_TARGET[rule.action]
+                t = s if target is None else target
+                if t not in seen:
+                    seen.add(t)
+                    frontier.append(t)
+    assert seen == set(FsmState)
+
+
+@pytest.mark.parametrize("missing", ["active", "base_set", "vehicle_ready"])
+def test_no_transition_while_inactive_without_a_base_or_ready_vehicle(missing: str) -> None:
+    fsm = machine(INACT)
+    facts = Facts(**{**dict(active=True, base_set=True, vehicle_ready=True), missing: False})
+    fsm.post(NewMission(3))
+    for k in range(10):
+        assert fsm.tick(k * TICK_S, facts) is None
+    assert fsm.state == INACT
+
+
+def test_stale_plan_results_are_ignored() -> None:
+    fsm = machine(P, mission=7)
+    fsm.post(PlanSucceeded(6))  # an older mission's answer
+    assert fsm.tick(1.0, OK) is None
+    assert fsm.state == P and fsm.ignored[-1] == (P, PlanSucceeded(6))
+
+
+def test_fleet_is_released_once() -> None:
+    fsm = machine(P)
+    ready = Facts(True, True, True, None, fleet_ready=True)
+    assert fsm.tick(0.2, ready) is not None
+    assert fsm.tick(0.4, ready) is None  # already released
+
+
+def test_a_whole_sortie() -> None:
+    fsm = StateMachine(plan_timeout_s=30.0)
+    t = 0.0
+
+    def tick(facts: Facts = OK) -> list[object]:
+        nonlocal t
+        t += TICK_S
+        tr = fsm.tick(t, facts)
+        return tr.outputs if tr else []
+
+    assert tick(Facts(active=True, base_set=False, vehicle_ready=True)) == []
+    assert tick() == [Activated()]
+    fsm.post(NewMission(11))
+    assert tick() == [BeginPlan(11)]
+    assert fsm.state == P
+    assert tick() == []  # the fleet is not ready yet: wait in PLAN
+    assert tick(Facts(True, True, True, None, True)) == [ReleaseMission(11)]
+    fsm.post(PlanSucceeded(11))
+    assert tick() == [MissionStarted(11)] and fsm.state == G
+    fsm.post(MissionComplete(11))
+    assert tick() == [MissionFinished(11), BeginPlan(RETURN_MISSION)] and fsm.state == P
+    assert tick(Facts(True, True, True, None, True)) == [ReleaseMission(RETURN_MISSION)]
+    fsm.post(PlanSucceeded(RETURN_MISSION))
+    assert tick() == [MissionStarted(RETURN_MISSION)]
+    fsm.post(LandingComplete())
+    assert tick() == [MissionFinished(RETURN_MISSION), Deactivated("landed")]
+    assert fsm.state == INACT
+
+
+def test_emergency_holds_until_shutdown() -> None:
+    fsm = machine(G)
+    assert fsm.tick(0.2, Facts(True, True, True, BATT)) is not None
+    fsm.post(NewMission(4))
+    fsm.post(LandingComplete())
+    for k in range(5):
+        fsm.tick(0.4 + k * TICK_S, OK)  # alert cleared: still in emergency
+    assert fsm.state == E
+    fsm.tick(2.0, Facts(active=False, base_set=True))
+    assert fsm.state == INACT
+
+
+def test_diagram_lists_every_rule() -> None:
+    text = mermaid()
+    for rule in RULES:
+        assert rule.name in text
+    assert all(a in ACTION_TARGET for a in Action)
