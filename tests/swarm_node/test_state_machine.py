@@ -237,3 +237,9 @@ def test_diagram_lists_every_rule() -> None:
     for rule in RULES:
         assert rule.name in text
     assert all(a in ACTION_TARGET for a in Action)
+
+
+def test_the_documented_diagram_is_the_table() -> None:
+    from tests.conftest import REPO
+
+    assert mermaid() in (REPO / "docs" / "state-machine.md").read_text(), "regenerate the diagram in docs/state-machine.md"
