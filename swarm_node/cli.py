@@ -15,10 +15,57 @@ def _group() -> None:
 
 
 @app.command()
-def run() -> None:
-    """Run the node (autopilot link, monitoring, swarm manager, state machine)."""
-    typer.echo("swarm-node run: not implemented yet (issue 4)", err=True)
-    raise typer.Exit(2)
+def run(
+    config: str | None = typer.Option(None, "--config", "-c", help="node TOML file"),
+    node_id: int | None = typer.Option(
+        None, "--id", help="this node's id (the database system id)"
+    ),
+    autopilot: str | None = typer.Option(
+        None,
+        help="MAVLink connection: tcp:127.0.0.1:5760, udpin:0.0.0.0:14550, /dev/ttyACM0,115200",
+    ),
+    swarm: str | None = typer.Option(None, help="swarm name (default: default)"),
+    db: str | None = typer.Option(None, help="swarm database file (else $BANDADA_DB)"),
+    mode: str | None = typer.Option(None, help="Zenoh mode: peer (default) or router (multi-hop)"),
+    connect: list[str] = typer.Option([], help="Zenoh endpoints to connect to"),
+    listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
+    lease_ms: int | None = typer.Option(None, help="Zenoh lease: how soon a frozen peer is lost"),
+    log_level: str = typer.Option("INFO", help="DEBUG, INFO, WARNING, ERROR"),
+) -> None:
+    """Run the node: autopilot link, monitoring, swarm manager, state machine."""
+    import logging
+
+    from swarm_proto import clock_from_env
+    from swarm_proto.shutdown import stop_event
+
+    from .runtime.config import load_config
+    from .runtime.launch import build_node
+
+    logging.basicConfig(
+        level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+    )
+    try:
+        cfg = load_config(
+            config,
+            node_id=node_id,
+            autopilot=autopilot,
+            swarm=swarm,
+            db=db,
+            zenoh_mode=mode,
+            zenoh_connect=tuple(connect),
+            zenoh_listen=tuple(listen),
+            zenoh_lease_ms=lease_ms,
+        )
+    except ValueError as exc:
+        typer.echo(f"swarm-node: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    stop = stop_event()
+    try:
+        node = build_node(cfg, clock_from_env())
+    except (ValueError, OSError) as exc:
+        typer.echo(f"swarm-node: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    node.run(stop)
 
 
 @app.command()
@@ -53,3 +100,7 @@ def version() -> None:
 
 def main() -> None:
     app()
+
+
+if __name__ == "__main__":
+    main()

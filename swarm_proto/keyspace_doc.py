@@ -159,18 +159,27 @@ def _struct_table(cls: type) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _documented() -> list[type]:
+    """Every message type carried by a topic (radio-tagged ones first)."""
+    extra = [
+        t.msg_type for t in TOPICS if t.msg_type is not None and t.msg_type not in MESSAGE_TYPES
+    ]
+    return list(MESSAGE_TYPES) + list(dict.fromkeys(extra))
+
+
 def _nested_structs() -> list[type]:
     seen: list[type] = []
+    documented = _documented()
 
     def walk(t: Any) -> None:
         if isinstance(t, mi.Metadata):
             walk(t.type)
         elif isinstance(t, mi.StructType):
-            if t.cls not in seen and t.cls not in MESSAGE_TYPES:
+            if t.cls not in seen and t.cls not in documented:
                 seen.append(t.cls)
                 for f in t.fields:
                     walk(f.type)
-            elif t.cls in MESSAGE_TYPES:
+            elif t.cls in documented:
                 for f in t.fields:
                     walk(f.type)
         elif isinstance(t, mi.VarTupleType):
@@ -179,7 +188,7 @@ def _nested_structs() -> list[type]:
             for x in t.types:
                 walk(x)
 
-    for cls in MESSAGE_TYPES:
+    for cls in documented:
         walk(mi.type_info(cls))
     return seen
 
@@ -202,7 +211,7 @@ def _enums() -> list[type[enum.Enum]]:
             for x in t.types:
                 walk(x)
 
-    for cls in MESSAGE_TYPES:
+    for cls in _documented():
         walk(mi.type_info(cls))
     return found
 
@@ -241,7 +250,7 @@ def render() -> str:
     out.append("")
     out.append("## Messages")
     out.append("")
-    for cls in MESSAGE_TYPES:
+    for cls in _documented():
         out.append(_struct_table(cls))
     out.append("## Nested types")
     out.append("")

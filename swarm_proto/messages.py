@@ -434,6 +434,22 @@ class TargetReport(Struct, frozen=True):
     vel_east_m_s: VelocityMS = 0.0
 
 
+class PeerEntry(Struct, frozen=True):
+    node_id: VehicleId
+    vehicle_type: VehicleType = VehicleType.OTHER
+    fleet_id: FleetId = 0
+    fsm_state: FsmState = FsmState.INACTIVE
+    heard_age_s: DurationS = 0.0  # since the last telemetry or liveliness news
+
+
+class SwarmView(Struct, frozen=True):
+    """A node's view of the swarm (answer to a query on vehicle/<id>/peers; LAN only)."""
+
+    vehicle_id: VehicleId
+    time_unix_s: UnixTimeS
+    peers: tuple[PeerEntry, ...] = ()
+
+
 #: Every message type, in radio type-tag order (index + 1 is the tag). Append only.
 MESSAGE_TYPES: tuple[type[Struct], ...] = (
     VehicleStatus,

@@ -24,6 +24,7 @@ from .messages import (
     FleetAssignment,
     Mission,
     NoFlyZone,
+    SwarmView,
     TargetReport,
     VehicleInfo,
     VehicleStatus,
@@ -213,6 +214,12 @@ ALIVE = Topic(
     "Liveliness token of every running node (vehicle, ground station, gateway).",
 )
 
+PEERS = Topic(
+    "peers",
+    "vehicle/{vehicle_id}/peers",
+    SwarmView,
+    "Queryable: the node's view of the swarm (its live peers); LAN only.",
+)
 DATABASE = Topic(
     "database",
     "db/{node_id}",
@@ -238,6 +245,7 @@ TOPICS: tuple[Topic, ...] = (
     ZONE,
     TARGET,
     ALIVE,
+    PEERS,
     DATABASE,
     RADIO_STATS,
 )

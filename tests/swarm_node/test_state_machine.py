@@ -242,4 +242,6 @@ def test_diagram_lists_every_rule() -> None:
 def test_the_documented_diagram_is_the_table() -> None:
     from tests.conftest import REPO
 
-    assert mermaid() in (REPO / "docs" / "state-machine.md").read_text(), "regenerate the diagram in docs/state-machine.md"
+    assert mermaid() in (REPO / "docs" / "state-machine.md").read_text(), (
+        "regenerate the diagram in docs/state-machine.md"
+    )

@@ -1,0 +1,107 @@
+"""Node configuration: a TOML file (msgspec), overridable from the command line.
+
+# /etc/bandada/node.toml
+swarm = "default"
+node_id = 3                       # the swarm database's system id
+autopilot = "/dev/bandada-autopilot,921600"   # or udpin:0.0.0.0:14550, tcp:127.0.0.1:5760
+db = "/var/lib/bandada/swarm.db"  # where the node resolves its identity and parameters
+status_hz = 5.0
+info_hz = 1.0
+plan_timeout_s = 60.0
+
+[zenoh]                           # swarm_proto.session.ZenohSettings
+mode = "peer"
+connect = ["tcp/192.168.1.10:7447"]
+lease_ms = 2000
+
+[profile]                         # optional: parameters without a database
+model = "Generic Quad"
+vehicle_type = 3                  # swarm_proto.VehicleType
+cruise_speed_m_s = 12.0
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import msgspec
+
+from swarm_proto.session import ZenohSettings
+from swarm_proto.topics import check_swarm_name
+
+from ..core.profile import VehicleProfile
+
+
+class ProfileOverride(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """VehicleProfile fields given in the config file (used when there is no database)."""
+
+    model: str = "unknown"
+    user_id: str = ""
+    vehicle_type: int = 0
+    cruise_speed_m_s: float = 0.0
+    min_speed_m_s: float = 0.0
+    max_speed_m_s: float = 0.0
+    max_bank_deg: float = 45.0
+    battery_low_pct: int = 30
+    battery_critical_pct: int = 15
+    has_parachute: bool = False
+
+
+class NodeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    node_id: int = 0
+    swarm: str = "default"
+    autopilot: str = ""  # "" = no autopilot (a node that only watches the swarm)
+    db: str | None = None
+    status_hz: float = 5.0
+    info_hz: float = 1.0
+    plan_timeout_s: float = 60.0
+    stale_after_s: float = 2.0
+    zenoh: ZenohSettings = ZenohSettings()
+    profile: ProfileOverride | None = None
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.node_id <= 65534:
+            raise ValueError(f"node_id must be 1..65534, got {self.node_id}")
+        check_swarm_name(self.swarm)
+        if not 0.1 <= self.status_hz <= 50 or not 0.05 <= self.info_hz <= 10:
+            raise ValueError("status_hz must be 0.1..50 and info_hz 0.05..10")
+
+
+def load_config(path: str | Path | None, **overrides: object) -> NodeConfig:
+    """Read a TOML config (if given) and apply non-None overrides; clear errors."""
+    data: dict[str, object] = {}
+    if path is not None:
+        try:
+            data = msgspec.toml.decode(Path(path).read_bytes())
+        except (OSError, msgspec.DecodeError) as exc:
+            raise ValueError(f"cannot read config {path}: {exc}") from exc
+    zenoh = dict(data.pop("zenoh", {}) or {})  # type: ignore[call-overload]
+    for key in ("mode", "listen", "connect", "lease_ms"):
+        value = overrides.pop(f"zenoh_{key}", None)
+        if value not in (None, (), []):
+            zenoh[key] = value
+    data.update({k: v for k, v in overrides.items() if v is not None})
+    data["zenoh"] = zenoh
+    try:
+        return msgspec.convert(data, NodeConfig)
+    except (msgspec.ValidationError, ValueError) as exc:
+        raise ValueError(f"invalid node configuration: {exc}") from exc
+
+
+def profile_from_config(cfg: NodeConfig) -> VehicleProfile:
+    from swarm_proto import VehicleType
+
+    p = cfg.profile or ProfileOverride()
+    return VehicleProfile(
+        vehicle_id=cfg.node_id,
+        user_id=p.user_id or f"node-{cfg.node_id}",
+        model=p.model,
+        vehicle_type=VehicleType(p.vehicle_type),
+        cruise_speed_m_s=p.cruise_speed_m_s,
+        min_speed_m_s=p.min_speed_m_s,
+        max_speed_m_s=p.max_speed_m_s,
+        max_bank_deg=p.max_bank_deg,
+        battery_low_pct=p.battery_low_pct,
+        battery_critical_pct=p.battery_critical_pct,
+        has_parachute=p.has_parachute,
+    )

@@ -1,0 +1,210 @@
+"""The vehicle node process: the I/O shell around `swarm_node.core.node.NodeCore`.
+
+One thread runs the loop: it waits on an inbox (fed by Zenoh callbacks and the
+autopilot link) until the core's next deadline, hands inputs and timers to the core
+and carries out its outputs: publish on Zenoh, submit to the autopilot, log. Every
+few hundred milliseconds the autopilot state snapshot is handed to the core (the
+link tracks MAVLink at full rate in its own thread; the core decides at 5 Hz).
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from collections.abc import Callable
+from concurrent.futures import Future
+from typing import Protocol
+
+import msgspec
+import zenoh
+
+from swarm_proto import Clock, PeerEntry, SwarmView, lan
+from swarm_proto.session import SwarmBus
+from swarm_proto.topics import COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE
+
+from ..core.autopilot.requests import ApRequest, ApResult
+from ..core.autopilot.state import AutopilotState
+from ..core.node import (
+    AutopilotResult,
+    AutopilotUpdate,
+    BadInput,
+    Input,
+    NodeCore,
+    NodeSettings,
+    Note,
+    Output,
+    PeerAlive,
+    Publish,
+    Received,
+    Submit,
+)
+from ..core.profile import VehicleProfile
+from .config import NodeConfig
+
+log = logging.getLogger("swarm_node")
+
+
+class AutopilotPort(Protocol):
+    """What the node needs of an autopilot link."""
+
+    @property
+    def state(self) -> AutopilotState: ...
+
+    def submit(self, request: ApRequest) -> Future[ApResult]: ...
+
+    def close(self) -> None: ...
+
+
+class NoAutopilot:
+    """A node without an autopilot (it watches the swarm): every request fails."""
+
+    state = AutopilotState()
+
+    def submit(self, request: ApRequest) -> Future[ApResult]:
+        f: Future[ApResult] = Future()
+        f.set_result(ApResult(request.request_id, False, "no autopilot configured"))
+        return f
+
+    def close(self) -> None:
+        pass
+
+
+class NodeRuntime:
+    def __init__(
+        self,
+        config: NodeConfig,
+        profile: VehicleProfile,
+        clock: Clock,
+        autopilot: AutopilotPort | None = None,
+        *,
+        bus: SwarmBus | None = None,
+    ) -> None:
+        self.config = config
+        self.clock = clock
+        self.autopilot: AutopilotPort = autopilot or NoAutopilot()
+        self.core = NodeCore(
+            profile,
+            NodeSettings(
+                status_period_s=1.0 / config.status_hz,
+                info_period_s=1.0 / config.info_hz,
+                plan_timeout_s=config.plan_timeout_s,
+                stale_after_s=config.stale_after_s,
+            ),
+            now=clock.now(),
+        )
+        self.inbox: queue.SimpleQueue[Input] = queue.SimpleQueue()
+        self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)
+        if bus is not None:
+            bus.on_bad_input = self._bad_input
+        self._queryable: zenoh.Queryable | None = None
+        self._lock = threading.Lock()  # guards the core against the peers queryable
+        self._ap_period_s = 0.2
+
+    # ------------------------------------------------------------------ wiring
+    def _bad_input(self, key: str, exc: Exception) -> None:
+        self.inbox.put(BadInput(key, str(exc)))
+
+    def _received(self, msg: msgspec.Struct, key: str) -> None:
+        self.inbox.put(Received(msg))
+
+    def _alive(self, node_id: int, alive: bool) -> None:
+        self.inbox.put(PeerAlive(node_id, alive))
+
+    def _answer_peers(self, query: zenoh.Query) -> None:
+        with self._lock:
+            now = self.clock.now()
+            view = SwarmView(
+                vehicle_id=self.core.self_id,
+                time_unix_s=max(0.0, now),
+                peers=tuple(
+                    PeerEntry(
+                        node_id=p.node_id,
+                        vehicle_type=p.vehicle_type,
+                        fleet_id=p.fleet_id,
+                        fsm_state=p.fsm_state,
+                        heard_age_s=min(max(0.0, now - p.last_heard_s), 1e7),
+                    )
+                    for p in self.core.members.live()
+                ),
+            )
+        query.reply(query.key_expr, lan.encode(view))
+
+    def start(self) -> None:
+        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET):
+            self.bus.subscribe(topic, self._received)
+        self.bus.watch_alive(self._alive)
+        self.bus.declare_alive(self.core.self_id)
+        key = PEERS.key(self.config.swarm, vehicle_id=self.core.self_id)
+        self._queryable = self.bus.session.declare_queryable(key, self._answer_peers)
+
+    # ------------------------------------------------------------------ loop
+    def run(self, stop: threading.Event) -> None:
+        """Run until `stop` is set; then close everything (no hang at exit)."""
+        self.start()
+        next_ap = self.clock.now()
+        try:
+            while not stop.is_set():
+                now = self.clock.now()
+                deadline = min(self.core.next_deadline(), next_ap)
+                wait = min(self.clock.to_wall(deadline - now), 0.25)
+                try:
+                    event: Input | None = self.inbox.get(timeout=max(0.0, wait))
+                except queue.Empty:
+                    event = None
+                now = self.clock.now()
+                with self._lock:
+                    if event is not None:
+                        self._execute(self.core.handle(event, now))
+                        while True:  # drain what arrived meanwhile
+                            try:
+                                self._execute(self.core.handle(self.inbox.get_nowait(), now))
+                            except queue.Empty:
+                                break
+                    if now >= next_ap:
+                        next_ap = max(next_ap + self._ap_period_s, now)
+                        self._execute(self.core.handle(AutopilotUpdate(self.autopilot.state), now))
+                    if now >= self.core.next_deadline():
+                        self._execute(self.core.on_timer(now))
+        finally:
+            self.close()
+
+    def _execute(self, outputs: list[Output]) -> None:
+        for o in outputs:
+            if isinstance(o, Publish):
+                try:
+                    self.bus.publish(o.msg)
+                except Exception:  # an invalid message of ours must not stop the node
+                    log.exception("could not publish %s", type(o.msg).__name__)
+            elif isinstance(o, Submit):
+                self._submit(o.request)
+            elif isinstance(o, Note):
+                log.log(o.level, "node %d: %s", self.core.self_id, o.text)
+
+    def _submit(self, request: ApRequest) -> None:
+        log.info("node %d: autopilot <- %s", self.core.self_id, type(request).__name__)
+        try:
+            future = self.autopilot.submit(request)
+        except Exception as exc:  # a request the link refuses outright
+            self.inbox.put(AutopilotResult(ApResult(request.request_id, False, str(exc)[:60])))
+            return
+        put: Callable[[Input], None] = self.inbox.put
+
+        def done(f: Future[ApResult]) -> None:
+            try:
+                result = f.result()
+            except Exception as exc:
+                result = ApResult(request.request_id, False, str(exc)[:60])
+            put(AutopilotResult(result))
+
+        future.add_done_callback(done)
+
+    def close(self) -> None:
+        if self._queryable is not None:
+            try:
+                self._queryable.undeclare()
+            except Exception:
+                log.debug("queryable undeclare failed", exc_info=True)
+            self._queryable = None
+        self.bus.close()
+        self.autopilot.close()
