@@ -16,8 +16,8 @@ from swarm_proto import (
     Command,
     CommandArgs,
     CommandKind,
-    GeoPoint,
     Geometry,
+    GeoPoint,
     Mission,
     MissionType,
     Selector,
@@ -42,11 +42,20 @@ def test_commands_and_malformed_input(zenoh_router: str, tmp_path: Path) -> None
         assert wait_until(lambda: peers_of(client, swarm, 4) is not None, timeout=30) is not None
 
         # garbage on every key the node subscribes to
-        for key in ("vehicle/77/status", "vehicle/77/info", "cmd/900", "mission/5", "zone/3", "fleet/2"):
+        for key in (
+            "vehicle/77/status",
+            "vehicle/77/info",
+            "cmd/900",
+            "mission/5",
+            "zone/3",
+            "fleet/2",
+        ):
             client.put(f"bandada/{swarm}/{key}", b"\xc1\xc1 garbage")
             client.put(f"bandada/{swarm}/{key}", msgspec.msgpack.encode({"lat_deg": float("nan")}))
 
-        def send(seq: int, kind: CommandKind, target: Selector | None = None, **args: object) -> Ack:
+        def send(
+            seq: int, kind: CommandKind, target: Selector | None = None, **args: object
+        ) -> Ack:
             cmd = Command(GCS, seq, kind, target or Selector(), CommandArgs(**args))  # type: ignore[arg-type]
             client.put(f"bandada/{swarm}/cmd/{GCS}", msgspec.msgpack.encode(cmd))
             while True:
@@ -60,7 +69,9 @@ def test_commands_and_malformed_input(zenoh_router: str, tmp_path: Path) -> None
         assert send(3, CommandKind.SET_BASE).reason == AckReason.INVALID  # no point
         assert send(4, CommandKind.CANCEL_MISSION, mission_id=8).reason == AckReason.NOT_FOUND
         assert send(5, CommandKind.ACTIVATE, Selector.ids(4, 5)).accepted
-        mission = Mission(21, GCS, MissionType.OBJECTIVE, Geometry.point(37.42, -5.98), selection=Selector.ids(4))
+        mission = Mission(
+            21, GCS, MissionType.OBJECTIVE, Geometry.point(37.42, -5.98), selection=Selector.ids(4)
+        )
         client.put(f"bandada/{swarm}/mission/21", msgspec.msgpack.encode(mission))
         ack = acks.get(timeout=20)
         assert (ack.ref_id, ack.accepted, ack.reason) == (21, False, AckReason.HOME_NOT_SET)
@@ -70,5 +81,12 @@ def test_commands_and_malformed_input(zenoh_router: str, tmp_path: Path) -> None
         client.close()
         assert stop(proc) == 0
     text = log.read_text()
-    for key in ("vehicle/77/status", "vehicle/77/info", "cmd/900", "mission/5", "zone/3", "fleet/2"):
+    for key in (
+        "vehicle/77/status",
+        "vehicle/77/info",
+        "cmd/900",
+        "mission/5",
+        "zone/3",
+        "fleet/2",
+    ):
         assert f"dropped malformed input on bandada/{swarm}/{key}" in text, key
