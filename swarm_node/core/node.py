@@ -39,6 +39,7 @@ from swarm_proto import (
 from . import state_machine as fsm
 from .autopilot.requests import ApRequest, ApResult, ReturnToLaunch
 from .autopilot.state import AutopilotState
+from .autopilot.status import to_vehicle_status
 from .commands import (
     CancelMission,
     CommandTracker,
@@ -163,31 +164,14 @@ class NodeCore:
         )
 
     def status(self, now: float) -> VehicleStatus | None:
-        s = self.autopilot
-        if s.lat_deg is None or s.lon_deg is None:
-            return None
-        t = s.gps_time_unix_s if s.gps_time_unix_s is not None else now
-        return VehicleStatus(
+        """This vehicle's VehicleStatus (None until the autopilot has a position)."""
+        return to_vehicle_status(
+            self.autopilot,
             vehicle_id=self.self_id,
-            time_unix_s=max(0.0, t),
-            lat_deg=s.lat_deg,
-            lon_deg=s.lon_deg,
-            alt_msl_m=_clamp(s.alt_msl_m or 0.0, -1000.0, 8000.0),
-            alt_rel_m=_clamp(s.alt_rel_m or 0.0, -1000.0, 8000.0),
-            vel_north_m_s=_clamp(s.vel_north_m_s, -300.0, 300.0),
-            vel_east_m_s=_clamp(s.vel_east_m_s, -300.0, 300.0),
-            vel_down_m_s=_clamp(s.vel_down_m_s, -300.0, 300.0),
-            heading_deg=s.heading_deg % 360.0,
-            airspeed_m_s=_clamp(s.airspeed_m_s, 0.0, 300.0),
-            battery_pct=s.battery_pct if -1 <= s.battery_pct <= 100 else -1,
-            battery_v=_clamp(s.battery_v, 0.0, 655.0),
-            gps_fix=s.gps_fix,
-            gps_sats=min(max(s.gps_sats, 0), 255),
-            ap_mode=s.mode_number & 0xFF,
-            armed=s.armed,
+            now_unix_s=now,
             fsm_state=self.fsm.state,
             mission_state=self.mission_state,
-            mission_progress_pct=self.mission_progress_pct,
+            mission_progress=self.mission_progress_pct,
             fleet_id=self.fleet_id,
             alerts=self.monitor.flags,
         )

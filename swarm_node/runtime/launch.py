@@ -21,9 +21,18 @@ def resolve_profile(cfg: NodeConfig) -> VehicleProfile:
 
 
 def open_autopilot(cfg: NodeConfig, profile: VehicleProfile, clock: Clock) -> AutopilotPort | None:
+    """The MAVLink link to the autopilot (None: a node without one). The vehicle type
+    comes from the profile: a QuadPlane reports FIXED_WING in its HEARTBEAT."""
     if not cfg.autopilot:
         return None
-    raise ValueError("the autopilot link is not available in this build")
+    from swarm_proto import VehicleType
+
+    from .autopilot_link import AutopilotLink
+
+    vt = profile.vehicle_type if profile.vehicle_type != VehicleType.OTHER else None
+    link = AutopilotLink(cfg.autopilot, clock, vehicle_type=vt, name=f"autopilot-{profile.vehicle_id}")
+    link.start()
+    return link
 
 
 def build_node(cfg: NodeConfig, clock: Clock) -> NodeRuntime:
