@@ -4,6 +4,7 @@ the Zenoh session."""
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 from swarm_proto import Clock
 
@@ -20,17 +21,36 @@ def resolve_profile(cfg: NodeConfig) -> VehicleProfile:
     return profile_from_config(cfg)
 
 
-def open_autopilot(cfg: NodeConfig, profile: VehicleProfile, clock: Clock) -> AutopilotPort | None:
+#: Silence that counts as a lost autopilot link. Telemetry is requested at 10 Hz, so this
+#: is six missed position messages; with the 5 Hz state machine it keeps link loss ->
+#: STATE_EMERGENCY under 1 s.
+LINK_TIMEOUT_S = 0.6
+
+
+def open_autopilot(
+    cfg: NodeConfig,
+    profile: VehicleProfile,
+    clock: Clock,
+    on_event: Callable[[object], None] | None = None,
+) -> AutopilotPort | None:
     """The MAVLink link to the autopilot (None: a node without one). The vehicle type
     comes from the profile: a QuadPlane reports FIXED_WING in its HEARTBEAT."""
     if not cfg.autopilot:
         return None
     from swarm_proto import VehicleType
 
+    from ..core.autopilot.link import LinkSettings
     from .autopilot_link import AutopilotLink
 
     vt = profile.vehicle_type if profile.vehicle_type != VehicleType.OTHER else None
-    link = AutopilotLink(cfg.autopilot, clock, vehicle_type=vt, name=f"autopilot-{profile.vehicle_id}")
+    link = AutopilotLink(
+        cfg.autopilot,
+        clock,
+        vehicle_type=vt,
+        on_event=on_event,
+        settings=LinkSettings(link_timeout_s=LINK_TIMEOUT_S),
+        name=f"autopilot-{profile.vehicle_id}",
+    )
     link.start()
     return link
 

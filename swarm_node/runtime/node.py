@@ -108,6 +108,21 @@ class NodeRuntime:
     def _received(self, msg: msgspec.Struct, key: str) -> None:
         self.inbox.put(Received(msg))
 
+    def on_autopilot_event(self, event: object) -> None:
+        """Link events (on the link's thread): state changes that matter now (link lost
+        or restored, armed, mode, landed) reach the core at once instead of at the next
+        200 ms poll."""
+        from ..core.autopilot.events import (
+            ArmedChanged,
+            LandedChanged,
+            LinkLost,
+            LinkRestored,
+            ModeChanged,
+        )
+
+        if isinstance(event, LinkLost | LinkRestored | ArmedChanged | ModeChanged | LandedChanged):
+            self.inbox.put(AutopilotUpdate(self.autopilot.state))
+
     def _alive(self, node_id: int, alive: bool) -> None:
         self.inbox.put(PeerAlive(node_id, alive))
 

@@ -76,9 +76,10 @@ def wait_until(predicate: object, timeout: float, period: float = 0.1) -> float 
 
 @contextlib.contextmanager
 def nodes(
-    ids: list[int], router: str, swarm: str, *args: str
+    ids: list[int], router: str, swarm: str, *args: str, autopilots: dict[int, str] | None = None
 ) -> Iterator[dict[int, subprocess.Popen[bytes]]]:
-    procs = {i: start_node(i, router, swarm, *args) for i in ids}
+    ap = autopilots or {}
+    procs = {i: start_node(i, router, swarm, *(("--autopilot", ap[i]) if i in ap else ()), *args) for i in ids}
     try:
         yield procs
     finally:
