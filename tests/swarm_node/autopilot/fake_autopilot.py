@@ -80,19 +80,43 @@ class FakeAutopilot:
         if now >= self._next_hb:
             self._next_hb = now + 1.0
             base = 1 | (128 if self.armed else 0)
-            out.append(self._pack(mavlink.MAVLink_heartbeat_message(
-                self.mav_type, 3, base, self.custom_mode, 4 if self.armed else 3, 3)))
+            out.append(
+                self._pack(
+                    mavlink.MAVLink_heartbeat_message(
+                        self.mav_type, 3, base, self.custom_mode, 4 if self.armed else 3, 3
+                    )
+                )
+            )
         if now >= self._next_telemetry:
             self._next_telemetry = now + self.telemetry_period_s
-            out.append(self._pack(mavlink.MAVLink_global_position_int_message(
-                boot, round(self.lat * 1e7), round(self.lon * 1e7),
-                round((self.home_alt + self.alt_rel) * 1000), round(self.alt_rel * 1000),
-                0, 0, 0, 9000)))
-            out.append(self._pack(mavlink.MAVLink_system_time_message(
-                int((self.start_unix_s + boot / 1000) * 1e6), boot)))
+            out.append(
+                self._pack(
+                    mavlink.MAVLink_global_position_int_message(
+                        boot,
+                        round(self.lat * 1e7),
+                        round(self.lon * 1e7),
+                        round((self.home_alt + self.alt_rel) * 1000),
+                        round(self.alt_rel * 1000),
+                        0,
+                        0,
+                        0,
+                        9000,
+                    )
+                )
+            )
+            out.append(
+                self._pack(
+                    mavlink.MAVLink_system_time_message(
+                        int((self.start_unix_s + boot / 1000) * 1e6), boot
+                    )
+                )
+            )
             flags = 831 if self.ekf_ok else 1024
-            out.append(self._pack(mavlink.MAVLink_ekf_status_report_message(
-                flags, 0.1, 0.1, 0.1, 0.1, 0.0)))
+            out.append(
+                self._pack(
+                    mavlink.MAVLink_ekf_status_report_message(flags, 0.1, 0.1, 0.1, 0.1, 0.0)
+                )
+            )
         out += self._server_timers(now)
         return out
 
@@ -115,8 +139,11 @@ class FakeAutopilot:
         return out
 
     def _ack(self, command: int, result: int, src: object) -> bytes:
-        return self._pack(mavlink.MAVLink_command_ack_message(
-            command, result, 0, 0, src.get_srcSystem(), src.get_srcComponent()))
+        return self._pack(
+            mavlink.MAVLink_command_ack_message(
+                command, result, 0, 0, src.get_srcSystem(), src.get_srcComponent()
+            )
+        )
 
     def _command(self, msg: object, now: float) -> list[bytes]:
         cmd = int(msg.command)
@@ -126,8 +153,10 @@ class FakeAutopilot:
             return []
         script = self.ack_script.get(cmd)
         result = script.pop(0) if script else 0
-        out = [self._pack(mavlink.MAVLink_statustext_message(sev, text.encode()))
-               for sev, text in self.statustexts]
+        out = [
+            self._pack(mavlink.MAVLink_statustext_message(sev, text.encode()))
+            for sev, text in self.statustexts
+        ]
         self.statustexts.clear()
         if result == 0:
             if cmd == 176:
@@ -145,13 +174,21 @@ class FakeAutopilot:
     def _on_param_set(self, msg: object, now: float) -> list[bytes]:
         name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
         self.params[name] = float(msg.param_value)
-        return [self._pack(mavlink.MAVLink_param_value_message(
-            name.encode(), float(msg.param_value), 9, len(self.params), 0))]
+        return [
+            self._pack(
+                mavlink.MAVLink_param_value_message(
+                    name.encode(), float(msg.param_value), 9, len(self.params), 0
+                )
+            )
+        ]
 
     # mission protocol, autopilot side
     def _request(self, mtype: int, seq: int, dst: tuple[int, int]) -> bytes:
-        cls = (mavlink.MAVLink_mission_request_int_message if self.request_with_int
-               else mavlink.MAVLink_mission_request_message)
+        cls = (
+            mavlink.MAVLink_mission_request_int_message
+            if self.request_with_int
+            else mavlink.MAVLink_mission_request_message
+        )
         return self._pack(cls(dst[0], dst[1], seq, mtype))
 
     def _on_mission_count(self, msg: object, now: float) -> list[bytes]:
@@ -198,22 +235,46 @@ class FakeAutopilot:
 
     def _on_mission_clear_all(self, msg: object, now: float) -> list[bytes]:
         self.servers[msg.mission_type].items = []
-        return [self._mission_ack(msg.mission_type, 0, (msg.get_srcSystem(), msg.get_srcComponent()))]
+        return [
+            self._mission_ack(msg.mission_type, 0, (msg.get_srcSystem(), msg.get_srcComponent()))
+        ]
 
     def _on_mission_request_list(self, msg: object, now: float) -> list[bytes]:
         s = self.servers[msg.mission_type]
-        return [self._pack(mavlink.MAVLink_mission_count_message(
-            msg.get_srcSystem(), msg.get_srcComponent(), len(s.items), msg.mission_type))]
+        return [
+            self._pack(
+                mavlink.MAVLink_mission_count_message(
+                    msg.get_srcSystem(), msg.get_srcComponent(), len(s.items), msg.mission_type
+                )
+            )
+        ]
 
     def _on_mission_request_int(self, msg: object, now: float) -> list[bytes]:
         s = self.servers[msg.mission_type]
         if not 0 <= msg.seq < len(s.items):
             return []
         it = s.items[msg.seq]
-        return [self._pack(mavlink.MAVLink_mission_item_int_message(
-            msg.get_srcSystem(), msg.get_srcComponent(), it.seq, it.frame, it.command,
-            it.current, it.autocontinue, it.param1, it.param2, it.param3, it.param4,
-            it.x, it.y, it.z, it.mission_type))]
+        return [
+            self._pack(
+                mavlink.MAVLink_mission_item_int_message(
+                    msg.get_srcSystem(),
+                    msg.get_srcComponent(),
+                    it.seq,
+                    it.frame,
+                    it.command,
+                    it.current,
+                    it.autocontinue,
+                    it.param1,
+                    it.param2,
+                    it.param3,
+                    it.param4,
+                    it.x,
+                    it.y,
+                    it.z,
+                    it.mission_type,
+                )
+            )
+        ]
 
     _on_mission_request = _on_mission_request_int
 
@@ -222,8 +283,15 @@ class Harness:
     """Joins a LinkCore and a FakeAutopilot, drops packets at random both ways (seeded),
     and runs by jumping a manual time to the next deadline."""
 
-    def __init__(self, core: LinkCore, fake: FakeAutopilot, *, loss: float = 0.0,
-                 seed: int = 0, now: float = 1000.0) -> None:
+    def __init__(
+        self,
+        core: LinkCore,
+        fake: FakeAutopilot,
+        *,
+        loss: float = 0.0,
+        seed: int = 0,
+        now: float = 1000.0,
+    ) -> None:
         self.core = core
         self.fake = fake
         self.loss = loss
