@@ -81,7 +81,7 @@ def test_a_waypoint_speed_comes_before_it_and_rtl_has_no_position() -> None:
         VehicleType.COPTER,
     )
     assert [i.command for i in items] == [16, 178, 16, 20]
-    assert items[-1].frame == MavFrame.MISSION
+    assert items[-1].frame == MavFrame.GLOBAL_RELATIVE_ALT
 
 
 @pytest.mark.parametrize(
