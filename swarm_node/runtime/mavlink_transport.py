@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 UDP_MAX = 65535
+_MAX_PENDING = 1 << 16
 
 
 class Transport(Protocol):
@@ -170,8 +171,9 @@ class TcpClientTransport:
         self.endpoint = endpoint
         self.description = f"tcp:{endpoint.host}:{endpoint.port}"
         self.connect_timeout_s = connect_timeout_s
-        self.write_timeout_s = 0.5
         self._sock: socket.socket | None = None
+        self._out = bytearray()  # what the kernel did not take yet
+        self.dropped_bytes = 0
 
     @property
     def is_open(self) -> bool:
@@ -181,12 +183,10 @@ class TcpClientTransport:
         sock = socket.create_connection(
             (self.endpoint.host, self.endpoint.port), timeout=self.connect_timeout_s
         )
-        # reads happen only after select() says readable; a write may wait this long
-        # for a peer that stopped reading, then the frame is dropped (never half-sent
-        # except on that timeout, which the peer's framer resynchronises from)
-        sock.settimeout(self.write_timeout_s)
+        sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._sock = sock
+        self._out = bytearray()
 
     def fileno(self) -> int | None:
         return self._sock.fileno() if self._sock is not None else None
@@ -194,9 +194,10 @@ class TcpClientTransport:
     def read(self) -> bytes:
         if self._sock is None:
             return b""
+        self._flush()
         try:
-            data = self._sock.recv(65536, socket.MSG_DONTWAIT)
-        except (BlockingIOError, InterruptedError, TimeoutError):
+            data = self._sock.recv(65536)
+        except (BlockingIOError, InterruptedError):
             return b""
         if not data:
             raise ConnectionResetError(errno.ECONNRESET, "closed by the autopilot")
@@ -205,10 +206,23 @@ class TcpClientTransport:
     def write(self, data: bytes) -> None:
         if self._sock is None:
             return
-        with contextlib.suppress(TimeoutError):  # the peer is not reading: drop
-            self._sock.sendall(data)
+        if len(self._out) + len(data) > _MAX_PENDING:
+            self.dropped_bytes += len(data)  # the peer stopped reading: drop whole frames
+            return
+        self._out += data
+        self._flush()
+
+    def _flush(self) -> None:
+        if self._sock is None or not self._out:
+            return
+        try:
+            sent = self._sock.send(self._out)
+        except (BlockingIOError, InterruptedError):
+            return
+        del self._out[:sent]
 
     def close(self) -> None:
+        self._out.clear()
         if self._sock is not None:
             self._sock.close()
             self._sock = None
@@ -252,13 +266,13 @@ class TcpServerTransport:
         else:
             if self._client is not None:
                 self._client.close()
-            client.settimeout(0.5)
+            client.setblocking(False)
             self._client = client
         if self._client is None:
             return b""
         try:
-            data = self._client.recv(65536, socket.MSG_DONTWAIT)
-        except (BlockingIOError, InterruptedError, TimeoutError):
+            data = self._client.recv(65536)
+        except (BlockingIOError, InterruptedError):
             return b""
         except OSError:
             data = b""
@@ -271,8 +285,8 @@ class TcpServerTransport:
         if self._client is None:
             return
         try:
-            self._client.sendall(data)
-        except TimeoutError:
+            self._client.send(data)  # a partial send only costs the peer a resync
+        except (BlockingIOError, InterruptedError):
             pass
         except OSError:
             self._client.close()

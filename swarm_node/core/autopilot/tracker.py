@@ -451,6 +451,24 @@ class StateTracker:
         return {"landed": landed}, events
 
 
+#: Telemetry the tracker turns into state (the keys of StateTracker.handlers).
+HANDLED: tuple[str, ...] = (
+    "HEARTBEAT",
+    "GLOBAL_POSITION_INT",
+    "ATTITUDE",
+    "VFR_HUD",
+    "SYS_STATUS",
+    "BATTERY_STATUS",
+    "GPS_RAW_INT",
+    "SYSTEM_TIME",
+    "HOME_POSITION",
+    "MISSION_CURRENT",
+    "MISSION_ITEM_REACHED",
+    "STATUSTEXT",
+    "EKF_STATUS_REPORT",
+    "EXTENDED_SYS_STATE",
+)
+
 #: Handed on to the command and mission cores (after the source check).
 PROTOCOL: frozenset[str] = frozenset(
     {

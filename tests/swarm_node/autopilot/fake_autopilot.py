@@ -165,6 +165,8 @@ class FakeAutopilot:
                 self.armed = msg.param1 == 1.0
             elif cmd == 22:
                 self.alt_rel = float(msg.param7 if hasattr(msg, "param7") else msg.z)
+            elif cmd == 192 and int(msg.param2) & 1:
+                self.custom_mode = 4 if self.kind == "copter" else 15  # GUIDED
         out.append(self._ack(cmd, result, msg))
         return out
 
