@@ -34,10 +34,10 @@ from shapely.geometry import LineString, MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from .dubins import FloatArray, Pose
-from .errors import EmptyAreaError, InvalidGeometryError, InvalidParameterError, NoSafeRouteError
+from .errors import EmptyAreaError, InvalidGeometryError, InvalidParameterError
 from .geo import validated_polygon
 from .turns import TurnModel
-from .zones import ZoneSet, visibility_path
+from .zones import Obstacles, ZoneSet
 
 XY = tuple[float, float]
 
@@ -51,6 +51,7 @@ class Region:
     cover: Polygon | MultiPolygon  # shell - holes - zones
     keep_out: BaseGeometry  # zones inflated by their margin (may be empty)
     polygon: Polygon | MultiPolygon  # shell - holes (before zones)
+    obstacles: Obstacles  # the keep-out with its visibility graph, for transitions
 
 
 @dataclass(frozen=True, slots=True)
@@ -145,7 +146,8 @@ def decompose(
     cover = _polygonal(cover)
     if cover.is_empty or cover.area < 1e-6 * max(poly.area, 1.0):
         raise EmptyAreaError("nothing to cover: the area is entirely inside no-fly zones")
-    return Region(cover, zones.keep_out(alt_m), poly)
+    keep = zones.keep_out(alt_m)
+    return Region(cover, keep, poly, Obstacles(keep))
 
 
 def _polygonal(g: BaseGeometry) -> Polygon | MultiPolygon:
@@ -557,36 +559,30 @@ def order(
 def connect(
     ordered: Sequence[Lane],
     turns: TurnModel,
-    keep_out: BaseGeometry | None = None,
+    obstacles: Obstacles | None = None,
     start: Pose | None = None,
 ) -> CoveragePath:
     """Lanes joined by the turn model's transitions (from `start` if given). A transition
-    whose curve would cross the keep-out is replaced by the shortest polyline around it."""
+    whose curve would cross the obstacles is replaced by the shortest polyline around
+    them (visibility graph)."""
     legs: list[Leg] = []
     prev = start
     for ln in ordered:
         nxt = ln.start_pose()
         if prev is not None:
-            legs.append(_transition(prev, nxt, turns, keep_out))
+            legs.append(_transition(prev, nxt, turns, obstacles))
         legs.append(Leg((ln.a, ln.b), ln.length_m, True))
         prev = ln.end_pose()
     return CoveragePath(tuple(ordered), tuple(legs))
 
 
-def _transition(a: Pose, b: Pose, turns: TurnModel, keep_out: BaseGeometry | None) -> Leg:
+def _transition(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacles | None) -> Leg:
     pts = [(a.x, a.y)] + [(p.x, p.y) for p in turns.points(a, b)]
     length = turns.length(a, b)
-    if keep_out is None or keep_out.is_empty or len(pts) < 2:
+    if obstacles is None or not obstacles.crosses(pts):
         return Leg(tuple(pts), length, False)
-    inner = keep_out.buffer(-1e-6)
-    if not LineString(pts).intersects(inner):
-        return Leg(tuple(pts), length, False)
-    try:
-        around = visibility_path((a.x, a.y), (b.x, b.y), keep_out)
-    except NoSafeRouteError:
-        raise
-    line = LineString(around)
-    return Leg(tuple((float(x), float(y)) for x, y in around), line.length, False)
+    around = obstacles.path((a.x, a.y), (b.x, b.y))
+    return Leg(tuple(around), LineString(around).length, False)
 
 
 # --------------------------------------------------------------------------- metrics
@@ -694,7 +690,7 @@ def plan_lanes(
             ls, cov, ext = _least_extension(region, angle, spacing_m, shift, min_coverage)
             if not ls:
                 continue
-            path = connect(order(ls, turns, start), turns, region.keep_out, start)
+            path = connect(order(ls, turns, start), turns, region.obstacles, start)
             plan = LanePlan(angle, spacing_m, ext, ls, path, cov, 0.0)
             if best is None or (plan.coverage >= min_coverage, -plan.path.length_m) > (
                 best.coverage >= min_coverage,

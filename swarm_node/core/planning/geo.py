@@ -12,6 +12,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import pymap3d
 import shapely
 from shapely.geometry import LineString, Point, Polygon
@@ -107,7 +108,7 @@ class LocalFrame:
         lat, lon, _h = pymap3d.enu2geodetic(x_m, y_m, 0.0, self.lat0_deg, self.lon0_deg, 0.0)
         return float(lat), float(lon)
 
-    def to_geodetic_many(self, xy: np.ndarray) -> np.ndarray:
+    def to_geodetic_many(self, xy: npt.ArrayLike) -> np.ndarray:
         arr = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         lat, lon, _h = pymap3d.enu2geodetic(
             arr[:, 0], arr[:, 1], np.zeros(len(arr)), self.lat0_deg, self.lon0_deg, 0.0

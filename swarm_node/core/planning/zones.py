@@ -253,54 +253,99 @@ class Conflict:
     leg_end: int | None
 
 
+class Obstacles:
+    """Polygons a path must not cross, with their visibility graph built once: nodes
+    are the vertices of the polygons grown by a little, edges the node pairs that see
+    each other. `path(a, b)` adds the two end points and runs Dijkstra."""
+
+    def __init__(self, blocked: BaseGeometry) -> None:
+        self.blocked = blocked
+        self.inner = blocked.buffer(-1e-6) if not blocked.is_empty else blocked
+        shapely.prepare(self.inner)
+        nodes: list[tuple[float, float]] = []
+        if not blocked.is_empty:
+            grown = blocked.buffer(_CLEAR_M, join_style="mitre")
+            for poly in getattr(grown, "geoms", [grown]):
+                if isinstance(poly, Polygon):
+                    for ring in [poly.exterior, *poly.interiors]:
+                        nodes += [(float(x), float(y)) for x, y in list(ring.coords)[:-1]]
+        self.nodes = nodes
+        pts = np.asarray(nodes, dtype=np.float64).reshape(-1, 2)
+        self._pts = pts
+        n = len(nodes)
+        self.adj: list[list[tuple[int, float]]] = [[] for _ in range(n)]
+        if n > 1:
+            ii, jj = np.triu_indices(n, k=1)
+            segs = shapely.linestrings(np.stack([pts[ii], pts[jj]], axis=1))
+            ok = ~shapely.intersects(segs, self.inner)
+            ii, jj = ii[ok], jj[ok]
+            w = np.hypot(*(pts[ii] - pts[jj]).T)
+            for i, j, d in zip(ii.tolist(), jj.tolist(), w.tolist(), strict=True):
+                self.adj[i].append((j, d))
+                self.adj[j].append((i, d))
+
+    @property
+    def is_empty(self) -> bool:
+        return bool(self.blocked.is_empty)
+
+    def crosses(self, points: Sequence[tuple[float, float]]) -> bool:
+        if self.is_empty or len(points) < 2:
+            return False
+        return bool(LineString(points).intersects(self.inner))
+
+    def _visible_from(self, p: tuple[float, float]) -> list[tuple[int, float]]:
+        if not self.nodes:
+            return []
+        segs = shapely.linestrings(
+            np.stack([np.broadcast_to(np.asarray(p), self._pts.shape), self._pts], axis=1)
+        )
+        ok = np.flatnonzero(~shapely.intersects(segs, self.inner))
+        d = np.hypot(*(self._pts[ok] - np.asarray(p)).T)
+        return list(zip(ok.tolist(), d.tolist(), strict=True))
+
+    def path(self, a: tuple[float, float], b: tuple[float, float]) -> list[tuple[float, float]]:
+        """Shortest polyline from `a` to `b` not crossing the interior of the polygons;
+        `NoSafeRouteError` if an end is inside or there is no way around."""
+        if self.is_empty:
+            return [a, b]
+        if self.inner.contains(Point(a)) or self.inner.contains(Point(b)):
+            raise NoSafeRouteError("route end point is inside an inflated no-fly zone")
+        if not LineString([a, b]).intersects(self.inner):
+            return [a, b]
+        n = len(self.nodes)
+        src, dst = n, n + 1
+        extra: dict[int, list[tuple[int, float]]] = {src: self._visible_from(a)}
+        into_b = {i: d for i, d in self._visible_from(b)}
+        dist: dict[int, float] = {src: 0.0}
+        prev: dict[int, int] = {}
+        heap = [(0.0, src)]
+        while heap:
+            d, u = heapq.heappop(heap)
+            if u == dst:
+                break
+            if d > dist.get(u, math.inf):
+                continue
+            nbrs = extra[src] if u == src else self.adj[u]
+            cand = list(nbrs)
+            if u in into_b:
+                cand.append((dst, into_b[u]))
+            for v, c in cand:
+                if d + c < dist.get(v, math.inf):
+                    dist[v] = d + c
+                    prev[v] = u
+                    heapq.heappush(heap, (d + c, v))
+        if dst not in dist:
+            raise NoSafeRouteError("no lateral route around the no-fly zones")
+        path = [dst]
+        while path[-1] != src:
+            path.append(prev[path[-1]])
+        pts = {src: a, dst: b}
+        return [pts[k] if k in pts else self.nodes[k] for k in reversed(path)]
+
+
 def visibility_path(
     a: tuple[float, float], b: tuple[float, float], blocked: BaseGeometry
 ) -> list[tuple[float, float]]:
     """Shortest polyline from `a` to `b` that does not cross the interior of `blocked`
-    (vertices of `blocked` grown by a little are the graph's nodes; Dijkstra)."""
-    start, goal = Point(a), Point(b)
-    inner = blocked.buffer(-1e-6) if not blocked.is_empty else blocked
-    if inner.contains(start) or inner.contains(goal):
-        raise NoSafeRouteError("route end point is inside an inflated no-fly zone")
-    direct = LineString([a, b])
-    if not direct.intersects(inner):
-        return [a, b]
-    grown = blocked.buffer(_CLEAR_M, join_style="mitre")
-    nodes = [a, b]
-    for poly in getattr(grown, "geoms", [grown]):
-        if isinstance(poly, Polygon):
-            for ring in [poly.exterior, *poly.interiors]:
-                nodes += [(float(x), float(y)) for x, y in list(ring.coords)[:-1]]
-    pts = np.asarray(nodes)
-    n = len(pts)
-    ii, jj = np.triu_indices(n, k=1)
-    segs = shapely.linestrings(np.stack([pts[ii], pts[jj]], axis=1))
-    shapely.prepare(inner)
-    ok = ~shapely.intersects(segs, inner)
-    ii, jj = ii[ok], jj[ok]
-    w = np.hypot(*(pts[ii] - pts[jj]).T)
-    adj: list[list[tuple[int, float]]] = [[] for _ in range(n)]
-    for i, j, d in zip(ii.tolist(), jj.tolist(), w.tolist(), strict=True):
-        adj[i].append((j, d))
-        adj[j].append((i, d))
-    dist = [math.inf] * n
-    prev = [-1] * n
-    dist[0] = 0.0
-    heap = [(0.0, 0)]
-    while heap:
-        d, u = heapq.heappop(heap)
-        if u == 1:
-            break
-        if d > dist[u]:
-            continue
-        for v, c in adj[u]:
-            if d + c < dist[v]:
-                dist[v] = d + c
-                prev[v] = u
-                heapq.heappush(heap, (d + c, v))
-    if math.isinf(dist[1]):
-        raise NoSafeRouteError("no lateral route around the no-fly zones")
-    path = [1]
-    while path[-1] != 0:
-        path.append(prev[path[-1]])
-    return [nodes[k] for k in reversed(path)]
+    (one-off; build an `Obstacles` to answer many queries)."""
+    return Obstacles(blocked).path(a, b)
