@@ -159,8 +159,12 @@ def validated_polygon(poly: shapely.Geometry) -> Polygon | shapely.MultiPolygon:
     coords = shapely.get_coordinates(poly)
     if len(coords) and not np.isfinite(coords).all():
         raise InvalidGeometryError("polygon coordinates must be finite (got NaN or infinity)")
-    if poly.is_empty or poly.area <= 0.0:
-        raise EmptyAreaError("polygon has zero area")
+    if poly.is_empty:
+        raise EmptyAreaError("polygon is empty")
     if not poly.is_valid:
+        if shapely.make_valid(poly).area <= 0.0:
+            raise EmptyAreaError("polygon has zero area")
         raise InvalidGeometryError(f"polygon is not simple: {explain_validity(poly)}")
+    if poly.area <= 0.0:
+        raise EmptyAreaError("polygon has zero area")
     return poly
