@@ -180,19 +180,21 @@ def _rotate(edges: FloatArray, angle: float) -> FloatArray:
 
 
 def _scan(edges: FloatArray, ys: FloatArray) -> list[list[tuple[float, float]]]:
-    """Inside intervals [x0, x1] of each horizontal line y (even-odd rule)."""
+    """Inside intervals [x0, x1] of each horizontal line y (even-odd rule, half-open in y
+    so a line through a vertex counts it once)."""
     if len(edges) == 0:
         return [[] for _ in ys]
     x1, y1, x2, y2 = (edges[:, i : i + 1] for i in range(4))
     y = ys[None, :]
     cross = ((y1 <= y) & (y < y2)) | ((y2 <= y) & (y < y1))
     with np.errstate(all="ignore"):
-        xs = np.where(cross, x1 + (y - y1) * (x2 - x1) / (y2 - y1), np.nan)
-    out: list[list[tuple[float, float]]] = []
-    for k in range(len(ys)):
-        col = np.sort(xs[:, k][cross[:, k]])
-        out.append([(float(col[i]), float(col[i + 1])) for i in range(0, len(col) - 1, 2)])
-    return out
+        xs = np.where(cross, x1 + (y - y1) * (x2 - x1) / (y2 - y1), np.inf)
+    xs.sort(axis=0)
+    counts = cross.sum(axis=0).tolist()
+    cols = xs.T.tolist()
+    return [
+        [(col[i], col[i + 1]) for i in range(0, n - 1, 2)] for col, n in zip(cols, counts, strict=True)
+    ]
 
 
 def _merge(intervals: list[tuple[float, float]], gap: float = 0.0) -> list[tuple[float, float]]:
@@ -378,7 +380,7 @@ def sweep_angles(
     ke = _edges(_rings(region.keep_out))
 
     def score(a: float) -> float:
-        return cost.rotated(_lanes_rotated(_rotate(ce, a), _rotate(ke, a), spacing_m, True))
+        return cost.rotated(_lanes_rotated(_rotate(ce, a), _rotate(ke, a), spacing_m, True, 0.0))
 
     scored = sorted((score(a), a) for a in _candidate_angles(region))
     out: list[tuple[float, float]] = []

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any
 
@@ -58,7 +59,7 @@ def test_lane_spacing_matches_reference(coverage_refs: dict[str, Any]) -> None:
 
 @pytest.mark.parametrize("name", ["rect_rot30", "L_shape", "square_with_hole", "irregular6"])
 def test_reference_polygon_targets(ref_plans: dict[str, Any], name: str) -> None:
-    region, lp, ref = ref_plans[name]
+    _region, lp, ref = ref_plans[name]
     assert len(lp.lanes) <= ref["f2c_lanes"]
     assert lp.coverage >= 0.99
     assert lp.overlap <= 0.01
@@ -150,7 +151,7 @@ def test_coverage_covers_area_minus_zones_and_never_enters_them(
             for ln in lp.lanes
         }
     )
-    for a, b in zip(ys[:-1], ys[1:], strict=True):
+    for a, b in itertools.pairwise(ys):
         assert (b - a) / spacing == pytest.approx(round((b - a) / spacing), abs=1e-6)
 
 
