@@ -193,7 +193,8 @@ def _scan(edges: FloatArray, ys: FloatArray) -> list[list[tuple[float, float]]]:
     counts = cross.sum(axis=0).tolist()
     cols = xs.T.tolist()
     return [
-        [(col[i], col[i + 1]) for i in range(0, n - 1, 2)] for col, n in zip(cols, counts, strict=True)
+        [(col[i], col[i + 1]) for i in range(0, n - 1, 2)]
+        for col, n in zip(cols, counts, strict=True)
     ]
 
 

@@ -70,10 +70,10 @@ def _options(leg: Leg, t: float) -> tuple[int, float, float] | None:
     best: tuple[int, float, float] | None = None
     for k in range(_MAX_ORBITS + 1):
         dist = leg.path_m + k * leg.orbit_m
-        v = dist / t
-        if v > leg.max_speed_m_s + 1e-9:
-            continue
+        v = dist / t  # grows with k
         if v < leg.min_speed_m_s - 1e-9:
+            continue
+        if v > leg.max_speed_m_s + 1e-9:
             break
         if best is None or abs(v - leg.cruise_speed_m_s) < abs(best[2] - leg.cruise_speed_m_s):
             best = (k, 0.0, v)
@@ -85,7 +85,12 @@ def synchronize(legs: Sequence[Leg], *, not_before_s: float = 0.0) -> dict[int, 
     each vehicle meets it. Raises `InfeasibleTimingError` if none within the orbit cap."""
     if not legs:
         return {}
-    earliest = max([not_before_s, *(leg.path_m / leg.max_speed_m_s for leg in legs)])
+    if all(leg.path_m < 1e-6 for leg in legs) and not_before_s <= 0.0:
+        return {
+            leg.vehicle_id: Arrival(leg.vehicle_id, 0, 0.0, leg.cruise_speed_m_s, 0.0)
+            for leg in legs
+        }
+    earliest = max([not_before_s, 1e-9, *(leg.path_m / leg.max_speed_m_s for leg in legs)])
     cands = {earliest}
     for leg in legs:
         if leg.orbit_m > 0.0:
@@ -96,8 +101,6 @@ def synchronize(legs: Sequence[Leg], *, not_before_s: float = 0.0) -> dict[int, 
                         if t >= earliest:
                             cands.add(t)
     for t in sorted(cands):
-        if t <= 0.0:
-            continue
         got = [_options(leg, t) for leg in legs]
         if all(g is not None for g in got):
             return {
@@ -105,11 +108,6 @@ def synchronize(legs: Sequence[Leg], *, not_before_s: float = 0.0) -> dict[int, 
                 for leg, g in zip(legs, got, strict=True)
                 if g is not None
             }
-    if all(leg.path_m <= 0 for leg in legs):
-        return {
-            leg.vehicle_id: Arrival(leg.vehicle_id, 0, 0.0, leg.cruise_speed_m_s, 0.0)
-            for leg in legs
-        }
     raise InfeasibleTimingError(
         f"no common arrival time within the speed ranges and {_MAX_ORBITS} loiter orbits"
     )

@@ -50,7 +50,9 @@ def test_split_makespan_within_8_percent_of_ideal(ref_lanes: dict[str, Any], nam
     ideal = lp.path.length_m / sum(speeds)
     assert plan.makespan_s <= 1.08 * ideal
     # every lane is flown exactly once
-    flown = sorted((ln.line, round(min(ln.a + ln.b), 3)) for a in plan.assignments for ln in a.path.lanes)
+    flown = sorted(
+        (ln.line, round(min(ln.a + ln.b), 3)) for a in plan.assignments for ln in a.path.lanes
+    )
     assert flown == sorted((ln.line, round(min(ln.a + ln.b), 3)) for ln in lp.lanes)
     # the slower vehicle gets less work
     slow = plan.of(3).path.lane_length_m
@@ -74,7 +76,9 @@ def _base_plan() -> tuple[Any, Any]:
     st.dictionaries(st.sampled_from([1, 2, 3]), st.floats(0.0, 100.0), min_size=0, max_size=3),
     st.sampled_from([[1, 2], [2, 3], [1, 2, 3, 4], [4]]),
 )
-def test_replan_keeps_exactly_the_remaining_work(progress: dict[int, float], survivors: list[int]) -> None:
+def test_replan_keeps_exactly_the_remaining_work(
+    progress: dict[int, float], survivors: list[int]
+) -> None:
     lp, plan = _base_plan()
     left = remaining_lanes(plan, progress)
     done_lane_m = 0.0
@@ -88,7 +92,9 @@ def test_replan_keeps_exactly_the_remaining_work(progress: dict[int, float], sur
                 done += reach
             s += leg.length_m
         done_lane_m += done
-    assert _union_length(left) == pytest.approx(lp.path.lane_length_m - done_lane_m, abs=1.0 * len(lp.lanes))
+    assert _union_length(left) == pytest.approx(
+        lp.path.lane_length_m - done_lane_m, abs=1.0 * len(lp.lanes)
+    )
     # survivors (and a joiner, id 4, from the far corner) share what is left
     new = [Worker(v, 18.0, TURNS, Pose(700.0, 500.0, math.pi)) for v in survivors]
     after = replan(plan, progress, new)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -45,12 +46,15 @@ def test_lateral_reroute_when_the_ceiling_is_too_high() -> None:
     assert zs.conflicts(out) == []
     assert all(p[2] == 60 for p in out)
     assert max(abs(p[1]) for p in out) >= 120.0 - 1e-6  # around the inflated box
-    length = sum(math.dist(a[:2], b[:2]) for a, b in zip(out[:-1], out[1:], strict=True))
+    length = sum(math.dist(a[:2], b[:2]) for a, b in itertools.pairwise(out))
     assert length < 1000 + 2 * 130  # the shortest way round, not a wide detour
 
 
 def test_enclosed_end_point_signals_replan() -> None:
-    ring = Polygon([(-500, -500), (500, -500), (500, 500), (-500, 500)], [[(-400, -400), (400, -400), (400, 400), (-400, 400)]])
+    ring = Polygon(
+        [(-500, -500), (500, -500), (500, 500), (-500, 500)],
+        [[(-400, -400), (400, -400), (400, 400), (-400, 400)]],
+    )
     zs = ZoneSet((Zone(1, ring),))
     with pytest.raises(NoSafeRouteError):
         zs.avoid([(0, 0, 50), (1000, 1000, 50)], max_alt_rel_m=100.0)
@@ -60,8 +64,14 @@ def test_enclosed_end_point_signals_replan() -> None:
 
 def test_zones_from_messages_use_validity_and_msl() -> None:
     frame = LocalFrame(40.0, -3.0)
-    z = NoFlyZone(3, Geometry.circle(40.0, -3.0, 100.0), floor_alt_msl_m=600.0, ceiling_alt_msl_m=700.0,
-                  valid_from_unix_s=100.0, valid_until_unix_s=200.0)
+    z = NoFlyZone(
+        3,
+        Geometry.circle(40.0, -3.0, 100.0),
+        floor_alt_msl_m=600.0,
+        ceiling_alt_msl_m=700.0,
+        valid_from_unix_s=100.0,
+        valid_until_unix_s=200.0,
+    )
     assert ZoneSet.from_messages([z], frame, now_unix_s=50.0).zones == ()
     assert ZoneSet.from_messages([z], frame, now_unix_s=250.0).zones == ()
     zs = ZoneSet.from_messages([z], frame, now_unix_s=150.0, home_alt_msl_m=550.0)
@@ -73,14 +83,20 @@ def test_zones_from_messages_use_validity_and_msl() -> None:
 
 @settings(max_examples=40)
 @given(
-    st.lists(st.tuples(st.floats(-800, 800), st.floats(-800, 800), st.floats(20, 150)), min_size=1, max_size=4),
+    st.lists(
+        st.tuples(st.floats(-800, 800), st.floats(-800, 800), st.floats(20, 150)),
+        min_size=1,
+        max_size=4,
+    ),
     st.tuples(st.floats(-1000, 1000), st.floats(-1000, 1000)),
     st.tuples(st.floats(-1000, 1000), st.floats(-1000, 1000)),
 )
 def test_reroutes_never_enter_a_zone(
     circles: list[tuple[float, float, float]], a: tuple[float, float], b: tuple[float, float]
 ) -> None:
-    zs = ZoneSet(tuple(Zone(i, Point(x, y).buffer(r)) for i, (x, y, r) in enumerate(circles)), margin_m=10.0)
+    zs = ZoneSet(
+        tuple(Zone(i, Point(x, y).buffer(r)) for i, (x, y, r) in enumerate(circles)), margin_m=10.0
+    )
     try:
         out = zs.avoid([(*a, 50.0), (*b, 50.0)], max_alt_rel_m=100.0)
     except NoSafeRouteError:
@@ -96,7 +112,7 @@ def test_reroutes_never_enter_a_zone(
 def test_visibility_path_is_shortest_around_a_square() -> None:
     sq = Polygon([(-1, -1), (1, -1), (1, 1), (-1, 1)])
     path = visibility_path((-3, 0), (3, 0), sq)
-    length = sum(math.dist(p, q) for p, q in zip(path[:-1], path[1:], strict=True))
+    length = sum(math.dist(p, q) for p, q in itertools.pairwise(path))
     # around the square grown by the 0.5 m node clearance: (-3,0) (-1.5,1.5) (1.5,1.5) (3,0)
     assert length == pytest.approx(2 * math.hypot(1.5, 1.5) + 3, abs=1e-6)
     obs = Obstacles(sq)
