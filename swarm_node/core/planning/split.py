@@ -160,7 +160,7 @@ def split_lanes(
     workers: Sequence[Worker],
     *,
     cost: MakespanCost | None = None,
-    cut_lanes: bool = False,
+    cut_lanes: bool = True,
     obstacles: Obstacles | None = None,
 ) -> SplitPlan:
     """Contiguous blocks of the lanes (in sweep order), one per worker, minimizing the
@@ -238,35 +238,36 @@ def _refine(
 def _cut_boundaries(
     blocks: list[list[Lane]], ws: Sequence[Worker], cost: MakespanCost
 ) -> list[list[Lane]]:
-    """Balance neighbours further by cutting the lane at each boundary: a bisection on
-    the cut point moves the shared lane's length from the slower side to the other."""
+    """Balance neighbours further by cutting the lane at each boundary: the busier side's
+    boundary lane is cut and its far part handed over, the cut point found by
+    bisection on the two exact times."""
     for k in range(len(blocks) - 1):
         left, right = blocks[k], blocks[k + 1]
         if not left or not right:
             continue
-        shared = right[0]
-        base_right = right[1:]
+        tl0, tr0 = cost.exact(left, ws[k]), cost.exact(right, ws[k + 1])
+        give_right = tl0 > tr0
+        shared = left[-1] if give_right else right[0]
+        keep_l = left[:-1] if give_right else left
+        keep_r = right if give_right else right[1:]
 
-        def times(
+        def split_at(
             f: float,
-            left: list[Lane] = left,
-            base_right: list[Lane] = base_right,
             shared: Lane = shared,
-            k: int = k,
-        ) -> tuple[float, float, list[Lane], list[Lane]]:
-            a, b = shared.cut(f)
-            lb = left + ([a] if a.length_m > 1.0 else [])
-            rb = ([b] if b.length_m > 1.0 else []) + base_right
-            return cost.exact(lb, ws[k]), cost.exact(rb, ws[k + 1]), lb, rb
+            keep_l: list[Lane] = keep_l,
+            keep_r: list[Lane] = keep_r,
+        ) -> tuple[list[Lane], list[Lane]]:
+            a, b = shared.cut(f)  # a: the left part (towards the left block)
+            lb = keep_l + ([a] if a.length_m > 1.0 else [])
+            rb = ([b] if b.length_m > 1.0 else []) + keep_r
+            return lb, rb
 
-        t0 = times(0.0)
-        if max(t0[0], t0[1]) <= 0:
-            continue
         lo, hi = 0.0, 1.0
-        best = (max(t0[0], t0[1]), t0[2], t0[3])
+        best = (max(tl0, tr0), left, right)
         for _ in range(12):
             mid = (lo + hi) / 2.0
-            tl, tr, lb, rb = times(mid)
+            lb, rb = split_at(mid)
+            tl, tr = cost.exact(lb, ws[k]), cost.exact(rb, ws[k + 1])
             if max(tl, tr) < best[0]:
                 best = (max(tl, tr), lb, rb)
             if tl < tr:

@@ -49,11 +49,10 @@ def test_split_makespan_within_8_percent_of_ideal(ref_lanes: dict[str, Any], nam
     plan = split_lanes(lp.lanes, workers)
     ideal = lp.path.length_m / sum(speeds)
     assert plan.makespan_s <= 1.08 * ideal
-    # every lane is flown exactly once
-    flown = sorted(
-        (ln.line, round(min(ln.a + ln.b), 3)) for a in plan.assignments for ln in a.path.lanes
-    )
-    assert flown == sorted((ln.line, round(min(ln.a + ln.b), 3)) for ln in lp.lanes)
+    # every lane is flown exactly once (a boundary lane may be cut between two vehicles)
+    flown = [ln for a in plan.assignments for ln in a.path.lanes]
+    assert _union_length(flown) == pytest.approx(lp.path.lane_length_m, abs=2.0)
+    assert sum(ln.length_m for ln in flown) == pytest.approx(lp.path.lane_length_m, abs=2.0)
     # the slower vehicle gets less work
     slow = plan.of(3).path.lane_length_m
     assert slow < plan.of(1).path.lane_length_m and slow < plan.of(2).path.lane_length_m
