@@ -9,7 +9,7 @@ import heapq
 import itertools
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import shapely
@@ -41,7 +41,7 @@ class Zone:
         return hi >= self.floor_rel_m and alt_lo_m <= self.ceiling_rel_m
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class ZoneSet:
     """The zones that apply to a plan. `margin_m` is the lateral clearance kept from every
     zone (the zones are inflated by it for routing); `vertical_margin_m` the clearance
@@ -50,7 +50,6 @@ class ZoneSet:
     zones: tuple[Zone, ...] = ()
     margin_m: float = 0.0
     vertical_margin_m: float = 20.0
-    _cache: dict[object, BaseGeometry] = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.margin_m) and self.margin_m >= 0.0):
@@ -102,23 +101,11 @@ class ZoneSet:
 
     def raw(self, alt_m: float | None = None) -> BaseGeometry:
         """Union of the zones (not inflated) at an altitude."""
-        return self._union(("raw", alt_m), self.at(alt_m), 0.0)
+        return _union(self.at(alt_m), 0.0)
 
     def keep_out(self, alt_m: float | None = None, extra_m: float = 0.0) -> BaseGeometry:
         """Union of the zones inflated by the margin (+ `extra_m`) at an altitude."""
-        return self._union(("keep", alt_m, extra_m), self.at(alt_m), self.margin_m + extra_m)
-
-    def _union(self, key: object, zones: Sequence[Zone], grow_m: float) -> BaseGeometry:
-        got = self._cache.get(key)
-        if got is None:
-            polys = [
-                z.polygon.buffer(grow_m, join_style="mitre") if grow_m > 0 else z.polygon
-                for z in zones
-            ]
-            got = shapely.union_all(polys) if polys else Polygon()
-            shapely.prepare(got)
-            self._cache[key] = got
-        return got
+        return _union(self.at(alt_m), self.margin_m + extra_m)
 
     def zone_containing(self, x: float, y: float, alt_m: float | None = None) -> Zone | None:
         p = Point(x, y)
@@ -241,6 +228,13 @@ class ZoneSet:
             ]
         )
         return visibility_path(a, b, blocked)
+
+
+def _union(zones: Sequence[Zone], grow_m: float) -> BaseGeometry:
+    polys = [
+        z.polygon.buffer(grow_m, join_style="mitre") if grow_m > 0 else z.polygon for z in zones
+    ]
+    return shapely.union_all(polys) if polys else Polygon()
 
 
 @dataclass(frozen=True, slots=True)

@@ -289,3 +289,11 @@ def test_zero_vehicles_raise() -> None:
         plan_target(Geometry.point(*ORIGIN), [])
     with pytest.raises(NoVehiclesError):
         plan_mumt(LeadState(*ORIGIN, 100.0, 0.0, 30.0), [])
+
+
+def test_nan_positions_raise(fleet: Fleet) -> None:
+    bad = fleet(["multirotor"], [VehiclePose(math.nan, ORIGIN[1])])
+    with pytest.raises(InvalidGeometryError, match="finite"):
+        plan_target(Geometry.point(*ORIGIN), bad)
+    with pytest.raises(InvalidGeometryError, match="finite"):
+        plan_mumt(LeadState(*ORIGIN, 100.0, 0.0, 30.0), bad)
