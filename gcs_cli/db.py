@@ -37,8 +37,12 @@ from swarm_node.database import SwarmDatabase, SwarmDbError, resolve_db_path
 from swarm_node.database.document import decode_json, encode_json
 from swarm_node.database.tables import GROUPS, TABLES, Table, convert, table, tables_of
 
+_TABLES_HELP = "\n\n".join(
+    f"{g}: {', '.join(t.name for t in TABLES if t.group == g)}" for g in GROUPS
+)
 app = typer.Typer(
-    help="The swarm database: systems, swarm, payload and common tables.",
+    help="The swarm database: systems, swarm, payload and common tables (docs/database.md).",
+    epilog=f"Tables by group:\n\n{_TABLES_HELP}",
     no_args_is_help=True,
 )
 
@@ -131,7 +135,9 @@ def _print_record(t: Table, record: dict[str, Any]) -> None:
 
 @app.command("list")
 def list_(
-    group: Annotated[str | None, typer.Argument(help=f"one of {', '.join(GROUPS)}")] = None,
+    group: Annotated[
+        str | None, typer.Argument(metavar="GROUP", help=f"one of {', '.join(GROUPS)}")
+    ] = None,
     table_name: Annotated[
         str | None, typer.Argument(metavar="TABLE", help="a table of GROUP")
     ] = None,
@@ -173,11 +179,13 @@ def list_(
 
 @app.command()
 def show(
-    group: Annotated[str, typer.Argument(help=f"one of {', '.join(GROUPS)}")],
+    group: Annotated[str, typer.Argument(metavar="GROUP", help=f"one of {', '.join(GROUPS)}")],
     table_name: Annotated[str, typer.Argument(metavar="TABLE")],
     key: Annotated[
         list[str],
-        typer.Argument(help="the record's key: a name; for systems/payloads an id or user id"),
+        typer.Argument(
+            metavar="KEY...", help="the record's key: a name; for systems/payloads an id or user id"
+        ),
     ],
     as_json: JsonOption = False,
     db_path: DbOption = None,
@@ -212,7 +220,7 @@ def _parse_fields(t: Table, pairs: list[str], record_json: str | None) -> dict[s
 
 @app.command()
 def add(
-    group: Annotated[str, typer.Argument(help=f"one of {', '.join(GROUPS)}")],
+    group: Annotated[str, typer.Argument(metavar="GROUP", help=f"one of {', '.join(GROUPS)}")],
     table_name: Annotated[str, typer.Argument(metavar="TABLE")],
     fields: Annotated[
         list[str] | None,
@@ -240,9 +248,9 @@ def _summary(t: Table, record: dict[str, Any]) -> str:
 
 @app.command()
 def remove(
-    group: Annotated[str, typer.Argument(help=f"one of {', '.join(GROUPS)}")],
+    group: Annotated[str, typer.Argument(metavar="GROUP", help=f"one of {', '.join(GROUPS)}")],
     table_name: Annotated[str, typer.Argument(metavar="TABLE")],
-    key: Annotated[list[str], typer.Argument(help="the record's key")],
+    key: Annotated[list[str], typer.Argument(metavar="KEY...", help="the record's key")],
     as_json: JsonOption = False,
     db_path: DbOption = None,
 ) -> None:
