@@ -27,26 +27,26 @@ GCS_NODE_ID = 900
 # (node id, user id, system layout, payload user id or None)
 _FLEET: tuple[tuple[int, str, str, str | None], ...] = (
     *((i, f"ALB-{i:02d}", "Albatross 250 VTOL + EO 1.5 Mpx", f"CAM-{i:02d}") for i in range(1, 7)),
-    (7, "QUAD-01", "Quadcopter + EO 12 Mpx", "EO12-01"),
-    (8, "QUAD-02", "Quadcopter + EO 12 Mpx", "EO12-02"),
+    (7, "QUAD-01", "Quadcopter + EO 1080p", "EO1080-01"),
+    (8, "QUAD-02", "Quadcopter + EO 1080p", "EO1080-02"),
     (9, "QUAD-03", "Quadcopter + thermal", "TH640-01"),
     (10, "ROVER-01", "Rover + SDR", "SDR-01"),
     (11, "ROVER-02", "Rover + SDR", "SDR-02"),
-    (12, "BOAT-01", "Boat + EO 12 Mpx", "EO12-03"),
-    (13, "BOAT-02", "Boat + EO 12 Mpx", "EO12-04"),
+    (12, "BOAT-01", "Boat + acoustic array", "MIC-01"),
+    (13, "BOAT-02", "Boat + acoustic array", "MIC-02"),
     (GCS_NODE_ID, "GCS-01", "Ground station", None),
 )
 
 # payload user id -> payload layout (payload ids follow this order, from 1)
 _PAYLOADS: tuple[tuple[str, str], ...] = (
     *((f"CAM-{i:02d}", "EO 1.5 Mpx 2-axis") for i in range(1, 7)),
-    ("EO12-01", "EO 12 Mpx 3-axis"),
-    ("EO12-02", "EO 12 Mpx 3-axis"),
+    ("EO1080-01", "EO 1080p 2-axis"),
+    ("EO1080-02", "EO 1080p 2-axis"),
     ("TH640-01", "Thermal 640 3-axis"),
     ("SDR-01", "SDR receiver"),
     ("SDR-02", "SDR receiver"),
-    ("EO12-03", "EO 12 Mpx 3-axis"),
-    ("EO12-04", "EO 12 Mpx 3-axis"),
+    ("MIC-01", "Acoustic array"),
+    ("MIC-02", "Acoustic array"),
 )
 
 
@@ -60,7 +60,7 @@ def _model_params() -> list[dict[str, Any]]:
             "max_bank_deg": 45.0,  # ArduPlane ROLL_LIMIT_DEG default
             "climb_rate_m_s": 5.0,  # ArduPlane TECS_CLMB_MAX default
             "sink_rate_m_s": 5.0,  # ArduPlane TECS_SINK_MAX default
-            "loiter_radius_m": 80.0,  # assumption: above the 69 m turn radius at cruise, 45 deg
+            "loiter_radius_m": 60.0,  # ArduPlane WP_LOITER_RAD default (turn radius: 69 m)
             "has_parachute": True,  # assumption: the paper's PARACHUTE mission state
             "max_altitude_m": 4800.0,  # paper: maximum flight altitude
             "wingspan_m": 2.5,  # paper: 2500 mm
@@ -78,11 +78,11 @@ def _model_params() -> list[dict[str, Any]]:
             "max_bank_deg": 30.0,  # ArduCopter ANGLE_MAX default 3000 cdeg
             "climb_rate_m_s": 2.5,  # ArduCopter WPNAV_SPEED_UP default 250 cm/s
             "sink_rate_m_s": 1.5,  # ArduCopter WPNAV_SPEED_DN default 150 cm/s
-            "loiter_radius_m": 10.0,  # ArduCopter CIRCLE_RADIUS default 1000 cm
+            "loiter_radius_m": 0.0,  # hovers on the spot
             "has_parachute": False,
-            "max_altitude_m": 3000.0,  # assumption
+            "max_altitude_m": 4000.0,  # assumption (the simulator's default ceiling)
             "wingspan_m": 0.65,  # frame diagonal with propellers, assumption
-            "mass_kg": 2.5,  # assumption
+            "mass_kg": 1.5,  # assumption (the simulator's quad)
             "battery_low_pct": 30,
             "battery_critical_pct": 15,
             "max_tilt_deg": 45.0,
@@ -94,7 +94,7 @@ def _model_params() -> list[dict[str, Any]]:
             "min_speed_m_s": 0.0,
             "max_speed_m_s": 5.0,  # assumption
             "max_bank_deg": 0.0,  # turns on the spot / steering: no bank
-            "loiter_radius_m": 2.0,  # ArduRover LOIT_RADIUS default 2 m
+            "loiter_radius_m": 0.0,  # holds position
             "has_parachute": False,
             "wingspan_m": 0.5,  # width, assumption
             "mass_kg": 5.0,  # assumption
@@ -104,14 +104,14 @@ def _model_params() -> list[dict[str, Any]]:
         },
         {
             "model": BOAT,
-            "cruise_speed_m_s": 2.0,  # ArduRover (boat frame) WP_SPEED default 2 m/s
+            "cruise_speed_m_s": 3.0,  # assumption (the simulator's boat)
             "min_speed_m_s": 0.0,
-            "max_speed_m_s": 4.0,  # assumption
+            "max_speed_m_s": 6.0,  # assumption (the simulator's boat)
             "max_bank_deg": 0.0,
-            "loiter_radius_m": 2.0,  # ArduRover LOIT_RADIUS default 2 m
+            "loiter_radius_m": 0.0,  # holds position
             "has_parachute": False,
             "wingspan_m": 0.6,  # beam, assumption
-            "mass_kg": 8.0,  # assumption
+            "mass_kg": 15.0,  # assumption (the simulator's boat)
             "battery_low_pct": 25,
             "battery_critical_pct": 10,
             "max_tilt_deg": 30.0,  # capsize risk beyond, assumption
@@ -208,9 +208,9 @@ def _systems() -> dict[str, list[dict[str, Any]]]:
                 "computer": "Jetson Orin Nano",
             },
             {
-                "name": "Quadcopter + EO 12 Mpx",
+                "name": "Quadcopter + EO 1080p",
                 "model": QUADCOPTER,
-                "payload_layout": "EO 12 Mpx 3-axis",
+                "payload_layout": "EO 1080p 2-axis",
                 "computer": "Raspberry Pi 4",
             },
             {
@@ -226,9 +226,9 @@ def _systems() -> dict[str, list[dict[str, Any]]]:
                 "computer": "Raspberry Pi 4",
             },
             {
-                "name": "Boat + EO 12 Mpx",
+                "name": "Boat + acoustic array",
                 "model": BOAT,
-                "payload_layout": "EO 12 Mpx 3-axis",
+                "payload_layout": "Acoustic array",
                 "computer": "Raspberry Pi 4",
             },
             {
@@ -342,6 +342,11 @@ def _payload() -> dict[str, list[dict[str, Any]]]:
                 {"payload": i, "name": "interface", "value": "usb"},
                 {"payload": i, "name": "protocol", "value": "SoapySDR"},
             ]
+        elif layout == "Acoustic array":
+            params += [
+                {"payload": i, "name": "interface", "value": "usb"},
+                {"payload": i, "name": "protocol", "value": "UAC2"},
+            ]
         else:
             params += [
                 {"payload": i, "name": "interface", "value": "ethernet"},
@@ -365,7 +370,7 @@ def _payload() -> dict[str, list[dict[str, Any]]]:
                 "subtype": "visible camera",
                 "description": "the paper's two-axis gyrostabilized 1.5 Mpx camera",
             },
-            {"name": "EO 12 Mpx 3-axis gimbal", "subtype": "visible camera"},
+            {"name": "EO 1080p 2-axis gimbal", "subtype": "visible camera"},
             {"name": "Thermal 640 3-axis gimbal", "subtype": "thermal camera"},
             {"name": "SDR receiver", "subtype": "SDR"},
             {"name": "Acoustic array", "subtype": "microphone array"},
@@ -420,28 +425,29 @@ def _payload() -> dict[str, list[dict[str, Any]]]:
         ],
         "sensors": [
             {"name": "EO 1.5 Mpx", "kind": "camera"},
-            {"name": "EO 12 Mpx", "kind": "camera"},
+            {"name": "EO 1080p", "kind": "camera"},
             {"name": "Thermal 640x512", "kind": "thermal"},
             {"name": "SDR 70 MHz-6 GHz", "kind": "sdr"},
             {"name": "8-microphone array", "kind": "microphone"},
         ],
         "sensor-params": [
-            # 1.5 Mpx = 1440 x 1080 (4:3); a 60 deg HFOV lens gives 46.8 deg VFOV.
-            # Lens assumed: the paper gives the resolution only.
+            # 1.5 Mpx = 1440 x 1080 (4:3). The lens is assumed (the paper gives the
+            # resolution only): the simulator's 62 x 48 deg.
             {
                 "sensor": "EO 1.5 Mpx",
-                "hfov_deg": 60.0,
-                "vfov_deg": 46.8,
+                "hfov_deg": 62.0,
+                "vfov_deg": 48.0,
                 "width_px": 1440,
                 "height_px": 1080,
                 "frame_rate_hz": 30.0,
             },
             {
-                "sensor": "EO 12 Mpx",
-                "hfov_deg": 72.0,
-                "vfov_deg": 57.2,
-                "width_px": 4000,
-                "height_px": 3000,
+                # the simulator's quadcopter camera
+                "sensor": "EO 1080p",
+                "hfov_deg": 78.0,
+                "vfov_deg": 62.0,
+                "width_px": 1920,
+                "height_px": 1080,
                 "frame_rate_hz": 30.0,
             },
             {
@@ -462,10 +468,10 @@ def _payload() -> dict[str, list[dict[str, Any]]]:
                 "sensor": "EO 1.5 Mpx",
             },
             {
-                "name": "EO 12 Mpx 3-axis",
-                "model": "EO 12 Mpx 3-axis gimbal",
-                "gimbal": "3-axis",
-                "sensor": "EO 12 Mpx",
+                "name": "EO 1080p 2-axis",
+                "model": "EO 1080p 2-axis gimbal",
+                "gimbal": "2-axis roll/tilt",
+                "sensor": "EO 1080p",
             },
             {
                 "name": "Thermal 640 3-axis",
@@ -478,6 +484,12 @@ def _payload() -> dict[str, list[dict[str, Any]]]:
                 "model": "SDR receiver",
                 "gimbal": None,
                 "sensor": "SDR 70 MHz-6 GHz",
+            },
+            {
+                "name": "Acoustic array",
+                "model": "Acoustic array",
+                "gimbal": None,
+                "sensor": "8-microphone array",
             },
         ],
         "payloads": payloads,

@@ -353,10 +353,10 @@ def test_import_a_missing_file(db: Path, tmp_path: Path) -> None:
 
 def test_profile(db: Path) -> None:
     r = ok(run(db, "profile", "ALB-01"))
-    assert "VTOL (2)" in r.stdout and "turn radius" in r.stdout and "80.0" in r.stdout
+    assert "VTOL (2)" in r.stdout and "turn radius" in r.stdout and "68.9" in r.stdout
     data = as_json(run(db, "profile", "7", "--json"))
     assert data["profile"]["model"] == "Generic Quadcopter"
-    assert data["profile"]["camera"]["resolution_px"] == [4000, 3000]
+    assert data["profile"]["camera"]["resolution_px"] == [1920, 1080]
     assert data["params"]["mav_sysid"] == "7"
     failed(run(db, "profile", "4242"), "no system with id 4242")
     ok(run(db, "add", "systems", "systems", "user_id=ALB-01", "layout=Rover + SDR"))

@@ -92,9 +92,7 @@ def test_tables_with_filters(served: tuple[DatabaseQueryable, zenoh.Session]) ->
     models = fetch_table(client, SWARM, 3, "systems", "models")
     assert models[0]["name"] == ALBATROSS
     one = fetch_table(client, SWARM, 3, "systems", "systems", user_id="QUAD-02")
-    assert one == [
-        {"id": 8, "user_id": "QUAD-02", "layout": "Quadcopter + EO 12 Mpx", "payload": 8}
-    ]
+    assert one == [{"id": 8, "user_id": "QUAD-02", "layout": "Quadcopter + EO 1080p", "payload": 8}]
     assert fetch_table(client, SWARM, 3, "systems", "systems", id=900)[0]["user_id"] == "GCS-01"
     with pytest.raises(DbQueryError, match="unknown field 'wheels'"):
         fetch_table(client, SWARM, 3, "systems", "systems", wheels=4)
@@ -157,7 +155,7 @@ def test_plain_zenoh_and_msgspec_read_a_profile(
     sample = replies[0].ok
     assert str(sample.encoding) == "application/msgpack"
     as_dict = msgspec.msgpack.decode(sample.payload.to_bytes())
-    assert as_dict["cruise_speed_m_s"] == 26.0 and as_dict["camera"]["hfov_deg"] == 60.0
+    assert as_dict["cruise_speed_m_s"] == 26.0 and as_dict["camera"]["hfov_deg"] == 62.0
     assert msgspec.convert(as_dict, VehicleProfile) == q.db.vehicle_profile(3)
 
 

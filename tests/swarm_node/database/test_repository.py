@@ -65,7 +65,7 @@ def test_duplicate_user_id_and_layout_is_refused(seeded: SwarmDatabase) -> None:
     with pytest.raises(DuplicateError, match=r"same user_id \+ layout exists \(user_id='ALB-01'"):
         seeded.add("systems.systems", {"user_id": "ALB-01", "layout": ALB_LAYOUT})
     # the same user id on another layout is another system
-    seeded.add("systems.systems", {"user_id": "ALB-01", "layout": "Quadcopter + EO 12 Mpx"})
+    seeded.add("systems.systems", {"user_id": "ALB-01", "layout": "Quadcopter + EO 1080p"})
     with pytest.raises(DuplicateError, match="user_id"):
         seeded.add("payload.payloads", {"user_id": "CAM-01", "layout": "EO 1.5 Mpx 2-axis"})
 
@@ -178,7 +178,7 @@ def test_lookup_by_user_id_or_id(seeded: SwarmDatabase) -> None:
 
 def test_records_filter_and_show_references_by_key(seeded: SwarmDatabase) -> None:
     layouts = seeded.records("systems.layouts", model=QUADCOPTER)
-    assert [r["name"] for r in layouts] == ["Quadcopter + EO 12 Mpx", "Quadcopter + thermal"]
+    assert [r["name"] for r in layouts] == ["Quadcopter + EO 1080p", "Quadcopter + thermal"]
     assert seeded.get("systems.subtypes", "VTOL")["vehicle_type"] == "VTOL"
     assert seeded.get("swarm.missions", "MUM-T")["mission_type"] == "MUMT"
 
@@ -188,7 +188,7 @@ def test_vehicle_profile_by_id_or_by_user_id_and_model(seeded: SwarmDatabase) ->
     assert by_id == seeded.vehicle_profile(user_id="ALB-03")
     assert by_id == seeded.vehicle_profile(user_id="ALB-03", model=ALBATROSS)
     assert by_id.vehicle_type is VehicleType.VTOL and by_id.is_fixed_wing
-    seeded.add("systems.systems", {"user_id": "ALB-03", "layout": "Quadcopter + EO 12 Mpx"})
+    seeded.add("systems.systems", {"user_id": "ALB-03", "layout": "Quadcopter + EO 1080p"})
     with pytest.raises(ProfileError, match="names several systems"):
         seeded.vehicle_profile(user_id="ALB-03")
     assert seeded.vehicle_profile(user_id="ALB-03", model=QUADCOPTER).model == QUADCOPTER
