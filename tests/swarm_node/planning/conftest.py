@@ -1,9 +1,6 @@
-"""One source of vehicle parameters for every planning test.
-
-The profiles come from the paper's reference aircraft (Albatross 250 VTOL: cruise
-26 m/s, stall 15.5 m/s, two-axis 1.5 Mpx camera) and a generic quadcopter. When the
-swarm database's seed data lands, this fixture switches to the seed profiles: the
-planning tests take their parameters from here, never from constants of their own.
+"""One source of vehicle parameters for every planning test: the swarm database's seed
+data (the paper's Albatross 250 VTOL with its two-axis 1.5 Mpx camera, and the generic
+quadcopter), never constants of the tests' own.
 """
 
 from __future__ import annotations
@@ -17,57 +14,24 @@ import msgspec
 import pytest
 
 from swarm_node.core.planning import PlanVehicle, VehiclePose
-from swarm_node.core.profile import CameraProfile, VehicleProfile
-from swarm_proto import VehicleType
+from swarm_node.core.profile import VehicleProfile
+from swarm_node.database import seed_profiles
 
 ORIGIN = (40.4168, -3.7038)  # test missions are built around here
 
-_PROFILES = {
-    "fixed_wing": VehicleProfile(
-        vehicle_id=1,
-        user_id="ALB-1",
-        model="Albatross 250 VTOL",
-        vehicle_type=VehicleType.VTOL,
-        system_type="UAV",
-        system_subtype="fixed-wing",
-        payload_model="2-axis gimbal 1.5 Mpx",
-        payload_subtype="EO",
-        payload_type="camera",
-        cruise_speed_m_s=26.0,
-        min_speed_m_s=15.5,  # stall
-        max_speed_m_s=30.0,
-        max_bank_deg=45.0,
-        climb_rate_m_s=5.0,
-        sink_rate_m_s=3.0,
-        loiter_radius_m=80.0,
-        camera=CameraProfile(
-            hfov_deg=60.0, vfov_deg=47.0, resolution_px=(1440, 1080), gimbal_axes=2
-        ),
-    ),
-    "multirotor": VehicleProfile(
-        vehicle_id=101,
-        user_id="QUAD-1",
-        model="generic quadcopter",
-        vehicle_type=VehicleType.COPTER,
-        system_type="UAV",
-        system_subtype="multirotor",
-        payload_model="fixed camera",
-        payload_type="camera",
-        cruise_speed_m_s=10.0,
-        min_speed_m_s=0.0,
-        max_speed_m_s=15.0,
-        max_bank_deg=35.0,
-        climb_rate_m_s=3.0,
-        sink_rate_m_s=2.0,
-        camera=CameraProfile(hfov_deg=84.0, vfov_deg=62.0, resolution_px=(4000, 3000)),
-    ),
-}
+#: role -> (seed model, base vehicle id: fleets number vehicles base + index, and the two
+#: bases are far apart so mixed fleets never repeat an id)
+_ROLES = {"fixed_wing": ("Albatross 250 VTOL", 1), "multirotor": ("Generic Quadcopter", 101)}
 
 
 @pytest.fixture(scope="session")
 def profiles() -> dict[str, VehicleProfile]:
-    """Vehicle profiles by role: "fixed_wing" and "multirotor"."""
-    return dict(_PROFILES)
+    """Vehicle profiles by role, from the database seed: "fixed_wing" and "multirotor"."""
+    seed = seed_profiles()
+    return {
+        role: msgspec.structs.replace(seed[model], vehicle_id=base)
+        for role, (model, base) in _ROLES.items()
+    }
 
 
 def make_fleet(
