@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import typer
 
+from .db import app as db_app
+
 app = typer.Typer(help="bandada ground station.", no_args_is_help=True)
+app.add_typer(db_app, name="db")
 
 
 @app.callback()

@@ -224,7 +224,9 @@ DATABASE = Topic(
     "database",
     "db/{node_id}",
     None,
-    "Swarm database queryable of a node; selectors beneath it name tables and rows.",
+    "Swarm database of a node (queryable): `db/<node_id>` answers its info; beneath it "
+    "`profile`, `profiles`, `table/<group>/<table>[?field=value]`, `export`. "
+    "MessagePack replies, errors as `{error}` (docs/database.md).",
 )
 RADIO_STATS = Topic(
     "radio_stats",

@@ -20,6 +20,15 @@ class CameraProfile(msgspec.Struct, frozen=True):
     gimbal_axes: int = 0
 
 
+class PayloadClass(msgspec.Struct, frozen=True):
+    """Where a payload model sits in the payload hierarchy (type -> subtype -> model):
+    what the voting compares (paper section 2.3.6). Empty strings: no payload."""
+
+    type: str = ""
+    subtype: str = ""
+    model: str = ""
+
+
 class VehicleProfile(msgspec.Struct, frozen=True):
     """Airframe + payload parameters of one vehicle (paper section 2.3.1 tables)."""
 
@@ -44,6 +53,13 @@ class VehicleProfile(msgspec.Struct, frozen=True):
     battery_critical_pct: int = 15
     max_tilt_deg: float = 60.0  # abnormal-attitude threshold (roll or pitch)
     camera: CameraProfile | None = None
+    max_altitude_m: float = 0.0  # ceiling above mean sea level; 0 = unknown
+    max_wind_m_s: float = 0.0  # wind the airframe is rated for; 0 = unknown
+    wingspan_m: float = 0.0  # span (fixed-wing), frame diagonal (multirotor) or width
+
+    @property
+    def payload_class(self) -> PayloadClass:
+        return PayloadClass(self.payload_type, self.payload_subtype, self.payload_model)
 
     @property
     def is_fixed_wing(self) -> bool:

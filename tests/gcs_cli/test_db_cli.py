@@ -1,0 +1,427 @@
+"""`gcs db` through typer's CliRunner: every command, its JSON output and its error
+paths (exit 1 with a message on stderr, the file untouched; exit 2 for usage)."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+import pytest
+from typer.testing import CliRunner, Result
+
+from gcs_cli.cli import app
+from swarm_node.database import SwarmDatabase
+
+ALB_LAYOUT = "Albatross 250 VTOL + EO 1.5 Mpx"
+
+
+@pytest.fixture
+def db(tmp_path: Path) -> Path:
+    return tmp_path / "swarm.db"
+
+
+def run(
+    db: Path | None, *args: str, env: dict[str, str] | None = None, stdin: str | None = None
+) -> Result:
+    argv = ["db", *args]
+    if db is not None:
+        argv += ["--db", str(db)]
+    base = {"BANDADA_DB": None}
+    return CliRunner().invoke(app, argv, env={**base, **(env or {})}, input=stdin)  # type: ignore[dict-item]
+
+
+def ok(result: Result) -> Result:
+    assert result.exit_code == 0, result.output
+    return result
+
+
+def as_json(result: Result) -> Any:
+    return json.loads(ok(result).stdout)
+
+
+def failed(result: Result, match: str, code: int = 1) -> Result:
+    assert result.exit_code == code, result.output
+    assert match in result.stderr, result.stderr
+    return result
+
+
+# ---------------------------------------------------------------------------- the file
+
+
+def test_a_missing_file_is_created_with_the_seed_data(db: Path) -> None:
+    r = ok(run(db, "list"))
+    assert "created" in r.stderr and str(db) in r.stderr
+    assert "systems" in r.stdout and "detection-classes" in r.stdout
+    assert as_json(run(db, "list", "--json"))["systems"]["systems"] == 14
+    assert "created" not in run(db, "list").stderr
+
+
+def test_the_env_var_and_the_default_path(tmp_path: Path) -> None:
+    env_db = tmp_path / "env.db"
+    assert ok(run(None, "path", env={"BANDADA_DB": str(env_db)})).stdout.strip() == str(env_db)
+    ok(run(None, "list", env={"BANDADA_DB": str(env_db)}))
+    assert env_db.exists()
+    flag_db = tmp_path / "flag.db"
+    assert ok(run(flag_db, "path", env={"BANDADA_DB": str(env_db)})).stdout.strip() == str(flag_db)
+    xdg = tmp_path / "xdg"
+    r = ok(run(None, "list", env={"XDG_DATA_HOME": str(xdg)}))
+    assert (xdg / "bandada" / "swarm.db").exists(), r.stderr
+    home = tmp_path / "home"
+    r = ok(run(None, "path", env={"XDG_DATA_HOME": "", "HOME": str(home)}))
+    assert r.stdout.strip() == str(home / ".local" / "share" / "bandada" / "swarm.db")
+
+
+@pytest.mark.parametrize(
+    ("make", "match"),
+    [
+        (
+            lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(range(256)) * 8),
+            "not an SQLite database file",
+        ),
+        (lambda p: p.write_bytes(b"SQLite format 3\x00" + b"\xff" * 4000), "damaged SQLite file"),
+        ("foreign", "another application"),
+        ("newer", "newer bandada"),
+    ],
+    ids=["random", "damaged", "foreign", "newer"],
+)
+def test_a_corrupt_or_foreign_file_is_refused_and_untouched(
+    db: Path, make: Any, match: str
+) -> None:
+    if make == "foreign":
+        conn = sqlite3.connect(db)
+        conn.execute("CREATE TABLE notes (body TEXT)")
+        conn.commit()
+        conn.close()
+    elif make == "newer":
+        SwarmDatabase.open(db).close()
+        conn = sqlite3.connect(db)
+        conn.execute("PRAGMA user_version = 7")
+        conn.commit()
+        conn.close()
+    else:
+        make(db)
+    before = db.read_bytes(), db.stat().st_mtime_ns
+    for args in (["list"], ["add", "systems", "types", "name=X"], ["import", "-"], ["export", "-"]):
+        failed(run(db, *args, stdin="{}"), match)
+        assert "left it untouched" in run(db, *args, stdin="{}").stderr
+    assert (db.read_bytes(), db.stat().st_mtime_ns) == before
+    assert sorted(p.name for p in db.parent.iterdir()) == [db.name]
+
+
+# ---------------------------------------------------------------------------- list / show
+
+
+def test_list_a_group_and_a_table(db: Path) -> None:
+    r = ok(run(db, "list", "payload"))
+    assert "payload.gimbals" in r.stdout and "payload.motors" in r.stdout
+    group = as_json(run(db, "list", "payload", "--json"))
+    assert set(group) >= {"types", "subtypes", "models", "sensor-params", "detection-classes"}
+    systems = as_json(run(db, "list", "systems", "systems", "--json"))
+    assert [s["user_id"] for s in systems][:2] == ["ALB-01", "ALB-02"]
+    r = ok(run(db, "list", "systems", "model-params"))
+    assert "Albatross 250" in r.stdout and "26.0" in r.stdout
+    for group in ("systems", "swarm", "payload", "common"):
+        ok(run(db, "list", group))
+
+
+def test_list_errors(db: Path) -> None:
+    failed(run(db, "list", "fleet"), "unknown group 'fleet'", 2)
+    failed(run(db, "list", "systems", "cars"), "unknown table 'cars' in group systems", 2)
+
+
+def test_show(db: Path) -> None:
+    assert as_json(run(db, "show", "systems", "systems", "ALB-03", "--json"))["id"] == 3
+    assert as_json(run(db, "show", "systems", "systems", "900", "--json"))["user_id"] == "GCS-01"
+    model = as_json(run(db, "show", "systems", "models", "Albatross 250 VTOL", "--json"))
+    assert model["subtype"] == "VTOL"
+    param = as_json(run(db, "show", "systems", "params", "1", "mav_sysid", "--json"))
+    assert param["value"] == "1"
+    assert (
+        "cruise_speed_m_s" in ok(run(db, "show", "systems", "model-params", "Generic Boat")).stdout
+    )
+    failed(run(db, "show", "systems", "models", "Nope"), "no record with name='Nope'")
+    failed(run(db, "show", "systems", "params", "1"), "named by system + name")
+    ok(run(db, "add", "systems", "systems", "user_id=ALB-03", "layout=Rover + SDR"))
+    failed(run(db, "show", "systems", "systems", "ALB-03"), "names several records")
+
+
+# ---------------------------------------------------------------------------- add / remove
+
+
+def test_add_records(db: Path) -> None:
+    r = ok(run(db, "add", "systems", "systems", "user_id=ALB-07", f"layout={ALB_LAYOUT}"))
+    assert "id=14" in r.stdout
+    rec = as_json(run(db, "add", "systems", "models", "name=Sea Drone", "subtype=boat", "--json"))
+    assert rec == {"name": "Sea Drone", "subtype": "boat", "description": ""}
+    params = as_json(
+        run(
+            db,
+            "add",
+            "systems",
+            "model-params",
+            "--record",
+            '{"model": "Sea Drone", "cruise_speed_m_s": 3, "max_speed_m_s": 6}',
+            "has_parachute=no",
+            "battery_low_pct=40",
+            "--json",
+        )
+    )
+    assert params["cruise_speed_m_s"] == 3.0 and params["has_parachute"] is False
+    ok(
+        run(
+            db,
+            "add",
+            "systems",
+            "layouts",
+            "name=Sea Drone bare",
+            "model=Sea Drone",
+            "payload_layout=",
+        )
+    )
+    ok(run(db, "add", "swarm", "missions", "name=search", "mission_type=8"))
+    assert (
+        as_json(run(db, "show", "systems", "subtypes", "boat", "--json"))["vehicle_type"] == "BOAT"
+    )
+    ok(
+        run(
+            db,
+            "add",
+            "common",
+            "corrections",
+            "bug_id=BND-7",
+            "module=voting",
+            "description=ties",
+            "criticality=high",
+        )
+    )
+    ok(run(db, "add", "payload", "detection-classes", "name=drone"))
+    prof = as_json(run(db, "profile", "14", "--json"))
+    assert prof["profile"]["user_id"] == "ALB-07" and prof["params"] == {}
+
+
+@pytest.mark.parametrize(
+    ("args", "match", "code"),
+    [
+        (
+            ["systems", "systems", "user_id=X", "layout=Nope"],
+            "layout 'Nope' not found in systems.layouts",
+            1,
+        ),
+        (
+            ["systems", "layouts", "name=L", "model=Albatros 250"],
+            "did you mean 'Albatross 250 VTOL'",
+            1,
+        ),
+        (
+            ["systems", "systems", "user_id=ALB-01", f"layout={ALB_LAYOUT}"],
+            "same user_id + layout exists",
+            1,
+        ),
+        (["systems", "models", "name=Albatross 250 VTOL", "subtype=VTOL"], "same name exists", 1),
+        (
+            ["systems", "params", "system=99", "name=a", "value=b"],
+            "system 99 not found in systems.systems",
+            1,
+        ),
+        (
+            ["systems", "model-params", "model=Generic Boat", "cruise_speed_m_s=fast"],
+            "could not convert",
+            1,
+        ),
+        (["systems", "types", "wheels=4"], "unknown field 'wheels'", 1),
+        (["systems", "types", "description=x"], "field 'name' is required", 1),
+        (["systems", "types", "name= padded"], "breaks the rule", 1),
+        (["systems", "types", "name"], "expected FIELD=VALUE", 2),
+        (["systems", "types", "--record", "{bad"], "--record: not valid JSON", 2),
+        (["systems", "types", "--record", "[1]"], "expected a JSON object", 2),
+        (["systems", "cars", "name=x"], "unknown table 'cars'", 2),
+        (["swarm", "missions", "name=m", "mission_type=SURVEY"], "unknown MissionType 'SURVEY'", 1),
+    ],
+)
+def test_add_errors(db: Path, args: list[str], match: str, code: int) -> None:
+    ok(run(db, "list"))
+    before = as_json(run(db, "list", "--json"))
+    failed(run(db, "add", *args), match, code)
+    assert as_json(run(db, "list", "--json")) == before
+
+
+def test_remove(db: Path) -> None:
+    r = ok(run(db, "remove", "systems", "systems", "QUAD-03"))
+    assert "removed from systems.systems" in r.stdout and "QUAD-03" in r.stdout
+    failed(run(db, "show", "systems", "systems", "QUAD-03"), "no record with user id")
+    rec = as_json(run(db, "remove", "payload", "payloads", "9", "--json"))
+    assert rec["user_id"] == "TH640-01"
+    failed(
+        run(db, "remove", "systems", "models", "Generic Rover"),
+        "still used by 1 record(s) of systems.layouts",
+    )
+    failed(run(db, "remove", "payload", "types", "optical"), "still used by")
+    failed(run(db, "remove", "systems", "models", "Nope"), "no record with name='Nope'")
+    ok(run(db, "remove", "systems", "params", "1", "mac_address"))
+
+
+# ---------------------------------------------------------------------------- export / import
+
+
+def _sorted(doc: dict[str, Any]) -> dict[str, Any]:
+    return {
+        g: {
+            t: sorted(recs, key=lambda r: json.dumps(r, sort_keys=True))
+            for t, recs in tables.items()
+        }
+        for g, tables in doc["groups"].items()
+    }
+
+
+def test_export_import_round_trip(db: Path, tmp_path: Path) -> None:
+    out = tmp_path / "fleet.json"
+    ok(run(db, "export", str(out)))
+    doc = json.loads(out.read_text())
+    assert doc["format"] == "bandada-swarm-db" and set(doc["groups"]) == {
+        "systems",
+        "swarm",
+        "payload",
+        "common",
+    }
+    other = tmp_path / "other.db"
+    ok(run(other, "remove", "systems", "systems", "ALB-06"))
+    r = ok(run(other, "import", str(out)))
+    assert "imported" in r.stdout
+    ok(run(other, "export", str(tmp_path / "again.json")))
+    # the same records (re-added ones come last: compare in key order)
+    assert _sorted(json.loads((tmp_path / "again.json").read_text())) == _sorted(doc)
+    stdout_doc = as_json(run(db, "export", "-"))
+    assert stdout_doc == doc
+    part = as_json(run(db, "export", "-", "--group", "swarm", "-g", "common"))
+    assert set(part["groups"]) == {"swarm", "common"}
+    ok(run(other, "import", "-", stdin=json.dumps(part)))
+    failed(run(db, "export", "-", "--group", "fleet"), "unknown group 'fleet'", 2)
+    failed(run(db, "export", str(tmp_path / "no" / "dir" / "x.json")), "cannot write")
+
+
+def test_import_replace(db: Path, tmp_path: Path) -> None:
+    doc = as_json(run(db, "export", "-", "-g", "common"))
+    doc["groups"]["common"]["comms"] = []
+    f = tmp_path / "common.json"
+    f.write_text(json.dumps(doc))
+    ok(run(db, "import", str(f), "--replace"))
+    assert as_json(run(db, "list", "--json"))["common"]["comms"] == 0
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        ("{not json", "not valid JSON"),
+        ('{"format": "x"}', "not a bandada swarm database export"),
+        ('{"format": "bandada-swarm-db", "schema_version": 9, "groups": {}}', "newer bandada"),
+        (
+            '{"format": "bandada-swarm-db", "schema_version": 2, "groups": {"systems": {"systems": '
+            '[{"id": 50, "user_id": "N", "layout": "Gone"}]}}}',
+            "systems.systems[0]: systems.systems: layout 'Gone' not found in systems.layouts",
+        ),
+        (
+            '{"format": "bandada-swarm-db", "schema_version": 2, "groups": {"systems": {"systems": '
+            '[{"id": 50, "user_id": "ALB-01", "layout": "Albatross 250 VTOL + EO 1.5 Mpx"}]}}}',
+            "same user_id + layout exists",
+        ),
+        (
+            '{"format": "bandada-swarm-db", "schema_version": 2, "groups": {"systems": {"models": '
+            '[{"name": "X", "subtype": "hovercraft"}]}}}',
+            "subtype 'hovercraft' not found in systems.subtypes",
+        ),
+    ],
+    ids=["json", "format", "newer", "broken-reference", "duplicate", "unknown-subtype"],
+)
+def test_import_errors_write_nothing(db: Path, tmp_path: Path, content: str, match: str) -> None:
+    ok(run(db, "list"))
+    before = db.read_bytes()
+    f = tmp_path / "in.json"
+    f.write_text(content)
+    r = failed(run(db, "import", str(f)), match)
+    assert str(f) in r.stderr
+    assert db.read_bytes() == before
+
+
+def test_import_a_missing_file(db: Path, tmp_path: Path) -> None:
+    failed(run(db, "import", str(tmp_path / "nope.json")), "cannot read")
+
+
+# ---------------------------------------------------------------------------- profile
+
+
+def test_profile(db: Path) -> None:
+    r = ok(run(db, "profile", "ALB-01"))
+    assert "VTOL (2)" in r.stdout and "turn radius" in r.stdout and "68.9" in r.stdout
+    data = as_json(run(db, "profile", "7", "--json"))
+    assert data["profile"]["model"] == "Generic Quadcopter"
+    assert data["profile"]["camera"]["resolution_px"] == [1920, 1080]
+    assert data["params"]["mav_sysid"] == "7"
+    failed(run(db, "profile", "4242"), "no system with id 4242")
+    ok(run(db, "add", "systems", "systems", "user_id=ALB-01", "layout=Rover + SDR"))
+    failed(run(db, "profile", "ALB-01"), "names several systems")
+    assert (
+        as_json(run(db, "profile", "ALB-01", "--model", "Generic Rover", "--json"))["profile"][
+            "vehicle_id"
+        ]
+        == 14
+    )
+
+
+# ---------------------------------------------------------------------------- query
+
+
+@pytest.mark.network
+def test_query_a_peer_over_zenoh(zenoh_router: str) -> None:
+    import time
+
+    from swarm_node.database.queryable import DatabaseQueryable
+    from swarm_proto.session import ZenohSettings, open_session
+
+    session = open_session(ZenohSettings(connect=(zenoh_router,)))
+    db = SwarmDatabase.memory()
+    q = DatabaseQueryable(session, db, node_id=5, swarm="clitest")
+    try:
+        deadline = time.monotonic() + 20
+        while True:
+            r = run(
+                None,
+                "query",
+                "5",
+                "profile",
+                "--connect",
+                zenoh_router,
+                "--swarm",
+                "clitest",
+                "--timeout",
+                "2",
+            )
+            if r.exit_code == 0 or time.monotonic() > deadline:
+                break
+        replies = as_json(r)
+        assert replies[0]["key"] == "bandada/clitest/db/5/profile"
+        assert replies[0]["value"]["user_id"] == "ALB-05"
+        failed(
+            run(None, "query", "5", "nope", "--connect", zenoh_router, "--swarm", "clitest"),
+            "no such resource",
+        )
+        failed(
+            run(
+                None,
+                "query",
+                "6",
+                "--connect",
+                zenoh_router,
+                "--swarm",
+                "clitest",
+                "--timeout",
+                "0.5",
+            ),
+            "no reply",
+        )
+        failed(run(None, "query", "5", "--swarm", "bad swarm"), "swarm name", 2)
+    finally:
+        q.close()
+        db.close()
+        session.close()
