@@ -37,6 +37,18 @@ def shared_dir() -> Path:
 
 
 @pytest.fixture
+def swarm_db(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A seeded swarm database file, named by BANDADA_DB for this test and its children
+    (never the user's own database)."""
+    from swarm_node.database import SwarmDatabase
+
+    path = tmp_path / "swarm.db"
+    SwarmDatabase.open(path).close()
+    monkeypatch.setenv("BANDADA_DB", str(path))
+    return path
+
+
+@pytest.fixture
 def zenoh_router() -> Iterator[str]:
     """A router-mode Zenoh session on a free 127.0.0.1 port; yields its endpoint."""
     from swarm_proto.session import ZenohSettings, open_session

@@ -9,16 +9,23 @@ from collections.abc import Callable
 from swarm_proto import Clock
 
 from ..core.profile import VehicleProfile
+from ..database import SwarmDatabase
+from ..database.errors import SwarmDbError
 from .config import NodeConfig, profile_from_config
 from .node import AutopilotPort, NodeRuntime
 
 log = logging.getLogger("swarm_node")
 
 
-def resolve_profile(cfg: NodeConfig) -> VehicleProfile:
-    """The node's identity and parameters: the config's [profile] table (the swarm
-    database takes over when it is configured)."""
-    return profile_from_config(cfg)
+def resolve_profile(cfg: NodeConfig, db: SwarmDatabase | None) -> VehicleProfile:
+    """The node's identity and parameters: from the swarm database (the default), or
+    from the config's [profile] table for a node run without one."""
+    if cfg.profile is not None or db is None:
+        return profile_from_config(cfg)
+    try:
+        return db.vehicle_profile(vehicle_id=cfg.node_id)
+    except SwarmDbError as exc:
+        raise ValueError(f"node {cfg.node_id}: {exc}") from exc
 
 
 #: Silence that counts as a lost autopilot link. Telemetry is requested at 10 Hz, so this
@@ -55,10 +62,29 @@ def open_autopilot(
     return link
 
 
+def open_database(cfg: NodeConfig) -> SwarmDatabase | None:
+    """The swarm database (`db` in the config, else $BANDADA_DB, else the per-user file,
+    created with the seed data when missing); None when the config carries a [profile]."""
+    if cfg.profile is not None:
+        return None
+    try:
+        return SwarmDatabase.open(cfg.db)
+    except SwarmDbError as exc:
+        raise ValueError(str(exc)) from exc
+
+
 def build_node(cfg: NodeConfig, clock: Clock) -> NodeRuntime:
-    profile = resolve_profile(cfg)
-    autopilot = open_autopilot(cfg, profile, clock)
+    db = open_database(cfg)
+    profile = resolve_profile(cfg, db)
     log.info(
-        "node %d (%s, %s) starting", profile.vehicle_id, profile.model, profile.vehicle_type.name
+        "node %d (%s %s, %s) starting",
+        profile.vehicle_id,
+        profile.model,
+        profile.user_id,
+        profile.vehicle_type.name,
     )
-    return NodeRuntime(cfg, profile, clock, autopilot)
+    node = NodeRuntime(cfg, profile, clock, database=db)
+    link = open_autopilot(cfg, profile, clock, on_event=node.on_autopilot_event)
+    if link is not None:
+        node.autopilot = link
+    return node

@@ -40,6 +40,8 @@ from ..core.node import (
     Submit,
 )
 from ..core.profile import VehicleProfile
+from ..database import SwarmDatabase
+from ..database.queryable import DatabaseQueryable
 from .config import NodeConfig
 
 log = logging.getLogger("swarm_node")
@@ -79,6 +81,7 @@ class NodeRuntime:
         autopilot: AutopilotPort | None = None,
         *,
         bus: SwarmBus | None = None,
+        database: SwarmDatabase | None = None,
     ) -> None:
         self.config = config
         self.clock = clock
@@ -98,6 +101,8 @@ class NodeRuntime:
         if bus is not None:
             bus.on_bad_input = self._bad_input
         self._queryable: zenoh.Queryable | None = None
+        self.database = database
+        self._db_server: DatabaseQueryable | None = None
         self._lock = threading.Lock()  # guards the core against the peers queryable
         self._ap_period_s = 0.2
 
@@ -152,6 +157,10 @@ class NodeRuntime:
         self.bus.declare_alive(self.core.self_id)
         key = PEERS.key(self.config.swarm, vehicle_id=self.core.self_id)
         self._queryable = self.bus.session.declare_queryable(key, self._answer_peers)
+        if self.database is not None:  # peers and the ground station read our database
+            self._db_server = DatabaseQueryable(
+                self.bus.session, self.database, self.core.self_id, self.config.swarm
+            )
 
     # ------------------------------------------------------------------ loop
     def run(self, stop: threading.Event) -> None:
@@ -215,6 +224,9 @@ class NodeRuntime:
         future.add_done_callback(done)
 
     def close(self) -> None:
+        if self._db_server is not None:
+            self._db_server.close()
+            self._db_server = None
         if self._queryable is not None:
             try:
                 self._queryable.undeclare()
@@ -223,3 +235,5 @@ class NodeRuntime:
             self._queryable = None
         self.bus.close()
         self.autopilot.close()
+        if self.database is not None:
+            self.database.close()

@@ -17,8 +17,6 @@ import zenoh
 
 from swarm_proto import SwarmView
 
-ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
-
 
 def start_node(
     node_id: int, router: str, swarm: str, *args: str, log: Path | None = None
@@ -26,7 +24,8 @@ def start_node(
     cmd = [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(node_id), "--swarm", swarm,
            "--connect", router, "--listen", "tcp/127.0.0.1:0", *args]  # fmt: skip
     out = open(log, "ab") if log else subprocess.DEVNULL  # noqa: SIM115
-    return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=ENV)
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}  # BANDADA_DB: the test's database
+    return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env)
 
 
 def stop(proc: subprocess.Popen[bytes], timeout: float = 10.0) -> int:
@@ -79,7 +78,10 @@ def nodes(
     ids: list[int], router: str, swarm: str, *args: str, autopilots: dict[int, str] | None = None
 ) -> Iterator[dict[int, subprocess.Popen[bytes]]]:
     ap = autopilots or {}
-    procs = {i: start_node(i, router, swarm, *(("--autopilot", ap[i]) if i in ap else ()), *args) for i in ids}
+    procs = {
+        i: start_node(i, router, swarm, *(("--autopilot", ap[i]) if i in ap else ()), *args)
+        for i in ids
+    }
     try:
         yield procs
     finally:

@@ -28,7 +28,7 @@ pytestmark = pytest.mark.network
 GCS = 900
 
 
-def test_commands_and_malformed_input(zenoh_router: str, tmp_path: Path) -> None:
+def test_commands_and_malformed_input(zenoh_router: str, tmp_path: Path, swarm_db: Path) -> None:
     swarm = f"c{os.getpid()}"
     log = tmp_path / "node.log"
     proc = start_node(4, zenoh_router, swarm, log=log)

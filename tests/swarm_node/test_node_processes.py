@@ -39,55 +39,57 @@ def swarm(request: pytest.FixtureRequest) -> str:
     return f"t{os.getpid()}{abs(hash(request.node.name)) % 10000}"
 
 
-MODELS = ["vtol", "copter", "plane", "rover", "boat", "copter"]
+# node id (the seed database's system) -> the simulated model it flies
+FLEET = {1: "vtol", 7: "copter", 2: "vtol", 10: "rover", 12: "boat", 8: "copter"}
 
 
 @pytest.fixture
 def six_vehicles() -> Iterator[dict[int, str]]:
     """Six simulated vehicles (one process thread, real TCP ports): node id -> MAVLink url."""
-    specs = [
-        VehicleSpec(m, instance=i, port=free_tcp_port(), home=h)
-        for i, (m, h) in enumerate(zip(MODELS, spread_homes(SITL_HOME, 6, 30.0), strict=True))
-    ]
-    with VehicleServer(specs, SystemClock()) as server:
-        yield {i + 1: f"tcp:127.0.0.1:{spec.tcp_port}" for i, spec in enumerate(specs)}
+    homes = spread_homes(SITL_HOME, len(FLEET), 30.0)
+    specs = {
+        vid: VehicleSpec(model, instance=i, port=free_tcp_port(), home=homes[i], sysid=vid)
+        for i, (vid, model) in enumerate(FLEET.items())
+    }
+    with VehicleServer(list(specs.values()), SystemClock()) as server:
+        yield {vid: f"tcp:127.0.0.1:{spec.tcp_port}" for vid, spec in specs.items()}
         server.close()
 
 
 def test_nodes_join_lose_and_rejoin(
     zenoh_router: str, swarm: str, six_vehicles: dict[int, str]
 ) -> None:
-    ids = [1, 2, 3, 4, 5, 6]
+    ids = sorted(FLEET)
+    killed, frozen = ids[-1], ids[-2]
     args = ("--lease-ms", str(LEASE_MS))
     watcher = plain_session(zenoh_router)
+
+    def everyone_sees(alive: list[int]) -> bool:
+        return all(peers_of(watcher, swarm, i) == [j for j in alive if j != i] for i in alive)
+
     try:
         with nodes(ids, zenoh_router, swarm, *args, autopilots=six_vehicles) as procs:
+            assert wait_until(lambda: everyone_sees(ids), timeout=30) is not None, "join"
 
-            def everyone_sees(expected: dict[int, list[int]]) -> bool:
-                return all(peers_of(watcher, swarm, i) == peers for i, peers in expected.items())
+            os.kill(procs[killed].pid, signal.SIGKILL)
+            alive = [i for i in ids if i != killed]
+            assert wait_until(lambda: everyone_sees(alive), timeout=15) is not None, "SIGKILL"
 
-            full = {i: [j for j in ids if j != i] for i in ids}
-            print("join", wait_until(lambda: everyone_sees(full), timeout=30))
+            os.kill(procs[frozen].pid, signal.SIGSTOP)
+            alive = [i for i in alive if i != frozen]
+            assert wait_until(lambda: everyone_sees(alive), timeout=15) is not None, "SIGSTOP"
 
-            os.kill(procs[6].pid, signal.SIGKILL)
-            after_kill = {i: [j for j in ids if j not in (i, 6)] for i in ids[:5]}
-            print("kill", wait_until(lambda: everyone_sees(after_kill), timeout=10))
-
-            os.kill(procs[5].pid, signal.SIGSTOP)
-            after_stop = {i: [j for j in ids if j not in (i, 5, 6)] for i in ids[:4]}
-            print("stop", wait_until(lambda: everyone_sees(after_stop), timeout=10))
-
-            procs[6] = start_node(
-                6, zenoh_router, swarm, "--autopilot", six_vehicles[6], *args
-            )  # restarted
-            rejoined = {i: [j for j in ids if j not in (i, 5)] for i in (1, 2, 3, 4, 6)}
-            print("rejoin", wait_until(lambda: everyone_sees(rejoined), timeout=30))
-            os.kill(procs[5].pid, signal.SIGCONT)
+            procs[killed] = start_node(
+                killed, zenoh_router, swarm, "--autopilot", six_vehicles[killed], *args
+            )
+            alive = sorted([*alive, killed])
+            assert wait_until(lambda: everyone_sees(alive), timeout=30) is not None, "restart"
+            os.kill(procs[frozen].pid, signal.SIGCONT)
     finally:
         watcher.close()
 
 
-def test_node_exits_cleanly_on_sigterm(zenoh_router: str, swarm: str) -> None:
+def test_node_exits_cleanly_on_sigterm(zenoh_router: str, swarm: str, swarm_db: object) -> None:
     proc = start_node(9, zenoh_router, swarm)
     watcher = plain_session(zenoh_router)
     try:
@@ -120,15 +122,17 @@ def test_bad_configuration_is_a_clear_error(tmp_path: object) -> None:
     assert r.returncode == 2 and b"node_id must be 1..65534" in r.stderr
 
 
-def test_autopilot_link_loss_drives_emergency(zenoh_router: str, swarm: str) -> None:
-    spec = VehicleSpec("copter", port=free_tcp_port())
+def test_autopilot_link_loss_drives_emergency(
+    zenoh_router: str, swarm: str, swarm_db: object
+) -> None:
+    spec = VehicleSpec("copter", port=free_tcp_port(), sysid=7)
     server = VehicleServer([spec], SystemClock())
     server.start_thread()
-    proc = start_node(1, zenoh_router, swarm, "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}")
+    proc = start_node(7, zenoh_router, swarm, "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}")
     client = plain_session(zenoh_router)
     infos: queue.Queue[tuple[float, VehicleInfo]] = queue.Queue()
     sub = client.declare_subscriber(
-        f"bandada/{swarm}/vehicle/1/info",
+        f"bandada/{swarm}/vehicle/7/info",
         lambda s: infos.put(
             (time.monotonic(), msgspec.msgpack.decode(s.payload.to_bytes(), type=VehicleInfo))
         ),
@@ -149,7 +153,7 @@ def test_autopilot_link_loss_drives_emergency(zenoh_router: str, swarm: str) -> 
         base = Command(
             900, 1, CommandKind.SET_BASE, args=CommandArgs(point=GeoPoint(37.4112, -5.9889, 10.0))
         )
-        wait_until(lambda: peers_of(client, swarm, 1) is not None, timeout=30)
+        wait_until(lambda: peers_of(client, swarm, 7) is not None, timeout=30)
         client.put(f"bandada/{swarm}/cmd/900", msgspec.msgpack.encode(base))
         wait_state(FsmState.GO_MISSION, timeout=60)  # ready once the EKF has a position
         t_cut = time.monotonic()

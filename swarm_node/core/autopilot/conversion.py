@@ -158,7 +158,9 @@ def mission_items_with_index(
             else:
                 add(MavCmd.NAV_WAYPOINT, param2=wp.acceptance_radius_m, **pos)
         elif wp.kind == ItemKind.RTL:
-            add(MavCmd.NAV_RETURN_TO_LAUNCH)  # frame 3 as Mission Planner: RTL is a location command
+            add(
+                MavCmd.NAV_RETURN_TO_LAUNCH
+            )  # frame 3 as Mission Planner: RTL is a location command
         else:  # pragma: no cover - every ItemKind is handled above
             raise ConversionError(f"{what}: unknown kind")
         index.append(len(items) - 1)
