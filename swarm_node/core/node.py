@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import msgspec
@@ -37,7 +38,7 @@ from swarm_proto import (
 )
 
 from . import state_machine as fsm
-from .autopilot.requests import ApRequest, ApResult, ReturnToLaunch
+from .autopilot.requests import ApRequest, ApResult
 from .autopilot.state import AutopilotState
 from .autopilot.status import to_vehicle_status
 from .commands import (
@@ -52,6 +53,9 @@ from .commands import (
     plan_command,
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
+from .mission_manager import Member, MissionManager
+from .mission_manager import Out as MissionOut
+from .mission_manager import Submit as ManagerSubmit
 from .monitoring import Thresholds, VehicleMonitor
 from .profile import VehicleProfile
 
@@ -128,6 +132,7 @@ class NodeCore:
     profile: VehicleProfile
     settings: NodeSettings = field(default_factory=NodeSettings)
     now: float = 0.0
+    fleet_profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)  # from the database
 
     def __post_init__(self) -> None:
         vid = self.profile.vehicle_id
@@ -139,6 +144,7 @@ class NodeCore:
         self.members = SwarmMembership(vid, stale_after_s=self.settings.stale_after_s)
         self.fsm = fsm.StateMachine(plan_timeout_s=self.settings.plan_timeout_s, now=self.now)
         self.commands = CommandTracker(vid)
+        self.manager = MissionManager(self.profile)
         self.active = True
         self.base: GeoPoint | None = None
         self.fleet_id = 0
@@ -203,6 +209,8 @@ class NodeCore:
         if isinstance(event, AutopilotUpdate):
             return self._on_autopilot(event.state, now)
         if isinstance(event, AutopilotResult):
+            if self.manager.owns(event.result.request_id):
+                return self._from_manager(self.manager.on_result(event.result, now))
             reqs, acks = self.commands.on_result(event.result, now)
             out: list[Output] = [Submit(r) for r in reqs]
             return out + [Publish(a) for a in acks]
@@ -214,11 +222,23 @@ class NodeCore:
         return self._on_message(event.msg, now)
 
     def _on_autopilot(self, state: AutopilotState, now: float) -> list[Output]:
-        was_landed = self.autopilot.armed and not state.armed
         self.autopilot = state
         out: list[Output] = [Publish(a) for a in self.monitor.update(state, now)]
-        if was_landed and self.fsm.state == FsmState.GO_MISSION:
-            self.fsm.post(fsm.LandingComplete())
+        out += self._from_manager(self.manager.on_autopilot(state, now))
+        self.mission_state = self.manager.mission_state
+        progress = self.manager.progress_pct(state)
+        if progress is not None:
+            self.mission_progress_pct = progress
+        return out
+
+    def _from_manager(self, outs: list[MissionOut]) -> list[Output]:
+        out: list[Output] = []
+        for o in outs:
+            if isinstance(o, ManagerSubmit):
+                out.append(Submit(o.request))
+            else:
+                self.fsm.post(o.event)
+        self.mission_state = self.manager.mission_state
         return out
 
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[Output]:
@@ -368,14 +388,15 @@ class NodeCore:
         if isinstance(o, fsm.RaiseAlert):
             return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, o.text[:64]))]
         if isinstance(o, fsm.StartEmergency):
+            self.manager.stop()
             alert = Alert(
                 self.self_id, max(0.0, now), o.severity, o.code, f"emergency: {o.code.name}"
             )
             out: list[Output] = [Publish(alert)]
             return out + [Submit(r) for r in emergency_requests(o.code, self.profile)]
         if isinstance(o, fsm.ReturnHome):
-            self.mission_state = MissionState.IDLE
-            return [Submit(ReturnToLaunch()), Note(logging.WARNING, f"returning home: {o.reason}")]
+            note = Note(logging.WARNING, f"returning home: {o.reason}")
+            return [note, *self._from_manager(self.manager.start_return(now))]
         if isinstance(o, fsm.LeaveFleet):
             self.fleet_id = 0
             self.fleet_members = (self.self_id,)
@@ -406,33 +427,47 @@ class NodeCore:
                     )
                 ]
             return []
+        if isinstance(o, fsm.Shutdown):
+            self.active = False
+            return []
         if isinstance(o, fsm.Deactivated):
+            self.manager.stop()
             self.mission_state = MissionState.IDLE
             return [Note(logging.INFO, f"state machine deactivated: {o.reason}")]
         return []
 
     def _release(self, mission_id: int, now: float) -> list[Output]:
-        """The fleet is synchronised: hand the mission to the mission manager. The
-        return-to-base mission is flown with RTL (the base is the rally point)."""
+        """The fleet is synchronised: hand the mission to the mission manager (the
+        return-to-base mission: fly back to base and land)."""
         if mission_id == fsm.RETURN_MISSION:
-            self.fsm.post(fsm.PlanSucceeded(mission_id))
-            return [Submit(ReturnToLaunch())]
+            return self._from_manager(self.manager.start_return(now))
         mission = self.missions.get(mission_id)
         if mission is None:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
             return []
-        return self.release_mission(mission, now)
-
-    def release_mission(self, mission: Mission, now: float) -> list[Output]:
-        """Plan and start a mission. The full mission manager (planners, voting,
-        pre-mission) plugs in here; until then a mission is reported as unplannable."""
-        self.fsm.post(
-            fsm.PlanFailed(mission.mission_id, "no mission manager for this mission type")
+        members = self._members()
+        return self._from_manager(
+            self.manager.release(
+                mission, members, tuple(self.monitor.zones.values()), self.autopilot, now
+            )
         )
-        return []
+
+    def _members(self) -> list[Member]:
+        """The fleet as the planners see it: profiles from the database, homes from the
+        members' VehicleInfo (the same on every node). Lost members are left out."""
+        out = [Member(self.profile, self.autopilot.home)]
+        for vid in self.fleet_members:
+            if vid == self.self_id:
+                continue
+            peer = self.members.peers.get(vid)
+            profile = self.fleet_profiles.get(vid)
+            if peer is None or not peer.present or profile is None:
+                continue
+            out.append(Member(profile, peer.info.home if peer.info else None))
+        return out
 
 
 def _clamp(x: float, lo: float, hi: float) -> float:
-    if x != x:  # NaN from a broken autopilot value: report the low bound, never crash
+    if x != x:  # NaN from a broken value: report the low bound, never crash
         return lo
     return min(max(x, lo), hi)

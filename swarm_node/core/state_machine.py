@@ -174,6 +174,12 @@ class Deactivated:
     reason: str
 
 
+@dataclass(frozen=True)
+class Shutdown:
+    """Clear the active flag (the paper: on landing "a command to shut down" is
+    delivered); the operator's ACTIVATE sets it again."""
+
+
 Output = (
     BeginPlan
     | ReleaseMission
@@ -185,6 +191,7 @@ Output = (
     | RaiseAlert
     | Activated
     | Deactivated
+    | Shutdown
 )
 
 
@@ -281,7 +288,7 @@ RULES: tuple[Rule, ...] = (
         "landing complete",
         Action.DEACTIVATE,
         event=LandingComplete,
-        outputs=lambda c: (MissionFinished(_mid(c)), Deactivated("landed")),
+        outputs=lambda c: (MissionFinished(_mid(c)), Shutdown(), Deactivated("landed")),
     ),
     Rule(
         "mission complete",

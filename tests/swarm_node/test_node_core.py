@@ -12,6 +12,7 @@ from swarm_node.core.autopilot.requests import (
     Land,
     ReturnToLaunch,
     SetMode,
+    UploadMission,
 )
 from swarm_node.core.autopilot.state import AutopilotState
 from swarm_node.core.node import BadInput, NodeCore, NodeSettings, Received
@@ -65,7 +66,11 @@ def flying(**kw: object) -> AutopilotState:
 
 
 def fleet(n: int = 3, **kw: object) -> Fleet:
-    nodes = {i: NodeCore(profile(i), NodeSettings(plan_timeout_s=20.0)) for i in range(1, n + 1)}
+    profiles = {i: profile(i) for i in range(1, n + 1)}
+    nodes = {
+        i: NodeCore(profiles[i], NodeSettings(plan_timeout_s=20.0), fleet_profiles=profiles)
+        for i in profiles
+    }
     f = Fleet(nodes, **kw)  # type: ignore[arg-type]
     for i in nodes:
         f.set_autopilot(i, flying())
@@ -175,12 +180,12 @@ def test_fleet_waits_in_plan_until_all_members_are_there() -> None:
     assert not any(f.nodes[i].fsm.released for i in (1, 2))
     send(f, m, to=[3])
     f.run_until(f.now + 3.0)
-    # all three released the mission; with no mission manager yet each reports the
-    # planning failure and returns home (paper: alert, leave the fleet, return)
+    # all three released the mission, planned their share, uploaded it and started it
     for i in (1, 2, 3):
-        assert any("PLAN -> GO_MISSION (plan failed)" in t for _, n, t in f.notes if n == i)
-        assert any(isinstance(r, ReturnToLaunch) for _, n, r in f.submitted if n == i)
-    assert {a.code for a in f.messages(Alert)} >= {AlertCode.PLAN_FAILED}
+        assert any("PLAN -> GO_MISSION (plan ok)" in t for _, n, t in f.notes if n == i)
+        uploads = [r for _, n, r in f.submitted if n == i and isinstance(r, UploadMission)]
+        assert len(uploads) == 1 and uploads[0].items
+        assert f.nodes[i].fsm.state == FsmState.GO_MISSION
 
 
 def test_a_lost_member_does_not_hold_the_fleet_back() -> None:

@@ -31,6 +31,7 @@ from swarm_node.core.state_machine import (
     ReleaseMission,
     Replan,
     ReturnHome,
+    Shutdown,
     StartEmergency,
     StateMachine,
     mermaid,
@@ -93,7 +94,7 @@ CASES = [
         G,
         events=[LandingComplete()],
         expect=INACT,
-        outputs=(MissionFinished, Deactivated),
+        outputs=(MissionFinished, Shutdown, Deactivated),
     ),
     Case(
         "mission complete",
@@ -216,7 +217,7 @@ def test_a_whole_sortie() -> None:
     fsm.post(PlanSucceeded(RETURN_MISSION))
     assert tick() == [MissionStarted(RETURN_MISSION)]
     fsm.post(LandingComplete())
-    assert tick() == [MissionFinished(RETURN_MISSION), Deactivated("landed")]
+    assert tick() == [MissionFinished(RETURN_MISSION), Shutdown(), Deactivated("landed")]
     assert fsm.state == INACT
 
 

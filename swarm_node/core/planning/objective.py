@@ -17,7 +17,7 @@ from .errors import InvalidGeometryError, TargetInZoneError
 from .formation import assign_min_cost
 from .geo import LocalFrame
 from .target import TargetPlan, plan_target
-from .vehicles import DEFAULT_PARAMS, PlanVehicle, require_vehicles
+from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
 from .zones import ZoneSet
 
 
@@ -30,6 +30,11 @@ class ObjectivePlan:
 
     def group_of(self, point: int) -> tuple[int, ...]:
         return dict(self.groups).get(point, ())
+
+    @property
+    def vehicles(self) -> tuple[VehiclePlan, ...]:
+        """Every vehicle's share, like the other plans."""
+        return tuple(v for _, target in self.targets for v in target.vehicles)
 
 
 def even_counts(n_vehicles: int, n_points: int) -> list[int]:
