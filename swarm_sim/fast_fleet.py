@@ -107,7 +107,7 @@ class FastFleet:
         heapq.heappush(self._bus, (at, next(self._seq), vid, event))
 
     # ------------------------------------------------------------------ plumbing
-    def _node_out(self, vid: int, outputs: list) -> None:  # type: ignore[type-arg]
+    def _node_out(self, vid: int, outputs: list) -> None:
         v = self.vehicles[vid]
         for o in outputs:
             if isinstance(o, Publish):
@@ -189,5 +189,5 @@ class FastFleet:
             self.step()
         return True
 
-    def messages(self, cls: type, sender: int | None = None) -> list:  # type: ignore[type-arg]
+    def messages(self, cls: type, sender: int | None = None) -> list:
         return [m for _, s, m in self.published if isinstance(m, cls) and (sender is None or s == sender)]
