@@ -193,8 +193,10 @@ class AutopilotLink:
         self._closed = True
         self._stop.set()
         self._wake()
-        if self._thread is not None:
+        if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout_s)
+            if self._thread.is_alive():
+                log.error("%s: I/O thread did not stop within %.1f s", self.name, timeout_s)
         self._execute(self._core.close("link closed"))
         self._drain_inbox("link closed")
         self._transport.close()
