@@ -1,0 +1,37 @@
+"""Errors of the planning library. Every planner raises a `PlanningError` subclass (also
+a `ValueError`) for input it cannot plan: the caller's misuse, never a crash deeper in."""
+
+from __future__ import annotations
+
+
+class PlanningError(ValueError):
+    """Base class: the input cannot be planned."""
+
+
+class InvalidGeometryError(PlanningError):
+    """Self-intersecting, degenerate, non-finite or wrong-kind geometry."""
+
+
+class EmptyAreaError(PlanningError):
+    """Nothing left to plan: zero area, or everything is cut out by holes and zones."""
+
+
+class NoVehiclesError(PlanningError):
+    """A planner was asked to plan for zero vehicles (or unknown vehicle ids)."""
+
+
+class InvalidParameterError(PlanningError):
+    """A parameter is out of range (NaN, negative spacing, speeds that do not fit...)."""
+
+
+class TargetInZoneError(PlanningError):
+    """A mission point (target, objective, landing base, route point) is inside a no-fly
+    zone."""
+
+
+class NoSafeRouteError(PlanningError):
+    """No route avoids the no-fly zones within the vehicle's limits: replan the mission."""
+
+
+class InfeasibleTimingError(PlanningError):
+    """Simultaneous arrival or a landing sequence cannot be met within the speed ranges."""

@@ -1,0 +1,116 @@
+"""Shared pieces of the formation planners (target, perimeter, objective, MUM-T):
+equal spacing on a cycle, order-preserving slot assignment, and re-spacing when the
+number of vehicles changes."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InfeasibleTimingError, InvalidParameterError
+
+
+def cyclic_slots(positions: Mapping[int, float], period: float) -> dict[int, float]:
+    """Equally spaced targets on a cycle of length `period` for the vehicles at
+    `positions` (each in [0, period)), keeping their cyclic order (so their paths do
+    not cross) and rotating the pattern to minimize the largest move."""
+    if not positions:
+        return {}
+    if not (math.isfinite(period) and period > 0.0):
+        raise InvalidParameterError(f"cycle length must be > 0, got {period}")
+    ids = sorted(positions, key=lambda v: positions[v] % period)
+    n = len(ids)
+    gap = period / n
+    pos = np.array([positions[v] % period for v in ids])
+    best: tuple[float, float] | None = None
+    for shift in range(n):
+        k = (np.arange(n) + shift) % n
+        base = pos - k * gap  # the offset each vehicle would like
+        # circular mean of the wanted offsets, on the cycle of length gap
+        ang = 2 * math.pi * base / gap
+        off = (math.atan2(np.sin(ang).mean(), np.cos(ang).mean()) * gap / (2 * math.pi)) % gap
+        moves = np.abs(np.remainder(pos - (off + k * gap) + period / 2, period) - period / 2)
+        cost = float(moves.max())
+        if best is None or cost < best[0] - 1e-9:
+            best = (cost, off, shift)  # type: ignore[assignment]
+    assert best is not None
+    _c, off, shift = best  # type: ignore[misc]
+    return {v: (off + ((i + shift) % n) * gap) % period for i, v in enumerate(ids)}
+
+
+@dataclass(frozen=True, slots=True)
+class Trim:
+    """How a vehicle on a cycle reaches its new slot: fly at `speed_m_s` for `settle_s`
+    (then back to the common speed)."""
+
+    vehicle_id: int
+    target: float  # new position on the cycle
+    move: float  # signed distance along the cycle (+ = ahead)
+    speed_m_s: float
+    settle_s: float
+
+
+def respace(
+    positions: Mapping[int, float],
+    period: float,
+    speed_m_s: float,
+    speed_ranges: Mapping[int, tuple[float, float]],
+) -> dict[int, Trim]:
+    """Re-space vehicles moving along a cycle at a common `speed_m_s` after one joined or
+    left: equal spacing, order kept, and a speed trim per vehicle so all reach their
+    new slots together, as soon as their speed ranges allow."""
+    slots = cyclic_slots(positions, period)
+    moves = {
+        v: float(np.remainder(slots[v] - positions[v] % period + period / 2, period) - period / 2)
+        for v in slots
+    }
+    settle = 0.0
+    for v, d in moves.items():
+        lo, hi = speed_ranges[v]
+        room = (hi - speed_m_s) if d > 0 else (speed_m_s - lo)
+        if abs(d) > 1e-9:
+            if room <= 1e-9:
+                raise InfeasibleTimingError(
+                    f"vehicle {v} cannot change speed from {speed_m_s:.1f} m/s to re-space"
+                )
+            settle = max(settle, abs(d) / room)
+    return {
+        v: Trim(v, slots[v], d, speed_m_s + (d / settle if settle > 0 else 0.0), settle)
+        for v, d in moves.items()
+    }
+
+
+def assign_min_cost(cost: np.ndarray) -> list[int]:
+    """Row -> column assignment with the least total cost (rows <= columns): exact for
+    up to 7 rows, greedy plus pairwise swaps beyond."""
+    n, m = cost.shape
+    if n > m:
+        raise InvalidParameterError("more vehicles than slots")
+    if n <= 7 and m <= 8:
+        best: tuple[float, tuple[int, ...]] | None = None
+        for cols in itertools.permutations(range(m), n):
+            c = float(sum(cost[i, j] for i, j in enumerate(cols)))
+            if best is None or c < best[0]:
+                best = (c, cols)
+        assert best is not None
+        return list(best[1])
+    out = [-1] * n
+    used: set[int] = set()
+    for flat in np.argsort(cost, axis=None):
+        i, j = divmod(int(flat), m)
+        if out[i] < 0 and j not in used:
+            out[i] = j
+            used.add(j)
+    improved = True
+    while improved:
+        improved = False
+        for a in range(n):
+            for b in range(a + 1, n):
+                if cost[a, out[b]] + cost[b, out[a]] < cost[a, out[a]] + cost[b, out[b]] - 1e-9:
+                    out[a], out[b] = out[b], out[a]
+                    improved = True
+    return out

@@ -1,0 +1,177 @@
+"""Perimeter mission: cyclic patrol of a closed polygon or a circle (paper: "phase-offset
+starting points, smoothed paths respecting minimum turn radii, loop continuity,
+insertion/removal, consistent spacing through time- or angle-based offsets").
+
+- The loop is the polygon's outline (or the circle). For fixed-wing aircraft it is
+  smoothed with the largest turn radius R: a morphological opening then closing by R
+  rounds every corner to an arc of radius >= R (a shape narrower than 2R is an error).
+- All vehicles fly the loop in the same direction at one common speed (inside every
+  vehicle's range), starting L/N apart along it: equal spacing in distance and time.
+- Slots keep the vehicles' order along the loop; `respace_perimeter` re-spaces them
+  with speed trims when one joins or leaves.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+from shapely.geometry import LinearRing, LineString, Point, Polygon
+
+from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
+
+from .errors import InfeasibleTimingError, InvalidGeometryError, NoSafeRouteError
+from .formation import Trim, cyclic_slots, respace
+from .geo import LocalFrame
+from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
+from .zones import ZoneSet
+
+
+@dataclass(frozen=True, slots=True)
+class PerimeterPlan:
+    frame: LocalFrame
+    loop: tuple[tuple[float, float], ...]  # closed ring (first point not repeated), CCW
+    length_m: float
+    speed_m_s: float  # common speed
+    offsets_m: tuple[tuple[int, float], ...]  # vehicle id -> start position along loop
+    vehicles: tuple[VehiclePlan, ...]
+
+    @property
+    def lap_s(self) -> float:
+        return self.length_m / self.speed_m_s
+
+    def offset_of(self, vehicle_id: int) -> float:
+        return dict(self.offsets_m)[vehicle_id]
+
+
+def smooth_loop(polygon: Polygon, radius_m: float) -> Polygon:
+    """`polygon`'s outline with every corner rounded to a radius >= `radius_m`."""
+    if radius_m <= 0.0:
+        return Polygon(polygon.exterior)
+    shell = Polygon(polygon.exterior)
+    opened = shell.buffer(-radius_m, quad_segs=16).buffer(radius_m, quad_segs=16)
+    if opened.is_empty or not isinstance(opened, Polygon):
+        raise InvalidGeometryError(
+            f"the perimeter is too narrow for a {radius_m:.0f} m turn radius"
+        )
+    closed = opened.buffer(radius_m, quad_segs=16).buffer(-radius_m, quad_segs=16)
+    if not isinstance(closed, Polygon):
+        raise InvalidGeometryError("smoothing split the perimeter")
+    return closed
+
+
+def common_speed(vehicles: Sequence[PlanVehicle], params: MissionParams) -> float:
+    """One speed every vehicle can fly: the slowest mission speed, raised to the highest
+    minimum; `InfeasibleTimingError` if the speed ranges do not overlap."""
+    lo = max(v.speed_range()[0] for v in vehicles)
+    hi = min(v.speed_range()[1] for v in vehicles)
+    if lo > hi:
+        raise InfeasibleTimingError(
+            f"no common speed: the vehicles' ranges do not overlap ({lo:.1f} > {hi:.1f} m/s)"
+        )
+    return min(max(min(v.speed(params) for v in vehicles), lo), hi)
+
+
+def _loop(geometry: Geometry, frame: LocalFrame, radius: float) -> LinearRing:
+    shape = frame.shape(geometry)
+    if not isinstance(shape, Polygon):
+        raise InvalidGeometryError(f"a perimeter is a POLYGON or CIRCLE, got {geometry.kind.name}")
+    if geometry.kind == GeometryKind.CIRCLE:
+        assert geometry.radius_m is not None
+        if geometry.radius_m < radius:
+            raise InvalidGeometryError(
+                f"circle radius {geometry.radius_m:.0f} m is below the turn radius {radius:.0f} m"
+            )
+        ring = shape.exterior
+    else:
+        ring = smooth_loop(shape, radius).exterior.simplify(0.5)
+    if not ring.is_ccw:
+        ring = LinearRing(list(ring.coords)[::-1])
+    return LinearRing(ring.coords)
+
+
+def plan_perimeter(
+    geometry: Geometry,
+    vehicles: Sequence[PlanVehicle],
+    params: MissionParams = DEFAULT_PARAMS,
+    *,
+    zones: Sequence[NoFlyZone] = (),
+    now_unix_s: float = 0.0,
+    home_alt_msl_m: float = 0.0,
+    zone_margin_m: float = 0.0,
+    frame: LocalFrame | None = None,
+) -> PerimeterPlan:
+    require_vehicles(vehicles)
+    if geometry.kind not in (GeometryKind.POLYGON, GeometryKind.CIRCLE):
+        raise InvalidGeometryError(f"a perimeter is a POLYGON or CIRCLE, got {geometry.kind.name}")
+    frame = frame or LocalFrame.for_geometry(geometry)
+    speed = common_speed(vehicles, params)
+    radius = max(
+        max(
+            v.profile.turn_radius_m(speed),
+            v.profile.loiter_radius_m if v.profile.is_fixed_wing else 0.0,
+        )
+        for v in vehicles
+    )
+    ring = _loop(geometry, frame, radius)
+    zs = ZoneSet.from_messages(
+        zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
+    )
+    alts = {
+        v.vehicle_id: params.altitude_rel_m + i * params.altitude_step_m
+        for i, v in enumerate(vehicles)
+    }
+    lo, hi = min(alts.values()), max(alts.values())
+    band = ZoneSet(zs.at(lo, hi), zs.margin_m, zs.vertical_margin_m)
+    if band.zones and LineString(ring.coords).intersects(band.keep_out(None)):
+        raise NoSafeRouteError("the perimeter loop crosses a no-fly zone: replan the mission")
+    length = ring.length
+    pos = {}
+    for i, v in enumerate(vehicles):
+        if v.pose is None:
+            pos[v.vehicle_id] = length * i / len(vehicles)
+        else:
+            pos[v.vehicle_id] = ring.project(Point(frame.to_local(v.pose.lat_deg, v.pose.lon_deg)))
+    offsets = cyclic_slots(pos, length)
+    loops = max(params.loops, 1)
+    plans = []
+    for v in vehicles:
+        pts = lap_points(ring, offsets[v.vehicle_id], loops)
+        wps = to_waypoints(frame, pts, alts[v.vehicle_id], speed_m_s=speed)
+        plans.append(VehiclePlan(v.vehicle_id, wps, length * loops, length * loops / speed))
+    coords = tuple((float(x), float(y)) for x, y in list(ring.coords)[:-1])
+    return PerimeterPlan(
+        frame,
+        coords,
+        length,
+        speed,
+        tuple((v.vehicle_id, offsets[v.vehicle_id]) for v in vehicles),
+        tuple(plans),
+    )
+
+
+def lap_points(ring: LinearRing, start_m: float, laps: int = 1) -> list[tuple[float, float]]:
+    """The loop's vertices starting at `start_m` along it, `laps` times round, closed."""
+    coords = list(ring.coords)[:-1]
+    dist = [ring.project(Point(c)) for c in coords]
+    first = ring.interpolate(start_m % ring.length)
+    s0 = start_m % ring.length
+    after = sorted(range(len(coords)), key=lambda i: (dist[i] - s0) % ring.length)
+    one = [(float(coords[i][0]), float(coords[i][1])) for i in after]
+    start = (float(first.x), float(first.y))
+    out = [start]
+    for _ in range(laps):
+        out += [p for p in one if math.dist(p, out[-1]) > 1e-6]
+        out.append(start)
+    return out
+
+
+def respace_perimeter(
+    plan: PerimeterPlan,
+    positions_m: Mapping[int, float],
+    speed_ranges: Mapping[int, tuple[float, float]],
+) -> dict[int, Trim]:
+    """Vehicles at `positions_m` along the loop (some joined, some left): new equal
+    offsets (order kept) and the speed trims that bring everyone there together."""
+    return respace(positions_m, plan.length_m, plan.speed_m_s, speed_ranges)

@@ -1,0 +1,196 @@
+"""Coverage pipeline: reference polygons, properties, invalid input."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Any
+
+import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from shapely.geometry import Point, Polygon
+
+from swarm_node.core.planning import (
+    DubinsTurns,
+    EmptyAreaError,
+    InvalidGeometryError,
+    InvalidParameterError,
+    PointTurns,
+    SweepCost,
+    Zone,
+    ZoneSet,
+    connect,
+    coverage_ratio,
+    decompose,
+    lane_spacing_m,
+    lanes,
+    order,
+    overlap_ratio,
+    plan_lanes,
+    sweep_angle,
+)
+from swarm_node.core.planning.checks import coverage_problems, path_problems
+
+R_REF = 30.0
+
+
+def _ref_polygon(ref: dict[str, Any]) -> Polygon:
+    return Polygon(ref["shell"], ref["holes"])
+
+
+@pytest.fixture(scope="module")
+def ref_plans(coverage_refs: dict[str, Any]) -> dict[str, Any]:
+    cam = coverage_refs["camera"]
+    spacing = lane_spacing_m(cam["altitude_m"], cam["hfov_deg"], cam["side_overlap"])
+    out = {}
+    for name, ref in coverage_refs["polygons"].items():
+        region = decompose(_ref_polygon(ref))
+        out[name] = (region, plan_lanes(region, spacing, DubinsTurns(R_REF)), ref["reference"])
+    return out
+
+
+def test_lane_spacing_matches_reference(coverage_refs: dict[str, Any]) -> None:
+    cam = coverage_refs["camera"]
+    spacing = lane_spacing_m(cam["altitude_m"], cam["hfov_deg"], cam["side_overlap"])
+    assert spacing == pytest.approx(cam["lane_spacing_m"], abs=0.01)
+
+
+@pytest.mark.parametrize("name", ["rect_rot30", "L_shape", "square_with_hole", "irregular6"])
+def test_reference_polygon_targets(ref_plans: dict[str, Any], name: str) -> None:
+    _region, lp, ref = ref_plans[name]
+    assert len(lp.lanes) <= ref["f2c_lanes"]
+    assert lp.coverage >= 0.99
+    assert lp.overlap <= 0.01
+    assert path_problems(lp.path) == []
+    if "f2c_path_m_snake" in ref:
+        assert lp.path.length_m < ref["f2c_path_m_snake"]
+
+
+def test_rotated_rectangle_sweeps_along_its_long_edge(ref_plans: dict[str, Any]) -> None:
+    _region, lp, _ref = ref_plans["rect_rot30"]
+    assert math.degrees(lp.angle_rad) % 180 == pytest.approx(30.0, abs=0.01)
+
+
+def test_turn_aware_order_beats_boustrophedon() -> None:
+    # 10 lanes 34.6 m apart, turn radius 30 m: adjacent U-turns are CCC loops
+    region = decompose(Polygon([(0, 0), (600, 0), (600, 346), (0, 346)]))
+    spacing = 34.64
+    ls = lanes(region, 0.0, spacing)
+    turns = DubinsTurns(R_REF)
+    boustro = [ln if i % 2 == 0 else ln.reversed() for i, ln in enumerate(ls)]
+    smart = connect(order(ls, turns), turns)
+    naive = connect(boustro, turns)
+    assert smart.length_m < naive.length_m - 3 * 60
+    # the better order skips lanes: fewer transitions between neighbouring lines
+    steps = [abs(a.line - b.line) for a, b in zip(smart.lanes[:-1], smart.lanes[1:], strict=True)]
+    assert sum(1 for s in steps if s == 1) <= 2
+    # with point turns the plain boustrophedon is already optimal
+    pt = connect(order(ls, PointTurns()), PointTurns())
+    assert pt.length_m == pytest.approx(sum(ln.length_m for ln in ls) + spacing * (len(ls) - 1))
+
+
+def test_sweep_search_finds_edge_direction_of_a_thin_rotated_strip() -> None:
+    poly = shapely.affinity.rotate(
+        Polygon([(0, 0), (1000, 0), (1000, 80), (0, 80)]), 17.3, origin=(0, 0)
+    )
+    region = decompose(poly)
+    a = sweep_angle(region, 30.0, SweepCost.for_turns(DubinsTurns(30.0), 30.0))
+    assert math.degrees(a) % 180 == pytest.approx(17.3, abs=0.05)
+
+
+# --------------------------------------------------------------------------- properties
+
+
+@st.composite
+def star_polygons(draw: st.DrawFn) -> Polygon:
+    """Random star-shaped polygons (simple by construction), 200-900 m across."""
+    n = draw(st.integers(4, 9))
+    cuts = sorted(draw(st.lists(st.floats(0, 2 * math.pi), min_size=n, max_size=n, unique=True)))
+    radii = draw(st.lists(st.floats(150, 450), min_size=n, max_size=n))
+    pts = [(r * math.cos(a), r * math.sin(a)) for a, r in zip(cuts, radii, strict=True)]
+    poly = Polygon(pts)
+    if not poly.is_valid or poly.area < 20_000:
+        poly = poly.convex_hull
+    return poly
+
+
+zone_specs = st.one_of(
+    st.none(),
+    st.tuples(st.floats(-200, 200), st.floats(-200, 200), st.floats(30, 120)),
+)
+
+
+@settings(max_examples=30)
+@given(star_polygons(), zone_specs, st.floats(20.0, 60.0), st.sampled_from([0.0, 30.0]))
+def test_coverage_covers_area_minus_zones_and_never_enters_them(
+    poly: Polygon, zone: tuple[float, float, float] | None, spacing: float, radius: float
+) -> None:
+    zones = ZoneSet()
+    if zone is not None:
+        zones = ZoneSet((Zone(1, Point(zone[0], zone[1]).buffer(zone[2])),), margin_m=5.0)
+    try:
+        region = decompose(poly, zones)
+    except EmptyAreaError:
+        return
+    turns = DubinsTurns(radius) if radius > 0 else PointTurns()
+    lp = plan_lanes(region, spacing, turns, min_coverage=1.0, polish=False)
+    # everything farther than one spacing from a zone is seen at the lane spacing
+    away = region.cover.difference(zones.raw().buffer(zones.margin_m + spacing))
+    if away.area > 1.0:
+        assert coverage_problems(lp.lanes, away, spacing, 0.99) == []
+    # no lane, transition or waypoint inside a zone
+    assert path_problems(lp.path, zones.raw() if zones.zones else None) == []
+    for p in lp.path.points():
+        assert not zones.raw().contains(Point(p)) if zones.zones else True
+    # lanes are parallel and spacing apart
+    ys = sorted(
+        {
+            round(-math.sin(lp.angle_rad) * ln.a[0] + math.cos(lp.angle_rad) * ln.a[1], 6)
+            for ln in lp.lanes
+        }
+    )
+    for a, b in itertools.pairwise(ys):
+        assert (b - a) / spacing == pytest.approx(round((b - a) / spacing), abs=1e-6)
+
+
+# --------------------------------------------------------------------------- invalid input
+
+
+def test_self_intersecting_polygon_raises() -> None:
+    with pytest.raises(InvalidGeometryError, match="not simple"):
+        decompose(Polygon([(0, 0), (100, 100), (100, 0), (0, 100)]))
+
+
+def test_empty_area_raises() -> None:
+    with pytest.raises(EmptyAreaError):
+        decompose(Polygon([(0, 0), (0, 0), (0, 0)]))
+    square = Polygon([(0, 0), (100, 0), (100, 100), (0, 100)])
+    covered = ZoneSet((Zone(1, square.buffer(10)),))
+    with pytest.raises(EmptyAreaError):
+        decompose(square, covered)
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_nan_polygon_raises() -> None:
+    with pytest.raises(InvalidGeometryError, match="finite"):
+        decompose(Polygon([(0, 0), (math.nan, 0), (100, 100)]))
+
+
+@pytest.mark.parametrize(
+    "args", [(0.0, 60.0, 0.7), (100.0, 0.0, 0.7), (100.0, 60.0, 1.0), (math.nan, 60, 0.5)]
+)
+def test_bad_camera_parameters_raise(args: tuple[float, float, float]) -> None:
+    with pytest.raises(InvalidParameterError):
+        lane_spacing_m(*args)
+
+
+def test_metrics_on_a_known_layout() -> None:
+    area = Polygon([(0, 0), (100, 0), (100, 40), (0, 40)])
+    region = decompose(area)
+    ls = lanes(region, 0.0, 20.0)
+    assert len(ls) == 2
+    assert coverage_ratio(ls, area, 20.0) == pytest.approx(1.0)
+    assert overlap_ratio(ls, area, 20.0) == pytest.approx(0.0)
+    assert overlap_ratio(ls, area, 30.0) == pytest.approx(10 * 100 / 4000)

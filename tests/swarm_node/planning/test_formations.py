@@ -1,0 +1,299 @@
+"""Target, perimeter, objective, autoland and MUM-T planners."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from shapely.geometry import Polygon
+
+from swarm_node.core.autopilot.items import ItemKind
+from swarm_node.core.planning import (
+    InvalidGeometryError,
+    LeadState,
+    NoVehiclesError,
+    PlanVehicle,
+    TargetInZoneError,
+    VehiclePose,
+    cyclic_slots,
+    plan_autoland,
+    plan_mumt,
+    plan_objective,
+    plan_perimeter,
+    plan_target,
+    respace_orbit,
+    respace_perimeter,
+    smooth_loop,
+)
+from swarm_node.core.profile import G_M_S2
+from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
+
+from .conftest import ORIGIN
+
+Fleet = Callable[..., list[PlanVehicle]]
+
+
+def _around(n: int, dist_deg: float = 0.01) -> list[VehiclePose | None]:
+    return [
+        VehiclePose(
+            ORIGIN[0] + dist_deg * math.sin(2 * math.pi * i / n + 0.3),
+            ORIGIN[1] + dist_deg * math.cos(2 * math.pi * i / n + 0.3),
+            0.0,
+            10.0 * i,
+        )
+        for i in range(n)
+    ]
+
+
+def _gaps(angles: list[float]) -> list[float]:
+    a = sorted(x % (2 * math.pi) for x in angles)
+    if len(a) == 1:
+        return [2 * math.pi]
+    return [(b - c) % (2 * math.pi) for b, c in zip(a[1:] + a[:1], a, strict=True)]
+
+
+# --------------------------------------------------------------------------- target
+
+
+def test_hover_formation_equal_angles_radius_and_altitude_steps(fleet: Fleet) -> None:
+    vs = fleet(["multirotor"] * 4, _around(4))
+    params = MissionParams(altitude_rel_m=60, altitude_step_m=5, radius_m=40)
+    plan = plan_target(Geometry.point(*ORIGIN), vs, params)
+    assert all(s.radius_m == 40 and not s.orbit for s in plan.slots)
+    assert _gaps([s.phase_rad for s in plan.slots]) == pytest.approx([math.pi / 2] * 4)
+    assert sorted(s.alt_rel_m for s in plan.slots) == [60, 65, 70, 75]
+    for s in plan.slots:
+        assert math.hypot(s.x - plan.centre[0], s.y - plan.centre[1]) == pytest.approx(40)
+    assert all(vp.waypoints[-1].kind == ItemKind.LOITER_UNLIMITED for vp in plan.vehicles)
+
+
+def test_fixed_wing_orbit_radius_and_phase_spacing(fleet: Fleet) -> None:
+    vs = fleet(["fixed_wing"] * 3, _around(3))
+    params = MissionParams(altitude_rel_m=120, altitude_step_m=10, radius_m=20.0)
+    plan = plan_target(Geometry.point(*ORIGIN), vs, params)
+    p = vs[0].profile
+    v = p.cruise_speed_m_s
+    assert plan.orbit_radius_m >= v * v / (G_M_S2 * math.tan(math.radians(p.max_bank_deg))) - 1e-9
+    assert plan.orbit_radius_m >= p.loiter_radius_m
+    assert _gaps([s.phase_rad for s in plan.slots]) == pytest.approx([2 * math.pi / 3] * 3)
+    # they reach their phase points at the same moment
+    assert len({round(a.arrival_s, 6) for a in plan.arrivals}) == 1
+    hold = plan.vehicles[0].waypoints[-1]
+    assert hold.kind == ItemKind.LOITER_UNLIMITED and abs(
+        hold.loiter_radius_m or 0
+    ) == pytest.approx(plan.orbit_radius_m)
+
+
+def test_arrival_order_follows_initial_bearings(fleet: Fleet) -> None:
+    poses = _around(5, 0.02)
+    vs = fleet(["multirotor"] * 5, poses)
+    plan = plan_target(Geometry.point(*ORIGIN), vs, MissionParams(radius_m=60))
+    bearing = {}
+    for v in vs:
+        assert v.pose is not None
+        x, y = plan.frame.to_local(v.pose.lat_deg, v.pose.lon_deg)
+        bearing[v.vehicle_id] = math.atan2(y - plan.centre[1], x - plan.centre[0]) % (2 * math.pi)
+    by_bearing = sorted(bearing, key=bearing.__getitem__)
+    by_slot = sorted(bearing, key=lambda i: plan.slot_of(i).phase_rad % (2 * math.pi))
+    k = by_slot.index(by_bearing[0])
+    assert by_slot[k:] + by_slot[:k] == by_bearing  # same cyclic order: no crossing paths
+    for i in bearing:  # each goes to the slot nearest its own bearing
+        assert (
+            abs(math.remainder(plan.slot_of(i).phase_rad - bearing[i], 2 * math.pi))
+            <= math.pi / 5 + 1e-9
+        )
+
+
+def test_target_inside_a_zone_raises(fleet: Fleet) -> None:
+    zone = NoFlyZone(4, Geometry.circle(*ORIGIN, 300.0))
+    with pytest.raises(TargetInZoneError):
+        plan_target(Geometry.point(*ORIGIN), fleet(["multirotor"]), zones=[zone])
+
+
+@settings(max_examples=60)
+@given(
+    st.dictionaries(
+        st.integers(1, 30), st.floats(0, 2 * math.pi, exclude_max=True), min_size=1, max_size=8
+    ),
+)
+def test_respace_orbit_gives_equal_phases_and_speeds_in_range(phases: dict[int, float]) -> None:
+    ranges = {v: (17.05, 30.0) for v in phases}
+    trims = respace_orbit(phases, 80.0, 26.0, ranges)
+    assert _gaps([t.target for t in trims.values()]) == pytest.approx(
+        [2 * math.pi / len(phases)] * len(phases)
+    )
+    settle = {round(t.settle_s, 9) for t in trims.values()}
+    assert len(settle) == 1
+    for v, t in trims.items():
+        assert ranges[v][0] - 1e-9 <= t.speed_m_s <= ranges[v][1] + 1e-9
+        # the trim closes the phase gap in the settle time
+        assert (t.speed_m_s - 26.0) * t.settle_s == pytest.approx(t.move * 80.0, abs=1e-6)
+
+
+def test_cyclic_slots_keep_order() -> None:
+    slots = cyclic_slots({1: 0.1, 2: 0.2, 3: 3.0}, 2 * math.pi)
+    order = sorted(slots, key=slots.__getitem__)
+    k = order.index(1)
+    assert (order[k:] + order[:k]) == [1, 2, 3]
+
+
+# --------------------------------------------------------------------------- perimeter
+
+
+def _square(side_deg: float = 0.008) -> Geometry:
+    la, lo = ORIGIN
+    return Geometry.polygon(
+        [(la, lo), (la, lo + side_deg), (la + side_deg, lo + side_deg), (la + side_deg, lo)]
+    )
+
+
+def _min_turn_radius(ring: list[tuple[float, float]]) -> float:
+    pts = np.array(ring + ring[:2])
+    best = math.inf
+    for a, b, c in zip(pts[:-2], pts[1:-1], pts[2:], strict=True):
+        ab, bc, ca = np.linalg.norm(b - a), np.linalg.norm(c - b), np.linalg.norm(a - c)
+        cross = abs((b - a)[0] * (c - a)[1] - (b - a)[1] * (c - a)[0])
+        if cross > 1e-9 and min(ab, bc) > 1e-6:
+            best = min(best, ab * bc * ca / (2 * cross))
+    return best
+
+
+def test_perimeter_fixed_wing_smoothed_and_evenly_spaced(fleet: Fleet) -> None:
+    vs = fleet(["fixed_wing"] * 3, _around(3))
+    plan = plan_perimeter(_square(), vs, MissionParams(altitude_step_m=10))
+    r = max(v.profile.turn_radius_m(plan.speed_m_s) for v in vs)
+    assert _min_turn_radius(list(plan.loop)) >= 0.98 * r
+    offs = sorted(o for _v, o in plan.offsets_m)
+    gaps = [(b - a) % plan.length_m for a, b in zip(offs, offs[1:] + offs[:1], strict=True)]
+    assert gaps == pytest.approx([plan.length_m / 3] * 3)
+    lo = max(v.speed_range()[0] for v in vs)
+    hi = min(v.speed_range()[1] for v in vs)
+    assert lo <= plan.speed_m_s <= hi
+    for vp in plan.vehicles:  # closed loop: back where it started
+        first, last = vp.waypoints[1], vp.waypoints[-1]
+        assert (first.lat_deg, first.lon_deg) == pytest.approx((last.lat_deg, last.lon_deg))
+
+
+def test_perimeter_insertion_and_removal(fleet: Fleet) -> None:
+    vs = fleet(["multirotor"] * 3, _around(3))
+    plan = plan_perimeter(_square(), vs)
+    pos = {v: o for v, o in plan.offsets_m}
+    pos.pop(vs[1].vehicle_id)  # one leaves
+    pos[999] = pos[vs[0].vehicle_id] + 30.0  # one joins just ahead of another
+    ranges = {v: (0.0, 15.0) for v in pos}
+    trims = respace_perimeter(plan, pos, ranges)
+    tg = sorted(t.target for t in trims.values())
+    gaps = [(b - a) % plan.length_m for a, b in zip(tg, tg[1:] + tg[:1], strict=True)]
+    assert gaps == pytest.approx([plan.length_m / 3] * 3)
+    assert all(0.0 <= t.speed_m_s <= 15.0 for t in trims.values())
+
+
+def test_perimeter_circle_and_too_narrow(fleet: Fleet) -> None:
+    vs = fleet(["fixed_wing"] * 2, _around(2))
+    circle = Geometry.circle(*ORIGIN, 300.0)
+    plan = plan_perimeter(circle, vs)
+    assert plan.length_m == pytest.approx(2 * math.pi * 300.0, rel=0.01)
+    with pytest.raises(InvalidGeometryError):
+        plan_perimeter(Geometry.circle(*ORIGIN, 30.0), vs)
+    with pytest.raises(InvalidGeometryError):
+        smooth_loop(Polygon([(0, 0), (1000, 0), (1000, 50), (0, 50)]), 60.0)
+
+
+# --------------------------------------------------------------------------- objective
+
+
+def test_objective_distributes_evenly(fleet: Fleet) -> None:
+    vs = fleet(["multirotor"] * 5, _around(5))
+    la, lo = ORIGIN
+    pts = Geometry(GeometryKind.POINTS, (LatLon(la + 0.01, lo), LatLon(la - 0.01, lo)))
+    plan = plan_objective(pts, vs, MissionParams(radius_m=30))
+    sizes = sorted(len(g) for _p, g in plan.groups)
+    assert sizes == [2, 3]
+    assert sorted(v for _p, g in plan.groups for v in g) == sorted(v.vehicle_id for v in vs)
+    three = Geometry(GeometryKind.POINTS, tuple(LatLon(la + 0.01 * k, lo) for k in range(3)))
+    few = plan_objective(three, vs[:2])
+    assert len(few.unserved) == 1
+
+
+# --------------------------------------------------------------------------- autoland
+
+
+def test_autoland_separates_in_time_and_altitude(fleet: Fleet) -> None:
+    vs = fleet(["fixed_wing", "fixed_wing", "multirotor"], _around(3, 0.005))
+    params = MissionParams(altitude_rel_m=80, altitude_step_m=20, separation_s=90, heading_deg=270)
+    plan = plan_autoland(Geometry.point(*ORIGIN), vs, params, priority={vs[2].vehicle_id: 50})
+    assert plan.slots[0].vehicle_id == vs[2].vehicle_id  # priority lands first
+    times = [s.land_at_s for s in plan.slots]
+    assert all(b - a >= 90 - 1e-9 for a, b in itertools.pairwise(times))
+    alts = [s.hold_alt_rel_m for s in plan.slots]
+    assert alts == [80, 100, 120]
+    for vp in plan.vehicles:
+        assert vp.waypoints[-1].kind == ItemKind.LAND
+
+
+def test_autoland_base_in_zone_raises(fleet: Fleet) -> None:
+    with pytest.raises(TargetInZoneError):
+        plan_autoland(
+            Geometry.point(*ORIGIN),
+            fleet(["multirotor"]),
+            zones=[NoFlyZone(1, Geometry.circle(*ORIGIN, 50))],
+        )
+
+
+# --------------------------------------------------------------------------- MUM-T
+
+
+def test_mumt_slots_follow_the_moving_lead(fleet: Fleet) -> None:
+    vs = fleet(["fixed_wing", "fixed_wing", "multirotor"], _around(3, 0.003))
+    lead = LeadState(ORIGIN[0], ORIGIN[1], 300.0, course_deg=90.0, speed_m_s=40.0, time_s=100.0)
+    p1 = plan_mumt(lead, vs, now_s=100.0, lookahead_s=0.0)
+    spacing = max(60.0, 2 * max(v.profile.turn_radius_m() for v in vs))
+    for s in p1.slots:  # behind (west of) the lead heading east, above it
+        assert s.x < p1.lead_xy[0] - spacing + 1e-6 and s.alt_rel_m > 300.0
+    # the lead moves 400 m east: every slot moves with it, followers keep their slots
+    lead2 = LeadState(
+        ORIGIN[0],
+        ORIGIN[1] + 400 / (111_320 * math.cos(math.radians(ORIGIN[0]))),
+        300.0,
+        90.0,
+        40.0,
+        110.0,
+    )
+    p2 = plan_mumt(
+        lead2,
+        vs,
+        now_s=110.0,
+        lookahead_s=0.0,
+        frame=p1.frame,
+        previous={s.vehicle_id: s.index for s in p1.slots},
+    )
+    for s1, s2 in zip(p1.slots, p2.slots, strict=True):
+        assert s2.index == s1.index
+        assert s2.x - s1.x == pytest.approx(400.0, abs=1.0)
+        assert s2.y == pytest.approx(s1.y, abs=1.0)
+    # prediction: a 5 s old report is extrapolated along the course
+    p3 = plan_mumt(lead, vs, now_s=105.0, lookahead_s=0.0, frame=p1.frame)
+    assert p3.lead_xy[0] - p1.lead_xy[0] == pytest.approx(200.0, abs=0.5)
+    for v, s in zip(vs, p1.slots, strict=True):
+        lo, hi = v.speed_range()
+        assert lo <= s.speed_m_s <= hi
+
+
+def test_zero_vehicles_raise() -> None:
+    with pytest.raises(NoVehiclesError):
+        plan_target(Geometry.point(*ORIGIN), [])
+    with pytest.raises(NoVehiclesError):
+        plan_mumt(LeadState(*ORIGIN, 100.0, 0.0, 30.0), [])
+
+
+def test_nan_positions_raise(fleet: Fleet) -> None:
+    bad = fleet(["multirotor"], [VehiclePose(math.nan, ORIGIN[1])])
+    with pytest.raises(InvalidGeometryError, match="finite"):
+        plan_target(Geometry.point(*ORIGIN), bad)
+    with pytest.raises(InvalidGeometryError, match="finite"):
+        plan_mumt(LeadState(*ORIGIN, 100.0, 0.0, 30.0), bad)
