@@ -26,5 +26,81 @@ def demo(
     raise typer.Exit(run_demo(vehicles=vehicles, speedup=speedup, duration_s=duration))
 
 
+@app.command()
+def vehicle(
+    model: str = typer.Option(
+        "copter", help="plane|vtol|copter|rover|boat; a comma list is cycled over --count"
+    ),
+    instance: int = typer.Option(0, help="first instance; listens on tcp:HOST:5760+10*instance"),
+    count: int = typer.Option(1, min=1, help="vehicles in this process (instances I..I+N-1)"),
+    home: str = typer.Option(
+        "37.4112,-5.9889,10,90", help="LAT,LON,ALT,HDG of the first vehicle (as SITL --home)"
+    ),
+    spacing: float = typer.Option(10.0, help="metres between the homes of --count vehicles"),
+    speedup: float = typer.Option(1.0, help="simulated seconds per wall second"),
+    sysid: int | None = typer.Option(None, help="system id of the first vehicle (default I+1)"),
+    host: str = typer.Option("127.0.0.1", help="address to listen on"),
+    wind: str = typer.Option("0,0", help="SPEED_M_S,FROM_DEG (also params SIM_WIND_SPD/DIR)"),
+) -> None:
+    """Simulated ArduPilot vehicles speaking MAVLink on TCP, like ArduPilot SITL.
+
+    Time: the clock in BANDADA_CLOCK if set (shared by every process of a simulation),
+    else a clock running --speedup times faster than real time.
+    """
+    import logging
+
+    from swarm_proto.clock import ScaledClock, SystemClock, clock_from_env
+    from swarm_proto.shutdown import stop_event
+
+    from .core import Home, SimOptions, VehicleModel
+    from .runtime import VehicleServer, VehicleSpec, spread_homes
+
+    logging.basicConfig(level=logging.WARNING)
+    try:
+        models = [VehicleModel(m.strip().lower()) for m in model.split(",") if m.strip()]
+        first_home = Home.parse(home)
+        wind_speed, wind_from = (float(v) for v in wind.split(","))
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from exc
+    if not models:
+        raise typer.BadParameter("--model is empty")
+    default_clock = SystemClock() if speedup == 1.0 else ScaledClock(speedup)
+    clock = clock_from_env(default_clock)
+    first_sysid = sysid if sysid is not None else instance + 1
+    if first_sysid + count - 1 > 255:
+        raise typer.BadParameter("system ids would exceed 255")
+    homes = spread_homes(first_home, count, spacing)
+    specs = [
+        VehicleSpec(
+            model=models[k % len(models)],
+            instance=instance + k,
+            home=homes[k],
+            sysid=first_sysid + k,
+            options=SimOptions(
+                sysid=first_sysid + k, wind_speed_m_s=wind_speed, wind_from_deg=wind_from
+            ),
+        )
+        for k in range(count)
+    ]
+    stop = stop_event()
+    server = VehicleServer(specs, clock, host=host)
+    try:
+        server.start()
+    except OSError as exc:
+        typer.echo(f"swarm-sim vehicle: cannot listen: {exc}", err=True)
+        raise typer.Exit(1) from exc
+    for spec in specs:
+        typer.echo(
+            f"{VehicleModel(spec.model).value} instance {spec.instance} sysid {spec.system_id} "
+            f"on tcp:{host}:{spec.tcp_port}",
+            err=True,
+        )
+    typer.echo(f"clock {clock.spec()}", err=True)
+    try:
+        server.serve(stop)
+    finally:
+        server.close()
+
+
 def main() -> None:
     app()

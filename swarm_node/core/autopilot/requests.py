@@ -9,6 +9,7 @@ from enum import IntEnum
 import msgspec
 
 from .items import Waypoint
+from .mission_item import MissionItem
 
 
 class MissionKind(IntEnum):
@@ -81,6 +82,7 @@ class UploadFence(ApRequest, frozen=True):
     exclusion_polygons: tuple[tuple[tuple[float, float], ...], ...] = ()
     exclusion_circles: tuple[tuple[float, float, float], ...] = ()  # lat, lon, radius_m
     inclusion_polygons: tuple[tuple[tuple[float, float], ...], ...] = ()
+    enable: bool | None = None  # then MAV_CMD_DO_FENCE_ENABLE 1/0; None leaves it as is
 
 
 class UploadRally(ApRequest, frozen=True):
@@ -91,8 +93,49 @@ class Calibrate(ApRequest, frozen=True):
     what: str  # "gyro", "baro", "airspeed", "accel", "compass"
 
 
+class UploadMissionItems(ApRequest, frozen=True):
+    """Raw MAVLink items (already converted) for any mission type; seq is renumbered."""
+
+    kind: MissionKind = MissionKind.MISSION
+    items: tuple[MissionItem, ...] = ()
+
+
+class DownloadMission(ApRequest, frozen=True):
+    """Read the autopilot's mission, fence or rally items: ApResult.items."""
+
+    kind: MissionKind = MissionKind.MISSION
+
+
+class SetParam(ApRequest, frozen=True):
+    """PARAM_SET, confirmed by the PARAM_VALUE echo."""
+
+    name: str  # at most 16 characters, e.g. "TKOFF_ALT"
+    value: float
+
+
+class ApError(IntEnum):
+    """Why a request failed, for code to branch on (ApResult.reason is for people)."""
+
+    NONE = 0
+    TIMEOUT = 1  # no answer after every attempt
+    LINK_DOWN = 2  # no link to the autopilot when the request was due
+    TEMPORARILY_REJECTED = 3  # MAV_RESULT_TEMPORARILY_REJECTED on the last attempt
+    DENIED = 4  # MAV_RESULT_DENIED: invalid parameters
+    UNSUPPORTED = 5  # MAV_RESULT_UNSUPPORTED
+    FAILED = 6  # MAV_RESULT_FAILED (arming checks, wrong mode, ...)
+    NO_POSITION = 7  # refused (MAV_RESULT_FAILED) while the EKF has no position yet
+    CANCELLED = 8  # the link was closed, or the autopilot cancelled a transfer
+    MISSION_ERROR = 9  # MISSION_ACK with an error (ApResult.reason names it)
+    NOT_APPLICABLE = 10  # the vehicle type cannot do this (e.g. a rover's parachute)
+    UNKNOWN_VEHICLE = 11  # vehicle type not configured and not known from a HEARTBEAT
+    IN_PROGRESS = 12  # still MAV_RESULT_IN_PROGRESS when the time ran out
+
+
 class ApResult(msgspec.Struct, frozen=True):
     request_id: int
     ok: bool
     reason: str = ""  # e.g. "COMMAND_ACK DENIED", "timeout after 3 tries", "MISSION_ACK NO_SPACE"
     mav_result: int | None = None  # MAV_RESULT of the COMMAND_ACK, when there was one
+    error: ApError = ApError.NONE
+    items: tuple[MissionItem, ...] = ()  # DownloadMission: what the autopilot holds
+    attempts: int = 0  # messages sent for the step that decided the result

@@ -42,7 +42,42 @@ class AutopilotState(msgspec.Struct, frozen=True):
     mission_reached: int = -1  # last MISSION_ITEM_REACHED.seq
     landed: bool | None = None  # EXTENDED_SYS_STATE landed state, when sent
     bad_packets: int = 0  # garbage or invalid messages seen on the link
+    # appended by the autopilot link (issue 3)
+    compid: int = 0  # the autopilot's MAVLink component id
+    mav_type: int = 0  # HEARTBEAT type (a QuadPlane reports 1, fixed wing)
+    system_status: int = 0  # HEARTBEAT system_status (MAV_STATE: 3 standby, 4 active, 5 critical)
+    ekf_flags: int = 0  # EKF_STATUS_REPORT.flags (EKF_STATUS_FLAGS bits)
+    climb_m_s: float = 0.0  # VFR_HUD climb rate, up positive
+    throttle_pct: int = 0  # VFR_HUD throttle
+    position_time_unix_s: float | None = None  # GPS time of the GLOBAL_POSITION_INT sample
+    boot_time_ms: int = 0  # the autopilot's time since boot, from its last timed message
+    mission_state: int = 0  # MISSION_CURRENT.mission_state (MISSION_STATE: 3 active, 5 complete)
+    last_message_s: float | None = None  # clock time of the last valid message from it
+    link_losses: int = 0  # how many times the link was lost
+    foreign_packets: int = 0  # valid MAVLink from other systems/components, ignored
 
     @property
     def has_position(self) -> bool:
         return self.lat_deg is not None and self.lon_deg is not None
+
+    @property
+    def ekf_has_position(self) -> bool:
+        """The EKF has an absolute horizontal position (what ArduPilot needs before it
+        accepts GUIDED, AUTO, RTL, LOITER...)."""
+        horiz_abs = self.ekf_flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS)
+        return bool(horiz_abs) and not self.ekf_flags & (EKF_CONST_POS_MODE | EKF_UNINITIALIZED)
+
+
+# EKF_STATUS_FLAGS (common.xml)
+EKF_ATTITUDE = 1
+EKF_VELOCITY_HORIZ = 2
+EKF_VELOCITY_VERT = 4
+EKF_POS_HORIZ_REL = 8
+EKF_POS_HORIZ_ABS = 16
+EKF_POS_VERT_ABS = 32
+EKF_POS_VERT_AGL = 64
+EKF_CONST_POS_MODE = 128
+EKF_PRED_POS_HORIZ_REL = 256
+EKF_PRED_POS_HORIZ_ABS = 512
+EKF_UNINITIALIZED = 1024
+EKF_GPS_GLITCH = 32768

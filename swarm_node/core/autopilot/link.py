@@ -1,0 +1,220 @@
+"""The whole autopilot link as one sans-I/O object: bytes and requests in, bytes, events
+and results out. `swarm_node.runtime.autopilot_link.AutopilotLink` only moves bytes
+and time; tests drive this directly (ManualClock, no sockets).
+
+    core = LinkCore(LinkSettings(vehicle_type=VehicleType.VTOL), now)
+    outputs = core.receive(data, now)        # bytes from the autopilot
+    outputs += core.submit(token, Arm(), now)
+    outputs += core.on_timer(now)            # call at core.next_deadline()
+    # outputs: Transmit(data) to write, Emit(event) to report, Complete(token, result)
+
+Inbound routing (reading this table says what happens to a message): the tracker
+checks the source and validates; then
+
+| message                                  | goes to                                  |
+|------------------------------------------|------------------------------------------|
+| telemetry (tracker.HANDLERS)             | the tracker -> AutopilotState, ApEvents  |
+| COMMAND_ACK                              | request runner; stream requester (511)   |
+| PARAM_VALUE, MISSION_* (tracker.PROTOCOL)| request runner (if addressed to us)      |
+| STATUSTEXT                               | tracker (event) and request runner (quoted in refusals) |
+| tracker.IGNORED                          | nowhere (listed on purpose)              |
+| anything else                            | counted as unhandled                     |
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from swarm_proto import VehicleType
+
+from .events import ApEvent, AutopilotFound, AutopilotRebooted, LinkRestored
+from .framing import BadFrame, MavEncoder, MavFramer, MAVLinkMessage
+from .plans import PlanContext, check_request
+from .requests import ApRequest, ApResult, MissionKind
+from .runner import Finished, RequestRunner, RunnerSettings, mission_kind_of
+from .state import AutopilotState
+from .streams import DEFAULT_RATES_HZ, StreamRequester
+from .tracker import PROTOCOL, StateTracker, Verdict
+
+MAV_TYPE_ONBOARD_CONTROLLER = 18
+MAV_AUTOPILOT_INVALID = 8
+MAV_STATE_ACTIVE = 4
+
+
+@dataclass(frozen=True)
+class LinkSettings:
+    vehicle_type: VehicleType | None = None  # None: from the HEARTBEAT (QuadPlanes say PLANE)
+    target_sysid: int | None = None  # None: the first autopilot heard
+    target_compid: int | None = None
+    source_sysid: int = 255  # ours; 255 is what ArduPilot's SYSID_MYGCS expects by default
+    source_compid: int = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
+    link_timeout_s: float = 0.9  # silence that counts as a lost link (telemetry is 10 Hz)
+    heartbeat_timeout_s: float = 2.5  # the same while only HEARTBEATs (1 Hz) arrive
+    heartbeat_period_s: float = 1.0  # our HEARTBEAT (GCS failsafe; udpout peers learn us)
+    stream_rates_hz: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_RATES_HZ))
+    runner: RunnerSettings = field(default_factory=RunnerSettings)
+
+
+@dataclass(frozen=True, slots=True)
+class Transmit:
+    data: bytes
+    message: MAVLinkMessage
+
+
+@dataclass(frozen=True, slots=True)
+class Emit:
+    event: ApEvent
+
+
+@dataclass(frozen=True, slots=True)
+class Complete:
+    token: int
+    result: ApResult
+
+
+Output = Transmit | Emit | Complete
+
+
+@dataclass(slots=True)
+class LinkCounters:
+    bytes_in: int = 0
+    bytes_out: int = 0
+    messages_in: int = 0
+    messages_out: int = 0
+    not_for_us: int = 0  # protocol replies addressed to another GCS
+
+
+class LinkCore:
+    def __init__(self, settings: LinkSettings | None = None, now: float = 0.0) -> None:
+        self.settings = s = settings or LinkSettings()
+        self.tracker = StateTracker(
+            vehicle_type=s.vehicle_type,
+            target_sysid=s.target_sysid,
+            target_compid=s.target_compid,
+            link_timeout_s=s.link_timeout_s,
+            heartbeat_timeout_s=s.heartbeat_timeout_s,
+        )
+        self.framer = MavFramer()
+        self.encoder = MavEncoder(s.source_sysid, s.source_compid)
+        self.runner = RequestRunner(s.runner)
+        self.streams = StreamRequester(s.stream_rates_hz)
+        self.counters = LinkCounters()
+        self._next_heartbeat = now
+
+    # ------------------------------------------------------------------ public
+
+    @property
+    def state(self) -> AutopilotState:
+        return self.tracker.state
+
+    def receive(self, data: bytes, now: float) -> list[Output]:
+        """Bytes from the autopilot, in any chunking."""
+        self.counters.bytes_in += len(data)
+        out: list[Output] = []
+        for item in self.framer.feed(data):
+            out += self.receive_message(item, now)
+        return out
+
+    def receive_message(self, msg: MAVLinkMessage | BadFrame, now: float) -> list[Output]:
+        """One decoded message (or BadFrame): what `receive` does per frame."""
+        verdict, events = self.tracker.handle(msg, now)
+        out: list[Output] = [Emit(e) for e in events]
+        for e in events:
+            if isinstance(e, AutopilotFound | LinkRestored | AutopilotRebooted):
+                force = not isinstance(e, LinkRestored)
+                out += self._send(self.streams.on_link_up(self._target(), now, force))
+        if verdict is not Verdict.ACCEPTED or isinstance(msg, BadFrame):
+            return out
+        self.counters.messages_in += 1
+        mtype = msg.get_type()
+        self.streams.note(mtype, now)
+        if mtype in PROTOCOL:
+            if not self._addressed_to_us(msg):
+                self.counters.not_for_us += 1
+                return out
+            if mtype == "COMMAND_ACK":
+                out += self._send(self.streams.handle_ack(msg, now))
+            sent, done = self.runner.handle(msg, self._context(), now)
+            out += self._send(sent) + self._complete(done)
+        elif mtype == "STATUSTEXT":
+            sent, done = self.runner.handle(msg, self._context(), now)
+            out += self._send(sent) + self._complete(done)
+        return out
+
+    def submit(self, token: int, request: ApRequest, now: float) -> list[Output]:
+        """Queue a request; raises plans.InvalidRequest for a malformed one."""
+        vt = self.tracker.state.vehicle_type
+        check_request(request, vt if vt != VehicleType.OTHER else None)
+        sent, done = self.runner.submit(token, request, self._context(), now)
+        return self._send(sent) + self._complete(done)
+
+    def on_timer(self, now: float) -> list[Output]:
+        out: list[Output] = []
+        out += [Emit(e) for e in self.tracker.on_timer(now)]
+        if now >= self._next_heartbeat:
+            out += self._send([self._heartbeat()])
+            period = self.settings.heartbeat_period_s
+            self._next_heartbeat = max(self._next_heartbeat + period, now + period / 2)
+        deadline = self.streams.next_deadline()
+        if deadline is not None and now >= deadline:
+            out += self._send(self.streams.on_timer(now, self.state.link_ok))
+        sent, done = self.runner.on_timer(self._context(), now)
+        out += self._send(sent) + self._complete(done)
+        return out
+
+    def next_deadline(self) -> float:
+        deadlines = [self._next_heartbeat]
+        for d in (
+            self.tracker.next_deadline(),
+            self.streams.next_deadline(),
+            self.runner.next_deadline(),
+        ):
+            if d is not None:
+                deadlines.append(d)
+        return min(deadlines)
+
+    def close(self, reason: str = "link closed") -> list[Output]:
+        """Cancel every pending request (results with ApError.CANCELLED)."""
+        return self._complete(self.runner.cancel_all(reason))
+
+    def pending_requests(self) -> int:
+        return self.runner.pending()
+
+    # ------------------------------------------------------------------ helpers
+
+    def _target(self) -> tuple[int, int]:
+        return (self.state.sysid, self.state.compid)
+
+    def _context(self) -> PlanContext:
+        return PlanContext(self.state, self.state.vehicle_type, self.runner.last_goto)
+
+    def _addressed_to_us(self, msg: MAVLinkMessage) -> bool:
+        ts = int(getattr(msg, "target_system", 0))
+        tc = int(getattr(msg, "target_component", 0))
+        return ts in (0, self.settings.source_sysid) and tc in (0, self.settings.source_compid)
+
+    def _heartbeat(self) -> MAVLinkMessage:
+        return mavlink.MAVLink_heartbeat_message(
+            MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE, 3
+        )
+
+    def _send(self, messages: list[MAVLinkMessage]) -> list[Output]:
+        out: list[Output] = []
+        for m in messages:
+            data = self.encoder.encode(m)
+            self.counters.bytes_out += len(data)
+            self.counters.messages_out += 1
+            out.append(Transmit(data, m))
+        return out
+
+    def _complete(self, done: list[Finished]) -> list[Output]:
+        out: list[Output] = []
+        for f in done:
+            if f.result.ok and mission_kind_of(f.request) == MissionKind.MISSION:
+                # uploads and downloads both carry the items the autopilot now holds
+                self.tracker.set_mission_count(len(f.result.items))
+            out.append(Complete(f.token, f.result))
+        return out

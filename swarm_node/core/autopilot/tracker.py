@@ -1,0 +1,553 @@
+"""Turns the MAVLink an ArduPilot autopilot sends into an `AutopilotState` snapshot and
+`ApEvent`s, and detects link loss by deadline. Pure: messages and `now` in.
+
+Which autopilot: the first HEARTBEAT from a real autopilot (autopilot != INVALID) that
+matches the configured `target_sysid` / `target_compid` (either may be None = any) locks
+the tracker to that (sysid, compid); everything else valid is counted as foreign and
+dropped. Every accepted message is validated field by field (ranges, NaN, unknown
+enums): a message that fails is dropped whole and counted in `bad_packets`, never
+half-applied.
+
+`HANDLERS` (telemetry -> handler), `PROTOCOL` (handed on to the command and mission
+cores) and `IGNORED` (sent by ArduPilot, deliberately not used) together say what
+happens to every message type; anything else is counted in `unhandled`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from enum import Enum
+from typing import Any
+
+import msgspec
+
+from swarm_proto import GeoPoint, GpsFix, VehicleType
+from swarm_proto.ardupilot import mode_name, vehicle_type_from_mav_type
+
+from .events import (
+    ApEvent,
+    ArmedChanged,
+    AutopilotFound,
+    AutopilotRebooted,
+    EkfChanged,
+    HomeChanged,
+    LandedChanged,
+    LinkLost,
+    LinkRestored,
+    MissionCurrentChanged,
+    MissionItemReached,
+    ModeChanged,
+    StatusText,
+)
+from .framing import BadFrame, MAVLinkMessage
+from .state import (
+    EKF_ATTITUDE,
+    EKF_CONST_POS_MODE,
+    EKF_POS_HORIZ_ABS,
+    EKF_UNINITIALIZED,
+    EKF_VELOCITY_HORIZ,
+    AutopilotState,
+)
+
+MAV_AUTOPILOT_INVALID = 8
+MAV_MODE_FLAG_SAFETY_ARMED = 128
+UINT16_MAX = 65535
+_EARLIEST_GPS_UNIX_S = 1.42e9  # 2015: an older SYSTEM_TIME.time_unix_usec is not GPS time
+_LATEST_UNIX_S = 4.0e9
+_REBOOT_BACKSTEP_MS = 5000
+
+
+class Verdict(Enum):
+    ACCEPTED = "accepted"  # from our autopilot, valid, applied (or handed on)
+    FOREIGN = "foreign"  # another system or component: dropped
+    INVALID = "invalid"  # from our autopilot but out of range / NaN / garbage: dropped
+    UNHANDLED = "unhandled"  # from our autopilot, a type nobody here uses
+    WAITING = "waiting"  # before the autopilot's first HEARTBEAT
+
+
+class _Invalid(Exception):
+    pass
+
+
+Changes = dict[str, Any]
+
+
+class StateTracker:
+    def __init__(
+        self,
+        *,
+        vehicle_type: VehicleType | None = None,
+        target_sysid: int | None = None,
+        target_compid: int | None = None,
+        link_timeout_s: float = 0.9,
+        heartbeat_timeout_s: float = 2.5,
+    ) -> None:
+        if not (link_timeout_s > 0 and heartbeat_timeout_s > 0):
+            raise ValueError("link timeouts must be positive")
+        self.heartbeat_timeout_s = heartbeat_timeout_s
+        self._last_telemetry_s: float | None = None
+        self.configured_type = vehicle_type
+        self.target_sysid = target_sysid
+        self.target_compid = target_compid
+        self.link_timeout_s = link_timeout_s
+        self._state = AutopilotState(
+            vehicle_type=vehicle_type if vehicle_type is not None else VehicleType.OTHER
+        )
+        self._locked = False
+        self._gps_offset_s: float | None = None  # GPS UNIX time minus time since boot
+        self._text_chunks: dict[int, tuple[int, list[str]]] = {}
+        self.unhandled = 0
+        self.last_bad_reason = ""
+        self.handlers: dict[str, Callable[[MAVLinkMessage, float], tuple[Changes, list[ApEvent]]]]
+        self.handlers = {
+            "HEARTBEAT": self._on_heartbeat,
+            "GLOBAL_POSITION_INT": self._on_global_position_int,
+            "ATTITUDE": self._on_attitude,
+            "VFR_HUD": self._on_vfr_hud,
+            "SYS_STATUS": self._on_sys_status,
+            "BATTERY_STATUS": self._on_battery_status,
+            "GPS_RAW_INT": self._on_gps_raw_int,
+            "SYSTEM_TIME": self._on_system_time,
+            "HOME_POSITION": self._on_home_position,
+            "MISSION_CURRENT": self._on_mission_current,
+            "MISSION_ITEM_REACHED": self._on_mission_item_reached,
+            "STATUSTEXT": self._on_statustext,
+            "EKF_STATUS_REPORT": self._on_ekf_status_report,
+            "EXTENDED_SYS_STATE": self._on_extended_sys_state,
+        }
+
+    # ------------------------------------------------------------------ public
+
+    @property
+    def state(self) -> AutopilotState:
+        return self._state
+
+    @property
+    def locked(self) -> bool:
+        """Whether the autopilot's first HEARTBEAT has been seen."""
+        return self._locked
+
+    def vehicle_type(self) -> VehicleType:
+        return self._state.vehicle_type
+
+    def handle(self, msg: MAVLinkMessage | BadFrame, now: float) -> tuple[Verdict, list[ApEvent]]:
+        if isinstance(msg, BadFrame):
+            self._count_bad(f"{msg.n_bytes} bad bytes: {msg.reason}")
+            return Verdict.INVALID, []
+        mtype = msg.get_type()
+        src = (msg.get_srcSystem(), msg.get_srcComponent())
+        was_locked = self._locked
+        if not was_locked:
+            if mtype != "HEARTBEAT" or not self._is_target_heartbeat(msg, src):
+                return (
+                    Verdict.FOREIGN if self._is_foreign_before_lock(src) else Verdict.WAITING
+                ), []
+        elif src != (self._state.sysid, self._state.compid):
+            self._state = msgspec.structs.replace(
+                self._state, foreign_packets=self._state.foreign_packets + 1
+            )
+            return Verdict.FOREIGN, []
+        handler = self.handlers.get(mtype)
+        events: list[ApEvent] = []
+        if handler is not None:
+            try:
+                changes, events = handler(msg, now)
+            except _Invalid as exc:
+                self._count_bad(f"{mtype}: {exc}")
+                return Verdict.INVALID, []
+            except (TypeError, ValueError, AttributeError, OverflowError) as exc:
+                self._count_bad(f"{mtype}: {type(exc).__name__}")
+                return Verdict.INVALID, []
+            verdict = Verdict.ACCEPTED
+        elif mtype in PROTOCOL:
+            changes, verdict = {}, Verdict.ACCEPTED
+        else:
+            changes = {}
+            verdict = Verdict.ACCEPTED if mtype in IGNORED else Verdict.UNHANDLED
+            if verdict is Verdict.UNHANDLED:
+                self.unhandled += 1
+        changes["last_message_s"] = now
+        if mtype != "HEARTBEAT":
+            self._last_telemetry_s = now
+        if was_locked and not self._state.link_ok:
+            changes["link_ok"] = True
+            last = self._state.last_message_s
+            events.insert(0, LinkRestored(time_s=now, down_s=now - last if last else 0.0))
+        self._state = msgspec.structs.replace(self._state, **changes)
+        return verdict, events
+
+    def count_invalid(self, reason: str) -> None:
+        """Another core rejected a message from our autopilot (e.g. a bad MISSION_ACK)."""
+        self._count_bad(reason)
+
+    def set_mission_count(self, count: int) -> None:
+        """After a successful mission upload or download."""
+        self._state = msgspec.structs.replace(self._state, mission_count=count)
+
+    def link_timeout(self) -> float:
+        """`link_timeout_s` while telemetry flows; while only HEARTBEATs come (1 Hz,
+        e.g. before the requested streams start), `heartbeat_timeout_s`, so the link
+        does not flap between HEARTBEATs."""
+        last, fast = self._state.last_message_s, self._last_telemetry_s
+        if last is not None and fast is not None and last - fast <= self.link_timeout_s:
+            return self.link_timeout_s
+        return max(self.link_timeout_s, self.heartbeat_timeout_s)
+
+    def next_deadline(self) -> float | None:
+        if not self._state.link_ok or self._state.last_message_s is None:
+            return None
+        return self._state.last_message_s + self.link_timeout()
+
+    def on_timer(self, now: float) -> list[ApEvent]:
+        deadline = self.next_deadline()
+        if deadline is None or now < deadline:
+            return []
+        last = self._state.last_message_s or now
+        self._state = msgspec.structs.replace(
+            self._state, link_ok=False, link_losses=self._state.link_losses + 1
+        )
+        return [LinkLost(time_s=now, silent_s=now - last)]
+
+    # ------------------------------------------------------------------ helpers
+
+    def _count_bad(self, reason: str) -> None:
+        self.last_bad_reason = reason
+        self._state = msgspec.structs.replace(self._state, bad_packets=self._state.bad_packets + 1)
+
+    def _is_target_heartbeat(self, msg: MAVLinkMessage, src: tuple[int, int]) -> bool:
+        if msg.autopilot == MAV_AUTOPILOT_INVALID or src[0] == 0:
+            return False
+        if self.target_sysid is not None and src[0] != self.target_sysid:
+            return False
+        return self.target_compid is None or src[1] == self.target_compid
+
+    def _is_foreign_before_lock(self, src: tuple[int, int]) -> bool:
+        return self.target_sysid is not None and src[0] != self.target_sysid
+
+    def _note_boot_time(self, boot_ms: int, now: float, changes: Changes) -> list[ApEvent]:
+        if boot_ms < 0 or boot_ms > 2**32 - 1:
+            raise _Invalid(f"time_boot_ms {boot_ms}")
+        events: list[ApEvent] = []
+        if boot_ms + _REBOOT_BACKSTEP_MS < self._state.boot_time_ms:
+            self._gps_offset_s = None
+            changes["position_time_unix_s"] = None
+            events.append(AutopilotRebooted(time_s=now, boot_time_ms=boot_ms))
+        changes["boot_time_ms"] = boot_ms
+        return events
+
+    # ------------------------------------------------------------------ handlers
+
+    def _on_heartbeat(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        custom_mode = int(msg.custom_mode)
+        if not 0 <= custom_mode <= 255:
+            raise _Invalid(f"custom_mode {custom_mode} is no ArduPilot mode")
+        if not 0 <= int(msg.system_status) <= 8:
+            raise _Invalid(f"system_status {msg.system_status}")
+        if msg.autopilot == MAV_AUTOPILOT_INVALID:
+            raise _Invalid("autopilot INVALID from the autopilot's own id")
+        s = self._state
+        events: list[ApEvent] = []
+        changes: Changes = {}
+        vtype = self.configured_type
+        if vtype is None:
+            vtype = vehicle_type_from_mav_type(int(msg.type))
+        if not self._locked:
+            self._locked = True
+            changes.update(sysid=msg.get_srcSystem(), compid=msg.get_srcComponent(), link_ok=True)
+            events.append(
+                AutopilotFound(
+                    time_s=now,
+                    sysid=msg.get_srcSystem(),
+                    compid=msg.get_srcComponent(),
+                    mav_type=int(msg.type),
+                    vehicle_type=vtype,
+                )
+            )
+        name = mode_name(vtype, custom_mode)
+        armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
+        if name != s.mode_name or custom_mode != s.mode_number:
+            events.append(
+                ModeChanged(time_s=now, old_mode=s.mode_name, mode=name, mode_number=custom_mode)
+            )
+        if armed != s.armed:
+            events.append(ArmedChanged(time_s=now, armed=armed))
+        changes.update(
+            vehicle_type=vtype,
+            mav_type=int(msg.type),
+            mode_number=custom_mode,
+            mode_name=name,
+            armed=armed,
+            system_status=int(msg.system_status),
+            last_heartbeat_s=now,
+        )
+        return changes, events
+
+    def _on_global_position_int(
+        self, msg: MAVLinkMessage, now: float
+    ) -> tuple[Changes, list[ApEvent]]:
+        lat, lon = int(msg.lat), int(msg.lon)
+        if not (-900_000_000 <= lat <= 900_000_000 and -1_800_000_000 <= lon <= 1_800_000_000):
+            raise _Invalid(f"position {lat}, {lon} out of range")
+        alt_m, rel_m = msg.alt / 1000.0, msg.relative_alt / 1000.0
+        if not (-2000.0 <= alt_m <= 50_000.0 and -50_000.0 <= rel_m <= 50_000.0):
+            raise _Invalid(f"altitude {alt_m} / {rel_m} m out of range")
+        changes: Changes = {
+            "vel_north_m_s": msg.vx / 100.0,
+            "vel_east_m_s": msg.vy / 100.0,
+            "vel_down_m_s": msg.vz / 100.0,
+        }
+        if msg.hdg != UINT16_MAX:
+            if not 0 <= msg.hdg <= 36000:
+                raise _Invalid(f"hdg {msg.hdg}")
+            changes["heading_deg"] = (msg.hdg / 100.0) % 360.0
+        events = self._note_boot_time(int(msg.time_boot_ms), now, changes)
+        if lat == 0 and lon == 0:  # ArduPilot sends zeros until it has a position
+            changes.update(lat_deg=None, lon_deg=None, alt_msl_m=None, alt_rel_m=None)
+        else:
+            changes.update(lat_deg=lat / 1e7, lon_deg=lon / 1e7, alt_msl_m=alt_m, alt_rel_m=rel_m)
+            if self._gps_offset_s is not None:
+                changes["position_time_unix_s"] = self._gps_offset_s + msg.time_boot_ms / 1000.0
+        return changes, events
+
+    def _on_attitude(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        roll, pitch, yaw = float(msg.roll), float(msg.pitch), float(msg.yaw)
+        for name, v in (("roll", roll), ("pitch", pitch), ("yaw", yaw)):
+            if not math.isfinite(v) or abs(v) > 2 * math.pi + 1e-3:
+                raise _Invalid(f"{name} {v}")
+        changes: Changes = {
+            "roll_deg": math.degrees(roll),
+            "pitch_deg": math.degrees(pitch),
+        }
+        events = self._note_boot_time(int(msg.time_boot_ms), now, changes)
+        return changes, events
+
+    def _on_vfr_hud(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        air, ground, climb = float(msg.airspeed), float(msg.groundspeed), float(msg.climb)
+        for name, v, lo, hi in (
+            ("airspeed", air, -5.0, 400.0),
+            ("groundspeed", ground, -5.0, 400.0),
+            ("climb", climb, -400.0, 400.0),
+        ):
+            if not (math.isfinite(v) and lo <= v <= hi):
+                raise _Invalid(f"{name} {v}")
+        if not 0 <= int(msg.throttle) <= 200:
+            raise _Invalid(f"throttle {msg.throttle}")
+        return {
+            "airspeed_m_s": max(0.0, air),
+            "groundspeed_m_s": max(0.0, ground),
+            "climb_m_s": climb,
+            "throttle_pct": int(msg.throttle),
+        }, []
+
+    def _on_sys_status(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        remaining = int(msg.battery_remaining)
+        if not -1 <= remaining <= 100:
+            raise _Invalid(f"battery_remaining {remaining}")
+        changes: Changes = {"battery_pct": remaining}
+        if msg.voltage_battery != UINT16_MAX:
+            changes["battery_v"] = msg.voltage_battery / 1000.0
+        return changes, []
+
+    def _on_battery_status(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        if msg.id != 0:  # only the primary battery
+            return {}, []
+        remaining = int(msg.battery_remaining)
+        if not -1 <= remaining <= 100:
+            raise _Invalid(f"battery_remaining {remaining}")
+        cells = [v for v in msg.voltages if v != UINT16_MAX]
+        cells += [v for v in getattr(msg, "voltages_ext", ()) or () if v not in (0, UINT16_MAX)]
+        changes: Changes = {"battery_pct": remaining}
+        if cells:
+            changes["battery_v"] = sum(cells) / 1000.0
+        return changes, []
+
+    def _on_gps_raw_int(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        fix = int(msg.fix_type)
+        if not 0 <= fix <= 8:
+            raise _Invalid(f"fix_type {fix}")
+        sats = int(msg.satellites_visible)
+        return {
+            "gps_fix": GpsFix(fix) if fix <= 7 else GpsFix.FIX_3D,  # 8 = PPP
+            "gps_sats": 0 if sats == 255 else sats,
+        }, []
+
+    def _on_system_time(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        changes: Changes = {}
+        events = self._note_boot_time(int(msg.time_boot_ms), now, changes)
+        unix_s = msg.time_unix_usec / 1e6
+        if msg.time_unix_usec == 0:
+            return changes, events
+        if not _EARLIEST_GPS_UNIX_S <= unix_s <= _LATEST_UNIX_S:
+            raise _Invalid(f"time_unix_usec {msg.time_unix_usec}")
+        self._gps_offset_s = unix_s - msg.time_boot_ms / 1000.0
+        changes["gps_time_unix_s"] = unix_s
+        return changes, events
+
+    def _on_home_position(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        lat, lon, alt = int(msg.latitude), int(msg.longitude), msg.altitude / 1000.0
+        if not (-900_000_000 <= lat <= 900_000_000 and -1_800_000_000 <= lon <= 1_800_000_000):
+            raise _Invalid(f"home {lat}, {lon} out of range")
+        if not -1000.0 <= alt <= 8000.0:
+            raise _Invalid(f"home altitude {alt}")
+        if lat == 0 and lon == 0:
+            return {}, []
+        home = GeoPoint(lat / 1e7, lon / 1e7, alt)
+        if home == self._state.home:
+            return {}, []
+        return {"home": home}, [HomeChanged(time_s=now, home=home)]
+
+    def _on_mission_current(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        seq = int(msg.seq)
+        total = int(getattr(msg, "total", 0))
+        changes: Changes = {"mission_current": seq}
+        if total == UINT16_MAX:
+            changes["mission_count"] = 0
+        elif total > 0:
+            if seq > total:
+                raise _Invalid(f"seq {seq} beyond total {total}")
+            changes["mission_count"] = total + 1  # ArduPilot's total excludes home (item 0)
+        changes["mission_state"] = int(getattr(msg, "mission_state", 0))
+        events: list[ApEvent] = []
+        if seq != self._state.mission_current:
+            events.append(MissionCurrentChanged(time_s=now, seq=seq))
+        return changes, events
+
+    def _on_mission_item_reached(
+        self, msg: MAVLinkMessage, now: float
+    ) -> tuple[Changes, list[ApEvent]]:
+        seq = int(msg.seq)
+        return {"mission_reached": seq}, [MissionItemReached(time_s=now, seq=seq)]
+
+    def _on_statustext(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        severity = int(msg.severity)
+        if not 0 <= severity <= 7:
+            raise _Invalid(f"severity {severity}")
+        text = msg.text
+        if isinstance(text, bytes | bytearray):
+            text = text.decode("utf-8", "replace")
+        text = "".join(ch if ch.isprintable() else "?" for ch in str(text).rstrip("\x00"))
+        chunk_id = int(getattr(msg, "id", 0))
+        if chunk_id == 0:
+            return {}, [StatusText(time_s=now, severity=severity, text=text)]
+        _, parts = self._text_chunks.setdefault(chunk_id, (severity, []))
+        parts.append(text)
+        if len(text) >= 50 and len(parts) < 8:  # more chunks follow
+            return {}, []
+        del self._text_chunks[chunk_id]
+        return {}, [StatusText(time_s=now, severity=severity, text="".join(parts))]
+
+    def _on_ekf_status_report(
+        self, msg: MAVLinkMessage, now: float
+    ) -> tuple[Changes, list[ApEvent]]:
+        flags = int(msg.flags)
+        for name in ("velocity_variance", "pos_horiz_variance", "pos_vert_variance"):
+            v = float(getattr(msg, name))
+            if not math.isfinite(v) or v < 0:
+                raise _Invalid(f"{name} {v}")
+        need = EKF_ATTITUDE | EKF_VELOCITY_HORIZ | EKF_POS_HORIZ_ABS
+        ok = (flags & need) == need and not flags & (EKF_CONST_POS_MODE | EKF_UNINITIALIZED)
+        events: list[ApEvent] = []
+        if ok != self._state.ekf_ok:
+            events.append(EkfChanged(time_s=now, ok=ok, flags=flags))
+        return {"ekf_ok": ok, "ekf_flags": flags}, events
+
+    def _on_extended_sys_state(
+        self, msg: MAVLinkMessage, now: float
+    ) -> tuple[Changes, list[ApEvent]]:
+        landed_state = int(msg.landed_state)
+        if not 0 <= landed_state <= 4:
+            raise _Invalid(f"landed_state {landed_state}")
+        landed = None if landed_state == 0 else landed_state == 1
+        events: list[ApEvent] = []
+        if landed is not None and landed != self._state.landed:
+            events.append(LandedChanged(time_s=now, landed=landed))
+        return {"landed": landed}, events
+
+
+#: Telemetry the tracker turns into state (the keys of StateTracker.handlers).
+HANDLED: tuple[str, ...] = (
+    "HEARTBEAT",
+    "GLOBAL_POSITION_INT",
+    "ATTITUDE",
+    "VFR_HUD",
+    "SYS_STATUS",
+    "BATTERY_STATUS",
+    "GPS_RAW_INT",
+    "SYSTEM_TIME",
+    "HOME_POSITION",
+    "MISSION_CURRENT",
+    "MISSION_ITEM_REACHED",
+    "STATUSTEXT",
+    "EKF_STATUS_REPORT",
+    "EXTENDED_SYS_STATE",
+)
+
+#: Handed on to the command and mission cores (after the source check).
+PROTOCOL: frozenset[str] = frozenset(
+    {
+        "COMMAND_ACK",
+        "MISSION_REQUEST",
+        "MISSION_REQUEST_INT",
+        "MISSION_ACK",
+        "MISSION_COUNT",
+        "MISSION_ITEM",
+        "MISSION_ITEM_INT",
+        "PARAM_VALUE",
+    }
+)
+
+#: Sent by ArduPilot (default streams of SITL and real boards) and deliberately unused.
+IGNORED: frozenset[str] = frozenset(
+    {
+        "AHRS",
+        "AHRS2",
+        "AHRS3",
+        "AIRSPEED",
+        "AOA_SSA",
+        "ATTITUDE_QUATERNION",
+        "AUTOPILOT_VERSION",
+        "BATTERY2",
+        "CAMERA_FEEDBACK",
+        "DISTANCE_SENSOR",
+        "ESC_TELEMETRY_1_TO_4",
+        "ESC_TELEMETRY_5_TO_8",
+        "FENCE_STATUS",
+        "GIMBAL_DEVICE_ATTITUDE_STATUS",
+        "GPS2_RAW",
+        "GPS_GLOBAL_ORIGIN",
+        "GPS_RTK",
+        "HWSTATUS",
+        "LOCAL_POSITION_NED",
+        "MAG_CAL_PROGRESS",
+        "MAG_CAL_REPORT",
+        "MCU_STATUS",
+        "MEMINFO",
+        "MOUNT_STATUS",
+        "NAV_CONTROLLER_OUTPUT",
+        "PID_TUNING",
+        "POSITION_TARGET_GLOBAL_INT",
+        "POSITION_TARGET_LOCAL_NED",
+        "POWER_STATUS",
+        "RANGEFINDER",
+        "RAW_IMU",
+        "RC_CHANNELS",
+        "RC_CHANNELS_RAW",
+        "RPM",
+        "SCALED_IMU",
+        "SCALED_IMU2",
+        "SCALED_IMU3",
+        "SCALED_PRESSURE",
+        "SCALED_PRESSURE2",
+        "SCALED_PRESSURE3",
+        "SENSOR_OFFSETS",
+        "SERVO_OUTPUT_RAW",
+        "SIMSTATE",
+        "SIM_STATE",
+        "TERRAIN_REPORT",
+        "TERRAIN_REQUEST",
+        "TIMESYNC",
+        "VIBRATION",
+        "WIND",
+    }
+)

@@ -1,0 +1,147 @@
+"""The TCP shell: real sockets on 127.0.0.1, pymavlink's own mavutil client, several
+vehicles in one process on a shared scaled clock, and the `swarm-sim vehicle` command."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from pymavlink import mavutil
+
+from swarm_proto.clock import ScaledClock
+from swarm_sim.core import SITL_HOME, sitl_port
+from swarm_sim.runtime import VehicleServer, VehicleSpec, spread_homes
+from tests.conftest import REPO, free_tcp_port
+
+SPEEDUP = 20.0
+
+
+def connect(port: int) -> mavutil.mavfile:
+    deadline = time.monotonic() + 20
+    while True:
+        try:
+            return mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255, retries=0)
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
+
+
+@pytest.fixture
+def two_vehicles() -> Iterator[tuple[VehicleServer, list[int]]]:
+    ports = [free_tcp_port(), free_tcp_port()]
+    homes = spread_homes(SITL_HOME, 2, 10.0)
+    specs = [
+        VehicleSpec("copter", instance=0, home=homes[0], port=ports[0]),
+        VehicleSpec("vtol", instance=1, home=homes[1], port=ports[1]),
+    ]
+    server = VehicleServer(specs, ScaledClock(SPEEDUP))
+    server.start_thread()
+    try:
+        yield server, ports
+    finally:
+        server.close()
+
+
+def wait_position(m: mavutil.mavfile, timeout: float = 20.0) -> object:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        msg = m.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=1.0)
+        if msg is not None and msg.lat != 0:
+            return msg
+    raise AssertionError("no position")
+
+
+def test_sitl_ports() -> None:
+    assert [sitl_port(i) for i in range(3)] == [5760, 5770, 5780]
+
+
+def test_pymavlink_client_sees_two_vehicles_in_one_process(
+    two_vehicles: tuple[VehicleServer, list[int]],
+) -> None:
+    server, ports = two_vehicles
+    links = [connect(port) for port in ports]
+    try:
+        beats = [m.wait_heartbeat(timeout=10) for m in links]
+        assert [(b.get_srcSystem(), b.type, b.autopilot) for b in beats] == [(1, 2, 3), (2, 1, 3)]
+        positions = [wait_position(m) for m in links]
+        lats = {round(p.lat / 1e7, 5) for p in positions}  # type: ignore[attr-defined]
+        assert lats == {round(SITL_HOME.lat_deg, 5)}
+        assert positions[0].lon != positions[1].lon  # type: ignore[attr-defined]
+        # switch the copter's mode through pymavlink's own helper
+        links[0].mav.command_long_send(1, 1, 176, 0, 1, 4, 0, 0, 0, 0, 0)
+        ack = links[0].recv_match(type="COMMAND_ACK", blocking=True, timeout=10)
+        assert ack is not None and ack.command == 176 and ack.result == 0
+        assert server.endpoints[0].autopilot.mode_name == "GUIDED"
+        assert server.endpoints[1].autopilot.mode_name != "GUIDED"
+    finally:
+        for m in links:
+            m.close()
+
+
+def test_two_clients_on_one_port_and_disconnects(
+    two_vehicles: tuple[VehicleServer, list[int]],
+) -> None:
+    _server, ports = two_vehicles
+    a, b = connect(ports[0]), connect(ports[0])
+    try:
+        assert a.wait_heartbeat(timeout=10) is not None
+        assert b.wait_heartbeat(timeout=10) is not None
+        a.close()
+        assert b.recv_match(type="HEARTBEAT", blocking=True, timeout=10) is not None
+    finally:
+        b.close()
+    c = connect(ports[0])  # the port still accepts clients
+    try:
+        assert c.wait_heartbeat(timeout=10) is not None
+    finally:
+        c.close()
+
+
+def test_cli_vehicle_uses_the_shared_clock_from_the_environment() -> None:
+    instance = 40 + os.getpid() % 40  # a SITL-style port unlikely to be taken: 6160..6550
+    port = sitl_port(instance)
+    clock = ScaledClock(SPEEDUP, start_unix_s=1_800_000_000.0)
+    env = {**os.environ, "BANDADA_CLOCK": clock.spec()}
+    proc = subprocess.Popen(
+        [str(Path(sys.executable).parent / "swarm-sim"), "vehicle", "--model", "rover,boat",
+         "--instance", str(instance), "--count", "2"],
+        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        m = connect(port)
+        try:
+            hb = m.wait_heartbeat(timeout=15)
+            assert hb is not None and hb.type == 10 and hb.get_srcSystem() == instance + 1
+            wait_position(m)
+            st = None
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline:
+                st = m.recv_match(type="SYSTEM_TIME", blocking=True, timeout=1.0)
+                if st is not None and st.time_unix_usec:
+                    break
+            assert st is not None and st.time_unix_usec
+            # GPS time is the shared simulated clock, not the wall clock
+            assert abs(st.time_unix_usec / 1e6 - clock.now()) < 5 * SPEEDUP
+            assert abs(st.time_unix_usec / 1e6 - time.time()) > 1e6
+        finally:
+            m.close()
+        boat = connect(sitl_port(instance + 1))
+        try:
+            hb = boat.wait_heartbeat(timeout=15)
+            assert hb is not None and hb.type == 11 and hb.get_srcSystem() == instance + 2
+        finally:
+            boat.close()
+    finally:
+        proc.terminate()
+        try:
+            _out, err = proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _out, err = proc.communicate()
+    assert f"rover instance {instance} sysid {instance + 1} on tcp:127.0.0.1:{port}" in err
