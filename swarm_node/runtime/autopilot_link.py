@@ -18,6 +18,7 @@ and restoration are reported as events (LinkLost within `link_timeout_s`, 0.9 s)
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import os
 import queue
@@ -67,16 +68,11 @@ class AutopilotLink:
         self.endpoint = parse_url(url, baud)  # ValueError now, not in the thread
         self.clock = clock
         base = settings or LinkSettings()
-        self.settings = LinkSettings(
+        self.settings = dataclasses.replace(
+            base,
             vehicle_type=vehicle_type if vehicle_type is not None else base.vehicle_type,
             target_sysid=target_sysid if target_sysid is not None else base.target_sysid,
             target_compid=target_compid if target_compid is not None else base.target_compid,
-            source_sysid=base.source_sysid,
-            source_compid=base.source_compid,
-            link_timeout_s=base.link_timeout_s,
-            heartbeat_period_s=base.heartbeat_period_s,
-            stream_rates_hz=base.stream_rates_hz,
-            runner=base.runner,
         )
         self.on_event = on_event
         self.on_send = on_send
@@ -193,8 +189,10 @@ class AutopilotLink:
         self._closed = True
         self._stop.set()
         self._wake()
-        if self._thread is not None:
+        if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout_s)
+            if self._thread.is_alive():
+                log.error("%s: I/O thread did not stop within %.1f s", self.name, timeout_s)
         self._execute(self._core.close("link closed"))
         self._drain_inbox("link closed")
         self._transport.close()
@@ -234,20 +232,17 @@ class AutopilotLink:
                 log.debug("%s: cannot open %s: %s", self.name, t.description, exc)
         now = self.clock.now()
         wait = self._wait_s(now)
-        fds = [self._wake_r]
-        fd = t.fileno()
-        if fd is not None:
-            fds.append(fd)
+        link_fds = t.filenos()
         try:
-            readable, _, _ = select.select(fds, [], [], wait)
-        except (OSError, ValueError):  # the fd was closed under us
+            readable, _, _ = select.select([self._wake_r, *link_fds], [], [], wait)
+        except (OSError, ValueError):  # an fd was closed under us
             readable = []
             self._broken("select failed")
         if self._wake_r in readable:
             with contextlib.suppress(OSError):
                 os.read(self._wake_r, 4096)
         out: list[Output] = []
-        if fd is not None and fd in readable:
+        if any(fd in readable for fd in link_fds):
             for _ in range(64):  # drain, but let timers run under a flood
                 try:
                     data = t.read()

@@ -34,7 +34,7 @@ class Transport(Protocol):
 
     def open(self) -> None: ...  # raises OSError when it cannot (yet)
 
-    def fileno(self) -> int | None: ...  # for select(); None while closed
+    def filenos(self) -> list[int]: ...  # for select(); [] while closed
 
     def read(self) -> bytes: ...  # non-blocking: b"" when nothing; OSError when broken
 
@@ -137,8 +137,8 @@ class UdpTransport:
             raise
         self._sock = sock
 
-    def fileno(self) -> int | None:
-        return self._sock.fileno() if self._sock is not None else None
+    def filenos(self) -> list[int]:
+        return [self._sock.fileno()] if self._sock is not None else []
 
     def read(self) -> bytes:
         if self._sock is None:
@@ -188,8 +188,8 @@ class TcpClientTransport:
         self._sock = sock
         self._out = bytearray()
 
-    def fileno(self) -> int | None:
-        return self._sock.fileno() if self._sock is not None else None
+    def filenos(self) -> list[int]:
+        return [self._sock.fileno()] if self._sock is not None else []
 
     def read(self) -> bytes:
         if self._sock is None:
@@ -251,10 +251,9 @@ class TcpServerTransport:
             raise
         self._listen = sock
 
-    def fileno(self) -> int | None:
-        if self._client is not None:
-            return self._client.fileno()
-        return self._listen.fileno() if self._listen is not None else None
+    def filenos(self) -> list[int]:
+        """The listening socket (a new client replaces a dead one) and the client."""
+        return [s.fileno() for s in (self._listen, self._client) if s is not None]
 
     def read(self) -> bytes:
         if self._listen is None:
@@ -325,14 +324,14 @@ class SerialTransport:
         except (serial.SerialException, ValueError) as exc:
             raise OSError(errno.ENODEV, f"{self.endpoint.device}: {exc}") from exc
 
-    def fileno(self) -> int | None:
+    def filenos(self) -> list[int]:
         port = self._port
         if port is None:
-            return None
+            return []
         try:
-            return int(port.fileno())  # type: ignore[attr-defined]
+            return [int(port.fileno())]  # type: ignore[attr-defined]
         except Exception:
-            return None
+            return []
 
     def read(self) -> bytes:
         import serial

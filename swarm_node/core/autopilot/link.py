@@ -30,7 +30,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from swarm_proto import VehicleType
 
-from .events import ApEvent, AutopilotFound, AutopilotRebooted, LinkLost, LinkRestored
+from .events import ApEvent, AutopilotFound, AutopilotRebooted, LinkRestored
 from .framing import BadFrame, MavEncoder, MavFramer, MAVLinkMessage
 from .plans import PlanContext, check_request
 from .requests import ApRequest, ApResult, MissionKind
@@ -52,6 +52,7 @@ class LinkSettings:
     source_sysid: int = 255  # ours; 255 is what ArduPilot's SYSID_MYGCS expects by default
     source_compid: int = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
     link_timeout_s: float = 0.9  # silence that counts as a lost link (telemetry is 10 Hz)
+    heartbeat_timeout_s: float = 2.5  # the same while only HEARTBEATs (1 Hz) arrive
     heartbeat_period_s: float = 1.0  # our HEARTBEAT (GCS failsafe; udpout peers learn us)
     stream_rates_hz: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_RATES_HZ))
     runner: RunnerSettings = field(default_factory=RunnerSettings)
@@ -94,6 +95,7 @@ class LinkCore:
             target_sysid=s.target_sysid,
             target_compid=s.target_compid,
             link_timeout_s=s.link_timeout_s,
+            heartbeat_timeout_s=s.heartbeat_timeout_s,
         )
         self.framer = MavFramer()
         self.encoder = MavEncoder(s.source_sysid, s.source_compid)
@@ -122,7 +124,8 @@ class LinkCore:
         out: list[Output] = [Emit(e) for e in events]
         for e in events:
             if isinstance(e, AutopilotFound | LinkRestored | AutopilotRebooted):
-                out += self._send(self.streams.on_link_up(self._target(), now))
+                force = not isinstance(e, LinkRestored)
+                out += self._send(self.streams.on_link_up(self._target(), now, force))
         if verdict is not Verdict.ACCEPTED or isinstance(msg, BadFrame):
             return out
         self.counters.messages_in += 1
@@ -150,17 +153,14 @@ class LinkCore:
 
     def on_timer(self, now: float) -> list[Output]:
         out: list[Output] = []
-        events = self.tracker.on_timer(now)
-        out += [Emit(e) for e in events]
-        if any(isinstance(e, LinkLost) for e in events):
-            self.streams.on_link_down()
+        out += [Emit(e) for e in self.tracker.on_timer(now)]
         if now >= self._next_heartbeat:
             out += self._send([self._heartbeat()])
             period = self.settings.heartbeat_period_s
             self._next_heartbeat = max(self._next_heartbeat + period, now + period / 2)
         deadline = self.streams.next_deadline()
-        if deadline is not None and now >= deadline and self.state.link_ok:
-            out += self._send(self.streams.on_timer(now))
+        if deadline is not None and now >= deadline:
+            out += self._send(self.streams.on_timer(now, self.state.link_ok))
         sent, done = self.runner.on_timer(self._context(), now)
         out += self._send(sent) + self._complete(done)
         return out
@@ -169,7 +169,7 @@ class LinkCore:
         deadlines = [self._next_heartbeat]
         for d in (
             self.tracker.next_deadline(),
-            self.streams.next_deadline() if self.state.link_ok else None,
+            self.streams.next_deadline(),
             self.runner.next_deadline(),
         ):
             if d is not None:

@@ -71,6 +71,7 @@ class StreamRequester:
         self._awaiting_acks = 0
         self._ack_deadline: float | None = None
         self._watch_at: float | None = None
+        self._last_full_request = -1e18
         self._seen: dict[str, float] = {}
         self._requested_at: dict[str, float] = {}
 
@@ -108,16 +109,18 @@ class StreamRequester:
         self.requests_sent += len(out)
         return out
 
-    def on_link_up(self, target: tuple[int, int], now: float) -> list[MAVLinkMessage]:
+    def on_link_up(
+        self, target: tuple[int, int], now: float, force: bool = True
+    ) -> list[MAVLinkMessage]:
+        """Request everything (`force` False: unless that was done in the last
+        `watchdog_period_s`, so a flapping link does not flood the autopilot)."""
         self.target = target
-        self._awaiting_acks = 0
         self._watch_at = now + self.watchdog_period_s
-        return self._request(list(self.rates_hz), now)
-
-    def on_link_down(self) -> None:
-        self._ack_deadline = None
-        self._watch_at = None
+        if not force and now - self._last_full_request < self.watchdog_period_s:
+            return []
+        self._last_full_request = now
         self._awaiting_acks = 0
+        return self._request(list(self.rates_hz), now)
 
     def note(self, mtype: str, now: float) -> None:
         if mtype in self.rates_hz:
@@ -143,7 +146,8 @@ class StreamRequester:
         deadlines = [d for d in (self._ack_deadline, self._watch_at) if d is not None]
         return min(deadlines) if deadlines else None
 
-    def on_timer(self, now: float) -> list[MAVLinkMessage]:
+    def on_timer(self, now: float, link_ok: bool = True) -> list[MAVLinkMessage]:
+        """`link_ok` False: only the fallback decision runs (the watchdog waits)."""
         out: list[MAVLinkMessage] = []
         if self._ack_deadline is not None and now >= self._ack_deadline:
             self._ack_deadline = None
@@ -155,6 +159,8 @@ class StreamRequester:
             self._awaiting_acks = 0
         if self._watch_at is not None and now >= self._watch_at:
             self._watch_at = now + self.watchdog_period_s
+            if not link_ok:
+                return out
             stale = [
                 name
                 for name, rate in self.rates_hz.items()

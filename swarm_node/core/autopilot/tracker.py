@@ -81,9 +81,12 @@ class StateTracker:
         target_sysid: int | None = None,
         target_compid: int | None = None,
         link_timeout_s: float = 0.9,
+        heartbeat_timeout_s: float = 2.5,
     ) -> None:
-        if not link_timeout_s > 0:
-            raise ValueError("link_timeout_s must be positive")
+        if not (link_timeout_s > 0 and heartbeat_timeout_s > 0):
+            raise ValueError("link timeouts must be positive")
+        self.heartbeat_timeout_s = heartbeat_timeout_s
+        self._last_telemetry_s: float | None = None
         self.configured_type = vehicle_type
         self.target_sysid = target_sysid
         self.target_compid = target_compid
@@ -165,6 +168,8 @@ class StateTracker:
             if verdict is Verdict.UNHANDLED:
                 self.unhandled += 1
         changes["last_message_s"] = now
+        if mtype != "HEARTBEAT":
+            self._last_telemetry_s = now
         if was_locked and not self._state.link_ok:
             changes["link_ok"] = True
             last = self._state.last_message_s
@@ -180,10 +185,19 @@ class StateTracker:
         """After a successful mission upload or download."""
         self._state = msgspec.structs.replace(self._state, mission_count=count)
 
+    def link_timeout(self) -> float:
+        """`link_timeout_s` while telemetry flows; while only HEARTBEATs come (1 Hz,
+        e.g. before the requested streams start), `heartbeat_timeout_s`, so the link
+        does not flap between HEARTBEATs."""
+        last, fast = self._state.last_message_s, self._last_telemetry_s
+        if last is not None and fast is not None and last - fast <= self.link_timeout_s:
+            return self.link_timeout_s
+        return max(self.link_timeout_s, self.heartbeat_timeout_s)
+
     def next_deadline(self) -> float | None:
         if not self._state.link_ok or self._state.last_message_s is None:
             return None
-        return self._state.last_message_s + self.link_timeout_s
+        return self._state.last_message_s + self.link_timeout()
 
     def on_timer(self, now: float) -> list[ApEvent]:
         deadline = self.next_deadline()

@@ -17,9 +17,9 @@ from .fake_autopilot import FakeAutopilot
 
 
 class FakeEndpoint:
-    """kind: "tcp" (listens; the link connects with tcp:), "udp" (listens; the link uses
-    udpout:), "udpout" (sends to the link's udpin: port), "pty" (a pseudo-terminal; the
-    link opens `device`)."""
+    """kind: "tcp" (listens; the link connects with tcp:), "tcpout" (connects to the
+    link's tcpin: port), "udp" (listens; the link uses udpout:), "udpout" (sends to the
+    link's udpin: port), "pty" (a pseudo-terminal; the link opens `device`)."""
 
     def __init__(self, fake: FakeAutopilot, clock: Clock, kind: str, port: int = 0) -> None:
         self.fake = fake
@@ -41,6 +41,8 @@ class FakeEndpoint:
             self._listen.bind(("127.0.0.1", port))
             self._listen.listen(1)
             self.port = self._listen.getsockname()[1]
+        elif kind == "tcpout":
+            self.port = port
         elif kind in ("udp", "udpout"):
             self._conn = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             if kind == "udp":
@@ -78,9 +80,9 @@ class FakeEndpoint:
                     os.close(fd)
 
     def drop_client(self) -> None:
-        """TCP: close the current connection (the link must reconnect)."""
+        """TCP: close the current connection (the link must reconnect / accept again)."""
         with self.lock:
-            if self.kind == "tcp" and self._conn is not None:
+            if self.kind in ("tcp", "tcpout") and self._conn is not None:
                 self._conn.close()
                 self._conn = None
 
@@ -92,7 +94,7 @@ class FakeEndpoint:
 
     def _write(self, data: bytes) -> None:
         try:
-            if self.kind == "tcp":
+            if self.kind in ("tcp", "tcpout"):
                 if self._conn is not None:
                     self._conn.sendall(data)
             elif self.kind in ("udp", "udpout"):
@@ -117,6 +119,12 @@ class FakeEndpoint:
     def _run(self) -> None:
         while not self._stop.is_set():
             fds: list = []
+            if self.kind == "tcpout" and self._conn is None:
+                with contextlib.suppress(OSError), self.lock:
+                    self._conn = socket.create_connection(("127.0.0.1", self.port), timeout=0.2)
+                if self._conn is None:
+                    self._stop.wait(0.05)
+                    continue
             if self.kind == "tcp":
                 fds.append(self._conn if self._conn is not None else self._listen)
             elif self._conn is not None:
@@ -146,7 +154,7 @@ class FakeEndpoint:
                 self._conn = conn
                 return b""
             if isinstance(r, socket.socket):
-                if self.kind == "tcp":
+                if self.kind in ("tcp", "tcpout"):
                     data = r.recv(65536)
                     if not data:
                         r.close()

@@ -353,7 +353,7 @@ def test_copter_sortie_through_tcp_in_scaled_time() -> None:
         link = AutopilotLink(f"tcp:127.0.0.1:{port}", clock, vehicle_type=VehicleType.COPTER,
                              on_send=sent.append)  # fmt: skip
         with link:
-            deadline = time.monotonic() + 60
+            deadline = time.monotonic() + 120
 
             def until(pred: Callable[[], bool], what: str) -> None:
                 while not pred():

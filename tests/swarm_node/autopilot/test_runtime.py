@@ -107,6 +107,10 @@ def _endpoint_and_url(
     if kind == "tcp":
         ep = FakeEndpoint(fake, clock, "tcp")
         return ep, f"tcp:127.0.0.1:{ep.port}"
+    if kind == "tcpin":
+        port = free_tcp_port()
+        ep = FakeEndpoint(fake, clock, "tcpout", port)
+        return ep, f"tcpin:127.0.0.1:{port}"
     if kind == "udpout":
         ep = FakeEndpoint(fake, clock, "udp")
         return ep, f"udpout:127.0.0.1:{ep.port}"
@@ -120,7 +124,7 @@ def _endpoint_and_url(
     raise ValueError(kind)
 
 
-@pytest.fixture(params=["tcp", "udpout", "udpin", "serial"])
+@pytest.fixture(params=["tcp", "tcpin", "udpout", "udpin", "serial"])
 def running(
     request: pytest.FixtureRequest, clock: ScaledClock
 ) -> Iterator[tuple[AutopilotLink, FakeEndpoint, Events]]:
@@ -254,3 +258,17 @@ def test_events_go_to_a_queue_without_a_callback() -> None:
         first = link.events.get(timeout=WAIT_S)
         assert type(first).__name__ == "AutopilotFound"
     ep.close()
+
+
+def test_tcpin_accepts_a_new_client_when_the_old_one_is_gone(clock: ScaledClock) -> None:
+    port = free_tcp_port()
+    link = AutopilotLink(f"tcpin:127.0.0.1:{port}", clock)
+    link.start()
+    ep = FakeEndpoint(FakeAutopilot("copter"), clock, "tcpout", port).start()
+    try:
+        assert wait_for(lambda: link.state.link_ok)
+        ep.drop_client()  # the autopilot side reconnects
+        assert wait_for(lambda: link.request(rq.SetMode(mode="LOITER"), timeout_s=WAIT_S).ok)
+    finally:
+        ep.close()
+        link.close()

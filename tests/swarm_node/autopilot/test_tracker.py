@@ -309,3 +309,19 @@ def test_any_field_values_never_raise_and_the_status_always_validates(msgs: list
     s = t.state
     for v in (s.heading_deg, s.roll_deg, s.pitch_deg, s.airspeed_m_s, s.battery_v):
         assert math.isfinite(v)
+
+
+def test_heartbeats_alone_do_not_flap_the_link_but_telemetry_makes_it_quick() -> None:
+    t = StateTracker(link_timeout_s=0.9, heartbeat_timeout_s=2.5)
+    events = []
+    for i in range(10):  # an autopilot that sends only 1 Hz HEARTBEATs (no streams yet)
+        now = T0 + i
+        events += t.on_timer(now) + t.handle(wire(hb()), now)[1]
+    assert not any(isinstance(e, LinkLost) for e in events) and t.state.link_ok
+    assert t.next_deadline() == pytest.approx(T0 + 9 + 2.5)
+    for i in range(10):  # streams start: 10 Hz
+        t.handle(wire(gpi()), T0 + 9.1 + i / 10)
+    last = T0 + 9.1 + 0.9
+    assert t.next_deadline() == pytest.approx(last + 0.9)
+    (lost,) = t.on_timer(last + 0.9)
+    assert isinstance(lost, LinkLost) and lost.silent_s <= 1.0
