@@ -1,19 +1,330 @@
-"""`gcs`: the ground station command line. Sub-command groups live in their own modules
-and are registered here."""
+"""`gcs`: the ground station command line (paper section 3): fleet status and every
+operator command. Sub-command groups live in their own modules and are registered here.
+
+Every command that talks to the swarm takes --connect (Zenoh endpoints, default the lab
+router on tcp/127.0.0.1:7447), --swarm and --gcs-id.
+"""
 
 from __future__ import annotations
 
+import json
+import time
+from dataclasses import dataclass
+
+import msgspec
 import typer
+from rich.console import Console
+
+from swarm_proto import (
+    CommandArgs,
+    CommandKind,
+    Geometry,
+    GeometryKind,
+    GeoPoint,
+    LatLon,
+    Mission,
+    MissionParams,
+    MissionType,
+    NoFlyZone,
+    Selector,
+    SelectorKind,
+)
+from swarm_proto.session import ZenohSettings
 
 from .db import app as db_app
+from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
+from .render import ack_table, fleet_rows, fleet_table
 
 app = typer.Typer(help="bandada ground station.", no_args_is_help=True)
 app.add_typer(db_app, name="db")
+zone_app = typer.Typer(help="No-fly zones.", no_args_is_help=True)
+app.add_typer(zone_app, name="zone")
+console = Console()
+
+
+@dataclass
+class Link:
+    settings: ZenohSettings
+    swarm: str
+    gcs_id: int
+
+    def open(self) -> GroundStation:
+        try:
+            return GroundStation(self.settings, self.swarm, self.gcs_id)
+        except Exception as exc:
+            console.print(f"[red]gcs: cannot open Zenoh: {exc}[/]")
+            raise typer.Exit(2) from exc
 
 
 @app.callback()
-def _group() -> None:
-    """Always a command group, even with one command."""
+def _group(
+    ctx: typer.Context,
+    connect: list[str] = typer.Option(["tcp/127.0.0.1:7447"], help="Zenoh endpoints to connect to"),
+    listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
+    mode: str = typer.Option("peer", help="Zenoh mode: peer or client"),
+    swarm: str = typer.Option("default", help="swarm name"),
+    gcs_id: int = typer.Option(DEFAULT_GCS_ID, help="this ground station's node id"),
+) -> None:
+    """bandada ground station."""
+    if mode not in ("peer", "client", "router"):
+        raise typer.BadParameter("mode is peer, client or router", param_hint="--mode")
+    settings = msgspec.convert({"mode": mode, "connect": connect, "listen": listen}, ZenohSettings)
+    ctx.obj = Link(settings, swarm, gcs_id)
+
+
+# --------------------------------------------------------------------------- parsing
+
+
+def parse_point(text: str) -> tuple[float, float]:
+    try:
+        lat, lon = (float(x) for x in text.split(","))
+    except ValueError as exc:
+        raise typer.BadParameter(f"expected LAT,LON, got {text!r}") from exc
+    return lat, lon
+
+
+def parse_points(text: str) -> list[tuple[float, float]]:
+    return [parse_point(p) for p in text.replace(";", " ").split()]
+
+
+def geometry_from(
+    polygon: str | None, point: str | None, circle: str | None, line: str | None, points: str | None
+) -> Geometry:
+    given = [x for x in (polygon, point, circle, line, points) if x]
+    if len(given) != 1:
+        raise typer.BadParameter(
+            "give exactly one of --polygon, --point, --circle, --line, --points"
+        )
+    try:
+        if polygon:
+            return Geometry.polygon(parse_points(polygon))
+        if point:
+            return Geometry.point(*parse_point(point))
+        if circle:
+            lat, lon, r = (float(x) for x in circle.split(","))
+            return Geometry.circle(lat, lon, r)
+        if line:
+            return Geometry(
+                GeometryKind.POLYLINE, tuple(LatLon(a, b) for a, b in parse_points(line))
+            )
+        return Geometry(
+            GeometryKind.POINTS, tuple(LatLon(a, b) for a, b in parse_points(points or ""))
+        )
+    except ValueError as exc:  # invalid polygon, NaN, out of range ...
+        raise typer.BadParameter(str(exc)) from exc
+
+
+def selector_from(ids: list[int], fleet: int, quantity: int, payload: str) -> Selector:
+    try:
+        if quantity:
+            return Selector(
+                SelectorKind.QUANTITY, fleet_id=fleet, quantity=quantity, payload_model=payload
+            )
+        if ids:
+            return Selector.ids(*ids)
+        if fleet:
+            return Selector.fleet(fleet)
+        return Selector()
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from exc
+
+
+# --------------------------------------------------------------------------- status
+
+
+@app.command()
+def status(
+    ctx: typer.Context,
+    wait: float = typer.Option(2.0, help="seconds to listen before printing"),
+    watch: bool = typer.Option(False, help="keep the table live until Ctrl-C"),
+    as_json: bool = typer.Option(False, "--json", help="print JSON rows"),
+) -> None:
+    """The fleet: state, mode, mission progress, battery, GPS, position, alerts."""
+    with ctx.obj.open() as gs:
+        time.sleep(wait)
+        if as_json:
+            typer.echo(json.dumps(fleet_rows(gs.snapshot()), indent=2))
+            return
+        if not watch:
+            console.print(fleet_table(gs.snapshot(), title=f"swarm {gs.swarm}"))
+            return
+        from rich.live import Live
+
+        with Live(fleet_table(gs.snapshot()), console=console, refresh_per_second=4) as live:
+            try:
+                while True:
+                    time.sleep(0.25)
+                    live.update(fleet_table(gs.snapshot(), title=f"swarm {gs.swarm}"))
+            except KeyboardInterrupt:
+                pass
+
+
+@app.command()
+def alerts(
+    ctx: typer.Context,
+    wait: float = typer.Option(5.0, help="seconds to listen"),
+) -> None:
+    """Alerts raised by the vehicles while listening."""
+    with ctx.obj.open() as gs:
+        time.sleep(wait)
+        for a in gs.snapshot().alerts:
+            console.print(f"{a.vehicle_id:>5} {a.severity.name:<9} {a.code.name:<20} {a.text}")
+
+
+@app.command()
+def peers(ctx: typer.Context, node: int = typer.Argument(..., help="node id")) -> None:
+    """A node's own view of the swarm."""
+    with ctx.obj.open() as gs:
+        view = gs.peers_of(node, timeout_s=3.0)
+        if view is None:
+            console.print(f"[red]node {node} did not answer[/]")
+            raise typer.Exit(1)
+        for p in view.peers:
+            console.print(
+                f"{p.node_id:>5} {p.vehicle_type.name:<7} fleet {p.fleet_id:<3} {p.fsm_state.name:<10} heard {p.heard_age_s:.1f} s ago"
+            )
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def _print_acks(acks: list, what: str) -> None:
+    if not acks:
+        console.print(f"[yellow]{what}: no answer[/]")
+        raise typer.Exit(1)
+    console.print(ack_table(acks, what))
+    if not all(a.accepted for a in acks):
+        raise typer.Exit(1)
+
+
+@app.command()
+def cmd(
+    ctx: typer.Context,
+    kind: str = typer.Argument(..., help="; ".join(k.name.lower() for k in CommandKind)),
+    ids: list[int] = typer.Option([], "--id", help="vehicle ids (repeat)"),
+    fleet: int = typer.Option(0, help="address a fleet"),
+    value: float | None = typer.Option(None, help="altitude (m above home) or speed (m/s)"),
+    text: str = typer.Option("", help="mode name, or what to calibrate"),
+    point: str | None = typer.Option(None, help="LAT,LON[,ALT_MSL] for goto and set-base"),
+    fleet_id: int = typer.Option(0, help="set-fleet: the new fleet id"),
+    mission_id: int = typer.Option(0, help="cancel-mission / join-mission: the mission"),
+    timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
+) -> None:
+    """Send an operator command (rtl, land, emergency-land, abort-landing, parachute,
+    set-base, calibrate, arm, disarm, takeoff, set-mode, goto, set-speed, set-altitude,
+    set-fleet, cancel-mission, activate, shutdown) and show every vehicle's ack."""
+    try:
+        k = CommandKind[kind.upper().replace("-", "_")]
+    except KeyError as exc:
+        raise typer.BadParameter(f"unknown command {kind!r}", param_hint="KIND") from exc
+    geo = None
+    if point:
+        parts = [float(x) for x in point.split(",")]
+        if len(parts) not in (2, 3):
+            raise typer.BadParameter("LAT,LON[,ALT_MSL]", param_hint="--point")
+        geo = GeoPoint(parts[0], parts[1], parts[2] if len(parts) == 3 else 0.0)
+    args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id)
+    with ctx.obj.open() as gs:
+        gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)
+        acks = gs.command(k, selector_from(ids, fleet, 0, ""), args, timeout_s=timeout)
+    _print_acks(acks, f"{k.name.lower()}")
+
+
+@app.command()
+def mission(
+    ctx: typer.Context,
+    mission_type: str = typer.Argument(
+        ..., metavar="TYPE", help="area, target, perimeter, route, objective, autoland, mumt"
+    ),
+    polygon: str | None = typer.Option(None, help="'LAT,LON LAT,LON ...' (area, perimeter)"),
+    point: str | None = typer.Option(None, help="LAT,LON (target, objective, autoland)"),
+    circle: str | None = typer.Option(None, help="LAT,LON,RADIUS_M (target, perimeter)"),
+    line: str | None = typer.Option(None, help="'LAT,LON LAT,LON ...' (route)"),
+    points: str | None = typer.Option(None, help="'LAT,LON ...' (multi-objective)"),
+    ids: list[int] = typer.Option([], "--id", help="vehicle ids (repeat)"),
+    fleet: int = typer.Option(0, help="the fleet flies it"),
+    quantity: int = typer.Option(0, help="this many vehicles, chosen by voting"),
+    payload: str = typer.Option("", help="with --quantity: required payload model"),
+    alt: float = typer.Option(100.0, help="altitude above home, m"),
+    speed: float | None = typer.Option(None, help="m/s (default: each vehicle's cruise)"),
+    overlap: float = typer.Option(0.7, help="area: camera side overlap"),
+    radius: float | None = typer.Option(None, help="target/perimeter radius, m"),
+    alt_step: float = typer.Option(0.0, help="vertical separation between vehicles, m"),
+    name: str = typer.Option("", help="a name for people"),
+    mission_id: int = typer.Option(0, help="default: a fresh id"),
+    timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
+) -> None:
+    """Send a mission and show every addressed vehicle's ack."""
+    try:
+        mtype = MissionType[mission_type.upper()]
+    except KeyError as exc:
+        raise typer.BadParameter(
+            f"unknown mission type {mission_type!r}", param_hint="TYPE"
+        ) from exc
+    geometry = geometry_from(polygon, point, circle, line, points)
+    try:
+        params = MissionParams(
+            altitude_rel_m=alt,
+            speed_m_s=speed,
+            side_overlap=overlap,
+            radius_m=radius,
+            altitude_step_m=alt_step,
+        )
+        m = Mission(mission_id or new_seq() or 1, ctx.obj.gcs_id, mtype, geometry, params,
+                    selector_from(ids, fleet, quantity, payload), name, time.time())  # fmt: skip
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from exc
+    with ctx.obj.open() as gs:
+        gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)
+        acks = gs.mission(m, timeout_s=timeout)
+    _print_acks(acks, f"mission {m.mission_id} ({mtype.name.lower()})")
+
+
+@zone_app.command("add")
+def zone_add(
+    ctx: typer.Context,
+    zone_id: int = typer.Argument(..., help="zone id"),
+    polygon: str | None = typer.Option(None, help="'LAT,LON LAT,LON ...'"),
+    circle: str | None = typer.Option(None, help="LAT,LON,RADIUS_M"),
+    floor: float = typer.Option(-1000.0, help="floor, m above mean sea level"),
+    ceiling: float = typer.Option(8000.0, help="ceiling, m above mean sea level"),
+    minutes: float | None = typer.Option(None, help="valid for this long (default: until removed)"),
+    name: str = typer.Option(""),
+) -> None:
+    """Declare a no-fly zone."""
+    geometry = geometry_from(polygon, None, circle, None, None)
+    now = time.time()
+    try:
+        zone = NoFlyZone(
+            zone_id,
+            geometry,
+            floor,
+            ceiling,
+            now,
+            now + minutes * 60 if minutes else None,
+            True,
+            name,
+        )
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from exc
+    with ctx.obj.open() as gs:
+        gs.zone(zone)
+        time.sleep(0.5)
+    console.print(f"zone {zone_id} declared")
+
+
+@zone_app.command("remove")
+def zone_remove(
+    ctx: typer.Context,
+    zone_id: int = typer.Argument(..., help="zone id"),
+    circle: str = typer.Option(..., help="the zone's geometry (LAT,LON,RADIUS_M) or use --polygon"),
+) -> None:
+    """Withdraw a no-fly zone (republished inactive)."""
+    geometry = geometry_from(None, None, circle, None, None)
+    with ctx.obj.open() as gs:
+        gs.zone(NoFlyZone(zone_id, geometry, active=False))
+        time.sleep(0.5)
+    console.print(f"zone {zone_id} withdrawn")
 
 
 @app.command()
@@ -26,3 +337,7 @@ def version() -> None:
 
 def main() -> None:
     app()
+
+
+if __name__ == "__main__":
+    main()

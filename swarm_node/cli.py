@@ -30,6 +30,9 @@ def run(
     connect: list[str] = typer.Option([], help="Zenoh endpoints to connect to"),
     listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
     lease_ms: int | None = typer.Option(None, help="Zenoh lease: how soon a frozen peer is lost"),
+    link_timeout: float | None = typer.Option(
+        None, help="autopilot silence (s) that counts as link loss"
+    ),
     log_level: str = typer.Option("INFO", help="DEBUG, INFO, WARNING, ERROR"),
 ) -> None:
     """Run the node: autopilot link, monitoring, swarm manager, state machine."""
@@ -55,6 +58,7 @@ def run(
             zenoh_connect=tuple(connect),
             zenoh_listen=tuple(listen),
             zenoh_lease_ms=lease_ms,
+            link_timeout_s=link_timeout,
         )
     except ValueError as exc:
         typer.echo(f"swarm-node: {exc}", err=True)

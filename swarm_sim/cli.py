@@ -16,14 +16,23 @@ def _group() -> None:
 
 @app.command()
 def demo(
-    vehicles: int = typer.Option(4, help="number of simulated vehicles"),
-    speedup: float = typer.Option(10.0, help="simulated seconds per wall second"),
-    duration: float = typer.Option(60.0, help="simulated seconds to run"),
+    vehicle_ids: str = typer.Option(
+        "1,2,3,7,8", "--vehicles", help="seed database ids: 1-6 Albatross VTOL, 7-9 quadcopters"
+    ),
+    speedup: float = typer.Option(5.0, help="simulated seconds per wall second"),
+    timeout: float = typer.Option(600.0, help="wall seconds to wait for the fleet to land"),
+    keep: bool = typer.Option(False, help="keep the node logs"),
 ) -> None:
-    """Run the demo scenario on this machine (Zenoh on 127.0.0.1 only)."""
+    """A simulated swarm flies an area-coverage mission around a no-fly zone, through
+    the real stack (simulated MAVLink vehicles, one swarm-node process each, Zenoh on
+    127.0.0.1, the ground station), and lands."""
     from .demo import run_demo
 
-    raise typer.Exit(run_demo(vehicles=vehicles, speedup=speedup, duration_s=duration))
+    try:
+        members = tuple(int(x) for x in vehicle_ids.split(","))
+    except ValueError as exc:
+        raise typer.BadParameter("comma-separated ids", param_hint="--vehicles") from exc
+    raise typer.Exit(run_demo(members, speedup=speedup, timeout_s=timeout, keep=keep))
 
 
 @app.command()

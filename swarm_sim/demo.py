@@ -1,20 +1,67 @@
-"""The demo scenario: simulated vehicles publish telemetry over real Zenoh sessions on
-127.0.0.1 and a ground-station session shows the fleet as it sees it."""
+"""The demo: a heterogeneous simulated swarm flies an area-coverage mission with a
+no-fly zone, on this machine, in fast time, through the real stack.
+
+    simulated ArduPilot vehicles (MAVLink on TCP, one thread)     swarm_sim.runtime
+      <-> one `swarm-node run` process per vehicle                 swarm_node
+      <-> Zenoh on 127.0.0.1 (a router-mode session here)
+      <-> the ground station (this process)                        gcs_cli.ground
+
+Every process shares one simulated clock (BANDADA_CLOCK) and one seeded swarm database
+(BANDADA_DB) in a temporary directory. The ground station sets the base, declares the
+zone, sends the mission, and watches the fleet plan, fly, return and land.
+"""
 
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import signal
 import socket
-import threading
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
 
 from rich.console import Console
-from rich.table import Table
 
-from swarm_proto import FsmState, GpsFix, ScaledClock, VehicleStatus, validate
-from swarm_proto.session import SwarmBus, ZenohSettings
-from swarm_proto.topics import STATUS
+from gcs_cli.ground import FleetView, GroundStation
+from gcs_cli.render import fleet_table
+from swarm_node.database import SwarmDatabase
+from swarm_proto import (
+    AlertCode,
+    CommandArgs,
+    CommandKind,
+    FsmState,
+    Geometry,
+    GeoPoint,
+    Mission,
+    MissionParams,
+    MissionType,
+    NoFlyZone,
+    ScaledClock,
+    Selector,
+    VehicleType,
+)
+from swarm_proto.clock import ENV_VAR as CLOCK_ENV
+from swarm_proto.session import ZenohSettings, open_session
 
-HOME = (37.4112, -5.9889, 10.0)  # the reference SITL home
+from .core import SITL_HOME
+from .runtime import VehicleServer, VehicleSpec, spread_homes
+
+DEFAULT_FLEET = (1, 2, 3, 7, 8)  # seed ids: three Albatross 250 VTOL, two quadcopters
+MODEL_OF_TYPE = {
+    VehicleType.VTOL: "vtol",
+    VehicleType.PLANE: "plane",
+    VehicleType.COPTER: "copter",
+    VehicleType.ROVER: "rover",
+    VehicleType.BOAT: "boat",
+}
+GCS_ID = 900
+MISSION_ID = 1001
+ZONE_ID = 1
 
 
 def free_tcp_port() -> int:
@@ -23,81 +70,251 @@ def free_tcp_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _status(vid: int, t: float, t0: float, n: int) -> VehicleStatus:
-    radius_m, speed = 300.0, 20.0
-    phase = 2 * math.pi * (vid - 1) / n + speed * (t - t0) / radius_m
-    north, east = radius_m * math.cos(phase), radius_m * math.sin(phase)
-    lat = HOME[0] + north / 111_320.0
-    lon = HOME[1] + east / (111_320.0 * math.cos(math.radians(HOME[0])))
-    vn, ve = -speed * math.sin(phase), speed * math.cos(phase)
-    return VehicleStatus(
-        vehicle_id=vid,
-        time_unix_s=t,
-        lat_deg=lat,
-        lon_deg=lon,
-        alt_msl_m=HOME[2] + 100.0 + 10.0 * vid,
-        alt_rel_m=100.0 + 10.0 * vid,
-        vel_north_m_s=vn,
-        vel_east_m_s=ve,
-        heading_deg=math.degrees(math.atan2(ve, vn)) % 360.0,
-        airspeed_m_s=speed,
-        battery_pct=max(0, 100 - int((t - t0) / 30)),
-        battery_v=25.2,
-        gps_fix=GpsFix.FIX_3D,
-        gps_sats=14,
-        armed=True,
-        fsm_state=FsmState.GO_MISSION,
-    )
+def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float, float]:
+    return lat + north_m / 111_320.0, lon + east_m / (111_320.0 * math.cos(math.radians(lat)))
 
 
-def run_demo(vehicles: int = 4, speedup: float = 10.0, duration_s: float = 60.0) -> int:
-    console = Console()
-    port = free_tcp_port()
+def demo_area() -> tuple[Geometry, NoFlyZone]:
+    """A 300 m x 260 m field north of the vehicles, with a 35 m no-fly zone inside it."""
+    lat0, lon0 = offset(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 200.0, 0.0)
+    corners = [offset(lat0, lon0, n, e) for n, e in ((0, -150), (0, 150), (260, 150), (260, -150))]
+    zlat, zlon = offset(lat0, lon0, 130.0, 40.0)
+    zone = NoFlyZone(ZONE_ID, Geometry.circle(zlat, zlon, 35.0), floor_alt_msl_m=-100.0,
+                     ceiling_alt_msl_m=500.0, name="demo zone")  # fmt: skip
+    return Geometry.polygon(corners), zone
+
+
+@dataclass
+class Fleet:
+    tmp: Path
+    router: object
+    server: VehicleServer
+    nodes: dict[int, subprocess.Popen[bytes]]
+    endpoint: str
+
+
+def start(members: tuple[int, ...], speedup: float, tmp: Path, console: Console) -> Fleet:
+    db_path = tmp / "swarm.db"
+    with SwarmDatabase.open(db_path) as db:
+        profiles = {p.vehicle_id: p for p in db.profiles()}
+    unknown = [
+        m for m in members if m not in profiles or profiles[m].vehicle_type not in MODEL_OF_TYPE
+    ]
+    if unknown:
+        raise SystemExit(f"not vehicles of the seed database: {unknown}")
     clock = ScaledClock(speedup)
-    seen: dict[int, VehicleStatus] = {}
-    lock = threading.Lock()
-
-    def on_status(msg: VehicleStatus, key: str) -> None:
-        with lock:
-            seen[msg.vehicle_id] = msg
-
-    gcs = SwarmBus.open(ZenohSettings(mode="router", listen=(f"tcp/127.0.0.1:{port}",)))
-    fleet = SwarmBus.open(ZenohSettings(connect=(f"tcp/127.0.0.1:{port}",)))
-    try:
-        gcs.subscribe(STATUS, on_status)
-        t0 = clock.now()
-        console.print(
-            f"[bold]bandada demo[/]: {vehicles} vehicles, {speedup:g}x, Zenoh on 127.0.0.1:{port}"
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+    homes = spread_homes(SITL_HOME, len(members), 40.0)
+    specs = [
+        VehicleSpec(
+            MODEL_OF_TYPE[profiles[vid].vehicle_type],
+            instance=i,
+            home=homes[i],
+            sysid=vid,
+            port=free_tcp_port(),
         )
-        while clock.now() - t0 < duration_s:
-            now = clock.now()
-            for vid in range(1, vehicles + 1):
-                msg = _status(vid, now, t0, vehicles)
-                validate(msg)
-                fleet.publish(msg)
-            clock.sleep(0.2)
-        clock.sleep(0.5)
-    finally:
-        fleet.close()
-        gcs.close()
-    table = Table(title="fleet as seen by the ground station")
-    for col in ("id", "lat", "lon", "alt rel m", "gs m/s", "hdg", "batt %", "state"):
-        table.add_column(col)
-    with lock:
-        for vid, s in sorted(seen.items()):
-            table.add_row(
+        for i, vid in enumerate(members)
+    ]
+    server = VehicleServer(specs, clock)
+    server.start_thread()
+    env = {
+        **os.environ,
+        CLOCK_ENV: clock.spec(),
+        "BANDADA_DB": str(db_path),
+        "PYTHONUNBUFFERED": "1",
+    }
+    nodes = {}
+    for spec, vid in zip(specs, members, strict=True):
+        log = open(tmp / f"node-{vid}.log", "wb")  # noqa: SIM115
+        nodes[vid] = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "swarm_node.cli",
+                "run",
+                "--id",
                 str(vid),
-                f"{s.lat_deg:.6f}",
-                f"{s.lon_deg:.6f}",
-                f"{s.alt_rel_m:.1f}",
-                f"{s.groundspeed_m_s:.1f}",
-                f"{s.heading_deg:.0f}",
-                str(s.battery_pct),
-                s.fsm_state.name,
-            )
-    console.print(table)
-    ok = len(seen) == vehicles
+                "--autopilot",
+                f"tcp:127.0.0.1:{spec.tcp_port}",
+                "--connect",
+                endpoint,
+                "--listen",
+                "tcp/127.0.0.1:0",
+                "--link-timeout",
+                str(min(30.0, 0.3 * speedup + 0.6)),
+            ],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            env=env,
+        )
+        log.close()
+    for spec, vid in zip(specs, members, strict=True):
+        console.print(
+            f"  vehicle {vid}: {profiles[vid].model} ({profiles[vid].user_id}), simulated on tcp:127.0.0.1:{spec.tcp_port}"
+        )
+    return Fleet(tmp, router, server, nodes, endpoint)
+
+
+def stop(fleet: Fleet) -> None:
+    for p in fleet.nodes.values():
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    for p in fleet.nodes.values():
+        try:
+            p.wait(15)
+        except subprocess.TimeoutExpired:
+            p.kill()
+    fleet.server.close()
+    fleet.router.close()  # type: ignore[attr-defined]
+
+
+def _all(view: FleetView, members: tuple[int, ...], pred: object) -> bool:
+    return all(vid in view.status and pred(view, vid) for vid in members)  # type: ignore[operator]
+
+
+def run_demo(
+    members: tuple[int, ...] = DEFAULT_FLEET,
+    speedup: float = 5.0,
+    timeout_s: float = 600.0,
+    keep: bool = False,
+) -> int:
+    console = Console() if sys.stdout.isatty() else Console(width=160)
+    tmp = Path(tempfile.mkdtemp(prefix="bandada-demo-"))
+    console.rule("[bold]bandada demo")
     console.print(
-        "[green]all vehicles seen[/]" if ok else f"[red]only {len(seen)}/{vehicles} seen[/]"
+        f"{len(members)} simulated vehicles, {speedup:g}x real time, Zenoh on 127.0.0.1, logs in {tmp}"
     )
+    fleet = start(members, speedup, tmp, console)
+    gs = GroundStation(ZenohSettings(connect=(fleet.endpoint,)), gcs_id=GCS_ID)
+    ok = False
+    t_start = time.monotonic()
+    try:
+        ok = _script(gs, members, speedup, timeout_s, console)
+    except KeyboardInterrupt:
+        console.print("[yellow]interrupted[/]")
+    finally:
+        console.print(f"[dim]stopping ({time.monotonic() - t_start:.0f} s wall)[/]")
+        gs.close()
+        stop(fleet)
+        if keep or not ok:
+            console.print(f"node logs kept in {tmp}")
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
     return 0 if ok else 1
+
+
+def _step(console: Console, text: str) -> None:
+    console.print(f"[bold cyan]>[/] {text}")
+
+
+def _script(
+    gs: GroundStation, members: tuple[int, ...], speedup: float, timeout_s: float, console: Console
+) -> bool:
+    wall = 1.0 / speedup  # wall seconds per simulated second
+
+    _step(console, "waiting for every node to join and its autopilot to get a GPS position")
+    ready = gs.wait_for(
+        lambda v: _all(
+            v,
+            members,
+            lambda v, i: (
+                v.status[i].gps_fix >= 3
+                and v.info.get(i) is not None
+                and v.info[i].home is not None
+            ),
+        ),
+        60.0 + 60 * wall,
+    )
+    if not ready:
+        console.print(fleet_table(gs.snapshot()))
+        console.print("[red]the fleet did not come up[/]")
+        return False
+    view = gs.snapshot()
+    home = view.info[members[0]].home
+    assert home is not None
+    base = GeoPoint(home.lat_deg, home.lon_deg, home.alt_msl_m)
+    _step(
+        console, f"set the base at {base.lat_deg:.5f}, {base.lon_deg:.5f} (every vehicle activates)"
+    )
+    acks = gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=base), timeout_s=10.0)
+    console.print(f"  acks: {sorted((a.vehicle_id, a.reason.name) for a in acks)}")
+    if not gs.wait_for(
+        lambda v: _all(v, members, lambda v, i: v.fsm_state(i) == FsmState.GO_MISSION), 30.0
+    ):
+        console.print(fleet_table(gs.snapshot()))
+        console.print("[red]the fleet did not activate[/]")
+        return False
+    area, zone = demo_area()
+    _step(console, "declare a no-fly zone (35 m circle) inside the survey area")
+    gs.zone(zone)
+    time.sleep(0.5)
+    mission = Mission(MISSION_ID, GCS_ID, MissionType.AREA, area, MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
+                      Selector.ids(*members), "demo survey", time.time())  # fmt: skip
+    _step(
+        console,
+        f"send an area-coverage mission to vehicles {list(members)} (300 x 260 m, 60 m above home)",
+    )
+    acks = gs.mission(mission, timeout_s=10.0)
+    console.print(f"  acks: {sorted((a.vehicle_id, a.accepted, a.reason.name) for a in acks)}")
+    if not acks or not all(a.accepted for a in acks):
+        return False
+    _step(
+        console,
+        "the fleet plans together (STATE_PLAN), splits the lanes, takes off and flies; then returns and lands",
+    )
+    t0 = time.monotonic()
+    done = _watch(gs, members, timeout_s, console)
+    view = gs.snapshot()
+    console.print(fleet_table(view, title="fleet at the end"))
+    completed = {a.vehicle_id for a in view.alerts if a.code == AlertCode.MISSION_COMPLETE}
+    bad = [a for a in view.alerts if a.severity >= 2]
+    sim_s = (time.monotonic() - t0) * speedup
+    console.print(
+        f"mission complete on {sorted(completed)}; {len(bad)} critical alerts; about {sim_s / 60:.1f} simulated minutes"
+    )
+    for a in bad:
+        console.print(f"  [red]{a.vehicle_id} {a.code.name} {a.text}[/]")
+    ok = done and completed == set(members) and not bad
+    console.print(
+        "[bold green]demo complete: the swarm flew the survey and landed[/]"
+        if ok
+        else "[bold red]demo failed[/]"
+    )
+    return ok
+
+
+def _watch(gs: GroundStation, members: tuple[int, ...], timeout_s: float, console: Console) -> bool:
+    """Until every vehicle has landed and deactivated (or the timeout)."""
+
+    def landed(view: FleetView) -> bool:
+        return _all(
+            view,
+            members,
+            lambda v, i: v.fsm_state(i) == FsmState.INACTIVE and not v.status[i].armed,
+        )
+
+    end = time.monotonic() + timeout_s
+    if console.is_terminal:
+        from rich.live import Live
+
+        with Live(fleet_table(gs.snapshot()), console=console, refresh_per_second=4) as live:
+            while time.monotonic() < end:
+                if gs.wait_for(landed, 0.25):
+                    return True
+                live.update(fleet_table(gs.snapshot(), title="fleet (live)"))
+        return False
+    last = 0.0
+    while time.monotonic() < end:
+        if gs.wait_for(landed, 1.0):
+            return True
+        if time.monotonic() - last > 5.0:
+            last = time.monotonic()
+            view = gs.snapshot()
+            line = "  ".join(
+                f"{i}:{view.fsm_state(i).name[:4]}/{view.status[i].mission_progress_pct}%/{view.status[i].alt_rel_m:.0f}m"
+                for i in members
+                if i in view.status
+            )
+            console.print(f"  {line}")
+    return False

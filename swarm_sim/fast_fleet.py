@@ -91,8 +91,12 @@ class FastFleet:
             model = MODEL_OF_TYPE[profile.vehicle_type]
             h = homes[i]
             endpoint = VehicleEndpoint.create(model, home=h, now=start_unix_s, sysid=vid)
-            link = LinkCore(LinkSettings(vehicle_type=profile.vehicle_type, link_timeout_s=0.6), start_unix_s)
-            node = NodeCore(profile, settings or NodeSettings(), now=start_unix_s, fleet_profiles=profiles)
+            link = LinkCore(
+                LinkSettings(vehicle_type=profile.vehicle_type, link_timeout_s=0.6), start_unix_s
+            )
+            node = NodeCore(
+                profile, settings or NodeSettings(), now=start_unix_s, fleet_profiles=profiles
+            )
             vehicles[vid] = SimVehicle(node, link, endpoint, next_poll=start_unix_s)
         return cls(vehicles, start_unix_s)
 
@@ -144,7 +148,11 @@ class FastFleet:
                         data += o.data
                     elif isinstance(o, Complete):
                         rid = v.tokens.pop(o.token, o.result.request_id)
-                        self._deliver(vid, AutopilotResult(msgspec.structs.replace(o.result, request_id=rid)), self.now)
+                        self._deliver(
+                            vid,
+                            AutopilotResult(msgspec.structs.replace(o.result, request_id=rid)),
+                            self.now,
+                        )
 
     def _deadline(self) -> float:
         t = self._bus[0][0] if self._bus else float("inf")
@@ -190,4 +198,8 @@ class FastFleet:
         return True
 
     def messages(self, cls: type, sender: int | None = None) -> list:
-        return [m for _, s, m in self.published if isinstance(m, cls) and (sender is None or s == sender)]
+        return [
+            m
+            for _, s, m in self.published
+            if isinstance(m, cls) and (sender is None or s == sender)
+        ]

@@ -22,11 +22,12 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 import msgspec
+from shapely.geometry import LineString
 
-from swarm_proto import GeoPoint, Mission, MissionState, MissionType, NoFlyZone, VehicleType
+from swarm_proto import GeoPoint, LatLon, Mission, MissionState, MissionType, NoFlyZone, VehicleType
 
 from . import state_machine as fsm
-from .autopilot.items import Waypoint
+from .autopilot.items import ItemKind, Waypoint
 from .autopilot.requests import (
     ApRequest,
     ApResult,
@@ -41,9 +42,11 @@ from .autopilot.requests import (
 )
 from .autopilot.state import AutopilotState
 from .planning import (
+    LocalFrame,
     PlanningError,
     PlanVehicle,
     VehiclePose,
+    ZoneSet,
     plan_area,
     plan_objective,
     plan_perimeter,
@@ -62,6 +65,14 @@ PLANNERS: dict[MissionType, Callable[..., object]] = {
 
 CLIMB_FRACTION = 0.8  # start the mission once this much of the take-off altitude is reached
 LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close to home
+TRANSIT_MARGIN_M = 20.0  # least clearance from a no-fly zone on transit legs
+# Fixed-wing waypoint acceptance. ArduPlane's WP_RADIUS default (90 m) makes a plane
+# count the closely spaced waypoints of a planned turn as reached at once and head for
+# one behind it, looping wide (through a no-fly zone, if one is near). Planned paths
+# ask for this radius on every waypoint instead; the autopilot also accepts a waypoint
+# it has flown past.
+FIXED_WING_ACCEPT_M = 15.0
+TURN_RADIUS_MARGIN = 1.3
 FIRST_REQUEST_ID = 1_000_000  # the command manager uses small ids
 
 
@@ -93,6 +104,15 @@ class FsmEvent:
 Out = Submit | FsmEvent
 
 
+def flyable(profile: VehicleProfile) -> VehicleProfile:
+    """The profile planners should use: a fixed-wing's turns planned at
+    TURN_RADIUS_MARGIN times its minimum radius, so the autopilot's path following has
+    room to converge on the planned arcs instead of overshooting them."""
+    if not profile.is_fixed_wing:
+        return profile
+    return msgspec.structs.replace(profile, loiter_radius_m=TURN_RADIUS_MARGIN * profile.turn_radius_m())
+
+
 def plan_share(
     mission: Mission,
     members: Sequence[Member],
@@ -107,7 +127,7 @@ def plan_share(
     if planner is None:
         raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
     vehicles = [
-        PlanVehicle(m.profile, VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None)
+        PlanVehicle(flyable(m.profile), VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None)
         for m in sorted(members, key=lambda m: m.profile.vehicle_id)
     ]
     plan = planner(
@@ -117,12 +137,123 @@ def plan_share(
         zones=zones,
         now_unix_s=now,
         home_alt_msl_m=home_alt_msl_m,
-        zone_margin_m=max((m.profile.turn_radius_m() for m in members), default=0.0),
+        zone_margin_m=max((flyable(m.profile).turn_radius_m() for m in members), default=0.0),
     )
     for share in plan.vehicles:  # type: ignore[attr-defined]  # every plan has .vehicles
         if share.vehicle_id == self_id:
             return tuple(share.waypoints)
     raise PlanningError(f"the plan has no share for vehicle {self_id}")
+
+
+def safe_transit(
+    start: tuple[float, float],
+    end: tuple[float, float],
+    alt_rel_m: float,
+    zones: Sequence[NoFlyZone],
+    *,
+    now: float,
+    home_alt_msl_m: float,
+    margin_m: float,
+    max_alt_rel_m: float = 120.0,
+) -> list[Waypoint]:
+    """Waypoints (excluding `start`, including `end`) that fly from start to end keeping
+    `margin_m` clear of every no-fly zone at that altitude: straight when the straight
+    leg is clear, else the shortest way round the inflated zones (visibility graph);
+    if the ends are too close to a zone for the margin, the raw-zone avoidance of the
+    planners (over or around). The legs a plan does not cover (to the first waypoint,
+    back to base) go through here."""
+    direct = [Waypoint(lat_deg=end[0], lon_deg=end[1], alt_rel_m=alt_rel_m)]
+    if not zones:
+        return direct
+    frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
+    a, b = frame.to_local(*start), frame.to_local(*end)
+    route: list[tuple[float, float, float]] | None = None
+    for m in (margin_m, margin_m / 2, margin_m / 4):  # an end close to a zone: less margin
+        zs = ZoneSet.from_messages(
+            zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=m
+        )
+        if not LineString([a, b]).intersects(zs.keep_out(alt_rel_m)):
+            return direct
+        try:
+            route = [
+                (x, y, alt_rel_m)
+                for x, y in zs.shortest_path(a, b, around_alt=(alt_rel_m, alt_rel_m))
+            ]
+            break
+        except PlanningError:
+            continue
+    if route is None:
+        zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
+        route = zs.avoid(
+            [(a[0], a[1], alt_rel_m), (b[0], b[1], alt_rel_m)], max_alt_rel_m=max_alt_rel_m
+        )
+    out = []
+    for x, y, alt in route[1:]:
+        lat, lon = frame.to_geodetic(x, y)
+        out.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt))
+    return out
+
+
+def fixed_wing_transit(
+    start: tuple[float, float],
+    heading_deg: float,
+    end: tuple[float, float],
+    alt_rel_m: float,
+    zones: Sequence[NoFlyZone],
+    *,
+    radius_m: float,
+    now: float,
+    home_alt_msl_m: float,
+) -> list[Waypoint]:
+    """A fixed-wing's transit: it cannot turn on the spot, so the first turn (up to two
+    turn radii wide) must not sweep through a zone. Flies the zone-safe polyline of
+    `safe_transit`, entering it along the Dubins word (of all six, for several entry
+    headings) whose sampled path keeps clear of the zones; its arcs become waypoints."""
+    from .planning.dubins import Pose, all_paths
+
+    legs = safe_transit(
+        start, end, alt_rel_m, zones, now=now, home_alt_msl_m=home_alt_msl_m, margin_m=radius_m
+    )
+    if not zones or radius_m <= 0:
+        return legs
+    frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
+    zs = ZoneSet.from_messages(
+        zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=TRANSIT_MARGIN_M
+    )
+    blocked = zs.keep_out(alt_rel_m)
+    x0, y0 = frame.to_local(*start)
+    pose = Pose(x0, y0, math.radians(90.0 - heading_deg))
+    first = frame.to_local(legs[0].lat_deg, legs[0].lon_deg)
+    after = frame.to_local(legs[1].lat_deg, legs[1].lon_deg) if len(legs) > 1 else None
+    ref = after if after is not None else first
+    base = (
+        math.atan2(ref[1] - first[1], ref[0] - first[0])
+        if after is not None
+        else math.atan2(first[1] - y0, first[0] - x0)
+    )
+    best = None
+    for k in range(8):  # the natural entry heading first, then others 45 deg apart
+        goal = Pose(
+            first[0],
+            first[1],
+            base + k * math.pi / 4 * (1 if k % 2 else -1) * ((k + 1) // 2) / max(1, k),
+        )
+        for path in all_paths(pose, goal, radius_m):
+            if best is not None and path.length_m >= best.length_m:
+                break
+            pts = [(q.x, q.y) for q in path.sample(10.0)]
+            if not LineString(pts).intersects(blocked):
+                best = path
+                break
+        if best is not None and k == 0:
+            break
+    if best is None:
+        return legs  # no clear entry: the straight legs are the best we have
+    arc = []
+    for q in best.waypoints()[:-1]:
+        lat, lon = frame.to_geodetic(q.x, q.y)
+        arc.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt_rel_m))
+    return [*arc, *legs]
 
 
 def _distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
@@ -138,6 +269,8 @@ class MissionManager:
     mission_id: int | None = None
     takeoff_alt_m: float = 0.0
     items: int = 0  # mission items uploaded (home + waypoints)
+    last_item: int = 0  # reaching this item completes the mission
+    zones: tuple[NoFlyZone, ...] = ()
     _steps: list[ApRequest] = field(default_factory=list)
     _in_flight: ApRequest | None = None  # the request we wait for
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
@@ -158,6 +291,12 @@ class MissionManager:
         """How close RTL must bring the vehicle before it lands: a VTOL loiters around
         home at its turn radius in RTL, a multirotor comes right over it."""
         return max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
+
+    @property
+    def transit_margin_m(self) -> float:
+        """Clearance from zones on transit legs: a fixed-wing may start the leg with a
+        U-turn as wide as two turn radii."""
+        return max(TRANSIT_MARGIN_M, 2.0 * self.profile.turn_radius_m())
 
     def owns(self, request_id: int) -> bool:
         return request_id >= FIRST_REQUEST_ID
@@ -180,8 +319,20 @@ class MissionManager:
             return [FsmEvent(fsm.PlanFailed(mid, f"planning: {exc}"[:64]))]
         if not waypoints:
             return [FsmEvent(fsm.PlanFailed(mid, "nothing to fly for this vehicle"))]
+        try:
+            waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
+        except (PlanningError, ValueError) as exc:
+            return [FsmEvent(fsm.PlanFailed(mid, f"approach: {exc}"[:64]))]
+        self.zones = tuple(zones)
         self.mission_id = mid
+        # end on an unlimited loiter over the last waypoint: the autopilot holds there
+        # (ArduPlane would otherwise RTL by itself, straight through any zone) until the
+        # node flies the zone-safe way home
+        last = next((w for w in reversed(waypoints) if w.kind == ItemKind.WAYPOINT), None)
+        if last is not None:
+            waypoints = (*waypoints, Waypoint(ItemKind.LOITER_UNLIMITED, last.lat_deg, last.lon_deg, last.alt_rel_m))
         self.items = len(waypoints) + 1
+        self.last_item = self.items - (2 if last is not None else 1)  # the item that completes it
         self.takeoff_alt_m = mission.params.altitude_rel_m
         steps: list[ApRequest] = [UploadMission(items=waypoints)]
         if not ap.armed:
@@ -191,6 +342,65 @@ class MissionManager:
         self._steps = steps
         self.phase = Phase.STARTING
         return self._next()
+
+    def _tight(self, waypoints: Sequence[Waypoint]) -> tuple[Waypoint, ...]:
+        """Fixed-wing: every plain waypoint asks for FIXED_WING_ACCEPT_M acceptance."""
+        if not self.profile.is_fixed_wing:
+            return tuple(waypoints)
+        return tuple(
+            msgspec.structs.replace(w, acceptance_radius_m=FIXED_WING_ACCEPT_M)
+            if w.kind == ItemKind.WAYPOINT and w.acceptance_radius_m == 0.0
+            else w
+            for w in waypoints
+        )
+
+    def _with_approach(
+        self,
+        waypoints: tuple[Waypoint, ...],
+        ap: AutopilotState,
+        zones: Sequence[NoFlyZone],
+        now: float,
+        home_alt: float,
+    ) -> tuple[Waypoint, ...]:
+        """Prefix the leg from where the vehicle is to its first waypoint, around zones."""
+        first = next((w for w in waypoints if w.kind == ItemKind.WAYPOINT), None)
+        if first is None or ap.lat_deg is None or ap.lon_deg is None or not zones:
+            return waypoints
+        leg = self._transit(
+            (ap.lat_deg, ap.lon_deg),
+            ap.heading_deg,
+            (first.lat_deg, first.lon_deg),
+            first.alt_rel_m,
+            zones,
+            now,
+            home_alt,
+        )
+        return (*leg[:-1], *waypoints)
+
+    def _transit(
+        self,
+        start: tuple[float, float],
+        heading_deg: float,
+        end: tuple[float, float],
+        alt_rel_m: float,
+        zones: Sequence[NoFlyZone],
+        now: float,
+        home_alt: float,
+    ) -> list[Waypoint]:
+        if self.profile.is_fixed_wing:
+            return fixed_wing_transit(
+                start, heading_deg, end, alt_rel_m, zones,
+                radius_m=self.profile.turn_radius_m(), now=now, home_alt_msl_m=home_alt,
+            )  # fmt: skip
+        return safe_transit(
+            start,
+            end,
+            alt_rel_m,
+            zones,
+            now=now,
+            home_alt_msl_m=home_alt,
+            margin_m=self.transit_margin_m,
+        )
 
     def _launch_steps(self) -> list[ApRequest]:
         vt = self.profile.vehicle_type
@@ -212,12 +422,37 @@ class MissionManager:
         return [Submit(req)]
 
     # ------------------------------------------------------------------ return
-    def start_return(self, now: float) -> list[Out]:
-        """Fly back to base (the rally point) and land there."""
+    def start_return(self, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float) -> list[Out]:
+        """Fly back to base around the no-fly zones and land there: a short mission of
+        zone-safe waypoints to above home, then RTL (whose landing the autopilot or
+        `on_autopilot` completes). Without zones in the way, plain RTL."""
         self.mission_id = fsm.RETURN_MISSION
         self.phase = Phase.RETURNING
-        self._steps = [ReturnToLaunch()]
-        return [FsmEvent(fsm.PlanSucceeded(fsm.RETURN_MISSION)), *self._next()]
+        done = [FsmEvent(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
+        home = ap.home
+        if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
+            self._steps = [ReturnToLaunch()]
+            return [*done, *self._next()]
+        alt = max(ap.alt_rel_m or 0.0, 30.0)
+        try:
+            leg = self._transit(
+                (ap.lat_deg, ap.lon_deg),
+                ap.heading_deg,
+                (home.lat_deg, home.lon_deg),
+                alt,
+                zones,
+                now,
+                home.alt_msl_m,
+            )
+        except (PlanningError, ValueError):
+            leg = []
+        if len(leg) <= 1:  # nothing in the way: plain RTL
+            self._steps = [ReturnToLaunch()]
+        else:
+            self.items = len(leg) + 2
+            self.last_item = self.items - 1
+            self._steps = [UploadMission(items=(*self._tight(leg), Waypoint(ItemKind.RTL))), StartMission()]
+        return [*done, *self._next()]
 
     def stop(self) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
@@ -231,6 +466,9 @@ class MissionManager:
         mid = self.mission_id if self.mission_id is not None else 0
         if not result.ok:
             phase = self.phase
+            if phase == Phase.RETURNING and not isinstance(done, ReturnToLaunch):
+                self._steps = [ReturnToLaunch()]  # the zone-safe way home failed: plain RTL
+                return self._next()
             self.stop()
             if phase == Phase.STARTING:
                 return [FsmEvent(fsm.PlanFailed(mid, f"autopilot: {result.reason}"[:64]))]
@@ -251,7 +489,7 @@ class MissionManager:
                 self._steps = [StartMission()]
                 return self._next()
         elif self.phase == Phase.FLYING and self.items > 1:
-            if ap.mission_reached >= self.items - 1 and self.mission_id is not None:
+            if ap.mission_reached >= self.last_item and self.mission_id is not None:
                 mid = self.mission_id
                 self.stop()
                 return [FsmEvent(fsm.MissionComplete(mid))]
@@ -280,6 +518,6 @@ class MissionManager:
     def progress_pct(self, ap: AutopilotState) -> int | None:
         """Mission progress from the autopilot (None: let the link compute it)."""
         if self.phase == Phase.FLYING and self.items > 1:
-            done = max(0, min(ap.mission_reached, self.items - 1))
-            return int(100 * done / (self.items - 1))
+            done = max(0, min(ap.mission_reached, self.last_item))
+            return int(100 * done / max(1, self.last_item))
         return None

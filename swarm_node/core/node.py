@@ -358,6 +358,8 @@ class NodeCore:
         mid = self.fsm.mission_id
         if self.fsm.state != FsmState.PLAN or mid is None:
             return False
+        if mid == fsm.RETURN_MISSION:
+            return True  # each vehicle plans its own way back (no landing sequencing yet)
         for vid in self.fleet_members:
             if vid == self.self_id:
                 continue
@@ -368,8 +370,6 @@ class NodeCore:
             if info is None or info.fsm_state not in (FsmState.PLAN, FsmState.GO_MISSION):
                 return False
             if mid > 0 and info.mission_id != mid:
-                return False
-            if mid <= 0 and info.fsm_state != FsmState.PLAN:  # return-to-base: all in PLAN
                 return False
         return True
 
@@ -396,7 +396,7 @@ class NodeCore:
             return out + [Submit(r) for r in emergency_requests(o.code, self.profile)]
         if isinstance(o, fsm.ReturnHome):
             note = Note(logging.WARNING, f"returning home: {o.reason}")
-            return [note, *self._from_manager(self.manager.start_return(now))]
+            return [note, *self._from_manager(self._start_return(now))]
         if isinstance(o, fsm.LeaveFleet):
             self.fleet_id = 0
             self.fleet_members = (self.self_id,)
@@ -440,7 +440,7 @@ class NodeCore:
         """The fleet is synchronised: hand the mission to the mission manager (the
         return-to-base mission: fly back to base and land)."""
         if mission_id == fsm.RETURN_MISSION:
-            return self._from_manager(self.manager.start_return(now))
+            return self._from_manager(self._start_return(now))
         mission = self.missions.get(mission_id)
         if mission is None:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
@@ -451,6 +451,10 @@ class NodeCore:
                 mission, members, tuple(self.monitor.zones.values()), self.autopilot, now
             )
         )
+
+    def _start_return(self, now: float) -> list[MissionOut]:
+        zones = [z for z in self.monitor.zones.values() if z.in_force(now)]
+        return self.manager.start_return(self.autopilot, zones, now)
 
     def _members(self) -> list[Member]:
         """The fleet as the planners see it: profiles from the database, homes from the

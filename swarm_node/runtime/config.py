@@ -56,6 +56,10 @@ class NodeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     info_hz: float = 1.0
     plan_timeout_s: float = 60.0
     stale_after_s: float = 2.0
+    # Autopilot silence that counts as a lost link. Telemetry is requested at 10 Hz, so
+    # 0.6 s is six missed position messages; with the 5 Hz state machine it keeps link
+    # loss -> STATE_EMERGENCY under 1 s. Fast-time simulations on a loaded machine raise it.
+    link_timeout_s: float = 0.6
     zenoh: ZenohSettings = ZenohSettings()
     profile: ProfileOverride | None = None
 
@@ -65,6 +69,8 @@ class NodeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
         check_swarm_name(self.swarm)
         if not 0.1 <= self.status_hz <= 50 or not 0.05 <= self.info_hz <= 10:
             raise ValueError("status_hz must be 0.1..50 and info_hz 0.05..10")
+        if not 0.2 <= self.link_timeout_s <= 30:
+            raise ValueError("link_timeout_s must be 0.2..30")
 
 
 def load_config(path: str | Path | None, **overrides: object) -> NodeConfig:

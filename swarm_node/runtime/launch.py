@@ -28,12 +28,6 @@ def resolve_profile(cfg: NodeConfig, db: SwarmDatabase | None) -> VehicleProfile
         raise ValueError(f"node {cfg.node_id}: {exc}") from exc
 
 
-#: Silence that counts as a lost autopilot link. Telemetry is requested at 10 Hz, so this
-#: is six missed position messages; with the 5 Hz state machine it keeps link loss ->
-#: STATE_EMERGENCY under 1 s.
-LINK_TIMEOUT_S = 0.6
-
-
 def open_autopilot(
     cfg: NodeConfig,
     profile: VehicleProfile,
@@ -55,7 +49,7 @@ def open_autopilot(
         clock,
         vehicle_type=vt,
         on_event=on_event,
-        settings=LinkSettings(link_timeout_s=LINK_TIMEOUT_S),
+        settings=LinkSettings(link_timeout_s=cfg.link_timeout_s),
         name=f"autopilot-{profile.vehicle_id}",
     )
     link.start()

@@ -194,6 +194,18 @@ def shortest_path(start: Pose, goal: Pose, radius_m: float) -> DubinsPath:
     return DubinsPath(start, best[0], best[1], best[2], best[3], radius_m)
 
 
+def all_paths(start: Pose, goal: Pose, radius_m: float) -> list[DubinsPath]:
+    """Every feasible Dubins word from `start` to `goal`, shortest first (for callers
+    that must reject some, e.g. those crossing a no-fly zone)."""
+    _check_radius(radius_m)
+    dx, dy = goal.x - start.x, goal.y - start.y
+    d = math.hypot(dx, dy) / radius_m
+    th = math.atan2(dy, dx)
+    alpha, beta = mod2pi(start.yaw - th), mod2pi(goal.yaw - th)
+    words = sorted(_words(d, alpha, beta), key=lambda w: w[1] + w[2] + w[3])
+    return [DubinsPath(start, w, t, p, q, radius_m) for w, t, p, q in words]
+
+
 def path_length(start: Pose, goal: Pose, radius_m: float) -> float:
     return shortest_path(start, goal, radius_m).length_m
 

@@ -1,0 +1,248 @@
+"""The ground station as a library: one Zenoh session that watches the fleet and
+sends commands, missions and zones, waiting for the vehicles' acks. The `gcs` command
+line and the demo are thin layers over it.
+
+The ground station is a swarm node too (paper section 3): it declares its liveliness
+token and publishes a VehicleInfo of type GCS, so vehicles list it among their peers.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+import msgspec
+
+from swarm_proto import (
+    Ack,
+    AckRef,
+    Alert,
+    Command,
+    CommandArgs,
+    CommandKind,
+    FsmState,
+    Mission,
+    NoFlyZone,
+    Selector,
+    SwarmView,
+    VehicleInfo,
+    VehicleStatus,
+    VehicleType,
+    lan,
+    validate,
+)
+from swarm_proto.session import SwarmBus, ZenohSettings
+from swarm_proto.topics import ACK, ALERT, INFO, PEERS, STATUS
+
+DEFAULT_GCS_ID = 900
+
+
+def new_seq() -> int:
+    """A command sequence number that increases across runs without stored state:
+    milliseconds since 2024-01-01, modulo 2^32 (wraps after 49 days)."""
+    return int((time.time() - 1_704_067_200) * 1000) % (1 << 32)
+
+
+@dataclass
+class FleetView:
+    """The latest of everything heard from each vehicle."""
+
+    status: dict[int, VehicleStatus] = field(default_factory=dict)
+    info: dict[int, VehicleInfo] = field(default_factory=dict)
+    heard_at: dict[int, float] = field(default_factory=dict)  # monotonic seconds
+    alive: set[int] = field(default_factory=set)
+    alerts: deque[Alert] = field(default_factory=lambda: deque(maxlen=200))
+    acks: list[Ack] = field(default_factory=list)
+
+    def vehicle_ids(self) -> list[int]:
+        ids = set(self.status) | set(self.info) | self.alive
+        return sorted(i for i in ids if self.type_of(i) != VehicleType.GCS)
+
+    def type_of(self, vid: int) -> VehicleType:
+        info = self.info.get(vid)
+        return info.vehicle_type if info else VehicleType.OTHER
+
+    def fsm_state(self, vid: int) -> FsmState:
+        if vid in self.status:
+            return self.status[vid].fsm_state
+        info = self.info.get(vid)
+        return info.fsm_state if info else FsmState.INACTIVE
+
+
+class GroundStation:
+    def __init__(
+        self,
+        settings: ZenohSettings,
+        swarm: str = "default",
+        gcs_id: int = DEFAULT_GCS_ID,
+        *,
+        announce: bool = True,
+    ) -> None:
+        self.gcs_id = gcs_id
+        self.swarm = swarm
+        self.view = FleetView()
+        self._lock = threading.Lock()
+        self._changed = threading.Condition(self._lock)
+        self.bus = SwarmBus.open(settings, swarm)
+        self.bus.subscribe(STATUS, self._on_status)
+        self.bus.subscribe(INFO, self._on_info)
+        self.bus.subscribe(ALERT, self._on_alert)
+        self.bus.subscribe(ACK, self._on_ack)
+        self.bus.watch_alive(self._on_alive)
+        self._stop = threading.Event()
+        self._announcer: threading.Thread | None = None
+        if announce:
+            self.bus.declare_alive(gcs_id)
+            self._announcer = threading.Thread(target=self._announce, name="gcs-info", daemon=True)
+            self._announcer.start()
+
+    # ------------------------------------------------------------------ inputs
+    def _touch(self, vid: int) -> None:
+        self.view.heard_at[vid] = time.monotonic()
+        self._changed.notify_all()
+
+    def _on_status(self, msg: VehicleStatus, key: str) -> None:
+        with self._lock:
+            self.view.status[msg.vehicle_id] = msg
+            self._touch(msg.vehicle_id)
+
+    def _on_info(self, msg: VehicleInfo, key: str) -> None:
+        with self._lock:
+            self.view.info[msg.vehicle_id] = msg
+            self._touch(msg.vehicle_id)
+
+    def _on_alert(self, msg: Alert, key: str) -> None:
+        with self._lock:
+            self.view.alerts.append(msg)
+            self._changed.notify_all()
+
+    def _on_ack(self, msg: Ack, key: str) -> None:
+        with self._lock:
+            if msg.issuer_id == self.gcs_id:
+                self.view.acks.append(msg)
+                self._changed.notify_all()
+
+    def _on_alive(self, node_id: int, alive: bool) -> None:
+        with self._lock:
+            (self.view.alive.add if alive else self.view.alive.discard)(node_id)
+            self._changed.notify_all()
+
+    def _announce(self) -> None:
+        info = VehicleInfo(self.gcs_id, VehicleType.GCS, "Ground Station", f"GCS-{self.gcs_id}")
+        while not self._stop.wait(1.0):
+            try:
+                self.bus.publish(info)
+            except RuntimeError:  # closed
+                return
+
+    # ------------------------------------------------------------------ waiting
+    def wait_for(self, predicate: Callable[[FleetView], bool], timeout_s: float) -> bool:
+        """Block until predicate(view) holds (checked on every update), or timeout."""
+        end = time.monotonic() + timeout_s
+        with self._lock:
+            while not predicate(self.view):
+                left = end - time.monotonic()
+                if left <= 0:
+                    return False
+                self._changed.wait(min(left, 0.5))
+            return True
+
+    def snapshot(self) -> FleetView:
+        with self._lock:
+            return FleetView(
+                dict(self.view.status),
+                dict(self.view.info),
+                dict(self.view.heard_at),
+                set(self.view.alive),
+                deque(self.view.alerts, maxlen=200),
+                list(self.view.acks),
+            )
+
+    # ------------------------------------------------------------------ sending
+    def _send_and_wait(
+        self,
+        msg: msgspec.Struct,
+        ref: AckRef,
+        ref_id: int,
+        expect: Iterable[int] | None,
+        timeout_s: float,
+    ) -> list[Ack]:
+        validate(msg)
+        self.bus.publish(msg)
+        expected = set(expect) if expect is not None else None
+
+        def answered(view: FleetView) -> bool:
+            got = {a.vehicle_id for a in view.acks if a.ref == ref and a.ref_id == ref_id}
+            return expected is not None and expected <= got
+
+        self.wait_for(answered, timeout_s)
+        with self._lock:
+            return [a for a in self.view.acks if a.ref == ref and a.ref_id == ref_id]
+
+    def command(
+        self,
+        kind: CommandKind,
+        target: Selector | None = None,
+        args: CommandArgs | None = None,
+        *,
+        timeout_s: float = 5.0,
+    ) -> list[Ack]:
+        """Publish a command and collect the acks of the vehicles it addresses (all
+        that are known to be addressed, or whatever arrives within the timeout)."""
+        cmd = Command(
+            self.gcs_id,
+            new_seq(),
+            kind,
+            target or Selector(),
+            args or CommandArgs(),
+            max(0.0, time.time()),
+        )
+        return self._send_and_wait(
+            cmd, AckRef.COMMAND, cmd.seq, self._addressed(cmd.target), timeout_s
+        )
+
+    def mission(self, mission: Mission, *, timeout_s: float = 5.0) -> list[Ack]:
+        return self._send_and_wait(
+            mission,
+            AckRef.MISSION,
+            mission.mission_id,
+            self._addressed(mission.selection),
+            timeout_s,
+        )
+
+    def zone(self, zone: NoFlyZone) -> None:
+        validate(zone)
+        self.bus.publish(zone)
+
+    def _addressed(self, target: Selector) -> set[int] | None:
+        with self._lock:
+            ids = self.view.vehicle_ids()
+            fleets = {v: self.view.status[v].fleet_id for v in self.view.status}
+        found = {v for v in ids if target.addresses(v, fleets.get(v, 0))}
+        return found or None
+
+    def peers_of(self, node_id: int, timeout_s: float = 2.0) -> SwarmView | None:
+        for reply in self.bus.session.get(
+            PEERS.key(self.swarm, vehicle_id=node_id), timeout=timeout_s
+        ):
+            if reply.ok is not None:
+                try:
+                    return lan.decode(reply.ok.payload.to_bytes(), SwarmView)
+                except Exception:
+                    return None
+        return None
+
+    def close(self) -> None:
+        self._stop.set()
+        self.bus.close()
+        if self._announcer is not None:
+            self._announcer.join(2.0)
+
+    def __enter__(self) -> GroundStation:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
