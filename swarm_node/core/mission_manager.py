@@ -110,7 +110,9 @@ def flyable(profile: VehicleProfile) -> VehicleProfile:
     room to converge on the planned arcs instead of overshooting them."""
     if not profile.is_fixed_wing:
         return profile
-    return msgspec.structs.replace(profile, loiter_radius_m=TURN_RADIUS_MARGIN * profile.turn_radius_m())
+    return msgspec.structs.replace(
+        profile, loiter_radius_m=TURN_RADIUS_MARGIN * profile.turn_radius_m()
+    )
 
 
 def plan_share(
@@ -127,7 +129,9 @@ def plan_share(
     if planner is None:
         raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
     vehicles = [
-        PlanVehicle(flyable(m.profile), VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None)
+        PlanVehicle(
+            flyable(m.profile), VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None
+        )
         for m in sorted(members, key=lambda m: m.profile.vehicle_id)
     ]
     plan = planner(
@@ -330,7 +334,10 @@ class MissionManager:
         # node flies the zone-safe way home
         last = next((w for w in reversed(waypoints) if w.kind == ItemKind.WAYPOINT), None)
         if last is not None:
-            waypoints = (*waypoints, Waypoint(ItemKind.LOITER_UNLIMITED, last.lat_deg, last.lon_deg, last.alt_rel_m))
+            waypoints = (
+                *waypoints,
+                Waypoint(ItemKind.LOITER_UNLIMITED, last.lat_deg, last.lon_deg, last.alt_rel_m),
+            )
         self.items = len(waypoints) + 1
         self.last_item = self.items - (2 if last is not None else 1)  # the item that completes it
         self.takeoff_alt_m = mission.params.altitude_rel_m
@@ -451,7 +458,10 @@ class MissionManager:
         else:
             self.items = len(leg) + 2
             self.last_item = self.items - 1
-            self._steps = [UploadMission(items=(*self._tight(leg), Waypoint(ItemKind.RTL))), StartMission()]
+            self._steps = [
+                UploadMission(items=(*self._tight(leg), Waypoint(ItemKind.RTL))),
+                StartMission(),
+            ]
         return [*done, *self._next()]
 
     def stop(self) -> None:

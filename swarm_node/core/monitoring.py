@@ -140,6 +140,7 @@ class VehicleMonitor:
     _tracked: dict[AlertCode, _Tracked] = field(default_factory=dict)
     _had_gps: bool = False
     _had_ekf: bool = False
+    _breach_text: str | None = None
     ready: bool = False
 
     # ------------------------------------------------------------------ conditions
@@ -162,16 +163,20 @@ class VehicleMonitor:
             seen.add(AlertCode.EKF_FAILURE)
         if s.armed and (abs(s.roll_deg) > t.max_tilt_deg or abs(s.pitch_deg) > t.max_tilt_deg):
             seen.add(AlertCode.ATTITUDE_ABNORMAL)
-        if s.lat_deg is not None and s.lon_deg is not None and self._breach(s, now):
+        self._breach_text = (
+            self._breach(s, now) if s.lat_deg is not None and s.lon_deg is not None else None
+        )
+        if self._breach_text:
             seen.add(AlertCode.GEOFENCE_BREACH)
         return seen
 
-    def _breach(self, s: AutopilotState, now: float) -> bool:
+    def _breach(self, s: AutopilotState, now: float) -> str | None:
+        """What is breached ("left the operating area", "in zone 3"), or None."""
         assert s.lat_deg is not None and s.lon_deg is not None
         if self.operating_area is not None and not inside(
             self.operating_area, s.lat_deg, s.lon_deg
         ):
-            return True
+            return "left the operating area"
         alt = s.alt_msl_m if s.alt_msl_m is not None else 0.0
         for z in self.zones.values():
             if (
@@ -179,8 +184,8 @@ class VehicleMonitor:
                 and z.floor_alt_msl_m <= alt <= z.ceiling_alt_msl_m
                 and inside(z.geometry, s.lat_deg, s.lon_deg)
             ):
-                return True
-        return False
+                return f"in no-fly zone {z.zone_id}"
+        return None
 
     # ------------------------------------------------------------------ step
     def update(self, s: AutopilotState, now: float) -> list[Alert]:
@@ -198,7 +203,10 @@ class VehicleMonitor:
                 due = spec.immediate or now - tr.since >= t.raise_after_s
                 if due and (not tr.active or severity > tr.severity):
                     tr.active, tr.severity = True, severity
-                    out.append(self._alert(now, severity, code, _describe(code, s)))
+                    text = _describe(code, s)
+                    if code == AlertCode.GEOFENCE_BREACH and self._breach_text:
+                        text = f"{self._breach_text} at {s.lat_deg:.6f},{s.lon_deg:.6f} {s.alt_msl_m or 0:.0f} m"
+                    out.append(self._alert(now, severity, code, text))
             else:
                 tr.since = None
                 if tr.active:

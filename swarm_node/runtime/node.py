@@ -19,7 +19,7 @@ from typing import Protocol
 import msgspec
 import zenoh
 
-from swarm_proto import Clock, PeerEntry, SwarmView, lan
+from swarm_proto import Alert, Clock, PeerEntry, SwarmView, lan
 from swarm_proto.session import SwarmBus
 from swarm_proto.topics import COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE
 
@@ -196,6 +196,14 @@ class NodeRuntime:
     def _execute(self, outputs: list[Output]) -> None:
         for o in outputs:
             if isinstance(o, Publish):
+                if isinstance(o.msg, Alert):
+                    log.warning(
+                        "node %d: alert %s %s: %s",
+                        self.core.self_id,
+                        o.msg.severity.name,
+                        o.msg.code.name,
+                        o.msg.text,
+                    )
                 try:
                     self.bus.publish(o.msg)
                 except Exception:  # an invalid message of ours must not stop the node
