@@ -18,6 +18,7 @@ this API (e.g. time going backwards) raises.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import Counter
 from collections.abc import Callable
@@ -495,9 +496,23 @@ class SimAutopilot:
 
     def _boot_ready(self) -> None:
         self.ready = True
-        if self.mode == BOOT_MODE[self.firmware]:
+        if self.mode != BOOT_MODE[self.firmware]:
+            return
+        if self.firmware == Firmware.PLANE:
+            # recorded: INITIALISING -> MANUAL -> the RC mode switch's mode (FBWA)
+            self.mode = 0
+            self._out.append(telemetry.heartbeat(self))
+            bisect.insort(self._timeline, (self.boot_time + 1.4, self._initial_mode), key=lambda ev: ev[0])
+        else:
+            self._initial_mode()
+
+    def _initial_mode(self) -> None:
+        if self.mode in (0, BOOT_MODE[self.firmware]) and not self.armed:
+            changed = self.mode != INITIAL_MODE[self.firmware]
             self.mode = INITIAL_MODE[self.firmware]
             self.nav = Idle()
+            if changed:
+                self._out.append(telemetry.heartbeat(self))  # ArduPilot sends one on every mode change
 
     def _gps_detected(self) -> None:
         self.gps_detected = True
@@ -525,6 +540,8 @@ class SimAutopilot:
         if self.options.boot_texts:
             for text in EKF_GPS_TEXTS:
                 self._text(SEV_INFO, text)
+            if self.firmware == Firmware.PLANE:
+                self._text(SEV_INFO, "AHRS: EKF3 active")  # the plane switched AHRS here
 
     # ------------------------------------------------------------------ physics
 
@@ -846,14 +863,17 @@ class SimAutopilot:
         )
 
     def _items_changed(self, mission_type: int) -> list[Any]:
+        out: list[Any] = []
         if mission_type == MISSION:
             self.params["MIS_TOTAL"] = (float(max(0, len(self.mission_items) - 1)), 4)
+            names = sorted(self.params)
+            out.append(self._param_value("MIS_TOTAL", names.index("MIS_TOTAL"), len(names)))
             self.mission_seq = 0
             self.mission_complete = False
             self._jumps.clear()
             if self.mode_spec.behaviour == Behaviour.AUTO:
                 self._mission_start_or_resume()
-        return []
+        return out
 
     @staticmethod
     def _is_nav(command: int) -> bool:
@@ -1789,6 +1809,24 @@ class SimAutopilot:
         if int(msg.tc1) == 0:
             self._out.append(mavlink.MAVLink_timesync_message(int(now * 1e9), int(msg.ts1)))
 
+    def _on_ftp(self, msg: Any, src: Peer, now: float) -> None:
+        """MAVLink FTP is not simulated: NAK every request at once (TerminateSession and
+        ResetSessions are ACKed), so that MAVProxy and QGC fall back to PARAM_REQUEST_LIST
+        and MISSION_REQUEST_* instead of timing out."""
+        payload = bytes(msg.payload)
+        if len(payload) < 12:
+            self.counters["bad_ftp"] += 1
+            return
+        seq, session, opcode = int.from_bytes(payload[0:2], "little"), payload[2], payload[3]
+        ack = opcode in (1, 2)
+        error = 10 if opcode in (3, 4, 14) else 1  # FileNotFound for list/open/crc, else Fail
+        reply = bytearray(251)
+        reply[0:2] = ((seq + 1) & 0xFFFF).to_bytes(2, "little")
+        reply[2], reply[3], reply[5] = session, 128 if ack else 129, opcode
+        if not ack:
+            reply[4], reply[12] = 1, error
+        self._out.append(mavlink.MAVLink_file_transfer_protocol_message(0, src.sysid, src.compid, list(reply)))
+
     # ------------------------------------------------------------------ helpers
 
     def _text(self, severity: int, text: str) -> None:
@@ -1879,6 +1917,7 @@ _HANDLERS: dict[str, Callable[[SimAutopilot, Any, Peer, float], None]] = {
     "PARAM_REQUEST_READ": SimAutopilot._on_param_request_read,
     "PARAM_SET": SimAutopilot._on_param_set,
     "TIMESYNC": SimAutopilot._on_timesync,
+    "FILE_TRANSFER_PROTOCOL": SimAutopilot._on_ftp,
 }
 
 # Received and deliberately ignored (a GCS heartbeat, acks of our own messages, ...)
@@ -1886,7 +1925,7 @@ _IGNORED = frozenset(
     {
         "HEARTBEAT", "MISSION_ACK", "COMMAND_ACK", "SYSTEM_TIME", "RC_CHANNELS_OVERRIDE",
         "MANUAL_CONTROL", "RADIO_STATUS", "RADIO", "GPS_RTCM_DATA", "GPS_INJECT_DATA",
-        "STATUSTEXT", "PING", "FILE_TRANSFER_PROTOCOL", "SET_ATTITUDE_TARGET", "LOG_REQUEST_LIST",
+        "STATUSTEXT", "PING", "SET_ATTITUDE_TARGET", "LOG_REQUEST_LIST",
         "TERRAIN_DATA", "TERRAIN_CHECK", "REQUEST_AUTOPILOT_CAPABILITIES", "SETUP_SIGNING",
     }
 )  # fmt: skip

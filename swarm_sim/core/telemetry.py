@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 _GYRO, _ACCEL, _MAG, _ABS_PRESSURE, _DIFF_PRESSURE, _GPS = 1, 2, 4, 8, 16, 32
 _RATE_CONTROL, _ATTITUDE, _YAW_POSITION, _Z_ALTITUDE, _XY_POSITION = 1024, 2048, 4096, 8192, 16384
 _MOTOR_OUTPUTS, _RC_RECEIVER, _AHRS, _TERRAIN, _BATTERY = 32768, 65536, 2097152, 4194304, 33554432
-_LOGGING, _PREARM = 16777216, 268435456
+_LOGGING, _PREARM, _GEOFENCE = 16777216, 268435456, 1048576
 _BASE_SENSORS = (_GYRO | _ACCEL | _MAG | _ABS_PRESSURE | _GPS | _RATE_CONTROL | _ATTITUDE
                  | _YAW_POSITION | _Z_ALTITUDE | _XY_POSITION | _MOTOR_OUTPUTS | _AHRS
                  | _BATTERY | _LOGGING | _PREARM)  # fmt: skip
@@ -109,15 +109,26 @@ def gps_raw_int(ap: SimAutopilot, now: float) -> Any:
 
 
 def sys_status(ap: SimAutopilot) -> Any:
-    present = _BASE_SENSORS | (_DIFF_PRESSURE if ap.airframe.is_fixed_wing else 0)
-    health = present
+    # bits as in the recorded SITL streams: GEOFENCE present (copter, or with fence
+    # items), enabled with FENCE_ENABLE, healthy unless breached (MAVProxy reports
+    # "fence breach" when the health bit is missing)
+    fence_present = ap.firmware.name == "COPTER" or bool(ap.fence_items)
+    present = _BASE_SENSORS | _RC_RECEIVER | _TERRAIN | (_DIFF_PRESSURE if ap.airframe.is_fixed_wing else 0)
+    present |= _GEOFENCE if fence_present else 0
+    enabled = present & ~_GEOFENCE
+    if ap.params["FENCE_ENABLE"][0]:
+        enabled |= _GEOFENCE
+    if not ap.armed:
+        enabled &= ~_MOTOR_OUTPUTS
+    health = present | _GEOFENCE
+    if ap.fence_breached:
+        health &= ~_GEOFENCE
     if not ap.gps_fix:
         health &= ~_GPS
     if not ap.ekf_position:
         health &= ~(_XY_POSITION | _AHRS)
     if ap.prearm_failure() is not None:
         health &= ~_PREARM
-    enabled = present if ap.armed else present & ~_MOTOR_OUTPUTS
     bat = ap.battery
     return mavlink.MAVLink_sys_status_message(
         present, enabled, health, 0, round(bat.voltage * 1000), round(bat.current_a * 100),
