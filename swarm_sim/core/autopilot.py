@@ -502,7 +502,9 @@ class SimAutopilot:
             # recorded: INITIALISING -> MANUAL -> the RC mode switch's mode (FBWA)
             self.mode = 0
             self._out.append(telemetry.heartbeat(self))
-            bisect.insort(self._timeline, (self.boot_time + 1.4, self._initial_mode), key=lambda ev: ev[0])
+            bisect.insort(
+                self._timeline, (self.boot_time + 1.4, self._initial_mode), key=lambda ev: ev[0]
+            )
         else:
             self._initial_mode()
 
@@ -512,7 +514,9 @@ class SimAutopilot:
             self.mode = INITIAL_MODE[self.firmware]
             self.nav = Idle()
             if changed:
-                self._out.append(telemetry.heartbeat(self))  # ArduPilot sends one on every mode change
+                self._out.append(
+                    telemetry.heartbeat(self)
+                )  # ArduPilot sends one on every mode change
 
     def _gps_detected(self) -> None:
         self.gps_detected = True
@@ -937,8 +941,12 @@ class SimAutopilot:
         if cmd in (16, 82):  # WAYPOINT, SPLINE_WAYPOINT
             accept = item.param2 if item.param2 > 0 else self._wp_radius()
             hold = 0.0 if fw == Firmware.PLANE else max(0.0, item.param1)
-            self._set_nav(FlyTo(n, e, alt, accept_m=accept, hold_s=hold, stop=not self.fixed_wing),
-                          Purpose.MISSION)  # fmt: skip
+            prev = self.nav.destination if isinstance(self._leaf_task(), FlyTo) else None
+            origin = (prev[0], prev[1]) if prev is not None and self.fixed_wing else None
+            task = FlyTo(
+                n, e, alt, accept_m=accept, hold_s=hold, stop=not self.fixed_wing, origin=origin
+            )
+            self._set_nav(task, Purpose.MISSION)
         elif cmd in (17, 18, 19, 31):  # LOITER_UNLIM, _TURNS, _TIME, _TO_ALT
             radius = abs(item.param3) if cmd != 31 else abs(item.param2)
             turns = item.param1 if cmd == 18 else None
@@ -1825,7 +1833,9 @@ class SimAutopilot:
         reply[2], reply[3], reply[5] = session, 128 if ack else 129, opcode
         if not ack:
             reply[4], reply[12] = 1, error
-        self._out.append(mavlink.MAVLink_file_transfer_protocol_message(0, src.sysid, src.compid, list(reply)))
+        self._out.append(
+            mavlink.MAVLink_file_transfer_protocol_message(0, src.sysid, src.compid, list(reply))
+        )
 
     # ------------------------------------------------------------------ helpers
 

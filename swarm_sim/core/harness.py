@@ -100,6 +100,7 @@ class SimClient:
 class HarnessLink:
     endpoint: VehicleEndpoint
     client: SimClient
+    extra_clients: list[SimClient] = field(default_factory=list)
     loss_to_vehicle: float = 0.0
     loss_to_client: float = 0.0
     drop_to_vehicle: Callable[[Any], bool] | None = None  # per message, True drops it
@@ -109,6 +110,17 @@ class HarnessLink:
     @property
     def autopilot(self) -> SimAutopilot:
         return self.endpoint.autopilot
+
+    @property
+    def clients(self) -> list[SimClient]:
+        return [self.client, *self.extra_clients]
+
+    def add_client(self, sysid: int, compid: int = 190) -> SimClient:
+        """Another ground station on the same vehicle (it gets everything the vehicle
+        sends, like a second TCP client of the runtime)."""
+        client = SimClient(sysid=sysid, compid=compid, target_system=self.autopilot.sysid)
+        self.extra_clients.append(client)
+        return client
 
 
 class FastTimeHarness:
@@ -136,7 +148,11 @@ class FastTimeHarness:
         return link
 
     def _deliver(self, link: HarnessLink) -> None:
-        frames = link.client.take_outgoing()
+        for channel, client in enumerate(link.clients):
+            self._deliver_from(link, client, channel)
+
+    def _deliver_from(self, link: HarnessLink, client: SimClient, channel: int) -> None:
+        frames = client.take_outgoing()
         if not frames:
             return
         kept = []
@@ -151,7 +167,7 @@ class FastTimeHarness:
                     continue
             kept.append(frame)
         if kept:
-            out = link.endpoint.receive(b"".join(kept), self.now)
+            out = link.endpoint.receive(b"".join(kept), self.now, channel=channel)
             self._to_client(link, out)
 
     def _to_client(self, link: HarnessLink, data: bytes) -> None:
@@ -170,7 +186,8 @@ class FastTimeHarness:
                     continue
                 kept.append(msg.pack(enc))
             data = b"".join(kept)
-        link.client.feed(data, self.now)
+        for client in link.clients:
+            client.feed(data, self.now)
 
     def step(self, until: float) -> None:
         """Deliver what clients queued, then jump to the next deadline (at most `until`)."""

@@ -110,7 +110,7 @@ class FlyTo(NavTask):
         if self.vtol:
             speed = 0.0  # the VTOL speed
         return Target(Guide.GOTO, self.n, self.e, self.alt, speed=speed, stop=self.stop,
-                      fixed_wing=not self.vtol)  # fmt: skip
+                      fixed_wing=not self.vtol, track_from=self.origin)  # fmt: skip
 
     def update(self, ctx: NavContext, dt: float) -> bool:
         b = ctx.body

@@ -113,7 +113,12 @@ def sys_status(ap: SimAutopilot) -> Any:
     # items), enabled with FENCE_ENABLE, healthy unless breached (MAVProxy reports
     # "fence breach" when the health bit is missing)
     fence_present = ap.firmware.name == "COPTER" or bool(ap.fence_items)
-    present = _BASE_SENSORS | _RC_RECEIVER | _TERRAIN | (_DIFF_PRESSURE if ap.airframe.is_fixed_wing else 0)
+    present = (
+        _BASE_SENSORS
+        | _RC_RECEIVER
+        | _TERRAIN
+        | (_DIFF_PRESSURE if ap.airframe.is_fixed_wing else 0)
+    )
     present |= _GEOFENCE if fence_present else 0
     enabled = present & ~_GEOFENCE
     if ap.params["FENCE_ENABLE"][0]:

@@ -41,7 +41,9 @@ def wait(predicate: object, timeout: float) -> bool:
 def test_mavproxy_reads_position_and_switches_mode(tmp_path: Path) -> None:
     exe = mavproxy_path()
     port = free_tcp_port()
-    server = VehicleServer([VehicleSpec("copter", instance=0, home=SITL_HOME, port=port)], ScaledClock(5.0))
+    server = VehicleServer(
+        [VehicleSpec("copter", instance=0, home=SITL_HOME, port=port)], ScaledClock(5.0)
+    )
     server.start_thread()
     ap = server.endpoints[0].autopilot
     lines: list[str] = []
@@ -50,10 +52,14 @@ def test_mavproxy_reads_position_and_switches_mode(tmp_path: Path) -> None:
         cwd=tmp_path, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )  # fmt: skip
     assert proc.stdin is not None and proc.stdout is not None
-    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)  # type: ignore[union-attr]
+    reader = threading.Thread(
+        target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True
+    )  # type: ignore[union-attr]
     reader.start()
     try:
-        if not wait(lambda: any("Detected vehicle" in ln or "online system 1" in ln for ln in lines), 30):
+        if not wait(
+            lambda: any("Detected vehicle" in ln or "online system 1" in ln for ln in lines), 30
+        ):
             if proc.poll() is not None:
                 pytest.skip(f"MAVProxy cannot run here: {''.join(lines)[-500:]}")
             raise AssertionError(f"MAVProxy never saw the vehicle:\n{''.join(lines)}")
@@ -65,7 +71,9 @@ def test_mavproxy_reads_position_and_switches_mode(tmp_path: Path) -> None:
         proc.stdin.write("mode GUIDED\n")
         proc.stdin.flush()
         assert wait(lambda: ap.mode_name == "GUIDED", 20), "".join(lines)
-        assert wait(lambda: any("GUIDED>" in ln or "Mode GUIDED" in ln for ln in lines), 20), "".join(lines)
+        assert wait(lambda: any("GUIDED>" in ln or "Mode GUIDED" in ln for ln in lines), 20), (
+            "".join(lines)
+        )
         assert wait(lambda: any("Received" in ln and "parameters" in ln for ln in lines), 30)
         proc.stdin.close()  # MAVProxy exits at the end of its input
     finally:

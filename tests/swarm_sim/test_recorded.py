@@ -62,7 +62,11 @@ def mode_sequence(msgs: list[Any]) -> list[int]:
 
 
 def heartbeat_pairs(msgs: list[Any]) -> set[tuple[int, int, int, int]]:
-    return {(m.type, m.autopilot, m.custom_mode, m.base_mode) for m in msgs if m.get_type() == "HEARTBEAT"}
+    return {
+        (m.type, m.autopilot, m.custom_mode, m.base_mode)
+        for m in msgs
+        if m.get_type() == "HEARTBEAT"
+    }
 
 
 def acks(msgs: list[Any]) -> list[tuple[int, int]]:
@@ -163,7 +167,12 @@ def sim_plane() -> list[Any]:
     assert p.set_mode("GUIDED") == 0
     x, y = p.latlon(-500, 0)
     assert p.command_int(192, 6, -1, 1, 0, 0, x=x, y=y, z=50) == 0
-    assert p.h.run_until(lambda: bool(p.c.seen("MISSION_ITEM_REACHED")) and p.c.seen("MISSION_ITEM_REACHED")[-1].seq == 0, 300)
+    assert p.h.run_until(
+        lambda: (
+            bool(p.c.seen("MISSION_ITEM_REACHED")) and p.c.seen("MISSION_ITEM_REACHED")[-1].seq == 0
+        ),
+        300,
+    )
     p.h.run_for(30)
     assert p.command(178, 0, 20) == 0
     p.h.run_for(40)
@@ -181,7 +190,9 @@ def sim_plane() -> list[Any]:
 def test_copter_message_set(recorded_copter: list[Any], sim_copter: list[Any]) -> None:
     rec, sim = types(recorded_copter), types(sim_copter)
     assert rec <= sim, f"recorded but never sent by the simulator: {sorted(rec - sim)}"
-    assert sim - rec <= SIM_EXTRAS, f"sent by the simulator, not by ArduPilot: {sorted(sim - rec - SIM_EXTRAS)}"
+    assert sim - rec <= SIM_EXTRAS, (
+        f"sent by the simulator, not by ArduPilot: {sorted(sim - rec - SIM_EXTRAS)}"
+    )
 
 
 def test_copter_ids_and_heartbeats(recorded_copter: list[Any], sim_copter: list[Any]) -> None:
@@ -190,7 +201,14 @@ def test_copter_ids_and_heartbeats(recorded_copter: list[Any], sim_copter: list[
     rec_pairs, sim_pairs = heartbeat_pairs(recorded_copter), heartbeat_pairs(sim_copter)
     assert sim_pairs <= rec_pairs, sorted(sim_pairs - rec_pairs)
     # disarmed STABILIZE/AUTO, GUIDED/LAND, armed GUIDED/AUTO: as recorded
-    assert {(2, 3, 0, 81), (2, 3, 3, 81), (2, 3, 4, 89), (2, 3, 9, 89), (2, 3, 4, 217), (2, 3, 3, 217)} <= sim_pairs
+    assert {
+        (2, 3, 0, 81),
+        (2, 3, 3, 81),
+        (2, 3, 4, 89),
+        (2, 3, 9, 89),
+        (2, 3, 4, 217),
+        (2, 3, 3, 217),
+    } <= sim_pairs
     assert mode_sequence(recorded_copter) == mode_sequence(sim_copter) == [0, 4, 3, 4, 6, 9]
     rec_status = {m.system_status for m in recorded_copter if m.get_type() == "HEARTBEAT"} - {1}
     sim_status = {m.system_status for m in sim_copter if m.get_type() == "HEARTBEAT"} - {1}
@@ -206,7 +224,11 @@ def test_copter_mission_protocol(recorded_copter: list[Any], sim_copter: list[An
     assert mission_exchange(recorded_copter) == expected
     assert mission_exchange(sim_copter) == expected
     rec = [m.seq for m in recorded_copter if m.get_type() == "MISSION_ITEM_REACHED"]
-    assert rec == [m.seq for m in sim_copter if m.get_type() == "MISSION_ITEM_REACHED"] == [1, 2, 3, 4, 5]
+    assert (
+        rec
+        == [m.seq for m in sim_copter if m.get_type() == "MISSION_ITEM_REACHED"]
+        == [1, 2, 3, 4, 5]
+    )
 
 
 def test_copter_texts(recorded_copter: list[Any], sim_copter: list[Any]) -> None:
@@ -248,7 +270,9 @@ def test_plane_heartbeats(recorded_plane: list[Any], sim_plane: list[Any]) -> No
     assert sim_pairs <= rec_pairs, sorted(sim_pairs - rec_pairs)
     assert {(1, 3, 16, 17), (1, 3, 5, 81), (1, 3, 10, 89), (1, 3, 10, 217), (1, 3, 11, 217),
             (1, 3, 15, 217), (1, 3, 20, 209), (1, 3, 20, 81)} <= sim_pairs  # fmt: skip
-    assert mode_sequence(recorded_plane) == mode_sequence(sim_plane) == [16, 0, 5, 10, 11, 15, 11, 20]
+    assert (
+        mode_sequence(recorded_plane) == mode_sequence(sim_plane) == [16, 0, 5, 10, 11, 15, 11, 20]
+    )
 
 
 def test_plane_command_acks_and_mission(recorded_plane: list[Any], sim_plane: list[Any]) -> None:
@@ -256,7 +280,11 @@ def test_plane_command_acks_and_mission(recorded_plane: list[Any], sim_plane: li
     expected = ["MISSION_ACK:0", *[f"MISSION_REQUEST:{i}" for i in range(6)], "MISSION_ACK:0"]
     assert mission_exchange(recorded_plane) == mission_exchange(sim_plane) == expected
     rec = [m.seq for m in recorded_plane if m.get_type() == "MISSION_ITEM_REACHED"]
-    assert rec == [m.seq for m in sim_plane if m.get_type() == "MISSION_ITEM_REACHED"] == [1, 2, 3, 4, 0]
+    assert (
+        rec
+        == [m.seq for m in sim_plane if m.get_type() == "MISSION_ITEM_REACHED"]
+        == [1, 2, 3, 4, 0]
+    )
 
 
 def test_plane_texts(recorded_plane: list[Any], sim_plane: list[Any]) -> None:
