@@ -66,6 +66,7 @@ from .mission import (
     ItemTransfer,
     MissionItem,
     Peer,
+    validate_item,
 )
 from .navigation import (
     FlyTo,
@@ -94,6 +95,7 @@ PLANE_LAND_SETTLE_S = 5.0  # touchdown -> "Land complete" (recorded QuadPlane ~6
 RTL_LOITER_TIME_S = 5.0  # RTL_LOIT_TIME
 GUIDED_VELOCITY_TIMEOUT_S = 3.0  # GUID_TIMEOUT
 CRASH_IMPACT_M_S = 4.0
+MAX_ALT_M = 50_000.0  # altitudes beyond this in a command are refused as bad input
 
 # commands and messages ArduPilot handles without doing anything the simulator models
 _ACCEPTED_NOOP_COMMANDS = {115, 183, 184, 181, 182, 201, 195, 197, 203, 206, 2000, 2001, 2500, 2501}
@@ -1318,6 +1320,8 @@ class SimAutopilot:
         fw = self.firmware
         if fw == Firmware.ROVER or (cmd.command == 84 and fw == Firmware.PLANE):
             return UNSUPPORTED
+        if not math.isfinite(cmd.z) or abs(cmd.z) > MAX_ALT_M:
+            return DENIED
         if fw == Firmware.COPTER:
             if cmd.frame not in (3, 6):
                 return DENIED
@@ -1392,7 +1396,7 @@ class SimAutopilot:
         return ACCEPTED
 
     def _alt_from_frame(self, frame: int, z: float) -> float | None:
-        if not math.isfinite(z):
+        if not math.isfinite(z) or abs(z) > MAX_ALT_M:
             return None
         if frame in FRAME_ABSOLUTE:
             return z
@@ -1720,6 +1724,10 @@ class SimAutopilot:
     def _guided_mission_item(self, msg: Any) -> None:
         """MISSION_ITEM(_INT) with current=2 (guided goto) or 3 (change altitude)."""
         item = MissionItem.from_message(msg)
+        if validate_item(item) != 0 or item.frame not in GLOBAL_FRAMES:
+            self._out.append(mavlink.MAVLink_mission_ack_message(
+                msg.get_srcSystem(), msg.get_srcComponent(), 1, MISSION))  # fmt: skip
+            return
         if int(msg.current) == 3:
             self._change_alt(self._item_alt(item))
             result = 0

@@ -40,8 +40,15 @@ CAPABILITIES = 1 | 2 | 4 | 8 | 256 | 8192 | 16384 | 32768 | 65536 | 4
 FLIGHT_SW_VERSION = (4 << 24) | (7 << 16) | (0 << 8) | 0  # 4.7.0-dev, like the recordings
 
 
+def _i32(value: float) -> int:
+    """Clamped to int32 (a MAVLink field must never make packing fail)."""
+    if not math.isfinite(value):
+        return 0
+    return max(-(2**31), min(2**31 - 1, round(value)))
+
+
 def _deg_e7(value: float) -> int:
-    return round(value * 1e7)
+    return _i32(value * 1e7)
 
 
 def heartbeat(ap: SimAutopilot) -> Any:
@@ -61,8 +68,8 @@ def global_position_int(ap: SimAutopilot, now: float) -> Any:
         ap.boot_ms(now),
         _deg_e7(lat),
         _deg_e7(lon),
-        round(b.alt * 1000),
-        round(ap.rel_alt_m * 1000),
+        _i32(b.alt * 1000),
+        _i32(ap.rel_alt_m * 1000),
         _i16(b.vn * 100),
         _i16(b.ve * 100),
         _i16(b.vd * 100),
@@ -103,8 +110,8 @@ def gps_raw_int(ap: SimAutopilot, now: float) -> Any:
     cog = round(b.course_deg * 100) % 36000 if b.groundspeed > 0.5 else 0
     return mavlink.MAVLink_gps_raw_int_message(
         int((now - ap.boot_time) * 1e6), ap.options.gps_fix_type, _deg_e7(lat), _deg_e7(lon),
-        round(b.alt * 1000), 121, 200, round(b.groundspeed * 100), cog,
-        ap.options.satellites, round(b.alt * 1000), 300, 300, 40, 0, 0,
+        _i32(b.alt * 1000), 121, 200, min(65535, round(b.groundspeed * 100)), cog,
+        ap.options.satellites, _i32(b.alt * 1000), 300, 300, 40, 0, 0,
     )  # fmt: skip
 
 
@@ -178,7 +185,7 @@ def home_position(ap: SimAutopilot, now: float) -> Any:
     hn, he = ap.home_ne
     nan = float("nan")
     return mavlink.MAVLink_home_position_message(
-        _deg_e7(lat), _deg_e7(lon), round(alt * 1000), hn, he, -(alt - ap.origin_alt),
+        _deg_e7(lat), _deg_e7(lon), _i32(alt * 1000), hn, he, -(alt - ap.origin_alt),
         [nan, nan, nan, nan], 0.0, 0.0, 0.0, int((now - ap.boot_time) * 1e6),
     )  # fmt: skip
 
@@ -188,7 +195,7 @@ def gps_global_origin(ap: SimAutopilot, now: float) -> Any:
     return mavlink.MAVLink_gps_global_origin_message(
         _deg_e7(lat),
         _deg_e7(lon),
-        round(ap.origin_alt * 1000),
+        _i32(ap.origin_alt * 1000),
         int((now - ap.boot_time) * 1e6),
     )
 
