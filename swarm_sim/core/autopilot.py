@@ -329,19 +329,20 @@ class SimAutopilot:
         return self._flush()
 
     def next_deadline(self) -> float | None:
-        times = [self._next_phys]
-        if self._timeline:
-            times.append(self._timeline[0][0])
+        t = self._next_phys
+        if self._timeline and self._timeline[0][0] < t:
+            t = self._timeline[0][0]
         due = self.streams.next_deadline()
-        if due is not None:
-            times.append(due)
+        if due is not None and due < t:
+            t = due
         for transfer in self.transfers.values():
-            d = transfer.next_deadline()
-            if d is not None:
-                times.append(d)
-        if self.ready and not self.armed:
-            times.append(self._prearm_next)
-        return min(times)
+            if transfer.receiving:
+                d = transfer.next_deadline()
+                if d is not None and d < t:
+                    t = d
+        if self.ready and not self.armed and self._prearm_next < t:
+            t = self._prearm_next
+        return t
 
     # state views used by telemetry, tests and the runtime
     @property

@@ -74,6 +74,7 @@ class StreamScheduler:
         self.defaults = dict(DEFAULT_INTERVALS_S if defaults is None else defaults)
         self.intervals: dict[int, float] = dict(self.defaults)
         self._due: dict[int, float] = {mid: now for mid in self.intervals}
+        self._next: float | None = now if self._due else None
 
     def set_interval(self, msg_id: int, interval_s: float | None, now: float) -> bool:
         """`interval_s`: None = the default, <= 0 or inf = off. False if `msg_id` cannot be
@@ -85,10 +86,12 @@ class StreamScheduler:
         if interval_s <= 0 or not math.isfinite(interval_s):
             self.intervals.pop(msg_id, None)
             self._due.pop(msg_id, None)
+            self._next = min(self._due.values()) if self._due else None
             return True
         interval_s = max(MIN_INTERVAL_S, interval_s)
         self.intervals[msg_id] = interval_s
         self._due[msg_id] = min(self._due.get(msg_id, now + interval_s), now + interval_s)
+        self._next = min(self._due.values())
         return True
 
     def interval(self, msg_id: int) -> float:
@@ -107,6 +110,8 @@ class StreamScheduler:
     def due(self, now: float) -> list[int]:
         """Message ids due at `now`; each is rescheduled one interval later (skipping
         missed slots rather than bursting)."""
+        if self._next is None or self._next > now + 1e-9:
+            return []
         out = []
         for mid, t in self._due.items():
             if t <= now + 1e-9:
@@ -115,7 +120,8 @@ class StreamScheduler:
                 if nxt <= now:
                     nxt = now + self.intervals[mid]
                 self._due[mid] = nxt
+        self._next = min(self._due.values()) if self._due else None
         return out
 
     def next_deadline(self) -> float | None:
-        return min(self._due.values()) if self._due else None
+        return self._next
