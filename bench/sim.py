@@ -79,14 +79,17 @@ def _launch(h: FastTimeHarness, link: HarnessLink, k: int) -> None:
         _cmd(h, link, 400, 1)
 
 
-def fleet(n: int, start_time: float, airborne_s: float = 150.0) -> tuple[FastTimeHarness, list[HarnessLink]]:
+def fleet(
+    n: int, start_time: float, airborne_s: float = 150.0
+) -> tuple[FastTimeHarness, list[HarnessLink]]:
     """`n` vehicles flying looping missions, `airborne_s` after launch. Built with
     HEARTBEAT only (fast), then every vehicle gets the default telemetry streams."""
     h = FastTimeHarness(start_time=start_time)
     homes = spread_homes(SITL_HOME, n, 30.0)
     quiet = SimOptions(stream_defaults={0: 1.0})
     links = [
-        h.add_vehicle(MODELS[k % len(MODELS)], instance=k, home=homes[k], options=quiet) for k in range(n)
+        h.add_vehicle(MODELS[k % len(MODELS)], instance=k, home=homes[k], options=quiet)
+        for k in range(n)
     ]
     h.run_until(lambda: all(link.autopilot.ekf_position for link in links), 60)
     for k, link in enumerate(links):
@@ -106,7 +109,9 @@ def core_cpu_per_vehicle_second(n: int, sim_s: float) -> tuple[float, float]:
     """(CPU s per simulated vehicle-second, telemetry messages per vehicle-second)."""
     h, links = fleet(n, 1_700_000_000.0)
     endpoints = [link.endpoint for link in links]
-    heap: list[tuple[float, int]] = [(ep.next_deadline() or h.now, k) for k, ep in enumerate(endpoints)]
+    heap: list[tuple[float, int]] = [
+        (ep.next_deadline() or h.now, k) for k, ep in enumerate(endpoints)
+    ]
     heapq.heapify(heap)
     end = h.now + sim_s
     tx0 = sum(ep.counters["tx_messages"] for ep in endpoints)
@@ -150,7 +155,9 @@ def tcp_run(n: int, wall_s: float) -> dict[str, Any]:
     h, links = fleet(n, time.time() + 3600.0)
     clock = ScaledClock(SPEEDUP, start_unix_s=h.now + 0.5)  # picks up where fast time ended
     ports = [BASE_PORT + k for k in range(n)]
-    specs = [VehicleSpec(link.autopilot.model, instance=k, port=ports[k]) for k, link in enumerate(links)]
+    specs = [
+        VehicleSpec(link.autopilot.model, instance=k, port=ports[k]) for k, link in enumerate(links)
+    ]
     server = VehicleServer(specs, clock, endpoints=[link.endpoint for link in links])
     server.start_thread()
     reader = subprocess.Popen(

@@ -10,9 +10,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import IntEnum
 from typing import Protocol
 
 from .kinematics import Body, Guide, Target
+
+
+class Purpose(IntEnum):
+    """Why the current navigation task runs (decides what happens when it completes)."""
+
+    MODE = 0
+    MISSION = 1
+    GUIDED_GOTO = 2
+    GUIDED_TAKEOFF = 3
+    GUIDED_VELOCITY = 4
 
 
 class NavContext(Protocol):
