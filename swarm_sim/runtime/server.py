@@ -30,6 +30,7 @@ MAX_CLIENT_BACKLOG_BYTES = 4 * 1024 * 1024  # a client this far behind loses its
 READ_CHUNK = 65536
 MAX_SLEEP_WALL_S = 0.2  # wake up at least this often to notice `stop`
 MIN_SLEEP_WALL_S = 0.0005
+MANUAL_CLOCK_POLL_S = 0.01
 
 
 @dataclass(frozen=True)
@@ -188,11 +189,10 @@ class VehicleServer:
             timeout = MAX_SLEEP_WALL_S
         else:
             ahead = deadline - self.clock.now()
-            timeout = (
-                0.0
-                if ahead <= 0
-                else max(MIN_SLEEP_WALL_S, min(MAX_SLEEP_WALL_S, self.clock.to_wall(ahead)))
-            )
+            wall = self.clock.to_wall(ahead) if ahead > 0 else 0.0
+            if ahead > 0 and wall <= 0.0:
+                wall = MANUAL_CLOCK_POLL_S  # a ManualClock: time moves only when told
+            timeout = 0.0 if ahead <= 0 else max(MIN_SLEEP_WALL_S, min(MAX_SLEEP_WALL_S, wall))
         for key, events in self._sel.select(timeout):
             obj = key.data
             if isinstance(obj, _Vehicle):
