@@ -179,6 +179,7 @@ def _param_table(
             "WP_LOITER_RAD": (af.loiter_radius_m, 4),
             "RTL_ALTITUDE": (af.rtl_alt_m, 9),
             "TKOFF_ALT": (af.takeoff_alt_m, 9),
+            "RTL_AUTOLAND": (0.0, 2),
             "Q_ENABLE": (1.0 if model == VehicleModel.VTOL else 0.0, 2),
         }
         if model == VehicleModel.VTOL:
@@ -710,12 +711,11 @@ class SimAutopilot:
             ]
             return Sequence(tasks)
         if self.firmware == Firmware.PLANE:
+            # fly home, then (in _nav_done) loiter there or land via DO_LAND_START
             rtl = self._param("RTL_ALTITUDE")
             alt = b.alt if rtl < 0 else self.home_alt + rtl
-            return Sequence([FlyTo(hn, he, alt, accept_m=self.loiter_radius, stop=False),
-                             Loiter(hn, he, alt)])  # fmt: skip
-        return Sequence([FlyTo(hn, he, b.alt, accept_m=self._param("WP_RADIUS"), stop=True),
-                         Hold(hn, he, b.alt)])  # fmt: skip
+            return FlyTo(hn, he, alt, accept_m=self.loiter_radius, stop=False)
+        return FlyTo(hn, he, b.alt, accept_m=self._param("WP_RADIUS"), stop=True)
 
     def _qrtl_task(self) -> NavTask:
         b = self.body
@@ -752,6 +752,12 @@ class SimAutopilot:
         elif beh == Behaviour.GUIDED:
             self._set_nav(self._hold_here())
         elif beh == Behaviour.RTL:
+            if (
+                self.firmware == Firmware.PLANE
+                and self._param("RTL_AUTOLAND") == 2
+                and mission_runner.jump_to_landing_sequence(self)
+            ):
+                return
             self._set_nav(self._rtl_task())
         elif beh == Behaviour.QRTL:
             self._set_nav(self._qrtl_task())
@@ -806,6 +812,13 @@ class SimAutopilot:
         if beh == Behaviour.RTL and self.firmware == Firmware.ROVER:
             self._text(SEV_INFO, "Reached destination")
             self._set_nav(Hold(*self._here()))
+        elif (
+            beh == Behaviour.RTL and self.firmware == Firmware.PLANE and isinstance(self.nav, FlyTo)
+        ):
+            # RTL_AUTOLAND=1: home reached, land via the mission's DO_LAND_START
+            if self._param("RTL_AUTOLAND") == 1 and mission_runner.jump_to_landing_sequence(self):
+                return
+            self._set_nav(Loiter(self.nav.n, self.nav.e, self.nav.alt))
         elif beh == Behaviour.TAKEOFF:
             self._set_nav(Loiter(*self._here()))
         elif isinstance(self.nav, Parachute):

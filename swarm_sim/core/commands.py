@@ -403,6 +403,13 @@ def cmd_calibration(ap: SimAutopilot, cmd: Cmd) -> int:
 # other messages ---------------------------------------------------------------
 
 
+def cmd_land_start(ap: SimAutopilot, cmd: Cmd) -> int:
+    """MAV_CMD_DO_LAND_START: continue the mission at its landing sequence."""
+    if ap.firmware == Firmware.ROVER:
+        return UNSUPPORTED
+    return ACCEPTED if mission_runner.jump_to_landing_sequence(ap) else FAILED
+
+
 COMMANDS: dict[int, Callable[[SimAutopilot, Cmd], int]] = {
     176: cmd_set_mode,
     400: cmd_arm_disarm,
@@ -429,4 +436,5 @@ COMMANDS: dict[int, Callable[[SimAutopilot, Cmd], int]] = {
     205: cmd_mount,
     1000: cmd_mount,
     241: cmd_calibration,
+    189: cmd_land_start,
 }

@@ -569,7 +569,9 @@ class GroundModel:
                 cruise = target.speed if target.speed > 0 else p.cruise_speed_m_s
                 speed_want = cruise * max(0.0, math.cos(math.radians(min(abs(err), 90.0))))
                 if abs(err) > 60.0 and p.model == VehicleModel.BOAT:
-                    speed_want = 0.3 * cruise  # boats cannot pivot
+                    # boats cannot pivot: turn on a circle small enough to reach the point
+                    omega = math.radians(p.turn_rate_deg_s)
+                    speed_want = min(0.3 * cruise, 0.5 * dist * omega)
                 if target.stop or radius > 0:
                     speed_want = min(speed_want, math.sqrt(2.0 * p.accel_m_s2 * dist), dist)
         if speed_want == 0.0:

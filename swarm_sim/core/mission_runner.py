@@ -245,3 +245,37 @@ def starts_with_takeoff(ap: SimAutopilot) -> bool:
         if is_nav(item.command):
             return item.command in (22, 84)
     return False
+
+
+def landing_sequence_start(ap: SimAutopilot) -> int | None:
+    """Index of the DO_LAND_START closest to the vehicle (AP_Mission::
+    get_landing_sequence_start), or None."""
+    best, best_d = None, math.inf
+    b = ap.body
+    for idx, item in enumerate(ap.mission_items):
+        if idx == 0 or item.command != 189:
+            continue
+        if item.has_location:
+            n, e = ap.frame.to_ne(item.lat_deg, item.lon_deg)
+            d = math.hypot(n - b.n, e - b.e)
+        else:
+            d = math.inf if best is not None else 1e12
+        if d < best_d:
+            best, best_d = idx, d
+    return best
+
+
+def jump_to_landing_sequence(ap: SimAutopilot) -> bool:
+    """Switch to AUTO at the landing sequence (RTL_AUTOLAND, MAV_CMD_DO_LAND_START)."""
+    idx = landing_sequence_start(ap)
+    if idx is None or not ap.ekf_position:
+        return False
+    ap._text(SEV_INFO, "Landing sequence start")
+    ap.mission_seq = idx
+    ap.mission_complete = False
+    auto = mode_number(ap.firmware, "AUTO")
+    if ap.mode == auto:
+        ap.mission_running = True
+        run_from(ap, idx)
+        return True
+    return ap._set_mode(auto)

@@ -128,7 +128,7 @@ def test_ground_vehicles_stay_on_the_ground(n: float, e: float, params: object) 
         model.step(b, target, DT)
         assert b.alt == 5.0 and b.vd == 0.0 and b.on_ground
         assert b.groundspeed <= p.max_speed_m_s + 1e-9  # type: ignore[attr-defined]
-        if math.hypot(b.n - n, b.e - e) < 0.5 and b.groundspeed < 0.1:
+        if math.hypot(b.n - n, b.e - e) < p.wp_radius_m and b.groundspeed < 0.2:  # type: ignore[attr-defined]
             return
     raise AssertionError("never arrived")
 
