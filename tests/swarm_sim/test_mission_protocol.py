@@ -244,3 +244,17 @@ def test_rtl_goes_to_a_closer_rally_point() -> None:
     assert p.set_mode("RTL") == 0
     assert p.h.run_until(lambda: not p.ap.armed, 300)
     assert math.hypot(p.ap.body.n - 300, p.ap.body.e) < 3
+
+
+def test_link_latency_delays_both_directions() -> None:
+    p = make_pilot("copter")
+    p.wait_ready()
+    p.link.latency_s = 0.3
+    t0 = p.h.now
+    p.c.mav.command_long_send(1, 1, 176, 0, 1, 4, 0, 0, 0, 0, 0)
+    ack = p.h.wait_for(p.c, "COMMAND_ACK", 5)
+    assert ack is not None and ack.result == 0
+    assert 0.6 - 1e-6 <= p.h.now - t0 < 0.7  # there and back
+    ack_time = next(t for t, m in reversed(p.c.history) if m.get_type() == "COMMAND_ACK")
+    assert ack_time >= t0 + 0.6 - 1e-6
+    assert robust_upload(p, simple_mission(p, 6)) is not None  # the protocol copes
