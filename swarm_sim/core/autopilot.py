@@ -46,6 +46,7 @@ from .firmware import (
     MODES,
     SEV_CRITICAL,
     SEV_INFO,
+    SEV_NOTICE,
     SEV_WARNING,
     Behaviour,
     Firmware,
@@ -253,6 +254,8 @@ class SimAutopilot:
         self.parachute_released = False
         self.crashed = False
         self.fence_breached = False
+        self.fence_breach_count = 0
+        self.fence_breach_ms = 0
         self.mount_pitch_deg = 0.0
         self.mount_yaw_deg = 0.0
         self._guided_radius = 0.0
@@ -617,7 +620,9 @@ class SimAutopilot:
             return
         breached = self._outside_fence()
         if breached and not self.fence_breached:
-            self._text(SEV_CRITICAL, "Fence Breached")
+            self.fence_breach_count += 1
+            self.fence_breach_ms = self.boot_ms(self._t)
+            self._text(SEV_NOTICE, "Fence Breached")
             action = int(self._param("FENCE_ACTION"))
             behaviour = self.mode_spec.behaviour
             if action != 0 and behaviour not in (Behaviour.RTL, Behaviour.LAND, Behaviour.QRTL):

@@ -189,7 +189,9 @@ def do_command(ap: SimAutopilot, item: MissionItem) -> None:
         if int(item.param1) == 2:
             ap._parachute_release()
     elif cmd == 207:  # DO_FENCE_ENABLE
-        ap.params["FENCE_ENABLE"] = (1.0 if int(item.param1) == 1 else 0.0, 2)
+        enable = int(item.param1) == 1
+        ap.params["FENCE_ENABLE"] = (1.0 if enable else 0.0, 2)
+        ap._text(SEV_INFO, "Fence Enabled" if enable else "Fence Disabled")
 
 
 def item_done(ap: SimAutopilot) -> None:
@@ -231,13 +233,14 @@ def finished(ap: SimAutopilot) -> None:
         else:
             ap._set_nav(Idle())
     elif ap.firmware == Firmware.ROVER:
+        # ModeAuto::exit_mission with MIS_DONE_BEHAVE=0: stop, staying in AUTO
         ap._text(SEV_NOTICE, "Mission Complete")
-        ap._set_mode(mode_number(ap.firmware, "HOLD"))
+        ap._set_nav(Hold(*ap._here()))
+    elif ap.body.on_ground:
+        ap._disarm()  # Copter ModeAuto::exit_mission: landed, safe to disarm
+        ap._set_nav(Idle())
     else:
-        ap._set_nav(ap._hold_here() if not ap.body.on_ground else Idle())
-
-
-# ------------------------------------------------------------------ modes, arming
+        ap._set_nav(ap._hold_here())
 
 
 def starts_with_takeoff(ap: SimAutopilot) -> bool:

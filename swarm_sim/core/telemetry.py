@@ -246,6 +246,20 @@ def wind(ap: SimAutopilot) -> Any:
     return mavlink.MAVLink_wind_message(direction, speed, 0.0)
 
 
+def fence_status(ap: SimAutopilot) -> Any | None:
+    """FENCE_STATUS, sent only while the fence is enabled (GCS_MAVLINK::send_fence_status)."""
+    if not ap.params["FENCE_ENABLE"][0]:
+        return None
+    breach_type = 3 if ap.fence_breach_count else 0  # FENCE_BREACH_BOUNDARY
+    return mavlink.MAVLink_fence_status_message(
+        int(ap.fence_breached),
+        min(65535, ap.fence_breach_count),
+        breach_type,
+        ap.fence_breach_ms,
+        0,
+    )
+
+
 def timesync_request(now: float) -> Any:
     return mavlink.MAVLink_timesync_message(0, int(now * 1e9))
 
@@ -303,6 +317,8 @@ def build(ap: SimAutopilot, msg_id: int, now: float) -> Any | None:
         return wind(ap)
     if msg_id == S.TIMESYNC:
         return timesync_request(now)
+    if msg_id == S.FENCE_STATUS:
+        return fence_status(ap)
     if msg_id == 148:  # AUTOPILOT_VERSION
         return autopilot_version(ap)
     return None

@@ -245,6 +245,8 @@ def test_fence_breach_triggers_rtl() -> None:
     assert p.command_int(192, REL, -1, 0, 0, 0, x=x, y=y, z=20) == ACCEPTED
     assert p.h.run_until(lambda: p.ap.mode_name == "RTL", 120)
     assert "Fence Breached" in p.c.texts()
+    status = p.h.wait_for(p.c, "FENCE_STATUS", cond=lambda m: m.breach_count == 1)
+    assert status is not None and status.breach_type == 3
     assert p.ap.body.n < 110
     assert p.h.run_until(lambda: not p.ap.armed, 200)
 

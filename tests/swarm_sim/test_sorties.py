@@ -122,8 +122,9 @@ def test_ground_vehicle_sortie(model: str) -> None:
     )  # fmt: skip
     assert p.set_mode("AUTO") == 0
     assert p.arm() == 0
-    assert p.h.run_until(lambda: p.ap.mode_name == "HOLD", 900)
-    assert "Mission Complete" in p.c.texts()
+    assert p.h.run_until(lambda: "Mission Complete" in p.c.texts(), 900)
+    p.h.run_for(10)
+    assert p.ap.mode_name == "AUTO" and p.ap.body.groundspeed < 0.05  # stopped, still in AUTO
     b = p.ap.body
     assert math.hypot(b.n, b.e) < 4.0
     assert b.alt == p.ap.home_alt  # 2-D
