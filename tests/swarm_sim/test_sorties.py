@@ -254,3 +254,14 @@ def test_rover_rtl_mode() -> None:
     assert p.set_mode("RTL") == 0
     assert p.h.run_until(lambda: "Reached destination" in p.c.texts(), 120)
     assert math.hypot(p.ap.body.n, p.ap.body.e) < 2.5 and p.ap.armed  # rovers never auto-disarm
+
+
+def test_plane_takeoff_mode_climbs_out_then_loiters() -> None:
+    p = make_pilot("plane")
+    p.wait_ready()
+    assert p.set_mode("TAKEOFF") == 0 and p.arm() == 0
+    assert p.h.run_until(lambda: p.ap.rel_alt_m > 49, 120)  # TKOFF_ALT
+    p.h.run_for(120)
+    b = p.ap.body
+    assert abs(p.ap.rel_alt_m - 50) < 2 and b.airspeed >= p.ap.airframe.min_airspeed_m_s
+    assert p.ap.mode_name == "TAKEOFF" and p.ap.armed
