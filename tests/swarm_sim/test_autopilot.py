@@ -346,3 +346,15 @@ def test_modes_table_covers_every_behaviour() -> None:
 
     used = {spec.behaviour for table in MODES.values() for spec in table.values()}
     assert used == set(Behaviour)
+
+
+def test_copter_auto_from_the_ground_needs_a_takeoff_item() -> None:
+    p = make_pilot("copter")
+    p.wait_ready()
+    assert p.upload([(16, 0, 0, 0, 0), (16, 6, 50, 0, 20)]).type == 0
+    assert p.set_mode("GUIDED") == ACCEPTED and p.arm() == ACCEPTED
+    assert p.set_mode("AUTO") == FAILED and "Auto: Missing Takeoff Cmd" in p.c.texts()
+    assert p.upload([(16, 0, 0, 0, 0), (22, 6, 0, 0, 20), (16, 6, 50, 0, 20)]).type == 0
+    assert p.set_mode("AUTO") == ACCEPTED and p.command(300) == ACCEPTED
+    assert p.h.run_until(lambda: [m.seq for m in p.c.seen("MISSION_ITEM_REACHED")] == [1, 2], 120)
+    assert p.ap.armed and abs(p.ap.rel_alt_m - 20) < 1
