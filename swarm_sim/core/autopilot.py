@@ -687,6 +687,7 @@ class SimAutopilot:
         n, e, alt = self._here()
         if self.firmware == Firmware.PLANE and not self._vtol_hovering():
             return Loiter(n, e, alt)
+        n, e = self._stopping_point()  # brake, then hold where it stops
         return Hold(n, e, alt, vtol=self._vtol_hovering())
 
     def _rtl_point(self) -> tuple[float, float]:
@@ -753,7 +754,8 @@ class SimAutopilot:
             else:
                 self._set_nav(Hold(n, e, alt, vtol=self._vtol_hovering()))
         elif beh == Behaviour.HOLD:
-            self._set_nav(Hold(n, e, alt, vtol=spec.vtol or not self.fixed_wing))
+            sn, se = self._stopping_point()
+            self._set_nav(Hold(sn, se, alt, vtol=spec.vtol or not self.fixed_wing))
         elif beh == Behaviour.GUIDED:
             self._set_nav(self._hold_here())
         elif beh == Behaviour.RTL:
