@@ -905,7 +905,7 @@ class SimAutopilot:
         """The first failing arming check, worded as ArduPilot's PreArm messages; None when
         the vehicle may arm."""
         if not self.ready:
-            return "Waiting for RC"  # not reached in practice: arming waits for boot
+            return "Initialising"  # booting (arming is refused without a text until ready)
         if self.crashed:
             return "Crashed"
         if not self.gps_fix:

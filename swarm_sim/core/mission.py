@@ -256,7 +256,6 @@ class ItemTransfer:
         else:
             del self.items[count:]
         if count == 0:
-            self._buffer = self._buffer if self._buffer is not None else None
             return self._complete(peer)
         self.receiving = True
         self._peer = peer
