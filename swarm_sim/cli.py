@@ -73,6 +73,8 @@ def vehicle(
         raise typer.BadParameter(str(exc)) from exc
     if not models:
         raise typer.BadParameter("--model is empty")
+    if not speedup > 0:
+        raise typer.BadParameter("--speedup must be positive")
     default_clock = SystemClock() if speedup == 1.0 else ScaledClock(speedup)
     clock = clock_from_env(default_clock)
     first_sysid = sysid if sysid is not None else instance + 1

@@ -8,6 +8,7 @@ they never reach the autopilot and never raise.
 
 from __future__ import annotations
 
+import struct
 from collections import Counter
 from collections.abc import Hashable
 from dataclasses import replace
@@ -92,7 +93,12 @@ class VehicleEndpoint:
         enc = self._encoder
         chunks = []
         for msg in messages:
-            chunks.append(msg.pack(enc))
+            try:
+                chunks.append(msg.pack(enc))
+            except (struct.error, ValueError, TypeError, OverflowError):
+                # a field out of range for its wire type: drop the message, keep serving
+                self.counters["encode_errors"] += 1
+                continue
             enc.seq = (enc.seq + 1) % 256
         self.counters["tx_messages"] += len(messages)
         return b"".join(chunks)

@@ -100,15 +100,34 @@ class SimClient:
 class HarnessLink:
     endpoint: VehicleEndpoint
     client: SimClient
+    extra_clients: list[SimClient] = field(default_factory=list)
     loss_to_vehicle: float = 0.0
     loss_to_client: float = 0.0
     drop_to_vehicle: Callable[[Any], bool] | None = None  # per message, True drops it
+    latency_s: float = 0.0  # one-way delay, both directions
     rng: random.Random = field(default_factory=lambda: random.Random(0))
     dropped: int = 0
+    _up: list[tuple[float, int, bytes]] = field(default_factory=list)  # due, channel, bytes
+    _down: list[tuple[float, bytes]] = field(default_factory=list)
+
+    def next_delivery(self) -> float | None:
+        times = [t for t, _, _ in self._up[:1]] + [t for t, _ in self._down[:1]]
+        return min(times) if times else None
 
     @property
     def autopilot(self) -> SimAutopilot:
         return self.endpoint.autopilot
+
+    @property
+    def clients(self) -> list[SimClient]:
+        return [self.client, *self.extra_clients]
+
+    def add_client(self, sysid: int, compid: int = 190) -> SimClient:
+        """Another ground station on the same vehicle (it gets everything the vehicle
+        sends, like a second TCP client of the runtime)."""
+        client = SimClient(sysid=sysid, compid=compid, target_system=self.autopilot.sysid)
+        self.extra_clients.append(client)
+        return client
 
 
 class FastTimeHarness:
@@ -136,7 +155,11 @@ class FastTimeHarness:
         return link
 
     def _deliver(self, link: HarnessLink) -> None:
-        frames = link.client.take_outgoing()
+        for channel, client in enumerate(link.clients):
+            self._deliver_from(link, client, channel)
+
+    def _deliver_from(self, link: HarnessLink, client: SimClient, channel: int) -> None:
+        frames = client.take_outgoing()
         if not frames:
             return
         kept = []
@@ -150,9 +173,22 @@ class FastTimeHarness:
                     link.dropped += 1
                     continue
             kept.append(frame)
-        if kept:
-            out = link.endpoint.receive(b"".join(kept), self.now)
-            self._to_client(link, out)
+        if not kept:
+            return
+        if link.latency_s > 0:
+            link._up.append((self.now + link.latency_s, channel, b"".join(kept)))
+            return
+        out = link.endpoint.receive(b"".join(kept), self.now, channel=channel)
+        self._to_client(link, out)
+
+    def _deliver_due(self, link: HarnessLink) -> None:
+        while link._up and link._up[0][0] <= self.now:
+            _, channel, data = link._up.pop(0)
+            self._to_client(link, link.endpoint.receive(data, self.now, channel=channel))
+        while link._down and link._down[0][0] <= self.now:
+            _, data = link._down.pop(0)
+            for client in link.clients:
+                client.feed(data, self.now)
 
     def _to_client(self, link: HarnessLink, data: bytes) -> None:
         if not data:
@@ -170,19 +206,27 @@ class FastTimeHarness:
                     continue
                 kept.append(msg.pack(enc))
             data = b"".join(kept)
-        link.client.feed(data, self.now)
+        if link.latency_s > 0:
+            link._down.append((self.now + link.latency_s, data))
+            return
+        for client in link.clients:
+            client.feed(data, self.now)
 
     def step(self, until: float) -> None:
         """Deliver what clients queued, then jump to the next deadline (at most `until`)."""
         for link in self.links:
             self._deliver(link)
         deadlines = [
-            d for d in (link.endpoint.next_deadline() for link in self.links) if d is not None
+            d
+            for link in self.links
+            for d in (link.endpoint.next_deadline(), link.next_delivery())
+            if d is not None
         ]
         t = min(deadlines) if deadlines else until
         t = max(self.now, min(t, until))
         self.now = t
         for link in self.links:
+            self._deliver_due(link)
             d = link.endpoint.next_deadline()
             if d is not None and d <= t:
                 self._to_client(link, link.endpoint.on_timer(t))
@@ -193,6 +237,7 @@ class FastTimeHarness:
             self.step(end)
         for link in self.links:
             self._deliver(link)
+            self._deliver_due(link)
 
     def run_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
         """Run until `predicate()` holds (checked after every step); False on timeout."""

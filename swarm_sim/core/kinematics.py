@@ -63,6 +63,7 @@ class Target:
     stop: bool = True  # GOTO: brake to stop on the point (hover-capable and ground)
     climb_rate: float = 0.0  # 0: airframe default
     sink_rate: float = 0.0  # 0: airframe default
+    track_from: tuple[float, float] | None = None  # GOTO: fly the line from here (fixed-wing)
 
 
 class EventKind(IntEnum):
@@ -346,7 +347,7 @@ class FixedWingModel:
             alt_want = body.ground_alt + max(0.0, dist - 20.0) * 0.08
             alt_want = min(alt_want, body.alt)
         else:
-            course_want = math.degrees(math.atan2(de, dn)) if dist > 1.0 else body.course_deg
+            course_want = self._track_course(body, target, dist)
         # airspeed
         body.airspeed += _clamp(speed_want - body.airspeed, -2.0 * dt, 2.0 * dt)
         body.airspeed = max(body.airspeed, p.min_airspeed_m_s)
@@ -414,6 +415,28 @@ class FixedWingModel:
         if body.alt <= body.ground_alt:
             _touchdown(body, events, keep_horizontal=True)
         return events
+
+    @staticmethod
+    def _track_course(body: Body, target: Target, dist: float) -> float:
+        """Course to the target along the line from `track_from` (L1-style: aim at the
+        point of the line one L1 distance ahead), or straight at it."""
+        if dist <= 1.0:
+            return body.course_deg
+        l1 = max(60.0, 3.0 * body.airspeed)
+        if target.track_from is not None and dist > l1:
+            fn, fe = target.track_from
+            tn, te = target.n - fn, target.e - fe
+            length = math.hypot(tn, te)
+            if length > 1.0:
+                un, ue = tn / length, te / length
+                along = (body.n - fn) * un + (body.e - fe) * ue
+                cross = -(body.n - fn) * ue + (body.e - fe) * un
+                if abs(cross) < l1:
+                    ahead = along + math.sqrt(l1 * l1 - cross * cross)
+                    if ahead < length:
+                        an, ae = fn + un * ahead, fe + ue * ahead
+                        return math.degrees(math.atan2(ae - body.e, an - body.n))
+        return math.degrees(math.atan2(target.e - body.e, target.n - body.n))
 
     @staticmethod
     def _loiter_course(body: Body, target: Target, radius: float) -> float:
@@ -546,7 +569,9 @@ class GroundModel:
                 cruise = target.speed if target.speed > 0 else p.cruise_speed_m_s
                 speed_want = cruise * max(0.0, math.cos(math.radians(min(abs(err), 90.0))))
                 if abs(err) > 60.0 and p.model == VehicleModel.BOAT:
-                    speed_want = 0.3 * cruise  # boats cannot pivot
+                    # boats cannot pivot: turn on a circle small enough to reach the point
+                    omega = math.radians(p.turn_rate_deg_s)
+                    speed_want = min(0.3 * cruise, 0.5 * dist * omega)
                 if target.stop or radius > 0:
                     speed_want = min(speed_want, math.sqrt(2.0 * p.accel_m_s2 * dist), dist)
         if speed_want == 0.0:

@@ -40,6 +40,7 @@ UPLOAD_TIMEOUT_S = 8.0  # MissionItemProtocol::upload_timeout_ms
 REQUEST_RESEND_S = 1.0  # wp_recv_timeout_ms (plus the stream slow-down, 0 here)
 
 MAX_ITEMS = {MISSION: 724, FENCE: 84, RALLY: 100}
+MAX_ALT_M = 50_000.0
 
 # MAV_FRAME values that carry a global position, and their altitude reference
 FRAME_ABSOLUTE = {0, 5}  # GLOBAL, GLOBAL_INT
@@ -174,7 +175,7 @@ def _check_location(item: MissionItem) -> int:
         return INVALID_PARAM5_X
     if abs(item.y) > 1_800_000_000:
         return INVALID_PARAM6_Y
-    if not math.isfinite(item.z):
+    if not math.isfinite(item.z) or abs(item.z) > MAX_ALT_M:
         return 12  # INVALID_PARAM7
     return ACCEPTED
 
@@ -255,7 +256,6 @@ class ItemTransfer:
         else:
             del self.items[count:]
         if count == 0:
-            self._buffer = self._buffer if self._buffer is not None else None
             return self._complete(peer)
         self.receiving = True
         self._peer = peer

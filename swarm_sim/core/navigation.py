@@ -10,9 +10,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import IntEnum
 from typing import Protocol
 
 from .kinematics import Body, Guide, Target
+
+
+class Purpose(IntEnum):
+    """Why the current navigation task runs (decides what happens when it completes)."""
+
+    MODE = 0
+    MISSION = 1
+    GUIDED_GOTO = 2
+    GUIDED_TAKEOFF = 3
+    GUIDED_VELOCITY = 4
 
 
 class NavContext(Protocol):
@@ -110,7 +121,7 @@ class FlyTo(NavTask):
         if self.vtol:
             speed = 0.0  # the VTOL speed
         return Target(Guide.GOTO, self.n, self.e, self.alt, speed=speed, stop=self.stop,
-                      fixed_wing=not self.vtol)  # fmt: skip
+                      fixed_wing=not self.vtol, track_from=self.origin)  # fmt: skip
 
     def update(self, ctx: NavContext, dt: float) -> bool:
         b = ctx.body

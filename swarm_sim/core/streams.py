@@ -23,13 +23,14 @@ HOME_POSITION = 242
 EXTENDED_SYS_STATE = 245
 GPS_GLOBAL_ORIGIN = 49
 WIND = 168
+FENCE_STATUS = 162
 
 # What the simulator can stream.
 STREAMABLE: frozenset[int] = frozenset(
     {
         HEARTBEAT, SYS_STATUS, SYSTEM_TIME, GPS_RAW_INT, ATTITUDE, GLOBAL_POSITION_INT,
         MISSION_CURRENT, NAV_CONTROLLER_OUTPUT, VFR_HUD, BATTERY_STATUS, EKF_STATUS_REPORT,
-        HOME_POSITION, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, WIND, TIMESYNC,
+        HOME_POSITION, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, WIND, TIMESYNC, FENCE_STATUS,
     }
 )  # fmt: skip
 
@@ -48,6 +49,7 @@ DEFAULT_INTERVALS_S: dict[int, float] = {
     MISSION_CURRENT: 1.0,
     EKF_STATUS_REPORT: 1.0,
     EXTENDED_SYS_STATE: 1.0,
+    FENCE_STATUS: 1.0,  # only while the fence is enabled, as ArduPilot
     TIMESYNC: 10.0,
 }
 
@@ -55,7 +57,14 @@ DEFAULT_INTERVALS_S: dict[int, float] = {
 # simulator produces)
 STREAM_GROUPS: dict[int, tuple[int, ...]] = {
     1: (),  # RAW_SENSORS
-    2: (SYS_STATUS, MISSION_CURRENT, GPS_RAW_INT, NAV_CONTROLLER_OUTPUT, EXTENDED_SYS_STATE),
+    2: (
+        SYS_STATUS,
+        MISSION_CURRENT,
+        GPS_RAW_INT,
+        NAV_CONTROLLER_OUTPUT,
+        EXTENDED_SYS_STATE,
+        FENCE_STATUS,
+    ),
     3: (),  # RC_CHANNELS
     4: (),  # RAW_CONTROLLER
     6: (GLOBAL_POSITION_INT,),  # POSITION
@@ -74,6 +83,7 @@ class StreamScheduler:
         self.defaults = dict(DEFAULT_INTERVALS_S if defaults is None else defaults)
         self.intervals: dict[int, float] = dict(self.defaults)
         self._due: dict[int, float] = {mid: now for mid in self.intervals}
+        self._next: float | None = now if self._due else None
 
     def set_interval(self, msg_id: int, interval_s: float | None, now: float) -> bool:
         """`interval_s`: None = the default, <= 0 or inf = off. False if `msg_id` cannot be
@@ -85,10 +95,12 @@ class StreamScheduler:
         if interval_s <= 0 or not math.isfinite(interval_s):
             self.intervals.pop(msg_id, None)
             self._due.pop(msg_id, None)
+            self._next = min(self._due.values()) if self._due else None
             return True
         interval_s = max(MIN_INTERVAL_S, interval_s)
         self.intervals[msg_id] = interval_s
         self._due[msg_id] = min(self._due.get(msg_id, now + interval_s), now + interval_s)
+        self._next = min(self._due.values())
         return True
 
     def interval(self, msg_id: int) -> float:
@@ -107,6 +119,8 @@ class StreamScheduler:
     def due(self, now: float) -> list[int]:
         """Message ids due at `now`; each is rescheduled one interval later (skipping
         missed slots rather than bursting)."""
+        if self._next is None or self._next > now + 1e-9:
+            return []
         out = []
         for mid, t in self._due.items():
             if t <= now + 1e-9:
@@ -115,7 +129,8 @@ class StreamScheduler:
                 if nxt <= now:
                     nxt = now + self.intervals[mid]
                 self._due[mid] = nxt
+        self._next = min(self._due.values()) if self._due else None
         return out
 
     def next_deadline(self) -> float | None:
-        return min(self._due.values()) if self._due else None
+        return self._next

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 _GYRO, _ACCEL, _MAG, _ABS_PRESSURE, _DIFF_PRESSURE, _GPS = 1, 2, 4, 8, 16, 32
 _RATE_CONTROL, _ATTITUDE, _YAW_POSITION, _Z_ALTITUDE, _XY_POSITION = 1024, 2048, 4096, 8192, 16384
 _MOTOR_OUTPUTS, _RC_RECEIVER, _AHRS, _TERRAIN, _BATTERY = 32768, 65536, 2097152, 4194304, 33554432
-_LOGGING, _PREARM = 16777216, 268435456
+_LOGGING, _PREARM, _GEOFENCE = 16777216, 268435456, 1048576
 _BASE_SENSORS = (_GYRO | _ACCEL | _MAG | _ABS_PRESSURE | _GPS | _RATE_CONTROL | _ATTITUDE
                  | _YAW_POSITION | _Z_ALTITUDE | _XY_POSITION | _MOTOR_OUTPUTS | _AHRS
                  | _BATTERY | _LOGGING | _PREARM)  # fmt: skip
@@ -40,8 +40,15 @@ CAPABILITIES = 1 | 2 | 4 | 8 | 256 | 8192 | 16384 | 32768 | 65536 | 4
 FLIGHT_SW_VERSION = (4 << 24) | (7 << 16) | (0 << 8) | 0  # 4.7.0-dev, like the recordings
 
 
+def _i32(value: float) -> int:
+    """Clamped to int32 (a MAVLink field must never make packing fail)."""
+    if not math.isfinite(value):
+        return 0
+    return max(-(2**31), min(2**31 - 1, round(value)))
+
+
 def _deg_e7(value: float) -> int:
-    return round(value * 1e7)
+    return _i32(value * 1e7)
 
 
 def heartbeat(ap: SimAutopilot) -> Any:
@@ -61,8 +68,8 @@ def global_position_int(ap: SimAutopilot, now: float) -> Any:
         ap.boot_ms(now),
         _deg_e7(lat),
         _deg_e7(lon),
-        round(b.alt * 1000),
-        round(ap.rel_alt_m * 1000),
+        _i32(b.alt * 1000),
+        _i32(ap.rel_alt_m * 1000),
         _i16(b.vn * 100),
         _i16(b.ve * 100),
         _i16(b.vd * 100),
@@ -103,21 +110,37 @@ def gps_raw_int(ap: SimAutopilot, now: float) -> Any:
     cog = round(b.course_deg * 100) % 36000 if b.groundspeed > 0.5 else 0
     return mavlink.MAVLink_gps_raw_int_message(
         int((now - ap.boot_time) * 1e6), ap.options.gps_fix_type, _deg_e7(lat), _deg_e7(lon),
-        round(b.alt * 1000), 121, 200, round(b.groundspeed * 100), cog,
-        ap.options.satellites, round(b.alt * 1000), 300, 300, 40, 0, 0,
+        _i32(b.alt * 1000), 121, 200, min(65535, round(b.groundspeed * 100)), cog,
+        ap.options.satellites, _i32(b.alt * 1000), 300, 300, 40, 0, 0,
     )  # fmt: skip
 
 
 def sys_status(ap: SimAutopilot) -> Any:
-    present = _BASE_SENSORS | (_DIFF_PRESSURE if ap.airframe.is_fixed_wing else 0)
-    health = present
+    # bits as in the recorded SITL streams: GEOFENCE present (copter, or with fence
+    # items), enabled with FENCE_ENABLE, healthy unless breached (MAVProxy reports
+    # "fence breach" when the health bit is missing)
+    fence_present = ap.firmware.name == "COPTER" or bool(ap.fence_items)
+    present = (
+        _BASE_SENSORS
+        | _RC_RECEIVER
+        | _TERRAIN
+        | (_DIFF_PRESSURE if ap.airframe.is_fixed_wing else 0)
+    )
+    present |= _GEOFENCE if fence_present else 0
+    enabled = present & ~_GEOFENCE
+    if ap.params["FENCE_ENABLE"][0]:
+        enabled |= _GEOFENCE
+    if not ap.armed:
+        enabled &= ~_MOTOR_OUTPUTS
+    health = present | _GEOFENCE
+    if ap.fence_breached:
+        health &= ~_GEOFENCE
     if not ap.gps_fix:
         health &= ~_GPS
     if not ap.ekf_position:
         health &= ~(_XY_POSITION | _AHRS)
     if ap.prearm_failure() is not None:
         health &= ~_PREARM
-    enabled = present if ap.armed else present & ~_MOTOR_OUTPUTS
     bat = ap.battery
     return mavlink.MAVLink_sys_status_message(
         present, enabled, health, 0, round(bat.voltage * 1000), round(bat.current_a * 100),
@@ -162,7 +185,7 @@ def home_position(ap: SimAutopilot, now: float) -> Any:
     hn, he = ap.home_ne
     nan = float("nan")
     return mavlink.MAVLink_home_position_message(
-        _deg_e7(lat), _deg_e7(lon), round(alt * 1000), hn, he, -(alt - ap.origin_alt),
+        _deg_e7(lat), _deg_e7(lon), _i32(alt * 1000), hn, he, -(alt - ap.origin_alt),
         [nan, nan, nan, nan], 0.0, 0.0, 0.0, int((now - ap.boot_time) * 1e6),
     )  # fmt: skip
 
@@ -172,7 +195,7 @@ def gps_global_origin(ap: SimAutopilot, now: float) -> Any:
     return mavlink.MAVLink_gps_global_origin_message(
         _deg_e7(lat),
         _deg_e7(lon),
-        round(ap.origin_alt * 1000),
+        _i32(ap.origin_alt * 1000),
         int((now - ap.boot_time) * 1e6),
     )
 
@@ -221,6 +244,20 @@ def wind(ap: SimAutopilot) -> Any:
     if direction > 180:
         direction -= 360
     return mavlink.MAVLink_wind_message(direction, speed, 0.0)
+
+
+def fence_status(ap: SimAutopilot) -> Any | None:
+    """FENCE_STATUS, sent only while the fence is enabled (GCS_MAVLINK::send_fence_status)."""
+    if not ap.params["FENCE_ENABLE"][0]:
+        return None
+    breach_type = 3 if ap.fence_breach_count else 0  # FENCE_BREACH_BOUNDARY
+    return mavlink.MAVLink_fence_status_message(
+        int(ap.fence_breached),
+        min(65535, ap.fence_breach_count),
+        breach_type,
+        ap.fence_breach_ms,
+        0,
+    )
 
 
 def timesync_request(now: float) -> Any:
@@ -280,6 +317,8 @@ def build(ap: SimAutopilot, msg_id: int, now: float) -> Any | None:
         return wind(ap)
     if msg_id == S.TIMESYNC:
         return timesync_request(now)
+    if msg_id == S.FENCE_STATUS:
+        return fence_status(ap)
     if msg_id == 148:  # AUTOPILOT_VERSION
         return autopilot_version(ap)
     return None

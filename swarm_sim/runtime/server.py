@@ -30,6 +30,7 @@ MAX_CLIENT_BACKLOG_BYTES = 4 * 1024 * 1024  # a client this far behind loses its
 READ_CHUNK = 65536
 MAX_SLEEP_WALL_S = 0.2  # wake up at least this often to notice `stop`
 MIN_SLEEP_WALL_S = 0.0005
+MANUAL_CLOCK_POLL_S = 0.01
 
 
 @dataclass(frozen=True)
@@ -72,17 +73,29 @@ class VehicleServer:
     """Serves `specs` on 127.0.0.1 (or `host`). `start()` binds the ports (OSError if one
     is taken), `serve(stop)` runs until `stop` is set, `close()` releases everything."""
 
-    def __init__(self, specs: list[VehicleSpec], clock: Clock, host: str = "127.0.0.1") -> None:
+    def __init__(
+        self,
+        specs: list[VehicleSpec],
+        clock: Clock,
+        host: str = "127.0.0.1",
+        endpoints: list[VehicleEndpoint] | None = None,
+    ) -> None:
+        """`endpoints`: already built (e.g. flown ahead in fast time) vehicles to serve
+        instead of new ones, one per spec; their time must not be ahead of `clock`."""
         if not specs:
             raise ValueError("no vehicles to serve")
         ports = [s.tcp_port for s in specs]
         if len(set(ports)) != len(ports):
             raise ValueError(f"two vehicles on one port: {ports}")
+        if endpoints is not None and len(endpoints) != len(specs):
+            raise ValueError("one endpoint per spec")
         self.specs = specs
         self.clock = clock
         self.host = host
+        self._given = endpoints
         self.vehicles: list[_Vehicle] = []
         self.counters: Counter[str] = Counter()
+        self.max_lag_s = 0.0  # worst lateness of a vehicle deadline, simulated seconds
         self._sel = selectors.DefaultSelector()
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -92,16 +105,19 @@ class VehicleServer:
     def start(self) -> None:
         now = self.clock.now()
         try:
-            for spec in self.specs:
+            for k, spec in enumerate(self.specs):
                 listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
                 listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
                 listener.bind((self.host, spec.tcp_port))
                 listener.listen(8)
                 listener.setblocking(False)
-                endpoint = VehicleEndpoint.create(
-                    spec.model, home=spec.home, now=now, sysid=spec.system_id,
-                    airframe=spec.airframe, options=spec.options,
-                )  # fmt: skip
+                if self._given is not None:
+                    endpoint = self._given[k]
+                else:
+                    endpoint = VehicleEndpoint.create(
+                        spec.model, home=spec.home, now=now, sysid=spec.system_id,
+                        airframe=spec.airframe, options=spec.options,
+                    )  # fmt: skip
                 vehicle = _Vehicle(spec, endpoint, listener)
                 self.vehicles.append(vehicle)
                 self._sel.register(listener, selectors.EVENT_READ, vehicle)
@@ -158,6 +174,7 @@ class VehicleServer:
         for vehicle in self.vehicles:
             deadline = vehicle.endpoint.next_deadline()
             if deadline is not None and deadline <= now:
+                self.max_lag_s = max(self.max_lag_s, now - deadline)
                 self._broadcast(vehicle, vehicle.endpoint.on_timer(now))
 
     def _next_deadline(self) -> float | None:
@@ -172,11 +189,10 @@ class VehicleServer:
             timeout = MAX_SLEEP_WALL_S
         else:
             ahead = deadline - self.clock.now()
-            timeout = (
-                0.0
-                if ahead <= 0
-                else max(MIN_SLEEP_WALL_S, min(MAX_SLEEP_WALL_S, self.clock.to_wall(ahead)))
-            )
+            wall = self.clock.to_wall(ahead) if ahead > 0 else 0.0
+            if ahead > 0 and wall <= 0.0:
+                wall = MANUAL_CLOCK_POLL_S  # a ManualClock: time moves only when told
+            timeout = 0.0 if ahead <= 0 else max(MIN_SLEEP_WALL_S, min(MAX_SLEEP_WALL_S, wall))
         for key, events in self._sel.select(timeout):
             obj = key.data
             if isinstance(obj, _Vehicle):

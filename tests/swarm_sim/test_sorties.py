@@ -122,9 +122,146 @@ def test_ground_vehicle_sortie(model: str) -> None:
     )  # fmt: skip
     assert p.set_mode("AUTO") == 0
     assert p.arm() == 0
-    assert p.h.run_until(lambda: p.ap.mode_name == "HOLD", 900)
-    assert "Mission Complete" in p.c.texts()
+    assert p.h.run_until(lambda: "Mission Complete" in p.c.texts(), 900)
+    p.h.run_for(10)
+    assert p.ap.mode_name == "AUTO" and p.ap.body.groundspeed < 0.05  # stopped, still in AUTO
     b = p.ap.body
     assert math.hypot(b.n, b.e) < 4.0
     assert b.alt == p.ap.home_alt  # 2-D
     assert [m.seq for m in p.c.seen("MISSION_ITEM_REACHED")] == [1, 2, 3, 4]
+
+
+def test_plane_rtl_then_land_via_do_land_start() -> None:
+    """ArduPlane's way home and down: RTL with RTL_AUTOLAND=1 flies home, then jumps to
+    the mission's DO_LAND_START sequence and lands."""
+    p = make_pilot("plane")
+    p.wait_ready()
+    p.c.mav.param_set_send(1, 1, b"RTL_AUTOLAND", 1, 2)
+    fly_mission(
+        p,
+        [(WP, 0, 0, 0, 0), (TAKEOFF, REL, 0, 0, 40), (WP, REL, 1500, 0, 80), (WP, REL, 1500, 1500, 80),
+         (189, REL, 0, 0, 0), (WP, REL, -700, 0, 40), (LAND, REL, 0.5, 0, 0)],
+    )  # fmt: skip
+    assert p.set_mode("AUTO") == 0 and p.arm() == 0
+    assert p.h.run_until(lambda: p.ap.mission_seq == 3, 300)
+    assert p.set_mode("RTL") == 0  # before the end of the mission
+    assert p.h.run_until(lambda: p.ap.mode_name == "AUTO", 300)
+    assert "Landing sequence start" in p.c.texts()
+    assert p.h.run_until(lambda: not p.ap.armed, 600)
+    assert_landed_home(p, 150.0)
+    assert [m.seq for m in p.c.seen("MISSION_ITEM_REACHED")][-2:] == [5, 6]
+    assert p.set_mode("FBWA") == 0
+    assert p.command(189) == 0 and p.ap.mode_name == "AUTO"  # MAV_CMD_DO_LAND_START
+    assert p.ap.mission_seq == 5
+
+
+def test_vtol_mission_ends_with_a_vertical_landing() -> None:
+    p = make_pilot("vtol")
+    p.wait_ready()
+    fly_mission(
+        p,
+        [(WP, 0, 0, 0, 0), (VTOL_TAKEOFF, REL, 0, 0, 40), (WP, REL, 1000, 0, 60),
+         (VTOL_LAND, REL, 1000, 800, 0)],
+    )  # fmt: skip
+    assert p.set_mode("AUTO") == 0 and p.arm() == 0
+    assert p.h.run_until(lambda: not p.ap.armed, 900)
+    b = p.ap.body
+    assert b.on_ground and math.hypot(b.n - 1000, b.e - 800) < 3.0
+    assert [m.seq for m in p.c.seen("MISSION_ITEM_REACHED")] == [1, 2, 3]
+    texts = p.c.texts()
+    assert (
+        texts.index("Mission: 3 VTOLLand")
+        < texts.index("Land complete")
+        < texts.index("Throttle disarmed")
+    )
+
+
+def test_vtol_qrtl_returns_and_lands_vertically() -> None:
+    p = make_pilot("vtol")
+    p.wait_ready()
+    fly_mission(p, [(WP, 0, 0, 0, 0), (VTOL_TAKEOFF, REL, 0, 0, 40), (WP, REL, 2000, 0, 80)])
+    assert p.set_mode("AUTO") == 0 and p.arm() == 0
+    assert p.h.run_until(lambda: p.ap.body.n > 1200, 300)
+    assert p.set_mode("QRTL") == 0
+    assert p.h.run_until(lambda: not p.ap.armed, 900)
+    assert_landed_home(p, 3.0)
+
+
+def test_mission_loiters_speed_change_and_jumps() -> None:
+    p = make_pilot("copter")
+    p.wait_ready()
+    fly_mission(
+        p,
+        [(WP, 0, 0, 0, 0), (TAKEOFF, REL, 0, 0, 20), (178, 0, 0, 0, 0), (19, REL, 50, 0, 20),
+         (WP, REL, 250, 0, 20), (177, 0, 0, 0, 0), (RTL, REL, 0, 0, 0)],
+    )  # fmt: skip
+    # set the params the simple upload helper leaves at 0
+    items = p.ap.mission_items
+    from dataclasses import replace
+
+    items[2] = replace(items[2], param1=1, param2=4.0)  # DO_CHANGE_SPEED ground speed 4 m/s
+    items[3] = replace(items[3], param1=20.0)  # LOITER_TIME 20 s
+    items[5] = replace(items[5], param1=4, param2=1)  # DO_JUMP to 4, once
+    assert p.set_mode("GUIDED") == 0 and p.arm() == 0
+    assert p.command(22, 0, 0, 0, 0, 0, 0, 20) == 0
+    assert p.h.run_until(lambda: p.ap.rel_alt_m > 19.5, 60)
+    assert p.set_mode("AUTO") == 0 and p.command(300) == 0
+    assert p.h.run_until(lambda: p.ap.mission_seq == 3, 120)
+    assert p.h.run_until(lambda: p.ap.mission_seq == 4, 120)
+    arrive = next(
+        t
+        for t, m in p.c.history
+        if m.get_type() == "STATUSTEXT" and m.text == "Mission: 3 LoitTime"
+    )
+    left = next(
+        t for t, m in p.c.history if m.get_type() == "STATUSTEXT" and m.text == "Mission: 4 WP"
+    )
+    assert left - arrive >= 20.0
+    p.h.run_for(20)
+    assert abs(p.ap.body.groundspeed - 4.0) < 0.3  # DO_CHANGE_SPEED applies
+    assert p.h.run_until(lambda: not p.ap.armed, 900)
+    reached = [m.seq for m in p.c.seen("MISSION_ITEM_REACHED")]
+    assert reached == [1, 3, 4, 4, 6]  # the jump flew waypoint 4 twice
+
+
+def test_plane_loiter_turns() -> None:
+    p = make_pilot("plane")
+    p.wait_ready()
+    fly_mission(
+        p, [(WP, 0, 0, 0, 0), (TAKEOFF, REL, 0, 0, 40), (18, REL, 800, 0, 60), (WP, REL, 0, 0, 60)]
+    )
+    from dataclasses import replace
+
+    p.ap.mission_items[2] = replace(
+        p.ap.mission_items[2], param1=2.0, param3=-100.0
+    )  # 2 turns ccw r=100
+    assert p.set_mode("AUTO") == 0 and p.arm() == 0
+    assert p.h.run_until(lambda: p.ap.mission_seq == 2, 300)
+    start = p.h.now
+    assert p.h.run_until(lambda: p.ap.mission_seq == 3, 600)
+    circling = p.h.now - start
+    one_turn = 2 * math.pi * 100 / p.ap.airframe.cruise_speed_m_s
+    assert 2 * one_turn * 0.9 < circling < 2 * one_turn + 120
+
+
+def test_rover_rtl_mode() -> None:
+    p = make_pilot("rover")
+    p.wait_ready()
+    assert p.set_mode("GUIDED") == 0 and p.arm() == 0
+    x, y = p.latlon(40, 30)
+    assert p.command_int(192, 6, -1, 0, 0, 0, x=x, y=y, z=0) == 0
+    assert p.h.run_until(lambda: math.hypot(p.ap.body.n - 40, p.ap.body.e - 30) < 2.5, 120)
+    assert p.set_mode("RTL") == 0
+    assert p.h.run_until(lambda: "Reached destination" in p.c.texts(), 120)
+    assert math.hypot(p.ap.body.n, p.ap.body.e) < 2.5 and p.ap.armed  # rovers never auto-disarm
+
+
+def test_plane_takeoff_mode_climbs_out_then_loiters() -> None:
+    p = make_pilot("plane")
+    p.wait_ready()
+    assert p.set_mode("TAKEOFF") == 0 and p.arm() == 0
+    assert p.h.run_until(lambda: p.ap.rel_alt_m > 49, 120)  # TKOFF_ALT
+    p.h.run_for(120)
+    b = p.ap.body
+    assert abs(p.ap.rel_alt_m - 50) < 2 and b.airspeed >= p.ap.airframe.min_airspeed_m_s
+    assert p.ap.mode_name == "TAKEOFF" and p.ap.armed

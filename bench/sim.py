@@ -1,0 +1,211 @@
+"""How many simulated vehicles one core runs at 10x real time.
+
+A mixed fleet (VTOL, copter, plane, rover, boat in turn) is flown into the air in fast
+time on looping missions (DO_JUMP forever), then measured two ways in the same run:
+
+- baseline, pure cores: CPU seconds per simulated vehicle-second when the vehicles'
+  endpoints are stepped deadline to deadline with default telemetry encoded to bytes
+  (no sockets). At 10x real time a core has 0.1 CPU-s per simulated second, so the core
+  capacity is 1 / (10 * that).
+- the real thing: the same fleet served by one VehicleServer thread on TCP at a 10x
+  ScaledClock, every vehicle with a client (in another process) reading its stream;
+  process CPU over the wall-clock window gives `vehicles_per_core_at_10x`, and the
+  worst deadline lateness shows whether the server kept up.
+"""
+
+from __future__ import annotations
+
+import heapq
+import resource
+import subprocess
+import sys
+import time
+from typing import Any
+
+from swarm_proto.clock import ScaledClock
+from swarm_sim.core import SITL_HOME, FastTimeHarness, HarnessLink, SimOptions
+from swarm_sim.core.firmware import mode_number
+from swarm_sim.core.geo import LocalFrame
+from swarm_sim.core.streams import DEFAULT_INTERVALS_S
+from swarm_sim.runtime import VehicleServer, VehicleSpec, spread_homes
+
+MODELS = ("vtol", "copter", "plane", "rover", "boat")
+SPEEDUP = 10.0
+CORE_VEHICLES = 25
+CORE_SIM_S = 300.0
+TCP_WALL_S = 10.0
+BASE_PORT = 17000
+REL = 3
+
+
+def _cmd(h: FastTimeHarness, link: HarnessLink, command: int, *params: float) -> None:
+    p = [*params, *([0.0] * (7 - len(params)))]
+    link.client.mav.command_long_send(link.autopilot.sysid, 1, command, 0, *p)
+    h.run_for(0.2)
+
+
+def _launch(h: FastTimeHarness, link: HarnessLink, k: int) -> None:
+    ap, c = link.autopilot, link.client
+    frame = LocalFrame(ap.frame.lat0, ap.frame.lon0)
+    size = {"vtol": 800.0, "plane": 800.0, "copter": 150.0}.get(ap.model.value, 60.0)
+    alt = {"vtol": 60.0, "plane": 60.0, "copter": 30.0}.get(ap.model.value, 0.0)
+    takeoff = {"vtol": 84, "plane": 22, "copter": 22}.get(ap.model.value)
+    items: list[tuple[int, float, float, float, float]] = [(16, 0, 0, 0, 0)]
+    if takeoff is not None:
+        items.append((takeoff, 0, 0, 40.0, 0))
+    first = len(items)
+    for n, e in ((size, 0), (size, size), (0, size), (0, 0.5)):
+        items.append((16, n, e, alt, 0))
+    items.append((177, 0, 0, 0, first))  # DO_JUMP to the first waypoint, forever
+    c.mav.mission_count_send(ap.sysid, 1, len(items), 0)
+    for _ in range(len(items)):
+        req = h.wait_for(c, "MISSION_REQUEST", 5)
+        assert req is not None, "vehicle did not ask for mission items"
+        cmd, n, e, z, jump = items[req.seq]
+        lat, lon = frame.to_latlon(n, e)
+        x, y = (round(lat * 1e7), round(lon * 1e7)) if (n or e) else (0, 0)
+        p1, p2 = (float(jump), -1.0) if cmd == 177 else (0.0, 0.0)
+        c.mav.mission_item_int_send(ap.sysid, 1, req.seq, REL, cmd, 0, 1, p1, p2, 0, 0, x, y, z, 0)
+    assert h.wait_for(c, "MISSION_ACK", 5) is not None
+    if ap.model.value == "copter":
+        _cmd(h, link, 176, 1, mode_number(ap.firmware, "GUIDED"))
+        _cmd(h, link, 400, 1)
+        _cmd(h, link, 22, 0, 0, 0, 0, 0, 0, 30)
+        h.run_until(lambda: ap.rel_alt_m > 29, 60)
+        _cmd(h, link, 176, 1, mode_number(ap.firmware, "AUTO"))
+        _cmd(h, link, 300)
+    else:
+        _cmd(h, link, 176, 1, mode_number(ap.firmware, "AUTO"))
+        _cmd(h, link, 400, 1)
+
+
+def fleet(
+    n: int, start_time: float, airborne_s: float = 150.0
+) -> tuple[FastTimeHarness, list[HarnessLink]]:
+    """`n` vehicles flying looping missions, `airborne_s` after launch. Built with
+    HEARTBEAT only (fast), then every vehicle gets the default telemetry streams."""
+    h = FastTimeHarness(start_time=start_time)
+    homes = spread_homes(SITL_HOME, n, 30.0)
+    quiet = SimOptions(stream_defaults={0: 1.0})
+    links = [
+        h.add_vehicle(MODELS[k % len(MODELS)], instance=k, home=homes[k], options=quiet)
+        for k in range(n)
+    ]
+    h.run_until(lambda: all(link.autopilot.ekf_position for link in links), 60)
+    for k, link in enumerate(links):
+        _launch(h, link, k)
+    h.run_for(airborne_s)
+    flying = sum(1 for link in links if link.autopilot.armed and link.autopilot.mission_running)
+    assert flying == n, f"only {flying}/{n} vehicles flying their missions"
+    for link in links:
+        link.client.clear()
+        link.client.history.clear()
+        for msg_id, interval in DEFAULT_INTERVALS_S.items():
+            link.autopilot.streams.set_interval(msg_id, interval, h.now)
+    return h, links
+
+
+def core_cpu_per_vehicle_second(n: int, sim_s: float) -> tuple[float, float]:
+    """(CPU s per simulated vehicle-second, telemetry messages per vehicle-second)."""
+    h, links = fleet(n, 1_700_000_000.0)
+    endpoints = [link.endpoint for link in links]
+    heap: list[tuple[float, int]] = [
+        (ep.next_deadline() or h.now, k) for k, ep in enumerate(endpoints)
+    ]
+    heapq.heapify(heap)
+    end = h.now + sim_s
+    tx0 = sum(ep.counters["tx_messages"] for ep in endpoints)
+    cpu0 = time.process_time()
+    while heap[0][0] <= end:
+        t, k = heapq.heappop(heap)
+        ep = endpoints[k]
+        ep.on_timer(t)  # the bytes a client would get, encoded and dropped
+        heapq.heappush(heap, (ep.next_deadline() or t + 1.0, k))
+    cpu = time.process_time() - cpu0
+    msgs = sum(ep.counters["tx_messages"] for ep in endpoints) - tx0
+    return cpu / (n * sim_s), msgs / (n * sim_s)
+
+
+_READER = """
+import selectors, socket, sys, time
+ports = [int(p) for p in sys.argv[1].split(',')]
+stop_at = time.monotonic() + float(sys.argv[2])
+sel = selectors.DefaultSelector()
+for port in ports:
+    s = socket.create_connection(('127.0.0.1', port))
+    s.setblocking(False)
+    sel.register(s, selectors.EVENT_READ)
+print('connected', flush=True)
+total = 0
+while time.monotonic() < stop_at:
+    for key, _ in sel.select(0.2):
+        data = key.fileobj.recv(65536)
+        total += len(data)
+print(total, flush=True)
+"""
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def tcp_run(n: int, wall_s: float) -> dict[str, Any]:
+    """The fleet on TCP at 10x with a reader per vehicle; CPU of this process."""
+    h, links = fleet(n, time.time() + 3600.0)
+    clock = ScaledClock(SPEEDUP, start_unix_s=h.now + 0.5)  # picks up where fast time ended
+    ports = [BASE_PORT + k for k in range(n)]
+    specs = [
+        VehicleSpec(link.autopilot.model, instance=k, port=ports[k]) for k, link in enumerate(links)
+    ]
+    server = VehicleServer(specs, clock, endpoints=[link.endpoint for link in links])
+    server.start_thread()
+    reader = subprocess.Popen(
+        [sys.executable, "-c", _READER, ",".join(map(str, ports)), str(wall_s + 4.0)],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert reader.stdout is not None
+        assert reader.stdout.readline().strip() == "connected"
+        time.sleep(1.0)  # catch-up burst and connection set-up out of the window
+        server.max_lag_s = 0.0
+        tx0 = sum(ep.counters["tx_messages"] for ep in server.endpoints)
+        cpu0, wall0 = _cpu(), time.perf_counter()
+        time.sleep(wall_s)
+        cpu, wall = _cpu() - cpu0, time.perf_counter() - wall0
+        msgs = sum(ep.counters["tx_messages"] for ep in server.endpoints) - tx0
+        lag = server.max_lag_s
+        total_bytes = int(reader.stdout.readline().strip() or 0)
+    finally:
+        reader.wait(timeout=30)
+        server.close()
+    return {
+        "tcp_vehicles": n,
+        "tcp_cpu_fraction_of_a_core": round(cpu / wall, 3),
+        "tcp_cpu_s_per_vehicle_second": round(cpu / (n * wall * SPEEDUP), 7),
+        "tcp_max_deadline_lag_sim_s": round(lag, 3),
+        "tcp_messages_per_vehicle_second": round(msgs / (n * wall * SPEEDUP), 1),
+        "tcp_bytes_read_by_clients": total_bytes,
+        "vehicles_per_core_at_10x": int(n * wall / cpu) if cpu > 0 else None,
+    }
+
+
+def run() -> dict[str, Any]:
+    per_vs, msgs_per_vs = core_cpu_per_vehicle_second(CORE_VEHICLES, CORE_SIM_S)
+    core_capacity = 1.0 / (SPEEDUP * per_vs)
+    n_tcp = max(10, min(100, int(0.6 * core_capacity)))
+    result = {
+        "speedup": SPEEDUP,
+        "fleet": "/".join(MODELS) + " in turn, flying looping missions, default telemetry",
+        "baseline_cpu_s_per_vehicle_second_1x": round(per_vs, 7),
+        "baseline_telemetry_messages_per_vehicle_second": round(msgs_per_vs, 1),
+        "core_only_vehicles_per_core_at_10x": int(core_capacity),
+    }
+    result |= tcp_run(n_tcp, TCP_WALL_S)
+    return result
+
+
+if __name__ == "__main__":
+    import json
+
+    print(json.dumps(run(), indent=2))
