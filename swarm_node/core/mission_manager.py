@@ -101,7 +101,12 @@ class FsmEvent:
     event: fsm.Event
 
 
-Out = Submit | FsmEvent
+@dataclass(frozen=True)
+class Log:
+    text: str
+
+
+Out = Submit | FsmEvent | Log
 
 
 def flyable(profile: VehicleProfile) -> VehicleProfile:
@@ -329,6 +334,10 @@ class MissionManager:
             return [FsmEvent(fsm.PlanFailed(mid, f"approach: {exc}"[:64]))]
         self.zones = tuple(zones)
         self.mission_id = mid
+        fleet_ids = sorted(m.profile.vehicle_id for m in members)
+        note = Log(
+            f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
+        )
         # end on an unlimited loiter over the last waypoint: the autopilot holds there
         # (ArduPlane would otherwise RTL by itself, straight through any zone) until the
         # node flies the zone-safe way home
@@ -348,7 +357,7 @@ class MissionManager:
             steps.append(StartMission())
         self._steps = steps
         self.phase = Phase.STARTING
-        return self._next()
+        return [note, *self._next()]
 
     def _tight(self, waypoints: Sequence[Waypoint]) -> tuple[Waypoint, ...]:
         """Fixed-wing: every plain waypoint asks for FIXED_WING_ACCEPT_M acceptance."""

@@ -41,6 +41,7 @@ class Thresholds:
     min_sats: int = 6
     raise_after_s: float = 1.0
     clear_after_s: float = 3.0
+    link_grace_s: float = 10.0  # at start, the autopilot link may take this long to come up
 
     @classmethod
     def from_profile(cls, profile: VehicleProfile) -> Thresholds:
@@ -140,6 +141,8 @@ class VehicleMonitor:
     _tracked: dict[AlertCode, _Tracked] = field(default_factory=dict)
     _had_gps: bool = False
     _had_ekf: bool = False
+    _had_link: bool = False
+    _started: float | None = None
     _breach_text: str | None = None
     ready: bool = False
 
@@ -147,8 +150,13 @@ class VehicleMonitor:
     def _observe(self, s: AutopilotState, now: float) -> set[AlertCode]:
         t = self.thresholds
         seen: set[AlertCode] = set()
+        if self._started is None:
+            self._started = now
+        self._had_link |= s.link_ok
         if not s.link_ok:
-            seen.add(AlertCode.AUTOPILOT_LINK_LOSS)
+            # lost after it was up; or never up within the grace period after start
+            if self._had_link or now - self._started >= t.link_grace_s:
+                seen.add(AlertCode.AUTOPILOT_LINK_LOSS)
             return seen  # everything else is stale while the link is down
         if 0 <= s.battery_pct <= t.battery_critical_pct:
             seen.add(AlertCode.BATTERY_CRITICAL)

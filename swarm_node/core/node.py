@@ -53,6 +53,7 @@ from .commands import (
     plan_command,
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
+from .mission_manager import Log as ManagerLog
 from .mission_manager import Member, MissionManager
 from .mission_manager import Out as MissionOut
 from .mission_manager import Submit as ManagerSubmit
@@ -236,6 +237,8 @@ class NodeCore:
         for o in outs:
             if isinstance(o, ManagerSubmit):
                 out.append(Submit(o.request))
+            elif isinstance(o, ManagerLog):
+                out.append(Note(logging.INFO, o.text))
             else:
                 self.fsm.post(o.event)
         self.mission_state = self.manager.mission_state
@@ -445,7 +448,14 @@ class NodeCore:
         if mission is None:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
             return []
-        members = self._members()
+        members, unknown = self._members()
+        if unknown:
+            self.fsm.post(
+                fsm.PlanFailed(mission_id, f"no profile for fleet members {unknown}"[:64])
+            )
+            return [
+                Note(logging.ERROR, f"cannot plan mission {mission_id}: no profile for {unknown}")
+            ]
         return self._from_manager(
             self.manager.release(
                 mission, members, tuple(self.monitor.zones.values()), self.autopilot, now
@@ -456,19 +466,25 @@ class NodeCore:
         zones = [z for z in self.monitor.zones.values() if z.in_force(now)]
         return self.manager.start_return(self.autopilot, zones, now)
 
-    def _members(self) -> list[Member]:
+    def _members(self) -> tuple[list[Member], list[int]]:
         """The fleet as the planners see it: profiles from the database, homes from the
-        members' VehicleInfo (the same on every node). Lost members are left out."""
+        members' VehicleInfo (the same on every node). Lost members are left out;
+        members whose profile is unknown are returned apart (planning without them
+        would send two vehicles over the same ground)."""
         out = [Member(self.profile, self.autopilot.home)]
+        unknown = []
         for vid in self.fleet_members:
             if vid == self.self_id:
                 continue
             peer = self.members.peers.get(vid)
+            if peer is None or not peer.present:
+                continue
             profile = self.fleet_profiles.get(vid)
-            if peer is None or not peer.present or profile is None:
+            if profile is None:
+                unknown.append(vid)
                 continue
             out.append(Member(profile, peer.info.home if peer.info else None))
-        return out
+        return out, unknown
 
 
 def _clamp(x: float, lo: float, hi: float) -> float:

@@ -95,6 +95,12 @@ class NodeRuntime:
                 stale_after_s=config.stale_after_s,
             ),
             now=clock.now(),
+            # the planners need every fleet member's airframe: the database knows them all
+            fleet_profiles=(
+                {p.vehicle_id: p for p in database.profiles()}
+                if database is not None
+                else {profile.vehicle_id: profile}
+            ),
         )
         self.inbox: queue.SimpleQueue[Input] = queue.SimpleQueue()
         self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)

@@ -96,6 +96,16 @@ def test_link_loss_is_an_immediate_emergency_in_flight() -> None:
     assert mon.emergency is None
 
 
+def test_no_link_at_start_is_not_a_loss_until_the_grace_period() -> None:
+    mon = VehicleMonitor(3, Thresholds(link_grace_s=10.0))
+    down = healthy(link_ok=False, armed=False)
+    assert run(mon, [(0.0, down), (5.0, down)]) == []
+    assert run(mon, [(10.0, down)]) == [(10.0, AlertCode.AUTOPILOT_LINK_LOSS, Severity.CRITICAL)]
+    mon2 = VehicleMonitor(3)
+    assert run(mon2, [(0.0, down), (1.0, healthy(armed=False))]) == []
+    assert run(mon2, [(2.0, down)]) == [(2.0, AlertCode.AUTOPILOT_LINK_LOSS, Severity.CRITICAL)]
+
+
 def test_gps_loss_only_after_a_fix() -> None:
     mon = VehicleMonitor(3)
     no_fix = healthy(gps_fix=GpsFix.NO_FIX, armed=False)
