@@ -1,7 +1,8 @@
-"""CPU of one vehicle node as the swarm grows: a real `swarm-node run` process on
-loopback Zenoh hears N synthetic peers (VehicleStatus at 5 Hz, VehicleInfo at 1 Hz,
-liveliness tokens). Baseline in the same run: a plain zenoh-python process that only
-subscribes to and decodes the same traffic.
+"""CPU of one vehicle node as the swarm grows: a real `swarm-node run` process, linked
+over MAVLink to a simulated quadcopter (in its own process) and on loopback Zenoh,
+hears N synthetic peers (VehicleStatus at 5 Hz, VehicleInfo at 1 Hz, liveliness
+tokens). Baseline in the same run: a plain zenoh-python process that only subscribes
+to and decodes the same traffic.
 
 Figures: cpu_s_per_sim_s for 10, 50 and 100 peers (`peers_10`, `peers_50`,
 `peers_100`), the same for the baseline, and membership timings measured on the way
@@ -13,9 +14,11 @@ import json
 import math
 import multiprocessing as mp
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from typing import Any
 
@@ -110,17 +113,98 @@ def _baseline_main(endpoint: str, stop: Any, ready: Any) -> None:
     session.close()
 
 
+def _vehicle_main(port: int, stop: Any) -> None:
+    from swarm_proto import SystemClock
+    from swarm_sim.runtime import VehicleServer, VehicleSpec
+
+    with VehicleServer([VehicleSpec("copter", port=port, sysid=7)], SystemClock()):
+        stop.wait()
+
+
 def _measure(pid: int) -> float:
     c0, t0 = _cpu_s(pid), time.monotonic()
     time.sleep(WINDOW_S)
     return (_cpu_s(pid) - c0) / (time.monotonic() - t0)
 
 
+def _peers(session: Any, node: int) -> list[int] | None:
+    import msgspec
+
+    from swarm_proto import SwarmView
+
+    for reply in session.get(f"bandada/{SWARM}/vehicle/{node}/peers", timeout=1.0):
+        if reply.ok is not None:
+            view = msgspec.msgpack.decode(reply.ok.payload.to_bytes(), type=SwarmView)
+            return sorted(p.node_id for p in view.peers)
+    return None
+
+
+def _until(pred: Any, timeout: float) -> float | None:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        if pred():
+            return round(time.monotonic() - t0, 3)
+        time.sleep(0.02)
+    return None
+
+
+def membership_timings(endpoint: str, lease_ms: int = 2000) -> dict[str, Any]:
+    """Six node processes: how long until every node lists every other, and until a
+    SIGKILLed and a SIGSTOPped node are marked lost by all the others."""
+    ids = [1, 2, 3, 7, 8, 9]
+    tmp = tempfile.mkdtemp(prefix="bandada-bench-")
+    env = {**os.environ, "BANDADA_DB": os.path.join(tmp, "swarm.db")}
+    cmd = [sys.executable, "-m", "swarm_node.cli", "run", "--swarm", SWARM, "--connect", endpoint,
+           "--lease-ms", str(lease_ms), "--log-level", "ERROR", "--id"]  # fmt: skip
+    watcher = SwarmBus.open(ZenohSettings(connect=(endpoint,)), SWARM)
+    t_launch = time.monotonic()
+    procs = {i: subprocess.Popen([*cmd, str(i)], env=env) for i in ids}
+
+    def all_see(alive: list[int]) -> bool:
+        return all(_peers(watcher.session, i) == [j for j in alive if j != i] for i in alive)
+
+    try:
+        # from launching six processes (Python start-up included) to every node listing
+        # every other
+        _until(lambda: all_see(ids), 120)
+        join = round(time.monotonic() - t_launch, 3)
+        os.kill(procs[9].pid, signal.SIGKILL)
+        alive = ids[:-1]
+        killed = _until(lambda: all_see(alive), 60)
+        os.kill(procs[8].pid, signal.SIGSTOP)
+        alive = ids[:-2]
+        frozen = _until(lambda: all_see(alive), 60)
+        os.kill(procs[8].pid, signal.SIGCONT)
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in procs.values():
+            try:
+                p.wait(20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+        watcher.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {
+        "nodes": len(ids),
+        "lease_ms": lease_ms,
+        "all_listed_after_launch_s": join,
+        "sigkill_marked_lost_s": killed,
+        "sigstop_marked_lost_s": frozen,
+    }
+
+
 def run() -> dict[str, Any]:
     ctx = mp.get_context("spawn")
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    mav_port = _free_port()
+    stop_vehicle = ctx.Event()
+    vehicle = ctx.Process(target=_vehicle_main, args=(mav_port, stop_vehicle))
+    vehicle.start()
+    tmp = tempfile.mkdtemp(prefix="bandada-bench-")
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "BANDADA_DB": os.path.join(tmp, "swarm.db")}
     node = subprocess.Popen(
         [
             sys.executable,
@@ -128,13 +212,15 @@ def run() -> dict[str, Any]:
             "swarm_node.cli",
             "run",
             "--id",
-            "1",
+            "7",
             "--swarm",
             SWARM,
             "--connect",
             endpoint,
+            "--autopilot",
+            f"tcp:127.0.0.1:{mav_port}",
             "--log-level",
-            "WARNING",
+            "ERROR",
         ],
         env=env,
     )
@@ -165,13 +251,23 @@ def run() -> dict[str, Any]:
         node.wait(20)
         stop_base.set()
         baseline.join(20)
+        stop_vehicle.set()
+        vehicle.join(20)
+        router.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+    router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+    try:
+        membership = membership_timings(endpoint)
+    finally:
         router.close()
     return {
+        "membership": membership,
         "cpu_s_per_sim_s": node_fig,
         "baseline_plain_subscriber_cpu_s_per_sim_s": base_fig,
         "window_s": WINDOW_S,
         "note": (
-            "One swarm-node process (no autopilot attached) at speed 1 (simulated s = wall s); "
+            "One swarm-node process with its autopilot link to a simulated quadcopter, at speed 1 "
+            "(simulated s = wall s); peers_0 is the node alone with its autopilot; "
             "peers publish VehicleStatus at 5 Hz and VehicleInfo at 1 Hz each. Baseline: a plain "
             "zenoh-python subscriber decoding the same traffic in its own process."
         ),
