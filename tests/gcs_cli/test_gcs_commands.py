@@ -1,0 +1,104 @@
+"""The ground station's commands against a real node process flying a simulated
+quadcopter, over Zenoh on 127.0.0.1 (typer's CliRunner, in-process)."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from gcs_cli.cli import app
+from swarm_proto import SystemClock
+from swarm_sim.runtime import VehicleServer, VehicleSpec
+from tests.conftest import free_tcp_port
+from tests.swarm_node.processes import peers_of, plain_session, start_node, stop, wait_until
+
+pytestmark = pytest.mark.network
+runner = CliRunner()
+
+
+@pytest.fixture
+def node7(zenoh_router: str, swarm_db: Path) -> Iterator[tuple[str, str]]:
+    """Node 7 (a seed quadcopter) with its simulated autopilot; yields (router, swarm)."""
+    swarm = f"g{os.getpid()}"
+    spec = VehicleSpec("copter", port=free_tcp_port(), sysid=7)
+    with VehicleServer([spec], SystemClock()):
+        proc = start_node(7, zenoh_router, swarm, "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}")
+        watcher = plain_session(zenoh_router)
+        try:
+            assert (
+                wait_until(lambda: peers_of(watcher, swarm, 7) is not None, timeout=30) is not None
+            )
+            yield zenoh_router, swarm
+        finally:
+            watcher.close()
+            assert stop(proc) == 0
+
+
+def gcs(router: str, swarm: str, *args: str) -> object:
+    return runner.invoke(app, ["--connect", router, "--swarm", swarm, *args])
+
+
+def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
+    router, swarm = node7
+    # wait for the autopilot's position (the EKF takes a few simulated seconds)
+    for _ in range(30):
+        r = gcs(router, swarm, "status", "--json", "--wait", "1")
+        rows = json.loads(r.stdout)  # type: ignore[attr-defined]
+        if rows and rows[0].get("gps", "").startswith(("FIX_3D", "DGPS", "RTK")):
+            break
+    assert (
+        rows[0]["id"] == 7
+        and rows[0]["model"] == "Generic Quadcopter"
+        and rows[0]["fsm"] == "INACTIVE"
+    )
+
+    r = gcs(router, swarm, "cmd", "set-base", "--point", "37.4112,-5.9889,10")
+    assert r.exit_code == 0, r.stdout  # type: ignore[attr-defined]
+    assert "SET_BASE" not in r.stdout and "OK" in r.stdout  # type: ignore[attr-defined]
+
+    r = gcs(router, swarm, "cmd", "parachute", "--id", "7")  # the quad has none
+    assert r.exit_code == 1 and "UNSUPPORTED" in r.stdout  # type: ignore[attr-defined]
+
+    r = gcs(router, swarm, "cmd", "warp-drive")
+    assert r.exit_code == 2 and "unknown command" in r.stdout + str(r.stderr)  # type: ignore[attr-defined]
+
+    r = gcs(
+        router,
+        swarm,
+        "zone",
+        "add",
+        "3",
+        "--circle",
+        "37.43,-5.98,50",
+        "--floor",
+        "0",
+        "--ceiling",
+        "300",
+    )
+    assert r.exit_code == 0 and "zone 3 declared" in r.stdout  # type: ignore[attr-defined]
+
+    r = gcs(
+        router,
+        swarm,
+        "mission",
+        "area",
+        "--polygon",
+        "37.41,-5.99 37.42,-5.98 37.41,-5.98 37.42,-5.99",
+        "--id",
+        "7",
+    )
+    assert r.exit_code == 2 and "Self-intersection" in r.stdout + str(r.stderr)  # type: ignore[attr-defined]
+
+    r = gcs(
+        router, swarm, "mission", "target", "--point", "37.4125,-5.9889", "--id", "7", "--alt", "30"
+    )
+    assert r.exit_code == 0, r.stdout  # type: ignore[attr-defined]
+    assert "OK" in r.stdout  # type: ignore[attr-defined]
+
+    r = gcs(router, swarm, "peers", "7")
+    assert r.exit_code == 0 and "GCS" in r.stdout  # type: ignore[attr-defined]  # the ground station is a peer
