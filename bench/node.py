@@ -195,6 +195,82 @@ def membership_timings(endpoint: str, lease_ms: int = 2000) -> dict[str, Any]:
     }
 
 
+def link_loss_to_emergency_s(endpoint: str) -> float | None:
+    """A node flying a simulated quadcopter is made ready and active; then the vehicle
+    process is killed: how long until the node's VehicleInfo says EMERGENCY."""
+    import queue as q
+
+    from swarm_proto import Command, CommandArgs, CommandKind, FsmState, GeoPoint
+
+    ctx = mp.get_context("spawn")
+    port = _free_port()
+    stop_vehicle = ctx.Event()
+    vehicle = ctx.Process(target=_vehicle_main, args=(port, stop_vehicle))
+    vehicle.start()
+    tmp = tempfile.mkdtemp(prefix="bandada-bench-")
+    env = {**os.environ, "BANDADA_DB": os.path.join(tmp, "swarm.db")}
+    node = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "swarm_node.cli",
+            "run",
+            "--id",
+            "7",
+            "--swarm",
+            SWARM,
+            "--connect",
+            endpoint,
+            "--autopilot",
+            f"tcp:127.0.0.1:{port}",
+            "--log-level",
+            "ERROR",
+        ],
+        env=env,
+    )
+    infos: q.Queue[tuple[float, VehicleInfo]] = q.Queue()
+    bus = SwarmBus.open(ZenohSettings(connect=(endpoint,)), SWARM)
+    from swarm_proto.topics import INFO
+
+    bus.subscribe(
+        INFO, lambda m, k: infos.put((time.monotonic(), m)) if m.vehicle_id == 7 else None
+    )
+
+    def wait_state(state: FsmState, timeout: float) -> float | None:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            try:
+                t, info = infos.get(timeout=0.2)
+            except q.Empty:
+                continue
+            if info.fsm_state == state:
+                return t
+        return None
+
+    try:
+        base = Command(
+            900, 1, CommandKind.SET_BASE, args=CommandArgs(point=GeoPoint(37.4112, -5.9889, 10.0))
+        )
+        t_ready = None
+        for _ in range(60):
+            bus.publish(base)
+            t_ready = wait_state(FsmState.GO_MISSION, 1.0)
+            if t_ready is not None:
+                break
+        if t_ready is None:
+            return None
+        t_cut = time.monotonic()
+        vehicle.kill()
+        t_em = wait_state(FsmState.EMERGENCY, 20.0)
+        return None if t_em is None else round(t_em - t_cut, 3)
+    finally:
+        bus.close()
+        node.send_signal(signal.SIGINT)
+        node.wait(20)
+        vehicle.join(5)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def run() -> dict[str, Any]:
     ctx = mp.get_context("spawn")
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
@@ -258,6 +334,7 @@ def run() -> dict[str, Any]:
     router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
     try:
         membership = membership_timings(endpoint)
+        membership["link_loss_to_emergency_s"] = link_loss_to_emergency_s(endpoint)
     finally:
         router.close()
     return {
