@@ -5,7 +5,8 @@ Phases (`TRANSITIONS` is the whole state machine):
 - LISTENING: a node starting (or resynchronising) sends nothing. It groups the frames it
   hears by the table version they carry; once the sources carrying the best version are
   exactly the members that version hashes to, it has learned the table: MEMBER if it is
-  already in it (a quick restart), JOINING otherwise. If it hears nothing for
+  already in it (a quick restart), JOINING otherwise. A version that is the hash of its
+  own configured initial members (which include it) is adopted at once. If it hears nothing for
   `listen_cycles`, it bootstraps: the configured initial members if it is one of them,
   else a table of its own.
 - JOINING: sends a JOIN frame in a join window (after a random backoff that doubles
@@ -107,6 +108,10 @@ class Membership:
     heard: dict[int, _Heard] = field(default_factory=dict)  # src -> its latest frame
     transitions: list[Transition] = field(default_factory=list)
     changes_applied: int = 0
+    # (cycle learned, join?, node, activation cycle) of every change, and the tables
+    # adopted (cycle, members): for statistics and tests
+    learned: list[tuple[int, bool, int, int]] = field(default_factory=list)
+    tables: list[tuple[int, tuple[int, ...]]] = field(default_factory=list)
     _cycle: int = -1
     _listen_since: int | None = None
     _last_heard_any: int | None = None
@@ -172,6 +177,8 @@ class Membership:
 
     def _adopt(self, members: tuple[int, ...], cycle: int) -> None:
         self.layout = SlotLayout.build(members, self.timing, self.config)
+        self.tables.append((cycle, self.layout.members))
+        del self.tables[:-16]
         for m in self.members:
             self.evidence.setdefault(m, cycle)  # a new member gets the full grace period
         for m in list(self.evidence):
@@ -220,9 +227,16 @@ class Membership:
             self.pending[key] = min(self.pending[key], c.at_cycle)
         elif (c.node in self.members) != c.join:
             self.pending[key] = c.at_cycle
+            self._learned(c.join, c.node, c.at_cycle)
+
+    def _learned(self, join: bool, node: int, at: int) -> None:
+        self.learned.append((self._cycle, join, node, at))
+        del self.learned[:-16]
 
     def _propose(self, join: bool, node: int, at: int) -> None:
         key = (join, node)
+        if key not in self.pending:
+            self._learned(join, node, at)
         self.pending[key] = min(self.pending.get(key, at), at)
 
     def sent(self, slot: TxSlot) -> None:
@@ -339,7 +353,12 @@ class Membership:
             horizon = max(self.config.listen_cycles, 2 * self._k_of(h.n) + 1)
             if cycle - h.cycle <= horizon:
                 groups.setdefault((h.n, h.table_hash), set()).add(src)
+        init = tuple(sorted(set(self.initial_members)))
         for (n, th), srcs in sorted(groups.items(), reverse=True):
+            if self.my_id in init and len(init) == n and table_hash(init) == th:
+                self._adopt(init, cycle)  # our configured table, started before us
+                self._go(Trigger.LEARNED_MEMBER, cycle)
+                return
             srcs_t = tuple(sorted(srcs))
             if len(srcs) == n and table_hash(srcs_t) == th:
                 self._adopt(srcs_t, cycle)

@@ -28,6 +28,8 @@ from .reassembly import Reassembly
 from .slots import TdmConfig
 from .timesync import TimeSync
 
+_EPS = 1e-6  # seconds; UNIX times near 1.7e9 carry ~2e-7 s of float rounding
+
 
 @dataclass(frozen=True)
 class NodeConfig:
@@ -150,12 +152,13 @@ class RadioNode:
         self._last_now = max(self._last_now, now)
         out: list[Action] = []
         t = self._net(now)
-        cyc = math.floor(t / self.cycle_s)
+        # deadlines went through the correction and back: allow for the rounding
+        cyc = math.floor((t + _EPS) / self.cycle_s)
         while self._cycle < cyc:
             self._cycle += 1
             out += self._advance(self._cycle, t)
         slot = self._next_slot(t)
-        if slot is not None and t >= slot.air_start - self.config.prep_s:
+        if slot is not None and t + _EPS >= slot.air_start - self.config.prep_s:
             out += self._transmit(slot, t)
         return out
 

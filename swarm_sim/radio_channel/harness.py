@@ -135,12 +135,15 @@ class Fleet:
         return min(times)
 
     def run(self, until: float) -> None:
-        by_module = {m.module: nid for nid, m in self.members.items()}
+        stuck = 0
         while True:
             t = max(self.t, self._next())
             if t > until:
                 self.t = until
                 return
+            stuck = stuck + 1 if t == self.t else 0
+            if stuck > 10_000:
+                raise RuntimeError(f"simulated time stuck at {t}: a deadline never clears")
             self.t = t
             by_module = {m.module: nid for nid, m in self.members.items()}
             while self._events and self._events[0][0] <= t:

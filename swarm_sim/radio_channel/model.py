@@ -313,8 +313,8 @@ class RadioChannelModel:
             self.per_module[i]["deferred"] += 1
         dur = self.params.sync_s + len(data) * 8.0 / m.rf_bps
         tx = Transmission(i, start, start + dur, data, m.rf_bps, r["HP"], r["ID"], r["DT"])
-        for x in self.air:
-            if x.start < tx.end and tx.start < x.end:
+        for x in self.air:  # packets on one hopping channel (same HP) interfere
+            if x.hp == tx.hp and x.start < tx.end and tx.start < x.end:
                 if not x.collided:
                     self.counts["collided_packets"] += 1
                 x.collided = True
@@ -348,7 +348,8 @@ class RadioChannelModel:
                     c["filtered"] += 1
                     continue
                 r = m.registers
-                if x.dt != 0xFFFF and (x.dt & r["MK"]) != (r["MY"] & r["MK"]):
+                mk = r["MK"]  # XTend address recognition: broadcast, group (DT) or local (MY)
+                if x.dt != 0xFFFF and (x.dt & mk) != (r["DT"] & mk) and x.dt != r["MY"]:
                     c["filtered"] += 1
                     continue
                 if any(y.src == m.index and y.start < x.end and x.start < y.end for y in self.air):
