@@ -43,7 +43,8 @@ def parse_nmea_time(line: str) -> float | None:
         if kind == "RMC" and len(fields) >= 10 and fields[2] == "A":
             h, m, s = _hms(fields[1])
             d = fields[9]
-            day, month, year = int(d[0:2]), int(d[2:4]), 2000 + int(d[4:6])
+            yy = int(d[4:6])
+            day, month, year = int(d[0:2]), int(d[2:4]), (2000 if yy < 80 else 1900) + yy
         elif kind == "ZDA" and len(fields) >= 5 and fields[1]:
             h, m, s = _hms(fields[1])
             day, month, year = int(fields[2]), int(fields[3]), int(fields[4])
