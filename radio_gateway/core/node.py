@@ -331,7 +331,9 @@ class RadioNode:
         self.counts["tx_bytes"] += len(data)
         timing = self.config.timing
         at = slot.air_start - timing.tx_delay_s(len(data))
-        end = slot.start + lay.slot_s - lay.guard_s / 2  # the next slot's packet starts here
+        # a late packet may use its spare room and half of the next guard: it still ends
+        # before the next slot's packet starts, if that one is on time
+        end = slot.start + lay.slot_s
         latest = end - timing.airtime_s(len(data)) - timing.tx_delay_s(len(data))
         return [Transmit(data, self._raw(at), slot.cycle, slot.join, self._raw(max(latest, at)))]
 

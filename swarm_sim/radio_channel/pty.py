@@ -177,3 +177,91 @@ class PtyRadioChannel:
             os.write(self._masters[i], data)
         except (BlockingIOError, OSError):
             self.overflow += 1  # nobody reads that port: the module's buffer overflows
+
+
+def _serve(conn: Any, n: int, params: ChannelParams, clock_spec: str, registers: Any) -> None:
+    from swarm_proto.clock import clock_from_spec
+
+    channel = PtyRadioChannel(n, params, clock_from_spec(clock_spec), registers=registers)
+    channel.start()
+    conn.send(channel.ports)
+    try:
+        while True:
+            cmd, arg = conn.recv()
+            if cmd == "close":
+                break
+            if cmd == "stats":
+                conn.send(channel.stats())
+            elif cmd == "reset":
+                channel.reset_stats()
+                conn.send(None)
+            elif cmd == "power_cycle":
+                channel.power_cycle(arg)
+                conn.send(None)
+            elif cmd == "loss":
+                channel.set_loss(arg)
+                conn.send(None)
+    except (EOFError, OSError):
+        pass
+    finally:
+        channel.close()
+
+
+class ChannelProcess:
+    """A PtyRadioChannel in a process of its own (spawned), so that the timing of the
+    emulated air does not share an interpreter with the gateways under test. Same calls
+    as PtyRadioChannel: ports, stats(), reset_stats(), power_cycle(i), set_loss(p)."""
+
+    def __init__(
+        self,
+        n: int,
+        params: ChannelParams | None = None,
+        clock: Clock | None = None,
+        *,
+        registers: Mapping[str, int] | None = None,
+    ) -> None:
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("spawn")
+        self._conn, child = ctx.Pipe()
+        spec = (clock or SystemClock()).spec()
+        regs = dict(registers) if registers else None
+        self._proc = ctx.Process(
+            target=_serve, args=(child, n, params or ChannelParams(), spec, regs), daemon=True
+        )
+        self._proc.start()
+        if not self._conn.poll(30):
+            self._proc.kill()
+            raise RuntimeError("the radio channel process did not start")
+        self.ports: list[str] = self._conn.recv()
+
+    def _call(self, cmd: str, arg: Any = None) -> Any:
+        self._conn.send((cmd, arg))
+        return self._conn.recv()
+
+    def stats(self) -> dict[str, Any]:
+        result: dict[str, Any] = self._call("stats")
+        return result
+
+    def reset_stats(self) -> None:
+        self._call("reset")
+
+    def power_cycle(self, i: int) -> None:
+        self._call("power_cycle", i)
+
+    def set_loss(self, loss: float) -> None:
+        self._call("loss", loss)
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError, BrokenPipeError):
+            self._conn.send(("close", None))
+        self._proc.join(timeout=10)
+        if self._proc.is_alive():
+            self._proc.kill()
+        self._conn.close()
+
+    def __enter__(self) -> ChannelProcess:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
