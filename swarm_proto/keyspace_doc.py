@@ -209,11 +209,7 @@ def _enums() -> list[type[enum.Enum]]:
 
 def _topic_row(t: Topic) -> str:
     key = f"`{ROOT}/<swarm>/{t.pattern.replace('{', '<').replace('}', '>')}`"
-    msg = (
-        t.msg_type.__name__
-        if t.msg_type
-        else ("liveliness token" if t.name == "alive" else "see its doc")
-    )
+    msg = t.msg_type.__name__ if t.msg_type else ("liveliness token" if t.name == "alive" else "see its doc")
     qos = f"{t.reliability.value}, {t.congestion.value}, {t.priority.name.lower()}" + (
         ", express" if t.express else ""
     )
