@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from .airtime import LinkTiming
-from .frame import Change, Frame
+from .frame import Change, Frame, frame_overhead
 from .slots import SlotLayout, TdmConfig, table_hash
 
 
@@ -117,9 +117,11 @@ class Membership:
     _last_heard_any: int | None = None
     _mismatch: int = 0
     _foreign: int = 0
-    _join_period: int | None = None  # next period we may send a JOIN in
-    _join_sent: int | None = None  # period of our last JOIN
+    _join_cycle: int | None = None  # earliest cycle we may send a JOIN in
+    _join_sent: int | None = None  # cycle of our last JOIN
     _join_attempts: int = 0
+    _join_pick: float = 0.0  # where in the join window our JOIN goes (0..1)
+    _confirmed: int | None = None  # last cycle a member's frame carried our table version
     _rng: random.Random = field(init=False)
 
     def __post_init__(self) -> None:
@@ -171,9 +173,11 @@ class Membership:
         elif new is Phase.JOINING:
             self._join_attempts = 0
             self._join_sent = None
-            self._join_period = (
-                self._period_of(cycle) + 1 + self._rng.randrange(self.config.join_backoff)
+            self._join_cycle = cycle + self.layout.k * (
+                1 + self._rng.randrange(self.config.join_backoff)
             )
+            self._join_pick = self._rng.random()
+            self._confirmed = cycle  # the table was just learned or adopted
 
     def _adopt(self, members: tuple[int, ...], cycle: int) -> None:
         self.layout = SlotLayout.build(members, self.timing, self.config)
@@ -207,6 +211,8 @@ class Membership:
                 self._propose(True, f.src, self._activation(f.cycle))
             return
         self.direct[f.src] = f.cycle
+        if f.src in self.members and f.table_hash == self.table_hash:
+            self._confirmed = f.cycle
         if f.src in self.evidence:
             self.evidence[f.src] = max(self.evidence[f.src], f.cycle)
         if self.phase is Phase.LISTENING or f.table_hash != self.table_hash:
@@ -242,7 +248,7 @@ class Membership:
     def sent(self, slot: TxSlot) -> None:
         """We transmitted in `slot`."""
         if slot.join:
-            self._join_sent = slot.period
+            self._join_sent = slot.cycle
             self._join_attempts += 1
 
     def advance(self, cycle: int) -> None:
@@ -289,12 +295,17 @@ class Membership:
                 self._propose(False, m, self._activation(cycle))
 
     def _recent(self, cycle: int) -> dict[int, _Heard]:
+        """Frames of the last period sent under our current table (older ones carry the
+        version we just left, which is no vote against the new one)."""
         horizon = cycle - self.layout.k - 1
+        if self.tables:
+            horizon = max(horizon, self.tables[-1][0])
         return {s: h for s, h in self.heard.items() if h.cycle >= horizon and not h.join}
 
     def _check_votes(self, cycle: int) -> None:
         recent = self._recent(cycle)
-        mine = {self.table_hash, table_hash(self.projected_members())}
+        projected = self.projected_members()
+        mine = {self.table_hash, table_hash(projected)}
         tally: dict[tuple[int, int], int] = {}
         my_votes = 1 if self.phase is Phase.MEMBER else 0
         foreign: dict[tuple[int, int], int] = {}
@@ -304,7 +315,7 @@ class Membership:
                     my_votes += 1
                 else:
                     tally[(h.n, h.table_hash)] = tally.get((h.n, h.table_hash), 0) + 1
-            elif h.table_hash not in mine:
+            elif h.table_hash not in mine and src not in projected:  # not a joiner of ours
                 foreign[(h.n, h.table_hash)] = foreign.get((h.n, h.table_hash), 0) + 1
         me = (self.layout.n, self.table_hash)
         outvoted = any(v > my_votes or (v == my_votes and t > me) for t, v in tally.items())
@@ -321,14 +332,15 @@ class Membership:
     def _check_join(self, cycle: int) -> None:
         if self._join_sent is None:
             return
-        period = self._period_of(cycle)
-        wait = self.config.activation_periods + 2
-        if period - self._join_sent > wait and (True, self.my_id) not in self.pending:
-            if self._join_attempts >= 8:
+        k = self.layout.k
+        wait = (self.config.activation_periods + 2) * k
+        if cycle - self._join_sent > wait and (True, self.my_id) not in self.pending:
+            if self._join_attempts >= 16:
                 self._go(Trigger.LOST, cycle)
                 return
-            backoff = self.config.join_backoff << min(self._join_attempts, 4)
-            self._join_period = period + 1 + self._rng.randrange(backoff)
+            backoff = self.config.join_backoff << min(self._join_attempts, 5)
+            self._join_cycle = cycle + k * (1 + self._rng.randrange(backoff))
+            self._join_pick = self._rng.random()
             self._join_sent = None
 
     def _listen(self, cycle: int) -> None:
@@ -389,9 +401,9 @@ class Membership:
                 idx = lay.member_slot(self.my_id, period)
                 join = False
             else:
-                if self._join_period is None or period < self._join_period:
+                if self._join_cycle is None or (period + 1) * lay.k <= self._join_cycle:
                     continue
-                if self._join_sent is not None:
+                if self._join_sent is not None or not self._view_is_fresh(now):
                     return None
                 idx = lay.join_index(period)
                 join = True
@@ -399,9 +411,29 @@ class Membership:
                 continue
             start = lay.slot_start(period, idx)
             cycle = lay.slot_cycle(period, idx)
-            offset = lay.lone_offset(self.my_id, cycle, self.timing) if lay.n == 1 else 0.0
+            if join:
+                offset = self._join_offset()
+            elif lay.n == 1:
+                offset = lay.lone_offset(self.my_id, cycle, self.timing)
+            else:
+                offset = 0.0
             air = start + half + offset
             if air < now or cycle < min_cycle:
                 continue
             return TxSlot(start, air, cycle, period, join, 0 if join else lay.budget)
         return None
+
+    def _view_is_fresh(self, now: float) -> bool:
+        """A joiner sends only while members confirm its view of the table: a stale
+        view would put its JOIN in someone's slot."""
+        if self._confirmed is None:
+            return False
+        cycle = int(now // self.config.cycle_s)
+        return cycle - self._confirmed <= 2 * self.layout.k + 1 and self._mismatch == 0
+
+    def _join_offset(self) -> float:
+        """Joiners spread their JOINs over the join window (a JOIN frame is short)."""
+        lay = self.layout
+        jlen = lay.guard_s + self.timing.airtime_s(frame_overhead(lay.n, 0))
+        positions = max(1, int((lay.slot_s - lay.guard_s) // jlen))
+        return int(self._join_pick * positions) * jlen

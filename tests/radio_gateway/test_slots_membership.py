@@ -192,7 +192,7 @@ def test_a_joiner_outvoted_or_ignored_starts_over() -> None:
             b.sent(slot)
             sends += 1
         b.advance(c)
-    assert b.phase is Phase.LISTENING and sends == 8
+    assert b.phase is Phase.LISTENING and sends == 16
     assert (Phase.JOINING, Trigger.LOST) in _triggers(b)
 
 

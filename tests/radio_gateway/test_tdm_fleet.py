@@ -230,3 +230,20 @@ def test_layout_matches_the_issue_and_the_paper() -> None:
     assert 20 <= lay.budget < 40
     # a 40-byte status frame does not fit 50 ms at 9.6 kbps: three nodes per cycle
     assert physical_limit(slow, TdmConfig(guard_s=0.005)) == 3
+
+
+@pytest.mark.scale
+def test_thirty_unconfigured_nodes_find_each_other_and_share_the_air() -> None:
+    """30 nodes, no initial table, 10 % loss: they converge on one table past the limit
+    (every node every 2nd or 3rd cycle) and then never collide."""
+    f = fleet(30, initial=False, loss=0.1, seed=11, max_nodes=30)
+    f.run(f.t + 150.0)
+    want = tuple(range(1, 31))
+    assert all(f.node(v).membership.members == want for v in want)
+    lay = f.node(1).membership.layout
+    assert lay.k >= 2
+    collisions = f.model.counts["collisions"]
+    f.run(f.t + 30.0)
+    assert f.model.counts["collisions"] == collisions
+    rates = _rates(f, f.t - 28.0, f.t)
+    assert min(rates.values()) >= 0.7 * lay.rate_hz  # 10 % loss
