@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 
 app = typer.Typer(
@@ -37,7 +35,7 @@ def radio(
     sync_ms: float = typer.Option(6.0, help="sync preamble every packet pays"),
     latency_ms: float = typer.Option(0.5, help="receiving module latency"),
     seed: int = typer.Option(0),
-    links: Path | None = typer.Option(None, help="directory for radio0..radioN-1 symlinks"),
+    links: str | None = typer.Option(None, help="directory for radio0..radioN-1 symlinks"),
     factory: bool = typer.Option(
         False, help="modules at factory settings (9600 baud) instead of configured for bandada"
     ),
@@ -47,6 +45,7 @@ def radio(
 
     Uses BANDADA_CLOCK (simulated time) when set. Stops on Ctrl-C / SIGTERM."""
     import json
+    from pathlib import Path
 
     from radio_gateway.core.xtend import RadioSettings
     from swarm_proto.clock import clock_from_env
@@ -66,7 +65,9 @@ def radio(
     registers = None if factory else RadioSettings(rf_bps=rf_bps).registers()
     stop = stop_event()
     clock = clock_from_env()
-    with PtyRadioChannel(nodes, params, clock, registers=registers, link_dir=links) as channel:
+    with PtyRadioChannel(
+        nodes, params, clock, registers=registers, link_dir=Path(links) if links else None
+    ) as channel:
         typer.echo(json.dumps({"ports": channel.ports, "links": [str(p) for p in channel.links]}))
         while not stop.wait(stats_every):
             typer.echo(json.dumps(channel.stats()["channel"]))
