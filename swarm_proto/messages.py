@@ -450,6 +450,56 @@ class SwarmView(Struct, frozen=True):
     peers: tuple[PeerEntry, ...] = ()
 
 
+# --------------------------------------------------------------------------- radio
+
+RatePerS = Annotated[float, Meta(ge=0.0, le=10_000.0, description="events per second"), Fixed(0.01)]
+OffsetMs = Annotated[
+    float, Meta(ge=-1.0e6, le=1.0e6, description="time offset, milliseconds"), Fixed(0.01)
+]
+Count = Annotated[int, Meta(ge=0, le=2**32 - 1, description="count since start (uint32)")]
+
+
+class PeerRadioStats(Struct, frozen=True):
+    """What one radio gateway hears of one peer over the last statistics period."""
+
+    node_id: VehicleId
+    packets_per_s: RatePerS = 0.0
+    loss: Fraction = 0.0  # 1 - frames heard / frames its slots should have carried
+    slot_utilization: Fraction = 0.0  # its frame's bytes / the slot's capacity
+    time_offset_ms: OffsetMs = 0.0  # arrival minus expected arrival (median)
+    last_heard_s: DurationS = 0.0  # seconds since its last frame
+    time_stratum: Annotated[int, Meta(ge=0, le=3)] = 3  # 0 GPS .. 3 free-running
+
+
+class RadioStats(Struct, frozen=True):
+    """A radio gateway's statistics, on the LAN about once a second (never on air).
+
+    The TDM table it follows, its own slot, what it dropped and why, one entry per peer.
+    Counts are totals since the gateway started."""
+
+    node_id: VehicleId
+    time_unix_s: UnixTimeS
+    phase: Name = ""  # listening, joining, member
+    members: tuple[VehicleId, ...] = ()
+    table_version: Uint16 = 0  # the 16-bit slot-table hash carried in frames
+    rate_divisor: Uint8 = 1  # 1: every cycle (5 Hz); k: every k-th cycle, past the limit
+    slot_s: DurationS = 0.0
+    slot_budget_bytes: Uint16 = 0
+    slot_utilization: Fraction = 0.0  # our record bytes / budget
+    time_offset_ms: OffsetMs = 0.0  # our correction to the time source
+    time_stratum: Annotated[int, Meta(ge=0, le=3)] = 3
+    tx_frames: Count = 0
+    rx_frames: Count = 0
+    dropped_corrupt: Count = 0  # COBS, CRC, length or version
+    dropped_forged: Count = 0  # tag mismatch
+    dropped_replayed: Count = 0  # old or repeated cycle counter
+    dropped_malformed: Count = 0  # authentic but unparseable
+    dropped_duplicates: Count = 0  # already heard on the LAN or the air
+    retransmissions: Count = 0
+    failed_deliveries: Count = 0  # acked messages given up on
+    peers: tuple[PeerRadioStats, ...] = ()
+
+
 #: Every message type, in radio type-tag order (index + 1 is the tag). Append only.
 MESSAGE_TYPES: tuple[type[Struct], ...] = (
     VehicleStatus,
@@ -462,6 +512,7 @@ MESSAGE_TYPES: tuple[type[Struct], ...] = (
     FleetAssignment,
     NoFlyZone,
     TargetReport,
+    RadioStats,
 )
 
 

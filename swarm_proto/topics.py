@@ -24,6 +24,7 @@ from .messages import (
     FleetAssignment,
     Mission,
     NoFlyZone,
+    RadioStats,
     SwarmView,
     TargetReport,
     VehicleInfo,
@@ -231,7 +232,7 @@ DATABASE = Topic(
 RADIO_STATS = Topic(
     "radio_stats",
     "radio/{node_id}/stats",
-    None,
+    RadioStats,
     "Radio gateway statistics per peer (LAN only).",
 )
 

@@ -1,0 +1,439 @@
+"""Who is on the channel, and therefore the slot table (pure: cycles and frames in).
+
+Phases (`TRANSITIONS` is the whole state machine):
+
+- LISTENING: a node starting (or resynchronising) sends nothing. It groups the frames it
+  hears by the table version they carry; once the sources carrying the best version are
+  exactly the members that version hashes to, it has learned the table: MEMBER if it is
+  already in it (a quick restart), JOINING otherwise. A version that is the hash of its
+  own configured initial members (which include it) is adopted at once. If it hears nothing for
+  `listen_cycles`, it bootstraps: the configured initial members if it is one of them,
+  else a table of its own.
+- JOINING: sends a JOIN frame in a join window (after a random backoff that doubles
+  after each unanswered attempt). Members that hear it schedule JOIN(node) to take
+  effect `activation_periods` periods later and repeat that change in their frames
+  until then, so members that missed the request still apply it on the same cycle.
+- MEMBER: sends in its slot every period. A member without evidence of life for
+  `silent_periods` periods (no frame of its own and no peer reporting it in a heard
+  bitmap) gets a LEAVE, scheduled and spread the same way. Changes merge by taking the
+  earliest activation cycle, so every node applies them on the same cycle.
+
+Convergence after disagreement (loss of every copy of a change): frames carry the
+16-bit hash of their sender's table. A node whose table is outvoted for
+`mismatch_periods` periods by the tables its members carry (ties: more members, then
+the larger hash), or that hears a better foreign table (a separate group met on the
+air), goes back to LISTENING and re-learns.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass, field
+from enum import Enum
+
+from .airtime import LinkTiming
+from .frame import Change, Frame, frame_overhead
+from .slots import SlotLayout, TdmConfig, table_hash
+
+
+class Phase(Enum):
+    LISTENING = "listening"
+    JOINING = "joining"
+    MEMBER = "member"
+
+
+class Trigger(Enum):
+    LEARNED_MEMBER = "learned a table that includes us"
+    LEARNED_OTHER = "learned a table without us"
+    SILENCE = "heard nobody: bootstrap"
+    ADMITTED = "our JOIN took effect"
+    REMOVED = "a LEAVE of us took effect"
+    OUTVOTED = "our table is outvoted"
+    FOREIGN = "a better foreign table is on the air"
+    LOST = "gave up joining"
+
+
+TRANSITIONS: dict[tuple[Phase, Trigger], Phase] = {
+    (Phase.LISTENING, Trigger.LEARNED_MEMBER): Phase.MEMBER,
+    (Phase.LISTENING, Trigger.LEARNED_OTHER): Phase.JOINING,
+    (Phase.LISTENING, Trigger.SILENCE): Phase.MEMBER,
+    (Phase.JOINING, Trigger.ADMITTED): Phase.MEMBER,
+    (Phase.JOINING, Trigger.OUTVOTED): Phase.LISTENING,
+    (Phase.JOINING, Trigger.LOST): Phase.LISTENING,
+    (Phase.MEMBER, Trigger.REMOVED): Phase.JOINING,
+    (Phase.MEMBER, Trigger.OUTVOTED): Phase.LISTENING,
+    (Phase.MEMBER, Trigger.FOREIGN): Phase.LISTENING,
+}
+
+
+@dataclass(frozen=True)
+class TxSlot:
+    start: float  # slot start, network time
+    air_start: float  # when the packet should start on air
+    cycle: int  # the frame's cycle counter
+    period: int
+    join: bool  # a JOIN request in a join window
+    budget: int  # record bytes
+
+
+@dataclass(frozen=True)
+class Transition:
+    cycle: int
+    old: Phase
+    new: Phase
+    trigger: Trigger
+    members: tuple[int, ...]
+
+
+@dataclass
+class _Heard:
+    table_hash: int
+    n: int
+    cycle: int
+    join: bool
+
+
+@dataclass
+class Membership:
+    my_id: int
+    timing: LinkTiming
+    config: TdmConfig
+    initial_members: tuple[int, ...] = ()
+    seed: int = 0
+    phase: Phase = Phase.LISTENING
+    layout: SlotLayout = field(init=False)
+    pending: dict[tuple[bool, int], int] = field(default_factory=dict)  # (join, node) -> at
+    evidence: dict[int, int] = field(default_factory=dict)  # member -> last cycle alive
+    direct: dict[int, int] = field(default_factory=dict)  # node -> last cycle heard directly
+    heard: dict[int, _Heard] = field(default_factory=dict)  # src -> its latest frame
+    transitions: list[Transition] = field(default_factory=list)
+    changes_applied: int = 0
+    # (cycle learned, join?, node, activation cycle) of every change, and the tables
+    # adopted (cycle, members): for statistics and tests
+    learned: list[tuple[int, bool, int, int]] = field(default_factory=list)
+    tables: list[tuple[int, tuple[int, ...]]] = field(default_factory=list)
+    _cycle: int = -1
+    _listen_since: int | None = None
+    _last_heard_any: int | None = None
+    _mismatch: int = 0
+    _foreign: int = 0
+    _join_cycle: int | None = None  # earliest cycle we may send a JOIN in
+    _join_sent: int | None = None  # cycle of our last JOIN
+    _join_attempts: int = 0
+    _join_pick: float = 0.0  # where in the join window our JOIN goes (0..1)
+    _confirmed: int | None = None  # last cycle a member's frame carried our table version
+    _rng: random.Random = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.layout = SlotLayout.build((), self.timing, self.config)
+        self._rng = random.Random(self.seed * 65_537 + self.my_id)
+
+    # ------------------------------------------------------------------ views
+    @property
+    def members(self) -> tuple[int, ...]:
+        return self.layout.members
+
+    @property
+    def table_hash(self) -> int:
+        return self.layout.table_hash
+
+    def projected_members(self) -> tuple[int, ...]:
+        """The members once every pending change has taken effect."""
+        ms = set(self.members)
+        for (join, node), _ in sorted(self.pending.items(), key=lambda kv: kv[1]):
+            (ms.add if join else ms.discard)(node)
+        return tuple(sorted(ms))
+
+    def heard_bitmap(self, cycle: int) -> bytes:
+        """Bit i: the member of rank i was heard directly during the last period."""
+        out = bytearray((self.layout.n + 7) // 8)
+        since = cycle - self.layout.k
+        for i, m in enumerate(self.members):
+            if m != self.my_id and self.direct.get(m, -(10**9)) >= since:
+                out[i // 8] |= 1 << (i % 8)
+        return bytes(out)
+
+    def change_records(self) -> list[Change]:
+        return [Change(join, node, at) for (join, node), at in sorted(self.pending.items())]
+
+    # ------------------------------------------------------------------ transitions
+    def _go(self, trigger: Trigger, cycle: int) -> None:
+        new = TRANSITIONS.get((self.phase, trigger))
+        if new is None:
+            raise AssertionError(f"no transition from {self.phase} on {trigger}")
+        self.transitions.append(Transition(cycle, self.phase, new, trigger, self.members))
+        self.phase = new
+        self._mismatch = self._foreign = 0
+        if new is Phase.LISTENING:
+            self._listen_since = cycle
+            self._last_heard_any = None
+            self.pending.clear()
+            self.evidence.clear()
+            self.layout = SlotLayout.build((), self.timing, self.config)
+        elif new is Phase.JOINING:
+            self._join_attempts = 0
+            self._join_sent = None
+            self._join_cycle = cycle + self.layout.k * (
+                1 + self._rng.randrange(self.config.join_backoff)
+            )
+            self._join_pick = self._rng.random()
+            self._confirmed = cycle  # the table was just learned or adopted
+
+    def _adopt(self, members: tuple[int, ...], cycle: int) -> None:
+        self.layout = SlotLayout.build(members, self.timing, self.config)
+        self.tables.append((cycle, self.layout.members))
+        del self.tables[:-16]
+        for m in self.members:
+            self.evidence.setdefault(m, cycle)  # a new member gets the full grace period
+        for m in list(self.evidence):
+            if m not in self.members:
+                del self.evidence[m]
+
+    def _period_of(self, cycle: int) -> int:
+        return cycle // self.layout.k
+
+    def _activation(self, cycle: int) -> int:
+        k = self.layout.k
+        at = cycle + self.config.activation_periods * k
+        return -(-at // k) * k
+
+    # ------------------------------------------------------------------ inputs
+    def on_frame(self, f: Frame) -> None:
+        """A frame that passed every check (tag, freshness, replay)."""
+        self.heard[f.src] = _Heard(f.table_hash, f.n_members, f.cycle, f.join)
+        self._last_heard_any = f.cycle
+        if f.join:
+            if (
+                self.phase is Phase.MEMBER
+                and f.table_hash in (self.table_hash, table_hash(self.projected_members()))
+                and f.src not in self.projected_members()
+            ):
+                self._propose(True, f.src, self._activation(f.cycle))
+            return
+        self.direct[f.src] = f.cycle
+        if f.src in self.members and f.table_hash == self.table_hash:
+            self._confirmed = f.cycle
+        if f.src in self.evidence:
+            self.evidence[f.src] = max(self.evidence[f.src], f.cycle)
+        if self.phase is Phase.LISTENING or f.table_hash != self.table_hash:
+            return
+        k = self.layout.k
+        for i, m in enumerate(self.members):
+            if i // 8 < len(f.heard) and f.heard[i // 8] >> (i % 8) & 1 and m in self.evidence:
+                self.evidence[m] = max(self.evidence[m], f.cycle - k)
+        for r in f.records:
+            if isinstance(r, Change):
+                self.on_change(r)
+
+    def on_change(self, c: Change) -> None:
+        if self.phase is Phase.LISTENING:
+            return
+        key = (c.join, c.node)
+        if key in self.pending:
+            self.pending[key] = min(self.pending[key], c.at_cycle)
+        elif (c.node in self.members) != c.join:
+            self.pending[key] = c.at_cycle
+            self._learned(c.join, c.node, c.at_cycle)
+
+    def _learned(self, join: bool, node: int, at: int) -> None:
+        self.learned.append((self._cycle, join, node, at))
+        del self.learned[:-16]
+
+    def _propose(self, join: bool, node: int, at: int) -> None:
+        key = (join, node)
+        if key not in self.pending:
+            self._learned(join, node, at)
+        self.pending[key] = min(self.pending.get(key, at), at)
+
+    def sent(self, slot: TxSlot) -> None:
+        """We transmitted in `slot`."""
+        if slot.join:
+            self._join_sent = slot.cycle
+            self._join_attempts += 1
+
+    def advance(self, cycle: int) -> None:
+        """Called once at the start of every cycle, in order."""
+        self._cycle = cycle
+        self._apply_due(cycle)
+        if self.phase is Phase.LISTENING:
+            self._listen(cycle)
+            return
+        if cycle % self.layout.k:
+            return
+        self._check_votes(cycle)
+        if self.phase is Phase.MEMBER:
+            self._check_leaves(cycle)
+        elif self.phase is Phase.JOINING:
+            self._check_join(cycle)
+
+    # ------------------------------------------------------------------ internals
+    def _apply_due(self, cycle: int) -> None:
+        due = sorted((at, key) for key, at in self.pending.items() if at <= cycle)
+        if not due or self.phase is Phase.LISTENING:
+            return
+        ms = set(self.members)
+        for _, (join, node) in due:
+            del self.pending[(join, node)]
+            (ms.add if join else ms.discard)(node)
+        new = tuple(sorted(ms))
+        if new == self.members:
+            return
+        self.changes_applied += 1
+        was_member = self.my_id in self.members
+        self._adopt(new, cycle)
+        if self.phase is Phase.JOINING and self.my_id in new:
+            self._go(Trigger.ADMITTED, cycle)
+        elif self.phase is Phase.MEMBER and was_member and self.my_id not in new:
+            self._go(Trigger.REMOVED, cycle)
+
+    def _check_leaves(self, cycle: int) -> None:
+        limit = self.config.silent_periods * self.layout.k
+        for m in self.members:
+            if m == self.my_id or (False, m) in self.pending:
+                continue
+            if cycle - self.evidence.get(m, cycle) > limit:
+                self._propose(False, m, self._activation(cycle))
+
+    def _recent(self, cycle: int) -> dict[int, _Heard]:
+        """Frames of the last period sent under our current table (older ones carry the
+        version we just left, which is no vote against the new one)."""
+        horizon = cycle - self.layout.k - 1
+        if self.tables:
+            horizon = max(horizon, self.tables[-1][0])
+        return {s: h for s, h in self.heard.items() if h.cycle >= horizon and not h.join}
+
+    def _check_votes(self, cycle: int) -> None:
+        recent = self._recent(cycle)
+        projected = self.projected_members()
+        mine = {self.table_hash, table_hash(projected)}
+        tally: dict[tuple[int, int], int] = {}
+        my_votes = 1 if self.phase is Phase.MEMBER else 0
+        foreign: dict[tuple[int, int], int] = {}
+        for src, h in recent.items():
+            if src in self.members:
+                if h.table_hash in mine:
+                    my_votes += 1
+                else:
+                    tally[(h.n, h.table_hash)] = tally.get((h.n, h.table_hash), 0) + 1
+            elif h.table_hash not in mine and src not in projected:  # not a joiner of ours
+                foreign[(h.n, h.table_hash)] = foreign.get((h.n, h.table_hash), 0) + 1
+        me = (self.layout.n, self.table_hash)
+        outvoted = any(v > my_votes or (v == my_votes and t > me) for t, v in tally.items())
+        self._mismatch = self._mismatch + 1 if outvoted else 0
+        better = any(t > me and v >= min(t[0], 2) for t, v in foreign.items())
+        self._foreign = self._foreign + 1 if better else 0
+        if self._mismatch >= self.config.mismatch_periods:
+            self._go(Trigger.OUTVOTED, cycle)
+        elif self._foreign >= self.config.mismatch_periods:
+            self._go(Trigger.FOREIGN, cycle) if self.phase is Phase.MEMBER else self._go(
+                Trigger.LOST, cycle
+            )
+
+    def _check_join(self, cycle: int) -> None:
+        if self._join_sent is None:
+            return
+        k = self.layout.k
+        wait = (self.config.activation_periods + 2) * k
+        if cycle - self._join_sent > wait and (True, self.my_id) not in self.pending:
+            if self._join_attempts >= 16:
+                self._go(Trigger.LOST, cycle)
+                return
+            backoff = self.config.join_backoff << min(self._join_attempts, 5)
+            self._join_cycle = cycle + k * (1 + self._rng.randrange(backoff))
+            self._join_pick = self._rng.random()
+            self._join_sent = None
+
+    def _listen(self, cycle: int) -> None:
+        since = self._listen_since if self._listen_since is not None else cycle
+        if self._listen_since is None:
+            self._listen_since = cycle
+        if cycle - since < self.config.listen_cycles:
+            return
+        if self._last_heard_any is None:
+            init = tuple(sorted(set(self.initial_members)))
+            self._adopt(init if self.my_id in init else (self.my_id,), cycle)
+            self._go(Trigger.SILENCE, cycle)
+            return
+        if cycle - self._last_heard_any > 4 * self.config.listen_cycles + 20:
+            self._last_heard_any = None  # everyone went quiet: listen afresh
+            self._listen_since = cycle
+            return
+        groups: dict[tuple[int, int], set[int]] = {}
+        for src, h in self.heard.items():
+            if h.join or h.cycle < since or src == self.my_id:
+                continue
+            horizon = max(self.config.listen_cycles, 2 * self._k_of(h.n) + 1)
+            if cycle - h.cycle <= horizon:
+                groups.setdefault((h.n, h.table_hash), set()).add(src)
+        init = tuple(sorted(set(self.initial_members)))
+        for (n, th), srcs in sorted(groups.items(), reverse=True):
+            if self.my_id in init and len(init) == n and table_hash(init) == th:
+                self._adopt(init, cycle)  # our configured table, started before us
+                self._go(Trigger.LEARNED_MEMBER, cycle)
+                return
+            srcs_t = tuple(sorted(srcs))
+            if len(srcs) == n and table_hash(srcs_t) == th:
+                self._adopt(srcs_t, cycle)
+                self._go(Trigger.LEARNED_OTHER, cycle)
+                return
+            with_me = tuple(sorted(srcs | {self.my_id}))
+            if len(with_me) == n and table_hash(with_me) == th:
+                self._adopt(with_me, cycle)
+                self._go(Trigger.LEARNED_MEMBER, cycle)
+                return
+
+    def _k_of(self, n: int) -> int:
+        return SlotLayout.build(tuple(range(1, n + 1)), self.timing, self.config).k
+
+    # ------------------------------------------------------------------ output
+    def next_tx(self, now: float, min_cycle: int) -> TxSlot | None:
+        """Our next transmission whose air start is not in the past."""
+        lay = self.layout
+        if self.phase is Phase.LISTENING:
+            return None
+        half = lay.guard_s / 2
+        p = max(int(now // lay.period_s) - 1, 0)
+        for period in range(p, p + 3 + lay.join_every):
+            pstart, pend = period * lay.k, (period + 1) * lay.k
+            if any(pstart < at <= pend - 1 for at in self.pending.values()):
+                continue  # the table changes inside this period: stay quiet
+            if self.phase is Phase.MEMBER:
+                idx = lay.member_slot(self.my_id, period)
+                join = False
+            else:
+                if self._join_cycle is None or (period + 1) * lay.k <= self._join_cycle:
+                    continue
+                if self._join_sent is not None or not self._view_is_fresh(now):
+                    return None
+                idx = lay.join_index(period)
+                join = True
+            if idx is None:
+                continue
+            start = lay.slot_start(period, idx)
+            cycle = lay.slot_cycle(period, idx)
+            if join:
+                offset = self._join_offset()
+            elif lay.n == 1:
+                offset = lay.lone_offset(self.my_id, cycle, self.timing)
+            else:
+                offset = 0.0
+            air = start + half + offset
+            if air < now or cycle < min_cycle:
+                continue
+            return TxSlot(start, air, cycle, period, join, 0 if join else lay.budget)
+        return None
+
+    def _view_is_fresh(self, now: float) -> bool:
+        """A joiner sends only while members confirm its view of the table: a stale
+        view would put its JOIN in someone's slot."""
+        if self._confirmed is None:
+            return False
+        cycle = int(now // self.config.cycle_s)
+        return cycle - self._confirmed <= 2 * self.layout.k + 1 and self._mismatch == 0
+
+    def _join_offset(self) -> float:
+        """Joiners spread their JOINs over the join window (a JOIN frame is short)."""
+        lay = self.layout
+        jlen = lay.guard_s + self.timing.airtime_s(frame_overhead(lay.n, 0))
+        positions = max(1, int((lay.slot_s - lay.guard_s) // jlen))
+        return int(self._join_pick * positions) * jlen

@@ -1,0 +1,216 @@
+"""`radio-gateway run`: a serial radio and a Zenoh session, bridged.
+
+Zenoh side: one subscriber on `bandada/<swarm>/**` that ignores this session's own
+publications; samples of on-air topics originated locally are queued for the air
+(`core.bridge`). Radio side: `RadioLink`. What is heard is published under the key
+rebuilt from the message, with the radio attachment, unless the LAN already had it.
+Statistics go to `bandada/<swarm>/radio/<node_id>/stats` (RadioStats) every
+`stats_period_s`.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import msgspec
+import serial
+import zenoh
+
+from swarm_proto.clock import Clock, clock_from_env
+from swarm_proto.session import SwarmBus, ZenohSettings, _qos, open_session
+from swarm_proto.topics import check_swarm_name, prefix
+
+from ..core.airtime import LinkTiming
+from ..core.auth import parse_key
+from ..core.bridge import RADIO_ATTACHMENT, Bridge, Publication
+from ..core.node import Deliver, NodeConfig, RadioNode
+from ..core.slots import TdmConfig
+from ..core.stats import StatsReporter
+from ..core.xtend import RadioSettings
+from .link import RadioLink
+from .timesource import TimeSource, time_source_from_spec
+from .xtend_config import configure, verify
+
+log = logging.getLogger(__name__)
+
+
+class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """Everything `radio-gateway run` needs (a TOML file and/or command-line options)."""
+
+    node_id: int
+    port: str
+    key_file: str
+    swarm: str = "default"
+    zenoh: ZenohSettings = ZenohSettings()
+    radio: RadioSettings = RadioSettings()
+    cycle_s: float = 0.2
+    guard_s: float = 0.005
+    sync_s: float = 0.006  # the module's per-packet preamble
+    min_payload: int = 42
+    silent_periods: int = 5
+    initial_members: tuple[int, ...] = ()
+    local_ids: tuple[int, ...] = ()  # whose messages go on air; default: node_id
+    forward_unattributed: bool = True  # zones (no originator field)
+    time_source: str = "clock"  # clock, clock-free, mavlink:URL, nmea:PORT[:BAUD]
+    configure_radio: bool = False  # apply `radio` settings before verifying them
+    verify_radio: bool = True  # refuse to run unless the module matches `radio`
+    at_guard_s: float = 1.1
+    stats_period_s: float = 1.0
+
+    def node_config(self) -> NodeConfig:
+        radio = msgspec.structs.replace(self.radio, address=self.node_id)
+        timing: LinkTiming = radio.timing(sync_s=self.sync_s)
+        tdm = TdmConfig(
+            cycle_s=self.cycle_s,
+            guard_s=self.guard_s,
+            min_payload=self.min_payload,
+            silent_periods=self.silent_periods,
+        )
+        return NodeConfig(
+            self.node_id, timing=timing, tdm=tdm, initial_members=self.initial_members
+        )
+
+
+def load_config(path: Path | None, overrides: dict[str, object]) -> GatewayConfig:
+    raw: dict[str, object] = {}
+    if path is not None:
+        raw = msgspec.toml.decode(path.read_bytes())
+    raw.update({k: v for k, v in overrides.items() if v is not None})
+    return msgspec.convert(raw, GatewayConfig)
+
+
+@dataclass
+class Gateway:
+    config: GatewayConfig
+    session: zenoh.Session
+    port: serial.Serial
+    time_source: TimeSource
+    clock: Clock
+    key: bytes
+    bridge: Bridge = field(init=False)
+    link: RadioLink = field(init=False)
+    bus: SwarmBus = field(init=False)
+    _reporter: StatsReporter = field(default_factory=StatsReporter)
+    _next_stats: float = 0.0
+    _subscriber: zenoh.Subscriber | None = None
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def __post_init__(self) -> None:
+        c = self.config
+        check_swarm_name(c.swarm)
+        self.bridge = Bridge(
+            c.swarm, c.node_id, frozenset(c.local_ids or (c.node_id,)), c.forward_unattributed
+        )
+        node = RadioNode(c.node_config(), self.key, self.time_source.now())
+        self.link = RadioLink(
+            self.port,
+            node,
+            self.time_source,
+            clock=self.clock,
+            on_deliver=self._on_air,
+            on_tick=self._tick,
+            name=f"radio-{c.node_id}",
+        )
+        self.bus = SwarmBus(self.session, c.swarm)
+        self._attachment = RADIO_ATTACHMENT + b":" + str(c.node_id).encode()
+
+    def start(self) -> Gateway:
+        self._subscriber = self.session.declare_subscriber(
+            f"{prefix(self.config.swarm)}/**",
+            self._on_lan,
+            allowed_origin=zenoh.Locality.REMOTE,
+        )
+        self.link.start()
+        return self
+
+    def close(self) -> None:
+        if self._subscriber is not None:
+            self._subscriber.undeclare()
+            self._subscriber = None
+        self.link.close()
+        self.bus.close()
+        self.time_source.close()
+
+    # ------------------------------------------------------------------ LAN -> air
+    def _on_lan(self, sample: zenoh.Sample) -> None:
+        att = sample.attachment
+        from_gw = att is not None and att.to_bytes().startswith(RADIO_ATTACHMENT)
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        now = self.time_source.now()
+        with self._lock:  # Zenoh calls back on several threads
+            out = self.bridge.from_lan(key, payload, now, from_gateway=from_gw)
+        if out is not None:
+            self.link.submit(out)
+
+    # ------------------------------------------------------------------ air -> LAN
+    def _on_air(self, d: Deliver, now: float) -> None:
+        with self._lock:
+            pub = self.bridge.from_air(d.data, now)
+        if pub is not None:
+            self._publish(pub)
+
+    def _publish(self, pub: Publication) -> None:
+        qos = _qos(pub.topic)
+        qos.pop("reliability", None)
+        try:
+            self.session.put(pub.key, pub.payload, attachment=self._attachment, **qos)
+        except zenoh.ZError:
+            log.warning("publishing %s failed", pub.key, exc_info=True)
+
+    # ------------------------------------------------------------------ stats
+    def _tick(self, node: RadioNode, now: float) -> None:
+        with self._lock:
+            held = self.bridge.due(now)
+        for pub in held:
+            self._publish(pub)
+        if now < self._next_stats:
+            return
+        self._next_stats = now + self.config.stats_period_s
+        with self._lock:
+            extra = self.bridge.counts.copy()
+        msg = self._reporter.report(node, now, extra)
+        try:
+            self.bus.publish(msg)
+        except (zenoh.ZError, RuntimeError):
+            log.debug("stats publish failed", exc_info=True)
+
+
+def run_gateway(config: GatewayConfig, stop: threading.Event, clock: Clock | None = None) -> int:
+    """Verify the radio, then bridge until `stop` is set. Returns an exit code."""
+    clock = clock or clock_from_env()
+    settings = msgspec.structs.replace(config.radio, address=config.node_id)
+    key = parse_key(Path(config.key_file).read_bytes())
+    if config.configure_radio:
+        report = configure(config.port, settings, clock=clock, guard_s=config.at_guard_s)
+        log.info("radio configured at %d baud, changed %s", report.found_baud, report.changed)
+    if config.verify_radio:
+        problems = verify(config.port, settings, clock=clock, guard_s=config.at_guard_s)
+        if problems:
+            for p in problems:
+                log.error("radio %s: %s", config.port, p)
+            log.error("refusing to run: the radio is not set up for bandada "
+                      "(run `radio-gateway configure` or pass --configure)")  # fmt: skip
+            return 3
+    source = time_source_from_spec(config.time_source, clock)
+    port = serial.Serial(config.port, settings.serial_baud, timeout=0.05)
+    session = open_session(config.zenoh)
+    gw = Gateway(config, session, port, source, clock, key)
+    try:
+        gw.start()
+        log.info(
+            "radio gateway %d on %s, swarm %r: bridging", config.node_id, config.port, config.swarm
+        )
+        stop.wait()
+    finally:
+        gw.close()
+        session.close()
+    return 0
+
+
+def members_option(text: str | None) -> tuple[int, ...] | None:
+    if not text:
+        return None
+    return tuple(int(x) for x in text.replace(" ", "").split(",") if x)

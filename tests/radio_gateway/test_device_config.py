@@ -1,0 +1,112 @@
+"""Device configuration through AT command mode against emulated XTends on pseudo-terminals
+(guard times counted on a fast simulated clock), refusal to run on a mismatch, the CLIs."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from radio_gateway.core import xtend
+from radio_gateway.runtime.gateway import GatewayConfig, run_gateway
+from radio_gateway.runtime.xtend_config import configure, verify
+from swarm_proto.clock import ScaledClock
+from swarm_sim.radio_channel.pty import PtyRadioChannel
+
+FAST = 20.0  # simulated seconds per wall second: 1 s guard times take 50 ms
+REPO = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+
+
+def test_settings_map_to_at_registers() -> None:
+    regs = xtend.RadioSettings(address=7, channel=3).registers()
+    assert regs["BD"] == 8 and regs["BR"] == 1 and regs["DT"] == 0xFFFF and regs["MY"] == 7
+    assert regs["MT"] == 0 and regs["RR"] == 0 and regs["PK"] == regs["RB"] == 0x800
+    assert xtend.RadioSettings(rf_bps=9600).registers()["PK"] == 0x100
+    with pytest.raises(ValueError, match="serial_baud"):
+        xtend.RadioSettings(serial_baud=12345).registers()
+    with pytest.raises(ValueError, match="ATHP"):
+        xtend.RadioSettings(channel=12).registers()
+    assert xtend.command("BD", 8) == b"ATBD 8\r" and xtend.command("WR") == b"ATWR\r"
+    assert xtend.mismatches({"BD": 8}, {"BD": 3}) == [
+        "ATBD is 3, want 8 (interface (serial) data rate: 3 = 9600, 7 = 115200, 8 = 230400)"
+    ]
+
+
+def test_configure_a_factory_module_then_verify_it() -> None:
+    clock = ScaledClock(FAST)
+    settings = xtend.RadioSettings(address=12, channel=4, power_level=2)
+    with PtyRadioChannel(1, clock=clock) as channel:  # factory: 9600 baud
+        port = channel.ports[0]
+        problems = verify(port, settings, clock=clock)
+        assert problems and "no OK" in problems[0]  # it does not answer at 230,400
+        report = configure(port, settings, clock=clock)
+        assert report.found_baud == 9600 and report.written
+        assert set(report.changed) >= {"BD", "DT", "MY", "HP", "PL", "RR"}
+        assert verify(port, settings, clock=clock) == []
+        channel.power_cycle(0)  # written to flash: survives
+        assert verify(port, settings, clock=clock) == []
+        assert verify(port, xtend.RadioSettings(address=13), clock=clock) == [
+            "ATPL is 2, want 4 (power level: 0 = 1 mW, 1 = 10 mW, 2 = 100 mW, 3 = 500 mW, 4 = 1 W)",
+            "ATHP is 4, want 0 (hopping channel)",
+            "ATMY is C, want D (source address)",
+        ]
+
+
+def test_the_gateway_refuses_to_run_on_a_mismatch(tmp_path: Path) -> None:
+    clock = ScaledClock(FAST)
+    key = tmp_path / "swarm.key"
+    key.write_text("00" * 32)
+    with PtyRadioChannel(1, clock=clock) as channel:
+        cfg = GatewayConfig(node_id=3, port=channel.ports[0], key_file=str(key))
+        assert run_gateway(cfg, threading.Event(), clock) == 3
+
+
+def _env(**extra: str) -> dict[str, str]:
+    env = dict(os.environ)
+    env.update(extra)
+    return env
+
+
+def test_cli_emulator_and_gateway_refusal(tmp_path: Path) -> None:
+    """`swarm-sim radio` prints its ports; `radio-gateway run` on a factory-set module
+    refuses to start, and with --configure it sets the module up and runs."""
+    spec = f"scaled:{FAST}:{1.75e9}:{__import__('time').monotonic()}"
+    env = _env(BANDADA_CLOCK=spec)
+    sim = subprocess.Popen(
+        [BIN / "swarm-sim", "radio", "--nodes", "1", "--factory", "--stats-every", "100"],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        assert sim.stdout is not None
+        ports = json.loads(sim.stdout.readline())["ports"]
+        key = tmp_path / "k"
+        subprocess.run([BIN / "radio-gateway", "keygen", str(key)], check=True, env=env)
+        assert len(key.read_text().strip()) == 64 and (key.stat().st_mode & 0o777) == 0o600
+        base = [BIN / "radio-gateway", "run", "--port", ports[0], "--node-id", "4"]
+        base += ["--key-file", str(key), "--connect", "tcp/127.0.0.1:9"]
+        bad = subprocess.run(base, capture_output=True, text=True, env=env, timeout=120)
+        assert bad.returncode == 3
+        assert "refusing to run" in bad.stderr
+        ok = subprocess.Popen([*base, "--configure"], stderr=subprocess.PIPE, text=True, env=env)
+        try:
+            assert ok.stderr is not None
+            for line in ok.stderr:
+                if "bridging" in line:
+                    break
+                assert "refusing" not in line and "Traceback" not in line, line
+            else:
+                raise AssertionError("the gateway never started bridging")
+        finally:
+            ok.terminate()
+            assert ok.wait(timeout=30) == 0  # clean shutdown on SIGTERM
+    finally:
+        sim.terminate()
+        sim.wait(timeout=30)

@@ -1,0 +1,160 @@
+"""End to end: radio gateways bridging separate local Zenoh networks (127.0.0.1) through
+the emulated channel, with SwarmBus publishers standing in for vehicle nodes and a ground
+station. Vehicles 1 and 2 share a LAN and also have radios; the ground station (900) has
+only its radio."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import pytest
+import serial
+
+from radio_gateway.core.xtend import RadioSettings
+from radio_gateway.runtime.gateway import Gateway, GatewayConfig
+from radio_gateway.runtime.timesource import ClockTimeSource
+from swarm_proto import (
+    Command,
+    CommandKind,
+    Geometry,
+    Mission,
+    MissionType,
+    VehicleStatus,
+    radio,
+)
+from swarm_proto.clock import SystemClock
+from swarm_proto.messages import RadioStats
+from swarm_proto.session import SwarmBus, ZenohSettings, open_session
+from swarm_proto.topics import COMMAND, MISSION, RADIO_STATS, STATUS
+from swarm_sim.radio_channel.model import ChannelParams
+from swarm_sim.radio_channel.pty import PtyRadioChannel
+from tests.conftest import free_tcp_port
+
+from .helpers import KEY, status
+
+pytestmark = pytest.mark.network
+
+
+@dataclass
+class World:
+    v1: SwarmBus
+    v2: SwarmBus
+    gcs: SwarmBus
+    gateways: dict[int, Gateway]
+    channel: PtyRadioChannel
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+
+@pytest.fixture
+def world() -> Iterator[World]:
+    clock = SystemClock()
+    channel = PtyRadioChannel(3, ChannelParams(), clock, registers=RadioSettings().registers())
+    channel.start()
+    closers: list = []
+    try:
+        lans = {}
+        for name in ("ab", "c"):
+            ep = f"tcp/127.0.0.1:{free_tcp_port()}"
+            router = open_session(ZenohSettings(mode="router", listen=(ep,)))
+            closers.append(router.close)
+            lans[name] = ep
+        gateways = {}
+        ids = (1, 2, 900)
+        for i, (nid, lan) in enumerate(zip(ids, ("ab", "ab", "c"), strict=True)):
+            cfg = GatewayConfig(
+                node_id=nid,
+                port=channel.ports[i],
+                key_file="",
+                initial_members=ids,
+                verify_radio=False,
+                guard_s=0.005,
+            )
+            session = open_session(ZenohSettings(connect=(lans[lan],)))
+            port = serial.Serial(channel.ports[i], 230_400, timeout=0.05)
+            gw = Gateway(cfg, session, port, ClockTimeSource(clock), clock, KEY).start()
+            closers[:0] = [gw.close, session.close]
+            gateways[nid] = gw
+        buses = [SwarmBus.open(ZenohSettings(connect=(lans[x],))) for x in ("ab", "ab", "c")]
+        closers[:0] = [b.close for b in buses]
+        yield World(*buses, gateways, channel)
+    finally:
+        for close in closers:
+            close()
+        channel.close()
+
+
+def test_gateways_bridge_lans_over_the_air_once_each(world: World) -> None:
+    at_v2: Counter[float] = Counter()
+    at_gcs: Counter[float] = Counter()
+    commands: Counter[int] = Counter()
+    missions: Counter[tuple[str, int]] = Counter()
+    stats: list[RadioStats] = []
+    lock = world.lock
+
+    def count(c: Counter, k: object) -> None:
+        with lock:
+            c[k] += 1
+
+    world.v2.subscribe(
+        STATUS, lambda m, k: count(at_v2, m.time_unix_s) if m.vehicle_id == 1 else None
+    )
+    world.gcs.subscribe(STATUS, lambda m, k: count(at_gcs, round(m.time_unix_s, 3)))
+    world.v1.subscribe(COMMAND, lambda m, k: count(commands, m.seq))
+    world.v1.subscribe(MISSION, lambda m, k: count(missions, ("v1", m.mission_id)))
+    world.v2.subscribe(MISSION, lambda m, k: count(missions, ("v2", m.mission_id)))
+    world.gcs.subscribe(RADIO_STATS, lambda m, k: stats.append(m))
+    time.sleep(1.5)  # Zenoh discovery, radio bootstrap
+
+    sent: list[VehicleStatus] = []
+    for i in range(20):
+        s = status(1, time.time())
+        sent.append(s)
+        world.v1.publish(s)
+        if i % 5 == 0:
+            world.gcs.publish(Command(issuer_id=900, seq=100 + i, kind=CommandKind.RTL))
+        if i == 3:
+            world.gcs.publish(
+                Mission(
+                    mission_id=5,
+                    issuer_id=900,
+                    mission_type=MissionType.AREA,
+                    geometry=Geometry.polygon(
+                        [
+                            (37.41, -5.99),
+                            (37.42, -5.99),
+                            (37.425, -5.98),
+                            (37.42, -5.97),
+                            (37.41, -5.975),
+                        ]
+                    ),
+                    name="north field",
+                )
+            )
+        time.sleep(0.2)
+    time.sleep(1.5)
+
+    with lock:
+        assert at_v2 and max(at_v2.values()) == 1  # LAN and radio: seen once
+        assert len(at_v2) == 20
+        assert at_gcs and max(at_gcs.values()) == 1
+        assert len(at_gcs) >= 18  # over the air, at 5 Hz
+        want = {round(radio.quantized(s).time_unix_s, 3) for s in sent}  # type: ignore[attr-defined]
+        assert set(at_gcs) <= want
+        assert commands == {100: 1, 105: 1, 110: 1, 115: 1}  # two gateways on v1's LAN: once
+        assert missions == {("v1", 5): 1, ("v2", 5): 1}
+    s900 = [s for s in stats if s.node_id == 900]
+    assert s900, "the ground station's gateway publishes its statistics"
+    last = s900[-1]
+    assert last.members == (1, 2, 900) and last.phase == "member" and last.rate_divisor == 1
+    assert {p.node_id for p in last.peers} == {1, 2}
+    assert all(p.packets_per_s > 3.0 and p.loss < 0.2 for p in last.peers)
+    assert last.dropped_duplicates > 0  # relayed copies of what it already had
+    assert world.channel.stats()["channel"].get("collisions", 0) == 0
+    # no loops: each gateway put on air only what its own side originated
+    assert world.gateways[1].bridge.counts["to_air"] == 20
+    assert world.gateways[2].bridge.counts["to_air"] == 0
+    assert world.gateways[900].bridge.counts["to_air"] == 5

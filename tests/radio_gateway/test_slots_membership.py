@@ -1,0 +1,230 @@
+"""The slot table (a pure function of membership) and the membership state machine: every
+transition of `TRANSITIONS` is driven here from frames and cycles."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from radio_gateway.core.frame import Change, Frame, frame_overhead, heard_bytes
+from radio_gateway.core.membership import TRANSITIONS, Membership, Phase, Trigger
+from radio_gateway.core.slots import SlotLayout, TdmConfig, physical_limit, table_hash
+
+from .helpers import TDM, TIMING, fleet
+
+C0 = 8_750_000_000  # a cycle number near 2025
+
+
+@given(st.sets(st.integers(1, 65534), min_size=1, max_size=30), st.randoms())
+def test_every_node_computes_the_same_table_from_the_same_members(
+    members: set[int], rnd: object
+) -> None:
+    order = list(members)
+    rnd.shuffle(order)  # type: ignore[attr-defined]
+    a = SlotLayout.build(tuple(members), TIMING, TDM)
+    b = SlotLayout.build(tuple(order), TIMING, TDM)
+    assert a == b and a.table_hash == table_hash(tuple(order))
+
+
+@given(st.integers(1, 40), st.sampled_from([0.002, 0.005, 0.010]), st.integers(20, 140))
+def test_slots_tile_the_period_and_fit_their_packets(n: int, guard: float, payload: int) -> None:
+    tdm = TdmConfig(guard_s=guard, min_payload=payload)
+    lay = SlotLayout.build(tuple(range(1, n + 1)), TIMING, tdm)
+    assert lay.slots * lay.slot_s == pytest.approx(lay.k * tdm.cycle_s)
+    assert lay.slot_s + 1e-9 >= lay.min_slot_s
+    assert lay.budget >= payload
+    wire = frame_overhead(n, lay.budget)
+    assert TIMING.airtime_s(wire) + guard <= lay.slot_s + 1e-9  # the packet and guard fit
+    for p in (0, 1, 7):  # small periods: exact in floating point
+        starts = [lay.slot_start(p, i) for i in range(lay.slots)]
+        assert starts == sorted(starts)
+        assert all(
+            lay.slot_cycle(p, i) == int(starts[i] / tdm.cycle_s + 1e-6) for i in range(lay.slots)
+        )
+    assert lay.over_limit == (n > physical_limit(TIMING, tdm))
+
+
+def test_a_full_cycle_lends_one_member_slot_in_rotation_to_joiners() -> None:
+    n = physical_limit(TIMING, TDM)
+    lay = SlotLayout.build(tuple(range(1, n + 1)), TIMING, TDM)
+    assert not lay.join_slot and lay.k == 1
+    lent = [lay.join_index(p) for p in range(0, 3 * n * lay.join_every, lay.join_every)]
+    assert sorted(set(lent)) == list(range(n))  # everyone lends its slot in turn
+    assert all(lay.join_index(p) is None for p in range(1, lay.join_every))
+    assert lay.member_slot(1, 0) is None and lay.member_slot(2, 0) == 1
+
+
+# --------------------------------------------------------------------------- transitions
+
+
+def _m(me: int = 9, **kw: object) -> Membership:
+    m = Membership(me, TIMING, TDM, **kw)  # type: ignore[arg-type]
+    return m
+
+
+def _frame(src: int, cycle: int, members: tuple[int, ...], **kw: object) -> Frame:
+    n = len(members)
+    return Frame(
+        src=src,
+        cycle=cycle,
+        table_hash=table_hash(members),
+        n_members=n,
+        heard=kw.pop("heard", b"\xff" * heard_bytes(n)),  # type: ignore[arg-type]
+        **kw,  # type: ignore[arg-type]
+    )
+
+
+def _advance(m: Membership, start: int, cycles: int) -> int:
+    for c in range(start, start + cycles):
+        m.advance(c)
+    return start + cycles
+
+
+def _triggers(*ms: Membership) -> set[tuple[Phase, Trigger]]:
+    return {(t.old, t.trigger) for m in ms for t in m.transitions}
+
+
+def test_listening_alone_bootstraps() -> None:
+    m = _m(initial_members=(3, 9))
+    _advance(m, C0, TDM.listen_cycles + 1)
+    assert m.phase is Phase.MEMBER and m.members == (3, 9)
+    lone = _m(initial_members=(1, 2))  # not in the configured table: alone
+    _advance(lone, C0, TDM.listen_cycles + 1)
+    assert lone.members == (9,)
+
+
+def test_learning_a_table_then_joining_it() -> None:
+    m = _m()
+    m.advance(C0)
+    for c in range(C0 + 1, C0 + 4):
+        for src in (1, 2):
+            m.on_frame(_frame(src, c, (1, 2)))
+        m.advance(c)
+    assert m.phase is Phase.JOINING and m.members == (1, 2)
+    slot = next(s for s in [m.next_tx(C0 * 0.2, 0)] if s is not None)
+    assert slot.join
+    m.sent(slot)
+    m.on_frame(_frame(1, slot.cycle + 1, (1, 2), records=(Change(True, 9, slot.cycle + 3),)))
+    _advance(m, slot.cycle + 1, 3)
+    assert m.phase is Phase.MEMBER and m.members == (1, 2, 9)
+    assert _triggers(m) == {
+        (Phase.LISTENING, Trigger.LEARNED_OTHER),
+        (Phase.JOINING, Trigger.ADMITTED),
+    }
+
+
+def test_a_quick_restart_finds_itself_still_in_the_table() -> None:
+    m = _m()
+    m.advance(C0)
+    for c in range(C0 + 1, C0 + 4):
+        for src in (1, 2):
+            m.on_frame(_frame(src, c, (1, 2, 9)))
+        m.advance(c)
+    assert m.phase is Phase.MEMBER and m.members == (1, 2, 9)
+    assert _triggers(m) == {(Phase.LISTENING, Trigger.LEARNED_MEMBER)}
+
+
+def _member(members: tuple[int, ...] = (1, 2, 9)) -> tuple[Membership, int]:
+    m = _m(initial_members=members)
+    c = _advance(m, C0, TDM.listen_cycles + 1)
+    assert m.phase is Phase.MEMBER
+    return m, c
+
+
+def test_a_member_told_it_left_rejoins() -> None:
+    m, c = _member()
+    m.on_frame(_frame(1, c, (1, 2, 9), records=(Change(False, 9, c + 2),)))
+    c = _advance(m, c, 3)
+    assert m.phase is Phase.JOINING and m.members == (1, 2)
+    assert (Phase.MEMBER, Trigger.REMOVED) in _triggers(m)
+
+
+def test_an_outvoted_member_relearns() -> None:
+    m, c = _member()
+    for _ in range(TDM.mismatch_periods + 1):
+        for src in (1, 2):
+            m.on_frame(_frame(src, c, (1, 2, 9, 10)))  # they admitted 10; we missed it
+        c = _advance(m, c, 1)
+    assert m.phase is Phase.LISTENING
+    assert (Phase.MEMBER, Trigger.OUTVOTED) in _triggers(m)
+
+
+def test_a_member_meeting_a_bigger_group_relearns() -> None:
+    m, c = _member((9,))
+    for _ in range(TDM.mismatch_periods + 1):
+        for src in (20, 21, 22):
+            m.on_frame(_frame(src, c, (20, 21, 22)))
+        c = _advance(m, c, 1)
+    assert m.phase is Phase.LISTENING
+    assert (Phase.MEMBER, Trigger.FOREIGN) in _triggers(m)
+
+
+def test_a_joiner_outvoted_or_ignored_starts_over() -> None:
+    a = _m()
+    a.advance(C0)
+    c = C0 + 1
+    for c in range(C0 + 1, C0 + 4):
+        for src in (1, 2):
+            a.on_frame(_frame(src, c, (1, 2)))
+        a.advance(c)
+    assert a.phase is Phase.JOINING
+    for c2 in range(c + 1, c + 1 + TDM.mismatch_periods + 1):
+        for src in (1, 2):
+            a.on_frame(_frame(src, c2, (1, 2, 5)))
+        a.advance(c2)
+    assert (Phase.JOINING, Trigger.OUTVOTED) in _triggers(a)
+
+    b = _m()
+    b.advance(C0)
+    c = C0 + 1
+    for c in range(C0 + 1, C0 + 4):
+        for src in (1, 2):
+            b.on_frame(_frame(src, c, (1, 2)))
+        b.advance(c)
+    sends = 0
+    while b.phase is Phase.JOINING and c < C0 + 5000:
+        c += 1
+        for src in (1, 2):
+            b.on_frame(_frame(src, c, (1, 2)))  # they keep ignoring our JOIN
+        slot = b.next_tx(c * TDM.cycle_s, 0)
+        if slot is not None and slot.cycle <= c:
+            b.sent(slot)
+            sends += 1
+        b.advance(c)
+    assert b.phase is Phase.LISTENING and sends == 16
+    assert (Phase.JOINING, Trigger.LOST) in _triggers(b)
+
+
+def test_every_transition_in_the_table_is_exercised() -> None:
+    """The tests above drive each entry; this keeps the table and the tests in step."""
+    assert {(k[0], k[1]) for k in TRANSITIONS} == {
+        (Phase.LISTENING, Trigger.LEARNED_MEMBER),
+        (Phase.LISTENING, Trigger.LEARNED_OTHER),
+        (Phase.LISTENING, Trigger.SILENCE),
+        (Phase.JOINING, Trigger.ADMITTED),
+        (Phase.JOINING, Trigger.OUTVOTED),
+        (Phase.JOINING, Trigger.LOST),
+        (Phase.MEMBER, Trigger.REMOVED),
+        (Phase.MEMBER, Trigger.OUTVOTED),
+        (Phase.MEMBER, Trigger.FOREIGN),
+    }
+
+
+def test_two_groups_that_formed_apart_merge_when_they_meet() -> None:
+    """Groups on different hopping channels form their own tables; put them on one
+    channel and the smaller group relearns and joins the larger one."""
+    f = fleet(6, initial=False, max_nodes=6)
+    for v in (4, 5, 6):
+        f.model.preset(f.members[v].module, HP=1)
+    f.run(f.t + 20.0)
+    assert f.node(1).membership.members == (1, 2, 3)
+    assert f.node(4).membership.members == (4, 5, 6)
+    for v in (4, 5, 6):
+        f.model.modules[f.members[v].module].registers["HP"] = 0
+    f.run(f.t + 40.0)
+    want = tuple(range(1, 7))
+    assert all(f.node(v).membership.members == want for v in want)
+    collisions = f.model.counts["collisions"]
+    f.run(f.t + 5.0)
+    assert f.model.counts["collisions"] == collisions
