@@ -54,6 +54,9 @@ def zenoh_config(s: ZenohSettings) -> zenoh.Config:
     conf.insert_json5("mode", json.dumps(s.mode))
     if s.listen:
         conf.insert_json5("listen/endpoints", json.dumps(list(s.listen)))
+    elif s.mode == "peer" and s.connect and all(_is_loopback(e) for e in s.connect):
+        # a simulation on one machine: do not listen on every interface (Zenoh's default)
+        conf.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:0"]))
     if s.connect:
         conf.insert_json5("connect/endpoints", json.dumps(list(s.connect)))
     conf.insert_json5("scouting/multicast/enabled", json.dumps(s.multicast_scouting))
@@ -63,6 +66,13 @@ def zenoh_config(s: ZenohSettings) -> zenoh.Config:
     conf.insert_json5("transport/link/tx/lease", str(int(s.lease_ms)))
     conf.insert_json5("transport/link/tx/keep_alive", str(int(s.keep_alive)))
     return conf
+
+
+def _is_loopback(endpoint: str) -> bool:
+    """tcp/127.0.0.1:7447, udp/[::1]:7447, tcp/localhost:7447 ..."""
+    locator = endpoint.split("#")[0].split("/", 1)[-1]
+    host = locator.rsplit(":", 1)[0].strip("[]")
+    return host in ("localhost", "::1") or host.startswith("127.")
 
 
 def open_session(s: ZenohSettings) -> zenoh.Session:

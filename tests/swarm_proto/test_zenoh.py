@@ -75,15 +75,17 @@ def test_malformed_payloads_are_counted_and_dropped(zenoh_router: str) -> None:
     try:
         listener.subscribe(COMMAND, lambda m, k: received.put(m))
         good = Command(issuer_id=900, seq=1, kind=CommandKind.RTL)
-        for _ in range(50):
+        got = None
+        for _ in range(200):  # until the subscription has reached the sender
             sender.put("bandada/default/cmd/900", b"\xc1 not msgpack")
             sender.put("bandada/default/cmd/900", msgspec.msgpack.encode({"issuer_id": 0}))
             sender.put("bandada/default/cmd/900", msgspec.msgpack.encode(good))
             try:
-                assert received.get(timeout=0.1) == good
+                got = received.get(timeout=0.1)
                 break
             except queue.Empty:
                 continue
+        assert got == good
         assert bad.get(timeout=2) == "bandada/default/cmd/900"
         assert listener.bad_input["command"] >= 2
     finally:
@@ -131,3 +133,14 @@ def test_subscribers_survive_a_failing_handler(zenoh_router: str) -> None:
                 pytest.fail(f"status {vid} never delivered")
     finally:
         bus.close()
+
+
+def test_a_loopback_simulation_listens_on_loopback_only() -> None:
+    from swarm_proto.session import zenoh_config
+
+    sim = zenoh_config(ZenohSettings(connect=("tcp/127.0.0.1:7447",)))
+    assert "127.0.0.1" in sim.get_json("listen/endpoints")
+    field = zenoh_config(ZenohSettings(connect=("tcp/192.168.1.10:7447",)))
+    assert "127.0.0.1" not in field.get_json("listen/endpoints")
+    explicit = zenoh_config(ZenohSettings(connect=("tcp/127.0.0.1:7447",), listen=("tcp/0.0.0.0:7448",)))
+    assert "0.0.0.0:7448" in explicit.get_json("listen/endpoints")
