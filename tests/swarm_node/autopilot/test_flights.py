@@ -249,7 +249,7 @@ def test_plane_sortie() -> None:
     landing = [Waypoint(ItemKind.LAND, lat_deg=HOME.lat_deg, lon_deg=HOME.lon_deg)]
     up = f.do(rq.UploadMission(items=(*wps, Waypoint(ItemKind.RTL), *landing)))
     assert up.ok
-    land_start = next(i.seq for i in up.items if i.command == 189)
+    assert any(i.command == 189 for i in up.items)  # DO_LAND_START marks the landing sequence
     assert f.do(rq.Arm()).ok
     assert f.do(rq.Takeoff(alt_rel_m=60.0)).ok
     f.wait(lambda: (f.state.alt_rel_m or 0) > 55.0, 180, "climb in TAKEOFF mode")
@@ -264,12 +264,9 @@ def test_plane_sortie() -> None:
         "home",
     )
     land = f.do(rq.Land())
-    # The link sends DO_LAND_START, which ArduPlane answers by jumping to the mission's
-    # landing sequence. The simulator does not implement that command yet (UNSUPPORTED);
-    # work around it by jumping there ourselves, as ArduPlane would.
-    if not land.ok:
-        assert land.error == ApError.UNSUPPORTED, land
-        assert f.do(rq.StartMission(first_item=land_start)).ok
+    # The link sends DO_LAND_START, which ArduPlane (and the simulator) answer by
+    # jumping to the mission's landing sequence.
+    assert land.ok, land
     f.wait(lambda: not f.state.armed or (f.state.alt_rel_m or 99) < 1.0, 900, "landing")
     sent = f.commands()
     assert sent[:6] == [
