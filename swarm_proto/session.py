@@ -102,6 +102,14 @@ def _qos(topic: Topic) -> dict[str, Any]:
     )
 
 
+def put_options(topic: Topic) -> dict[str, Any]:
+    """Keyword arguments for `zenoh.Session.put` carrying a topic's QoS (a put has no
+    reliability setting; that is the publisher's)."""
+    opts = _qos(topic)
+    opts.pop("reliability", None)
+    return opts
+
+
 MessageCallback = Callable[[Any, str], None]  # (message, key)
 BadInputCallback = Callable[[str, DecodeError], None]  # (key, error)
 AliveCallback = Callable[[int, bool], None]  # (node_id, alive)
@@ -155,11 +163,17 @@ class SwarmBus:
         pub.put(payload)
         return key
 
-    def put_raw(self, key: str, payload: bytes, topic: Topic | None = None) -> None:
+    def put_raw(
+        self,
+        key: str,
+        payload: bytes,
+        topic: Topic | None = None,
+        *,
+        attachment: bytes | None = None,
+    ) -> None:
         """Publish already-encoded bytes (gateways, tests of malformed input)."""
-        kwargs = _qos(topic) if topic else {}
-        kwargs.pop("reliability", None)
-        self.session.put(key, payload, **kwargs)
+        kwargs = put_options(topic) if topic else {}
+        self.session.put(key, payload, attachment=attachment, **kwargs)
 
     # ------------------------------------------------------------------ subscribing
     def subscribe(

@@ -20,7 +20,7 @@ import serial
 import zenoh
 
 from swarm_proto.clock import Clock, clock_from_env
-from swarm_proto.session import SwarmBus, ZenohSettings, _qos, open_session
+from swarm_proto.session import SwarmBus, ZenohSettings, open_session, put_options
 from swarm_proto.topics import check_swarm_name, prefix
 
 from ..core.airtime import LinkTiming
@@ -153,10 +153,10 @@ class Gateway:
             self._publish(pub)
 
     def _publish(self, pub: Publication) -> None:
-        qos = _qos(pub.topic)
-        qos.pop("reliability", None)
         try:
-            self.session.put(pub.key, pub.payload, attachment=self._attachment, **qos)
+            self.session.put(
+                pub.key, pub.payload, attachment=self._attachment, **put_options(pub.topic)
+            )
         except zenoh.ZError:
             log.warning("publishing %s failed", pub.key, exc_info=True)
 
