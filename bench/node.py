@@ -121,6 +121,37 @@ def _vehicle_main(port: int, stop: Any) -> None:
         stop.wait()
 
 
+def _node_with_vehicle(ctx: Any, endpoint: str) -> tuple[subprocess.Popen[bytes], Any, Any, str]:
+    """A simulated quadcopter in its own process and node 7 flying it (a fresh seeded
+    database in a temporary directory)."""
+    port = _free_port()
+    stop_vehicle = ctx.Event()
+    vehicle = ctx.Process(target=_vehicle_main, args=(port, stop_vehicle))
+    vehicle.start()
+    tmp = tempfile.mkdtemp(prefix="bandada-bench-")
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "BANDADA_DB": os.path.join(tmp, "swarm.db")}
+    node = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "swarm_node.cli",
+            "run",
+            "--id",
+            "7",
+            "--swarm",
+            SWARM,
+            "--connect",
+            endpoint,
+            "--autopilot",
+            f"tcp:127.0.0.1:{port}",
+            "--log-level",
+            "ERROR",
+        ],
+        env=env,
+    )
+    return node, vehicle, stop_vehicle, tmp
+
+
 def _measure(pid: int) -> float:
     c0, t0 = _cpu_s(pid), time.monotonic()
     time.sleep(WINDOW_S)
@@ -203,31 +234,7 @@ def link_loss_to_emergency_s(endpoint: str) -> float | None:
     from swarm_proto import Command, CommandArgs, CommandKind, FsmState, GeoPoint
 
     ctx = mp.get_context("spawn")
-    port = _free_port()
-    stop_vehicle = ctx.Event()
-    vehicle = ctx.Process(target=_vehicle_main, args=(port, stop_vehicle))
-    vehicle.start()
-    tmp = tempfile.mkdtemp(prefix="bandada-bench-")
-    env = {**os.environ, "BANDADA_DB": os.path.join(tmp, "swarm.db")}
-    node = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "swarm_node.cli",
-            "run",
-            "--id",
-            "7",
-            "--swarm",
-            SWARM,
-            "--connect",
-            endpoint,
-            "--autopilot",
-            f"tcp:127.0.0.1:{port}",
-            "--log-level",
-            "ERROR",
-        ],
-        env=env,
-    )
+    node, vehicle, _stop, tmp = _node_with_vehicle(ctx, endpoint)
     infos: q.Queue[tuple[float, VehicleInfo]] = q.Queue()
     bus = SwarmBus.open(ZenohSettings(connect=(endpoint,)), SWARM)
     from swarm_proto.topics import INFO
@@ -275,31 +282,7 @@ def run() -> dict[str, Any]:
     ctx = mp.get_context("spawn")
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
-    mav_port = _free_port()
-    stop_vehicle = ctx.Event()
-    vehicle = ctx.Process(target=_vehicle_main, args=(mav_port, stop_vehicle))
-    vehicle.start()
-    tmp = tempfile.mkdtemp(prefix="bandada-bench-")
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", "BANDADA_DB": os.path.join(tmp, "swarm.db")}
-    node = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "swarm_node.cli",
-            "run",
-            "--id",
-            "7",
-            "--swarm",
-            SWARM,
-            "--connect",
-            endpoint,
-            "--autopilot",
-            f"tcp:127.0.0.1:{mav_port}",
-            "--log-level",
-            "ERROR",
-        ],
-        env=env,
-    )
+    node, vehicle, stop_vehicle, tmp = _node_with_vehicle(ctx, endpoint)
     stop_base, base_ready = ctx.Event(), ctx.Event()
     baseline = ctx.Process(target=_baseline_main, args=(endpoint, stop_base, base_ready))
     baseline.start()

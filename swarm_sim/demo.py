@@ -46,23 +46,16 @@ from swarm_proto import (
     NoFlyZone,
     ScaledClock,
     Selector,
-    VehicleType,
 )
 from swarm_proto.clock import ENV_VAR as CLOCK_ENV
 from swarm_proto.clock import clock_from_spec
 from swarm_proto.session import ZenohSettings, open_session
 
 from .core import SITL_HOME
+from .fast_fleet import MODEL_OF_TYPE
 from .runtime import VehicleServer, VehicleSpec, spread_homes
 
 DEFAULT_FLEET = (1, 2, 3, 7, 8)  # seed ids: three Albatross 250 VTOL, two quadcopters
-MODEL_OF_TYPE = {
-    VehicleType.VTOL: "vtol",
-    VehicleType.PLANE: "plane",
-    VehicleType.COPTER: "copter",
-    VehicleType.ROVER: "rover",
-    VehicleType.BOAT: "boat",
-}
 GCS_ID = 900
 MISSION_ID = 1001
 ZONE_ID = 1

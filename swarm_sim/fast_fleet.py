@@ -41,6 +41,7 @@ from .core import SITL_HOME, Home, VehicleEndpoint
 from .runtime.server import spread_homes
 
 AP_POLL_S = 0.2  # the node reads the link's state at 5 Hz, as the runtime does
+#: which simulated model flies a database profile of each vehicle type
 MODEL_OF_TYPE = {
     VehicleType.VTOL: "vtol",
     VehicleType.PLANE: "plane",
