@@ -30,3 +30,18 @@ def test_service_units_parse_and_stop_cleanly(unit: object) -> None:
 def test_udev_rules_name_the_devices() -> None:
     text = (REPO / "deploy" / "udev" / "99-bandada.rules").read_text()
     assert 'SYMLINK+="bandada-radio"' in text and 'SYMLINK+="bandada-autopilot"' in text
+
+
+def test_example_node_config_loads() -> None:
+    from swarm_node.runtime.config import load_config
+
+    cfg = load_config(REPO / "deploy" / "config" / "node.toml")
+    assert cfg.node_id == 1 and cfg.zenoh.connect == ("tcp/192.168.1.10:7447",)
+    assert cfg.link_timeout_s == 0.6
+
+
+def test_example_radio_config_loads() -> None:
+    from radio_gateway.runtime.gateway import load_config
+
+    cfg = load_config(REPO / "deploy" / "config" / "radio.toml", {})
+    assert cfg.port == "/dev/bandada-radio" and cfg.time_source.startswith("mavlink:")
