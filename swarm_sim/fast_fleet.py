@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import msgspec
 
-from swarm_node.core.autopilot.link import Complete, Emit, LinkCore, LinkSettings, Transmit
+from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
 from swarm_node.core.node import (
     AutopilotResult,
@@ -129,31 +129,21 @@ class FastFleet:
                 self.notes.append((self.now, vid, o.text))
 
     def _link_out(self, vid: int, outputs: list[LinkOutput]) -> None:
+        """Carry out the link's outputs: results to the node, bytes to the vehicle, and
+        the vehicle's immediate answers back into the link, until nothing is left."""
         v = self.vehicles[vid]
-        data = bytearray()
-        for o in outputs:
-            if isinstance(o, Transmit):
-                data += o.data
-            elif isinstance(o, Complete):
-                rid = v.tokens.pop(o.token, o.result.request_id)
-                result = msgspec.structs.replace(o.result, request_id=rid)
-                self._deliver(vid, AutopilotResult(result), self.now)
-            elif isinstance(o, Emit):
-                pass  # the node polls the state; events only speed that up in the runtime
-        while data:
-            back = v.endpoint.receive(bytes(data), self.now)
+        while outputs:
             data = bytearray()
-            if back:
-                for o in v.link.receive(back, self.now):
-                    if isinstance(o, Transmit):
-                        data += o.data
-                    elif isinstance(o, Complete):
-                        rid = v.tokens.pop(o.token, o.result.request_id)
-                        self._deliver(
-                            vid,
-                            AutopilotResult(msgspec.structs.replace(o.result, request_id=rid)),
-                            self.now,
-                        )
+            for o in outputs:
+                if isinstance(o, Transmit):
+                    data += o.data
+                elif isinstance(o, Complete):
+                    rid = v.tokens.pop(o.token, o.result.request_id)
+                    result = msgspec.structs.replace(o.result, request_id=rid)
+                    self._deliver(vid, AutopilotResult(result), self.now)
+                # Emit: the node polls the state; events only speed that up in the runtime
+            back = v.endpoint.receive(bytes(data), self.now) if data else b""
+            outputs = v.link.receive(back, self.now) if back else []
 
     def _deadline(self) -> float:
         t = self._bus[0][0] if self._bus else float("inf")
