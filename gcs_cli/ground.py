@@ -40,6 +40,9 @@ from swarm_proto.topics import ACK, ALERT, INFO, PEERS, STATUS
 DEFAULT_GCS_ID = 900
 
 
+REPEAT_S = 1.0  # commands and missions are sent again this often until answered
+
+
 def new_seq() -> int:
     """A command sequence number that increases across runs without stored state:
     milliseconds since 2024-01-01, modulo 2^32 (wraps after 49 days)."""
@@ -82,6 +85,7 @@ class GroundStation:
         announce: bool = True,
     ) -> None:
         self.gcs_id = gcs_id
+        self.repeat_s = REPEAT_S
         self.swarm = swarm
         self.view = FleetView()
         self._lock = threading.Lock()
@@ -171,16 +175,27 @@ class GroundStation:
         timeout_s: float,
     ) -> list[Ack]:
         validate(msg)
-        self.bus.publish(msg)
         expected = set(expect) if expect is not None else None
 
         def answered(view: FleetView) -> bool:
             got = {a.vehicle_id for a in view.acks if a.ref == ref and a.ref_id == ref_id}
             return expected is not None and expected <= got
 
-        self.wait_for(answered, timeout_s)
+        # Repeated, unchanged, until every addressed vehicle answers: a frame lost on the
+        # radio (or published before a fresh session's routes are up) is sent again, and a
+        # vehicle answers a repeat with its first answer instead of acting twice.
+        end = time.monotonic() + timeout_s
+        while True:
+            self.bus.publish(msg)
+            left = end - time.monotonic()
+            if self.wait_for(answered, min(self.repeat_s, max(left, 0.0))) or left <= self.repeat_s:
+                break
         with self._lock:
-            return [a for a in self.view.acks if a.ref == ref and a.ref_id == ref_id]
+            first: dict[int, Ack] = {}  # a repeat may be answered twice: one row per vehicle
+            for a in self.view.acks:
+                if a.ref == ref and a.ref_id == ref_id:
+                    first.setdefault(a.vehicle_id, a)
+            return list(first.values())
 
     def command(
         self,

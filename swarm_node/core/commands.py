@@ -7,6 +7,9 @@ immediate Ack. `CommandTracker` runs the requests one after another and answers 
 command with exactly one Ack: accepted when all its requests succeed, rejected with the
 autopilot's reason when one fails, TIMEOUT when the link never answers.
 `check_mission` applies the paper's three rejection rules to a mission.
+`AnswerCache` makes both idempotent: the ground station repeats a command or mission
+until it is answered (a radio loses frames), and a repeat is answered again with the
+first answer, never carried out twice.
 
 Pure: no I/O; `now` is passed in.
 """
@@ -14,6 +17,7 @@ Pure: no I/O; `now` is passed in.
 from __future__ import annotations
 
 import itertools
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import msgspec
@@ -257,6 +261,50 @@ def check_mission(mission: Mission, view: NodeView) -> AckReason | None:
     if not view.ready or view.fsm_state == FsmState.INACTIVE:
         return AckReason.NOT_READY
     return AckReason.OK
+
+
+# ----------------------------------------------------------------------- repeats
+
+AnswerKey = tuple[AckRef, int, int]  # (what, issuer id, command seq or mission id)
+
+
+def answer_key(msg: Command | Mission) -> AnswerKey:
+    if isinstance(msg, Command):
+        return (AckRef.COMMAND, msg.issuer_id, msg.seq)
+    return (AckRef.MISSION, msg.issuer_id, msg.mission_id)
+
+
+@dataclass
+class AnswerCache:
+    """The last `size` commands and missions this vehicle took up, with their answers.
+
+    A repeat of one still running is ignored (its answer comes when it is done); a
+    repeat of one answered gets the same Ack again. Bounded: the oldest are forgotten.
+    """
+
+    size: int = 256
+    _answers: OrderedDict[AnswerKey, Ack | None] = field(default_factory=OrderedDict)
+
+    def seen(self, key: AnswerKey) -> bool:
+        return key in self._answers
+
+    def answer_of(self, key: AnswerKey) -> Ack | None:
+        """The answer already given (None: not seen, or still running)."""
+        return self._answers.get(key)
+
+    def taken(self, key: AnswerKey) -> None:
+        """Taken up, not answered yet."""
+        self._answers[key] = None
+        self._answers.move_to_end(key)
+        while len(self._answers) > self.size:
+            self._answers.popitem(last=False)
+
+    def answered(self, ack: Ack) -> None:
+        key = (ack.ref, ack.issuer_id, ack.ref_id)
+        self._answers[key] = ack
+        self._answers.move_to_end(key)
+        while len(self._answers) > self.size:
+            self._answers.popitem(last=False)
 
 
 # ----------------------------------------------------------------------- the tracker

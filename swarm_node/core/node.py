@@ -42,12 +42,14 @@ from .autopilot.requests import ApRequest, ApResult
 from .autopilot.state import AutopilotState
 from .autopilot.status import to_vehicle_status
 from .commands import (
+    AnswerCache,
     CancelMission,
     CommandTracker,
     NodeView,
     SetActive,
     SetBase,
     SetFleet,
+    answer_key,
     check_mission,
     emergency_requests,
     plan_command,
@@ -145,6 +147,7 @@ class NodeCore:
         self.members = SwarmMembership(vid, stale_after_s=self.settings.stale_after_s)
         self.fsm = fsm.StateMachine(plan_timeout_s=self.settings.plan_timeout_s, now=self.now)
         self.commands = CommandTracker(vid)
+        self.answers = AnswerCache()  # repeated commands and missions get the same answer
         self.manager = MissionManager(self.profile)
         self.active = True
         self.base: GeoPoint | None = None
@@ -214,7 +217,7 @@ class NodeCore:
                 return self._from_manager(self.manager.on_result(event.result, now))
             reqs, acks = self.commands.on_result(event.result, now)
             out: list[Output] = [Submit(r) for r in reqs]
-            return out + [Publish(a) for a in acks]
+            return out + self._answer(acks)
         if isinstance(event, PeerAlive):
             return self._peer_events(self.members.on_alive(event.node_id, event.alive, now))
         if isinstance(event, BadInput):
@@ -260,15 +263,33 @@ class NodeCore:
             return self._on_fleet(msg)
         return []  # acks, alerts, votes, targets: not for the node core (yet)
 
+    def _answer(self, acks: list[Ack]) -> list[Output]:
+        for a in acks:
+            self.answers.answered(a)
+        return [Publish(a) for a in acks]
+
+    def _repeat(self, msg: Command | Mission) -> list[Output] | None:
+        """A command or mission already taken up: its first answer again (nothing while it
+        still runs). None: not a repeat."""
+        key = answer_key(msg)
+        if not self.answers.seen(key):
+            return None
+        ack = self.answers.answer_of(key)
+        return [Publish(ack)] if ack is not None else []
+
     def _on_command(self, cmd: Command, now: float) -> list[Output]:
+        repeat = self._repeat(cmd)
+        if repeat is not None:
+            return repeat
         plan = plan_command(cmd, self.view())
         if plan is None:
             return []
+        self.answers.taken(answer_key(cmd))
         for effect in plan.effects:
             self._apply(effect)
         out: list[Output] = [Submit(r) for r in self.commands.start(cmd, plan.requests, now)]
         if plan.ack is not None:
-            out.append(Publish(plan.ack))
+            out += self._answer([plan.ack])
             if not plan.ack.accepted:
                 out.append(
                     Note(
@@ -289,12 +310,17 @@ class NodeCore:
             self.fsm.post(fsm.LeftFleet(f"mission {effect.mission_id} cancelled"))
 
     def _on_mission(self, mission: Mission) -> list[Output]:
+        repeat = self._repeat(mission)
+        if repeat is not None:
+            return repeat
         reason = check_mission(mission, self.view())
         if reason is None:
             return []
         ok = reason == AckReason.OK
         ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason)
-        out: list[Output] = [Publish(ack)]
+        # only an acceptance is remembered: a rejected mission sent again is checked again
+        # (the operator may have fixed what was wrong, e.g. set the base)
+        out: list[Output] = self._answer([ack]) if ok else [Publish(ack)]
         if ok:
             self.missions[mission.mission_id] = mission
             self.fleet_members = tuple(mission.selection.vehicle_ids) or (self.self_id,)
@@ -332,7 +358,7 @@ class NodeCore:
         self.now = now
         out: list[Output] = []
         out += self._peer_events(self.members.on_timer(now))
-        out += [Publish(a) for a in self.commands.on_timer(now)]
+        out += self._answer(self.commands.on_timer(now))
         if now >= self.fsm.next_deadline():
             out += self._tick_fsm(now)
         if now >= self._next_status:

@@ -15,12 +15,14 @@ from swarm_node.core.autopilot.requests import (
     UploadMission,
 )
 from swarm_node.core.autopilot.state import AutopilotState
-from swarm_node.core.node import BadInput, NodeCore, NodeSettings, Received
+from swarm_node.core.commands import AnswerCache
+from swarm_node.core.node import AutopilotResult, BadInput, NodeCore, NodeSettings, Received
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.testing import Fleet
 from swarm_proto import (
     Ack,
     AckReason,
+    AckRef,
     Alert,
     AlertCode,
     Command,
@@ -136,6 +138,62 @@ def test_commands_need_the_autopilot_link() -> None:
     send(f, command(9, CommandKind.RTL))
     f.run_until(1.0)
     assert acks(f, 9)[1].reason == AckReason.NOT_READY
+
+
+def test_a_repeated_command_is_answered_again_not_carried_out_twice() -> None:
+    slow: list[ApRequest] = []  # the Goto's answer is held back until released
+
+    def hold_goto(nid: int, req: ApRequest) -> ApResult | None:
+        if isinstance(req, Goto):
+            slow.append(req)
+            return None
+        return ApResult(req.request_id, True)
+
+    f = fleet(1, autopilot=hold_goto)
+    goto = command(21, CommandKind.GOTO, point=GeoPoint(37.42, -5.98, 60.0))
+    send(f, goto)
+    f.run_until(0.5)
+    send(f, goto)  # the ground station repeats it while the autopilot works
+    f.run_until(1.0)
+    assert len(slow) == 1 and acks(f, 21) == {}
+    f.deliver(1, AutopilotResult(ApResult(slow[0].request_id, True)))
+    f.run_until(1.5)
+    first = [a for a in f.messages(Ack) if a.ref_id == 21]
+    assert len(first) == 1 and first[0].accepted
+    send(f, goto)  # repeated once more: the answer is lost on the way back, say
+    send(f, command(22, CommandKind.SET_FLEET, fleet_id=4))
+    send(f, command(22, CommandKind.SET_FLEET, fleet_id=4))
+    f.run_until(2.0)
+    assert [a for a in f.messages(Ack) if a.ref_id == 21] == first * 2
+    assert len(slow) == 1  # one Goto reached the autopilot
+    assert [a.accepted for a in f.messages(Ack) if a.ref_id == 22] == [True, True]
+
+
+def test_a_repeated_mission_is_accepted_once_and_a_rejected_one_checked_again() -> None:
+    f = fleet(1)
+    f.run_until(0.5)
+    send(f, mission(31, (1,)))
+    f.run_until(1.0)
+    assert acks(f, 31)[1].reason == AckReason.NO_BASE
+    send(f, command(30, CommandKind.SET_BASE, point=HOME))
+    f.run_until(1.5)
+    send(f, mission(31, (1,)))  # fixed: sent again, same id
+    f.run_until(2.0)
+    send(f, mission(31, (1,)))  # a repeat of the accepted mission
+    f.run_until(2.5)
+    reasons = [a.reason for a in f.messages(Ack) if a.ref == AckRef.MISSION]
+    assert reasons == [AckReason.NO_BASE, AckReason.OK, AckReason.OK]
+    assert sum("(new mission)" in t for _, _, t in f.notes) == 1
+
+
+def test_the_answer_cache_is_bounded() -> None:
+    cache = AnswerCache(size=3)
+    for seq in range(5):
+        cache.taken((AckRef.COMMAND, GCS, seq))
+    cache.answered(Ack(1, GCS, AckRef.COMMAND, 4, True))
+    assert [cache.seen((AckRef.COMMAND, GCS, s)) for s in range(5)] == [False] * 2 + [True] * 3
+    assert cache.answer_of((AckRef.COMMAND, GCS, 4)) == Ack(1, GCS, AckRef.COMMAND, 4, True)
+    assert cache.answer_of((AckRef.COMMAND, GCS, 3)) is None
 
 
 def mission(mid: int, ids: tuple[int, ...]) -> Mission:
