@@ -128,7 +128,7 @@ def heard_bytes(n_members: int) -> int:
 
 
 def frame_overhead(n_members: int, payload: int = 0) -> int:
-    """Bytes on the wire for a frame whose records take `payload` bytes."""
+    """Bytes on the wire, at most, for a frame whose records take `payload` bytes."""
     return cobs.max_encoded_len(HEADER_BYTES + heard_bytes(n_members) + payload + TRAILER_BYTES)
 
 
@@ -184,7 +184,9 @@ def encode(frame: Frame, key: bytes) -> bytes:
     return cobs.encode(body) + b"\x00"
 
 
-def wire_size(frame: Frame) -> int:
+def max_wire_size(frame: Frame) -> int:
+    """Bytes on the wire at most (COBS adds fewer when the frame holds zero bytes): what
+    slot budgets count, so a frame never overruns its slot."""
     return frame_overhead(frame.n_members, sum(record_size(r) for r in frame.records))
 
 

@@ -22,12 +22,16 @@ runner = CliRunner()
 
 
 @pytest.fixture
-def node7(zenoh_router: str, swarm_db: Path) -> Iterator[tuple[str, str]]:
-    """Node 7 (a seed quadcopter) with its simulated autopilot; yields (router, swarm)."""
+def node7(zenoh_router: str, swarm_db: Path, tmp_path: Path) -> Iterator[tuple[str, str]]:
+    """Node 7 (a seed quadcopter) with its simulated autopilot; yields (router, swarm).
+    The node's log is printed when a test fails (pytest shows captured output)."""
     swarm = f"g{os.getpid()}"
     spec = VehicleSpec("copter", port=free_tcp_port(), sysid=7)
+    log = tmp_path / "node7.log"
     with VehicleServer([spec], SystemClock()):
-        proc = start_node(7, zenoh_router, swarm, "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}")
+        proc = start_node(
+            7, zenoh_router, swarm, "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}", log=log
+        )
         watcher = plain_session(zenoh_router)
         try:
             assert (
@@ -36,7 +40,9 @@ def node7(zenoh_router: str, swarm_db: Path) -> Iterator[tuple[str, str]]:
             yield zenoh_router, swarm
         finally:
             watcher.close()
-            assert stop(proc) == 0
+            code = stop(proc)
+            print(log.read_text(errors="replace"))
+            assert code == 0
 
 
 def gcs(router: str, swarm: str, *args: str) -> object:
