@@ -12,7 +12,9 @@ import pytest
 from typer.testing import CliRunner
 
 from gcs_cli.cli import app
+from gcs_cli.ground import GroundStation
 from swarm_proto import SystemClock
+from swarm_proto.session import ZenohSettings
 from swarm_sim.runtime import VehicleServer, VehicleSpec
 from tests.conftest import free_tcp_port
 from tests.swarm_node.processes import peers_of, plain_session, start_node, stop, wait_until
@@ -106,5 +108,17 @@ def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
     assert r.exit_code == 0, r.stdout  # type: ignore[attr-defined]
     assert "OK" in r.stdout  # type: ignore[attr-defined]
 
-    r = gcs(router, swarm, "peers", "7")
-    assert r.exit_code == 0 and "GCS" in r.stdout  # type: ignore[attr-defined]  # the ground station is a peer
+    # the ground station is a peer: with an operator's console open (a session that stays,
+    # so a one-shot `gcs peers` does not race its own arrival), node 7 lists it
+    console = GroundStation(ZenohSettings(connect=(router,)), swarm)
+    try:
+        watcher = plain_session(router)
+        try:
+            listed = wait_until(lambda: 900 in (peers_of(watcher, swarm, 7) or []), 10)
+            assert listed is not None
+        finally:
+            watcher.close()
+        r = gcs(router, swarm, "peers", "7")
+        assert r.exit_code == 0 and "GCS" in r.stdout  # type: ignore[attr-defined]
+    finally:
+        console.close()
