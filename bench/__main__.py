@@ -8,6 +8,7 @@ import os
 import platform
 import sys
 import time
+import traceback
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -49,10 +50,20 @@ def main(argv: list[str]) -> int:
             file=sys.stderr,
         )
         return 2
+    failed = []
     for name in wanted:
         print(f"== bench {name}", flush=True)
-        result = run_topic(name)
+        try:
+            result = run_topic(name)
+        except Exception:
+            # one broken benchmark must not hide the others' figures
+            traceback.print_exc()
+            failed.append(name)
+            continue
         print(json.dumps({k: v for k, v in result.items() if k != "_meta"}, indent=2))
+    if failed:
+        print(f"benchmark(s) failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -29,6 +29,8 @@ from swarm_proto import (
     MissionState,
     MissionType,
     NoFlyZone,
+    PeerRadioStats,
+    RadioStats,
     Selector,
     SelectorKind,
     Severity,
@@ -110,6 +112,24 @@ SAMPLES: dict[type, Any] = {
     FleetAssignment: FleetAssignment(2, 7, (3, 4, 12), 12, NOW),
     NoFlyZone: NoFlyZone(5, Geometry.circle(37.415, -5.985, 250.0), 0.0, 300.0),
     TargetReport: TargetReport(88, 12, TargetSource.PAYLOAD, NOW, HOME, "vehicle", 0.82),
+    RadioStats: RadioStats(
+        12,
+        NOW,
+        "member",
+        (3, 4, 7, 12),
+        0xBEEF,
+        1,
+        0.05,
+        204,
+        0.42,
+        0.8,
+        0,
+        1200,
+        3590,
+        peers=tuple(
+            PeerRadioStats(v, 5.0, 0.01, 0.4, 0.35, 0.2, 0) for v in (3, 4, 7)
+        ),
+    ),
 }
 
 

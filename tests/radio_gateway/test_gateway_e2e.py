@@ -109,7 +109,11 @@ def test_gateways_bridge_lans_over_the_air_once_each(world: World) -> None:
     world.gcs.subscribe(RADIO_STATS, lambda m, k: stats.append(m))
     time.sleep(1.5)  # Zenoh discovery, radio bootstrap
 
+    # vehicle 1 publishes at 10 Hz for 2 s: all 20 reach its LAN neighbour, and one per
+    # 200 ms cycle goes on air (latest value only). At exactly 5 Hz the publisher would
+    # beat against the slot and the count would measure the phase of two clocks.
     sent: list[VehicleStatus] = []
+    due = time.monotonic()
     for i in range(20):
         s = status(1, time.time())
         sent.append(s)
@@ -134,14 +138,15 @@ def test_gateways_bridge_lans_over_the_air_once_each(world: World) -> None:
                     name="north field",
                 )
             )
-        time.sleep(0.2)
+        due += 0.1
+        time.sleep(max(0.0, due - time.monotonic()))
     time.sleep(1.5)
 
     with lock:
         assert at_v2 and max(at_v2.values()) == 1  # LAN and radio: seen once
         assert len(at_v2) == 20
         assert at_gcs and max(at_gcs.values()) == 1
-        assert len(at_gcs) >= 18  # over the air, at 5 Hz
+        assert len(at_gcs) >= 9  # over the air, a new one in (nearly) every one of 10 cycles
         want = {round(radio.quantized(s).time_unix_s, 3) for s in sent}  # type: ignore[attr-defined]
         assert set(at_gcs) <= want
         assert commands == {100: 1, 105: 1, 110: 1, 115: 1}  # two gateways on v1's LAN: once

@@ -36,19 +36,28 @@ def test_nodes_keep_5_hz_status_with_no_collisions(n: int) -> None:
         fleet.sleep(1.0)  # listen, bootstrap
         fleet.channel.reset_stats()
         t0 = fleet.clock.now()
+        late0 = fleet.late_writes()
         fleet.sleep(2.2)
         t1 = fleet.clock.now()
+        late1 = fleet.late_writes()
         stats = fleet.channel.stats()["channel"]
-        rates = _rates(fleet.snapshot(), t0 + 0.3, t1)
+        # exactly 10 cycles: every slot of the cycle falls in the window equally often
+        start, end = t0 + 0.2, t0 + 0.2 + 10 * fleet.tdm.cycle_s
+        assert t1 >= end
+        rates = _rates(fleet.snapshot(), start, end)
         phases = {fleet.node(v).membership.phase for v in members}
-        late = sum(fleet.links[v].late_writes for v in members)
     assert stats.get("collisions", 0) == 0
     assert phases == {Phase.MEMBER}
     assert len(rates) == n * (n - 1)
-    # 5 Hz; a write the loaded machine made too late is skipped (never sent into the
-    # next slot): allow one or two of those per node in the 2 s window
+    # 5 Hz from every node at every other. A write the host woke too late for is skipped
+    # (never sent into the next slot) and counted: that is the machine, not the protocol,
+    # so each one excuses the n - 1 arrivals it cost.
+    late = sum(late1[v] - late0[v] for v in members)
+    window = end - start
+    excused = late * (n - 1) / (len(rates) * window)
     assert min(rates.values()) >= 0.75 * 5.0, (late, sorted(rates.values())[:5])
-    assert sum(rates.values()) / len(rates) >= 0.95 * 5.0
+    assert sum(rates.values()) / len(rates) >= 0.95 * 5.0 - excused, (late, window)
+    assert late <= n, "the host was too busy to keep the slots: see late_writes"
 
 
 def test_a_node_leaving_and_one_joining_converge_within_3_cycles() -> None:
@@ -80,7 +89,10 @@ def test_a_node_leaving_and_one_joining_converge_within_3_cycles() -> None:
 
 
 def test_30_percent_loss_keeps_telemetry_age_under_a_second() -> None:
-    with PtyFleet(4, speed=1.0, params=ChannelParams(loss=0.3, seed=7)) as fleet:
+    # the node's own 5 Hz status, as a vehicle publishes it
+    with PtyFleet(
+        4, speed=1.0, params=ChannelParams(loss=0.3, seed=7), producer_period_s=0.2
+    ) as fleet:
         members = (1, 2, 3, 4)
         for v in members:
             fleet.start(v, members)

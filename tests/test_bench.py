@@ -1,0 +1,121 @@
+"""The benchmarks stay runnable and their results carry the figures the issues name.
+
+Nothing here times anything: `make bench` measures, these tests check that what it
+measures is complete (a benchmark that crashes on a new message type, or a results file
+missing a figure, fails here instead of in somebody's `make bench`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from bench.__main__ import main, topics
+from swarm_proto import MESSAGE_TYPES, lan, radio
+from tests.conftest import REPO
+
+RESULTS = REPO / "bench" / "results"
+
+# figures each issue names, per results file (nested keys joined with "/")
+NAMED: dict[str, tuple[str, ...]] = {
+    "proto": (
+        "status_radio_bytes",
+        "status_lan_bytes",
+        "high_latency2_bytes",
+        "status_encode_us",
+        "status_decode_us",
+        "high_latency2_encode_us",
+    ),
+    "sim": ("vehicles_per_core_at_10x",),
+    "node": ("cpu_s_per_sim_s/peers_10", "cpu_s_per_sim_s/peers_50", "cpu_s_per_sim_s/peers_100"),
+    "planners": (
+        "dubins_batch_us_per_path",
+        "ompl_us_per_call",
+        "dubins_max_err_m",
+        "split_imbalance",
+    ),
+}
+RADIO_ROW = (
+    "rf_bps",
+    "guard_ms",
+    "msg_bytes",
+    "limit_nodes",
+    "achieved_nodes",
+    "collisions",
+    "auth_overhead_bytes",
+)
+
+
+def _load(topic: str) -> dict[str, Any]:
+    data: dict[str, Any] = json.loads((RESULTS / f"{topic}.json").read_text())
+    return data
+
+
+def _get(data: dict[str, Any], path: str) -> Any:
+    for part in path.split("/"):
+        data = data[part]
+    return data
+
+
+def test_every_topic_has_a_results_file_with_its_command() -> None:
+    for topic in topics():
+        meta = _load(topic)["_meta"]
+        assert meta["command"] == f"make bench BENCH={topic}"
+
+
+@pytest.mark.parametrize("topic", sorted(NAMED))
+def test_results_carry_the_named_figures(topic: str) -> None:
+    data = _load(topic)
+    for path in NAMED[topic]:
+        value = _get(data, path)
+        assert value is not None and not isinstance(value, str), (topic, path)
+
+
+def test_planner_results_per_reference_polygon() -> None:
+    polygons = _load("planners")["polygons"]
+    assert len(polygons) == 4
+    for name, figures in polygons.items():
+        for key in ("lanes", "coverage", "overlap", "path_m", "sweep_ms"):
+            assert key in figures, (name, key)
+
+
+def test_radio_rows() -> None:
+    rows = _load("radio")["rows"]
+    sizes = {(r["msg_bytes"], r["guard_ms"]) for r in rows}
+    assert sizes == {(m, g) for m in (32, 48, 64, 128) for g in (2, 5, 10)}
+    for row in rows:
+        assert all(k in row for k in RADIO_ROW), row
+
+
+def test_proto_benchmark_has_a_sample_of_every_message() -> None:
+    from bench.proto import NOW, SAMPLES
+
+    assert set(SAMPLES) == set(MESSAGE_TYPES)
+    for cls, msg in SAMPLES.items():
+        assert isinstance(msg, cls)
+        assert type(radio.decode(radio.encode(msg), now_unix_s=NOW)) is cls
+        assert lan.decode(lan.encode(msg), cls) == msg
+
+
+def test_proto_results_match_the_messages_measured() -> None:
+    measured = _load("proto")["messages"]
+    assert set(measured) == {c.__name__ for c in MESSAGE_TYPES}
+
+
+def test_an_unknown_benchmark_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["no_such_topic"]) == 2
+    assert "unknown benchmark" in capsys.readouterr().err
+
+
+def test_docs_quote_every_topic() -> None:
+    doc = (REPO / "docs" / "benchmarks.md").read_text()
+    for topic in topics():
+        assert f"make bench BENCH={topic}" in doc, topic
+
+
+def test_results_directory_is_the_one_bench_writes() -> None:
+    from bench import __main__ as runner
+
+    assert Path(runner.RESULTS) == RESULTS
