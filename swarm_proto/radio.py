@@ -288,7 +288,37 @@ _LAT, _LON, _ALT, _REL, _VN, _VE, _VD, _HDG, _ASPD, _VOLT = (
 _TIME = _status_fixed("time_unix_s")
 
 
+def _status_int_bounds(name: str) -> _Bounds:
+    hint = typing.get_type_hints(VehicleStatus, include_extras=True)[name]
+    return _bounds(tuple(_meta_items(hint)))
+
+
+def _meta_items(hint: Any) -> list[Any]:
+    """Every msgspec.Meta in an annotation, through nested Annotated aliases."""
+    out: list[Any] = []
+    if typing.get_origin(hint) is typing.Annotated:
+        base, *extras = typing.get_args(hint)
+        out += _meta_items(base) + list(extras)
+    return out
+
+
+# integer fields packed as they are: their declared bounds, checked when encoding so
+# that we never put on air a status every receiver would reject
+_STATUS_INTS = {
+    n: _status_int_bounds(n)
+    for n in ("vehicle_id", "battery_pct", "ap_mode", "mission_progress_pct", "fleet_id")
+}
+
+
+def _check_status_ints(s: VehicleStatus) -> None:
+    for name, bounds in _STATUS_INTS.items():
+        value = getattr(s, name)
+        if not bounds.contains(value):
+            raise EncodeError(f"VehicleStatus.{name} = {value!r} is out of its range")
+
+
 def _encode_status(s: VehicleStatus) -> bytes:
+    _check_status_ints(s)
     flags = (
         (1 if s.armed else 0) | (int(s.fsm_state) & 0x3) << 1 | (int(s.mission_state) & 0xF) << 3
     )

@@ -23,6 +23,7 @@ from swarm_proto import (
     Mission,
     MissionParams,
     MissionType,
+    SwarmView,
     VehicleStatus,
     lan,
     radio,
@@ -225,3 +226,67 @@ def test_radio_refuses_values_it_cannot_carry() -> None:
         radio.encode(_status(ap_mode=999))
     with pytest.raises(EncodeError, match="no radio type tag"):
         radio.encode(MissionParams())
+
+
+# fields of STATUS_LAYOUT, by position (version, tag, vehicle_id, time_ms, lat, lon, ...)
+_LAT_I, _VID_I, _FLAGS_I, _ALERTS_I, _PROG_I = 4, 2, 17, 20, 18
+
+
+def _raw_status(**at: int) -> bytes:
+    """A radio status with some positional fields replaced by raw integers."""
+    values = list(radio.STATUS_LAYOUT.unpack(radio.encode(_status())))
+    for index, value in at.items():
+        values[int(index.lstrip("_"))] = value
+    return radio.STATUS_LAYOUT.pack(*values)
+
+
+@pytest.mark.parametrize(
+    ("raw", "field"),
+    [
+        ({f"_{_LAT_I}": 91 * 10_000_000}, "lat_deg"),  # 1e-7 degree resolution
+        ({f"_{_LAT_I}": -91 * 10_000_000}, "lat_deg"),
+        ({f"_{_VID_I}": 0}, "vehicle_id"),
+        ({f"_{_PROG_I}": 101}, "mission_progress_pct"),
+    ],
+)
+def test_radio_status_out_of_range_is_rejected(raw: dict[str, int], field: str) -> None:
+    with pytest.raises(DecodeError) as err:
+        radio.decode(_raw_status(**raw), now_unix_s=NOW)
+    assert field in str(err.value)
+
+
+def test_radio_status_unknown_enum_is_rejected() -> None:
+    base = radio.STATUS_LAYOUT.unpack(radio.encode(_status()))[_FLAGS_I]
+    bad_mission_state = (base & ~(0xF << 3)) | (15 << 3)  # no MissionState 15
+    with pytest.raises(DecodeError, match="MissionState|mission_state|15"):
+        radio.decode(_raw_status(**{f"_{_FLAGS_I}": bad_mission_state}), now_unix_s=NOW)
+
+
+def test_radio_status_is_forward_compatible() -> None:
+    """Append-only evolution: a newer node may set alert bits this version does not name,
+    and may append bytes to the status. An older receiver keeps the bits it cannot name
+    and ignores the tail rather than drop the whole status (docs/radio-encoding.md)."""
+    future_bit = 1 << 15
+    s = radio.decode(_raw_status(**{f"_{_ALERTS_I}": future_bit | 1}), now_unix_s=NOW)
+    assert isinstance(s, VehicleStatus)
+    assert int(s.alerts) == future_bit | 1 and AlertFlag.BATTERY_LOW in s.alerts
+    longer = radio.encode(_status()) + b"\x07\x00future"
+    assert radio.decode(longer, now_unix_s=NOW) == radio.decode(longer[:40], now_unix_s=NOW)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [{"lat_deg": 90.5}, {"lon_deg": -180.5}, {"battery_pct": 101}, {"vehicle_id": 0}],
+)
+def test_lan_and_radio_agree_on_what_is_invalid(kw: dict[str, Any]) -> None:
+    bad = msgspec.to_builtins(_status())
+    bad.update(kw)
+    with pytest.raises(DecodeError):
+        lan.decode(msgspec.msgpack.encode(bad), VehicleStatus)
+    with pytest.raises(EncodeError):  # never produced on the radio in the first place
+        radio.encode(msgspec.structs.replace(_status(), **kw))
+
+
+@given(view=message_of(SwarmView))
+def test_swarm_view_round_trips_on_the_lan(view: SwarmView) -> None:
+    assert lan.decode(lan.encode(view), SwarmView) == view
