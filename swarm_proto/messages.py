@@ -126,6 +126,11 @@ class Geometry(Struct, frozen=True):
     - POINT: `points[0]`; POINTS: one or more `points`; POLYLINE: two or more `points`.
     - POLYGON: `points` is the shell (>= 3 vertices, open ring), `holes` are inner rings.
     - CIRCLE: `points[0]` is the centre and `radius_m` the radius.
+
+    Only a POLYGON has holes, only a CIRCLE a radius (> 0). A polygon must be simple:
+    rings of >= 3 vertices, open (the first vertex not repeated), no self-intersection,
+    non-zero area, holes inside the shell and not overlapping each other, spanning less
+    than 180 degrees of longitude.
     """
 
     kind: GeometryKind
@@ -290,7 +295,7 @@ class CommandArgs(Struct, frozen=True):
     """Arguments of a command; which are used depends on CommandKind."""
 
     point: GeoPoint | None = None
-    value: Annotated[float, Meta(ge=-1.0e6, le=1.0e6), Fixed(0.001)] | None = None  # unit per kind
+    value: Annotated[float, Meta(ge=-1.0e6, le=1.0e6), Fixed(0.001)] | None = None  # unit per CommandKind (see CommandKind below)
     text: ShortText = ""
     fleet_id: FleetId = 0
     mission_id: MissionId = 0
@@ -321,11 +326,17 @@ class Ack(Struct, frozen=True):
 
 
 class Alert(Struct, frozen=True):
-    vehicle_id: VehicleId
+    """A condition raised by a vehicle's monitoring or swarm logic (paper 2.3.2).
+
+    Sent when a condition is raised or its severity rises, and with code
+    CONDITION_CLEARED when it clears; the active conditions are also in every
+    VehicleStatus (`alerts` bits), so a receiver that missed an Alert still sees them."""
+
+    vehicle_id: VehicleId  # who raises it
     time_unix_s: UnixTimeS
     severity: Severity
     code: AlertCode
-    text: ShortText = ""
+    text: ShortText = ""  # for the operator, e.g. "battery 9%" or "in zone 3"
 
 
 # --------------------------------------------------------------------------- missions
@@ -337,7 +348,7 @@ class MissionParams(Struct, frozen=True):
     altitude_rel_m: HeightM = 100.0  # flight altitude above home
     speed_m_s: SpeedMS | None = None  # None: each vehicle's cruise speed
     side_overlap: Annotated[float, Meta(ge=0.0, le=0.95), Fixed(1e-4)] = (
-        0.7  # camera lanes, fraction
+        0.7  # fraction of the camera footprint adjacent lanes share (0.7 = 70 %)
     )
     radius_m: DistanceM | None = None  # target / perimeter / circle radius
     altitude_step_m: HeightM = 0.0  # vertical separation between vehicles
@@ -366,8 +377,10 @@ class Mission(Struct, frozen=True):
 
 
 class VoteScore(Struct, frozen=True, array_like=True):
+    """One candidate's score in a Vote. Encoded as a 2-element array [vehicle_id, score]."""
+
     vehicle_id: VehicleId
-    score: Score
+    score: Score  # paper's score: 1 best .. 0 worst
 
 
 class Vote(Struct, frozen=True):
@@ -435,6 +448,8 @@ class TargetReport(Struct, frozen=True):
 
 
 class PeerEntry(Struct, frozen=True):
+    """One live peer in a node's SwarmView."""
+
     node_id: VehicleId
     vehicle_type: VehicleType = VehicleType.OTHER
     fleet_id: FleetId = 0

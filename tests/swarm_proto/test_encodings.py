@@ -258,7 +258,7 @@ def test_radio_status_out_of_range_is_rejected(raw: dict[str, int], field: str) 
 def test_radio_status_unknown_enum_is_rejected() -> None:
     base = radio.STATUS_LAYOUT.unpack(radio.encode(_status()))[_FLAGS_I]
     bad_mission_state = (base & ~(0xF << 3)) | (15 << 3)  # no MissionState 15
-    with pytest.raises(DecodeError, match="MissionState|mission_state|15"):
+    with pytest.raises(DecodeError, match=r"MissionState|mission_state|15"):
         radio.decode(_raw_status(**{f"_{_FLAGS_I}": bad_mission_state}), now_unix_s=NOW)
 
 

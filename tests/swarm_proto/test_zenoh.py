@@ -144,3 +144,55 @@ def test_a_loopback_simulation_listens_on_loopback_only() -> None:
     assert "127.0.0.1" not in field.get_json("listen/endpoints")
     explicit = zenoh_config(ZenohSettings(connect=("tcp/127.0.0.1:7447",), listen=("tcp/0.0.0.0:7448",)))
     assert "0.0.0.0:7448" in explicit.get_json("listen/endpoints")
+
+
+def test_the_keyspace_doc_example_runs_as_written(zenoh_router: str, tmp_path) -> None:
+    """docs/keyspace.md's subscriber, run as a user would (only the endpoint changed)."""
+    import re
+    import subprocess
+    import sys
+
+    from tests.conftest import REPO
+
+    doc = (REPO / "docs" / "keyspace.md").read_text()
+    block = re.search(r"```python\n(.*?)```", doc, re.S)
+    assert block is not None and "tcp/127.0.0.1:7447" in block.group(1)
+    script = tmp_path / "example.py"
+    script.write_text(block.group(1).replace("tcp/127.0.0.1:7447", zenoh_router))
+    proc = subprocess.Popen(
+        [sys.executable, str(script)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    lines: queue.Queue[str] = queue.Queue()
+    reader = threading.Thread(
+        target=lambda: [lines.put(x) for x in iter(proc.stdout.readline, "")],  # type: ignore[union-attr]
+        daemon=True,
+    )
+    reader.start()
+    bus = SwarmBus.open(ZenohSettings(connect=(zenoh_router,)))
+    try:
+        status = VehicleStatus(
+            vehicle_id=42, time_unix_s=1.75e9, lat_deg=37.4112, lon_deg=-5.9889,
+            alt_msl_m=110.0, alt_rel_m=100.0,
+        )  # fmt: skip
+        line = ""
+        for _ in range(150):  # the example's start-up and discovery take a moment
+            bus.publish(status)
+            try:
+                line = lines.get(timeout=0.1)
+                break
+            except queue.Empty:
+                assert proc.poll() is None, proc.stderr.read()  # type: ignore[union-attr]
+        printed = line[line.index("bandada/") :]  # after input()'s prompt, if it shares the line
+        assert printed.split() == ["bandada/default/vehicle/42/status", "37.4112", "-5.9889", "110.0"]
+        proc.stdin.write("\n")  # type: ignore[union-attr]
+        proc.stdin.flush()  # type: ignore[union-attr]
+        assert proc.wait(timeout=30) == 0  # and it exits cleanly: no hang at close
+    finally:
+        bus.close()
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
