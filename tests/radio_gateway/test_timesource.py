@@ -78,3 +78,37 @@ def test_time_source_specs() -> None:
     assert time_source_from_spec("clock-free").stratum == FREE
     with pytest.raises(ValueError, match="bad time source"):
         time_source_from_spec("sundial")
+
+
+def test_nmea_time_source_reads_a_serial_port() -> None:
+    """NmeaTimeSource on a real pseudo-terminal through pyserial: RMC and ZDA sentences of
+    a GPS time far from this machine's clock, with noise and corrupt sentences between."""
+    import os
+    from datetime import UTC, datetime
+
+    from radio_gateway.runtime.timesource import NmeaTimeSource
+
+    master, slave = os.openpty()
+    src = NmeaTimeSource(os.ttyname(slave), 9600)
+    try:
+        assert src.stratum == FREE
+        gps = 2.0e9
+        start = time.monotonic()
+        for i in range(30):
+            t = datetime.fromtimestamp(gps + (time.monotonic() - start), UTC)
+            hms = t.strftime("%H%M%S.") + f"{t.microsecond // 10_000:02d}"
+            if i % 2:
+                line = _nmea(f"GNZDA,{hms},{t:%d},{t:%m},{t:%Y},00,00")
+            else:
+                line = _nmea(f"GPRMC,{hms},A,3724.672,N,00559.335,W,0.1,0.0,{t:%d%m%y},,")
+            noise = b"$GPGSV,garbage*00\r\n\xff\xfe\r\n" if i % 5 == 0 else b""
+            os.write(master, noise + line.encode() + b"\r\n")
+            time.sleep(0.02)
+        time.sleep(0.1)
+        assert src.stratum == GPS
+        # sentences carry centiseconds: the least-delayed one is within a few tens of ms
+        assert src.now() == pytest.approx(gps + (time.monotonic() - start), abs=0.05)
+    finally:
+        src.close()
+        os.close(master)
+        os.close(slave)
