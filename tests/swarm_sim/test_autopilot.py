@@ -324,14 +324,32 @@ def test_system_time_is_the_injected_clock_once_locked() -> None:
 def test_battery_drains_faster_when_moving(model: str) -> None:
     p = make_pilot(model)
     p.wait_ready()
-    idle = p.ap.battery.consumed_mah
+    before = p.ap.battery.consumed_mah
     p.h.run_for(60)
-    idle = p.ap.battery.consumed_mah - idle
+    idle = p.ap.battery.consumed_mah - before
     assert idle > 0
     status = p.h.wait_for(p.c, "BATTERY_STATUS")
     assert (
         status.battery_remaining <= 100 and status.voltages[0] > 3000 * p.ap.airframe.battery.cells
     )
+    # now under way: take off where it flies, then a long leg north
+    ground = model in ("rover", "boat")
+    items = [(16, 0, 0, 0, 0)] + ([] if ground else [(22, 3, 0, 0, 40)])
+    items += [(16, 3, 5000, 0, 40)]
+    assert p.upload(items).type == 0
+    if model == "copter":  # ArduCopter arms in GUIDED, then AUTO and MISSION_START
+        assert p.set_mode("GUIDED") == ACCEPTED and p.arm() == ACCEPTED
+        assert p.set_mode("AUTO") == ACCEPTED and p.command(300) == ACCEPTED
+    else:
+        assert p.set_mode("AUTO") == ACCEPTED and p.arm() == ACCEPTED
+    assert p.h.run_until(lambda: p.ap.body.groundspeed > 1.0, 120), "never got under way"
+    before = p.ap.battery.consumed_mah
+    p.h.run_for(60)
+    moving = p.ap.battery.consumed_mah - before
+    assert moving > 5 * idle, (idle, moving)
+    p.c.clear()
+    later = p.h.wait_for(p.c, "BATTERY_STATUS")
+    assert later.current_battery > 100 * p.ap.airframe.battery.idle_current_a  # cA
 
 
 def test_timesync_is_answered() -> None:

@@ -183,3 +183,31 @@ def test_point_in_polygon() -> None:
     assert point_in_polygon(5, 5, square)
     assert not point_in_polygon(15, 5, square)
     assert not point_in_polygon(5, 5, square[:2])
+
+
+def test_the_albatross_defaults_are_the_papers_and_the_databases() -> None:
+    p = ALBATROSS_250_VTOL
+    assert p.name == "Albatross 250 VTOL" and p.can_hover and p.is_fixed_wing
+    assert (p.cruise_speed_m_s, p.stall_speed_m_s, p.mass_kg) == (26.0, 15.5, 12.5)
+    assert p.stall_speed_m_s < p.min_airspeed_m_s < p.cruise_speed_m_s < p.max_speed_m_s
+    assert p.camera is not None and p.camera.gimbal_axes == 2
+    w, h = p.camera.resolution_px
+    assert 1.4e6 <= w * h <= 1.6e6  # 1.5 Mpx
+    # the swarm database seeds the same aircraft: planners and simulator agree
+    from swarm_node.database import ALBATROSS, seed_profiles
+
+    seeded = seed_profiles()[ALBATROSS]
+    assert seeded.cruise_speed_m_s == p.cruise_speed_m_s
+    assert seeded.min_speed_m_s == p.stall_speed_m_s
+    assert seeded.max_speed_m_s == p.max_speed_m_s
+    assert seeded.camera is not None and seeded.camera.hfov_deg == p.camera.hfov_deg
+
+
+def test_the_albatross_cruises_at_26_m_s_in_the_simulator() -> None:
+    model = VtolModel(ALBATROSS_250_VTOL)
+    b = flying_body(ALBATROSS_250_VTOL.cruise_speed_m_s)
+    b.vtol_state = VtolState.FW
+    target = Target(Guide.GOTO, 20_000.0, 0.0, 100.0)
+    for _ in range(300):
+        model.step(b, target, DT)
+    assert math.isclose(b.airspeed, 26.0, abs_tol=0.5)

@@ -145,3 +145,48 @@ def test_cli_vehicle_uses_the_shared_clock_from_the_environment() -> None:
             proc.kill()
             _out, err = proc.communicate()
     assert f"rover instance {instance} sysid {instance + 1} on tcp:127.0.0.1:{port}" in err
+
+
+def test_cli_vehicle_home_and_speedup() -> None:
+    """`swarm-sim vehicle --home LAT,LON,ALT,HDG --speedup K`, as SITL takes --home: the
+    vehicle starts there, facing HDG, and its clock runs K times faster than the wall."""
+    instance = 80 + os.getpid() % 40  # 6560..6950, apart from the test above
+    port = sitl_port(instance)
+    env = {k: v for k, v in os.environ.items() if k != "BANDADA_CLOCK"}
+    proc = subprocess.Popen(
+        [str(Path(sys.executable).parent / "swarm-sim"), "vehicle", "--model", "copter",
+         "--instance", str(instance), "--home", "-35.363261,149.165230,584,270",
+         "--speedup", "4"],
+        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        m = connect(port)
+        try:
+            hb = m.wait_heartbeat(timeout=15)
+            assert hb is not None and hb.get_srcSystem() == instance + 1
+            pos = wait_position(m)
+            assert abs(pos.lat / 1e7 + 35.363261) < 1e-5  # type: ignore[attr-defined]
+            assert abs(pos.lon / 1e7 - 149.165230) < 1e-5  # type: ignore[attr-defined]
+            assert abs(pos.alt / 1000 - 584) < 1.0  # type: ignore[attr-defined]
+            assert abs(pos.hdg / 100 - 270) < 1.0  # type: ignore[attr-defined]
+            # read everything for 3 s of wall time; every SYSTEM_TIME read while draining
+            # gives (wall, simulated boot time)
+            samples = []
+            end = time.monotonic() + 3.0
+            while time.monotonic() < end:
+                msg = m.recv_match(blocking=True, timeout=0.5)
+                if msg is not None and msg.get_type() == "SYSTEM_TIME":
+                    samples.append((time.monotonic(), msg.time_boot_ms / 1000))
+            assert len(samples) >= 3
+            (w0, s0), (w1, s1) = samples[0], samples[-1]
+            ratio = (s1 - s0) / (w1 - w0)
+            assert 2.0 < ratio < 8.0, ratio  # 4x, with a loaded machine's slack
+        finally:
+            m.close()
+    finally:
+        proc.terminate()
+        try:
+            proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
