@@ -19,20 +19,36 @@ def demo(
     vehicle_ids: str = typer.Option(
         "1,2,3,7,8", "--vehicles", help="seed database ids: 1-6 Albatross VTOL, 7-9 quadcopters"
     ),
-    speedup: float = typer.Option(5.0, help="simulated seconds per wall second"),
+    speedup: float | None = typer.Option(
+        None, help="simulated seconds per wall second (default 5, or 1 with --radio)"
+    ),
     timeout: float = typer.Option(600.0, help="wall seconds to wait for the fleet to land"),
     keep: bool = typer.Option(False, help="keep the node logs"),
+    radio: bool = typer.Option(
+        False, "--radio", help="vehicles and ground station talk only over the emulated radio"
+    ),
 ) -> None:
     """A simulated swarm flies an area-coverage mission around a no-fly zone, through
     the real stack (simulated MAVLink vehicles, one swarm-node process each, Zenoh on
-    127.0.0.1, the ground station), and lands."""
+    127.0.0.1, the ground station), and lands. With --radio, every message between
+    vehicles and the ground station crosses the emulated 900 MHz TDM radio instead."""
     from .demo import run_demo
 
     try:
         members = tuple(int(x) for x in vehicle_ids.split(","))
     except ValueError as exc:
         raise typer.BadParameter("comma-separated ids", param_hint="--vehicles") from exc
-    raise typer.Exit(run_demo(members, speedup=speedup, timeout_s=timeout, keep=keep))
+    if speedup is None:
+        speedup = 1.0 if radio else 5.0
+    if not speedup > 0:
+        raise typer.BadParameter("must be positive", param_hint="--speedup")
+    if radio and speedup > 2.0:
+        # TDM slots are a few milliseconds of wall time at high speed-ups; a shared
+        # laptop cannot write the serial ports that precisely
+        typer.echo(f"warning: --radio at {speedup:g}x leaves the slots little margin", err=True)
+    raise typer.Exit(
+        run_demo(members, speedup=speedup, timeout_s=timeout, keep=keep, radio=radio)
+    )
 
 
 @app.command()

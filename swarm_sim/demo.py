@@ -6,6 +6,12 @@ no-fly zone, on this machine, in fast time, through the real stack.
       <-> Zenoh on 127.0.0.1 (a router-mode session here)
       <-> the ground station (this process)                        gcs_cli.ground
 
+With `radio=True` (`swarm-sim demo --radio`) nothing crosses Zenoh between vehicles:
+each vehicle's node and its `radio-gateway run` process share a Zenoh network of their
+own (as on a companion computer), the ground station and its gateway another, and the
+gateways talk over the emulated XTend channel (pseudo-terminals, TDM slots, framing,
+authentication), after configuring their modules through AT command mode.
+
 Every process shares one simulated clock (BANDADA_CLOCK) and one seeded swarm database
 (BANDADA_DB) in a temporary directory. The ground station sets the base, declares the
 zone, sends the mission, and watches the fleet plan, fly, return and land.
@@ -25,7 +31,7 @@ import sys
 import tempfile
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from rich.console import Console
@@ -49,7 +55,9 @@ from swarm_proto import (
 )
 from swarm_proto.clock import ENV_VAR as CLOCK_ENV
 from swarm_proto.clock import clock_from_spec
-from swarm_proto.session import ZenohSettings, open_session
+from swarm_proto.messages import RadioStats
+from swarm_proto.session import SwarmBus, ZenohSettings, open_session
+from swarm_proto.topics import RADIO_STATS
 
 from .core import SITL_HOME
 from .fast_fleet import MODEL_OF_TYPE
@@ -92,11 +100,51 @@ def demo_area() -> tuple[Geometry, NoFlyZone]:
 @dataclass
 class Fleet:
     tmp: Path
-    router: object
+    router: object | None  # the Zenoh router (LAN mode)
     simulator: multiprocessing.process.BaseProcess
     stop_simulator: object
     nodes: dict[int, subprocess.Popen[bytes]]
-    endpoint: str
+    endpoint: str  # where the ground station connects
+    gateways: dict[int, subprocess.Popen[bytes]] = field(default_factory=dict)
+    channel: object | None = None  # swarm_sim.radio_channel.pty.ChannelProcess (radio mode)
+
+
+def _spawn(cmd: list[str], log_path: Path, env: dict[str, str]) -> subprocess.Popen[bytes]:
+    log = open(log_path, "wb")  # noqa: SIM115
+    try:
+        return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
+    finally:
+        log.close()
+
+
+def start_radio(
+    members: tuple[int, ...], clock: ScaledClock, tmp: Path, env: dict[str, str]
+) -> tuple[object, dict[int, str], dict[int, subprocess.Popen[bytes]]]:
+    """The emulated channel (its own process) and one gateway per node: returns the
+    channel, the Zenoh endpoint each node's gateway listens on, and the gateways."""
+    import secrets
+
+    from .radio_channel.model import ChannelParams
+    from .radio_channel.pty import ChannelProcess
+
+    ids = (*members, GCS_ID)
+    # modules straight from the factory (9600 baud): each gateway configures its own
+    channel = ChannelProcess(len(ids), ChannelParams(seed=1), clock, registers=None)
+    key = tmp / "swarm.key"
+    key.write_text(secrets.token_hex(32) + "\n")
+    key.chmod(0o600)
+    endpoints: dict[int, str] = {}
+    gateways: dict[int, subprocess.Popen[bytes]] = {}
+    for port, nid in zip(channel.ports, ids, strict=True):
+        endpoints[nid] = f"tcp/127.0.0.1:{free_tcp_port()}"
+        gateways[nid] = _spawn(
+            [sys.executable, "-m", "radio_gateway.cli", "run", "--node-id", str(nid),
+             "--port", port, "--key-file", str(key), "--listen", endpoints[nid],
+             "--members", ",".join(map(str, ids)), "--configure"],
+            tmp / f"radio-{nid}.log",
+            env,
+        )  # fmt: skip
+    return channel, endpoints, gateways
 
 
 def serve_vehicles(specs: list[VehicleSpec], clock_spec: str, stop: threading.Event) -> None:
@@ -106,7 +154,9 @@ def serve_vehicles(specs: list[VehicleSpec], clock_spec: str, stop: threading.Ev
         stop.wait()
 
 
-def start(members: tuple[int, ...], speedup: float, tmp: Path, console: Console) -> Fleet:
+def start(
+    members: tuple[int, ...], speedup: float, tmp: Path, console: Console, *, radio: bool = False
+) -> Fleet:
     db_path = tmp / "swarm.db"
     with SwarmDatabase.open(db_path) as db:
         profiles = {p.vehicle_id: p for p in db.profiles()}
@@ -116,8 +166,6 @@ def start(members: tuple[int, ...], speedup: float, tmp: Path, console: Console)
     if unknown:
         raise SystemExit(f"not vehicles of the seed database: {unknown}")
     clock = ScaledClock(speedup)
-    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
-    router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
     homes = spread_homes(SITL_HOME, len(members), 40.0)
     specs = [
         VehicleSpec(
@@ -141,52 +189,60 @@ def start(members: tuple[int, ...], speedup: float, tmp: Path, console: Console)
         "BANDADA_DB": str(db_path),
         "PYTHONUNBUFFERED": "1",
     }
+    router: object | None = None
+    channel: object | None = None
+    gateways: dict[int, subprocess.Popen[bytes]] = {}
+    if radio:  # each node on its own gateway's Zenoh network, the air between them
+        channel, lans, gateways = start_radio(members, clock, tmp, env)
+    else:  # every node and the ground station on one Zenoh network
+        endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+        router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+        lans = dict.fromkeys((*members, GCS_ID), endpoint)
     nodes = {}
     for spec, vid in zip(specs, members, strict=True):
-        log = open(tmp / f"node-{vid}.log", "wb")  # noqa: SIM115
-        nodes[vid] = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "swarm_node.cli",
-                "run",
-                "--id",
-                str(vid),
-                "--autopilot",
-                f"tcp:127.0.0.1:{spec.tcp_port}",
-                "--connect",
-                endpoint,
-                "--listen",
-                "tcp/127.0.0.1:0",
-                "--link-timeout",
-                str(link_timeout_s(speedup)),
-            ],
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            env=env,
-        )
-        log.close()
+        nodes[vid] = _spawn(
+            [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid),
+             "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}", "--connect", lans[vid],
+             "--listen", "tcp/127.0.0.1:0", "--link-timeout", str(link_timeout_s(speedup))],
+            tmp / f"node-{vid}.log",
+            env,
+        )  # fmt: skip
     for spec, vid in zip(specs, members, strict=True):
         console.print(
             f"  vehicle {vid}: {profiles[vid].model} ({profiles[vid].user_id}), simulated on tcp:127.0.0.1:{spec.tcp_port}"
         )
-    return Fleet(tmp, router, simulator, stop_simulator, nodes, endpoint)
+    if radio:
+        console.print(
+            f"  radio: {len(members) + 1} emulated XTend modules on one channel "
+            "(115.2 kbps, 200 ms TDM cycle), one gateway per node"
+        )
+    return Fleet(
+        tmp, router, simulator, stop_simulator, nodes, lans[GCS_ID], gateways, channel
+    )
 
 
-def stop(fleet: Fleet) -> None:
-    for p in fleet.nodes.values():
+def _interrupt(processes: list[subprocess.Popen[bytes]]) -> None:
+    for p in processes:
         if p.poll() is None:
             p.send_signal(signal.SIGINT)
-    for p in fleet.nodes.values():
+    for p in processes:
         try:
             p.wait(15)
         except subprocess.TimeoutExpired:
             p.kill()
+
+
+def stop(fleet: Fleet) -> None:
+    _interrupt(list(fleet.nodes.values()))
+    _interrupt(list(fleet.gateways.values()))
     fleet.stop_simulator.set()  # type: ignore[attr-defined]
     fleet.simulator.join(15)
     if fleet.simulator.is_alive():
         fleet.simulator.kill()
-    fleet.router.close()  # type: ignore[attr-defined]
+    if fleet.channel is not None:
+        fleet.channel.close()  # type: ignore[attr-defined]
+    if fleet.router is not None:
+        fleet.router.close()  # type: ignore[attr-defined]
 
 
 def _all(view: FleetView, members: tuple[int, ...], pred: object) -> bool:
@@ -198,23 +254,34 @@ def run_demo(
     speedup: float = 5.0,
     timeout_s: float = 600.0,
     keep: bool = False,
+    radio: bool = False,
 ) -> int:
     console = Console() if sys.stdout.isatty() else Console(width=160)
     tmp = Path(tempfile.mkdtemp(prefix="bandada-demo-"))
-    console.rule("[bold]bandada demo")
+    console.rule("[bold]bandada demo" + (" over the emulated radio" if radio else ""))
+    link = "a 900 MHz TDM radio (emulated)" if radio else "Zenoh on 127.0.0.1"
     console.print(
-        f"{len(members)} simulated vehicles, {speedup:g}x real time, Zenoh on 127.0.0.1, logs in {tmp}"
+        f"{len(members)} simulated vehicles, {speedup:g}x real time, {link}, logs in {tmp}"
     )
-    fleet = start(members, speedup, tmp, console)
+    fleet = start(members, speedup, tmp, console, radio=radio)
     gs = GroundStation(ZenohSettings(connect=(fleet.endpoint,)), gcs_id=GCS_ID)
+    radio_stats: dict[int, RadioStats] = {}
+    stats_bus = None
+    if radio:  # the gateways' statistics, as `gcs` would read them
+        stats_bus = SwarmBus.open(ZenohSettings(connect=(fleet.endpoint,)))
+        stats_bus.subscribe(RADIO_STATS, lambda m, k: radio_stats.__setitem__(m.node_id, m))
     ok = False
     t_start = time.monotonic()
     try:
         ok = _script(gs, members, speedup, timeout_s, console)
+        if radio:
+            ok = _radio_report(radio_stats.get(GCS_ID), fleet, console) and ok
     except KeyboardInterrupt:
         console.print("[yellow]interrupted[/]")
     finally:
         console.print(f"[dim]stopping ({time.monotonic() - t_start:.0f} s wall)[/]")
+        if stats_bus is not None:
+            stats_bus.close()
         gs.close()
         stop(fleet)
         if keep or not ok:
@@ -338,3 +405,21 @@ def _watch(gs: GroundStation, members: tuple[int, ...], timeout_s: float, consol
             )
             console.print(f"  {line}")
     return False
+
+
+def _radio_report(stats: RadioStats | None, fleet: Fleet, console: Console) -> bool:
+    """What the ground station's gateway heard, and what the channel saw."""
+    channel = fleet.channel.stats()["channel"]  # type: ignore[attr-defined]
+    collisions = int(channel.get("collisions", 0))
+    if stats is None:
+        console.print("[red]radio: no statistics from the ground station's gateway[/]")
+        return False
+    peers = ", ".join(
+        f"{p.node_id}: {p.packets_per_s:.1f}/s loss {p.loss:.0%}" for p in stats.peers
+    )
+    console.print(
+        f"radio: table {stats.members}, {stats.phase}, slot {stats.slot_s * 1000:.1f} ms; "
+        f"heard {peers}; {stats.dropped_forged} forged, {stats.dropped_corrupt} corrupt; "
+        f"{collisions} collisions on the channel"
+    )
+    return collisions == 0
