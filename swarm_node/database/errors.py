@@ -8,6 +8,20 @@ written. Every message names the table, the record and the rule, for an operator
 
 from __future__ import annotations
 
+import reprlib
+from typing import Any
+
+_repr = reprlib.Repr()
+_repr.maxlevel = 3
+_repr.maxstring = 80
+_repr.maxother = 80
+
+
+def shown(value: Any) -> str:
+    """A value for an error message: its repr, shortened (an operator's input can be
+    a megabyte string or a list nested thousands deep, whose plain repr would fail)."""
+    return _repr.repr(value)
+
 
 class SwarmDbError(Exception):
     """Base class of every error raised by swarm_node.database."""
@@ -27,6 +41,12 @@ class ForeignDatabaseError(UnusableDatabaseError):
 
 class NewerSchemaError(UnusableDatabaseError):
     """A bandada swarm database written by a newer bandada (a schema we do not know)."""
+
+
+class StorageError(UnusableDatabaseError):
+    """The file or its directory cannot be read or written (permission denied, a
+    read-only filesystem, a disk full, a lock held too long by another process); what
+    was being written was rolled back."""
 
 
 class InterruptedWriteError(UnusableDatabaseError):
