@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import os
+import sqlite3
 import sys
 import tempfile
 import time
@@ -53,6 +54,7 @@ DbOption = Annotated[
         envvar="BANDADA_DB",
         help="database file (default: $BANDADA_DB, else ~/.local/share/bandada/swarm.db)",
         show_default=False,
+        readable=False,  # checked by the database, with its own message
     ),
 ]
 JsonOption = Annotated[bool, typer.Option("--json", help="print JSON")]
@@ -65,20 +67,31 @@ def _fail(message: str, code: int = 1) -> typer.Exit:
 
 @contextmanager
 def _open(db_path: Path | None) -> Iterator[SwarmDatabase]:
+    """The database, or exit 1 with a one-line message: the database's own errors, and
+    as a last resort any OSError or SQLite error (never a traceback)."""
     path = resolve_db_path(db_path)
-    created = not path.exists() or (path.is_file() and path.stat().st_size == 0)
     try:
         db = SwarmDatabase.open(path)
     except SwarmDbError as exc:
         raise _fail(str(exc)) from None
-    if created:
+    except (OSError, sqlite3.Error) as exc:
+        raise _fail(f"{path}: {_why(exc)}") from None
+    if db.created:
         typer.echo(f"created {path} with the seed data", err=True)
     try:
         yield db
     except SwarmDbError as exc:
         raise _fail(str(exc)) from None
+    except (OSError, sqlite3.Error) as exc:
+        raise _fail(f"{path}: {_why(exc)}") from None
     finally:
         db.close()
+
+
+def _why(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.strerror} ({exc.filename})" if exc.filename else exc.strerror
+    return str(exc)
 
 
 def _table(group: str, name: str) -> Table:
@@ -207,6 +220,8 @@ def _parse_fields(t: Table, pairs: list[str], record_json: str | None) -> dict[s
             loaded = json.loads(record_json)
         except json.JSONDecodeError as exc:
             raise _fail(f"--record: not valid JSON ({exc})", 2) from None
+        except RecursionError:
+            raise _fail("--record: not usable JSON (nested too deeply)", 2) from None
         if not isinstance(loaded, dict):
             raise _fail("--record: expected a JSON object of fields", 2)
         record.update(loaded)
@@ -282,13 +297,16 @@ def export(
         sys.stdout.write(data.decode())
         return
     target = Path(file)
+    tmp: str | None = None
     try:
-        fd, tmp = tempfile.mkstemp(dir=target.parent or Path("."), prefix=f".{target.name}.")
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.")
         with os.fdopen(fd, "wb") as f:
             f.write(data)
         os.replace(tmp, target)
     except OSError as exc:
-        raise _fail(f"cannot write {file}: {exc}") from None
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        raise _fail(f"cannot write {file}: {exc.strerror or exc}") from None
     typer.echo(f"exported to {file}", err=True)
 
 
@@ -305,9 +323,12 @@ def import_(
     try:
         data = sys.stdin.buffer.read() if file == "-" else Path(file).read_bytes()
     except OSError as exc:
-        raise _fail(f"cannot read {file}: {exc}") from None
-    with _open(db_path) as db:
+        raise _fail(f"cannot read {file}: {exc.strerror or exc}") from None
+    try:  # the document is checked before the database is opened (or created)
         doc = decode_json(data, source=file)
+    except SwarmDbError as exc:
+        raise _fail(str(exc)) from None
+    with _open(db_path) as db:
         written = db.import_document(doc, replace=replace, source=file)
     total = sum(written.values())
     typer.echo(f"imported {total} records into {len(written)} tables from {file}")
@@ -324,7 +345,7 @@ def profile(
 ) -> None:
     """What a node resolves from the database: its VehicleProfile."""
     with _open(db_path) as db:
-        if vehicle.isdigit():
+        if vehicle.isascii() and vehicle.isdigit():
             p = db.vehicle_profile(int(vehicle))
         else:
             p = db.vehicle_profile(user_id=vehicle, model=model)

@@ -4,7 +4,12 @@ paths (exit 1 with a message on stderr, the file untouched; exit 2 for usage).""
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import sqlite3
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +20,7 @@ from gcs_cli.cli import app
 from swarm_node.database import SwarmDatabase
 
 ALB_LAYOUT = "Albatross 250 VTOL + EO 1.5 Mpx"
+EMPTY_DOC = '{"format": "bandada-swarm-db", "schema_version": 2, "groups": {}}'
 
 
 @pytest.fixture
@@ -47,6 +53,24 @@ def failed(result: Result, match: str, code: int = 1) -> Result:
     return result
 
 
+def one_line_error(result: Result, match: str, code: int = 1) -> Result:
+    """Exit `code` with one line on stderr, `error: ...` naming the problem; no traceback."""
+    failed(result, match, code)
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    return result
+
+
+def listing(directory: Path) -> dict[str, tuple[bytes, int] | None]:
+    """Every entry of a directory, with each file's bytes and modification time: what
+    "left untouched" means (no file changed, none appeared or vanished)."""
+    return {
+        p.name: (p.read_bytes(), p.stat().st_mtime_ns) if p.is_file() else None
+        for p in sorted(directory.iterdir())
+    }
+
+
 # ---------------------------------------------------------------------------- the file
 
 
@@ -73,6 +97,15 @@ def test_the_env_var_and_the_default_path(tmp_path: Path) -> None:
     assert r.stdout.strip() == str(home / ".local" / "share" / "bandada" / "swarm.db")
 
 
+def _make_wal(p: Path) -> None:
+    """Another application's database in WAL mode (checkpointed: nothing beside it)."""
+    conn = sqlite3.connect(p)
+    conn.execute("PRAGMA journal_mode = WAL")
+    conn.execute("CREATE TABLE notes (body TEXT)")
+    conn.commit()
+    conn.close()
+
+
 @pytest.mark.parametrize(
     ("make", "match"),
     [
@@ -82,9 +115,10 @@ def test_the_env_var_and_the_default_path(tmp_path: Path) -> None:
         ),
         (lambda p: p.write_bytes(b"SQLite format 3\x00" + b"\xff" * 4000), "damaged SQLite file"),
         ("foreign", "another application"),
+        (_make_wal, "another application (application_id 0x0, tables: notes)"),
         ("newer", "newer bandada"),
     ],
-    ids=["random", "damaged", "foreign", "newer"],
+    ids=["random", "damaged", "foreign", "foreign-wal", "newer"],
 )
 def test_a_corrupt_or_foreign_file_is_refused_and_untouched(
     db: Path, make: Any, match: str
@@ -102,12 +136,11 @@ def test_a_corrupt_or_foreign_file_is_refused_and_untouched(
         conn.close()
     else:
         make(db)
-    before = db.read_bytes(), db.stat().st_mtime_ns
+    before = listing(db.parent)
     for args in (["list"], ["add", "systems", "types", "name=X"], ["import", "-"], ["export", "-"]):
-        failed(run(db, *args, stdin="{}"), match)
-        assert "left it untouched" in run(db, *args, stdin="{}").stderr
-    assert (db.read_bytes(), db.stat().st_mtime_ns) == before
-    assert sorted(p.name for p in db.parent.iterdir()) == [db.name]
+        r = one_line_error(run(db, *args, stdin=EMPTY_DOC), match)
+        assert "left it untouched" in r.stderr
+    assert listing(db.parent) == before
 
 
 # ---------------------------------------------------------------------------- list / show
@@ -346,6 +379,190 @@ def test_import_errors_write_nothing(db: Path, tmp_path: Path, content: str, mat
 
 def test_import_a_missing_file(db: Path, tmp_path: Path) -> None:
     failed(run(db, "import", str(tmp_path / "nope.json")), "cannot read")
+
+
+# ---------------------------------------------------------------------------- bad input
+
+
+def _doc(groups: dict[str, Any]) -> str:
+    return json.dumps({"format": "bandada-swarm-db", "schema_version": 2, "groups": groups})
+
+
+DEEP = "[" * 2000 + "]" * 2000
+
+
+def test_deeply_nested_json_is_a_clear_error(db: Path, tmp_path: Path) -> None:
+    deep = tmp_path / "deep.json"
+    deep.write_text(DEEP)
+    # the document is refused before the database is opened: a missing one stays missing
+    one_line_error(run(db, "import", str(deep)), f"{deep}: not usable JSON (arrays or objects")
+    assert not db.exists()
+    ok(run(db, "list"))
+    before = listing(tmp_path)
+    one_line_error(run(db, "import", str(deep)), "nested too deeply")
+    one_line_error(run(db, "import", "-", stdin=DEEP), "-: not usable JSON")
+    one_line_error(run(db, "add", "systems", "types", "--record", DEEP), "--record: not usable", 2)
+    # deep, but not too deep to decode: the value is refused, and shown shortened
+    value = "[" * 900 + "]" * 900
+    one_line_error(
+        run(db, "import", "-", stdin=_doc({"systems": {"types": [{"name": json.loads(value)}]}})),
+        "systems.types[0]: systems.types.name: expected text, got [[[[...]]]]",
+    )
+    one_line_error(
+        run(db, "add", "systems", "types", "--record", '{"name": ' + value + "}"),
+        "systems.types.name: expected text, got [[[[...]]]]",
+    )
+    assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("where", "match"),
+    [
+        ("/proc/bandada-nope/swarm.db", "cannot create the directory /proc/bandada-nope"),
+        ("{tmp}/a-file/swarm.db", "cannot create it: {tmp}/a-file is not a directory"),
+        ("{tmp}/a-file/deeper/swarm.db", "cannot create it: {tmp}/a-file is not a directory"),
+        ("{tmp}/a-dir", "{tmp}/a-dir: is a directory, not a database file"),
+        ("{tmp}/a-fifo", "{tmp}/a-fifo: is not a regular file"),
+    ],
+    ids=["parent-cannot-be-created", "parent-is-a-file", "ancestor-is-a-file", "dir", "fifo"],
+)
+def test_a_path_that_cannot_hold_a_database(tmp_path: Path, where: str, match: str) -> None:
+    if where.startswith("/proc") and not Path("/proc/self").exists():
+        pytest.skip("no /proc")
+    (tmp_path / "a-file").write_text("notes")
+    (tmp_path / "a-dir").mkdir()
+    os.mkfifo(tmp_path / "a-fifo")  # reading it would block: never opened
+    before = listing(tmp_path)
+    path = where.format(tmp=tmp_path)
+    for args in (["list"], ["add", "systems", "types", "name=X"], ["import", "-"], ["export", "-"]):
+        one_line_error(run(Path(path), *args, stdin=EMPTY_DOC), match.format(tmp=tmp_path))
+    assert listing(tmp_path) == before
+    assert not Path("/proc/bandada-nope").exists()
+
+
+def test_a_failed_export_leaves_no_temporary_file(db: Path, tmp_path: Path) -> None:
+    ok(run(db, "list"))
+    (tmp_path / "out").mkdir()
+    before = listing(tmp_path)
+    one_line_error(run(db, "export", str(tmp_path / "out")), f"cannot write {tmp_path / 'out'}")
+    one_line_error(run(db, "export", str(tmp_path / "no" / "dir" / "x.json")), "cannot write")
+    assert listing(tmp_path) == before and listing(tmp_path / "out") == {}
+
+
+def _gcs(*args: str, prefix: list[str] | None = None) -> subprocess.CompletedProcess[str]:
+    """`gcs db ...` in a child process (optionally under a wrapper command)."""
+    cmd = [sys.executable, "-c", "from gcs_cli.cli import main; main()", "db", *args]
+    env = {k: v for k, v in os.environ.items() if k != "BANDADA_DB"}
+    return subprocess.run(
+        [*(prefix or []), *cmd], capture_output=True, text=True, timeout=120, env=env
+    )
+
+
+def _one_line_error(r: subprocess.CompletedProcess[str], match: str) -> None:
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and match in lines[0], r.stderr
+
+
+@pytest.fixture
+def unprivileged() -> list[str]:
+    """A command prefix under which file permissions apply: none for a normal user; for
+    root, setpriv drops the capabilities that override them (CAP_DAC_*)."""
+    if os.geteuid() != 0:
+        return []
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        pytest.skip("running as root without setpriv: permissions do not apply")
+    prefix = [setpriv, "--bounding-set=-dac_override,-dac_read_search"]
+    probe = subprocess.run([*prefix, "true"], capture_output=True, timeout=30)
+    if probe.returncode != 0:
+        pytest.skip(f"setpriv cannot drop capabilities here: {probe.stderr!r}")
+    return prefix
+
+
+def test_permission_denied(tmp_path: Path, unprivileged: list[str]) -> None:
+    readonly, unreadable = tmp_path / "readonly.db", tmp_path / "unreadable.db"
+    SwarmDatabase.open(readonly).close()
+    unreadable.write_bytes(readonly.read_bytes())
+    readonly.chmod(0o444)
+    unreadable.chmod(0o000)
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o555)
+    shut = tmp_path / "shut"
+    shut.mkdir(mode=0o000)
+    try:
+        before = listing(tmp_path)
+        assert "systems" in _gcs("list", "--db", str(readonly), prefix=unprivileged).stdout
+        _one_line_error(
+            _gcs("add", "systems", "types", "name=X", "--db", str(readonly), prefix=unprivileged),
+            f"{readonly}: cannot write to it (attempt to write a readonly database)",
+        )
+        _one_line_error(
+            _gcs("list", "--db", str(unreadable), prefix=unprivileged),
+            f"{unreadable}: cannot read it (Permission denied)",
+        )
+        _one_line_error(
+            _gcs("list", "--db", str(locked / "swarm.db"), prefix=unprivileged),
+            f"{locked / 'swarm.db'}: cannot open it",
+        )
+        _one_line_error(
+            _gcs("list", "--db", str(locked / "sub" / "swarm.db"), prefix=unprivileged),
+            f"cannot create the directory {locked / 'sub'} (Permission denied)",
+        )
+        _one_line_error(
+            _gcs("list", "--db", str(shut / "swarm.db"), prefix=unprivileged),
+            f"{shut / 'swarm.db'}: cannot read it (Permission denied)",
+        )
+        assert listing(tmp_path) == before
+        assert sorted(p.name for p in locked.iterdir()) == []
+    finally:
+        shut.chmod(0o755)
+        locked.chmod(0o755)
+        unreadable.chmod(0o644)
+
+
+@pytest.fixture
+def read_only_mount() -> list[str]:
+    """A command prefix that runs the command with its first argument (a directory)
+    bind-mounted read-only, in a private mount namespace (unshare); skips where user
+    namespaces are not allowed."""
+    unshare = shutil.which("unshare")
+    if unshare is None or not sys.platform.startswith("linux"):
+        pytest.skip("no unshare")
+    script = 'mount --bind -o ro "$1" "$1" || exit 97; shift; exec "$@"'
+    prefix = [unshare, "--user", "--map-root-user", "--mount", "sh", "-c", script, "sh"]
+    with tempfile.TemporaryDirectory() as d:
+        probe = subprocess.run([*prefix, d, "touch", f"{d}/x"], capture_output=True, timeout=30)
+        if probe.returncode == 0 or b"Read-only file system" not in probe.stderr:
+            pytest.skip(f"cannot mount read-only here: {probe.stderr!r}")
+    return prefix
+
+
+def test_a_read_only_filesystem(tmp_path: Path, read_only_mount: list[str]) -> None:
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    db = ro / "swarm.db"
+    SwarmDatabase.open(db).close()
+    before = listing(ro)
+
+    def gcs(*args: str) -> subprocess.CompletedProcess[str]:
+        return _gcs(*args, prefix=[*read_only_mount, str(ro)])
+
+    assert gcs("list", "--json", "--db", str(db)).returncode == 0  # reading needs no write
+    _one_line_error(
+        gcs("add", "systems", "types", "name=X", "--db", str(db)),
+        f"{db}: cannot write to it (attempt to write a readonly database)",
+    )
+    _one_line_error(gcs("list", "--db", str(ro / "new.db")), f"{ro / 'new.db'}: cannot open it")
+    _one_line_error(
+        gcs("list", "--db", str(ro / "sub" / "new.db")),
+        f"cannot create the directory {ro / 'sub'} (Read-only file system)",
+    )
+    _one_line_error(
+        gcs("export", str(ro / "out.json"), "--db", str(db)),
+        f"cannot write {ro / 'out.json'}: Read-only file system",
+    )
+    assert listing(ro) == before
 
 
 # ---------------------------------------------------------------------------- profile
