@@ -1,7 +1,8 @@
 """Errors of the swarm database, by blame.
 
 `UnusableDatabaseError`: the file cannot be used (corrupt, another application's, a
-newer schema); the file is left exactly as it was. `RecordError`: a record given to the
+newer schema, or unreadable/unwritable: `StorageError`); the file is left exactly as
+it was. `RecordError`: a record given to the
 database (by the operator, an import file, our own code) breaks a rule; nothing is
 written. Every message names the table, the record and the rule, for an operator.
 """

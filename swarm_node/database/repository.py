@@ -2,7 +2,9 @@
 
 Opening a file never harms it: a file that is not ours (random bytes, another
 application's SQLite database, a newer bandada's schema, a damaged file) is inspected
-read-only and refused with an `UnusableDatabaseError`, byte for byte untouched. A
+read-only (immutable when in WAL mode, so that no -wal or -shm file appears beside it)
+and refused with an `UnusableDatabaseError`, byte for byte untouched; a file that
+cannot be read or written (permissions, a read-only filesystem) is a `StorageError`. A
 missing or empty file becomes a new database with the seed data; an older bandada file
 is copied to `<file>.v<N>.bak` and migrated, all in one transaction.
 
