@@ -19,7 +19,9 @@ Exit status: 0 ok, 1 the database refused (message on stderr), 2 usage.
 from __future__ import annotations
 
 import json
+import math
 import os
+import re
 import sqlite3
 import sys
 import tempfile
@@ -379,15 +381,24 @@ def query(
     timeout: Annotated[float, typer.Option(help="seconds to wait for replies")] = 5.0,
 ) -> None:
     """Query a peer's swarm database over Zenoh; prints every reply as JSON."""
+    import zenoh
+
     from swarm_node.database.queryable import query as zquery
     from swarm_node.database.queryable import selector
     from swarm_proto.session import ZenohSettings, open_session
 
+    if node != "*" and not (node.isascii() and node.isdigit() and 1 <= int(node) <= 65534):
+        raise _fail(f"node must be a node id (1..65534) or '*', got {node!r}", 2)
+    if not math.isfinite(timeout) or timeout <= 0:
+        raise _fail(f"--timeout must be a positive number of seconds, got {timeout:g}", 2)
     try:
         sel = selector(swarm, node, resource)
     except ValueError as exc:
         raise _fail(str(exc), 2) from None
-    session = open_session(ZenohSettings(connect=tuple(connect or ())))
+    try:
+        session = open_session(ZenohSettings(connect=tuple(connect or ())))
+    except zenoh.ZError as exc:
+        raise _fail(f"cannot open a Zenoh session: {_zenoh_reason(exc)}", 2) from None
     deadline = time.monotonic() + timeout
     try:
         while True:  # a fresh session learns the peers' queryables within a moment
@@ -395,6 +406,8 @@ def query(
             if replies or time.monotonic() >= deadline:
                 break
             time.sleep(0.1)
+    except zenoh.ZError as exc:
+        raise _fail(f"{sel}: {_zenoh_reason(exc)}", 2) from None
     finally:
         session.close()
     if not replies:
@@ -403,6 +416,14 @@ def query(
     errors = [r.error for r in replies if r.error is not None]
     if len(errors) == len(replies):
         raise _fail(str(errors[0]))
+
+
+def _zenoh_reason(exc: Exception) -> str:
+    """Zenoh's message without its Rust debug wrapping and source locations."""
+    text = str(exc)
+    found = re.search(r'msg: "(.*?)(?: at /[^"]*)?"', text)
+    reason = found.group(1) if found else text.splitlines()[0] if text else type(exc).__name__
+    return re.sub(r" at /\S+\.rs:\d+\.?", "", reason)[:300]
 
 
 @app.command()

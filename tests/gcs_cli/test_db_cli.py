@@ -892,6 +892,24 @@ def test_a_read_only_filesystem(tmp_path: Path, read_only_mount: list[str]) -> N
     assert listing(ro) == before
 
 
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["5", "--connect", "nonsense"], "cannot open a Zenoh session: Endpoints must be of"),
+        (["5", "--timeout", "nan"], "--timeout must be a positive number of seconds, got nan"),
+        (["5", "--timeout", "-1"], "--timeout must be a positive number"),
+        (["a/b"], "node must be a node id (1..65534) or '*', got 'a/b'"),
+        (["65535"], "node must be a node id"),
+        (["5", "--swarm", "bad swarm"], "swarm name"),
+    ],
+    ids=["endpoint", "nan-timeout", "negative-timeout", "node-key", "node-range", "swarm"],
+)
+def test_query_usage_errors(args: list[str], match: str) -> None:
+    """Refused before any query (a NaN timeout used to loop forever; a bad endpoint
+    printed Zenoh's Rust debug text in a traceback)."""
+    one_line_error(run(None, "query", *args), match, 2)
+
+
 # ---------------------------------------------------------------------------- profile
 
 
