@@ -19,7 +19,10 @@ Exit status: 0 ok, 1 the database refused (message on stderr), 2 usage.
 from __future__ import annotations
 
 import json
+import math
 import os
+import re
+import sqlite3
 import sys
 import tempfile
 import time
@@ -53,6 +56,7 @@ DbOption = Annotated[
         envvar="BANDADA_DB",
         help="database file (default: $BANDADA_DB, else ~/.local/share/bandada/swarm.db)",
         show_default=False,
+        readable=False,  # checked by the database, with its own message
     ),
 ]
 JsonOption = Annotated[bool, typer.Option("--json", help="print JSON")]
@@ -65,20 +69,31 @@ def _fail(message: str, code: int = 1) -> typer.Exit:
 
 @contextmanager
 def _open(db_path: Path | None) -> Iterator[SwarmDatabase]:
+    """The database, or exit 1 with a one-line message: the database's own errors, and
+    as a last resort any OSError or SQLite error (never a traceback)."""
     path = resolve_db_path(db_path)
-    created = not path.exists() or (path.is_file() and path.stat().st_size == 0)
     try:
         db = SwarmDatabase.open(path)
     except SwarmDbError as exc:
         raise _fail(str(exc)) from None
-    if created:
+    except (OSError, sqlite3.Error) as exc:
+        raise _fail(f"{path}: {_why(exc)}") from None
+    if db.created:
         typer.echo(f"created {path} with the seed data", err=True)
     try:
         yield db
     except SwarmDbError as exc:
         raise _fail(str(exc)) from None
+    except (OSError, sqlite3.Error) as exc:
+        raise _fail(f"{path}: {_why(exc)}") from None
     finally:
         db.close()
+
+
+def _why(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.strerror} ({exc.filename})" if exc.filename else exc.strerror
+    return str(exc)
 
 
 def _table(group: str, name: str) -> Table:
@@ -207,6 +222,8 @@ def _parse_fields(t: Table, pairs: list[str], record_json: str | None) -> dict[s
             loaded = json.loads(record_json)
         except json.JSONDecodeError as exc:
             raise _fail(f"--record: not valid JSON ({exc})", 2) from None
+        except RecursionError:
+            raise _fail("--record: not usable JSON (nested too deeply)", 2) from None
         if not isinstance(loaded, dict):
             raise _fail("--record: expected a JSON object of fields", 2)
         record.update(loaded)
@@ -282,13 +299,16 @@ def export(
         sys.stdout.write(data.decode())
         return
     target = Path(file)
+    tmp: str | None = None
     try:
-        fd, tmp = tempfile.mkstemp(dir=target.parent or Path("."), prefix=f".{target.name}.")
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.")
         with os.fdopen(fd, "wb") as f:
             f.write(data)
         os.replace(tmp, target)
     except OSError as exc:
-        raise _fail(f"cannot write {file}: {exc}") from None
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        raise _fail(f"cannot write {file}: {exc.strerror or exc}") from None
     typer.echo(f"exported to {file}", err=True)
 
 
@@ -305,9 +325,12 @@ def import_(
     try:
         data = sys.stdin.buffer.read() if file == "-" else Path(file).read_bytes()
     except OSError as exc:
-        raise _fail(f"cannot read {file}: {exc}") from None
-    with _open(db_path) as db:
+        raise _fail(f"cannot read {file}: {exc.strerror or exc}") from None
+    try:  # the document is checked before the database is opened (or created)
         doc = decode_json(data, source=file)
+    except SwarmDbError as exc:
+        raise _fail(str(exc)) from None
+    with _open(db_path) as db:
         written = db.import_document(doc, replace=replace, source=file)
     total = sum(written.values())
     typer.echo(f"imported {total} records into {len(written)} tables from {file}")
@@ -324,7 +347,7 @@ def profile(
 ) -> None:
     """What a node resolves from the database: its VehicleProfile."""
     with _open(db_path) as db:
-        if vehicle.isdigit():
+        if vehicle.isascii() and vehicle.isdigit():
             p = db.vehicle_profile(int(vehicle))
         else:
             p = db.vehicle_profile(user_id=vehicle, model=model)
@@ -358,15 +381,24 @@ def query(
     timeout: Annotated[float, typer.Option(help="seconds to wait for replies")] = 5.0,
 ) -> None:
     """Query a peer's swarm database over Zenoh; prints every reply as JSON."""
+    import zenoh
+
     from swarm_node.database.queryable import query as zquery
     from swarm_node.database.queryable import selector
     from swarm_proto.session import ZenohSettings, open_session
 
+    if node != "*" and not (node.isascii() and node.isdigit() and 1 <= int(node) <= 65534):
+        raise _fail(f"node must be a node id (1..65534) or '*', got {node!r}", 2)
+    if not math.isfinite(timeout) or timeout <= 0:
+        raise _fail(f"--timeout must be a positive number of seconds, got {timeout:g}", 2)
     try:
         sel = selector(swarm, node, resource)
     except ValueError as exc:
         raise _fail(str(exc), 2) from None
-    session = open_session(ZenohSettings(connect=tuple(connect or ())))
+    try:
+        session = open_session(ZenohSettings(connect=tuple(connect or ())))
+    except zenoh.ZError as exc:
+        raise _fail(f"cannot open a Zenoh session: {_zenoh_reason(exc)}", 2) from None
     deadline = time.monotonic() + timeout
     try:
         while True:  # a fresh session learns the peers' queryables within a moment
@@ -374,6 +406,8 @@ def query(
             if replies or time.monotonic() >= deadline:
                 break
             time.sleep(0.1)
+    except zenoh.ZError as exc:
+        raise _fail(f"{sel}: {_zenoh_reason(exc)}", 2) from None
     finally:
         session.close()
     if not replies:
@@ -382,6 +416,14 @@ def query(
     errors = [r.error for r in replies if r.error is not None]
     if len(errors) == len(replies):
         raise _fail(str(errors[0]))
+
+
+def _zenoh_reason(exc: Exception) -> str:
+    """Zenoh's message without its Rust debug wrapping and source locations."""
+    text = str(exc)
+    found = re.search(r'msg: "(.*?)(?: at /[^"]*)?"', text)
+    reason = found.group(1) if found else text.splitlines()[0] if text else type(exc).__name__
+    return re.sub(r" at /\S+\.rs:\d+\.?", "", reason)[:300]
 
 
 @app.command()

@@ -16,7 +16,7 @@ from typing import Any
 
 import msgspec
 
-from .errors import DocumentError, UnknownTableError
+from .errors import DocumentError, UnknownTableError, shown
 from .schema import LATEST_VERSION
 from .tables import GROUPS, Table, table
 
@@ -38,6 +38,10 @@ def decode_json(data: bytes | str, source: str = "document") -> dict[str, Any]:
         doc = msgspec.json.decode(data)
     except msgspec.DecodeError as exc:
         raise DocumentError(f"{source}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise DocumentError(
+            f"{source}: not usable JSON (arrays or objects nested too deeply)"
+        ) from None
     check_document(doc, source)
     return doc
 
@@ -50,7 +54,7 @@ def check_document(doc: Any, source: str = "document") -> list[tuple[Table, list
     if doc.get("format") != FORMAT:
         raise DocumentError(
             f"{source}: not a bandada swarm database export "
-            f"(format {doc.get('format')!r}, expected {FORMAT!r})"
+            f"(format {shown(doc.get('format'))}, expected {FORMAT!r})"
         )
     version = doc.get("schema_version")
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:
@@ -66,9 +70,11 @@ def check_document(doc: Any, source: str = "document") -> list[tuple[Table, list
     out: list[tuple[Table, list[Record]]] = []
     for group, tables in groups.items():
         if group not in GROUPS:
-            raise DocumentError(f"{source}: unknown group {group!r}; groups: {', '.join(GROUPS)}")
+            raise DocumentError(
+                f"{source}: unknown group {shown(group)}; groups: {', '.join(GROUPS)}"
+            )
         if not isinstance(tables, dict):
-            raise DocumentError(f"{source}: group {group!r} must be an object of tables")
+            raise DocumentError(f"{source}: group {shown(group)} must be an object of tables")
         for name, records in tables.items():
             try:
                 t = table(group, name)

@@ -1,12 +1,27 @@
 """Errors of the swarm database, by blame.
 
 `UnusableDatabaseError`: the file cannot be used (corrupt, another application's, a
-newer schema); the file is left exactly as it was. `RecordError`: a record given to the
+newer schema, or unreadable/unwritable: `StorageError`); the file is left exactly as
+it was. `RecordError`: a record given to the
 database (by the operator, an import file, our own code) breaks a rule; nothing is
 written. Every message names the table, the record and the rule, for an operator.
 """
 
 from __future__ import annotations
+
+import reprlib
+from typing import Any
+
+_repr = reprlib.Repr()
+_repr.maxlevel = 3
+_repr.maxstring = 80
+_repr.maxother = 80
+
+
+def shown(value: Any) -> str:
+    """A value for an error message: its repr, shortened (an operator's input can be
+    a megabyte string or a list nested thousands deep, whose plain repr would fail)."""
+    return _repr.repr(value)
 
 
 class SwarmDbError(Exception):
@@ -27,6 +42,12 @@ class ForeignDatabaseError(UnusableDatabaseError):
 
 class NewerSchemaError(UnusableDatabaseError):
     """A bandada swarm database written by a newer bandada (a schema we do not know)."""
+
+
+class StorageError(UnusableDatabaseError):
+    """The file or its directory cannot be read or written (permission denied, a
+    read-only filesystem, a disk full, a lock held too long by another process); what
+    was being written was rolled back."""
 
 
 class InterruptedWriteError(UnusableDatabaseError):

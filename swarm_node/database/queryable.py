@@ -34,9 +34,9 @@ import zenoh
 from swarm_node.core.profile import VehicleProfile
 from swarm_proto.topics import DATABASE, prefix
 
-from .errors import SwarmDbError
+from .errors import SwarmDbError, shown
 from .repository import SwarmDatabase
-from .tables import TABLES
+from .tables import TABLES, table
 
 log = logging.getLogger(__name__)
 
@@ -148,10 +148,11 @@ class DatabaseQueryable:
         if resource == "export":
             return _encoder.encode(self.db.export())
         _, group, name = resource.split("/")
-        records = self.db.records(f"{group}.{name}")
-        for field in params:
-            if records and field not in records[0]:
-                raise SwarmDbError(f"unknown field {field!r} in filter")
+        t = table(group, name)
+        for field in params:  # checked even when the table is empty
+            if field not in t.by_column:
+                raise SwarmDbError(f"unknown field {shown(field)} in filter")
+        records = self.db.records(t)
         records = [r for r in records if all(str(r[k]) == v for k, v in params.items())]
         return _encoder.encode(records)
 

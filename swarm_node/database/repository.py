@@ -2,7 +2,9 @@
 
 Opening a file never harms it: a file that is not ours (random bytes, another
 application's SQLite database, a newer bandada's schema, a damaged file) is inspected
-read-only and refused with an `UnusableDatabaseError`, byte for byte untouched. A
+read-only (immutable when in WAL mode, so that no -wal or -shm file appears beside it)
+and refused with an `UnusableDatabaseError`, byte for byte untouched; a file that
+cannot be read or written (permissions, a read-only filesystem) is a `StorageError`. A
 missing or empty file becomes a new database with the seed data; an older bandada file
 is copied to `<file>.v<N>.bak` and migrated, all in one transaction.
 
@@ -17,15 +19,17 @@ One connection, guarded by a lock, so the Zenoh queryable may read from its own 
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import functools
 import os
 import sqlite3
+import stat
 import threading
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 from swarm_node.core.profile import PayloadClass, VehicleProfile
 from swarm_proto import MissionType
@@ -45,9 +49,11 @@ from .errors import (
     NotFoundError,
     ProfileError,
     RecordError,
+    StorageError,
     SwarmDbError,
     UnknownReferenceError,
     UnusableDatabaseError,
+    shown,
 )
 from .paths import resolve_db_path
 from .resolve import PROFILE_SQL, profile_from_row
@@ -82,37 +88,90 @@ def _refuse(path: Path, why: str) -> str:
     )
 
 
+def _why(exc: OSError | sqlite3.Error) -> str:
+    if isinstance(exc, OSError):
+        return exc.strerror or str(exc)
+    return str(exc)
+
+
+def _cannot(path: Path | str, what: str, exc: OSError | sqlite3.Error) -> StorageError:
+    return StorageError(
+        f"{path}: cannot {what} ({_why(exc)}); nothing was changed. Check the file's and "
+        "its directory's permissions and free space, or choose another file "
+        "(--db PATH or BANDADA_DB)"
+    )
+
+
+def _sidecar(path: Path, suffix: str) -> Path:
+    return path.with_name(path.name + suffix)
+
+
+def _sidecar_bytes(path: Path, suffix: str) -> int:
+    try:
+        return _sidecar(path, suffix).stat().st_size
+    except OSError:
+        return 0
+
+
+def _read_meta(path: Path, *, immutable: bool) -> tuple[list[str], int, int, list[str]]:
+    """quick_check, application_id, user_version and table names, through a read-only
+    connection. `immutable` tells SQLite the file cannot change: it then takes no lock
+    and opens no journal, WAL or shared-memory file beside it (a WAL-mode file opened
+    merely read-only gets `-wal` and `-shm` files created next to it)."""
+    uri = f"{path.resolve().as_uri()}?mode=ro" + ("&immutable=1" if immutable else "")
+    conn = sqlite3.connect(uri, uri=True)
+    try:
+        check = [r[0] for r in conn.execute("PRAGMA quick_check").fetchall()]
+        app_id = int(conn.execute("PRAGMA application_id").fetchone()[0])
+        version = int(conn.execute("PRAGMA user_version").fetchone()[0])
+        names = [
+            r[0]
+            for r in conn.execute(
+                "SELECT name FROM sqlite_schema WHERE type = 'table' "
+                "AND name NOT LIKE 'sqlite_%' ORDER BY name"
+            )
+        ]
+    finally:
+        conn.close()
+    return check, app_id, version, names
+
+
 def inspect_file(path: Path) -> int | None:
     """The schema version of a bandada database file, or None when the file is to be
-    created (missing, empty, or an SQLite file with nothing in it). Reads only.
-    Raises CorruptDatabaseError, ForeignDatabaseError, NewerSchemaError, or
+    created (missing, empty, or an SQLite file with nothing in it). Reads only, and
+    creates nothing beside the file. Raises CorruptDatabaseError,
+    ForeignDatabaseError, NewerSchemaError, StorageError (cannot be read), or
     InterruptedWriteError for our file with a hot journal (`SwarmDatabase.open` lets
     SQLite roll that write back, as after any crash)."""
-    if not path.exists():
+    try:
+        st = path.stat()
+    except (FileNotFoundError, NotADirectoryError):
         return None
-    if path.is_dir():
+    except OSError as exc:
+        raise _cannot(path, "read it", exc) from None
+    if stat.S_ISDIR(st.st_mode):
         raise UnusableDatabaseError(_refuse(path, "is a directory, not a database file"))
-    if path.stat().st_size == 0:
+    if not stat.S_ISREG(st.st_mode):
+        raise UnusableDatabaseError(
+            _refuse(path, "is not a regular file (a device, a pipe or a socket)")
+        )
+    if st.st_size == 0:
         return None
-    with path.open("rb") as f:
-        header = f.read(100)
+    try:
+        with path.open("rb") as f:
+            header = f.read(100)
+    except OSError as exc:
+        raise _cannot(path, "read it", exc) from None
     if len(header) < 100 or not header.startswith(SQLITE_MAGIC):
         raise CorruptDatabaseError(_refuse(path, "is not an SQLite database file"))
+    # Bytes 18-19: 1 = rollback journal (ours), 2 = WAL. A WAL-mode file is read as
+    # immutable, so that no -wal/-shm file appears beside a file that is not ours.
+    wal_mode = 2 in (header[18], header[19])
     try:
-        conn = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
-        try:
-            check = [r[0] for r in conn.execute("PRAGMA quick_check").fetchall()]
-            app_id = conn.execute("PRAGMA application_id").fetchone()[0]
-            version = conn.execute("PRAGMA user_version").fetchone()[0]
-            names = [
-                r[0]
-                for r in conn.execute(
-                    "SELECT name FROM sqlite_schema WHERE type = 'table' "
-                    "AND name NOT LIKE 'sqlite_%' ORDER BY name"
-                )
-            ]
-        finally:
-            conn.close()
+        check, app_id, version, names = _read_meta(path, immutable=wal_mode)
+        if wal_mode and app_id == APPLICATION_ID and _sidecar_bytes(path, "-wal"):
+            # ours, put in WAL mode by hand, with commits still in its -wal: read them
+            check, app_id, version, names = _read_meta(path, immutable=False)
     except sqlite3.Error as exc:
         if getattr(exc, "sqlite_errorname", "") == "SQLITE_READONLY_ROLLBACK":
             # A write was interrupted (crash, power loss): a hot journal lies beside it.
@@ -133,6 +192,15 @@ def inspect_file(path: Path) -> int | None:
         raise CorruptDatabaseError(_refuse(path, f"is a damaged SQLite file ({detail})"))
     if app_id != APPLICATION_ID:
         if app_id == 0 and not names and version == 0:
+            if wal_mode and _sidecar_bytes(path, "-wal"):
+                raise ForeignDatabaseError(
+                    _refuse(
+                        path,
+                        "is an SQLite database in WAL mode whose changes are still in its "
+                        "-wal file (another program has it open, or crashed); bandada "
+                        "cannot tell whose it is without writing to it",
+                    )
+                )
             return None
         shown = ", ".join(names[:8]) + (", ..." if len(names) > 8 else "")
         raise ForeignDatabaseError(
@@ -171,12 +239,70 @@ def _recover(path: Path) -> int | None:
     return inspect_file(path)
 
 
+def _is_storage_failure(exc: BaseException) -> TypeGuard[sqlite3.DatabaseError]:
+    """An SQLite error that is the file's or the system's fault, not a broken rule
+    nor a bug (IntegrityError, ProgrammingError)."""
+    return isinstance(exc, sqlite3.DatabaseError) and not isinstance(
+        exc, (sqlite3.IntegrityError, sqlite3.ProgrammingError)
+    )
+
+
 def _check_sqlite() -> None:
     if sqlite3.sqlite_version_info < MIN_SQLITE:
         raise SwarmDbError(
             f"SQLite {sqlite3.sqlite_version} is too old: the swarm database needs "
             f"{'.'.join(map(str, MIN_SQLITE))} or newer (STRICT tables)"
         )
+
+
+def _exists(path: Path) -> bool:
+    try:
+        path.stat()
+    except (FileNotFoundError, NotADirectoryError):
+        return False
+    except OSError as exc:
+        raise _cannot(path, "read it", exc) from None
+    return True
+
+
+def _make_parents(path: Path) -> list[Path]:
+    """Create the directories a new database file needs; returns those created, the
+    deepest first (removed again if the database cannot be created)."""
+    missing: list[Path] = []
+    parent = path.parent
+    while not _exists(parent):
+        missing.append(parent)
+        if parent.parent == parent:
+            break
+        parent = parent.parent
+    if not _is_dir(parent):
+        raise StorageError(
+            f"{path}: cannot create it: {parent} is not a directory; nothing was changed"
+        )
+    made: list[Path] = []
+    for d in reversed(missing):
+        try:
+            d.mkdir()
+        except FileExistsError:  # another process made it meanwhile
+            continue
+        except OSError as exc:
+            _remove_dirs(list(reversed(made)))
+            raise _cannot(path, f"create the directory {d}", exc) from None
+        made.append(d)
+    return list(reversed(made))
+
+
+def _is_dir(path: Path) -> bool:
+    try:
+        return stat.S_ISDIR(path.stat().st_mode)
+    except OSError:
+        return False
+
+
+def _remove_dirs(dirs: list[Path]) -> None:
+    for d in dirs:  # deepest first; only if still empty
+        with contextlib.suppress(OSError):
+            d.rmdir()
 
 
 class SwarmDatabase:
@@ -186,6 +312,7 @@ class SwarmDatabase:
         self._conn = conn
         self._lock = threading.RLock()
         self.path = path
+        self.created = False  # True when `open` created this database (with the seed data)
 
     # ------------------------------------------------------------------ opening
     @classmethod
@@ -200,22 +327,21 @@ class SwarmDatabase:
         (default: `--db` / `$BANDADA_DB` / the per-user path, see `paths.py`)."""
         _check_sqlite()
         p = resolve_db_path(path)
-        existed = p.exists()
         try:
             version = inspect_file(p)
         except InterruptedWriteError:  # ours: SQLite's own crash recovery
             version = _recover(p)
         if version is None and not create:
             raise NotFoundError(f"{p}: no swarm database here (and create=False)")
-        if not existed:
-            p.parent.mkdir(parents=True, exist_ok=True)
+        existed = version is not None or _exists(p)
+        made = [] if existed else _make_parents(p)
         if version is not None and version < LATEST_VERSION:
             backup = p.with_name(f"{p.name}.v{version}.bak")
             try:
                 _backup(p, backup)
             except (OSError, sqlite3.Error) as exc:
-                raise UnusableDatabaseError(
-                    f"{p}: cannot write the backup {backup} before migrating ({exc}); "
+                raise StorageError(
+                    f"{p}: cannot write the backup {backup} before migrating ({_why(exc)}); "
                     "nothing was changed"
                 ) from None
         try:
@@ -223,15 +349,23 @@ class SwarmDatabase:
                 str(p), timeout=LOCK_TIMEOUT_S, isolation_level=None, check_same_thread=False
             )
         except sqlite3.Error as exc:
-            raise UnusableDatabaseError(f"{p}: cannot open ({exc})") from None
+            _remove_dirs(made)
+            raise _cannot(p, "open it", exc) from None
         db = cls(conn, p)
         try:
-            db._setup(seed=seed)
+            try:
+                db._setup(seed=seed)
+            except sqlite3.Error as exc:
+                raise _cannot(p, "open it", exc) from None
         except BaseException:
             conn.close()
-            if not existed and p.exists() and p.stat().st_size == 0:
-                p.unlink()
+            if not existed:
+                with contextlib.suppress(OSError):
+                    if p.stat().st_size == 0:
+                        p.unlink()
+                _remove_dirs(made)
             raise
+        db.created = version is None
         return db
 
     @classmethod
@@ -251,8 +385,8 @@ class SwarmDatabase:
             return  # the usual case: nothing to write
         try:
             conn.execute("BEGIN IMMEDIATE")
-        except sqlite3.OperationalError as exc:
-            raise UnusableDatabaseError(f"{self.path}: cannot lock for writing ({exc})") from None
+        except sqlite3.Error as exc:
+            raise _cannot(self._name(), "lock it for writing", exc) from None
         try:
             version = self._version()  # again, under the write lock
             self._check_ours(version)
@@ -271,7 +405,7 @@ class SwarmDatabase:
             self._check_foreign_keys()
             conn.execute("COMMIT")
         except BaseException:
-            conn.execute("ROLLBACK")
+            self._rollback()
             raise
 
     def _check_ours(self, version: int) -> None:
@@ -307,7 +441,7 @@ class SwarmDatabase:
 
     @property
     def schema_version(self) -> int:
-        with self._lock:
+        with self._reading():
             return self._version()
 
     def close(self) -> None:
@@ -322,19 +456,49 @@ class SwarmDatabase:
 
     @contextmanager
     def _write(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction: all or nothing. An SQLite failure that is not a
+        broken rule (a read-only file, a full disk, a lock held too long) rolls back
+        and becomes a StorageError."""
         with self._lock:
-            self._conn.execute("BEGIN IMMEDIATE")
+            try:
+                self._conn.execute("BEGIN IMMEDIATE")
+            except sqlite3.Error as exc:
+                raise _cannot(self._name(), "lock it for writing", exc) from None
             try:
                 yield self._conn
                 self._conn.execute("COMMIT")
-            except BaseException:
-                self._conn.execute("ROLLBACK")
+            except BaseException as exc:
+                self._rollback()
+                if isinstance(exc, sqlite3.IntegrityError):
+                    raise ConstraintError(f"{self._name()}: {exc}") from None
+                if _is_storage_failure(exc):
+                    raise _cannot(self._name(), "write to it", exc) from None
                 raise
+
+    @contextmanager
+    def _reading(self) -> Iterator[sqlite3.Connection]:
+        """The connection, for reads: a failure of the file (a lock held too long, an
+        I/O error, damage found late) becomes a StorageError."""
+        with self._lock:
+            try:
+                yield self._conn
+            except sqlite3.Error as exc:
+                if _is_storage_failure(exc):
+                    raise _cannot(self._name(), "read it", exc) from None
+                raise
+
+    def _rollback(self) -> None:
+        if self._conn.in_transaction:  # SQLite rolls back by itself after some errors
+            with contextlib.suppress(sqlite3.Error):
+                self._conn.execute("ROLLBACK")
+
+    def _name(self) -> str:
+        return str(self.path) if self.path else "in-memory database"
 
     # ------------------------------------------------------------------ records
     def counts(self) -> dict[str, int]:
         """Number of records per table ("group.table")."""
-        with self._lock:
+        with self._reading():
             return {
                 t.qualname: self._conn.execute(f"SELECT COUNT(*) AS n FROM {t.sql}").fetchone()["n"]
                 for t in TABLES
@@ -346,7 +510,7 @@ class SwarmDatabase:
         t = _table(t)
         for name in where:
             t.column(name)
-        with self._lock:
+        with self._reading():
             rows = self._conn.execute(f"SELECT * FROM {t.sql} ORDER BY rowid").fetchall()
             out = self._to_records(t, rows)
         return [r for r in out if all(r[k] == v for k, v in where.items())]
@@ -358,7 +522,7 @@ class SwarmDatabase:
         """One record by its key fields (or, for systems and payloads, by id or by user
         id alone when that is unambiguous). `text=True` parses command-line text."""
         t = _table(t)
-        with self._lock:
+        with self._reading():
             rowid = self._lookup(t, key, text)
             row = self._conn.execute(f"SELECT * FROM {t.sql} WHERE rowid = ?", (rowid,)).fetchall()
             return self._to_records(t, row)[0]
@@ -409,7 +573,7 @@ class SwarmDatabase:
         chosen = list(GROUPS) if not groups else [g for g in GROUPS if g in groups]
         for g in groups or ():
             tables_of(g)  # unknown group -> UnknownTableError
-        with self._lock:
+        with self._reading():
             return {
                 "format": FORMAT,
                 "schema_version": self._version(),
@@ -470,7 +634,9 @@ class SwarmDatabase:
         model, when the user id alone names several systems)."""
         args: list[Any]
         if vehicle_id is not None:
-            where, args, what = "s.id = ?", [vehicle_id], f"id {vehicle_id}"
+            where, args, what = "s.id = ?", [vehicle_id], f"id {shown(vehicle_id)}"
+            if not isinstance(vehicle_id, int) or not 1 <= vehicle_id <= 65534:
+                where, args = "0", []  # no node has it (and SQLite takes 64-bit ints only)
         elif user_id is not None:
             where, args, what = "s.user_id = ?", [user_id], f"user id {user_id!r}"
             if model is not None:
@@ -479,7 +645,7 @@ class SwarmDatabase:
                 what += f" and model {model!r}"
         else:
             raise TypeError("vehicle_profile: give vehicle_id, or user_id (and model)")
-        with self._lock:
+        with self._reading():
             rows = self._conn.execute(f"{PROFILE_SQL} WHERE {where} ORDER BY s.id", args).fetchall()
         if not rows:
             raise ProfileError(f"no system with {what} in the swarm database{self._where()}")
@@ -490,7 +656,7 @@ class SwarmDatabase:
 
     def profiles(self) -> list[VehicleProfile]:
         """The profile of every system (ground stations included), by id."""
-        with self._lock:
+        with self._reading():
             rows = self._conn.execute(f"{PROFILE_SQL} ORDER BY s.id").fetchall()
         return [profile_from_row(r) for r in rows]
 
@@ -503,7 +669,7 @@ class SwarmDatabase:
 
     def payload_classes(self) -> dict[str, PayloadClass]:
         """Every payload model's class, by model name."""
-        with self._lock:
+        with self._reading():
             rows = self._conn.execute(
                 "SELECT pm.name AS model, ps.name AS subtype, pt.name AS type "
                 "FROM payload_models pm JOIN payload_subtypes ps ON ps.id = pm.subtype_id "
@@ -513,7 +679,7 @@ class SwarmDatabase:
 
     def system_params(self, vehicle_id: int) -> dict[str, str]:
         """A system's own parameters (mav_sysid, mac_address, ...)."""
-        with self._lock:
+        with self._reading():
             rows = self._conn.execute(
                 "SELECT name, value FROM system_params WHERE system_id = ? ORDER BY rowid",
                 (vehicle_id,),
@@ -522,7 +688,7 @@ class SwarmDatabase:
 
     def module_params(self, module: str) -> dict[str, float]:
         """A swarm module's parameters, e.g. module_params("voting")."""
-        with self._lock:
+        with self._reading():
             found = self._conn.execute(
                 "SELECT id FROM modules WHERE name = ?", (module,)
             ).fetchone()
@@ -538,7 +704,7 @@ class SwarmDatabase:
     def mission_defaults(self, mission_type: MissionType) -> dict[str, float]:
         """Default parameters of a kind of mission (MissionParams field names); {} if
         the database has none."""
-        with self._lock:
+        with self._reading():
             rows = self._conn.execute(
                 "SELECT p.name, p.value FROM mission_params p JOIN missions m ON m.id = p.mission_id "
                 "WHERE m.mission_type = ? ORDER BY p.rowid",
@@ -583,7 +749,7 @@ class SwarmDatabase:
                 ).fetchall()
             ]
             raise UnknownReferenceError(
-                f"{t.qualname}: {col.name} {value!r} not found in {target.qualname}"
+                f"{t.qualname}: {col.name} {shown(value)} not found in {target.qualname}"
                 f"{_suggest(value, known)}"
             )
         return int(row["id"])
@@ -628,11 +794,11 @@ class SwarmDatabase:
                 f"SELECT rowid AS r, id FROM {t.sql} WHERE user_id = ? ORDER BY id", (key[0],)
             ).fetchall()
             if not rows:
-                raise NotFoundError(f"{t.qualname}: no record with user id {key[0]!r}")
+                raise NotFoundError(f"{t.qualname}: no record with user id {shown(key[0])}")
             if len(rows) > 1:
                 ids = ", ".join(str(r["id"]) for r in rows)
                 raise AmbiguousError(
-                    f"{t.qualname}: user id {key[0]!r} names several records (ids {ids}); give the id"
+                    f"{t.qualname}: user id {shown(key[0])} names several records (ids {ids}); give the id"
                 )
             return int(rows[0]["r"])
         if len(key) != len(t.key):
@@ -649,7 +815,7 @@ class SwarmDatabase:
                 ).fetchone()
                 if found is None:
                     raise NotFoundError(
-                        f"{t.qualname}: {name} {v!r} not found in {target.qualname}"
+                        f"{t.qualname}: {name} {shown(v)} not found in {target.qualname}"
                     )
                 v = found["id"]
             clauses.append(f"{c.sql} = ?")
@@ -658,8 +824,8 @@ class SwarmDatabase:
             f"SELECT rowid AS r FROM {t.sql} WHERE {' AND '.join(clauses)}", args
         ).fetchone()
         if row is None:
-            shown = ", ".join(f"{n}={v!r}" for n, v in zip(t.key, key, strict=True))
-            raise NotFoundError(f"{t.qualname}: no record with {shown}")
+            keys = ", ".join(f"{n}={shown(v)}" for n, v in zip(t.key, key, strict=True))
+            raise NotFoundError(f"{t.qualname}: no record with {keys}")
         return int(row["r"])
 
     def _users(self, t: Table, rowid: int) -> list[str]:
@@ -738,9 +904,9 @@ def _integrity_error(
     if msg.startswith("UNIQUE constraint failed:"):
         cols = [c.strip().split(".")[-1] for c in msg.split(":", 1)[1].split(",")]
         names = [by_sql.get(c, c) for c in cols]
-        shown = ", ".join(f"{n}={record.get(n)!r}" for n in names)
+        values = ", ".join(f"{n}={shown(record.get(n))}" for n in names)
         return DuplicateError(
-            f"{t.qualname}: a record with the same {' + '.join(names)} exists ({shown})"
+            f"{t.qualname}: a record with the same {' + '.join(names)} exists ({values})"
         )
     if msg.startswith("NOT NULL constraint failed:"):
         col = msg.rsplit(".", 1)[-1]

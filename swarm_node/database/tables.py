@@ -20,7 +20,7 @@ from typing import Any
 
 from swarm_proto import MissionType, VehicleType
 
-from .errors import InvalidValueError, UnknownTableError
+from .errors import InvalidValueError, UnknownTableError, shown
 
 GROUPS = ("systems", "swarm", "payload", "common")  # paper section 2.3.1, in its order
 
@@ -92,7 +92,7 @@ class Table:
             return self.by_column[name]
         except KeyError:
             raise InvalidValueError(
-                f"{self.qualname}: unknown field {name!r}; fields: {', '.join(self.field_names)}"
+                f"{self.qualname}: unknown field {shown(name)}; fields: {', '.join(self.field_names)}"
             ) from None
 
 
@@ -505,7 +505,7 @@ def tables_of(group: str) -> tuple[Table, ...]:
 
 def check_group(group: str) -> str:
     if group not in GROUPS:
-        raise UnknownTableError(f"unknown group {group!r}; groups: {', '.join(GROUPS)}")
+        raise UnknownTableError(f"unknown group {shown(group)}; groups: {', '.join(GROUPS)}")
     return group
 
 
@@ -517,7 +517,7 @@ def table(group: str, name: str | None = None) -> Table:
     found = BY_NAME.get(f"{group}.{name}")
     if found is None:
         names = ", ".join(t.name for t in tables_of(group))
-        raise UnknownTableError(f"unknown table {name!r} in group {group}; tables: {names}")
+        raise UnknownTableError(f"unknown table {shown(name)} in group {group}; tables: {names}")
     return found
 
 
@@ -569,7 +569,7 @@ def _int(v: Any, text: bool) -> int:
     if text and isinstance(v, str):
         v = int(v.strip())
     if isinstance(v, bool) or not isinstance(v, int):
-        raise TypeError(f"expected an integer, got {v!r}")
+        raise TypeError(f"expected an integer, got {shown(v)}")
     if not INT64[0] <= v <= INT64[1]:
         raise ValueError(f"integer {v} out of range")
     return v
@@ -579,10 +579,10 @@ def _float(v: Any, text: bool) -> float:
     if text and isinstance(v, str):
         v = float(v.strip())
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise TypeError(f"expected a number, got {v!r}")
+        raise TypeError(f"expected a number, got {shown(v)}")
     f = float(v)
     if not math.isfinite(f):
-        raise ValueError(f"expected a finite number, got {v!r}")
+        raise ValueError(f"expected a finite number, got {shown(v)}")
     return f
 
 
@@ -597,12 +597,12 @@ def _bool(v: Any, text: bool) -> bool:
             return True
         if low in _FALSE:
             return False
-    raise TypeError(f"expected true or false, got {v!r}")
+    raise TypeError(f"expected true or false, got {shown(v)}")
 
 
 def _text(v: Any) -> str:
     if not isinstance(v, str):
-        raise TypeError(f"expected text, got {v!r}")
+        raise TypeError(f"expected text, got {shown(v)}")
     if "\x00" in v:
         raise ValueError("text must not contain NUL characters")
     try:
@@ -621,7 +621,7 @@ def _enum(enum: type[IntEnum], v: Any, text: bool) -> int:
             if member.name.lower() == s.lower().replace("-", "_"):
                 return int(member.value)
         names = ", ".join(m.name for m in enum)
-        raise ValueError(f"unknown {enum.__name__} {v!r}; one of {names} (or an integer)")
+        raise ValueError(f"unknown {enum.__name__} {shown(v)}; one of {names} (or an integer)")
     return _int(v, False)
 
 

@@ -96,6 +96,9 @@ def test_tables_with_filters(served: tuple[DatabaseQueryable, zenoh.Session]) ->
     assert fetch_table(client, SWARM, 3, "systems", "systems", id=900)[0]["user_id"] == "GCS-01"
     with pytest.raises(DbQueryError, match="unknown field 'wheels'"):
         fetch_table(client, SWARM, 3, "systems", "systems", wheels=4)
+    assert fetch_table(client, SWARM, 3, "common", "corrections") == []  # empty in the seed
+    with pytest.raises(DbQueryError, match="unknown field 'wheels'"):
+        fetch_table(client, SWARM, 3, "common", "corrections", wheels=4)
 
 
 def test_errors_come_back_as_error_replies(served: tuple[DatabaseQueryable, zenoh.Session]) -> None:

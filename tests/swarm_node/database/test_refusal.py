@@ -4,6 +4,7 @@ crash or a silent reset, and left byte for byte untouched."""
 
 from __future__ import annotations
 
+import os
 import random
 import sqlite3
 from pathlib import Path
@@ -17,6 +18,7 @@ from swarm_node.database import (
     ForeignDatabaseError,
     InterruptedWriteError,
     NewerSchemaError,
+    StorageError,
     SwarmDatabase,
     UnusableDatabaseError,
     inspect_file,
@@ -161,3 +163,119 @@ def test_another_applications_file_after_a_crash_is_refused_untouched(tmp_path: 
     with pytest.raises(ForeignDatabaseError, match="interrupted write"):
         SwarmDatabase.open(crashed)
     assert (snapshot(crashed), journal.read_bytes()) == before
+
+
+# ---------------------------------------------------------------------------- journal modes
+# SQLite opens a WAL-mode file, even read-only, by creating `-wal` and `-shm` files beside
+# it; a refused file is inspected as immutable instead, so nothing appears.
+
+
+def _directory(path: Path) -> dict[str, tuple[bytes, int] | None]:
+    """Every entry beside `path` (itself included), with each file's bytes and mtime."""
+    return {p.name: snapshot(p) if p.is_file() else None for p in sorted(path.parent.iterdir())}
+
+
+def _other_app(path: Path, journal_mode: str, *, checkpoint: bool = True) -> sqlite3.Connection:
+    """Another application's database in `journal_mode`; returned open (its writer)."""
+    conn = sqlite3.connect(path, isolation_level=None)
+    assert conn.execute(f"PRAGMA journal_mode = {journal_mode}").fetchone()[0] == journal_mode
+    if not checkpoint:
+        conn.execute("PRAGMA wal_autocheckpoint = 0")
+    conn.execute("CREATE TABLE notes (body TEXT)")
+    conn.execute("INSERT INTO notes VALUES ('keep me')")
+    return conn
+
+
+@pytest.mark.parametrize("mode", ["wal", "persist", "truncate", "delete"])
+def test_another_applications_file_in_any_journal_mode_is_untouched(
+    tmp_path: Path, mode: str
+) -> None:
+    path = tmp_path / "app.db"
+    _other_app(path, mode).close()  # WAL: the last close checkpoints, removes -wal/-shm
+    before = _directory(path)
+    with pytest.raises(ForeignDatabaseError, match=r"another application .*tables: notes"):
+        SwarmDatabase.open(path)
+    with pytest.raises(ForeignDatabaseError):
+        inspect_file(path)
+    assert _directory(path) == before, "the refused file or its directory changed"
+
+
+def _copy_live(src: Path, dst: Path) -> None:
+    """Copy a WAL database with its -wal and -shm files while its writer has it open:
+    what another program, running or crashed, leaves on disk."""
+    for suffix in ("", "-wal", "-shm"):
+        Path(f"{dst}{suffix}").write_bytes(Path(f"{src}{suffix}").read_bytes())
+
+
+def test_another_applications_live_wal_file_is_untouched(tmp_path: Path) -> None:
+    src, path = tmp_path / "src" / "app.db", tmp_path / "app.db"
+    src.parent.mkdir()
+    conn = _other_app(src, "wal", checkpoint=False)
+    conn.execute("PRAGMA application_id = 0x4d504258")  # committed into the -wal only
+    try:
+        _copy_live(src, path)
+    finally:
+        conn.close()
+    assert Path(f"{path}-wal").stat().st_size > 0
+    before = _directory(path)
+    # the main file alone shows no tables and no id: its content is all in the -wal
+    with pytest.raises(ForeignDatabaseError, match="WAL mode whose changes are still in its -wal"):
+        SwarmDatabase.open(path)
+    assert _directory(path) == before
+    assert not (tmp_path / "app.db-journal").exists()
+
+
+def test_our_file_in_wal_mode_opens_with_its_latest_commits(db_path: Path) -> None:
+    conn = sqlite3.connect(db_path, isolation_level=None)
+    conn.execute("PRAGMA journal_mode = WAL")
+    conn.execute("PRAGMA wal_autocheckpoint = 0")
+    conn.execute("INSERT INTO system_types (name) VALUES ('UUV')")  # in the -wal only
+    copy = db_path.with_name("copy.db")
+    try:
+        _copy_live(db_path, copy)
+    finally:
+        conn.close()
+    with SwarmDatabase.open(copy) as db:
+        assert "UUV" in [r["name"] for r in db.records("systems.types")]
+        db.add("systems.types", {"name": "UGV2"})
+    with SwarmDatabase.open(copy) as db:
+        assert db.counts()["systems.types"] == 6
+
+
+def test_an_empty_wal_mode_file_becomes_a_database(tmp_path: Path) -> None:
+    path = tmp_path / "swarm.db"
+    conn = sqlite3.connect(path)
+    conn.execute("PRAGMA journal_mode = WAL")
+    conn.close()
+    with SwarmDatabase.open(path) as db:
+        assert db.created and db.counts()["systems.systems"] == 14
+
+
+# ---------------------------------------------------------------------------- paths
+
+
+@pytest.mark.parametrize(
+    ("where", "match"),
+    [
+        ("a-file/swarm.db", "a-file is not a directory"),
+        ("a-file/deeper/swarm.db", "a-file is not a directory"),
+        ("a-fifo", "is not a regular file"),
+        ("a-dir", "is a directory"),
+    ],
+)
+def test_paths_that_cannot_hold_a_database(tmp_path: Path, where: str, match: str) -> None:
+    (tmp_path / "a-file").write_text("notes")
+    (tmp_path / "a-dir").mkdir()
+    os.mkfifo(tmp_path / "a-fifo")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with pytest.raises(UnusableDatabaseError, match=match):
+        SwarmDatabase.open(tmp_path / where)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert (tmp_path / "a-file").read_text() == "notes"
+
+
+def test_a_directory_that_cannot_be_created(tmp_path: Path) -> None:
+    if not Path("/proc/self").exists():
+        pytest.skip("no /proc")
+    with pytest.raises(StorageError, match=r"cannot create the directory /proc/bandada-nope"):
+        SwarmDatabase.open("/proc/bandada-nope/deeper/swarm.db")
