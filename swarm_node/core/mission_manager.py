@@ -41,6 +41,7 @@ from .autopilot.requests import (
     UploadMission,
 )
 from .autopilot.state import AutopilotState
+from .fences import FENCE_FIRST_REQUEST_ID
 from .planning import (
     LocalFrame,
     PlanningError,
@@ -308,7 +309,7 @@ class MissionManager:
         return max(TRANSIT_MARGIN_M, 2.0 * self.profile.turn_radius_m())
 
     def owns(self, request_id: int) -> bool:
-        return request_id >= FIRST_REQUEST_ID
+        return FIRST_REQUEST_ID <= request_id < FENCE_FIRST_REQUEST_ID
 
     # ------------------------------------------------------------------ start
     def release(
