@@ -37,7 +37,7 @@ from .render import ack_table, fleet_rows, fleet_table
 
 app = typer.Typer(help="bandada ground station.", no_args_is_help=True)
 app.add_typer(db_app, name="db")
-zone_app = typer.Typer(help="No-fly zones.", no_args_is_help=True)
+zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
 app.add_typer(zone_app, name="zone")
 console = Console()
 
@@ -290,8 +290,14 @@ def zone_add(
     ceiling: float = typer.Option(8000.0, help="ceiling, m above mean sea level"),
     minutes: float | None = typer.Option(None, help="valid for this long (default: until removed)"),
     name: str = typer.Option(""),
+    operating_area: bool = typer.Option(
+        False,
+        "--operating-area",
+        help="an operating area the vehicles must stay inside (2-D: no floor or ceiling)",
+    ),
 ) -> None:
-    """Declare a no-fly zone."""
+    """Declare a no-fly zone, or with --operating-area the area the vehicles must not
+    leave. Both also become the autopilots' fences (docs/node.md, "Fences")."""
     geometry = geometry_from(polygon, None, circle, None, None)
     now = time.time()
     try:
@@ -304,25 +310,26 @@ def zone_add(
             now + minutes * 60 if minutes else None,
             True,
             name,
+            operating_area,
         )
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
     with ctx.obj.open() as gs:
         gs.zone(zone)
         time.sleep(0.5)
-    console.print(f"zone {zone_id} declared")
+    console.print(f"{'operating area' if operating_area else 'zone'} {zone_id} declared")
 
 
 @zone_app.command("remove")
 def zone_remove(
     ctx: typer.Context,
     zone_id: int = typer.Argument(..., help="zone id"),
-    circle: str = typer.Option(..., help="the zone's geometry (LAT,LON,RADIUS_M) or use --polygon"),
 ) -> None:
-    """Withdraw a no-fly zone (republished inactive)."""
-    geometry = geometry_from(None, None, circle, None, None)
+    """Withdraw a no-fly zone or operating area (republished inactive: the vehicles
+    drop it by id; the geometry sent is a placeholder)."""
+    placeholder = Geometry.circle(0.0, 0.0, 1.0)
     with ctx.obj.open() as gs:
-        gs.zone(NoFlyZone(zone_id, geometry, active=False))
+        gs.zone(NoFlyZone(zone_id, placeholder, active=False))
         time.sleep(0.5)
     console.print(f"zone {zone_id} withdrawn")
 

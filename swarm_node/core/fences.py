@@ -45,10 +45,6 @@ FENCE_FIRST_REQUEST_ID = 2_000_000  # command manager: small ids; mission manage
 _TOLERANCES_M = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
 
 
-def is_operating_area(zone: NoFlyZone) -> bool:
-    return bool(getattr(zone, "operating_area", False))
-
-
 @dataclass(frozen=True)
 class FencePlan:
     request: UploadFence  # what the autopilot should hold (request_id 0, enable set)
@@ -118,7 +114,7 @@ def plan_fence(
     for z in sorted(zones, key=lambda z: z.zone_id):
         if not z.in_force(now):
             continue
-        if is_operating_area(z):
+        if z.operating_area:
             inside.append(z)
         elif z.floor_alt_msl_m <= home.alt_msl_m and z.ceiling_alt_msl_m >= top:
             outside.append(z)

@@ -59,7 +59,6 @@ from .fences import (
     FENCE_MAX_ITEMS,
     FenceKeeper,
     FencePlan,
-    is_operating_area,
     plan_fence,
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
@@ -408,9 +407,7 @@ class NodeCore:
     def planning_zones(self, now: float) -> list[NoFlyZone]:
         """The no-fly zones the planners avoid: those in force (operating areas are not
         no-fly zones)."""
-        return [
-            z for z in self.monitor.zones.values() if z.in_force(now) and not is_operating_area(z)
-        ]
+        return [z for z in self.monitor.zones.values() if z.in_force(now) and not z.operating_area]
 
     def _peer_events(self, events: list[PeerEvent]) -> list[Output]:
         out: list[Output] = []

@@ -12,8 +12,8 @@ import pytest
 from typer.testing import CliRunner
 
 from gcs_cli.cli import app
-from gcs_cli.ground import GroundStation
-from swarm_proto import SystemClock
+from gcs_cli.ground import FleetView, GroundStation
+from swarm_proto import AlertCode, SystemClock
 from swarm_proto.session import ZenohSettings
 from swarm_sim.runtime import VehicleServer, VehicleSpec
 from tests.conftest import free_tcp_port
@@ -120,5 +120,23 @@ def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
             watcher.close()
         r = gcs(router, swarm, "peers", "7")
         assert r.exit_code == 0 and "GCS" in r.stdout  # type: ignore[attr-defined]
+
+        # an operating area the vehicle is not in: the running node raises a geofence
+        # breach (and loads the area into its autopilot as an inclusion fence)
+        r = gcs(router, swarm, "zone", "add", "5", "--circle", "37.50,-5.90,300",
+                "--operating-area")  # fmt: skip
+        assert r.exit_code == 0 and "operating area 5 declared" in r.stdout  # type: ignore[attr-defined]
+
+        def breach(view: FleetView) -> bool:
+            return any(
+                a.vehicle_id == 7
+                and a.code == AlertCode.GEOFENCE_BREACH
+                and "left operating area 5" in a.text
+                for a in view.alerts
+            )
+
+        assert console.wait_for(breach, 15.0), list(console.snapshot().alerts)
+        r = gcs(router, swarm, "zone", "remove", "5")
+        assert r.exit_code == 0 and "zone 5 withdrawn" in r.stdout  # type: ignore[attr-defined]
     finally:
         console.close()

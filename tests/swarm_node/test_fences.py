@@ -127,6 +127,21 @@ def test_a_full_fence_keeps_the_nearest_zones_and_approximates_on_the_safe_side(
     assert tight.fenced == (3,) and tight.left_out == (1,)
 
 
+def test_operating_areas_are_inclusion_fences_and_come_first() -> None:
+    field = NoFlyZone(
+        1, Geometry.polygon(ring(100, 0, 0, 2000)), ceiling_alt_msl_m=20.0, operating_area=True
+    )
+    disc = NoFlyZone(2, Geometry.circle(HOME.lat_deg, HOME.lon_deg, 3000.0), operating_area=True)
+    zone = circle_zone(3, 300, 0)
+    plan = plan_fence([zone, field, disc], T0, home=HOME, max_items=40)
+    assert plan.fenced == (1, 2, 3) and plan.approximated == (1,) and plan.overflown == ()
+    req = plan.request
+    assert req.inclusion_circles == ((HOME.lat_deg, HOME.lon_deg, 3000.0),)
+    assert req.exclusion_circles and len(req.inclusion_polygons[0]) <= 38
+    # the approximation lies around the area: the fence never fires inside it
+    assert local(req.inclusion_polygons[0]).covers(local(latlon(field)))
+
+
 @given(
     n=st.integers(5, 60),
     radius=st.floats(20.0, 2000.0),

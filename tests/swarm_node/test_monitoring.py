@@ -152,8 +152,17 @@ def test_geofence_breach_in_a_zone_between_floor_and_ceiling() -> None:
 def test_leaving_the_operating_area() -> None:
     area = Geometry.polygon([(37.40, -6.00), (37.40, -5.97), (37.42, -5.97), (37.42, -6.00)])
     assert inside(area, 37.41, -5.99) and not inside(area, 37.43, -5.99)
-    mon = VehicleMonitor(3, Thresholds(raise_after_s=0.0), operating_area=area)
-    assert run(mon, [(0.0, healthy())]) == []
+    zone = NoFlyZone(2, area, floor_alt_msl_m=0.0, ceiling_alt_msl_m=1.0, operating_area=True)
+    mon = VehicleMonitor(3, Thresholds(raise_after_s=0.0), zones={2: zone})
+    assert run(mon, [(0.0, healthy())]) == []  # 2-D: its floor and ceiling do not matter
     assert run(mon, [(1.0, healthy(lat_deg=37.43))]) == [
         (1.0, AlertCode.GEOFENCE_BREACH, Severity.CRITICAL)
     ]
+    # with two areas, the vehicle must be inside both (as ArduPilot's inclusion fences)
+    west = Geometry.polygon([(37.40, -6.00), (37.40, -5.985), (37.42, -5.985), (37.42, -6.00)])
+    mon.zones[5] = NoFlyZone(5, west, operating_area=True)
+    assert run(mon, [(2.0, healthy()), (5.5, healthy()), (6.0, healthy(lon_deg=-5.98))]) == [
+        (5.5, AlertCode.CONDITION_CLEARED, Severity.INFO),
+        (6.0, AlertCode.GEOFENCE_BREACH, Severity.CRITICAL),
+    ]
+    assert mon._breach_text == "left operating area 5"

@@ -23,6 +23,7 @@ from swarm_sim.core import SITL_HOME
 from swarm_sim.fast_fleet import FastFleet
 
 GCS = 900
+INCLUSION_CIRCLE = 5003  # MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION
 EXCLUSION_CIRCLE = 5004  # MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
 
 
@@ -97,3 +98,22 @@ def test_a_zone_becomes_the_autopilots_fence_and_turns_the_vehicle_back(profiles
     fleet.broadcast(NoFlyZone(3, zone.geometry, active=False))
     fleet.run_for(3.0)
     assert sim.fence_items == [] and sim.params["FENCE_ENABLE"][0] == 0.0
+
+
+def test_an_operating_area_becomes_an_inclusion_fence(profiles: dict) -> None:
+    fleet = FastFleet.build([10], profiles)  # a seed rover
+    v = fleet.vehicles[10]
+    sim = v.endpoint.autopilot
+    assert fleet.run_until(lambda: v.link.state.ekf_has_position and v.link.state.home, 60)
+    area = NoFlyZone(
+        1, Geometry.circle(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 500.0), operating_area=True
+    )
+    zlat, zlon = north(150.0)
+    fleet.broadcast(area)
+    fleet.broadcast(NoFlyZone(3, Geometry.circle(zlat, zlon, 40.0)))
+    fleet.run_for(3.0)
+    assert [(it.command, it.param1) for it in sim.fence_items] == [
+        (INCLUSION_CIRCLE, 500.0),
+        (EXCLUSION_CIRCLE, 40.0),
+    ]
+    assert sim.params["FENCE_ENABLE"][0] == 1.0 and sim.params["FENCE_TYPE"][0] == 4.0
