@@ -16,6 +16,8 @@ import typer
 from rich.console import Console
 
 from swarm_proto import (
+    Ack,
+    AckReason,
     CommandArgs,
     CommandKind,
     Geometry,
@@ -188,12 +190,23 @@ def peers(ctx: typer.Context, node: int = typer.Argument(..., help="node id")) -
 # --------------------------------------------------------------------------- commands
 
 
-def _print_acks(acks: list, what: str) -> None:
-    if not acks:
-        console.print(f"[yellow]{what}: no answer[/]")
+def _print_acks(acks: list[Ack], what: str) -> None:
+    """The addressed vehicles' answers as a table (exit 1 if any refused); vehicles that
+    answered NOT_ADDRESSED (every vehicle answers a mission) on one line."""
+    answers = [a for a in acks if a.reason != AckReason.NOT_ADDRESSED]
+    others = ", ".join(
+        str(v) for v in sorted(a.vehicle_id for a in acks if a.reason == AckReason.NOT_ADDRESSED)
+    )
+    if not answers:
+        if others:
+            console.print(f"[yellow]{what}: addresses none of the vehicles ({others} answered)[/]")
+        else:
+            console.print(f"[yellow]{what}: no answer[/]")
         raise typer.Exit(1)
-    console.print(ack_table(acks, what))
-    if not all(a.accepted for a in acks):
+    console.print(ack_table(answers, what))
+    if others:
+        console.print(f"not addressed: {others}", style="dim")
+    if not all(a.accepted for a in answers):
         raise typer.Exit(1)
 
 

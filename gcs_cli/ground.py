@@ -220,13 +220,14 @@ class GroundStation:
         )
 
     def mission(self, mission: Mission, *, timeout_s: float = 5.0) -> list[Ack]:
-        return self._send_and_wait(
-            mission,
-            AckRef.MISSION,
-            mission.mission_id,
-            self._addressed(mission.selection),
-            timeout_s,
-        )
+        """Publish a mission and collect the answers: every vehicle answers a mission,
+        those it does not address with NOT_ADDRESSED. Waits for the vehicles known to be
+        addressed (or, if none is known, for every known vehicle)."""
+        expect = self._addressed(mission.selection)
+        if expect is None:
+            with self._lock:
+                expect = set(self.view.vehicle_ids()) or None
+        return self._send_and_wait(mission, AckRef.MISSION, mission.mission_id, expect, timeout_s)
 
     def zone(self, zone: NoFlyZone) -> None:
         validate(zone)

@@ -6,7 +6,8 @@ effects (set base, fleet, active flag, cancel) and, for anything decided at once
 immediate Ack. `CommandTracker` runs the requests one after another and answers every
 command with exactly one Ack: accepted when all its requests succeed, rejected with the
 autopilot's reason when one fails, TIMEOUT when the link never answers.
-`check_mission` applies the paper's three rejection rules to a mission.
+`check_mission` applies the paper's three rejection rules to a mission: every node
+answers every mission it hears (NOT_ADDRESSED when it is not addressed).
 `AnswerCache` makes both idempotent: the ground station repeats a command or mission
 until it is answered (a radio loses frames), and a repeat is answered again with the
 first answer, never carried out twice.
@@ -118,16 +119,18 @@ def _land_request(profile: VehicleProfile) -> tuple[ApRequest, ...]:
 
 
 def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
-    """What to do with a command; None when it does not address this vehicle."""
-    if (
-        not cmd.target.addresses(view.self_id, view.fleet_id)
-        or cmd.target.kind == SelectorKind.QUANTITY
-    ):
+    """What to do with a command; None when it does not address this vehicle (a command
+    is answered by the vehicles it addresses only: one Ack per vehicle of the swarm for
+    every command would cost airtime on the radio for nothing)."""
+    if not cmd.target.addresses(view.self_id, view.fleet_id):
         return None
     k, a, p, ap = cmd.kind, cmd.args, view.profile, view.autopilot
 
     def reject(reason: AckReason, text: str = "") -> CommandPlan:
         return CommandPlan(ack=_ack(cmd, view, False, reason, text))
+
+    if cmd.target.kind == SelectorKind.QUANTITY:  # this vehicle is a candidate
+        return reject(AckReason.UNSUPPORTED, "choosing vehicles by voting is not implemented")
 
     def done(*effects: Effect) -> CommandPlan:
         return CommandPlan(effects=effects, ack=_ack(cmd, view, True))
@@ -241,17 +244,17 @@ def emergency_requests(code: AlertCode, profile: VehicleProfile) -> tuple[ApRequ
     return (ReturnToLaunch(),)
 
 
-def check_mission(mission: Mission, view: NodeView) -> AckReason | None:
-    """The swarm manager's acceptance checks. None: the mission does not address this
-    vehicle (no answer). Otherwise OK or the first reason to reject, in the paper's
-    order: home not defined, vehicle not ready."""
+def check_mission(mission: Mission, view: NodeView) -> AckReason:
+    """The swarm manager's acceptance checks (paper section 2.3.3): OK or the first
+    reason to reject. A mission that does not address this vehicle is NOT_ADDRESSED
+    whatever the vehicle's state (its other problems do not concern this mission);
+    then the paper's order: home not defined (then no base), vehicle not ready
+    (an emergency first, then not ready)."""
     sel = mission.selection
-    if sel.kind == SelectorKind.QUANTITY:
-        if not sel.addresses(view.self_id, view.fleet_id):
-            return None
-        return AckReason.UNSUPPORTED  # voting selects vehicles: the mission manager's job
     if not sel.addresses(view.self_id, view.fleet_id):
-        return None
+        return AckReason.NOT_ADDRESSED
+    if sel.kind == SelectorKind.QUANTITY:
+        return AckReason.UNSUPPORTED  # voting selects vehicles: the mission manager's job
     if view.autopilot.home is None:
         return AckReason.HOME_NOT_SET
     if view.base is None:

@@ -329,12 +329,11 @@ class NodeCore:
         if repeat is not None:
             return repeat
         reason = check_mission(mission, self.view())
-        if reason is None:
-            return []
         ok = reason == AckReason.OK
         ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason)
         # only an acceptance is remembered: a rejected mission sent again is checked again
-        # (the operator may have fixed what was wrong, e.g. set the base)
+        # (the operator may have fixed what was wrong, e.g. set the base; a vehicle may
+        # have joined the fleet the mission addresses)
         out: list[Output] = self._answer([ack]) if ok else [Publish(ack)]
         if ok:
             self.missions[mission.mission_id] = mission

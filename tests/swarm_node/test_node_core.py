@@ -35,6 +35,7 @@ from swarm_proto import (
     Mission,
     MissionType,
     Selector,
+    SelectorKind,
     VehicleType,
 )
 
@@ -209,23 +210,76 @@ def activate(f: Fleet) -> None:
 
 
 def test_mission_acceptance_checks_in_the_papers_order() -> None:
-    f = fleet(3)
+    """Every node answers every mission: NOT_ADDRESSED first (whatever else is wrong
+    with a vehicle the mission does not address), then home, base, emergency, ready."""
+    f = fleet(4)
     f.set_autopilot(1, flying(home=None))
     f.run_until(0.5)
     send(f, mission(5, (1, 2, 3)))
     f.run_until(1.0)
     reasons = {v: a.reason for v, a in acks(f, 5).items()}
-    assert reasons == {1: AckReason.HOME_NOT_SET, 2: AckReason.NO_BASE, 3: AckReason.NO_BASE}
-    send(f, command(100, CommandKind.SET_BASE, point=HOME), to=[2])
+    assert reasons == {
+        1: AckReason.HOME_NOT_SET,
+        2: AckReason.NO_BASE,
+        3: AckReason.NO_BASE,
+        4: AckReason.NOT_ADDRESSED,
+    }
+    # vehicles 2, 3 and 4 get a base; 3's EKF fails: it has a base but is not ready
+    send(f, command(100, CommandKind.SET_BASE, point=HOME), to=[2, 3, 4])
     f.set_autopilot(3, flying(ekf_ok=False))
     f.run_until(2.0)
-    send(f, mission(6, (2, 3, 4)), to=[2, 3])
+    assert f.nodes[3].base is not None and not f.nodes[3].monitor.ready
+    send(f, mission(6, (1, 2, 3)))
     f.run_until(3.0)
     reasons = {v: a.reason for v, a in acks(f, 6).items()}
-    assert reasons == {2: AckReason.OK, 3: AckReason.NO_BASE}
-    send(f, mission(7, (9,)))  # not addressed: no answer
+    assert reasons == {
+        1: AckReason.HOME_NOT_SET,
+        2: AckReason.OK,
+        3: AckReason.NOT_READY,
+        4: AckReason.NOT_ADDRESSED,
+    }
+    assert [a.accepted for a in acks(f, 6).values()] == [False, True, False, False]
+    # an emergency comes before "not ready"; vehicle 1 is not addressed: NOT_ADDRESSED,
+    # although it has no home either
+    f.set_autopilot(4, flying(link_ok=False))
     f.run_until(4.0)
-    assert acks(f, 7) == {}
+    assert f.nodes[4].fsm.state == FsmState.EMERGENCY
+    send(f, mission(7, (4,)))
+    f.run_until(5.0)
+    reasons = {v: a.reason for v, a in acks(f, 7).items()}
+    assert reasons == {
+        1: AckReason.NOT_ADDRESSED,
+        2: AckReason.NOT_ADDRESSED,
+        3: AckReason.NOT_ADDRESSED,
+        4: AckReason.EMERGENCY,
+    }
+
+
+def test_quantity_missions_and_commands_are_answered_unsupported() -> None:
+    """Choosing vehicles by voting is not implemented: candidates answer UNSUPPORTED,
+    the others NOT_ADDRESSED (missions) or nothing (commands)."""
+    f = fleet(3)
+    activate(f)
+    send(f, command(40, CommandKind.SET_FLEET, Selector.ids(3), fleet_id=2))
+    f.run_until(f.now + 0.5)
+    two_of_fleet_0 = Selector(SelectorKind.QUANTITY, fleet_id=0, quantity=2)
+    one_of_fleet_2 = Selector(SelectorKind.QUANTITY, fleet_id=2, quantity=1)
+    geometry = Geometry.point(37.42, -5.98)
+    send(f, Mission(41, GCS, MissionType.OBJECTIVE, geometry, selection=two_of_fleet_0))
+    send(f, Mission(42, GCS, MissionType.OBJECTIVE, geometry, selection=one_of_fleet_2))
+    send(f, command(43, CommandKind.RTL, one_of_fleet_2))
+    f.run_until(f.now + 1.0)
+    assert {v: a.reason for v, a in acks(f, 41).items()} == dict.fromkeys(
+        (1, 2, 3), AckReason.UNSUPPORTED
+    )
+    assert {v: a.reason for v, a in acks(f, 42).items()} == {
+        1: AckReason.NOT_ADDRESSED,
+        2: AckReason.NOT_ADDRESSED,
+        3: AckReason.UNSUPPORTED,
+    }
+    assert {v: a.reason for v, a in acks(f, 43).items()} == {3: AckReason.UNSUPPORTED}
+    assert not any(isinstance(r, ReturnToLaunch) for _, _, r in f.submitted)
+    assert all(n.fsm.state == FsmState.GO_MISSION for n in f.nodes.values())
 
 
 def test_fleet_waits_in_plan_until_all_members_are_there() -> None:
