@@ -218,7 +218,9 @@ def cmd(
     fleet: int = typer.Option(0, help="address a fleet"),
     value: float | None = typer.Option(None, help="altitude (m above home) or speed (m/s)"),
     text: str = typer.Option("", help="mode name, or what to calibrate"),
-    point: str | None = typer.Option(None, help="LAT,LON[,ALT_MSL] for goto and set-base"),
+    point: str | None = typer.Option(
+        None, help="LAT,LON[,ALT_MSL] for goto, set-base and emergency-land (where to land)"
+    ),
     fleet_id: int = typer.Option(0, help="set-fleet: the new fleet id"),
     mission_id: int = typer.Option(0, help="cancel-mission / join-mission: the mission"),
     timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
@@ -236,6 +238,11 @@ def cmd(
         if len(parts) not in (2, 3):
             raise typer.BadParameter("LAT,LON[,ALT_MSL]", param_hint="--point")
         geo = GeoPoint(parts[0], parts[1], parts[2] if len(parts) == 3 else 0.0)
+    if k == CommandKind.EMERGENCY_LAND and geo is None:  # paper 3.5.1: ask for the route
+        raise typer.BadParameter(
+            "emergency-land needs --point LAT,LON: where the landing route ends",
+            param_hint="--point",
+        )
     args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id)
     with ctx.obj.open() as gs:
         gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)

@@ -84,6 +84,7 @@ class Phase(Enum):
     FLYING = "flying"  # the mission is running on the autopilot
     RETURNING = "returning"  # RTL
     LANDING = "landing"
+    PARACHUTE = "parachute"  # released: coming down under the canopy
 
 
 @dataclass(frozen=True)
@@ -294,6 +295,7 @@ class MissionManager:
             Phase.FLYING: MissionState.MISSION,
             Phase.RETURNING: MissionState.MISSION,
             Phase.LANDING: MissionState.MISSION,
+            Phase.PARACHUTE: MissionState.PARACHUTE,
         }[self.phase]
 
     @property
@@ -477,6 +479,41 @@ class MissionManager:
     def stop(self) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
 
+    def take_over(self, phase: Phase) -> None:
+        """The operator's command (RTL, LAND, EMERGENCY_LAND, PARACHUTE) flies the
+        vehicle now: drop whatever was planned and only watch for the landing
+        (RETURNING: a hover-capable vehicle is landed once near home, as on the node's
+        own return)."""
+        self.stop()
+        self.phase, self.mission_id = phase, fsm.RETURN_MISSION
+
+    @property
+    def landing(self) -> bool:
+        """On the way down or home (what ABORT_LANDING can cancel)."""
+        return self.phase in (Phase.RETURNING, Phase.LANDING)
+
+    def landing_route(
+        self, point: GeoPoint, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float
+    ) -> tuple[ApRequest, ...]:
+        """An emergency landing at `point` (paper section 3.5.1: "if the landing route has
+        been specified"): a zone-safe leg from here at the current altitude (at least
+        30 m), then a landing item there, flown in AUTO."""
+        home = ap.home
+        if home is None or ap.lat_deg is None or ap.lon_deg is None:
+            raise PlanningError("no position or home")
+        alt = max(ap.alt_rel_m or 0.0, 30.0)
+        leg = self._transit(
+            (ap.lat_deg, ap.lon_deg),
+            ap.heading_deg,
+            (point.lat_deg, point.lon_deg),
+            alt,
+            zones,
+            now,
+            home.alt_msl_m,
+        )
+        land = Waypoint(ItemKind.LAND, point.lat_deg, point.lon_deg, 0.0)
+        return (UploadMission(items=(*self._tight(leg[:-1]), land)), StartMission())
+
     # ------------------------------------------------------------------ inputs
     def on_result(self, result: ApResult, now: float) -> list[Out]:
         done = self._in_flight
@@ -503,6 +540,13 @@ class MissionManager:
         return self._next()
 
     def on_autopilot(self, ap: AutopilotState, now: float) -> list[Out]:
+        if (
+            self.phase in (Phase.RETURNING, Phase.LANDING, Phase.PARACHUTE)
+            and not ap.armed
+            and (ap.alt_rel_m or 0.0) < 2.0
+        ):
+            self.stop()
+            return [FsmEvent(fsm.LandingComplete())]
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
                 self.phase = Phase.STARTING
@@ -526,13 +570,6 @@ class MissionManager:
                 ground = self.profile.vehicle_type in (VehicleType.ROVER, VehicleType.BOAT)
                 self._steps = [Land(), Disarm()] if ground else [Land()]
                 return self._next()
-        if (
-            self.phase in (Phase.RETURNING, Phase.LANDING)
-            and not ap.armed
-            and (ap.alt_rel_m or 0.0) < 2.0
-        ):
-            self.stop()
-            return [FsmEvent(fsm.LandingComplete())]
         return []
 
     def progress_pct(self, ap: AutopilotState) -> int | None:

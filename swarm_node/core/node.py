@@ -45,10 +45,14 @@ from .commands import (
     AnswerCache,
     CancelMission,
     CommandTracker,
+    Effect,
+    LandAt,
     NodeView,
     SetActive,
     SetBase,
     SetFleet,
+    StopLanding,
+    TakeOver,
     answer_key,
     check_mission,
     emergency_requests,
@@ -67,6 +71,7 @@ from .mission_manager import Member, MissionManager
 from .mission_manager import Out as MissionOut
 from .mission_manager import Submit as ManagerSubmit
 from .monitoring import Thresholds, VehicleMonitor
+from .planning import PlanningError
 from .profile import VehicleProfile
 
 log = logging.getLogger(__name__)
@@ -183,6 +188,7 @@ class NodeCore:
             mission_id=self.fsm.mission_id,
             base=self.base,
             ready=self.monitor.ready,
+            landing=self.manager.landing,
         )
 
     def status(self, now: float) -> VehicleStatus | None:
@@ -300,9 +306,20 @@ class NodeCore:
         if plan is None:
             return []
         self.answers.taken(answer_key(cmd))
+        requests = plan.requests
+        for effect in plan.effects:
+            if isinstance(effect, LandAt):
+                try:
+                    requests += self.manager.landing_route(
+                        effect.point, self.autopilot, self.planning_zones(now), now
+                    )
+                except (PlanningError, ValueError) as exc:
+                    ack = Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, False,
+                              AckReason.INVALID, f"no landing route: {exc}"[:64])  # fmt: skip
+                    return self._answer([ack])
         for effect in plan.effects:
             self._apply(effect)
-        out: list[Output] = [Submit(r) for r in self.commands.start(cmd, plan.requests, now)]
+        out: list[Output] = [Submit(r) for r in self.commands.start(cmd, requests, now)]
         if plan.ack is not None:
             out += self._answer([plan.ack])
             if not plan.ack.accepted:
@@ -314,7 +331,7 @@ class NodeCore:
                 )
         return out
 
-    def _apply(self, effect: SetBase | SetFleet | SetActive | CancelMission) -> None:
+    def _apply(self, effect: Effect) -> None:
         if isinstance(effect, SetBase):
             self.base = effect.point
         elif isinstance(effect, SetFleet):
@@ -323,6 +340,14 @@ class NodeCore:
             self.active = effect.active
         elif isinstance(effect, CancelMission):
             self.fsm.post(fsm.LeftFleet(f"mission {effect.mission_id} cancelled"))
+        elif isinstance(effect, TakeOver):
+            self.manager.take_over(effect.phase)
+            self.mission_state = self.manager.mission_state
+            if self.fsm.state in (FsmState.PLAN, FsmState.GO_MISSION):
+                self.fsm.post(fsm.Recalled(effect.reason))
+        elif isinstance(effect, StopLanding):
+            self.manager.stop()  # the operator holds the vehicle; LAND or RTL ends the sortie
+            self.mission_state = self.manager.mission_state
 
     def _on_mission(self, mission: Mission) -> list[Output]:
         repeat = self._repeat(mission)
@@ -506,6 +531,10 @@ class NodeCore:
             self.fleet_id = 0
             self.fleet_members = (self.self_id,)
             return []
+        if isinstance(o, fsm.FollowOperator):
+            if o.mission_id is not None:
+                self.missions.pop(o.mission_id, None)  # left, not completed
+            return [Note(logging.WARNING, f"left mission {o.mission_id}: {o.reason}")]
         if isinstance(o, fsm.BeginPlan):
             self.mission_state = MissionState.PLANNING
             self.mission_progress_pct = 0

@@ -144,3 +144,9 @@ def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
         assert r.exit_code == 0 and "zone 5 withdrawn" in r.stdout  # type: ignore[attr-defined]
     finally:
         console.close()
+
+
+def test_emergency_land_asks_for_the_landing_point() -> None:
+    r = runner.invoke(app, ["--connect", "tcp/127.0.0.1:1", "cmd", "emergency-land"])
+    text = " ".join((r.stdout + str(r.stderr)).replace("│", " ").split())  # rich's box
+    assert r.exit_code == 2 and "where the landing route ends" in text
