@@ -47,6 +47,16 @@ from .config import NodeConfig
 log = logging.getLogger("swarm_node")
 
 
+def node_settings(config: NodeConfig) -> NodeSettings:
+    """The core's settings from the node's configuration (file and command line)."""
+    return NodeSettings(
+        status_period_s=1.0 / config.status_hz,
+        info_period_s=1.0 / config.info_hz,
+        plan_timeout_s=config.plan_timeout_s,
+        stale_after_s=config.stale_after_s,
+    )
+
+
 class AutopilotPort(Protocol):
     """What the node needs of an autopilot link."""
 
@@ -88,12 +98,7 @@ class NodeRuntime:
         self.autopilot: AutopilotPort = autopilot or NoAutopilot()
         self.core = NodeCore(
             profile,
-            NodeSettings(
-                status_period_s=1.0 / config.status_hz,
-                info_period_s=1.0 / config.info_hz,
-                plan_timeout_s=config.plan_timeout_s,
-                stale_after_s=config.stale_after_s,
-            ),
+            node_settings(config),
             now=clock.now(),
             # the planners need every fleet member's airframe: the database knows them all
             fleet_profiles=(
