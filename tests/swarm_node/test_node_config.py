@@ -46,6 +46,7 @@ cruise_speed_m_s = 9.5
 battery_low_pct = 35
 battery_critical_pct = 20
 has_parachute = true
+max_tilt_deg = 50.0
 """
 
 
@@ -92,7 +93,7 @@ def test_a_config_file_gives_identity_rates_and_zenoh_settings(tmp_path: Path) -
         VehicleType.COPTER,
     )
     assert (p.cruise_speed_m_s, p.battery_low_pct, p.battery_critical_pct) == (9.5, 35, 20)
-    assert p.has_parachute
+    assert p.has_parachute and p.max_tilt_deg == 50.0
     assert from_db.model == "Generic Quadcopter"  # no [profile]: from the database
     with pytest.raises(ValueError, match="info_hz"):
         load_config(path, info_hz=100.0)
