@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import msgspec
 import typer
@@ -33,6 +34,7 @@ from swarm_proto import (
 )
 from swarm_proto.session import ZenohSettings
 
+from .db import DbOption
 from .db import app as db_app
 from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
 from .render import ack_table, fleet_rows, fleet_table
@@ -265,16 +267,20 @@ def mission(
     fleet: int = typer.Option(0, help="the fleet flies it"),
     quantity: int = typer.Option(0, help="this many vehicles, chosen by voting"),
     payload: str = typer.Option("", help="with --quantity: required payload model"),
-    alt: float = typer.Option(100.0, help="altitude above home, m"),
+    alt: float | None = typer.Option(None, help="altitude above home, m"),
     speed: float | None = typer.Option(None, help="m/s (default: each vehicle's cruise)"),
-    overlap: float = typer.Option(0.7, help="area: camera side overlap"),
+    overlap: float | None = typer.Option(None, help="area: camera side overlap"),
     radius: float | None = typer.Option(None, help="target/perimeter radius, m"),
-    alt_step: float = typer.Option(0.0, help="vertical separation between vehicles, m"),
+    alt_step: float | None = typer.Option(None, help="vertical separation between vehicles, m"),
+    duration: float | None = typer.Option(None, help="target/objective: how long to hold, s"),
     name: str = typer.Option("", help="a name for people"),
     mission_id: int = typer.Option(0, help="default: a fresh id"),
     timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
+    db_path: DbOption = None,
 ) -> None:
-    """Send a mission and show every addressed vehicle's ack."""
+    """Send a mission and show every addressed vehicle's ack. Parameters not given come
+    from the swarm database's defaults for the kind of mission (`gcs db list swarm
+    mission-params`); the vehicles fill what is still unset from theirs."""
     try:
         mtype = MissionType[mission_type.upper()]
     except KeyError as exc:
@@ -282,22 +288,45 @@ def mission(
             f"unknown mission type {mission_type!r}", param_hint="TYPE"
         ) from exc
     geometry = geometry_from(polygon, point, circle, line, points)
+    given = {
+        "altitude_rel_m": alt,
+        "speed_m_s": speed,
+        "side_overlap": overlap,
+        "radius_m": radius,
+        "altitude_step_m": alt_step,
+        "duration_s": duration,
+    }
+    values = {**mission_defaults(mtype, db_path, circle=circle is not None)}
+    values.update({k: v for k, v in given.items() if v is not None})
     try:
-        params = MissionParams(
-            altitude_rel_m=alt,
-            speed_m_s=speed,
-            side_overlap=overlap,
-            radius_m=radius,
-            altitude_step_m=alt_step,
-        )
+        params = msgspec.convert(values, MissionParams, strict=False)
         m = Mission(mission_id or new_seq() or 1, ctx.obj.gcs_id, mtype, geometry, params,
                     selector_from(ids, fleet, quantity, payload), name, time.time())  # fmt: skip
-    except ValueError as exc:
+    except (ValueError, msgspec.ValidationError) as exc:
         raise typer.BadParameter(str(exc)) from exc
     with ctx.obj.open() as gs:
         gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)
         acks = gs.mission(m, timeout_s=timeout)
     _print_acks(acks, f"mission {m.mission_id} ({mtype.name.lower()})")
+
+
+def mission_defaults(mtype: MissionType, db_path: Path | None, *, circle: bool) -> dict[str, float]:
+    """The database's default parameters for a kind of mission ({} when the database
+    cannot be read: the message's own defaults then apply). A circle's radius is its own."""
+    from swarm_node.database import SwarmDatabase
+    from swarm_node.database.errors import SwarmDbError
+    from swarm_node.database.paths import resolve_db_path
+
+    try:
+        with SwarmDatabase.open(resolve_db_path(db_path)) as db:
+            found = db.mission_defaults(mtype)
+    except (SwarmDbError, OSError) as exc:
+        console.print(f"[yellow]gcs: no mission defaults from the database: {exc}[/]")
+        return {}
+    known = {k: v for k, v in found.items() if k in MissionParams.__struct_fields__}
+    if circle:
+        known.pop("radius_m", None)
+    return known
 
 
 @zone_app.command("add")

@@ -130,6 +130,8 @@ class GroundStation:
                 self._changed.notify_all()
 
     def _on_alive(self, node_id: int, alive: bool) -> None:
+        if node_id == self.gcs_id:
+            return  # our own token: not a vehicle to wait for
         with self._lock:
             (self.view.alive.add if alive else self.view.alive.discard)(node_id)
             self._changed.notify_all()

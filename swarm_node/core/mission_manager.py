@@ -17,14 +17,24 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
 import msgspec
 from shapely.geometry import LineString
 
-from swarm_proto import GeoPoint, LatLon, Mission, MissionState, MissionType, NoFlyZone, VehicleType
+from swarm_proto import (
+    GeometryKind,
+    GeoPoint,
+    LatLon,
+    Mission,
+    MissionParams,
+    MissionState,
+    MissionType,
+    NoFlyZone,
+    VehicleType,
+)
 
 from . import state_machine as fsm
 from .autopilot.items import ItemKind, Waypoint
@@ -63,6 +73,39 @@ PLANNERS: dict[MissionType, Callable[..., object]] = {
     MissionType.ROUTE: plan_route,
     MissionType.OBJECTIVE: plan_objective,
 }
+
+#: parameters a planner reads as "not given" when 0 (besides None), per mission type
+UNSET_WHEN_ZERO: dict[MissionType, frozenset[str]] = {
+    MissionType.AUTOLAND: frozenset({"separation_s", "altitude_step_m"}),
+    MissionType.MUMT: frozenset({"altitude_step_m", "radius_m"}),
+}
+
+
+def with_defaults(mission: Mission, defaults: Mapping[str, float]) -> Mission:
+    """The mission with its unspecified parameters taken from the swarm database's
+    defaults for its type (`SwarmDatabase.mission_defaults`). Unspecified: None, or 0
+    where the planner reads 0 as "not given" (`UNSET_WHEN_ZERO`); a circle's radius is
+    its geometry's. Parameters with a value are the operator's (the ground station
+    fills them from the same defaults). A default that is not a valid value is ignored."""
+    p = mission.params
+    zero_unset = UNSET_WHEN_ZERO.get(mission.mission_type, frozenset())
+    changes: dict[str, float] = {}
+    for name, value in defaults.items():
+        if name not in MissionParams.__struct_fields__:
+            continue
+        if name == "radius_m" and mission.geometry.kind == GeometryKind.CIRCLE:
+            continue
+        current = getattr(p, name)
+        if current is None or (current == 0 and name in zero_unset):
+            changes[name] = value
+    if not changes:
+        return mission
+    try:
+        params = msgspec.convert({**msgspec.to_builtins(p), **changes}, MissionParams, strict=False)
+    except msgspec.ValidationError:
+        return mission
+    return msgspec.structs.replace(mission, params=params)
+
 
 CLIMB_FRACTION = 0.8  # start the mission once this much of the take-off altitude is reached
 LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close to home

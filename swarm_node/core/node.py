@@ -31,6 +31,7 @@ from swarm_proto import (
     GeoPoint,
     Mission,
     MissionState,
+    MissionType,
     NoFlyZone,
     Severity,
     VehicleInfo,
@@ -67,7 +68,7 @@ from .fences import (
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission_manager import Log as ManagerLog
-from .mission_manager import Member, MissionManager
+from .mission_manager import Member, MissionManager, with_defaults
 from .mission_manager import Out as MissionOut
 from .mission_manager import Submit as ManagerSubmit
 from .monitoring import Thresholds, VehicleMonitor
@@ -149,6 +150,8 @@ class NodeCore:
     settings: NodeSettings = field(default_factory=NodeSettings)
     now: float = 0.0
     fleet_profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)  # from the database
+    # the database's default parameters per kind of mission (fill what a mission leaves unset)
+    mission_defaults: Mapping[MissionType, Mapping[str, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         vid = self.profile.vehicle_id
@@ -361,6 +364,7 @@ class NodeCore:
         # have joined the fleet the mission addresses)
         out: list[Output] = self._answer([ack]) if ok else [Publish(ack)]
         if ok:
+            mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
             self.missions[mission.mission_id] = mission
             self.fleet_members = tuple(mission.selection.vehicle_ids) or (self.self_id,)
             self.fsm.post(fsm.NewMission(mission.mission_id))

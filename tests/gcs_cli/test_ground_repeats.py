@@ -90,3 +90,27 @@ def test_a_mission_waits_for_the_addressed_vehicles_not_the_others(zenoh_router:
         (5, AckReason.OK),
         (6, AckReason.NOT_ADDRESSED),
     ]
+
+
+def test_the_ground_station_does_not_wait_for_itself(zenoh_router: str) -> None:
+    """Its own liveliness token is not a vehicle: a command to ALL returns once the
+    vehicles answered, not at the timeout."""
+    settings = ZenohSettings(mode="client", connect=(zenoh_router,))
+    with SwarmBus.open(settings, "self") as vehicle:
+        vehicle.subscribe(
+            COMMAND,
+            lambda cmd, key: vehicle.publish(Ack(5, cmd.issuer_id, AckRef.COMMAND, cmd.seq, True)),
+        )
+        gs = GroundStation(settings, "self")  # announces itself: token and VehicleInfo
+        try:
+            vehicle.publish(VehicleInfo(5, VehicleType.COPTER, "Generic Quad", "U5"))
+            # at once, before its own VehicleInfo (1 s) could say it is a ground station
+            assert gs.wait_for(lambda v: 5 in v.vehicle_ids(), 10.0)
+            assert gs.snapshot().vehicle_ids() == [5]
+            t0 = time.monotonic()
+            acks = gs.command(CommandKind.ACTIVATE, timeout_s=20.0)
+            took = time.monotonic() - t0
+        finally:
+            gs.close()
+    assert [(a.vehicle_id, a.accepted) for a in acks] == [(5, True)]
+    assert took < 10.0  # generous: it returns in milliseconds; the timeout is 20 s

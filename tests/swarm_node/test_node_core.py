@@ -3,6 +3,7 @@ acceptance, fleet synchronisation in PLAN, link loss -> emergency."""
 
 from __future__ import annotations
 
+import msgspec
 import pytest
 
 from swarm_node.core.autopilot.requests import (
@@ -18,6 +19,8 @@ from swarm_node.core.autopilot.state import AutopilotState
 from swarm_node.core.commands import AnswerCache
 from swarm_node.core.node import AutopilotResult, BadInput, NodeCore, NodeSettings, Received
 from swarm_node.core.profile import VehicleProfile
+from swarm_node.database import SwarmDatabase, seed_profiles
+from swarm_node.runtime.node import mission_defaults_of
 from swarm_node.testing import Fleet
 from swarm_proto import (
     Ack,
@@ -33,18 +36,20 @@ from swarm_proto import (
     GeoPoint,
     GpsFix,
     Mission,
+    MissionParams,
     MissionType,
     Selector,
     SelectorKind,
-    VehicleType,
 )
 
 HOME = GeoPoint(37.4112, -5.9889, 10.0)
 GCS = 900
 
 
-def profile(vid: int, vt: VehicleType = VehicleType.COPTER) -> VehicleProfile:
-    return VehicleProfile(vid, f"U{vid}", "Generic Quad", vt, cruise_speed_m_s=12.0)
+def profile(vid: int, model: str = "Generic Quadcopter") -> VehicleProfile:
+    """Vehicle `vid` with the parameters of a seed model (the swarm database's seed data,
+    never constants of the tests' own)."""
+    return msgspec.structs.replace(seed_profiles()[model], vehicle_id=vid, user_id=f"U{vid}")
 
 
 def flying(**kw: object) -> AutopilotState:
@@ -355,3 +360,36 @@ def test_messy_network_still_converges() -> None:
     f.run_until(5.0)
     for nid, node in f.nodes.items():
         assert node.members.live_ids() == [i for i in f.nodes if i != nid]
+
+
+def test_unset_mission_parameters_come_from_the_database() -> None:
+    with SwarmDatabase.memory() as db:
+        defaults = mission_defaults_of(db)
+        db.remove("swarm.mission-params", "target", "radius_m")
+        db.add("swarm.mission-params", {"mission": "target", "name": "radius_m",
+                                        "value": 175.0, "unit": "m"})  # fmt: skip
+        changed = mission_defaults_of(db)
+    assert defaults[MissionType.TARGET] == {
+        "altitude_rel_m": 100.0,
+        "radius_m": 150.0,
+        "altitude_step_m": 10.0,
+    }
+    profiles = {i: profile(i) for i in (1, 2)}
+    f = Fleet({i: NodeCore(p, fleet_profiles=profiles, mission_defaults=changed)
+               for i, p in profiles.items()})  # fmt: skip
+    for i in f.nodes:
+        f.set_autopilot(i, flying())
+    activate(f)
+    point, circle = Geometry.point(37.42, -5.98), Geometry.circle(37.42, -5.98, 60.0)
+    send(f, Mission(90, GCS, MissionType.TARGET, point, selection=Selector.ids(1)))
+    send(f, Mission(91, GCS, MissionType.TARGET, point, MissionParams(radius_m=80.0),
+                    Selector.ids(2)))  # fmt: skip
+    f.run_until(f.now + 0.5)
+    assert f.nodes[1].missions[90].params.radius_m == 175.0  # unset: the database's
+    assert f.nodes[2].missions[91].params.radius_m == 80.0  # the operator's
+    # a circle's radius is its own; 0 s between landings is "not given" for autoland
+    send(f, Mission(92, GCS, MissionType.TARGET, circle, selection=Selector.ids(1)))
+    send(f, Mission(93, GCS, MissionType.AUTOLAND, point, selection=Selector.ids(2)))
+    f.run_until(f.now + 0.5)
+    assert f.nodes[1].missions[92].params.radius_m is None
+    assert f.nodes[2].missions[93].params.separation_s == 30.0
