@@ -10,12 +10,15 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import msgspec
 import typer
 from rich.console import Console
 
 from swarm_proto import (
+    Ack,
+    AckReason,
     CommandArgs,
     CommandKind,
     Geometry,
@@ -31,13 +34,14 @@ from swarm_proto import (
 )
 from swarm_proto.session import ZenohSettings
 
+from .db import DbOption
 from .db import app as db_app
 from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
 from .render import ack_table, fleet_rows, fleet_table
 
 app = typer.Typer(help="bandada ground station.", no_args_is_help=True)
 app.add_typer(db_app, name="db")
-zone_app = typer.Typer(help="No-fly zones.", no_args_is_help=True)
+zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
 app.add_typer(zone_app, name="zone")
 console = Console()
 
@@ -188,12 +192,23 @@ def peers(ctx: typer.Context, node: int = typer.Argument(..., help="node id")) -
 # --------------------------------------------------------------------------- commands
 
 
-def _print_acks(acks: list, what: str) -> None:
-    if not acks:
-        console.print(f"[yellow]{what}: no answer[/]")
+def _print_acks(acks: list[Ack], what: str) -> None:
+    """The addressed vehicles' answers as a table (exit 1 if any refused); vehicles that
+    answered NOT_ADDRESSED (every vehicle answers a mission) on one line."""
+    answers = [a for a in acks if a.reason != AckReason.NOT_ADDRESSED]
+    others = ", ".join(
+        str(v) for v in sorted(a.vehicle_id for a in acks if a.reason == AckReason.NOT_ADDRESSED)
+    )
+    if not answers:
+        if others:
+            console.print(f"[yellow]{what}: addresses none of the vehicles ({others} answered)[/]")
+        else:
+            console.print(f"[yellow]{what}: no answer[/]")
         raise typer.Exit(1)
-    console.print(ack_table(acks, what))
-    if not all(a.accepted for a in acks):
+    console.print(ack_table(answers, what))
+    if others:
+        console.print(f"not addressed: {others}", style="dim")
+    if not all(a.accepted for a in answers):
         raise typer.Exit(1)
 
 
@@ -205,7 +220,9 @@ def cmd(
     fleet: int = typer.Option(0, help="address a fleet"),
     value: float | None = typer.Option(None, help="altitude (m above home) or speed (m/s)"),
     text: str = typer.Option("", help="mode name, or what to calibrate"),
-    point: str | None = typer.Option(None, help="LAT,LON[,ALT_MSL] for goto and set-base"),
+    point: str | None = typer.Option(
+        None, help="LAT,LON[,ALT_MSL] for goto, set-base and emergency-land (where to land)"
+    ),
     fleet_id: int = typer.Option(0, help="set-fleet: the new fleet id"),
     mission_id: int = typer.Option(0, help="cancel-mission / join-mission: the mission"),
     timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
@@ -223,6 +240,11 @@ def cmd(
         if len(parts) not in (2, 3):
             raise typer.BadParameter("LAT,LON[,ALT_MSL]", param_hint="--point")
         geo = GeoPoint(parts[0], parts[1], parts[2] if len(parts) == 3 else 0.0)
+    if k == CommandKind.EMERGENCY_LAND and geo is None:  # paper 3.5.1: ask for the route
+        raise typer.BadParameter(
+            "emergency-land needs --point LAT,LON: where the landing route ends",
+            param_hint="--point",
+        )
     args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id)
     with ctx.obj.open() as gs:
         gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)
@@ -245,16 +267,20 @@ def mission(
     fleet: int = typer.Option(0, help="the fleet flies it"),
     quantity: int = typer.Option(0, help="this many vehicles, chosen by voting"),
     payload: str = typer.Option("", help="with --quantity: required payload model"),
-    alt: float = typer.Option(100.0, help="altitude above home, m"),
+    alt: float | None = typer.Option(None, help="altitude above home, m"),
     speed: float | None = typer.Option(None, help="m/s (default: each vehicle's cruise)"),
-    overlap: float = typer.Option(0.7, help="area: camera side overlap"),
+    overlap: float | None = typer.Option(None, help="area: camera side overlap"),
     radius: float | None = typer.Option(None, help="target/perimeter radius, m"),
-    alt_step: float = typer.Option(0.0, help="vertical separation between vehicles, m"),
+    alt_step: float | None = typer.Option(None, help="vertical separation between vehicles, m"),
+    duration: float | None = typer.Option(None, help="target/objective: how long to hold, s"),
     name: str = typer.Option("", help="a name for people"),
     mission_id: int = typer.Option(0, help="default: a fresh id"),
     timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
+    db_path: DbOption = None,
 ) -> None:
-    """Send a mission and show every addressed vehicle's ack."""
+    """Send a mission and show every addressed vehicle's ack. Parameters not given come
+    from the swarm database's defaults for the kind of mission (`gcs db list swarm
+    mission-params`); the vehicles fill what is still unset from theirs."""
     try:
         mtype = MissionType[mission_type.upper()]
     except KeyError as exc:
@@ -262,22 +288,45 @@ def mission(
             f"unknown mission type {mission_type!r}", param_hint="TYPE"
         ) from exc
     geometry = geometry_from(polygon, point, circle, line, points)
+    given = {
+        "altitude_rel_m": alt,
+        "speed_m_s": speed,
+        "side_overlap": overlap,
+        "radius_m": radius,
+        "altitude_step_m": alt_step,
+        "duration_s": duration,
+    }
+    values = {**mission_defaults(mtype, db_path, circle=circle is not None)}
+    values.update({k: v for k, v in given.items() if v is not None})
     try:
-        params = MissionParams(
-            altitude_rel_m=alt,
-            speed_m_s=speed,
-            side_overlap=overlap,
-            radius_m=radius,
-            altitude_step_m=alt_step,
-        )
+        params = msgspec.convert(values, MissionParams, strict=False)
         m = Mission(mission_id or new_seq() or 1, ctx.obj.gcs_id, mtype, geometry, params,
                     selector_from(ids, fleet, quantity, payload), name, time.time())  # fmt: skip
-    except ValueError as exc:
+    except (ValueError, msgspec.ValidationError) as exc:
         raise typer.BadParameter(str(exc)) from exc
     with ctx.obj.open() as gs:
         gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)
         acks = gs.mission(m, timeout_s=timeout)
     _print_acks(acks, f"mission {m.mission_id} ({mtype.name.lower()})")
+
+
+def mission_defaults(mtype: MissionType, db_path: Path | None, *, circle: bool) -> dict[str, float]:
+    """The database's default parameters for a kind of mission ({} when the database
+    cannot be read: the message's own defaults then apply). A circle's radius is its own."""
+    from swarm_node.database import SwarmDatabase
+    from swarm_node.database.errors import SwarmDbError
+    from swarm_node.database.paths import resolve_db_path
+
+    try:
+        with SwarmDatabase.open(resolve_db_path(db_path)) as db:
+            found = db.mission_defaults(mtype)
+    except (SwarmDbError, OSError) as exc:
+        console.print(f"[yellow]gcs: no mission defaults from the database: {exc}[/]")
+        return {}
+    known = {k: v for k, v in found.items() if k in MissionParams.__struct_fields__}
+    if circle:
+        known.pop("radius_m", None)
+    return known
 
 
 @zone_app.command("add")
@@ -290,8 +339,14 @@ def zone_add(
     ceiling: float = typer.Option(8000.0, help="ceiling, m above mean sea level"),
     minutes: float | None = typer.Option(None, help="valid for this long (default: until removed)"),
     name: str = typer.Option(""),
+    operating_area: bool = typer.Option(
+        False,
+        "--operating-area",
+        help="an operating area the vehicles must stay inside (2-D: no floor or ceiling)",
+    ),
 ) -> None:
-    """Declare a no-fly zone."""
+    """Declare a no-fly zone, or with --operating-area the area the vehicles must not
+    leave. Both also become the autopilots' fences (docs/node.md, "Fences")."""
     geometry = geometry_from(polygon, None, circle, None, None)
     now = time.time()
     try:
@@ -304,25 +359,26 @@ def zone_add(
             now + minutes * 60 if minutes else None,
             True,
             name,
+            operating_area,
         )
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
     with ctx.obj.open() as gs:
         gs.zone(zone)
         time.sleep(0.5)
-    console.print(f"zone {zone_id} declared")
+    console.print(f"{'operating area' if operating_area else 'zone'} {zone_id} declared")
 
 
 @zone_app.command("remove")
 def zone_remove(
     ctx: typer.Context,
     zone_id: int = typer.Argument(..., help="zone id"),
-    circle: str = typer.Option(..., help="the zone's geometry (LAT,LON,RADIUS_M) or use --polygon"),
 ) -> None:
-    """Withdraw a no-fly zone (republished inactive)."""
-    geometry = geometry_from(None, None, circle, None, None)
+    """Withdraw a no-fly zone or operating area (republished inactive: the vehicles
+    drop it by id; the geometry sent is a placeholder)."""
+    placeholder = Geometry.circle(0.0, 0.0, 1.0)
     with ctx.obj.open() as gs:
-        gs.zone(NoFlyZone(zone_id, geometry, active=False))
+        gs.zone(NoFlyZone(zone_id, placeholder, active=False))
         time.sleep(0.5)
     console.print(f"zone {zone_id} withdrawn")
 

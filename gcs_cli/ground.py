@@ -130,6 +130,8 @@ class GroundStation:
                 self._changed.notify_all()
 
     def _on_alive(self, node_id: int, alive: bool) -> None:
+        if node_id == self.gcs_id:
+            return  # our own token: not a vehicle to wait for
         with self._lock:
             (self.view.alive.add if alive else self.view.alive.discard)(node_id)
             self._changed.notify_all()
@@ -220,13 +222,14 @@ class GroundStation:
         )
 
     def mission(self, mission: Mission, *, timeout_s: float = 5.0) -> list[Ack]:
-        return self._send_and_wait(
-            mission,
-            AckRef.MISSION,
-            mission.mission_id,
-            self._addressed(mission.selection),
-            timeout_s,
-        )
+        """Publish a mission and collect the answers: every vehicle answers a mission,
+        those it does not address with NOT_ADDRESSED. Waits for the vehicles known to be
+        addressed (or, if none is known, for every known vehicle)."""
+        expect = self._addressed(mission.selection)
+        if expect is None:
+            with self._lock:
+                expect = set(self.view.vehicle_ids()) or None
+        return self._send_and_wait(mission, AckRef.MISSION, mission.mission_id, expect, timeout_s)
 
     def zone(self, zone: NoFlyZone) -> None:
         validate(zone)

@@ -33,6 +33,8 @@ def run(
     link_timeout: float | None = typer.Option(
         None, help="autopilot silence (s) that counts as link loss"
     ),
+    status_hz: float | None = typer.Option(None, help="VehicleStatus rate (default 5)"),
+    info_hz: float | None = typer.Option(None, help="VehicleInfo rate (default 1)"),
     log_level: str = typer.Option("INFO", help="DEBUG, INFO, WARNING, ERROR"),
 ) -> None:
     """Run the node: autopilot link, monitoring, swarm manager, state machine."""
@@ -59,6 +61,8 @@ def run(
             zenoh_listen=tuple(listen),
             zenoh_lease_ms=lease_ms,
             link_timeout_s=link_timeout,
+            status_hz=status_hz,
+            info_hz=info_hz,
         )
     except ValueError as exc:
         typer.echo(f"swarm-node: {exc}", err=True)

@@ -403,7 +403,12 @@ class FleetAssignment(Struct, frozen=True):
 
 
 class NoFlyZone(Struct, frozen=True):
-    """Airspace that routes and coverage plans must never enter."""
+    """Airspace vehicles must never enter, or with operating_area must never leave.
+
+    A no-fly zone is avoided by routes and coverage plans between its floor and
+    ceiling. An operating area (the operator's "restrict the operational region", paper
+    section 3.5.1; an ArduPilot inclusion fence) is 2-D: its floor and ceiling are not
+    used; with several, the vehicles must stay inside all of them."""
 
     zone_id: ZoneId
     geometry: Geometry  # POLYGON (without holes) or CIRCLE
@@ -413,6 +418,7 @@ class NoFlyZone(Struct, frozen=True):
     valid_until_unix_s: UnixTimeS | None = None  # None: until removed
     active: bool = True
     name: Name = ""
+    operating_area: bool = False  # True: keep in (an operating area), not keep out
 
     def __post_init__(self) -> None:
         if self.geometry.kind not in (GeometryKind.POLYGON, GeometryKind.CIRCLE):

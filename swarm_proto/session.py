@@ -59,7 +59,9 @@ def zenoh_config(s: ZenohSettings) -> zenoh.Config:
         conf.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:0"]))
     if s.connect:
         conf.insert_json5("connect/endpoints", json.dumps(list(s.connect)))
-    conf.insert_json5("scouting/multicast/enabled", json.dumps(s.multicast_scouting))
+    # multicast scouting: off unless asked for, or an interface to scout on is named
+    multicast = s.multicast_scouting or bool(s.scouting_interface)
+    conf.insert_json5("scouting/multicast/enabled", json.dumps(multicast))
     if s.scouting_interface:
         conf.insert_json5("scouting/multicast/interface", json.dumps(s.scouting_interface))
     conf.insert_json5("scouting/gossip/enabled", json.dumps(s.gossip_scouting))

@@ -160,6 +160,7 @@ def _zones(draw: st.DrawFn) -> Any:
         valid_until_unix_s=draw(st.none() | st.floats(start + 1.0, 4e9)),
         active=draw(st.booleans()),
         name=draw(st.text(max_size=48)),
+        operating_area=draw(st.booleans()),
     )
 
 

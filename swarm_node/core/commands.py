@@ -2,11 +2,14 @@
 acceptance checks (section 2.3.3).
 
 `plan_command` turns an operator command into autopilot requests (run in order), node
-effects (set base, fleet, active flag, cancel) and, for anything decided at once, an
-immediate Ack. `CommandTracker` runs the requests one after another and answers every
+effects (set base, fleet, active flag, cancel, the operator taking the vehicle out of
+its mission, an emergency landing route to plan, a landing cancelled) and, for anything
+decided at once, an immediate Ack. The effects on the state machine follow the paper's
+STATE_GO_MISSION cases (docs/state-machine.md, "Operator commands"). `CommandTracker` runs the requests one after another and answers every
 command with exactly one Ack: accepted when all its requests succeed, rejected with the
 autopilot's reason when one fails, TIMEOUT when the link never answers.
-`check_mission` applies the paper's three rejection rules to a mission.
+`check_mission` applies the paper's three rejection rules to a mission: every node
+answers every mission it hears (NOT_ADDRESSED when it is not addressed).
 `AnswerCache` makes both idempotent: the ground station repeats a command or mission
 until it is answered (a radio loses frames), and a repeat is answered again with the
 first answer, never carried out twice.
@@ -36,6 +39,7 @@ from swarm_proto import (
     VehicleType,
 )
 
+from .autopilot.plans import CALIBRATIONS
 from .autopilot.requests import (
     ApRequest,
     ApResult,
@@ -53,9 +57,12 @@ from .autopilot.requests import (
     UploadRally,
 )
 from .autopilot.state import AutopilotState
+from .mission_manager import Phase
 from .profile import VehicleProfile
 
 ABORT_LANDING_MIN_ALT_M = 30.0  # climb to at least this (above home) when aborting a landing
+# ArduPilot modes that bring a vehicle home or down (Copter, Plane/QuadPlane)
+LANDING_MODES = frozenset({"LAND", "QLAND", "RTL", "QRTL", "SMART_RTL", "AUTO_RTL"})
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,14 @@ class NodeView:
     mission_id: int | None
     base: GeoPoint | None
     ready: bool  # vehicle monitoring says the vehicle is ready
+    landing: bool = False  # the mission manager is bringing the vehicle home or down
+
+    @property
+    def on_mission(self) -> bool:
+        """Planning or flying a mission (the node's own return included)."""
+        return (
+            self.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION) and self.mission_id is not None
+        )
 
 
 # ----------------------------------------------------------------------- node effects
@@ -95,7 +110,29 @@ class CancelMission:
     mission_id: int
 
 
-Effect = SetBase | SetFleet | SetActive | CancelMission
+@dataclass(frozen=True)
+class TakeOver:
+    """The operator's command flies the vehicle out of its mission: the mission manager
+    only watches for the landing (`phase`), the state machine gets `Recalled`."""
+
+    reason: str
+    phase: Phase
+
+
+@dataclass(frozen=True)
+class LandAt:
+    """EMERGENCY_LAND: the node plans the zone-safe route to `point` and lands there
+    (its requests become the command's)."""
+
+    point: GeoPoint
+
+
+@dataclass(frozen=True)
+class StopLanding:
+    """ABORT_LANDING: the mission manager stops bringing the vehicle down."""
+
+
+Effect = SetBase | SetFleet | SetActive | CancelMission | TakeOver | LandAt | StopLanding
 
 
 @dataclass(frozen=True)
@@ -118,16 +155,18 @@ def _land_request(profile: VehicleProfile) -> tuple[ApRequest, ...]:
 
 
 def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
-    """What to do with a command; None when it does not address this vehicle."""
-    if (
-        not cmd.target.addresses(view.self_id, view.fleet_id)
-        or cmd.target.kind == SelectorKind.QUANTITY
-    ):
+    """What to do with a command; None when it does not address this vehicle (a command
+    is answered by the vehicles it addresses only: one Ack per vehicle of the swarm for
+    every command would cost airtime on the radio for nothing)."""
+    if not cmd.target.addresses(view.self_id, view.fleet_id):
         return None
     k, a, p, ap = cmd.kind, cmd.args, view.profile, view.autopilot
 
     def reject(reason: AckReason, text: str = "") -> CommandPlan:
         return CommandPlan(ack=_ack(cmd, view, False, reason, text))
+
+    if cmd.target.kind == SelectorKind.QUANTITY:  # this vehicle is a candidate
+        return reject(AckReason.UNSUPPORTED, "choosing vehicles by voting is not implemented")
 
     def done(*effects: Effect) -> CommandPlan:
         return CommandPlan(effects=effects, ack=_ack(cmd, view, True))
@@ -197,11 +236,37 @@ def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
         if a.value is None:
             return reject(AckReason.INVALID, "SET_ALTITUDE needs an altitude (m above home)")
         return CommandPlan(requests=(ChangeAltitude(alt_rel_m=a.value),))
+    # During a mission (the node's own return included) RTL, LAND, EMERGENCY_LAND and
+    # PARACHUTE take the vehicle out of it at once: the state machine leaves the fleet
+    # (Recalled) and the sortie ends with the landing, whatever the autopilot answers
+    # (the operator decides what comes next).
+    recall = view.on_mission
     if k == CommandKind.RTL:
-        return CommandPlan(requests=(ReturnToLaunch(),))
-    if k in (CommandKind.LAND, CommandKind.EMERGENCY_LAND):
-        return CommandPlan(requests=_land_request(p))
+        return CommandPlan(
+            requests=(ReturnToLaunch(),),
+            effects=(TakeOver("operator RTL", Phase.RETURNING),) if recall else (),
+        )
+    if k == CommandKind.LAND:
+        return CommandPlan(
+            requests=_land_request(p),
+            effects=(TakeOver("operator LAND", Phase.LANDING),) if recall else (),
+        )
+    if k == CommandKind.EMERGENCY_LAND:
+        # paper 3.5.1: "if the landing route has been specified; otherwise, it requests
+        # the entry of the route": the route ends at args.point, planned around the zones
+        if a.point is None:
+            return reject(AckReason.INVALID, "EMERGENCY_LAND needs the landing point")
+        if not ap.armed:
+            return reject(AckReason.NOT_READY, "not flying")
+        if ap.home is None or ap.lat_deg is None or ap.lon_deg is None:
+            return reject(AckReason.HOME_NOT_SET, "no home or position")
+        return CommandPlan(
+            effects=(LandAt(a.point), TakeOver("operator EMERGENCY_LAND", Phase.LANDING))
+        )
     if k == CommandKind.ABORT_LANDING:
+        # the paper's "Cancel Landing": stop a landing (or the way home) and hold above
+        if not (view.landing or ap.mode_name in LANDING_MODES) or not ap.armed:
+            return reject(AckReason.NOT_FOUND, "not landing")
         if ap.lat_deg is None or ap.lon_deg is None:
             return reject(AckReason.NOT_READY, "no position")
         alt = max(ap.alt_rel_m or 0.0, ABORT_LANDING_MIN_ALT_M)
@@ -209,16 +274,28 @@ def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
             requests=(
                 SetMode(mode="GUIDED"),
                 Goto(lat_deg=ap.lat_deg, lon_deg=ap.lon_deg, alt_rel_m=alt),
-            )
+            ),
+            effects=(StopLanding(),),
         )
     if k == CommandKind.PARACHUTE:
+        # paper 3.5.1 "Parachute All": every vehicle with a parachute; the others refuse
         if not p.has_parachute:
             return reject(AckReason.UNSUPPORTED, "no parachute fitted")
-        return CommandPlan(requests=(Parachute(),))
+        return CommandPlan(
+            requests=(Parachute(),),
+            effects=(TakeOver("operator PARACHUTE", Phase.PARACHUTE),)
+            if recall or ap.armed
+            else (),
+        )
     if k == CommandKind.CALIBRATE:
+        what = a.text or "gyro"
+        if what not in CALIBRATIONS:
+            return reject(AckReason.INVALID, f"calibrate one of {', '.join(CALIBRATIONS)}")
         if ap.armed:
             return reject(AckReason.BUSY, "calibrate on the ground, disarmed")
-        return CommandPlan(requests=(Calibrate(what=a.text or "gyro"),))
+        if view.on_mission:
+            return reject(AckReason.BUSY, f"on mission {view.mission_id}")
+        return CommandPlan(requests=(Calibrate(what=what),))
     return reject(AckReason.UNSUPPORTED, k.name)
 
 
@@ -241,17 +318,17 @@ def emergency_requests(code: AlertCode, profile: VehicleProfile) -> tuple[ApRequ
     return (ReturnToLaunch(),)
 
 
-def check_mission(mission: Mission, view: NodeView) -> AckReason | None:
-    """The swarm manager's acceptance checks. None: the mission does not address this
-    vehicle (no answer). Otherwise OK or the first reason to reject, in the paper's
-    order: home not defined, vehicle not ready."""
+def check_mission(mission: Mission, view: NodeView) -> AckReason:
+    """The swarm manager's acceptance checks (paper section 2.3.3): OK or the first
+    reason to reject. A mission that does not address this vehicle is NOT_ADDRESSED
+    whatever the vehicle's state (its other problems do not concern this mission);
+    then the paper's order: home not defined (then no base), vehicle not ready
+    (an emergency first, then not ready)."""
     sel = mission.selection
-    if sel.kind == SelectorKind.QUANTITY:
-        if not sel.addresses(view.self_id, view.fleet_id):
-            return None
-        return AckReason.UNSUPPORTED  # voting selects vehicles: the mission manager's job
     if not sel.addresses(view.self_id, view.fleet_id):
-        return None
+        return AckReason.NOT_ADDRESSED
+    if sel.kind == SelectorKind.QUANTITY:
+        return AckReason.UNSUPPORTED  # voting selects vehicles: the mission manager's job
     if view.autopilot.home is None:
         return AckReason.HOME_NOT_SET
     if view.base is None:

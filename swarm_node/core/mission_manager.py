@@ -17,14 +17,24 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
 import msgspec
 from shapely.geometry import LineString
 
-from swarm_proto import GeoPoint, LatLon, Mission, MissionState, MissionType, NoFlyZone, VehicleType
+from swarm_proto import (
+    GeometryKind,
+    GeoPoint,
+    LatLon,
+    Mission,
+    MissionParams,
+    MissionState,
+    MissionType,
+    NoFlyZone,
+    VehicleType,
+)
 
 from . import state_machine as fsm
 from .autopilot.items import ItemKind, Waypoint
@@ -41,6 +51,7 @@ from .autopilot.requests import (
     UploadMission,
 )
 from .autopilot.state import AutopilotState
+from .fences import FENCE_FIRST_REQUEST_ID
 from .planning import (
     LocalFrame,
     PlanningError,
@@ -63,6 +74,39 @@ PLANNERS: dict[MissionType, Callable[..., object]] = {
     MissionType.OBJECTIVE: plan_objective,
 }
 
+#: parameters a planner reads as "not given" when 0 (besides None), per mission type
+UNSET_WHEN_ZERO: dict[MissionType, frozenset[str]] = {
+    MissionType.AUTOLAND: frozenset({"separation_s", "altitude_step_m"}),
+    MissionType.MUMT: frozenset({"altitude_step_m", "radius_m"}),
+}
+
+
+def with_defaults(mission: Mission, defaults: Mapping[str, float]) -> Mission:
+    """The mission with its unspecified parameters taken from the swarm database's
+    defaults for its type (`SwarmDatabase.mission_defaults`). Unspecified: None, or 0
+    where the planner reads 0 as "not given" (`UNSET_WHEN_ZERO`); a circle's radius is
+    its geometry's. Parameters with a value are the operator's (the ground station
+    fills them from the same defaults). A default that is not a valid value is ignored."""
+    p = mission.params
+    zero_unset = UNSET_WHEN_ZERO.get(mission.mission_type, frozenset())
+    changes: dict[str, float] = {}
+    for name, value in defaults.items():
+        if name not in MissionParams.__struct_fields__:
+            continue
+        if name == "radius_m" and mission.geometry.kind == GeometryKind.CIRCLE:
+            continue
+        current = getattr(p, name)
+        if current is None or (current == 0 and name in zero_unset):
+            changes[name] = value
+    if not changes:
+        return mission
+    try:
+        params = msgspec.convert({**msgspec.to_builtins(p), **changes}, MissionParams, strict=False)
+    except msgspec.ValidationError:
+        return mission
+    return msgspec.structs.replace(mission, params=params)
+
+
 CLIMB_FRACTION = 0.8  # start the mission once this much of the take-off altitude is reached
 LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close to home
 TRANSIT_MARGIN_M = 20.0  # least clearance from a no-fly zone on transit legs
@@ -83,6 +127,7 @@ class Phase(Enum):
     FLYING = "flying"  # the mission is running on the autopilot
     RETURNING = "returning"  # RTL
     LANDING = "landing"
+    PARACHUTE = "parachute"  # released: coming down under the canopy
 
 
 @dataclass(frozen=True)
@@ -293,6 +338,7 @@ class MissionManager:
             Phase.FLYING: MissionState.MISSION,
             Phase.RETURNING: MissionState.MISSION,
             Phase.LANDING: MissionState.MISSION,
+            Phase.PARACHUTE: MissionState.PARACHUTE,
         }[self.phase]
 
     @property
@@ -308,7 +354,7 @@ class MissionManager:
         return max(TRANSIT_MARGIN_M, 2.0 * self.profile.turn_radius_m())
 
     def owns(self, request_id: int) -> bool:
-        return request_id >= FIRST_REQUEST_ID
+        return FIRST_REQUEST_ID <= request_id < FENCE_FIRST_REQUEST_ID
 
     # ------------------------------------------------------------------ start
     def release(
@@ -476,6 +522,41 @@ class MissionManager:
     def stop(self) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
 
+    def take_over(self, phase: Phase) -> None:
+        """The operator's command (RTL, LAND, EMERGENCY_LAND, PARACHUTE) flies the
+        vehicle now: drop whatever was planned and only watch for the landing
+        (RETURNING: a hover-capable vehicle is landed once near home, as on the node's
+        own return)."""
+        self.stop()
+        self.phase, self.mission_id = phase, fsm.RETURN_MISSION
+
+    @property
+    def landing(self) -> bool:
+        """On the way down or home (what ABORT_LANDING can cancel)."""
+        return self.phase in (Phase.RETURNING, Phase.LANDING)
+
+    def landing_route(
+        self, point: GeoPoint, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float
+    ) -> tuple[ApRequest, ...]:
+        """An emergency landing at `point` (paper section 3.5.1: "if the landing route has
+        been specified"): a zone-safe leg from here at the current altitude (at least
+        30 m), then a landing item there, flown in AUTO."""
+        home = ap.home
+        if home is None or ap.lat_deg is None or ap.lon_deg is None:
+            raise PlanningError("no position or home")
+        alt = max(ap.alt_rel_m or 0.0, 30.0)
+        leg = self._transit(
+            (ap.lat_deg, ap.lon_deg),
+            ap.heading_deg,
+            (point.lat_deg, point.lon_deg),
+            alt,
+            zones,
+            now,
+            home.alt_msl_m,
+        )
+        land = Waypoint(ItemKind.LAND, point.lat_deg, point.lon_deg, 0.0)
+        return (UploadMission(items=(*self._tight(leg[:-1]), land)), StartMission())
+
     # ------------------------------------------------------------------ inputs
     def on_result(self, result: ApResult, now: float) -> list[Out]:
         done = self._in_flight
@@ -502,6 +583,13 @@ class MissionManager:
         return self._next()
 
     def on_autopilot(self, ap: AutopilotState, now: float) -> list[Out]:
+        if (
+            self.phase in (Phase.RETURNING, Phase.LANDING, Phase.PARACHUTE)
+            and not ap.armed
+            and (ap.alt_rel_m or 0.0) < 2.0
+        ):
+            self.stop()
+            return [FsmEvent(fsm.LandingComplete())]
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
                 self.phase = Phase.STARTING
@@ -525,13 +613,6 @@ class MissionManager:
                 ground = self.profile.vehicle_type in (VehicleType.ROVER, VehicleType.BOAT)
                 self._steps = [Land(), Disarm()] if ground else [Land()]
                 return self._next()
-        if (
-            self.phase in (Phase.RETURNING, Phase.LANDING)
-            and not ap.armed
-            and (ap.alt_rel_m or 0.0) < 2.0
-        ):
-            self.stop()
-            return [FsmEvent(fsm.LandingComplete())]
         return []
 
     def progress_pct(self, ap: AutopilotState) -> int | None:

@@ -136,8 +136,7 @@ def inside(geometry: Geometry, lat_deg: float, lon_deg: float) -> bool:
 class VehicleMonitor:
     vehicle_id: int
     thresholds: Thresholds = field(default_factory=Thresholds)
-    zones: dict[int, NoFlyZone] = field(default_factory=dict)
-    operating_area: Geometry | None = None  # leaving it is a geofence breach
+    zones: dict[int, NoFlyZone] = field(default_factory=dict)  # and operating areas
     _tracked: dict[AlertCode, _Tracked] = field(default_factory=dict)
     _had_gps: bool = False
     _had_ekf: bool = False
@@ -179,18 +178,19 @@ class VehicleMonitor:
         return seen
 
     def _breach(self, s: AutopilotState, now: float) -> str | None:
-        """What is breached ("left the operating area", "in zone 3"), or None."""
+        """What is breached ("left operating area 2", "in no-fly zone 3"), or None.
+        Operating areas are 2-D (as ArduPilot's inclusion fences); with several, the
+        vehicle must be inside all of them."""
         assert s.lat_deg is not None and s.lon_deg is not None
-        if self.operating_area is not None and not inside(
-            self.operating_area, s.lat_deg, s.lon_deg
-        ):
-            return "left the operating area"
         alt = s.alt_msl_m if s.alt_msl_m is not None else 0.0
-        for z in self.zones.values():
-            if (
-                z.in_force(now)
-                and z.floor_alt_msl_m <= alt <= z.ceiling_alt_msl_m
-                and inside(z.geometry, s.lat_deg, s.lon_deg)
+        for z in sorted(self.zones.values(), key=lambda z: (not z.operating_area, z.zone_id)):
+            if not z.in_force(now):
+                continue
+            if z.operating_area:
+                if not inside(z.geometry, s.lat_deg, s.lon_deg):
+                    return f"left operating area {z.zone_id}"
+            elif z.floor_alt_msl_m <= alt <= z.ceiling_alt_msl_m and inside(
+                z.geometry, s.lat_deg, s.lon_deg
             ):
                 return f"in no-fly zone {z.zone_id}"
         return None

@@ -31,6 +31,7 @@ from swarm_proto import (
     GeoPoint,
     Mission,
     MissionState,
+    MissionType,
     NoFlyZone,
     Severity,
     VehicleInfo,
@@ -45,21 +46,33 @@ from .commands import (
     AnswerCache,
     CancelMission,
     CommandTracker,
+    Effect,
+    LandAt,
     NodeView,
     SetActive,
     SetBase,
     SetFleet,
+    StopLanding,
+    TakeOver,
     answer_key,
     check_mission,
     emergency_requests,
     plan_command,
 )
+from .fences import (
+    FENCE_FULL_HEIGHT_REL_M,
+    FENCE_MAX_ITEMS,
+    FenceKeeper,
+    FencePlan,
+    plan_fence,
+)
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission_manager import Log as ManagerLog
-from .mission_manager import Member, MissionManager
+from .mission_manager import Member, MissionManager, with_defaults
 from .mission_manager import Out as MissionOut
 from .mission_manager import Submit as ManagerSubmit
 from .monitoring import Thresholds, VehicleMonitor
+from .planning import PlanningError
 from .profile import VehicleProfile
 
 log = logging.getLogger(__name__)
@@ -125,6 +138,7 @@ class NodeSettings:
     plan_timeout_s: float = 60.0
     stale_after_s: float = 2.0
     thresholds: Thresholds | None = None  # default: from the profile
+    fence_max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
 
 
 # ----------------------------------------------------------------------------- core
@@ -136,6 +150,8 @@ class NodeCore:
     settings: NodeSettings = field(default_factory=NodeSettings)
     now: float = 0.0
     fleet_profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)  # from the database
+    # the database's default parameters per kind of mission (fill what a mission leaves unset)
+    mission_defaults: Mapping[MissionType, Mapping[str, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         vid = self.profile.vehicle_id
@@ -157,6 +173,10 @@ class NodeCore:
         self.mission_state = MissionState.IDLE
         self.mission_progress_pct = 0
         self.bad_input: Counter[str] = Counter()
+        self.fence = FenceKeeper()  # zones -> the autopilot's fence (fences.py)
+        self.fence_plan: FencePlan | None = None
+        self._zones_version = 0  # 0: no zone heard yet, the autopilot's fence is left alone
+        self._fence_key: object = None
         self._next_status = self.now
         self._next_info = self.now
 
@@ -171,6 +191,7 @@ class NodeCore:
             mission_id=self.fsm.mission_id,
             base=self.base,
             ready=self.monitor.ready,
+            landing=self.manager.landing,
         )
 
     def status(self, now: float) -> VehicleStatus | None:
@@ -213,6 +234,8 @@ class NodeCore:
         if isinstance(event, AutopilotUpdate):
             return self._on_autopilot(event.state, now)
         if isinstance(event, AutopilotResult):
+            if self.fence.owns(event.result.request_id):
+                return self._fence_result(event.result, now)
             if self.manager.owns(event.result.request_id):
                 return self._from_manager(self.manager.on_result(event.result, now))
             reqs, acks = self.commands.on_result(event.result, now)
@@ -233,7 +256,7 @@ class NodeCore:
         progress = self.manager.progress_pct(state)
         if progress is not None:
             self.mission_progress_pct = progress
-        return out
+        return out + self._keep_fence(now)
 
     def _from_manager(self, outs: list[MissionOut]) -> list[Output]:
         out: list[Output] = []
@@ -258,7 +281,8 @@ class NodeCore:
             return self._on_mission(msg)
         if isinstance(msg, NoFlyZone):
             self.monitor.zones[msg.zone_id] = msg
-            return []
+            self._zones_version += 1
+            return self._keep_fence(now)
         if isinstance(msg, FleetAssignment):
             return self._on_fleet(msg)
         return []  # acks, alerts, votes, targets: not for the node core (yet)
@@ -285,9 +309,20 @@ class NodeCore:
         if plan is None:
             return []
         self.answers.taken(answer_key(cmd))
+        requests = plan.requests
+        for effect in plan.effects:
+            if isinstance(effect, LandAt):
+                try:
+                    requests += self.manager.landing_route(
+                        effect.point, self.autopilot, self.planning_zones(now), now
+                    )
+                except (PlanningError, ValueError) as exc:
+                    ack = Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, False,
+                              AckReason.INVALID, f"no landing route: {exc}"[:64])  # fmt: skip
+                    return self._answer([ack])
         for effect in plan.effects:
             self._apply(effect)
-        out: list[Output] = [Submit(r) for r in self.commands.start(cmd, plan.requests, now)]
+        out: list[Output] = [Submit(r) for r in self.commands.start(cmd, requests, now)]
         if plan.ack is not None:
             out += self._answer([plan.ack])
             if not plan.ack.accepted:
@@ -299,7 +334,7 @@ class NodeCore:
                 )
         return out
 
-    def _apply(self, effect: SetBase | SetFleet | SetActive | CancelMission) -> None:
+    def _apply(self, effect: Effect) -> None:
         if isinstance(effect, SetBase):
             self.base = effect.point
         elif isinstance(effect, SetFleet):
@@ -308,20 +343,28 @@ class NodeCore:
             self.active = effect.active
         elif isinstance(effect, CancelMission):
             self.fsm.post(fsm.LeftFleet(f"mission {effect.mission_id} cancelled"))
+        elif isinstance(effect, TakeOver):
+            self.manager.take_over(effect.phase)
+            self.mission_state = self.manager.mission_state
+            if self.fsm.state in (FsmState.PLAN, FsmState.GO_MISSION):
+                self.fsm.post(fsm.Recalled(effect.reason))
+        elif isinstance(effect, StopLanding):
+            self.manager.stop()  # the operator holds the vehicle; LAND or RTL ends the sortie
+            self.mission_state = self.manager.mission_state
 
     def _on_mission(self, mission: Mission) -> list[Output]:
         repeat = self._repeat(mission)
         if repeat is not None:
             return repeat
         reason = check_mission(mission, self.view())
-        if reason is None:
-            return []
         ok = reason == AckReason.OK
         ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason)
         # only an acceptance is remembered: a rejected mission sent again is checked again
-        # (the operator may have fixed what was wrong, e.g. set the base)
+        # (the operator may have fixed what was wrong, e.g. set the base; a vehicle may
+        # have joined the fleet the mission addresses)
         out: list[Output] = self._answer([ack]) if ok else [Publish(ack)]
         if ok:
+            mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
             self.missions[mission.mission_id] = mission
             self.fleet_members = tuple(mission.selection.vehicle_ids) or (self.self_id,)
             self.fsm.post(fsm.NewMission(mission.mission_id))
@@ -337,6 +380,63 @@ class NodeCore:
             self.fsm.post(fsm.LeftFleet("removed from the fleet"))
         return []
 
+    # ------------------------------------------------------------------ fences
+    def fly_ceiling_rel_m(self) -> float:
+        """The highest this vehicle flies above home: zones below it may be overflown."""
+        top = FENCE_FULL_HEIGHT_REL_M
+        for m in self.missions.values():
+            n = max(1, len(m.selection.vehicle_ids))
+            top = max(top, m.params.altitude_rel_m + m.params.altitude_step_m * (n - 1))
+        return top
+
+    def _keep_fence(self, now: float) -> list[Output]:
+        """Keep the autopilot's fence equal to the zones in force (fences.py): a new plan
+        when a zone, its validity, home or the flight ceiling changed."""
+        home = self.autopilot.home
+        if self._zones_version == 0 or home is None:
+            return []
+        in_force = tuple(sorted(z.zone_id for z in self.monitor.zones.values() if z.in_force(now)))
+        ceiling = self.fly_ceiling_rel_m()
+        key = (self._zones_version, in_force, home, ceiling)
+        if key == self._fence_key:
+            return [Submit(r) for r in self.fence.on_timer(now)]
+        self._fence_key = key
+        before = self.fence_plan
+        plan = plan_fence(
+            self.monitor.zones.values(),
+            now,
+            home=home,
+            fly_ceiling_rel_m=ceiling,
+            max_items=self.settings.fence_max_items,
+        )
+        self.fence_plan = plan
+        out: list[Output] = []
+        if plan.left_out and (before is None or before.left_out != plan.left_out):
+            ids = ",".join(str(i) for i in plan.left_out)
+            text = f"fence full: zones {ids} not in the autopilot"
+            out += [
+                Note(logging.WARNING, text),
+                Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
+                              AlertCode.NO_FLY_ZONE, text[:64])),
+            ]  # fmt: skip
+        return out + [Submit(r) for r in self.fence.update(plan.request, now)]
+
+    def _fence_result(self, result: ApResult, now: float) -> list[Output]:
+        reqs, problem = self.fence.on_result(result, now)
+        out: list[Output] = [Submit(r) for r in reqs]
+        if problem is not None and self.fence.failures == 1:  # once per run of failures
+            out += [
+                Note(logging.WARNING, f"{problem}; retrying every {self.fence.retry_s:g} s"),
+                Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
+                              AlertCode.NO_FLY_ZONE, problem[:64])),
+            ]  # fmt: skip
+        return out
+
+    def planning_zones(self, now: float) -> list[NoFlyZone]:
+        """The no-fly zones the planners avoid: those in force (operating areas are not
+        no-fly zones)."""
+        return [z for z in self.monitor.zones.values() if z.in_force(now) and not z.operating_area]
+
     def _peer_events(self, events: list[PeerEvent]) -> list[Output]:
         out: list[Output] = []
         for ev in events:
@@ -349,7 +449,11 @@ class NodeCore:
     # ------------------------------------------------------------------ time
     def next_deadline(self) -> float:
         candidates = [self._next_status, self._next_info, self.fsm.next_deadline()]
-        for d in (self.members.next_deadline(), self.commands.next_deadline()):
+        for d in (
+            self.members.next_deadline(),
+            self.commands.next_deadline(),
+            self.fence.next_deadline(),
+        ):
             if d is not None:
                 candidates.append(d)
         return min(candidates)
@@ -359,6 +463,7 @@ class NodeCore:
         out: list[Output] = []
         out += self._peer_events(self.members.on_timer(now))
         out += self._answer(self.commands.on_timer(now))
+        out += self._keep_fence(now)
         if now >= self.fsm.next_deadline():
             out += self._tick_fsm(now)
         if now >= self._next_status:
@@ -430,6 +535,10 @@ class NodeCore:
             self.fleet_id = 0
             self.fleet_members = (self.self_id,)
             return []
+        if isinstance(o, fsm.FollowOperator):
+            if o.mission_id is not None:
+                self.missions.pop(o.mission_id, None)  # left, not completed
+            return [Note(logging.WARNING, f"left mission {o.mission_id}: {o.reason}")]
         if isinstance(o, fsm.BeginPlan):
             self.mission_state = MissionState.PLANNING
             self.mission_progress_pct = 0
@@ -483,14 +592,11 @@ class NodeCore:
                 Note(logging.ERROR, f"cannot plan mission {mission_id}: no profile for {unknown}")
             ]
         return self._from_manager(
-            self.manager.release(
-                mission, members, tuple(self.monitor.zones.values()), self.autopilot, now
-            )
+            self.manager.release(mission, members, self.planning_zones(now), self.autopilot, now)
         )
 
     def _start_return(self, now: float) -> list[MissionOut]:
-        zones = [z for z in self.monitor.zones.values() if z.in_force(now)]
-        return self.manager.start_return(self.autopilot, zones, now)
+        return self.manager.start_return(self.autopilot, self.planning_zones(now), now)
 
     def _members(self) -> tuple[list[Member], list[int]]:
         """The fleet as the planners see it: profiles from the database, homes from the

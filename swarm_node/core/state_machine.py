@@ -106,8 +106,24 @@ class LeftFleet:
     reason: str = ""
 
 
+@dataclass(frozen=True)
+class Recalled:
+    """The operator took the vehicle out of its mission (RTL, LAND, EMERGENCY_LAND,
+    PARACHUTE): the command manager already drives the autopilot; the vehicle leaves
+    its fleet and the mission, and its landing completes the sortie."""
+
+    reason: str = ""
+
+
 Event = (
-    NewMission | Replan | PlanSucceeded | PlanFailed | MissionComplete | LandingComplete | LeftFleet
+    NewMission
+    | Replan
+    | PlanSucceeded
+    | PlanFailed
+    | MissionComplete
+    | LandingComplete
+    | LeftFleet
+    | Recalled
 )
 
 
@@ -152,6 +168,15 @@ class LeaveFleet:
 
 
 @dataclass(frozen=True)
+class FollowOperator:
+    """Drop `mission_id` (never completed) and let the operator's command fly the
+    vehicle home or down; the machine waits in GO_MISSION for the landing."""
+
+    mission_id: int | None
+    reason: str
+
+
+@dataclass(frozen=True)
 class StartEmergency:
     code: AlertCode
     severity: Severity
@@ -187,6 +212,7 @@ Output = (
     | MissionFinished
     | ReturnHome
     | LeaveFleet
+    | FollowOperator
     | StartEmergency
     | RaiseAlert
     | Activated
@@ -309,6 +335,22 @@ RULES: tuple[Rule, ...] = (
             LeaveFleet(getattr(c.event, "reason", "")),
             RaiseAlert(AlertCode.MISSION_FAILED, Severity.WARNING, "left the fleet, returning"),
             BeginPlan(RETURN_MISSION),
+        ),
+    ),
+    Rule(
+        "recalled",
+        (G, P),
+        "the operator took the vehicle out of the mission",
+        Action.READY,
+        event=Recalled,
+        outputs=lambda c: (
+            LeaveFleet(getattr(c.event, "reason", "")),
+            RaiseAlert(
+                AlertCode.MISSION_FAILED,
+                Severity.WARNING,
+                f"left the mission: {getattr(c.event, 'reason', '')}"[:64],
+            ),
+            FollowOperator(c.mission_id, getattr(c.event, "reason", "")),
         ),
     ),
     Rule(
@@ -472,7 +514,7 @@ class StateMachine:
                 self.released = True
             elif isinstance(out, StartEmergency):
                 self.emergency = Emergency(out.code, out.severity)
-            elif isinstance(out, ReturnHome | Deactivated):
+            elif isinstance(out, ReturnHome | FollowOperator | Deactivated):
                 self.mission_id = None if isinstance(out, Deactivated) else RETURN_MISSION
                 self.released = False
         target = ACTION_TARGET[rule.action]

@@ -45,6 +45,7 @@ class ProfileOverride(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     battery_low_pct: int = 30
     battery_critical_pct: int = 15
     has_parachute: bool = False
+    max_tilt_deg: float = 60.0  # abnormal attitude beyond this roll or pitch
 
 
 class NodeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -110,4 +111,5 @@ def profile_from_config(cfg: NodeConfig) -> VehicleProfile:
         battery_low_pct=p.battery_low_pct,
         battery_critical_pct=p.battery_critical_pct,
         has_parachute=p.has_parachute,
+        max_tilt_deg=p.max_tilt_deg,
     )

@@ -19,7 +19,7 @@ from typing import Protocol
 import msgspec
 import zenoh
 
-from swarm_proto import Alert, Clock, PeerEntry, SwarmView, lan
+from swarm_proto import Alert, Clock, MissionType, PeerEntry, SwarmView, lan
 from swarm_proto.session import SwarmBus
 from swarm_proto.topics import COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE
 
@@ -45,6 +45,21 @@ from ..database.queryable import DatabaseQueryable
 from .config import NodeConfig
 
 log = logging.getLogger("swarm_node")
+
+
+def node_settings(config: NodeConfig) -> NodeSettings:
+    """The core's settings from the node's configuration (file and command line)."""
+    return NodeSettings(
+        status_period_s=1.0 / config.status_hz,
+        info_period_s=1.0 / config.info_hz,
+        plan_timeout_s=config.plan_timeout_s,
+        stale_after_s=config.stale_after_s,
+    )
+
+
+def mission_defaults_of(database: SwarmDatabase) -> dict[MissionType, dict[str, float]]:
+    """Every kind of mission's default parameters, from the swarm database."""
+    return {t: database.mission_defaults(t) for t in MissionType}
 
 
 class AutopilotPort(Protocol):
@@ -88,12 +103,7 @@ class NodeRuntime:
         self.autopilot: AutopilotPort = autopilot or NoAutopilot()
         self.core = NodeCore(
             profile,
-            NodeSettings(
-                status_period_s=1.0 / config.status_hz,
-                info_period_s=1.0 / config.info_hz,
-                plan_timeout_s=config.plan_timeout_s,
-                stale_after_s=config.stale_after_s,
-            ),
+            node_settings(config),
             now=clock.now(),
             # the planners need every fleet member's airframe: the database knows them all
             fleet_profiles=(
@@ -101,6 +111,7 @@ class NodeRuntime:
                 if database is not None
                 else {profile.vehicle_id: profile}
             ),
+            mission_defaults=mission_defaults_of(database) if database is not None else {},
         )
         self.inbox: queue.SimpleQueue[Input] = queue.SimpleQueue()
         self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)

@@ -155,6 +155,9 @@ def _param_table(
         "ARMING_CHECK": (1.0, 6),
         "FENCE_ENABLE": (0.0, 2),
         "FENCE_ACTION": (1.0, 2),
+        # ArduPilot's defaults: Copter ALT_MAX|CIRCLE|POLYGON, Plane POLYGON, Rover
+        # CIRCLE|POLYGON; the simulator enforces the POLYGON bit (polygon/circle items)
+        "FENCE_TYPE": ({Firmware.COPTER: 7.0, Firmware.PLANE: 4.0}.get(fw, 6.0), 2),
         "CHUTE_ENABLED": (1.0 if af.has_parachute else 0.0, 2),
         "BATT_CAPACITY": (af.battery.capacity_mah, 6),
         "SIM_WIND_SPD": (opts.wind_speed_m_s, 9),
@@ -615,7 +618,12 @@ class SimAutopilot:
             self._disarm()
 
     def _fence_check(self) -> None:
-        if self._param("FENCE_ENABLE") == 0 or not self.fence_items or self.body.on_ground:
+        if (
+            self._param("FENCE_ENABLE") == 0
+            or not int(self._param("FENCE_TYPE")) & 4
+            or not self.fence_items
+            or self.body.on_ground
+        ):
             self.fence_breached = False
             return
         breached = self._outside_fence()

@@ -12,8 +12,8 @@ import pytest
 from typer.testing import CliRunner
 
 from gcs_cli.cli import app
-from gcs_cli.ground import GroundStation
-from swarm_proto import SystemClock
+from gcs_cli.ground import FleetView, GroundStation
+from swarm_proto import AlertCode, SystemClock
 from swarm_proto.session import ZenohSettings
 from swarm_sim.runtime import VehicleServer, VehicleSpec
 from tests.conftest import free_tcp_port
@@ -102,6 +102,10 @@ def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
     )
     assert r.exit_code == 2 and "Self-intersection" in r.stdout + str(r.stderr)  # type: ignore[attr-defined]
 
+    # every vehicle answers a mission; one addressed to nobody who is there says so
+    r = gcs(router, swarm, "mission", "target", "--point", "37.4125,-5.9889", "--id", "8")
+    assert r.exit_code == 1 and "addresses none of the vehicles (7 answered)" in r.stdout  # type: ignore[attr-defined]
+
     r = gcs(
         router, swarm, "mission", "target", "--point", "37.4125,-5.9889", "--id", "7", "--alt", "30"
     )
@@ -120,5 +124,29 @@ def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
             watcher.close()
         r = gcs(router, swarm, "peers", "7")
         assert r.exit_code == 0 and "GCS" in r.stdout  # type: ignore[attr-defined]
+
+        # an operating area the vehicle is not in: the running node raises a geofence
+        # breach (and loads the area into its autopilot as an inclusion fence)
+        r = gcs(router, swarm, "zone", "add", "5", "--circle", "37.50,-5.90,300",
+                "--operating-area")  # fmt: skip
+        assert r.exit_code == 0 and "operating area 5 declared" in r.stdout  # type: ignore[attr-defined]
+
+        def breach(view: FleetView) -> bool:
+            return any(
+                a.vehicle_id == 7
+                and a.code == AlertCode.GEOFENCE_BREACH
+                and "left operating area 5" in a.text
+                for a in view.alerts
+            )
+
+        assert console.wait_for(breach, 15.0), list(console.snapshot().alerts)
+        r = gcs(router, swarm, "zone", "remove", "5")
+        assert r.exit_code == 0 and "zone 5 withdrawn" in r.stdout  # type: ignore[attr-defined]
     finally:
         console.close()
+
+
+def test_emergency_land_asks_for_the_landing_point() -> None:
+    r = runner.invoke(app, ["--connect", "tcp/127.0.0.1:1", "cmd", "emergency-land"])
+    text = " ".join((r.stdout + str(r.stderr)).replace("│", " ").split())  # rich's box
+    assert r.exit_code == 2 and "where the landing route ends" in text

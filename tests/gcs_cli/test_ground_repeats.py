@@ -10,9 +10,21 @@ import time
 import pytest
 
 from gcs_cli.ground import GroundStation
-from swarm_proto import Ack, AckRef, Command, CommandKind, Selector, VehicleInfo, VehicleType
+from swarm_proto import (
+    Ack,
+    AckReason,
+    AckRef,
+    Command,
+    CommandKind,
+    Geometry,
+    Mission,
+    MissionType,
+    Selector,
+    VehicleInfo,
+    VehicleType,
+)
 from swarm_proto.session import SwarmBus, ZenohSettings
-from swarm_proto.topics import COMMAND
+from swarm_proto.topics import COMMAND, MISSION
 
 pytestmark = pytest.mark.network
 
@@ -44,3 +56,61 @@ def test_a_lost_command_is_sent_again_until_answered(zenoh_router: str) -> None:
     assert heard.is_set() and len(copies) >= 2
     assert len({(c.seq, c.kind) for c in copies}) == 1  # repeats are the same command
     assert [(a.vehicle_id, a.accepted) for a in acks] == [(5, True)]
+
+
+def test_a_mission_waits_for_the_addressed_vehicles_not_the_others(zenoh_router: str) -> None:
+    """Every vehicle answers a mission; one it does not address answers NOT_ADDRESSED at
+    once, and the ground station still waits for the addressed one (here it answers the
+    second copy only) and returns both answers."""
+    settings = ZenohSettings(mode="client", connect=(zenoh_router,))
+    copies: list[Mission] = []
+    with SwarmBus.open(settings, "mis") as vehicles:
+
+        def on_mission(m: Mission, key: str) -> None:
+            copies.append(m)
+            vehicles.publish(Ack(6, m.issuer_id, AckRef.MISSION, m.mission_id, False,
+                                 AckReason.NOT_ADDRESSED))  # fmt: skip
+            if len(copies) >= 2:
+                vehicles.publish(Ack(5, m.issuer_id, AckRef.MISSION, m.mission_id, True))
+
+        vehicles.subscribe(MISSION, on_mission)
+        gs = GroundStation(settings, "mis", announce=False)
+        gs.repeat_s = 0.2
+        try:
+            for vid in (5, 6):
+                vehicles.publish(VehicleInfo(vid, VehicleType.COPTER, "Generic Quad", f"U{vid}"))
+            assert gs.wait_for(lambda v: {5, 6} <= set(v.vehicle_ids()), 10.0)
+            mission = Mission(77, gs.gcs_id, MissionType.OBJECTIVE, Geometry.point(37.4, -6.0),
+                              selection=Selector.ids(5))  # fmt: skip
+            acks = gs.mission(mission, timeout_s=10.0)
+        finally:
+            gs.close()
+    assert len(copies) >= 2
+    assert sorted((a.vehicle_id, a.reason) for a in acks) == [
+        (5, AckReason.OK),
+        (6, AckReason.NOT_ADDRESSED),
+    ]
+
+
+def test_the_ground_station_does_not_wait_for_itself(zenoh_router: str) -> None:
+    """Its own liveliness token is not a vehicle: a command to ALL returns once the
+    vehicles answered, not at the timeout."""
+    settings = ZenohSettings(mode="client", connect=(zenoh_router,))
+    with SwarmBus.open(settings, "self") as vehicle:
+        vehicle.subscribe(
+            COMMAND,
+            lambda cmd, key: vehicle.publish(Ack(5, cmd.issuer_id, AckRef.COMMAND, cmd.seq, True)),
+        )
+        gs = GroundStation(settings, "self")  # announces itself: token and VehicleInfo
+        try:
+            vehicle.publish(VehicleInfo(5, VehicleType.COPTER, "Generic Quad", "U5"))
+            # at once, before its own VehicleInfo (1 s) could say it is a ground station
+            assert gs.wait_for(lambda v: 5 in v.vehicle_ids(), 10.0)
+            assert gs.snapshot().vehicle_ids() == [5]
+            t0 = time.monotonic()
+            acks = gs.command(CommandKind.ACTIVATE, timeout_s=20.0)
+            took = time.monotonic() - t0
+        finally:
+            gs.close()
+    assert [(a.vehicle_id, a.accepted) for a in acks] == [(5, True)]
+    assert took < 10.0  # generous: it returns in milliseconds; the timeout is 20 s

@@ -2,9 +2,26 @@
 
 from __future__ import annotations
 
+import dataclasses
+
+import pytest
+
 from swarm_node.core.autopilot.state import AutopilotState
 from swarm_node.core.monitoring import Thresholds, VehicleMonitor, inside
-from swarm_proto import AlertCode, AlertFlag, Geometry, GeoPoint, GpsFix, NoFlyZone, Severity
+from swarm_node.core.node import NodeCore
+from swarm_node.core.profile import VehicleProfile
+from swarm_node.database import SwarmDatabase
+from swarm_node.database.seed import GROUND_STATION, SEED_MODELS
+from swarm_proto import (
+    AlertCode,
+    AlertFlag,
+    Geometry,
+    GeoPoint,
+    GpsFix,
+    NoFlyZone,
+    Severity,
+    VehicleType,
+)
 
 HOME = GeoPoint(37.4112, -5.9889, 10.0)
 
@@ -152,8 +169,64 @@ def test_geofence_breach_in_a_zone_between_floor_and_ceiling() -> None:
 def test_leaving_the_operating_area() -> None:
     area = Geometry.polygon([(37.40, -6.00), (37.40, -5.97), (37.42, -5.97), (37.42, -6.00)])
     assert inside(area, 37.41, -5.99) and not inside(area, 37.43, -5.99)
-    mon = VehicleMonitor(3, Thresholds(raise_after_s=0.0), operating_area=area)
-    assert run(mon, [(0.0, healthy())]) == []
+    zone = NoFlyZone(2, area, floor_alt_msl_m=0.0, ceiling_alt_msl_m=1.0, operating_area=True)
+    mon = VehicleMonitor(3, Thresholds(raise_after_s=0.0), zones={2: zone})
+    assert run(mon, [(0.0, healthy())]) == []  # 2-D: its floor and ceiling do not matter
     assert run(mon, [(1.0, healthy(lat_deg=37.43))]) == [
         (1.0, AlertCode.GEOFENCE_BREACH, Severity.CRITICAL)
     ]
+    # with two areas, the vehicle must be inside both (as ArduPilot's inclusion fences)
+    west = Geometry.polygon([(37.40, -6.00), (37.40, -5.985), (37.42, -5.985), (37.42, -6.00)])
+    mon.zones[5] = NoFlyZone(5, west, operating_area=True)
+    assert run(mon, [(2.0, healthy()), (5.5, healthy()), (6.0, healthy(lon_deg=-5.98))]) == [
+        (5.5, AlertCode.CONDITION_CLEARED, Severity.INFO),
+        (6.0, AlertCode.GEOFENCE_BREACH, Severity.CRITICAL),
+    ]
+    assert mon._breach_text == "left operating area 5"
+
+
+# ----------------------------------------------------------------------- per model
+
+
+def test_thresholds_from_a_profile() -> None:
+    p = VehicleProfile(1, "U1", "m", VehicleType.ROVER, battery_low_pct=25,
+                       battery_critical_pct=10, max_tilt_deg=35.0)  # fmt: skip
+    t = Thresholds.from_profile(p)
+    assert (t.battery_low_pct, t.battery_critical_pct, t.max_tilt_deg) == (25, 10, 35.0)
+    assert (t.min_sats, t.raise_after_s, t.clear_after_s) == (6, 1.0, 3.0)  # not per model
+
+
+@pytest.mark.parametrize("model", [m for m in SEED_MODELS if m != GROUND_STATION])
+def test_each_seed_models_thresholds_reach_the_monitor(model: str) -> None:
+    """The database's model parameters (not the defaults) are what the node's monitor
+    uses, and they decide when alerts are raised."""
+    with SwarmDatabase.memory() as db:
+        row = next(r for r in db.group("systems")["model-params"] if r["model"] == model)
+        profile = next(p for p in db.profiles() if p.model == model)
+    node = NodeCore(profile)
+    t = node.monitor.thresholds
+    assert (t.battery_low_pct, t.battery_critical_pct, t.max_tilt_deg) == (
+        row["battery_low_pct"],
+        row["battery_critical_pct"],
+        row["max_tilt_deg"],
+    )
+    mon = VehicleMonitor(3, dataclasses.replace(t, raise_after_s=0.0))
+    low, crit, tilt = t.battery_low_pct, t.battery_critical_pct, t.max_tilt_deg
+    assert run(mon, [(0.0, healthy(battery_pct=low + 1, roll_deg=tilt - 1))]) == []
+    assert run(mon, [(1.0, healthy(battery_pct=low, roll_deg=tilt + 1))]) == [
+        (1.0, AlertCode.BATTERY_LOW, Severity.WARNING),
+        (1.0, AlertCode.ATTITUDE_ABNORMAL, Severity.CRITICAL),
+    ]
+    assert (2.0, AlertCode.BATTERY_CRITICAL, Severity.CRITICAL) in run(
+        mon, [(2.0, healthy(battery_pct=crit, roll_deg=tilt + 1))]
+    )
+
+
+def test_a_changed_model_parameter_reaches_the_monitor() -> None:
+    with SwarmDatabase.memory() as db:
+        row = next(r for r in db.group("systems")["model-params"] if r["model"] == "Generic Rover")
+        db.remove("systems.model-params", "Generic Rover")
+        db.add("systems.model-params", {**row, "battery_low_pct": 42, "max_tilt_deg": 22.0})
+        profile = db.vehicle_profile(vehicle_id=10)  # ROVER-01
+    t = NodeCore(profile).monitor.thresholds
+    assert (t.battery_low_pct, t.max_tilt_deg) == (42, 22.0)

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import os
 import queue
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import msgspec
@@ -13,6 +15,8 @@ import pytest
 from swarm_proto import (
     Ack,
     AckReason,
+    Alert,
+    AlertCode,
     Command,
     CommandArgs,
     CommandKind,
@@ -21,7 +25,12 @@ from swarm_proto import (
     Mission,
     MissionType,
     Selector,
+    SelectorKind,
+    SystemClock,
+    VehicleInfo,
 )
+from swarm_sim.runtime import VehicleServer, VehicleSpec
+from tests.conftest import free_tcp_port
 from tests.swarm_node.processes import peers_of, plain_session, start_node, stop, wait_until
 
 pytestmark = pytest.mark.network
@@ -75,6 +84,14 @@ def test_commands_and_malformed_input(zenoh_router: str, tmp_path: Path, swarm_d
         client.put(f"bandada/{swarm}/mission/21", msgspec.msgpack.encode(mission))
         ack = acks.get(timeout=20)
         assert (ack.ref_id, ack.accepted, ack.reason) == (21, False, AckReason.HOME_NOT_SET)
+        # every node answers every mission: one not for vehicle 4 is NOT_ADDRESSED
+        other = msgspec.structs.replace(mission, mission_id=22, selection=Selector.ids(5))
+        client.put(f"bandada/{swarm}/mission/22", msgspec.msgpack.encode(other))
+        ack = acks.get(timeout=20)
+        assert (ack.ref_id, ack.accepted, ack.reason) == (22, False, AckReason.NOT_ADDRESSED)
+        # vehicles chosen by voting (QUANTITY): not implemented, said so
+        voted = Selector(SelectorKind.QUANTITY, quantity=1)
+        assert send(6, CommandKind.RTL, voted).reason == AckReason.UNSUPPORTED
         assert proc.poll() is None
     finally:
         sub.undeclare()
@@ -90,3 +107,66 @@ def test_commands_and_malformed_input(zenoh_router: str, tmp_path: Path, swarm_d
         "fleet/2",
     ):
         assert f"dropped malformed input on bandada/{swarm}/{key}" in text, key
+
+
+def test_a_vehicle_with_a_base_but_not_ready_rejects_a_mission(
+    zenoh_router: str, tmp_path: Path, swarm_db: Path
+) -> None:
+    """A node whose autopilot has a home, then falls silent: with a base set it answers a
+    mission NOT_READY (a plain zenoh-python client on 127.0.0.1)."""
+    swarm = f"r{os.getpid()}"
+    log = tmp_path / "node7.log"
+    spec = VehicleSpec("copter", port=free_tcp_port(), sysid=7)
+    server = VehicleServer([spec], SystemClock())
+    server.start_thread()
+    proc = start_node(7, zenoh_router, swarm, "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}",
+                      log=log)  # fmt: skip
+    client = plain_session(zenoh_router)
+    heard: queue.Queue[object] = queue.Queue()
+    subs = [
+        client.declare_subscriber(
+            f"bandada/{swarm}/vehicle/7/{what}",
+            lambda s, cls=cls: heard.put(msgspec.msgpack.decode(s.payload.to_bytes(), type=cls)),
+        )
+        for what, cls in (("ack", Ack), ("info", VehicleInfo), ("alert", Alert))
+    ]
+
+    def wait_for(pred: Callable[[object], bool], timeout: float, what: str) -> object:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            try:
+                msg = heard.get(timeout=0.5)
+            except queue.Empty:
+                continue
+            if pred(msg):
+                return msg
+        pytest.fail(f"never saw {what}")
+
+    try:
+        assert wait_until(lambda: peers_of(client, swarm, 7) is not None, timeout=30) is not None
+        wait_for(lambda m: isinstance(m, VehicleInfo) and m.home is not None, 60, "a home")
+        server.close()  # the autopilot falls silent: the vehicle is no longer ready
+        wait_for(
+            lambda m: isinstance(m, Alert) and m.code == AlertCode.AUTOPILOT_LINK_LOSS,
+            20,
+            "the link loss alert",
+        )
+        base = Command(
+            GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=GeoPoint(37.41, -5.99, 10.0))
+        )
+        client.put(f"bandada/{swarm}/cmd/{GCS}", msgspec.msgpack.encode(base))
+        ok = wait_for(lambda m: isinstance(m, Ack) and m.ref_id == 1, 20, "SET_BASE's ack")
+        assert isinstance(ok, Ack) and ok.accepted
+        mission = Mission(
+            31, GCS, MissionType.OBJECTIVE, Geometry.point(37.42, -5.98), selection=Selector.ids(7)
+        )
+        client.put(f"bandada/{swarm}/mission/31", msgspec.msgpack.encode(mission))
+        ack = wait_for(lambda m: isinstance(m, Ack) and m.ref_id == 31, 20, "the mission's ack")
+        assert isinstance(ack, Ack)
+        assert (ack.accepted, ack.reason) == (False, AckReason.NOT_READY), log.read_text()
+    finally:
+        for sub in subs:
+            sub.undeclare()
+        client.close()
+        server.close()
+        assert stop(proc) == 0

@@ -3,6 +3,7 @@ acceptance, fleet synchronisation in PLAN, link loss -> emergency."""
 
 from __future__ import annotations
 
+import msgspec
 import pytest
 
 from swarm_node.core.autopilot.requests import (
@@ -18,6 +19,8 @@ from swarm_node.core.autopilot.state import AutopilotState
 from swarm_node.core.commands import AnswerCache
 from swarm_node.core.node import AutopilotResult, BadInput, NodeCore, NodeSettings, Received
 from swarm_node.core.profile import VehicleProfile
+from swarm_node.database import SwarmDatabase, seed_profiles
+from swarm_node.runtime.node import mission_defaults_of
 from swarm_node.testing import Fleet
 from swarm_proto import (
     Ack,
@@ -33,17 +36,20 @@ from swarm_proto import (
     GeoPoint,
     GpsFix,
     Mission,
+    MissionParams,
     MissionType,
     Selector,
-    VehicleType,
+    SelectorKind,
 )
 
 HOME = GeoPoint(37.4112, -5.9889, 10.0)
 GCS = 900
 
 
-def profile(vid: int, vt: VehicleType = VehicleType.COPTER) -> VehicleProfile:
-    return VehicleProfile(vid, f"U{vid}", "Generic Quad", vt, cruise_speed_m_s=12.0)
+def profile(vid: int, model: str = "Generic Quadcopter") -> VehicleProfile:
+    """Vehicle `vid` with the parameters of a seed model (the swarm database's seed data,
+    never constants of the tests' own)."""
+    return msgspec.structs.replace(seed_profiles()[model], vehicle_id=vid, user_id=f"U{vid}")
 
 
 def flying(**kw: object) -> AutopilotState:
@@ -209,23 +215,76 @@ def activate(f: Fleet) -> None:
 
 
 def test_mission_acceptance_checks_in_the_papers_order() -> None:
-    f = fleet(3)
+    """Every node answers every mission: NOT_ADDRESSED first (whatever else is wrong
+    with a vehicle the mission does not address), then home, base, emergency, ready."""
+    f = fleet(4)
     f.set_autopilot(1, flying(home=None))
     f.run_until(0.5)
     send(f, mission(5, (1, 2, 3)))
     f.run_until(1.0)
     reasons = {v: a.reason for v, a in acks(f, 5).items()}
-    assert reasons == {1: AckReason.HOME_NOT_SET, 2: AckReason.NO_BASE, 3: AckReason.NO_BASE}
-    send(f, command(100, CommandKind.SET_BASE, point=HOME), to=[2])
+    assert reasons == {
+        1: AckReason.HOME_NOT_SET,
+        2: AckReason.NO_BASE,
+        3: AckReason.NO_BASE,
+        4: AckReason.NOT_ADDRESSED,
+    }
+    # vehicles 2, 3 and 4 get a base; 3's EKF fails: it has a base but is not ready
+    send(f, command(100, CommandKind.SET_BASE, point=HOME), to=[2, 3, 4])
     f.set_autopilot(3, flying(ekf_ok=False))
     f.run_until(2.0)
-    send(f, mission(6, (2, 3, 4)), to=[2, 3])
+    assert f.nodes[3].base is not None and not f.nodes[3].monitor.ready
+    send(f, mission(6, (1, 2, 3)))
     f.run_until(3.0)
     reasons = {v: a.reason for v, a in acks(f, 6).items()}
-    assert reasons == {2: AckReason.OK, 3: AckReason.NO_BASE}
-    send(f, mission(7, (9,)))  # not addressed: no answer
+    assert reasons == {
+        1: AckReason.HOME_NOT_SET,
+        2: AckReason.OK,
+        3: AckReason.NOT_READY,
+        4: AckReason.NOT_ADDRESSED,
+    }
+    assert [a.accepted for a in acks(f, 6).values()] == [False, True, False, False]
+    # an emergency comes before "not ready"; vehicle 1 is not addressed: NOT_ADDRESSED,
+    # although it has no home either
+    f.set_autopilot(4, flying(link_ok=False))
     f.run_until(4.0)
-    assert acks(f, 7) == {}
+    assert f.nodes[4].fsm.state == FsmState.EMERGENCY
+    send(f, mission(7, (4,)))
+    f.run_until(5.0)
+    reasons = {v: a.reason for v, a in acks(f, 7).items()}
+    assert reasons == {
+        1: AckReason.NOT_ADDRESSED,
+        2: AckReason.NOT_ADDRESSED,
+        3: AckReason.NOT_ADDRESSED,
+        4: AckReason.EMERGENCY,
+    }
+
+
+def test_quantity_missions_and_commands_are_answered_unsupported() -> None:
+    """Choosing vehicles by voting is not implemented: candidates answer UNSUPPORTED,
+    the others NOT_ADDRESSED (missions) or nothing (commands)."""
+    f = fleet(3)
+    activate(f)
+    send(f, command(40, CommandKind.SET_FLEET, Selector.ids(3), fleet_id=2))
+    f.run_until(f.now + 0.5)
+    two_of_fleet_0 = Selector(SelectorKind.QUANTITY, fleet_id=0, quantity=2)
+    one_of_fleet_2 = Selector(SelectorKind.QUANTITY, fleet_id=2, quantity=1)
+    geometry = Geometry.point(37.42, -5.98)
+    send(f, Mission(41, GCS, MissionType.OBJECTIVE, geometry, selection=two_of_fleet_0))
+    send(f, Mission(42, GCS, MissionType.OBJECTIVE, geometry, selection=one_of_fleet_2))
+    send(f, command(43, CommandKind.RTL, one_of_fleet_2))
+    f.run_until(f.now + 1.0)
+    assert {v: a.reason for v, a in acks(f, 41).items()} == dict.fromkeys(
+        (1, 2, 3), AckReason.UNSUPPORTED
+    )
+    assert {v: a.reason for v, a in acks(f, 42).items()} == {
+        1: AckReason.NOT_ADDRESSED,
+        2: AckReason.NOT_ADDRESSED,
+        3: AckReason.UNSUPPORTED,
+    }
+    assert {v: a.reason for v, a in acks(f, 43).items()} == {3: AckReason.UNSUPPORTED}
+    assert not any(isinstance(r, ReturnToLaunch) for _, _, r in f.submitted)
+    assert all(n.fsm.state == FsmState.GO_MISSION for n in f.nodes.values())
 
 
 def test_fleet_waits_in_plan_until_all_members_are_there() -> None:
@@ -301,3 +360,36 @@ def test_messy_network_still_converges() -> None:
     f.run_until(5.0)
     for nid, node in f.nodes.items():
         assert node.members.live_ids() == [i for i in f.nodes if i != nid]
+
+
+def test_unset_mission_parameters_come_from_the_database() -> None:
+    with SwarmDatabase.memory() as db:
+        defaults = mission_defaults_of(db)
+        db.remove("swarm.mission-params", "target", "radius_m")
+        db.add("swarm.mission-params", {"mission": "target", "name": "radius_m",
+                                        "value": 175.0, "unit": "m"})  # fmt: skip
+        changed = mission_defaults_of(db)
+    assert defaults[MissionType.TARGET] == {
+        "altitude_rel_m": 100.0,
+        "radius_m": 150.0,
+        "altitude_step_m": 10.0,
+    }
+    profiles = {i: profile(i) for i in (1, 2)}
+    f = Fleet({i: NodeCore(p, fleet_profiles=profiles, mission_defaults=changed)
+               for i, p in profiles.items()})  # fmt: skip
+    for i in f.nodes:
+        f.set_autopilot(i, flying())
+    activate(f)
+    point, circle = Geometry.point(37.42, -5.98), Geometry.circle(37.42, -5.98, 60.0)
+    send(f, Mission(90, GCS, MissionType.TARGET, point, selection=Selector.ids(1)))
+    send(f, Mission(91, GCS, MissionType.TARGET, point, MissionParams(radius_m=80.0),
+                    Selector.ids(2)))  # fmt: skip
+    f.run_until(f.now + 0.5)
+    assert f.nodes[1].missions[90].params.radius_m == 175.0  # unset: the database's
+    assert f.nodes[2].missions[91].params.radius_m == 80.0  # the operator's
+    # a circle's radius is its own; 0 s between landings is "not given" for autoland
+    send(f, Mission(92, GCS, MissionType.TARGET, circle, selection=Selector.ids(1)))
+    send(f, Mission(93, GCS, MissionType.AUTOLAND, point, selection=Selector.ids(2)))
+    f.run_until(f.now + 0.5)
+    assert f.nodes[1].missions[92].params.radius_m is None
+    assert f.nodes[2].missions[93].params.separation_s == 30.0

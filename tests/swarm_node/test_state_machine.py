@@ -18,6 +18,7 @@ from swarm_node.core.state_machine import (
     Emergency,
     Event,
     Facts,
+    FollowOperator,
     LandingComplete,
     LeaveFleet,
     LeftFleet,
@@ -28,6 +29,7 @@ from swarm_node.core.state_machine import (
     PlanFailed,
     PlanSucceeded,
     RaiseAlert,
+    Recalled,
     ReleaseMission,
     Replan,
     ReturnHome,
@@ -109,6 +111,20 @@ CASES = [
         events=[LeftFleet("lost")],
         expect=P,
         outputs=(LeaveFleet, RaiseAlert, BeginPlan),
+    ),
+    Case(
+        "recalled",
+        G,
+        events=[Recalled("operator RTL")],
+        expect=G,
+        outputs=(LeaveFleet, RaiseAlert, FollowOperator),
+    ),
+    Case(
+        "recalled",
+        P,
+        events=[Recalled("operator LAND")],
+        expect=G,
+        outputs=(LeaveFleet, RaiseAlert, FollowOperator),
     ),
     Case("new mission", G, events=[NewMission(9)], expect=P, outputs=(BeginPlan,)),
     Case("new mission", P, events=[NewMission(9)], expect=P, outputs=(BeginPlan,)),
@@ -219,6 +235,18 @@ def test_a_whole_sortie() -> None:
     fsm.post(LandingComplete())
     assert tick() == [MissionFinished(RETURN_MISSION), Shutdown(), Deactivated("landed")]
     assert fsm.state == INACT
+
+
+def test_an_operator_recall_ends_the_mission_with_the_landing() -> None:
+    fsm = machine(G, mission=7)
+    fsm.post(Recalled("operator RTL"))
+    t = fsm.tick(0.2, OK)
+    assert t is not None and t.outputs[-1] == FollowOperator(7, "operator RTL")
+    assert (fsm.state, fsm.mission_id) == (G, RETURN_MISSION)
+    fsm.post(LandingComplete())
+    t = fsm.tick(0.4, OK)
+    assert t is not None and t.rule == "landed" and fsm.state == INACT
+    assert t.outputs[0] == MissionFinished(RETURN_MISSION)  # mission 7 never completed
 
 
 def test_emergency_holds_until_shutdown() -> None:

@@ -23,6 +23,7 @@ from swarm_proto import (
     Mission,
     MissionParams,
     MissionType,
+    NoFlyZone,
     SwarmView,
     VehicleStatus,
     lan,
@@ -217,6 +218,22 @@ def test_radio_is_append_only() -> None:
     # but required fields cannot be dropped
     with pytest.raises(DecodeError, match="missing"):
         radio.decode(header + msgspec.msgpack.encode(raw[:2]), now_unix_s=NOW)
+
+
+def test_an_operating_area_survives_both_encodings_and_older_senders() -> None:
+    area = NoFlyZone(8, Geometry.circle(37.41, -5.99, 900.0), name="field", operating_area=True)
+    assert lan.decode(lan.encode(area), NoFlyZone) == area
+    back = radio.decode(radio.encode(area), now_unix_s=NOW)
+    assert isinstance(back, NoFlyZone) and back.operating_area and back.zone_id == 8
+    # a sender from before the field existed: its zones are no-fly zones
+    raw = msgspec.msgpack.decode(radio.encode(area)[2:])
+    header = bytes((radio.RADIO_SCHEMA_VERSION, radio.TAG_OF[NoFlyZone]))
+    older = radio.decode(header + msgspec.msgpack.encode(raw[:-1]), now_unix_s=NOW)
+    assert isinstance(older, NoFlyZone) and not older.operating_area and older.name == "field"
+    lan_older = msgspec.msgpack.encode(
+        {k: v for k, v in msgspec.to_builtins(area).items() if k != "operating_area"}
+    )
+    assert lan.decode(lan_older, NoFlyZone).operating_area is False
 
 
 def test_radio_refuses_values_it_cannot_carry() -> None:

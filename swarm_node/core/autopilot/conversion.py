@@ -168,7 +168,7 @@ def mission_items_with_index(
 
 
 def fence_items(fence: UploadFence) -> list[MissionItem]:
-    """ArduPilot fence items: inclusion polygons, exclusion polygons, exclusion circles."""
+    """ArduPilot fence items: inclusion polygons and circles, exclusion polygons and circles."""
     items: list[MissionItem] = []
 
     def polygon(points: Sequence[tuple[float, float]], command: int, what: str) -> None:
@@ -195,19 +195,14 @@ def fence_items(fence: UploadFence) -> list[MissionItem]:
                 )
             )
 
-    for n, poly in enumerate(fence.inclusion_polygons):
-        polygon(poly, MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, f"inclusion polygon {n}")
-    for n, poly in enumerate(fence.exclusion_polygons):
-        polygon(poly, MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION, f"exclusion polygon {n}")
-    for n, (lat, lon, radius) in enumerate(fence.exclusion_circles):
-        what = f"exclusion circle {n}"
+    def circle(lat: float, lon: float, radius: float, command: int, what: str) -> None:
         _check_point(lat, lon, what)
         if not (math.isfinite(radius) and radius > 0):
             raise ConversionError(f"{what}: radius must be positive")
         items.append(
             MissionItem(
                 seq=len(items),
-                command=MavCmd.NAV_FENCE_CIRCLE_EXCLUSION,
+                command=command,
                 frame=MavFrame.GLOBAL,
                 param1=radius,
                 lat_deg=lat,
@@ -215,6 +210,15 @@ def fence_items(fence: UploadFence) -> list[MissionItem]:
                 mission_type=MissionKind.FENCE,
             )
         )
+
+    for n, poly in enumerate(fence.inclusion_polygons):
+        polygon(poly, MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, f"inclusion polygon {n}")
+    for n, (lat, lon, radius) in enumerate(fence.inclusion_circles):
+        circle(lat, lon, radius, MavCmd.NAV_FENCE_CIRCLE_INCLUSION, f"inclusion circle {n}")
+    for n, poly in enumerate(fence.exclusion_polygons):
+        polygon(poly, MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION, f"exclusion polygon {n}")
+    for n, (lat, lon, radius) in enumerate(fence.exclusion_circles):
+        circle(lat, lon, radius, MavCmd.NAV_FENCE_CIRCLE_EXCLUSION, f"exclusion circle {n}")
     return items
 
 

@@ -83,6 +83,7 @@ class UploadFence(ApRequest, frozen=True):
     exclusion_circles: tuple[tuple[float, float, float], ...] = ()  # lat, lon, radius_m
     inclusion_polygons: tuple[tuple[tuple[float, float], ...], ...] = ()
     enable: bool | None = None  # then MAV_CMD_DO_FENCE_ENABLE 1/0; None leaves it as is
+    inclusion_circles: tuple[tuple[float, float, float], ...] = ()  # lat, lon, radius_m
 
 
 class UploadRally(ApRequest, frozen=True):

@@ -1,0 +1,73 @@
+"""`gcs mission` takes the parameters it is not given from the swarm database's mission
+defaults (not constants of its own): a plain responder on 127.0.0.1 captures what the
+ground station sends."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from gcs_cli.cli import app
+from swarm_node.database import SwarmDatabase
+from swarm_proto import Ack, AckRef, Mission, VehicleInfo, VehicleType
+from swarm_proto.session import SwarmBus, ZenohSettings
+from swarm_proto.topics import MISSION
+
+pytestmark = pytest.mark.network
+runner = CliRunner()
+
+
+def send_mission(router: str, swarm: str, *args: str) -> tuple[Mission, str]:
+    """Run `gcs mission ...` against a vehicle 5 that answers OK; what it received."""
+    got: list[Mission] = []
+    done = threading.Event()
+    with SwarmBus.open(ZenohSettings(mode="client", connect=(router,)), swarm) as vehicle:
+
+        def on_mission(m: Mission, key: str) -> None:
+            got.append(m)
+            vehicle.publish(Ack(5, m.issuer_id, AckRef.MISSION, m.mission_id, True))
+            done.set()
+
+        vehicle.subscribe(MISSION, on_mission)
+        stop = threading.Event()
+
+        def announce() -> None:
+            while not stop.wait(0.2):
+                vehicle.publish(VehicleInfo(5, VehicleType.COPTER, "Generic Quadcopter", "Q5"))
+
+        t = threading.Thread(target=announce, daemon=True)
+        t.start()
+        try:
+            r = runner.invoke(app, ["--connect", router, "--swarm", swarm, "mission", *args])
+        finally:
+            stop.set()
+            t.join()
+    assert done.is_set() and r.exit_code == 0, r.stdout
+    return got[0], r.stdout
+
+
+def test_unset_parameters_come_from_the_database(zenoh_router: str, swarm_db: Path) -> None:
+    m, _ = send_mission(zenoh_router, "md1", "target", "--point", "37.41,-5.99", "--id", "5")
+    p = m.params
+    assert (p.altitude_rel_m, p.radius_m, p.altitude_step_m) == (100.0, 150.0, 10.0)  # seed
+    m, _ = send_mission(zenoh_router, "md2", "target", "--point", "37.41,-5.99", "--id", "5",
+                        "--alt", "40", "--radius", "60")  # fmt: skip
+    assert (m.params.altitude_rel_m, m.params.radius_m, m.params.altitude_step_m) == (
+        40.0,
+        60.0,
+        10.0,
+    )
+    # a circle target: its radius is the circle's, not the database's
+    m, _ = send_mission(zenoh_router, "md3", "target", "--circle", "37.41,-5.99,70", "--id", "5")
+    assert m.params.radius_m is None
+    # the database changed: the ground station follows it
+    with SwarmDatabase.open(swarm_db) as db:
+        db.remove("swarm.mission-params", "area", "side_overlap")
+        db.add("swarm.mission-params", {"mission": "area", "name": "side_overlap",
+                                        "value": 0.55, "unit": ""})  # fmt: skip
+    m, _ = send_mission(zenoh_router, "md4", "area", "--polygon",
+                        "37.41,-5.99 37.41,-5.98 37.42,-5.98", "--id", "5")  # fmt: skip
+    assert (m.params.altitude_rel_m, m.params.side_overlap) == (100.0, 0.55)

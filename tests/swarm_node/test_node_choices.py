@@ -1,0 +1,115 @@
+"""Two choices the README names, each held by a test: the base set by the operator is
+uploaded as the autopilot's rally point (so ArduPilot's own RTL goes to the base), and
+every mission ends on an unlimited loiter (so a plane never RTLs by itself, through a
+no-fly zone, when its mission ends). Pure node cores first, then end to end in fast
+time (FastFleet: the simulated ArduPilot holds them)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from swarm_node.core.autopilot.items import ItemKind
+from swarm_node.core.autopilot.requests import ApResult, UploadMission, UploadRally
+from swarm_node.core.node import (
+    AutopilotResult,
+    AutopilotUpdate,
+    NodeCore,
+    Publish,
+    Received,
+    Submit,
+)
+from swarm_node.database import SwarmDatabase, seed_profiles
+from swarm_proto import (
+    Ack,
+    Command,
+    CommandArgs,
+    CommandKind,
+    FsmState,
+    Geometry,
+    GeoPoint,
+    Mission,
+    MissionParams,
+    MissionType,
+    Selector,
+)
+from swarm_sim.core import SITL_HOME
+from swarm_sim.fast_fleet import FastFleet
+from tests.swarm_node.test_node_core import GCS, HOME, flying
+from tests.swarm_node.test_node_fences_sim import Operator, north
+
+NAV_RALLY_POINT, NAV_LOITER_UNLIM = 5100, 17
+BASE = GeoPoint(HOME.lat_deg + 0.001, HOME.lon_deg, HOME.alt_msl_m + 5.0)
+
+
+def test_set_base_uploads_the_base_as_the_rally_point_and_answers_after_it() -> None:
+    node = NodeCore(seed_profiles()["Generic Quadcopter"], now=0.0)
+    node.handle(AutopilotUpdate(flying()), 0.0)
+    out = node.handle(
+        Received(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=BASE))), 0.0
+    )
+    (rally,) = [o.request for o in out if isinstance(o, Submit)]
+    assert isinstance(rally, UploadRally)
+    assert rally.points == ((BASE.lat_deg, BASE.lon_deg, pytest.approx(5.0)),)  # above home
+    assert not [o for o in out if isinstance(o, Publish) and isinstance(o.msg, Ack)]
+    assert node.base == BASE  # the base is set at once, the Ack waits for the autopilot
+    out = node.handle(AutopilotResult(ApResult(rally.request_id, True)), 0.1)
+    (ack,) = [o.msg for o in out if isinstance(o, Publish)]
+    assert isinstance(ack, Ack) and ack.accepted and ack.ref_id == 1
+    # without an autopilot home (or link) there is nothing to upload: answered at once
+    bare = NodeCore(seed_profiles()["Generic Quadcopter"], now=0.0)
+    bare.handle(AutopilotUpdate(flying(home=None)), 0.0)
+    out = bare.handle(
+        Received(Command(GCS, 2, CommandKind.SET_BASE, args=CommandArgs(point=BASE))), 0.0
+    )
+    assert not [o for o in out if isinstance(o, Submit)]
+    assert [o.msg.accepted for o in out if isinstance(o, Publish)] == [True]  # type: ignore[attr-defined]
+
+
+def test_a_mission_ends_on_an_unlimited_loiter_over_its_last_waypoint() -> None:
+    from tests.swarm_node.test_commands import VTOL, fleet_of, on_mission, requests
+
+    f = fleet_of(VTOL)
+    on_mission(f)
+    (upload,) = requests(f, 1, 0.0, UploadMission)
+    assert isinstance(upload, UploadMission)
+    loiter = upload.items[-1]
+    last_wp = next(w for w in reversed(upload.items) if w.kind == ItemKind.WAYPOINT)
+    assert (loiter.kind, loiter.lat_deg, loiter.lon_deg, loiter.alt_rel_m) == (
+        ItemKind.LOITER_UNLIMITED,
+        last_wp.lat_deg,
+        last_wp.lon_deg,
+        last_wp.alt_rel_m,
+    )
+    # reaching the last waypoint (not the loiter, which never ends) completes the mission
+    node = f.nodes[1]
+    assert node.manager.last_item == len(upload.items) - 1  # item 0 is home
+    f.set_autopilot(1, flying(mission_reached=node.manager.last_item))
+    f.run_until(f.now + 1.0)
+    assert node.fsm.mission_id == -1  # mission complete: the return home began
+
+
+@pytest.fixture(scope="module")
+def profiles() -> dict:
+    with SwarmDatabase.memory() as db:
+        return {p.vehicle_id: p for p in db.profiles()}
+
+
+def test_the_simulated_autopilot_holds_the_base_and_the_final_loiter(profiles: dict) -> None:
+    fleet = FastFleet.build([1], profiles)  # a seed Albatross VTOL
+    v = fleet.vehicles[1]
+    sim = v.endpoint.autopilot
+    assert fleet.run_until(lambda: v.link.state.ekf_has_position and v.link.state.home, 60)
+    op = Operator(fleet)
+    base = GeoPoint(*north(30.0), SITL_HOME.alt_m)
+    assert op(CommandKind.SET_BASE, point=base).accepted
+    assert [(it.command, round(it.z, 3)) for it in sim.rally_items] == [(NAV_RALLY_POINT, 0.0)]
+    rally = sim.rally_items[0]
+    assert math.isclose(rally.lat_deg, base.lat_deg, abs_tol=1e-7)
+    assert fleet.run_until(lambda: v.node.fsm.state == FsmState.GO_MISSION, 30)
+    target = Geometry.point(*north(800.0))
+    fleet.broadcast(Mission(5, GCS, MissionType.OBJECTIVE, target,
+                            MissionParams(altitude_rel_m=60.0), Selector.ids(1)))  # fmt: skip
+    assert fleet.run_until(lambda: v.node.manager.phase.value == "flying", 300)
+    assert sim.mission_items[-1].command == NAV_LOITER_UNLIM
