@@ -4,7 +4,10 @@ A peer joins when its liveliness token appears or when its first telemetry arriv
 (peers behind the radio have no liveliness, only telemetry relayed by the gateway).
 It leaves when its liveliness token is withdrawn, or when nothing has been heard from
 it for `stale_after_s` (a frozen process loses its token only after the Zenoh lease;
-a radio peer only goes silent). Pure: events and `now` in, PeerJoined/PeerLeft out.
+a radio peer only goes silent). A peer that sends no VehicleStatus, only its 1 Hz
+VehicleInfo (a ground station), is given `info_stale_after_s` instead: over the radio
+info is the lowest class, so two seconds would be two missed updates. Pure: events and
+`now` in, PeerJoined/PeerLeft out.
 """
 
 from __future__ import annotations
@@ -66,8 +69,14 @@ class Peer:
 @dataclass
 class SwarmMembership:
     self_id: int
-    stale_after_s: float = 2.0
+    stale_after_s: float = 2.0  # a peer that sends VehicleStatus (5 Hz)
+    info_stale_after_s: float = 5.0  # a peer that sends only VehicleInfo (1 Hz)
     peers: dict[int, Peer] = field(default_factory=dict)
+
+    def _stale_after(self, peer: Peer) -> float:
+        if peer.status is None:
+            return max(self.stale_after_s, self.info_stale_after_s)
+        return self.stale_after_s
 
     # ------------------------------------------------------------------ inputs
     def on_alive(self, node_id: int, alive: bool, now: float) -> list[PeerEvent]:
@@ -92,14 +101,14 @@ class SwarmMembership:
             if (
                 peer.present
                 and not peer.alive_token
-                and now - peer.last_heard_s >= self.stale_after_s
+                and now - peer.last_heard_s >= self._stale_after(peer)
             ):
                 out += self._leave(peer, "stale")
         return out
 
     def next_deadline(self) -> float | None:
         times = [
-            p.last_heard_s + self.stale_after_s
+            p.last_heard_s + self._stale_after(p)
             for p in self.peers.values()
             if p.present and not p.alive_token
         ]

@@ -137,6 +137,7 @@ class NodeSettings:
     info_period_s: float = 1.0  # 1 Hz
     plan_timeout_s: float = 60.0
     stale_after_s: float = 2.0
+    info_stale_after_s: float = 5.0  # peers that send only VehicleInfo (ground stations)
     thresholds: Thresholds | None = None  # default: from the profile
     fence_max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
 
@@ -160,7 +161,11 @@ class NodeCore:
         self.monitor = VehicleMonitor(
             vid, self.settings.thresholds or Thresholds.from_profile(self.profile)
         )
-        self.members = SwarmMembership(vid, stale_after_s=self.settings.stale_after_s)
+        self.members = SwarmMembership(
+            vid,
+            stale_after_s=self.settings.stale_after_s,
+            info_stale_after_s=self.settings.info_stale_after_s,
+        )
         self.fsm = fsm.StateMachine(plan_timeout_s=self.settings.plan_timeout_s, now=self.now)
         self.commands = CommandTracker(vid)
         self.answers = AnswerCache()  # repeated commands and missions get the same answer

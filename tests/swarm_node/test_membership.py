@@ -32,6 +32,23 @@ def test_radio_peers_join_by_telemetry_and_go_stale() -> None:
     assert m.next_deadline() is None
 
 
+def test_a_peer_heard_only_by_its_info_gets_longer_to_go_stale() -> None:
+    """A ground station behind the radio sends only its 1 Hz VehicleInfo, the lowest
+    radio class: a second or two between updates must not make it leave and rejoin."""
+    m = SwarmMembership(1, stale_after_s=2.0, info_stale_after_s=5.0)
+    gcs = VehicleInfo(900, VehicleType.GCS, "GCS", "ground")
+    assert m.on_info(gcs, 0.0) == [PeerJoined(900, "telemetry")]
+    assert m.on_timer(3.0) == []
+    m.on_info(gcs, 3.0)
+    assert m.next_deadline() == 8.0
+    assert m.on_timer(7.9) == []
+    assert m.on_timer(8.0) == [PeerLeft(900, "stale")]
+    # a vehicle: its status counts, and the short rule applies even when info also came
+    m.on_info(VehicleInfo(5, VehicleType.COPTER, "quad", "Q1"), 10.0)
+    m.on_status(status(5, 10.0), 10.0)
+    assert m.on_timer(12.0) == [PeerLeft(5, "stale")]
+
+
 def test_self_is_never_a_peer() -> None:
     m = SwarmMembership(1)
     assert m.on_alive(1, True, 0.0) == [] and m.on_status(status(1, 0.0), 0.0) == []
