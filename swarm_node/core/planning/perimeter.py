@@ -21,10 +21,17 @@ from shapely.geometry import LinearRing, LineString, Point, Polygon
 
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
-from .errors import InfeasibleTimingError, InvalidGeometryError, NoSafeRouteError
-from .formation import Trim, cyclic_slots, respace
+from .errors import InvalidGeometryError, NoSafeRouteError
+from .formation import Trim, cyclic_slots, respace, speed_ranges_on
 from .geo import LocalFrame
-from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
+from .vehicles import (
+    DEFAULT_PARAMS,
+    PlanVehicle,
+    VehiclePlan,
+    common_speed,
+    require_vehicles,
+    to_waypoints,
+)
 from .zones import ZoneSet
 
 
@@ -36,6 +43,7 @@ class PerimeterPlan:
     speed_m_s: float  # common speed
     offsets_m: tuple[tuple[int, float], ...]  # vehicle id -> start position along loop
     vehicles: tuple[VehiclePlan, ...]
+    turn_radius_m: float = 0.0  # the loop's tightest turn (smoothing radius, circle radius)
 
     @property
     def lap_s(self) -> float:
@@ -59,18 +67,6 @@ def smooth_loop(polygon: Polygon, radius_m: float) -> Polygon:
     if not isinstance(closed, Polygon):
         raise InvalidGeometryError("smoothing split the perimeter")
     return closed
-
-
-def common_speed(vehicles: Sequence[PlanVehicle], params: MissionParams) -> float:
-    """One speed every vehicle can fly: the slowest mission speed, raised to the highest
-    minimum; `InfeasibleTimingError` if the speed ranges do not overlap."""
-    lo = max(v.speed_range()[0] for v in vehicles)
-    hi = min(v.speed_range()[1] for v in vehicles)
-    if lo > hi:
-        raise InfeasibleTimingError(
-            f"no common speed: the vehicles' ranges do not overlap ({lo:.1f} > {hi:.1f} m/s)"
-        )
-    return min(max(min(v.speed(params) for v in vehicles), lo), hi)
 
 
 def _loop(geometry: Geometry, frame: LocalFrame, radius: float) -> LinearRing:
@@ -115,6 +111,7 @@ def plan_perimeter(
         for v in vehicles
     )
     ring = _loop(geometry, frame, radius)
+    loop_radius = (geometry.radius_m or radius) if geometry.kind == GeometryKind.CIRCLE else radius
     zs = ZoneSet.from_messages(
         zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
     )
@@ -148,6 +145,7 @@ def plan_perimeter(
         speed,
         tuple((v.vehicle_id, offsets[v.vehicle_id]) for v in vehicles),
         tuple(plans),
+        loop_radius,
     )
 
 
@@ -170,8 +168,11 @@ def lap_points(ring: LinearRing, start_m: float, laps: int = 1) -> list[tuple[fl
 def respace_perimeter(
     plan: PerimeterPlan,
     positions_m: Mapping[int, float],
-    speed_ranges: Mapping[int, tuple[float, float]],
+    vehicles: Sequence[PlanVehicle],
 ) -> dict[int, Trim]:
     """Vehicles at `positions_m` along the loop (some joined, some left): new equal
-    offsets (order kept) and the speed trims that bring everyone there together."""
-    return respace(positions_m, plan.length_m, plan.speed_m_s, speed_ranges)
+    offsets (order kept) and the speed trims that bring everyone there together, each
+    within the vehicle's speed range on the loop (a fixed-wing never faster than the
+    loop's tightest turn allows at its max bank)."""
+    ranges = speed_ranges_on(vehicles, positions_m, plan.turn_radius_m)
+    return respace(positions_m, plan.length_m, plan.speed_m_s, ranges)

@@ -35,15 +35,30 @@ class Leg:
     path_m: float  # length of its path to the point
     orbit_m: float  # circumference of one loiter orbit (0: it can hover instead)
     min_speed_m_s: float
-    max_speed_m_s: float
+    max_speed_m_s: float  # for a fixed-wing, already capped by what `radius_m` allows
     cruise_speed_m_s: float
+    radius_m: float = 0.0  # the turn radius its path and orbit were planned with (0: none)
 
     def __post_init__(self) -> None:
-        vals = (self.path_m, self.orbit_m, self.min_speed_m_s, self.max_speed_m_s)
+        vals = (self.path_m, self.orbit_m, self.min_speed_m_s, self.max_speed_m_s, self.radius_m)
         if not all(math.isfinite(v) and v >= 0.0 for v in vals) or self.max_speed_m_s <= 0:
             raise InvalidParameterError(f"vehicle {self.vehicle_id}: bad arrival leg {vals}")
         if self.min_speed_m_s > self.max_speed_m_s:
             raise InvalidParameterError(f"vehicle {self.vehicle_id}: min speed > max speed")
+
+
+def leg_for(v: PlanVehicle, path_m: float, speed_m_s: float) -> Leg:
+    """A vehicle's arrival leg for a path of `path_m` planned at mission speed
+    `speed_m_s`: a fixed-wing's path and loiter orbit use the turn radius R of that speed
+    (never below its loiter radius), so its usable speeds are capped at
+    sqrt(R g tan(max bank)); hover-capable vehicles wait on the spot instead."""
+    turns = v.turns(speed_m_s)
+    r = turns.radius_m
+    lo, hi = v.speed_range_on(r)
+    cruise = min(max(speed_m_s, lo), hi)
+    if r > 0.0:
+        return Leg(v.vehicle_id, path_m, 2 * math.pi * r, lo, hi, cruise, r)
+    return Leg(v.vehicle_id, path_m, 0.0, lo, hi, cruise)
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,7 +146,6 @@ def approach(
 ) -> Approach:
     """A vehicle's path from `start` to `goal` (Dubins for fixed-wing, straight
     otherwise; around the zones when the direct one would cross them)."""
-    lo, hi = v.speed_range()
     turns = v.turns(speed_m_s)
     pts = [(p.x, p.y) for p in turns.points(start, goal)]
     length = turns.length(start, goal)
@@ -147,14 +161,13 @@ def approach(
             length = sum(
                 math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise(around)
             )
+    leg = leg_for(v, length, speed_m_s)
     if isinstance(turns, DubinsTurns):
-        r = max(turns.radius_m, v.profile.loiter_radius_m)
+        r = leg.radius_m
         # orbit beside the start, turning left (counter-clockwise): back to the start pose
         cx = start.x - r * math.sin(start.yaw)
         cy = start.y + r * math.cos(start.yaw)
-        leg = Leg(v.vehicle_id, length, 2 * math.pi * r, lo, hi, speed_m_s)
         return Approach(v.vehicle_id, tuple(pts), length, leg, (cx, cy), -r)
-    leg = Leg(v.vehicle_id, length, 0.0, lo, hi, speed_m_s)
     return Approach(v.vehicle_id, tuple(pts), length, leg, None, 0.0)
 
 
@@ -193,6 +206,7 @@ class RoutePlan:
     arrival_s: float
     arrivals: tuple[Arrival, ...]
     vehicles: tuple[VehiclePlan, ...]
+    legs: tuple[Leg, ...] = ()  # each vehicle's arrival leg (path, orbit, speed range)
 
 
 def plan_route(
@@ -262,4 +276,10 @@ def plan_route(
         )
         plans.append(VehiclePlan(v.vehicle_id, tuple(wps), length, a.arrival_s))
     t = next(iter(arr.values())).arrival_s
-    return RoutePlan(frame, t, tuple(arr[v.vehicle_id] for v in vehicles), tuple(plans))
+    return RoutePlan(
+        frame,
+        t,
+        tuple(arr[v.vehicle_id] for v in vehicles),
+        tuple(plans),
+        tuple(a.leg for a in aps),
+    )
