@@ -33,11 +33,11 @@ import shapely
 from shapely.geometry import LineString, MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from .dubins import FloatArray, Pose
+from .dubins import FloatArray, Pose, shortest_path
 from .errors import EmptyAreaError, InvalidGeometryError, InvalidParameterError
 from .geo import validated_polygon
-from .turns import TurnModel
-from .zones import Obstacles, ZoneSet
+from .turns import DubinsTurns, TurnModel
+from .zones import ARC_STEP_M, Obstacles, ZoneSet
 
 XY = tuple[float, float]
 
@@ -587,7 +587,13 @@ def connect(
 def _transition(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacles | None) -> Leg:
     pts = [(a.x, a.y)] + [(p.x, p.y) for p in turns.points(a, b)]
     length = turns.length(a, b)
-    if obstacles is None or not obstacles.crosses(pts):
+    if obstacles is None or obstacles.is_empty:
+        return Leg(tuple(pts), length, False)
+    # the arcs between the waypoints bulge out of their chords: check them sampled
+    trace = pts
+    if isinstance(turns, DubinsTurns):
+        trace = [(p.x, p.y) for p in shortest_path(a, b, turns.radius_m).sample(ARC_STEP_M)]
+    if not obstacles.crosses(trace):
         return Leg(tuple(pts), length, False)
     around = obstacles.path((a.x, a.y), (b.x, b.y))
     return Leg(tuple(around), LineString(around).length, False)

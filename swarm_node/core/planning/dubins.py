@@ -161,14 +161,18 @@ class DubinsPath:
     def waypoints(self, max_turn_rad: float = math.pi / 6) -> list[Pose]:
         """Poses a waypoint follower needs: segment joints plus points every
         `max_turn_rad` of each arc (start excluded, goal included)."""
+        return [self.pose_at(s) for s in self.waypoint_s(max_turn_rad)]
+
+    def waypoint_s(self, max_turn_rad: float = math.pi / 6) -> list[float]:
+        """Distances along the path (m) of the `waypoints`."""
         r = self.radius_m
-        out: list[Pose] = []
+        out: list[float] = []
         s0 = 0.0
         for kind, length in zip(self.word.segments, (self.t, self.p, self.q), strict=True):
             if length <= 0.0:
                 continue
             n = 1 if kind == "S" else max(1, math.ceil(length / max_turn_rad))
-            out += [self.pose_at((s0 + length * i / n) * r) for i in range(1, n + 1)]
+            out += [(s0 + length * i / n) * r for i in range(1, n + 1)]
             s0 += length
         return out
 

@@ -23,11 +23,11 @@ from shapely.ops import nearest_points
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_proto import MissionParams, NoFlyZone, VehicleStatus
 
-from .errors import InvalidParameterError
+from .errors import InvalidParameterError, NoSafeRouteError
 from .formation import assign_min_cost
 from .geo import LocalFrame, heading_to_yaw
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
-from .zones import ZoneSet
+from .zones import Obstacles, Track, ZoneSet
 
 DEFAULT_SPACING_M = 60.0
 DEFAULT_STEP_M = 10.0
@@ -80,6 +80,7 @@ class MumtPlan:
     lead_xy: tuple[float, float]  # predicted
     slots: tuple[FormationSlot, ...]
     vehicles: tuple[VehiclePlan, ...]
+    tracks: tuple[Track, ...] = ()  # each positioned follower's way to its slot
 
     def slot_of(self, vehicle_id: int) -> FormationSlot:
         return next(s for s in self.slots if s.vehicle_id == vehicle_id)
@@ -150,6 +151,7 @@ def plan_mumt(
         for v, col in zip(new, assign_min_cost(cost), strict=True):
             index[v.vehicle_id] = free[col]
     slots, plans = [], []
+    tracks: list[Track] = []
     for v in vehicles:
         k = index[v.vehicle_id]
         x, y = slot_xy[k]
@@ -168,10 +170,25 @@ def plan_mumt(
             along = (x - vx) * c + (y - vy) * s  # slot ahead of the follower: speed up
         speed = min(max(lead.speed_m_s + along / CATCH_UP_S, lo), hi)
         slots.append(FormationSlot(v.vehicle_id, k, x, y, alt, speed))
-        lat, lon = frame.to_geodetic(x, y)
+        way = [(x, y)]
+        if v.pose is not None:  # around the zones on the way to the slot
+            here = frame.to_local(v.pose.lat_deg, v.pose.lon_deg)
+            way = [here, (x, y)]
+            if zs.entered(way, alt) is not None:
+                if zs.zone_containing(*here, alt) is not None:
+                    raise NoSafeRouteError(
+                        f"vehicle {v.vehicle_id} is inside a no-fly zone: replan the mission"
+                    )
+                try:
+                    way = Obstacles(zs.keep_out(alt)).path(here, (x, y))
+                except NoSafeRouteError:  # it is within the margin: around the zones alone
+                    way = Obstacles(zs.raw(alt)).path(here, (x, y))
+            tracks.append(Track(v.vehicle_id, "transit", tuple(way), alt))
+            way = way[1:]
+        ll = frame.to_geodetic_many(way).tolist()
         wps = (
             Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=speed),
-            Waypoint(ItemKind.WAYPOINT, lat, lon, alt),
+            *(Waypoint(ItemKind.WAYPOINT, la, lo, alt) for la, lo in ll),
         )
         plans.append(VehiclePlan(v.vehicle_id, wps, 0.0, 0.0))
-    return MumtPlan(frame, (px, py), tuple(slots), tuple(plans))
+    return MumtPlan(frame, (px, py), tuple(slots), tuple(plans), tuple(tracks))

@@ -19,6 +19,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from shapely.geometry import Point
+
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
@@ -28,7 +30,7 @@ from .formation import Trim, cyclic_slots, respace, speed_ranges_on
 from .geo import LocalFrame
 from .route import Arrival, Leg, approach, arrival_waypoints, synchronize
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, common_speed, require_vehicles
-from .zones import ZoneSet
+from .zones import Track, Zone, ZoneSet, circle_points
 
 DEFAULT_HOVER_RADIUS_M = 50.0
 
@@ -55,6 +57,7 @@ class TargetPlan:
     vehicles: tuple[VehiclePlan, ...]
     orbit_speed_m_s: float = 0.0  # the orbiters' common speed on the orbit
     legs: tuple[Leg, ...] = ()  # each positioned vehicle's arrival leg
+    tracks: tuple[Track, ...] = ()  # every path flown, densely sampled (zone checks)
 
     def slot_of(self, vehicle_id: int) -> Slot:
         return next(s for s in self.slots if s.vehicle_id == vehicle_id)
@@ -149,6 +152,14 @@ def plan_target(
             raise TargetInZoneError(
                 f"vehicle {s.vehicle_id}'s slot around the target is inside no-fly zone {z.zone_id}"
             )
+    orbit_ring = circle_points(*centre, r_orbit) if orbiters else ()
+    for s in slots:
+        z = zs.entered(orbit_ring, s.alt_rel_m) if s.orbit else None
+        if z is not None:
+            raise TargetInZoneError(
+                f"the {r_orbit:.0f} m orbit around the target crosses no-fly zone {z.zone_id} "
+                f"at {s.alt_rel_m:.0f} m: {_clear_radii(zs, z, centre)}"
+            )
     by_id = {s.vehicle_id: s for s in slots}
     # orbiters arrive at their phase points together, tangent to the orbit
     sign = -1.0 if clockwise else 1.0
@@ -170,10 +181,13 @@ def plan_target(
     sync = synchronize([aps[v.vehicle_id][1].leg for v in orbiters if v.vehicle_id in aps])
     plans = []
     arrivals: list[Arrival] = []
+    tracks: list[Track] = []
     for v in vehicles:
         s = by_id[v.vehicle_id]
         wps: list[Waypoint] = []
         length, t = 0.0, 0.0
+        if s.orbit:
+            tracks.append(Track(v.vehicle_id, "orbit", orbit_ring, s.alt_rel_m))
         if v.vehicle_id in aps:
             start, ap = aps[v.vehicle_id]
             arr = sync.get(v.vehicle_id) or Arrival(
@@ -181,10 +195,12 @@ def plan_target(
             )
             arrivals.append(arr)
             wps += arrival_waypoints(frame, ap, arr, s.alt_rel_m, start)
+            tracks += ap.tracks(arr, s.alt_rel_m)
             length, t = arr.flown_m(ap.leg), arr.arrival_s
         else:
             lat, lon = frame.to_geodetic(s.x, s.y)
             wps.append(Waypoint(ItemKind.WAYPOINT, lat, lon, s.alt_rel_m))
+            tracks.append(Track(v.vehicle_id, "slot", ((s.x, s.y),), s.alt_rel_m))
         hold_speed = orbit_speed if s.orbit else v.speed(params)
         wps.append(_hold(frame, centre, s, params, clockwise, hold_speed))
         plans.append(VehiclePlan(v.vehicle_id, tuple(wps), length, t))
@@ -198,7 +214,17 @@ def plan_target(
         tuple(plans),
         orbit_speed,
         tuple(aps[v.vehicle_id][1].leg for v in vehicles if v.vehicle_id in aps),
+        tuple(tracks),
     )
+
+
+def _clear_radii(zs: ZoneSet, zone: Zone, centre: tuple[float, float]) -> str:
+    """Which orbit radii clear `zone` (inflated by the margin): a circle around `centre`
+    misses it below its nearest distance or beyond its farthest."""
+    poly = zone.polygon.buffer(zs.margin_m, join_style="mitre") if zs.margin_m else zone.polygon
+    near = poly.distance(Point(centre))
+    far = max(math.dist(centre, c) for c in poly.exterior.coords)
+    return f"an orbit clears it below {near:.0f} m or beyond {far:.0f} m radius"
 
 
 def _with_radius(params: MissionParams, radius: float | None) -> MissionParams:

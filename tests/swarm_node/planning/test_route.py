@@ -59,7 +59,7 @@ def test_simultaneous_arrivals_within_one_second(profiles: dict[str, VehicleProf
             a = arr[leg.vehicle_id]
             assert leg.min_speed_m_s - 1e-9 <= a.speed_m_s <= leg.max_speed_m_s + 1e-9
             assert a.orbits == int(a.orbits) and a.orbits >= 0
-            assert a.hold_s == 0.0 or leg.orbit_m == 0.0  # only hover-capable vehicles wait
+            assert a.hold_s == 0.0 or leg.hover  # only hover-capable vehicles wait
             if leg.radius_m > 0.0:  # fixed-wing: the trim never needs a tighter turn
                 assert bank_radius(profiles["fixed_wing"], a.speed_m_s) <= leg.radius_m + 1e-9
                 assert leg.orbit_m == pytest.approx(2 * math.pi * leg.radius_m)
