@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from shapely.geometry import Polygon
+from shapely.geometry import LinearRing, Point, Polygon
 
-from swarm_node.core.autopilot.items import ItemKind
+from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.planning import (
     InvalidGeometryError,
     LeadState,
@@ -30,6 +30,7 @@ from swarm_node.core.planning import (
     respace_perimeter,
     smooth_loop,
 )
+from swarm_node.core.planning.checks import arrival_spread_s
 from swarm_node.core.profile import G_M_S2, VehicleProfile
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
 
@@ -204,9 +205,59 @@ def test_perimeter_fixed_wing_smoothed_and_evenly_spaced(fleet: Fleet) -> None:
     lo = max(v.speed_range()[0] for v in vs)
     hi = min(v.speed_range()[1] for v in vs)
     assert lo <= plan.speed_m_s <= hi
-    for vp in plan.vehicles:  # closed loop: back where it started
-        first, last = vp.waypoints[1], vp.waypoints[-1]
-        assert (first.lat_deg, first.lon_deg) == pytest.approx((last.lat_deg, last.lon_deg))
+    for vp in plan.vehicles:  # closed loop: back where the timed entry brought it
+        lap = _lap(vp.waypoints)
+        assert lap[-1] == pytest.approx(_entry(vp.waypoints))
+
+
+def _lap(waypoints: tuple[Waypoint, ...]) -> list[tuple[float, float]]:
+    """The patrol laps: the positioned items after the last CHANGE_SPEED."""
+    k = max(i for i, w in enumerate(waypoints) if w.kind == ItemKind.CHANGE_SPEED)
+    return [(w.lat_deg, w.lon_deg) for w in waypoints[k + 1 :]]
+
+
+def _entry(waypoints: tuple[Waypoint, ...]) -> tuple[float, float]:
+    """Where the timed entry ends: the last item before the laps' CHANGE_SPEED."""
+    k = max(i for i, w in enumerate(waypoints) if w.kind == ItemKind.CHANGE_SPEED)
+    return waypoints[k - 1].lat_deg, waypoints[k - 1].lon_deg
+
+
+@pytest.mark.parametrize("role", ["fixed_wing", "multirotor"])
+def test_perimeter_entry_is_timed(profiles: dict[str, VehicleProfile], role: str) -> None:
+    @settings(max_examples=15, deadline=None)
+    @given(
+        st.lists(
+            st.tuples(
+                st.floats(-0.02, 0.02), st.floats(-0.02, 0.02), st.floats(0, 360, exclude_max=True)
+            ),
+            min_size=1,
+            max_size=4,
+        ),
+    )
+    def check(where: list[tuple[float, float, float]]) -> None:
+        poses: list[VehiclePose | None] = [
+            VehiclePose(ORIGIN[0] + a, ORIGIN[1] + b, 50.0, h) for a, b, h in where
+        ]
+        vs = make_fleet(profiles, [role] * len(where), poses)
+        plan = plan_perimeter(_square(), vs, MissionParams(altitude_step_m=10))
+        # every vehicle is at its phase point at the same moment (within 1 s)...
+        arrivals = {a.vehicle_id: a for a in plan.arrivals}
+        assert len(plan.legs) == len(vs)
+        assert arrival_spread_s(plan.legs, arrivals) <= 1.0
+        for a in arrivals.values():
+            assert a.arrival_s == pytest.approx(plan.arrival_s)
+        # ... and that point is its offset along the loop, L / N from the next one
+        ring = LinearRing(plan.loop)
+        for vp in plan.vehicles:
+            x, y = plan.frame.to_local(*_entry(vp.waypoints))
+            assert (
+                ring.project(Point(x, y)) == pytest.approx(plan.offset_of(vp.vehicle_id), abs=1.0)
+                or abs(ring.project(Point(x, y)) - plan.offset_of(vp.vehicle_id)) > ring.length - 1
+            )
+            assert ring.distance(Point(x, y)) < 0.5
+            assert vp.time_s == pytest.approx(plan.arrival_s + plan.lap_s * 1)
+
+    check()
 
 
 @pytest.mark.parametrize("role", ["multirotor", "fixed_wing"])

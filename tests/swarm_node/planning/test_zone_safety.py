@@ -24,6 +24,7 @@ from swarm_node.core.planning import (
     ZoneSet,
     plan_autoland,
     plan_mumt,
+    plan_perimeter,
     plan_route,
     plan_target,
 )
@@ -144,15 +145,19 @@ def test_mumt_follower_goes_around_a_zone_to_its_slot(fleet: Fleet) -> None:
 
 @st.composite
 def scenes(
-    draw: st.DrawFn, profiles: dict[str, VehicleProfile]
+    draw: st.DrawFn, profiles: dict[str, VehicleProfile], mixed: bool = True
 ) -> tuple[list[PlanVehicle], list[NoFlyZone]]:
-    roles = draw(
-        st.one_of(
-            st.lists(st.just("fixed_wing"), min_size=1, max_size=3),
-            st.lists(st.just("multirotor"), min_size=1, max_size=3),
-            st.lists(st.sampled_from(["fixed_wing", "multirotor"]), min_size=2, max_size=3),
+    """1-3 vehicles of one kind (or mixed, unless a common speed is needed) within
+    2.5 km of the origin, and 1-3 zones near it, some only up to the lowest level."""
+    kinds = [
+        st.lists(st.just("fixed_wing"), min_size=1, max_size=3),
+        st.lists(st.just("multirotor"), min_size=1, max_size=3),
+    ]
+    if mixed:
+        kinds.append(
+            st.lists(st.sampled_from(["fixed_wing", "multirotor"]), min_size=2, max_size=3)
         )
-    )
+    roles = draw(st.one_of(*kinds))
     poses: list[VehiclePose | None] = [
         _pose(
             draw(st.floats(-2500, 2500)),
@@ -175,9 +180,10 @@ def scenes(
 
 
 ALLOWED = (TargetInZoneError, NoSafeRouteError, InfeasibleTimingError)
+SQUARE = Geometry.polygon([_ll(-700, -700), _ll(700, -700), _ll(700, 700), _ll(-700, 700)])
 
 
-@pytest.mark.parametrize("kind", ["target", "route", "autoland", "mumt"])
+@pytest.mark.parametrize("kind", ["target", "route", "autoland", "mumt", "perimeter"])
 def test_no_planned_path_enters_a_zone(profiles: dict[str, VehicleProfile], kind: str) -> None:
     line = Geometry(
         GeometryKind.POLYLINE, (LatLon(*_ll(0, 0)), LatLon(*_ll(800, 600)), LatLon(*_ll(0, 1500)))
@@ -185,7 +191,7 @@ def test_no_planned_path_enters_a_zone(profiles: dict[str, VehicleProfile], kind
     seen: dict[str, int] = {}
 
     @settings(max_examples=30, deadline=None)
-    @given(scenes(profiles))
+    @given(scenes(profiles, mixed=kind != "perimeter"))  # a patrol needs one common speed
     def check(scene: tuple[list[PlanVehicle], list[NoFlyZone]]) -> None:
         vs, zones = scene
         try:
@@ -197,6 +203,8 @@ def test_no_planned_path_enters_a_zone(profiles: dict[str, VehicleProfile], kind
                 plan = plan_route(line, vs, PARAMS, zones=zones, frame=FRAME, max_alt_rel_m=200)
             elif kind == "autoland":
                 plan = plan_autoland(Geometry.point(*ORIGIN), vs, PARAMS, zones=zones, frame=FRAME)
+            elif kind == "perimeter":
+                plan = plan_perimeter(SQUARE, vs, PARAMS, zones=zones, frame=FRAME)
             else:
                 lead = LeadState(*_ll(0, 0), 100.0, course_deg=30.0, speed_m_s=20.0)
                 plan = plan_mumt(lead, vs, PARAMS, zones=zones, frame=FRAME)
