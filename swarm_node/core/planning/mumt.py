@@ -1,6 +1,8 @@
 """Manned-unmanned teaming (MUM-T): unmanned vehicles hold formation slots relative to a
-manned lead (aircraft or ground vehicle) whose position comes from its telemetry or
-from ADS-B. The planner is called again whenever a new lead position arrives: it
+manned lead (aircraft or ground vehicle) whose position comes from its telemetry
+(`LeadState.from_status`) or from ADS-B (`LeadState.from_adsb`, the decoded fields of a
+MAVLink ADSB_VEHICLE message). The planner is called again whenever a new lead position
+arrives: it
 predicts where the lead will be `lookahead_s` later, puts the slots there, and gives
 each follower a waypoint and a speed that closes its along-track error.
 
@@ -15,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from shapely.geometry import Point
@@ -28,6 +31,21 @@ from .formation import assign_min_cost
 from .geo import LocalFrame, heading_to_yaw
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
 from .zones import Obstacles, Track, ZoneSet
+
+MIN_COURSE_SPEED_M_S = 1.0  # below this a lead's course comes from its heading
+
+# MAVLink ADSB_FLAGS bits (common.xml) that a lead's ADS-B report must carry
+ADSB_FLAGS_VALID_COORDS = 1
+ADSB_FLAGS_VALID_ALTITUDE = 2
+ADSB_FLAGS_VALID_HEADING = 4
+ADSB_FLAGS_VALID_VELOCITY = 8
+ADSB_FLAGS_SIMULATED = 64
+_ADSB_NEEDED = (
+    (ADSB_FLAGS_VALID_COORDS, "position"),
+    (ADSB_FLAGS_VALID_ALTITUDE, "altitude"),
+    (ADSB_FLAGS_VALID_HEADING, "heading"),
+    (ADSB_FLAGS_VALID_VELOCITY, "velocity"),
+)
 
 DEFAULT_SPACING_M = 60.0
 DEFAULT_STEP_M = 10.0
@@ -52,9 +70,70 @@ class LeadState:
 
     @classmethod
     def from_status(cls, s: VehicleStatus) -> LeadState:
-        return cls(
-            s.lat_deg, s.lon_deg, s.alt_rel_m, s.course_deg, s.groundspeed_m_s, s.time_unix_s
-        )
+        """From the lead's own telemetry (it is a swarm node): course over ground from
+        its velocity, or its heading when it moves slower than `MIN_COURSE_SPEED_M_S`
+        (a stopped ground vehicle's velocity has no direction)."""
+        speed = s.groundspeed_m_s
+        course = s.course_deg if speed >= MIN_COURSE_SPEED_M_S else s.heading_deg
+        return cls(s.lat_deg, s.lon_deg, s.alt_rel_m, course, speed, s.time_unix_s)
+
+    @classmethod
+    def from_adsb(
+        cls,
+        report: Mapping[str, Any],
+        *,
+        received_s: float,
+        home_alt_msl_m: float,
+        icao_address: int | None = None,
+        allow_simulated: bool = False,
+    ) -> LeadState:
+        """From a decoded MAVLink ADSB_VEHICLE message, given as a mapping of its field
+        names to values (what pymavlink's `to_dict()` gives; no MAVLink import here):
+        `lat`/`lon` degE7, `altitude` mm above mean sea level (`altitude_type` 0: QNH
+        pressure altitude, 1: geometric (GNSS); both are used as MSL), `heading`
+        centidegrees (course over ground), `hor_velocity` cm/s, `flags` (the ADSB_FLAGS
+        validity bits), `ICAO_address`, `tslc` (s since the transponder was last
+        heard). The report describes the lead `tslc` s before `received_s`;
+        `home_alt_msl_m` turns the altitude into one above home. `icao_address`: the
+        lead's, to reject another aircraft's report. Simulated reports (flag
+        SIMULATED) are rejected unless `allow_simulated`. Raises
+        `InvalidParameterError` naming what is missing, invalid or out of range."""
+
+        def num(name: str, lo: float, hi: float) -> float:
+            if name not in report:
+                raise InvalidParameterError(f"ADS-B report has no {name!r} field")
+            v = report[name]
+            if isinstance(v, bool) or not isinstance(v, int | float):
+                raise InvalidParameterError(f"ADS-B {name} must be a number, got {v!r}")
+            if not (math.isfinite(v) and lo <= v <= hi):
+                raise InvalidParameterError(f"ADS-B {name} = {v!r} is not in [{lo}, {hi}]")
+            return float(v)
+
+        flags = int(num("flags", 0, 0xFFFF))
+        missing = [name for bit, name in _ADSB_NEEDED if not flags & bit]
+        if missing:
+            raise InvalidParameterError(
+                f"ADS-B report without a valid {', '.join(missing)} (flags 0x{flags:04x})"
+            )
+        if flags & ADSB_FLAGS_SIMULATED and not allow_simulated:
+            raise InvalidParameterError("ADS-B report is flagged SIMULATED")
+        icao = int(num("ICAO_address", 0, 0xFFFFFF))
+        if icao_address is not None and icao != icao_address:
+            raise InvalidParameterError(
+                f"ADS-B report is from ICAO {icao:06X}, the lead is {icao_address:06X}"
+            )
+        if num("altitude_type", 0, 1) not in (0.0, 1.0):
+            raise InvalidParameterError("ADS-B altitude_type must be 0 (QNH) or 1 (geometric)")
+        for name, v in (("received_s", received_s), ("home_alt_msl_m", home_alt_msl_m)):
+            if not math.isfinite(v):
+                raise InvalidParameterError(f"{name} must be finite, got {v}")
+        lat = num("lat", -90e7, 90e7) / 1e7
+        lon = num("lon", -180e7, 180e7) / 1e7
+        alt_msl = num("altitude", -1_000_000, 50_000_000) / 1000.0
+        course = num("heading", 0, 35_999) / 100.0
+        speed = num("hor_velocity", 0, 65_534) / 100.0  # 65535: unknown
+        age = num("tslc", 0, 255)
+        return cls(lat, lon, alt_msl - home_alt_msl_m, course, speed, received_s - age)
 
 
 @dataclass(frozen=True, slots=True)
