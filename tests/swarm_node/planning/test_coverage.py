@@ -1,4 +1,5 @@
-"""Coverage pipeline: reference polygons, properties, invalid input."""
+"""Coverage pipeline: properties, turn-aware order, sweep search, invalid input (the
+reference polygons' targets: test_bench_targets.py)."""
 
 from __future__ import annotations
 
@@ -40,41 +41,10 @@ from swarm_node.core.planning.turns import TurnModel
 R_REF = 30.0
 
 
-def _ref_polygon(ref: dict[str, Any]) -> Polygon:
-    return Polygon(ref["shell"], ref["holes"])
-
-
-@pytest.fixture(scope="module")
-def ref_plans(coverage_refs: dict[str, Any]) -> dict[str, Any]:
-    cam = coverage_refs["camera"]
-    spacing = lane_spacing_m(cam["altitude_m"], cam["hfov_deg"], cam["side_overlap"])
-    out = {}
-    for name, ref in coverage_refs["polygons"].items():
-        region = decompose(_ref_polygon(ref))
-        out[name] = (region, plan_lanes(region, spacing, DubinsTurns(R_REF)), ref["reference"])
-    return out
-
-
 def test_lane_spacing_matches_reference(coverage_refs: dict[str, Any]) -> None:
     cam = coverage_refs["camera"]
     spacing = lane_spacing_m(cam["altitude_m"], cam["hfov_deg"], cam["side_overlap"])
     assert spacing == pytest.approx(cam["lane_spacing_m"], abs=0.01)
-
-
-@pytest.mark.parametrize("name", ["rect_rot30", "L_shape", "square_with_hole", "irregular6"])
-def test_reference_polygon_targets(ref_plans: dict[str, Any], name: str) -> None:
-    _region, lp, ref = ref_plans[name]
-    assert len(lp.lanes) <= ref["f2c_lanes"]
-    assert lp.coverage >= 0.99
-    assert lp.overlap <= 0.01
-    assert path_problems(lp.path) == []
-    if "f2c_path_m_snake" in ref:
-        assert lp.path.length_m < ref["f2c_path_m_snake"]
-
-
-def test_rotated_rectangle_sweeps_along_its_long_edge(ref_plans: dict[str, Any]) -> None:
-    _region, lp, _ref = ref_plans["rect_rot30"]
-    assert math.degrees(lp.angle_rad) % 180 == pytest.approx(30.0, abs=0.01)
 
 
 def test_turn_aware_order_beats_boustrophedon() -> None:
