@@ -626,10 +626,14 @@ def _transition(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacles | None)
     length = turns.length(a, b)
     if obstacles is None or obstacles.is_empty:
         return Leg(tuple(pts), length, False)
-    # the arcs between the waypoints bulge out of their chords: check them sampled
-    trace = pts
+    # the arcs between the waypoints (30 degrees apart) bulge out of their chords by up
+    # to R (1 - cos 15 deg) < 0.035 R: farther than that from the obstacles the arcs are
+    # clear too, nearer they are checked sampled
+    trace: Sequence[XY] = pts
     if isinstance(turns, DubinsTurns):
-        trace = [(p.x, p.y) for p in shortest_path(a, b, turns.radius_m).sample(ARC_STEP_M)]
+        if obstacles.clearance(pts) > 0.035 * turns.radius_m:
+            return Leg(tuple(pts), length, False)
+        trace = shortest_path(a, b, turns.radius_m).sample_xy(ARC_STEP_M).tolist()
     if not obstacles.crosses(trace):
         return Leg(tuple(pts), length, False)
     around = obstacles.path((a.x, a.y), (b.x, b.y))
@@ -671,6 +675,7 @@ def overlap_ratio(lanes_: Sequence[Lane], area: BaseGeometry, spacing_m: float) 
 
 
 _GAP_ROUNDS = 4
+_GAP_CANDIDATES = 3  # lane plans (of the sweep candidates) that get gap lanes
 _GAP_OFFSETS = 7  # candidate line offsets across a gap, per direction
 
 
@@ -857,21 +862,29 @@ def plan_lanes(
         cands += [cands[0] + math.radians(n) for n in _NUDGES_DEG]
     else:
         cands = cands[:1]
-    best: LanePlan | None = None
+    plans: list[LanePlan] = []
     for angle in cands:
         for shift in _SHIFTS if polish else _SHIFTS[:1]:
             ls, cov, ext = _least_extension(region, angle, spacing_m, shift, min_coverage)
             if not ls:
                 continue
-            if cov < min_coverage:  # ground left unseen beside the zones: gap lanes
-                ls, cov = fill_gaps(region, ls, angle, spacing_m, min_coverage)
             path = connect(order(ls, turns, start), turns, region.obstacles, start)
-            plan = LanePlan(angle, spacing_m, ext, ls, path, cov, 0.0)
-            if best is None or (plan.coverage >= min_coverage, -plan.path.length_m) > (
-                best.coverage >= min_coverage,
-                -best.path.length_m,
-            ):
-                best = plan
+            plans.append(LanePlan(angle, spacing_m, ext, ls, path, cov, 0.0))
+
+    def rank(p: LanePlan) -> tuple[bool, float]:
+        return p.coverage >= min_coverage, -p.path.length_m
+
+    plans.sort(key=rank, reverse=True)
+    if plans and plans[0].coverage < min_coverage:
+        # ground left unseen beside the zones: gap lanes for the shortest few, then
+        # the shortest again (filling every candidate costs ten times more)
+        filled = []
+        for p in plans[:_GAP_CANDIDATES]:
+            ls, cov = fill_gaps(region, p.lanes, p.angle_rad, spacing_m, min_coverage)
+            path = connect(order(ls, turns, start), turns, region.obstacles, start)
+            filled.append(LanePlan(p.angle_rad, spacing_m, p.extend, ls, path, cov, 0.0))
+        plans = sorted(filled + plans, key=rank, reverse=True)
+    best = plans[0] if plans else None
     if best is None:
         raise EmptyAreaError("no lane fits in the area")
     return LanePlan(

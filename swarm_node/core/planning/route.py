@@ -207,8 +207,7 @@ def approach(
     if isinstance(turns, DubinsTurns):
         r = turns.radius_m
         for path in all_paths(start, goal, r):
-            samples = path.sample(ARC_STEP_M)
-            xy = [(p.x, p.y) for p in samples]
+            xy = [(float(x), float(y)) for x, y in path.sample_xy(ARC_STEP_M)]
             if obst is None or not obst.crosses(xy):
                 pts_s = path.waypoint_s()
                 pts = [(q.x, q.y) for q in (path.pose_at(x) for x in pts_s)]

@@ -336,6 +336,14 @@ class Obstacles:
     def is_empty(self) -> bool:
         return bool(self.blocked.is_empty)
 
+    def clearance(self, points: Sequence[tuple[float, float]]) -> float:
+        """Distance from the polyline through `points` to the polygons (0 if it touches
+        or enters them; infinite without polygons)."""
+        if self.is_empty or not points:
+            return math.inf
+        line = LineString(points) if len(points) > 1 else Point(points[0])
+        return float(self.blocked.distance(line))
+
     def crosses(self, points: Sequence[tuple[float, float]]) -> bool:
         if self.is_empty or len(points) < 2:
             return False
