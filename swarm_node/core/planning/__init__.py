@@ -48,7 +48,7 @@ from .split import MakespanCost, SplitPlan, Worker, remaining_lanes, replan, spl
 from .target import TargetPlan, plan_target, respace_orbit
 from .turns import DubinsTurns, PointTurns, TurnModel, turn_model_for
 from .vehicles import PlanVehicle, VehiclePlan, common_speed
-from .zones import Conflict, Obstacles, Zone, ZoneSet, visibility_path
+from .zones import Conflict, Obstacles, Track, Zone, ZoneSet, circle_points, visibility_path
 
 __all__ = [
     "AreaPlan",
@@ -86,6 +86,7 @@ __all__ = [
     "SweepCost",
     "TargetInZoneError",
     "TargetPlan",
+    "Track",
     "Trim",
     "TurnModel",
     "VehiclePlan",
@@ -95,6 +96,7 @@ __all__ = [
     "Zone",
     "ZoneSet",
     "batch_lengths",
+    "circle_points",
     "common_speed",
     "connect",
     "coverage_ratio",
