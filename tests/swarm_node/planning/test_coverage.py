@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 import shapely
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LineString, Point, Polygon
 
@@ -114,7 +114,7 @@ def _transition_samples(a: Pose, b: Pose, leg: Leg, turns: TurnModel) -> list[tu
     return list(leg.points)
 
 
-@settings(max_examples=20, deadline=None)
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     star_polygons(),
     zone_specs,

@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LinearRing, Point, Polygon
 
@@ -224,7 +224,7 @@ def _entry(waypoints: tuple[Waypoint, ...]) -> tuple[float, float]:
 
 @pytest.mark.parametrize("role", ["fixed_wing", "multirotor"])
 def test_perimeter_entry_is_timed(profiles: dict[str, VehicleProfile], role: str) -> None:
-    @settings(max_examples=15, deadline=None)
+    @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
     @given(
         st.lists(
             st.tuples(

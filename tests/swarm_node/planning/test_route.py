@@ -7,7 +7,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from swarm_node.core.autopilot.items import ItemKind
@@ -182,7 +182,7 @@ def _check_arrivals(legs: tuple[Leg, ...], arrivals: dict[int, Any], vs: list[Pl
 def test_target_and_route_plans_fly_every_leg_within_its_radius(
     profiles: dict[str, VehicleProfile],
 ) -> None:
-    @settings(max_examples=25, deadline=None)
+    @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
     @given(fleets(profiles), st.sampled_from([None, 20.0, 32.0]))
     def check(vs: list[PlanVehicle], speed: float | None) -> None:
         params = MissionParams(altitude_rel_m=100, altitude_step_m=10, speed_m_s=speed)

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from swarm_node.core.autopilot.items import ItemKind
@@ -190,7 +190,7 @@ def test_no_planned_path_enters_a_zone(profiles: dict[str, VehicleProfile], kind
     )
     seen: dict[str, int] = {}
 
-    @settings(max_examples=30, deadline=None)
+    @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
     @given(scenes(profiles, mixed=kind != "perimeter"))  # a patrol needs one common speed
     def check(scene: tuple[list[PlanVehicle], list[NoFlyZone]]) -> None:
         vs, zones = scene
