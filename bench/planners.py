@@ -1,13 +1,24 @@
 """Planning library figures (issue 5): coverage against the Fields2Cover reference
-polygons, exact Dubins against OMPL, heterogeneous split makespan.
+polygons, exact Dubins against OMPL, heterogeneous split makespan, and the issue's
+targets checked on the figures of the same run.
 
 Coverage: lanes, coverage at the lane spacing, overlap, path length with R = 30 m
 turns, sweep-direction search time (median), whole lane-plan time; the reference
 figures (Fields2Cover 2.1.0, ../shared/bench/coverage_polygons.json) beside ours.
 Dubins: 100k random pose pairs, batch (numpy) time per path vs OMPL's
 DubinsStateSpace.distance per call through its Python bindings, in the same run, and
-the largest length difference. Split: speeds 18/18/12 m/s, makespan / ideal - 1 with
-ideal = single-vehicle path / sum of speeds.
+the largest length difference. Split: speeds 18/18/12 m/s; `split_imbalance` =
+makespan / ideal - 1 with ideal = our single-vehicle path (lanes + R = 30 m
+transitions) / sum of speeds, the issue's "ideal" (not a lower bound: each vehicle's
+block has fewer lanes, so fewer turns, than the single path);
+`imbalance_vs_lower_bound` = makespan / (sum of lane lengths / sum of speeds) - 1, a
+true lower bound (every lane is flown by someone, no faster than the fastest speeds
+add up to), loose by the turns.
+
+`targets`: each issue target with the figure, the limit and whether it was met.
+`coverage(refs, timed=False)`, `split(refs)` and `targets(...)` are what the test
+suite runs (tests/swarm_node/planning/test_bench_targets.py) for the targets that do
+not depend on timing.
 """
 
 from __future__ import annotations
@@ -24,6 +35,7 @@ from shapely.geometry import Polygon
 
 from swarm_node.core.planning import (
     DubinsTurns,
+    LanePlan,
     SweepCost,
     Worker,
     batch_lengths,
@@ -49,30 +61,56 @@ def _median_ms(fn: Any, repeat: int = 7) -> float:
     return round(statistics.median(samples), 2)
 
 
-def coverage(refs: dict[str, Any]) -> dict[str, Any]:
+# the issue's targets
+MIN_COVERAGE = 0.99
+MAX_OVERLAP = 0.01
+MAX_SWEEP_MS = 50.0
+MAX_SPLIT_IMBALANCE = 0.08
+
+
+def spacing_of(refs: dict[str, Any]) -> float:
     cam = refs["camera"]
-    spacing = lane_spacing_m(cam["altitude_m"], cam["hfov_deg"], cam["side_overlap"])
+    return lane_spacing_m(cam["altitude_m"], cam["hfov_deg"], cam["side_overlap"])
+
+
+def lane_plan(refs: dict[str, Any], name: str) -> LanePlan:
+    """A reference polygon's lane plan (R = 30 m turns, the reference camera)."""
+    poly = refs["polygons"][name]
+    return plan_lanes(
+        decompose(Polygon(poly["shell"], poly["holes"])), spacing_of(refs), DubinsTurns(R_M)
+    )
+
+
+def coverage(
+    refs: dict[str, Any], *, timed: bool = True, plans: dict[str, LanePlan] | None = None
+) -> dict[str, Any]:
+    """Per reference polygon: lanes, coverage, overlap, path (and with `timed`, the
+    sweep-search and lane-plan times). The lane plans made go into `plans` (when
+    given), so `split` can reuse them."""
+    spacing = spacing_of(refs)
     turns = DubinsTurns(R_M)
     cost = SweepCost.for_turns(turns, spacing)
     out: dict[str, Any] = {}
     for name, poly in refs["polygons"].items():
         region = decompose(Polygon(poly["shell"], poly["holes"]))
-        sweep_ms = _median_ms(lambda region=region: sweep_angles(region, spacing, cost))
         t0 = time.perf_counter()
-        lp = plan_lanes(region, spacing, turns)
+        lp = lane_plan(refs, name)
         plan_ms = round((time.perf_counter() - t0) * 1e3, 1)
-        ref = poly["reference"]
-        out[name] = {
+        if plans is not None:
+            plans[name] = lp
+        fig: dict[str, Any] = {
             "lanes": len(lp.lanes),
             "coverage": round(lp.coverage, 4),
             "overlap": round(lp.overlap, 4),
             "path_m": round(lp.path.length_m, 1),
-            "sweep_ms": sweep_ms,
-            "plan_ms": plan_ms,
-            "sweep_deg": round(math.degrees(lp.angle_rad), 2),
-            "lane_extension": lp.extend,
-            "reference": ref,
         }
+        if timed:
+            fig["sweep_ms"] = _median_ms(lambda region=region: sweep_angles(region, spacing, cost))
+            fig["plan_ms"] = plan_ms
+        fig["sweep_deg"] = round(math.degrees(lp.angle_rad), 2)
+        fig["lane_extension"] = lp.extend
+        fig["reference"] = poly["reference"]
+        out[name] = fig
     return out
 
 
@@ -118,9 +156,9 @@ def dubins() -> dict[str, Any]:
     }
 
 
-def split(refs: dict[str, Any]) -> dict[str, Any]:
-    cam = refs["camera"]
-    spacing = lane_spacing_m(cam["altitude_m"], cam["hfov_deg"], cam["side_overlap"])
+def split(refs: dict[str, Any], plans: dict[str, LanePlan] | None = None) -> dict[str, Any]:
+    """The two split references: makespan against the ideal and the lower bound (the
+    polygons' lane plans from `plans` when there)."""
     turns = DubinsTurns(R_M)
     out: dict[str, Any] = {}
     for key, ref in refs["split_reference"].items():
@@ -128,16 +166,18 @@ def split(refs: dict[str, Any]) -> dict[str, Any]:
             continue
         name = key.split("_speeds_")[0]
         speeds = [float(v) for v in key.split("_speeds_")[1].split("_")]
-        poly = refs["polygons"][name]
-        lp = plan_lanes(decompose(Polygon(poly["shell"], poly["holes"])), spacing, turns)
+        lp = plans[name] if plans and name in plans else lane_plan(refs, name)
         t0 = time.perf_counter()
         plan = split_lanes(lp.lanes, [Worker(i + 1, v, turns) for i, v in enumerate(speeds)])
         ms = round((time.perf_counter() - t0) * 1e3, 1)
         ideal = lp.path.length_m / sum(speeds)
+        bound = sum(ln.length_m for ln in lp.lanes) / sum(speeds)
         out[key] = {
             "split_imbalance": round(plan.makespan_s / ideal - 1.0, 4),
+            "imbalance_vs_lower_bound": round(plan.makespan_s / bound - 1.0, 4),
             "makespan_s": round(plan.makespan_s, 1),
             "ideal_s": round(ideal, 1),
+            "lower_bound_s": round(bound, 1),
             "vehicle_times_s": [round(a.time_s, 1) for a in plan.assignments],
             "split_ms": ms,
             "reference": {
@@ -148,12 +188,58 @@ def split(refs: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _check(target: str, value: float, limit: float, met: bool) -> dict[str, Any]:
+    return {"target": target, "value": value, "limit": limit, "met": bool(met)}
+
+
+def targets(cov: dict[str, Any], splits: dict[str, Any]) -> dict[str, Any]:
+    """Each of the issue's targets, checked on this run's figures: {check: {target,
+    value, limit, met}}. Timing targets only where the figures were timed."""
+    out: dict[str, Any] = {}
+    for name, f in cov.items():
+        ref = f["reference"]
+        out[f"{name}.lanes"] = _check(
+            "lanes <= Fields2Cover's", f["lanes"], ref["f2c_lanes"], f["lanes"] <= ref["f2c_lanes"]
+        )
+        out[f"{name}.coverage"] = _check(
+            "coverage at the lane spacing >= 0.99",
+            f["coverage"],
+            MIN_COVERAGE,
+            f["coverage"] >= MIN_COVERAGE,
+        )
+        out[f"{name}.overlap"] = _check(
+            "overlap <= 1 %", f["overlap"], MAX_OVERLAP, f["overlap"] <= MAX_OVERLAP
+        )
+        if "f2c_path_m_snake" in ref:
+            snake = ref["f2c_path_m_snake"]
+            out[f"{name}.path_m"] = _check(
+                "path (R = 30 m) < Fields2Cover's Snake", f["path_m"], snake, f["path_m"] < snake
+            )
+        if "sweep_ms" in f:
+            out[f"{name}.sweep_ms"] = _check(
+                "sweep search <= 50 ms", f["sweep_ms"], MAX_SWEEP_MS, f["sweep_ms"] <= MAX_SWEEP_MS
+            )
+    for key, f in splits.items():
+        out[f"{key}.split_imbalance"] = _check(
+            "split makespan within 8 % of the ideal (single path / sum of speeds)",
+            f["split_imbalance"],
+            MAX_SPLIT_IMBALANCE,
+            f["split_imbalance"] <= MAX_SPLIT_IMBALANCE,
+        )
+    return out
+
+
 def run() -> dict[str, Any]:
     refs = json.loads(REFS.read_text())
-    cov = coverage(refs)
+    plans: dict[str, LanePlan] = {}
+    cov = coverage(refs, plans=plans)
+    splits = split(refs, plans)
+    checks = targets(cov, splits)
     return {
         "turn_radius_m": R_M,
         "polygons": cov,
         **dubins(),
-        "split_imbalance": split(refs),
+        "split_imbalance": splits,
+        "targets": checks,
+        "targets_met": all(c["met"] for c in checks.values()),
     }

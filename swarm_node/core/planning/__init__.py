@@ -43,12 +43,12 @@ from .geo import LocalFrame, VehiclePose, heading_to_yaw, yaw_to_heading
 from .mumt import LeadState, MumtPlan, Offset, plan_mumt, vee_offsets
 from .objective import ObjectivePlan, plan_objective
 from .perimeter import PerimeterPlan, plan_perimeter, respace_perimeter, smooth_loop
-from .route import Arrival, Leg, RoutePlan, plan_route, synchronize
+from .route import Arrival, Leg, RoutePlan, leg_for, plan_route, synchronize
 from .split import MakespanCost, SplitPlan, Worker, remaining_lanes, replan, split_lanes
 from .target import TargetPlan, plan_target, respace_orbit
 from .turns import DubinsTurns, PointTurns, TurnModel, turn_model_for
-from .vehicles import PlanVehicle, VehiclePlan
-from .zones import Conflict, Obstacles, Zone, ZoneSet, visibility_path
+from .vehicles import PlanVehicle, VehiclePlan, common_speed
+from .zones import Conflict, Obstacles, Track, Zone, ZoneSet, circle_points, visibility_path
 
 __all__ = [
     "AreaPlan",
@@ -86,6 +86,7 @@ __all__ = [
     "SweepCost",
     "TargetInZoneError",
     "TargetPlan",
+    "Track",
     "Trim",
     "TurnModel",
     "VehiclePlan",
@@ -95,6 +96,8 @@ __all__ = [
     "Zone",
     "ZoneSet",
     "batch_lengths",
+    "circle_points",
+    "common_speed",
     "connect",
     "coverage_ratio",
     "cyclic_slots",
@@ -102,6 +105,7 @@ __all__ = [
     "heading_to_yaw",
     "lane_spacing_m",
     "lanes",
+    "leg_for",
     "order",
     "overlap_ratio",
     "path_length",

@@ -14,7 +14,7 @@ from .coverage import CoveragePath, Lane, coverage_ratio
 from .dubins import DubinsPath
 from .geo import LocalFrame
 from .route import Arrival, Leg
-from .zones import ZoneSet
+from .zones import Track, ZoneSet, circle_points
 
 _POSITIONED = {
     ItemKind.WAYPOINT,
@@ -110,3 +110,46 @@ def arrival_spread_s(legs: Sequence[Leg], arrivals: Mapping[int, Arrival]) -> fl
             return math.inf
         times.append(a.hold_s + a.flown_m(leg) / a.speed_m_s)
     return max(times) - min(times) if times else 0.0
+
+
+def track_zone_problems(tracks: Sequence[Track], zones: ZoneSet) -> list[str]:
+    """No planned track (approach, waiting orbit, target orbit, patrol loop, landing
+    leg, all sampled along their arcs) enters a zone's interior in its altitude band.
+    Checked against the zones as given (the margin is the planner's business)."""
+    out = []
+    for t in tracks:
+        z = zones.entered_track(t, inflated=False)
+        if z is not None:
+            out.append(f"vehicle {t.vehicle_id}: {t.kind} track enters zone {z.zone_id}")
+    return out
+
+
+def track_cover_problems(
+    vehicle_id: int,
+    waypoints: Sequence[Waypoint],
+    tracks: Sequence[Track],
+    frame: LocalFrame,
+    *,
+    tol_m: float = 1.0,
+) -> list[str]:
+    """The tracks describe what is uploaded: every positioned item of `waypoints` lies
+    on one of the vehicle's tracks, and every loiter circle (with a radius) is one of
+    them, within `tol_m`."""
+    from shapely.geometry import LineString, MultiPoint, Point
+
+    mine = [t for t in tracks if t.vehicle_id == vehicle_id]
+    if not mine:
+        return [f"vehicle {vehicle_id}: no tracks"]
+    geoms = [LineString(t.points) if len(t.points) > 1 else Point(t.points[0]) for t in mine]
+    out = []
+    for i, w in enumerate(waypoints):
+        if w.kind not in _POSITIONED:
+            continue
+        x, y = frame.to_local(w.lat_deg, w.lon_deg)
+        if w.loiter_radius_m and w.kind != ItemKind.WAYPOINT:
+            ring = MultiPoint(circle_points(x, y, abs(w.loiter_radius_m), 10.0))
+            if not any(g.buffer(tol_m).contains(ring) for g in geoms):
+                out.append(f"vehicle {vehicle_id}: item {i} ({w.kind.name}) circle not on a track")
+        elif min(g.distance(Point(x, y)) for g in geoms) > tol_m:
+            out.append(f"vehicle {vehicle_id}: item {i} ({w.kind.name}) not on a track")
+    return out

@@ -26,18 +26,20 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import shapely
+import shapely.affinity
 from shapely.geometry import LineString, MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from .dubins import FloatArray, Pose
+from .dubins import FloatArray, Pose, shortest_path
 from .errors import EmptyAreaError, InvalidGeometryError, InvalidParameterError
 from .geo import validated_polygon
-from .turns import TurnModel
-from .zones import Obstacles, ZoneSet
+from .turns import DubinsTurns, TurnModel
+from .zones import ARC_STEP_M, Obstacles, ZoneSet
 
 XY = tuple[float, float]
 
@@ -52,15 +54,17 @@ class Region:
     keep_out: BaseGeometry  # zones inflated by their margin (may be empty)
     polygon: Polygon | MultiPolygon  # shell - holes (before zones)
     obstacles: Obstacles  # the keep-out with its visibility graph, for transitions
+    target: Polygon | MultiPolygon  # what coverage is measured on: cover - keep-out
 
 
 @dataclass(frozen=True, slots=True)
 class Lane:
     """A straight sweep leg from `a` to `b` (it may be flown either way)."""
 
-    line: int  # index of the sweep line (lanes on one line share it)
+    line: int  # index of the sweep line (lanes on one line share it; a gap lane: the nearest)
     a: XY
     b: XY
+    gap: bool = False  # a gap lane (`fill_gaps`): off the sweep grid, maybe across it
 
     @property
     def length_m(self) -> float:
@@ -71,7 +75,7 @@ class Lane:
         return math.atan2(self.b[1] - self.a[1], self.b[0] - self.a[0])
 
     def reversed(self) -> Lane:
-        return Lane(self.line, self.b, self.a)
+        return Lane(self.line, self.b, self.a, self.gap)
 
     def start_pose(self) -> Pose:
         return Pose(self.a[0], self.a[1], self.yaw)
@@ -83,7 +87,7 @@ class Lane:
         """The lane split at `fraction` of its length (done part, remaining part)."""
         f = min(max(fraction, 0.0), 1.0)
         m = (self.a[0] + f * (self.b[0] - self.a[0]), self.a[1] + f * (self.b[1] - self.a[1]))
-        return Lane(self.line, self.a, m), Lane(self.line, m, self.b)
+        return Lane(self.line, self.a, m, self.gap), Lane(self.line, m, self.b, self.gap)
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,7 +151,14 @@ def decompose(
     if cover.is_empty or cover.area < 1e-6 * max(poly.area, 1.0):
         raise EmptyAreaError("nothing to cover: the area is entirely inside no-fly zones")
     keep = zones.keep_out(alt_m)
-    return Region(cover, keep, poly, Obstacles(keep))
+    target = cover
+    if zones.margin_m > 0.0 and not keep.is_empty:
+        # the band within the margin of a zone is seen only incidentally: lanes stop at
+        # the keep-out, and most of the band is out of reach of their swaths
+        target = _polygonal(cover.difference(keep))
+        if target.is_empty or target.area < 1e-6 * max(poly.area, 1.0):
+            raise EmptyAreaError("nothing to cover outside the no-fly zones' margins")
+    return Region(cover, keep, poly, Obstacles(keep), target)
 
 
 def _polygonal(g: BaseGeometry) -> Polygon | MultiPolygon:
@@ -308,6 +319,32 @@ def lanes(
         a = (c * x0 - s * y, s * x0 + c * y)
         b = (c * x1 - s * y, s * x1 + c * y)
         out.append(Lane(k, a, b))
+    return _out_of_holes(out, region)
+
+
+def _out_of_holes(lanes_: list[Lane], region: Region) -> tuple[Lane, ...]:
+    """Lanes fly over holes but never start or end in one: an end inside a hole (where
+    a zone cut the line, or where the strip's extension reaches over the hole) moves
+    back along the lane to the hole's edge."""
+    holes = [Polygon(r) for p in _pieces(region.polygon) for r in p.interiors]
+    if not holes:
+        return tuple(lanes_)
+    inside = shapely.union_all(holes)
+    shapely.prepare(inside)
+    out = []
+    for ln in lanes_:
+        if not (inside.contains(shapely.Point(ln.a)) or inside.contains(shapely.Point(ln.b))):
+            out.append(ln)
+            continue
+        line = LineString([ln.a, ln.b])
+        rest = line.difference(inside)
+        ends = [
+            line.project(shapely.Point(c)) for g in getattr(rest, "geoms", [rest]) for c in g.coords
+        ]
+        if not ends or max(ends) - min(ends) < _MIN_LANE_M:
+            continue
+        a, b = line.interpolate(min(ends)), line.interpolate(max(ends))
+        out.append(Lane(ln.line, (a.x, a.y), (b.x, b.y), ln.gap))
     return tuple(out)
 
 
@@ -587,7 +624,17 @@ def connect(
 def _transition(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacles | None) -> Leg:
     pts = [(a.x, a.y)] + [(p.x, p.y) for p in turns.points(a, b)]
     length = turns.length(a, b)
-    if obstacles is None or not obstacles.crosses(pts):
+    if obstacles is None or obstacles.is_empty:
+        return Leg(tuple(pts), length, False)
+    # the arcs between the waypoints (30 degrees apart) bulge out of their chords by up
+    # to R (1 - cos 15 deg) < 0.035 R: farther than that from the obstacles the arcs are
+    # clear too, nearer they are checked sampled
+    trace: Sequence[XY] = pts
+    if isinstance(turns, DubinsTurns):
+        if obstacles.clearance(pts) > 0.035 * turns.radius_m:
+            return Leg(tuple(pts), length, False)
+        trace = shortest_path(a, b, turns.radius_m).sample_xy(ARC_STEP_M).tolist()
+    if not obstacles.crosses(trace):
         return Leg(tuple(pts), length, False)
     around = obstacles.path((a.x, a.y), (b.x, b.y))
     return Leg(tuple(around), LineString(around).length, False)
@@ -627,6 +674,119 @@ def overlap_ratio(lanes_: Sequence[Lane], area: BaseGeometry, spacing_m: float) 
     return float(max(total - union, 0.0) / area.area)
 
 
+_GAP_ROUNDS = 4
+_GAP_CANDIDATES = 3  # lane plans (of the sweep candidates) that get gap lanes
+_GAP_OFFSETS = 7  # candidate line offsets across a gap, per direction
+
+
+def _pieces(g: BaseGeometry) -> list[Polygon]:
+    return [p for p in getattr(g, "geoms", [g]) if isinstance(p, Polygon) and not p.is_empty]
+
+
+def _gap_lane(
+    piece: Polygon,
+    missing: BaseGeometry,
+    region: Region,
+    angle: float,
+    spacing_m: float,
+    line_of: Any,
+) -> Lane | None:
+    """The straight lane, along the sweep or across it, that sees most of the unseen
+    ground (`missing`) at a few offsets across the uncovered `piece`: on each
+    candidate line, the stretch outside the keep-out that reaches the piece, spanning
+    all the unseen ground its swath can take in (so one lane tangent to a zone's front
+    sees the slivers left at several cut lanes). None if none sees anything."""
+    best: tuple[float, float, Lane] | None = None
+    keep = region.keep_out
+    for a in (angle, angle + math.pi / 2):
+        c, s = math.cos(a), math.sin(a)
+        rot = shapely.affinity.rotate(missing, -a, origin=(0.0, 0.0), use_radians=True)
+        xy = np.asarray(piece.exterior.coords)
+        u = xy[:, 0] * c + xy[:, 1] * s  # along the direction
+        v = -xy[:, 0] * s + xy[:, 1] * c  # across it
+        u0, u1, v0, v1 = float(u.min()), float(u.max()), float(v.min()), float(v.max())
+        ke = _rotate(_edges(_rings(keep)), a) if not keep.is_empty else np.zeros((0, 4))
+        for off in np.linspace(v0, v1, _GAP_OFFSETS).tolist():
+            band = rot.intersection(
+                shapely.box(-1e9, off - spacing_m / 2, 1e9, off + spacing_m / 2)
+            )
+            if band.is_empty:
+                continue
+            b0, _bv0, b1, _bv1 = band.bounds
+            blocked = _merge(_scan(ke, np.array([off]))[0]) if len(ke) else []
+            for x0, x1 in _subtract((min(b0, u0), max(b1, u1)), blocked):
+                if x1 - x0 < _MIN_LANE_M or x1 < u0 or x0 > u1:
+                    continue  # too short, or does not reach the piece
+                seen = float(
+                    shapely.box(x0, off - spacing_m / 2, x1, off + spacing_m / 2)
+                    .intersection(band)
+                    .area
+                )
+                lane_a = (c * x0 - s * off, s * x0 + c * off)
+                lane_b = (c * x1 - s * off, s * x1 + c * off)
+                mid = ((lane_a[0] + lane_b[0]) / 2, (lane_a[1] + lane_b[1]) / 2)
+                lane = Lane(line_of(mid), lane_a, lane_b, gap=True)
+                if best is None or (seen, -(x1 - x0)) > (best[0], best[1]):
+                    best = (seen, -(x1 - x0), lane)
+    if best is None or best[0] <= 1e-9:
+        return None
+    return best[2]
+
+
+def fill_gaps(
+    region: Region,
+    lanes_: Sequence[Lane],
+    angle_rad: float,
+    spacing_m: float,
+    min_coverage: float,
+) -> tuple[tuple[Lane, ...], float]:
+    """Lanes added where the sweep lanes leave ground unseen, until `min_coverage` of
+    the region is seen at the lane spacing: (all lanes, coverage).
+
+    Where a sweep lane is cut at the keep-out, its swath stops at the cut: the ground
+    beside a zone's curved edge (and, with a margin, in front of it) is left unseen.
+    Each uncovered piece, largest first, gets the straight lane (along the sweep, or
+    across it, tangent to the zone) at one of a few offsets across the piece, spanning
+    it, cut at the keep-out, whose swath sees most of it; a few rounds. Ground within
+    the keep-out deeper than half a spacing cannot be seen from outside it at all."""
+    out = list(lanes_)
+    total = float(region.target.area)
+    main = next((ln for ln in out if not ln.gap), None)
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+
+    def across(p: XY) -> float:
+        return -p[0] * s + p[1] * c
+
+    def line_of(p: XY) -> int:
+        if main is None:
+            return 0
+        return main.line + round((across(p) - across(main.a)) / spacing_m)
+
+    seen = shapely.union_all(swaths(out, spacing_m), grid_size=_GRID_M) if out else Polygon()
+    missing = _polygonal(region.target.difference(seen, grid_size=_GRID_M))
+    cov = 1.0 - float(missing.area) / total
+    for _ in range(_GAP_ROUNDS):
+        if cov >= min_coverage:
+            break
+        added = 0
+        for piece in sorted(_pieces(missing), key=lambda p: -p.area):
+            if cov >= min_coverage or piece.area < max(0.5, 1e-7 * total):
+                break
+            got = _gap_lane(piece, missing, region, angle_rad, spacing_m, line_of)
+            trimmed = _out_of_holes([got], region) if got is not None else ()
+            if not trimmed:
+                continue
+            (lane,) = trimmed
+            out.append(lane)
+            added += 1
+            sw = swaths([lane], spacing_m)[0]
+            missing = _polygonal(missing.difference(sw, grid_size=_GRID_M))
+            cov = 1.0 - float(missing.area) / total
+        if not added:
+            break
+    return tuple(out), cov
+
+
 def check_region(polygon: BaseGeometry) -> None:
     if not isinstance(polygon, Polygon | MultiPolygon):
         raise InvalidGeometryError(f"area coverage needs a polygon, got {polygon.geom_type}")
@@ -648,8 +808,8 @@ class LanePlan:
     extend: float
     lanes: tuple[Lane, ...]  # across the sweep (line order)
     path: CoveragePath  # ordered, connected
-    coverage: float  # of the region's cover at the lane spacing
-    overlap: float
+    coverage: float  # of the region's target (area - holes - inflated zones) at the lane spacing
+    overlap: float  # of the same target
 
 
 def _least_extension(
@@ -662,7 +822,7 @@ def _least_extension(
     def at(i: int) -> tuple[tuple[Lane, ...], float]:
         if i not in got:
             ls = lanes(region, angle, spacing_m, extend=_EXTEND_LEVELS[i], shift=shift)
-            got[i] = (ls, coverage_ratio(ls, region.cover, spacing_m) if ls else 0.0)
+            got[i] = (ls, coverage_ratio(ls, region.target, spacing_m) if ls else 0.0)
         return got[i]
 
     lo, hi = 0, len(_EXTEND_LEVELS) - 1
@@ -702,19 +862,29 @@ def plan_lanes(
         cands += [cands[0] + math.radians(n) for n in _NUDGES_DEG]
     else:
         cands = cands[:1]
-    best: LanePlan | None = None
+    plans: list[LanePlan] = []
     for angle in cands:
         for shift in _SHIFTS if polish else _SHIFTS[:1]:
             ls, cov, ext = _least_extension(region, angle, spacing_m, shift, min_coverage)
             if not ls:
                 continue
             path = connect(order(ls, turns, start), turns, region.obstacles, start)
-            plan = LanePlan(angle, spacing_m, ext, ls, path, cov, 0.0)
-            if best is None or (plan.coverage >= min_coverage, -plan.path.length_m) > (
-                best.coverage >= min_coverage,
-                -best.path.length_m,
-            ):
-                best = plan
+            plans.append(LanePlan(angle, spacing_m, ext, ls, path, cov, 0.0))
+
+    def rank(p: LanePlan) -> tuple[bool, float]:
+        return p.coverage >= min_coverage, -p.path.length_m
+
+    plans.sort(key=rank, reverse=True)
+    if plans and plans[0].coverage < min_coverage:
+        # ground left unseen beside the zones: gap lanes for the shortest few, then
+        # the shortest again (filling every candidate costs ten times more)
+        filled = []
+        for p in plans[:_GAP_CANDIDATES]:
+            ls, cov = fill_gaps(region, p.lanes, p.angle_rad, spacing_m, min_coverage)
+            path = connect(order(ls, turns, start), turns, region.obstacles, start)
+            filled.append(LanePlan(p.angle_rad, spacing_m, p.extend, ls, path, cov, 0.0))
+        plans = sorted(filled + plans, key=rank, reverse=True)
+    best = plans[0] if plans else None
     if best is None:
         raise EmptyAreaError("no lane fits in the area")
     return LanePlan(
@@ -724,5 +894,5 @@ def plan_lanes(
         best.lanes,
         best.path,
         best.coverage,
-        overlap_ratio(best.lanes, region.cover, spacing_m),
+        overlap_ratio(best.lanes, region.target, spacing_m),
     )

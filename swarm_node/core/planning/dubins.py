@@ -158,17 +158,50 @@ class DubinsPath:
         n = max(1, math.ceil(self.length_m / step_m))
         return [self.pose_at(self.length_m * i / n) for i in range(n + 1)]
 
+    def sample_xy(self, step_m: float) -> FloatArray:
+        """Positions every `step_m` metres, start and end included, as an (n, 2) array
+        (vectorized: the same points as `sample`)."""
+        r = self.radius_m
+        n = max(1, math.ceil(self.length_m / step_m))
+        s = np.linspace(0.0, self.length_m, n + 1) / r if r > 0 else np.zeros(n + 1)
+        out = np.empty((n + 1, 2))
+        x0, y0, phi = self.start.x, self.start.y, self.start.yaw
+        lo = 0.0
+        for i, (kind, length) in enumerate(
+            zip(self.word.segments, (self.t, self.p, self.q), strict=True)
+        ):
+            hi = lo + length
+            m = (s >= lo) & ((s < hi) | (i == 2))
+            v = np.clip(s[m] - lo, 0.0, length)
+            if kind == "L":
+                out[m, 0] = x0 + r * (np.sin(phi + v) - math.sin(phi))
+                out[m, 1] = y0 - r * (np.cos(phi + v) - math.cos(phi))
+            elif kind == "R":
+                out[m, 0] = x0 - r * (np.sin(phi - v) - math.sin(phi))
+                out[m, 1] = y0 + r * (np.cos(phi - v) - math.cos(phi))
+            else:
+                out[m, 0] = x0 + r * v * math.cos(phi)
+                out[m, 1] = y0 + r * v * math.sin(phi)
+            end = self.pose_at(hi * r)
+            x0, y0, phi = end.x, end.y, end.yaw
+            lo = hi
+        return out
+
     def waypoints(self, max_turn_rad: float = math.pi / 6) -> list[Pose]:
         """Poses a waypoint follower needs: segment joints plus points every
         `max_turn_rad` of each arc (start excluded, goal included)."""
+        return [self.pose_at(s) for s in self.waypoint_s(max_turn_rad)]
+
+    def waypoint_s(self, max_turn_rad: float = math.pi / 6) -> list[float]:
+        """Distances along the path (m) of the `waypoints`."""
         r = self.radius_m
-        out: list[Pose] = []
+        out: list[float] = []
         s0 = 0.0
         for kind, length in zip(self.word.segments, (self.t, self.p, self.q), strict=True):
             if length <= 0.0:
                 continue
             n = 1 if kind == "S" else max(1, math.ceil(length / max_turn_rad))
-            out += [self.pose_at((s0 + length * i / n) * r) for i in range(1, n + 1)]
+            out += [(s0 + length * i / n) * r for i in range(1, n + 1)]
             s0 += length
         return out
 

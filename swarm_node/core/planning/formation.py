@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InfeasibleTimingError, InvalidParameterError
+from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError
+from .vehicles import PlanVehicle
 
 
 def cyclic_slots(positions: Mapping[int, float], period: float) -> dict[int, float]:
@@ -62,26 +63,66 @@ def respace(
 ) -> dict[int, Trim]:
     """Re-space vehicles moving along a cycle at a common `speed_m_s` after one joined or
     left: equal spacing, order kept, and a speed trim per vehicle so all reach their
-    new slots together, as soon as their speed ranges allow."""
+    new slots together, as soon as their speed ranges allow.
+
+    The equally spaced pattern (`cyclic_slots`) may be rotated by some delta: each
+    vehicle v then moves m_v = d_v + delta relative to the common speed, which takes
+    T >= m_v / (hi_v - speed) ahead or |m_v| / (speed - lo_v) behind. The least T for
+    which some delta fits every vehicle is max over pairs (u, w) of
+    (d_w - d_u) / (room ahead of w + room behind u); delta is the one nearest 0 (the
+    pattern that needs the least move) that fits. So a fixed-wing already at the top
+    of its range on this cycle is never asked to speed up: the others slow down."""
     slots = cyclic_slots(positions, period)
-    moves = {
+    for v in slots:
+        lo, hi = speed_ranges[v]
+        if not lo - 1e-9 <= speed_m_s <= hi + 1e-9:
+            raise InfeasibleTimingError(
+                f"vehicle {v} cannot fly the common {speed_m_s:.1f} m/s "
+                f"(its range here is {lo:.1f}-{hi:.1f} m/s)"
+            )
+    d = {
         v: float(np.remainder(slots[v] - positions[v] % period + period / 2, period) - period / 2)
         for v in slots
     }
+    up = {v: max(speed_ranges[v][1] - speed_m_s, 0.0) for v in slots}
+    down = {v: max(speed_m_s - speed_ranges[v][0], 0.0) for v in slots}
     settle = 0.0
-    for v, d in moves.items():
-        lo, hi = speed_ranges[v]
-        room = (hi - speed_m_s) if d > 0 else (speed_m_s - lo)
-        if abs(d) > 1e-9:
-            if room <= 1e-9:
+    for u in slots:
+        for w in slots:
+            gap = d[w] - d[u]
+            if gap <= 1e-9:
+                continue
+            room = up[w] + down[u]
+            if room <= 1e-12:
                 raise InfeasibleTimingError(
-                    f"vehicle {v} cannot change speed from {speed_m_s:.1f} m/s to re-space"
+                    f"vehicles {u} and {w} cannot change speed from {speed_m_s:.1f} m/s to re-space"
                 )
-            settle = max(settle, abs(d) / room)
-    return {
-        v: Trim(v, slots[v], d, speed_m_s + (d / settle if settle > 0 else 0.0), settle)
-        for v, d in moves.items()
-    }
+            settle = max(settle, gap / room)
+    if settle <= 0.0:  # everyone is already in place (up to a common rotation)
+        delta = -next(iter(d.values())) if d else 0.0
+        return {v: Trim(v, (slots[v] + delta) % period, 0.0, speed_m_s, 0.0) for v in slots}
+    lo_d = max(-down[v] * settle - d[v] for v in slots)
+    hi_d = min(up[v] * settle - d[v] for v in slots)
+    delta = min(max(0.0, lo_d), max(lo_d, hi_d))
+    out = {}
+    for v in slots:
+        move = d[v] + delta
+        out[v] = Trim(v, (slots[v] + delta) % period, move, speed_m_s + move / settle, settle)
+    return out
+
+
+def speed_ranges_on(
+    vehicles: Sequence[PlanVehicle], ids: Iterable[int], radius_m: float
+) -> dict[int, tuple[float, float]]:
+    """Speed range of each vehicle in `ids` on a cycle whose tightest turn has
+    `radius_m` (`PlanVehicle.speed_range_on`); `NoVehiclesError` for an unknown id."""
+    by_id = {v.vehicle_id: v for v in vehicles}
+    out = {}
+    for i in ids:
+        if i not in by_id:
+            raise NoVehiclesError(f"vehicle {i} is on the cycle but not among the vehicles")
+        out[i] = by_id[i].speed_range_on(radius_m)
+    return out
 
 
 def assign_min_cost(cost: np.ndarray) -> list[int]:

@@ -18,7 +18,7 @@ from .formation import assign_min_cost
 from .geo import LocalFrame
 from .target import TargetPlan, plan_target
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
-from .zones import ZoneSet
+from .zones import Track, ZoneSet
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,6 +35,11 @@ class ObjectivePlan:
     def vehicles(self) -> tuple[VehiclePlan, ...]:
         """Every vehicle's share, like the other plans."""
         return tuple(v for _, target in self.targets for v in target.vehicles)
+
+    @property
+    def tracks(self) -> tuple[Track, ...]:
+        """Every path flown (each point's formation), densely sampled (zone checks)."""
+        return tuple(t for _, target in self.targets for t in target.tracks)
 
 
 def even_counts(n_vehicles: int, n_points: int) -> list[int]:

@@ -7,6 +7,9 @@ insertion/removal, consistent spacing through time- or angle-based offsets").
   rounds every corner to an arc of radius >= R (a shape narrower than 2R is an error).
 - All vehicles fly the loop in the same direction at one common speed (inside every
   vehicle's range), starting L/N apart along it: equal spacing in distance and time.
+- Entry is timed like a target orbit's: each vehicle flies a Dubins path (or a straight
+  line) to its start point, tangent to the loop, and all arrive together
+  (`route.synchronize`: whole waiting orbits or a hover wait, plus a speed trim).
 - Slots keep the vehicles' order along the loop; `respace_perimeter` re-spaces them
   with speed trims when one joins or leaves.
 """
@@ -21,11 +24,20 @@ from shapely.geometry import LinearRing, LineString, Point, Polygon
 
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
-from .errors import InfeasibleTimingError, InvalidGeometryError, NoSafeRouteError
-from .formation import Trim, cyclic_slots, respace
+from .dubins import Pose
+from .errors import InvalidGeometryError, NoSafeRouteError
+from .formation import Trim, cyclic_slots, respace, speed_ranges_on
 from .geo import LocalFrame
-from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
-from .zones import ZoneSet
+from .route import Arrival, Leg, approach, arrival_waypoints, synchronize
+from .vehicles import (
+    DEFAULT_PARAMS,
+    PlanVehicle,
+    VehiclePlan,
+    common_speed,
+    require_vehicles,
+    to_waypoints,
+)
+from .zones import Track, ZoneSet
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,6 +48,11 @@ class PerimeterPlan:
     speed_m_s: float  # common speed
     offsets_m: tuple[tuple[int, float], ...]  # vehicle id -> start position along loop
     vehicles: tuple[VehiclePlan, ...]
+    turn_radius_m: float = 0.0  # the loop's tightest turn (smoothing radius, circle radius)
+    arrival_s: float = 0.0  # when every positioned vehicle is at its start point
+    arrivals: tuple[Arrival, ...] = ()  # how each positioned vehicle gets there on time
+    legs: tuple[Leg, ...] = ()  # their arrival legs
+    tracks: tuple[Track, ...] = ()  # every path flown, densely sampled (zone checks)
 
     @property
     def lap_s(self) -> float:
@@ -59,18 +76,6 @@ def smooth_loop(polygon: Polygon, radius_m: float) -> Polygon:
     if not isinstance(closed, Polygon):
         raise InvalidGeometryError("smoothing split the perimeter")
     return closed
-
-
-def common_speed(vehicles: Sequence[PlanVehicle], params: MissionParams) -> float:
-    """One speed every vehicle can fly: the slowest mission speed, raised to the highest
-    minimum; `InfeasibleTimingError` if the speed ranges do not overlap."""
-    lo = max(v.speed_range()[0] for v in vehicles)
-    hi = min(v.speed_range()[1] for v in vehicles)
-    if lo > hi:
-        raise InfeasibleTimingError(
-            f"no common speed: the vehicles' ranges do not overlap ({lo:.1f} > {hi:.1f} m/s)"
-        )
-    return min(max(min(v.speed(params) for v in vehicles), lo), hi)
 
 
 def _loop(geometry: Geometry, frame: LocalFrame, radius: float) -> LinearRing:
@@ -115,6 +120,7 @@ def plan_perimeter(
         for v in vehicles
     )
     ring = _loop(geometry, frame, radius)
+    loop_radius = (geometry.radius_m or radius) if geometry.kind == GeometryKind.CIRCLE else radius
     zs = ZoneSet.from_messages(
         zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
     )
@@ -135,11 +141,38 @@ def plan_perimeter(
             pos[v.vehicle_id] = ring.project(Point(frame.to_local(v.pose.lat_deg, v.pose.lon_deg)))
     offsets = cyclic_slots(pos, length)
     loops = max(params.loops, 1)
-    plans = []
+    # timed entry: every vehicle reaches its start point, heading along the loop, at the
+    # same moment (route.synchronize), so the spacing in time holds from the first lap
+    aps = {}
     for v in vehicles:
+        if v.pose is not None:
+            start = Pose(*frame.pose(v.pose))
+            goal = _loop_pose(ring, offsets[v.vehicle_id])
+            aps[v.vehicle_id] = (
+                start,
+                approach(v, start, goal, v.speed(params), zs, alts[v.vehicle_id]),
+            )
+    sync = synchronize([ap.leg for _start, ap in aps.values()])
+    arrival_s = next(iter(sync.values())).arrival_s if sync else 0.0
+    loop_xy = tuple((float(x), float(y)) for x, y in ring.coords)
+    plans = []
+    tracks: list[Track] = []
+    for v in vehicles:
+        alt = alts[v.vehicle_id]
         pts = lap_points(ring, offsets[v.vehicle_id], loops)
-        wps = to_waypoints(frame, pts, alts[v.vehicle_id], speed_m_s=speed)
-        plans.append(VehiclePlan(v.vehicle_id, wps, length * loops, length * loops / speed))
+        tracks.append(Track(v.vehicle_id, "loop", loop_xy, alt))
+        lap_m = length * loops
+        if v.vehicle_id in aps:
+            start, ap = aps[v.vehicle_id]
+            arr = sync[v.vehicle_id]
+            wps = arrival_waypoints(frame, ap, arr, alt, start)
+            wps += to_waypoints(frame, pts[1:], alt, speed_m_s=speed)
+            tracks += ap.tracks(arr, alt)
+            flown, t0 = arr.flown_m(ap.leg), arr.arrival_s
+        else:
+            wps = list(to_waypoints(frame, pts, alt, speed_m_s=speed))
+            flown, t0 = 0.0, 0.0
+        plans.append(VehiclePlan(v.vehicle_id, tuple(wps), flown + lap_m, t0 + lap_m / speed))
     coords = tuple((float(x), float(y)) for x, y in list(ring.coords)[:-1])
     return PerimeterPlan(
         frame,
@@ -148,7 +181,21 @@ def plan_perimeter(
         speed,
         tuple((v.vehicle_id, offsets[v.vehicle_id]) for v in vehicles),
         tuple(plans),
+        loop_radius,
+        arrival_s,
+        tuple(sync[v.vehicle_id] for v in vehicles if v.vehicle_id in sync),
+        tuple(ap.leg for _start, ap in aps.values()),
+        tuple(tracks),
     )
+
+
+def _loop_pose(ring: LinearRing, at_m: float) -> Pose:
+    """The pose on the (counter-clockwise) loop `at_m` along it, heading along it."""
+    n = ring.length
+    p = ring.interpolate(at_m % n)
+    a = ring.interpolate((at_m - 0.5) % n)
+    b = ring.interpolate((at_m + 0.5) % n)
+    return Pose(float(p.x), float(p.y), math.atan2(b.y - a.y, b.x - a.x))
 
 
 def lap_points(ring: LinearRing, start_m: float, laps: int = 1) -> list[tuple[float, float]]:
@@ -170,8 +217,11 @@ def lap_points(ring: LinearRing, start_m: float, laps: int = 1) -> list[tuple[fl
 def respace_perimeter(
     plan: PerimeterPlan,
     positions_m: Mapping[int, float],
-    speed_ranges: Mapping[int, tuple[float, float]],
+    vehicles: Sequence[PlanVehicle],
 ) -> dict[int, Trim]:
     """Vehicles at `positions_m` along the loop (some joined, some left): new equal
-    offsets (order kept) and the speed trims that bring everyone there together."""
-    return respace(positions_m, plan.length_m, plan.speed_m_s, speed_ranges)
+    offsets (order kept) and the speed trims that bring everyone there together, each
+    within the vehicle's speed range on the loop (a fixed-wing never faster than the
+    loop's tightest turn allows at its max bank)."""
+    ranges = speed_ranges_on(vehicles, positions_m, plan.turn_radius_m)
+    return respace(positions_m, plan.length_m, plan.speed_m_s, ranges)

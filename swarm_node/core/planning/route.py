@@ -17,12 +17,18 @@ from dataclasses import dataclass
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
-from .dubins import Pose
-from .errors import InfeasibleTimingError, InvalidGeometryError, InvalidParameterError
+from .dubins import Pose, all_paths
+from .errors import (
+    InfeasibleTimingError,
+    InvalidGeometryError,
+    InvalidParameterError,
+    NoSafeRouteError,
+    TargetInZoneError,
+)
 from .geo import LocalFrame, heading_to_yaw
 from .turns import DubinsTurns
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
-from .zones import ZoneSet
+from .zones import ARC_STEP_M, Obstacles, Track, ZoneSet, circle_points
 
 _MAX_ORBITS = 60
 
@@ -35,15 +41,31 @@ class Leg:
     path_m: float  # length of its path to the point
     orbit_m: float  # circumference of one loiter orbit (0: it can hover instead)
     min_speed_m_s: float
-    max_speed_m_s: float
+    max_speed_m_s: float  # for a fixed-wing, already capped by what `radius_m` allows
     cruise_speed_m_s: float
+    radius_m: float = 0.0  # the turn radius its path and orbit were planned with (0: none)
+    hover: bool = False  # it can wait on the spot (hover-capable) instead of orbiting
 
     def __post_init__(self) -> None:
-        vals = (self.path_m, self.orbit_m, self.min_speed_m_s, self.max_speed_m_s)
+        vals = (self.path_m, self.orbit_m, self.min_speed_m_s, self.max_speed_m_s, self.radius_m)
         if not all(math.isfinite(v) and v >= 0.0 for v in vals) or self.max_speed_m_s <= 0:
             raise InvalidParameterError(f"vehicle {self.vehicle_id}: bad arrival leg {vals}")
         if self.min_speed_m_s > self.max_speed_m_s:
             raise InvalidParameterError(f"vehicle {self.vehicle_id}: min speed > max speed")
+
+
+def leg_for(v: PlanVehicle, path_m: float, speed_m_s: float) -> Leg:
+    """A vehicle's arrival leg for a path of `path_m` planned at mission speed
+    `speed_m_s`: a fixed-wing's path and loiter orbit use the turn radius R of that speed
+    (never below its loiter radius), so its usable speeds are capped at
+    sqrt(R g tan(max bank)); hover-capable vehicles wait on the spot instead."""
+    turns = v.turns(speed_m_s)
+    r = turns.radius_m
+    lo, hi = v.speed_range_on(r)
+    cruise = min(max(speed_m_s, lo), hi)
+    if r > 0.0:
+        return Leg(v.vehicle_id, path_m, 2 * math.pi * r, lo, hi, cruise, r)
+    return Leg(v.vehicle_id, path_m, 0.0, lo, hi, cruise, hover=True)
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,7 +82,7 @@ class Arrival:
 
 def _options(leg: Leg, t: float) -> tuple[int, float, float] | None:
     """(orbits, hold, speed) letting `leg` arrive exactly at `t`, closest to cruise."""
-    if leg.orbit_m <= 0.0:  # can wait on the spot
+    if leg.hover:  # can wait on the spot
         if leg.path_m <= 0.0:
             return 0, t, leg.cruise_speed_m_s
         v = min(max(leg.cruise_speed_m_s, leg.path_m / t), leg.max_speed_m_s)
@@ -68,7 +90,7 @@ def _options(leg: Leg, t: float) -> tuple[int, float, float] | None:
             return None
         return 0, t - leg.path_m / v, v
     best: tuple[int, float, float] | None = None
-    for k in range(_MAX_ORBITS + 1):
+    for k in _orbit_counts(leg):
         dist = leg.path_m + k * leg.orbit_m
         v = dist / t  # grows with k
         if v < leg.min_speed_m_s - 1e-9:
@@ -78,6 +100,11 @@ def _options(leg: Leg, t: float) -> tuple[int, float, float] | None:
         if best is None or abs(v - leg.cruise_speed_m_s) < abs(best[2] - leg.cruise_speed_m_s):
             best = (k, 0.0, v)
     return best
+
+
+def _orbit_counts(leg: Leg) -> range:
+    """The whole orbits a leg may fly: none when it has no room for an orbit."""
+    return range(_MAX_ORBITS + 1) if leg.orbit_m > 0.0 else range(1)
 
 
 def synchronize(legs: Sequence[Leg], *, not_before_s: float = 0.0) -> dict[int, Arrival]:
@@ -93,8 +120,8 @@ def synchronize(legs: Sequence[Leg], *, not_before_s: float = 0.0) -> dict[int, 
     earliest = max([not_before_s, 1e-9, *(leg.path_m / leg.max_speed_m_s for leg in legs)])
     cands = {earliest}
     for leg in legs:
-        if leg.orbit_m > 0.0:
-            for k in range(_MAX_ORBITS + 1):
+        if not leg.hover:
+            for k in _orbit_counts(leg):
                 for v in (leg.max_speed_m_s, leg.min_speed_m_s):
                     if v > 0:
                         t = (leg.path_m + k * leg.orbit_m) / v
@@ -118,52 +145,139 @@ def synchronize(legs: Sequence[Leg], *, not_before_s: float = 0.0) -> dict[int, 
 
 @dataclass(frozen=True, slots=True)
 class Approach:
+    """A vehicle's planned way to a meeting point, and where it may wait on the way."""
+
     vehicle_id: int
-    points: tuple[tuple[float, float], ...]  # local, start excluded, goal included
+    points: tuple[tuple[float, float], ...]  # waypoints: local, start excluded, goal included
     length_m: float
     leg: Leg
-    loiter_centre: tuple[float, float] | None
+    loiter_centre: tuple[float, float] | None  # None: no waiting orbit (or no room for one)
     loiter_radius_m: float  # > 0 clockwise (ArduPilot sign)
+    trace: tuple[tuple[float, float], ...] = ()  # the path sampled densely, start included
+    loiter_after: int = 0  # the orbit is flown after points[:loiter_after] ...
+    loiter_entry: tuple[float, float] | None = None  # ... from this tangent point (None: start)
+
+    def tracks(self, arr: Arrival, alt_m: float) -> list[Track]:
+        """The approach as flown, and its waiting orbit if the arrival flies one."""
+        out = [Track(self.vehicle_id, "approach", self.trace, alt_m)]
+        if arr.orbits > 0 and self.loiter_centre is not None:
+            circle = circle_points(*self.loiter_centre, abs(self.loiter_radius_m))
+            out.append(Track(self.vehicle_id, "wait", circle, alt_m))
+        return out
+
+
+def _polyline_poses(pts: Sequence[tuple[float, float]], step_m: float) -> list[tuple[float, Pose]]:
+    """(distance along, pose) every `step_m` along a polyline, heading along each leg."""
+    out: list[tuple[float, Pose]] = []
+    s0 = 0.0
+    for a, b in itertools.pairwise(pts):
+        d = math.hypot(b[0] - a[0], b[1] - a[1])
+        if d <= 1e-9:
+            continue
+        yaw = math.atan2(b[1] - a[1], b[0] - a[0])
+        n = max(1, math.ceil(d / step_m))
+        for i in range(n):
+            f = i / n
+            out.append((s0 + f * d, Pose(a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), yaw)))
+        s0 += d
+    return out
 
 
 def approach(
     v: PlanVehicle, start: Pose, goal: Pose, speed_m_s: float, zones: ZoneSet, alt_m: float
 ) -> Approach:
-    """A vehicle's path from `start` to `goal` (Dubins for fixed-wing, straight
-    otherwise; around the zones when the direct one would cross them)."""
-    lo, hi = v.speed_range()
-    turns = v.turns(speed_m_s)
-    pts = [(p.x, p.y) for p in turns.points(start, goal)]
-    length = turns.length(start, goal)
-    path = [(start.x, start.y), *pts]
-    zs = zones.at(alt_m)
-    if zs:
-        from .zones import Obstacles
+    """A vehicle's path from `start` to `goal`, clear of the (inflated) zones at `alt_m`.
 
-        obst = Obstacles(zones.keep_out(alt_m))
-        if obst.crosses(path):
-            around = obst.path((start.x, start.y), (goal.x, goal.y))
-            pts = around[1:]
-            length = sum(
-                math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise(around)
-            )
+    Fixed-wing: the shortest Dubins word at the turn radius of `speed_m_s` whose arcs
+    (sampled every couple of metres) stay clear; else the shortest polyline around the
+    zones (visibility graph). The waiting orbit (for `synchronize`) is tangent to the
+    path, at the first place along it (the start first, each side) where the whole
+    circle is clear; with no such place the leg gets no orbit and must make up time
+    with its speed alone. Other vehicles: a straight line (or around the zones), and
+    they wait on the spot."""
+    turns = v.turns(speed_m_s)
+    keep = zones.keep_out(alt_m) if zones.at(alt_m) else None
+    obst = Obstacles(keep) if keep is not None and not keep.is_empty else None
+    start_xy = (start.x, start.y)
+    path_poses: list[tuple[float, Pose]] = []  # candidate places for the waiting orbit
+    pts: list[tuple[float, float]] = []
+    pts_s: list[float] = []
+    trace: list[tuple[float, float]] = []
+    length = math.nan
     if isinstance(turns, DubinsTurns):
-        r = max(turns.radius_m, v.profile.loiter_radius_m)
-        # orbit beside the start, turning left (counter-clockwise): back to the start pose
-        cx = start.x - r * math.sin(start.yaw)
-        cy = start.y + r * math.cos(start.yaw)
-        leg = Leg(v.vehicle_id, length, 2 * math.pi * r, lo, hi, speed_m_s)
-        return Approach(v.vehicle_id, tuple(pts), length, leg, (cx, cy), -r)
-    leg = Leg(v.vehicle_id, length, 0.0, lo, hi, speed_m_s)
-    return Approach(v.vehicle_id, tuple(pts), length, leg, None, 0.0)
+        r = turns.radius_m
+        for path in all_paths(start, goal, r):
+            xy = [(float(x), float(y)) for x, y in path.sample_xy(ARC_STEP_M)]
+            if obst is None or not obst.crosses(xy):
+                pts_s = path.waypoint_s()
+                pts = [(q.x, q.y) for q in (path.pose_at(x) for x in pts_s)]
+                trace, length = xy, path.length_m
+                step = max(r / 2.0, 10.0)
+                n = max(1, math.ceil(path.length_m / step))
+                path_poses = [
+                    (path.length_m * i / n, path.pose_at(path.length_m * i / n)) for i in range(n)
+                ]
+                break
+    else:
+        trace = [start_xy, (goal.x, goal.y)]
+        if obst is None or not obst.crosses(trace):
+            pts, pts_s = [(goal.x, goal.y)], [math.hypot(goal.x - start.x, goal.y - start.y)]
+            length = pts_s[0]
+    if math.isnan(length):  # around the zones
+        assert obst is not None
+        around = obst.path(start_xy, (goal.x, goal.y))
+        pts = list(around[1:])
+        pts_s = list(itertools.accumulate(math.dist(a, b) for a, b in itertools.pairwise(around)))
+        trace, length = list(around), pts_s[-1] if pts_s else 0.0
+        path_poses = _polyline_poses(around, max(turns.radius_m / 2.0, 10.0))
+    leg = leg_for(v, length, speed_m_s)
+    if not isinstance(turns, DubinsTurns):
+        return Approach(v.vehicle_id, tuple(pts), length, leg, None, 0.0, tuple(trace))
+    r = leg.radius_m
+    for s_at, pose in path_poses or [(0.0, start)]:
+        for side in (1.0, -1.0):  # left of the path (counter-clockwise), then right
+            cx = pose.x - side * r * math.sin(pose.yaw)
+            cy = pose.y + side * r * math.cos(pose.yaw)
+            if keep is None or zones.entered(circle_points(cx, cy, r), alt_m) is None:
+                after = sum(1 for x in pts_s if x <= s_at + 1e-9) if s_at > 0 else 0
+                entry = (pose.x, pose.y) if s_at > 0 else None
+                return Approach(
+                    v.vehicle_id,
+                    tuple(pts),
+                    length,
+                    leg,
+                    (cx, cy),
+                    -side * r,
+                    tuple(trace),
+                    after,
+                    entry,
+                )
+    no_orbit = Leg(
+        v.vehicle_id, length, 0.0, leg.min_speed_m_s, leg.max_speed_m_s, leg.cruise_speed_m_s, r
+    )
+    return Approach(v.vehicle_id, tuple(pts), length, no_orbit, None, 0.0, tuple(trace))
 
 
 def arrival_waypoints(
     frame: LocalFrame, ap: Approach, arr: Arrival, alt_m: float, start: Pose
 ) -> list[Waypoint]:
-    """CHANGE_SPEED, the loiter orbits or the hover wait, then the approach points."""
+    """CHANGE_SPEED, the hover wait, the approach points with the loiter orbits where
+    the approach put them (a WAYPOINT at the orbit's tangent point, then LOITER_TURNS)."""
     out = [Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=arr.speed_m_s)]
-    if arr.orbits > 0 and ap.loiter_centre is not None:
+    if arr.hold_s > 0.0:
+        lat, lon = frame.to_geodetic(start.x, start.y)
+        out.append(Waypoint(ItemKind.LOITER_TIME, lat, lon, alt_m, hold_s=arr.hold_s))
+    before: tuple[tuple[float, float], ...] = ap.points
+    after: tuple[tuple[float, float], ...] = ()
+    if arr.orbits > 0:
+        if ap.loiter_centre is None:
+            raise NoSafeRouteError(f"vehicle {ap.vehicle_id} has no room for a waiting orbit")
+        before, after = ap.points[: ap.loiter_after], ap.points[ap.loiter_after :]
+        if ap.loiter_entry is not None:
+            before = (*before, ap.loiter_entry)
+    out += _waypoints(frame, before, alt_m)
+    if arr.orbits > 0:
+        assert ap.loiter_centre is not None
         lat, lon = frame.to_geodetic(*ap.loiter_centre)
         out.append(
             Waypoint(
@@ -175,13 +289,17 @@ def arrival_waypoints(
                 turns=float(arr.orbits),
             )
         )
-    if arr.hold_s > 0.0:
-        lat, lon = frame.to_geodetic(start.x, start.y)
-        out.append(Waypoint(ItemKind.LOITER_TIME, lat, lon, alt_m, hold_s=arr.hold_s))
-    if ap.points:
-        ll = frame.to_geodetic_many(ap.points)
-        out += [Waypoint(ItemKind.WAYPOINT, la, lo, alt_m) for la, lo in ll.tolist()]
+        out += _waypoints(frame, after, alt_m)
     return out
+
+
+def _waypoints(
+    frame: LocalFrame, pts: Sequence[tuple[float, float]], alt_m: float
+) -> list[Waypoint]:
+    if not pts:
+        return []
+    ll = frame.to_geodetic_many(pts)
+    return [Waypoint(ItemKind.WAYPOINT, la, lo, alt_m) for la, lo in ll.tolist()]
 
 
 # --------------------------------------------------------------------------- route mission
@@ -193,6 +311,8 @@ class RoutePlan:
     arrival_s: float
     arrivals: tuple[Arrival, ...]
     vehicles: tuple[VehiclePlan, ...]
+    legs: tuple[Leg, ...] = ()  # each vehicle's arrival leg (path, orbit, speed range)
+    tracks: tuple[Track, ...] = ()  # every path flown, densely sampled (zone checks)
 
 
 def plan_route(
@@ -221,8 +341,6 @@ def plan_route(
     )
     pts = frame.ring(geometry.points)
     alts = [params.altitude_rel_m + i * params.altitude_step_m for i in range(len(vehicles))]
-    from .errors import TargetInZoneError
-
     for x, y in pts:
         for alt in alts:
             z = zs.zone_containing(x, y, alt)
@@ -246,11 +364,17 @@ def plan_route(
         aps.append(approach(v, start, goal, v.speed(params), zs, alt))
     arr = synchronize([a.leg for a in aps])
     plans = []
+    tracks: list[Track] = []
     for v, ap, start, alt in zip(vehicles, aps, starts, alts, strict=True):
         a = arr[v.vehicle_id]
         wps = arrival_waypoints(frame, ap, a, alt, start)
+        tracks += ap.tracks(a, alt)
         route3d = [(x, y, alt) for x, y in pts]
         safe = zs.avoid(route3d, max_alt_rel_m=max_alt_rel_m) if zs.zones else route3d
+        tracks += [
+            Track(v.vehicle_id, "route", (p[:2], q[:2]), min(p[2], q[2]), max(p[2], q[2]))
+            for p, q in itertools.pairwise(safe)
+        ]
         cruise = v.speed(params)
         wps.append(Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=cruise))
         if len(safe) > 1:
@@ -262,4 +386,11 @@ def plan_route(
         )
         plans.append(VehiclePlan(v.vehicle_id, tuple(wps), length, a.arrival_s))
     t = next(iter(arr.values())).arrival_s
-    return RoutePlan(frame, t, tuple(arr[v.vehicle_id] for v in vehicles), tuple(plans))
+    return RoutePlan(
+        frame,
+        t,
+        tuple(arr[v.vehicle_id] for v in vehicles),
+        tuple(plans),
+        tuple(a.leg for a in aps),
+        tuple(tracks),
+    )

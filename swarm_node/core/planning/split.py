@@ -258,9 +258,13 @@ def _cut_boundaries(
             keep_r: list[Lane] = keep_r,
         ) -> tuple[list[Lane], list[Lane]]:
             a, b = shared.cut(f)  # a: the left part (towards the left block)
-            lb = keep_l + ([a] if a.length_m > 1.0 else [])
-            rb = ([b] if b.length_m > 1.0 else []) + keep_r
-            return lb, rb
+            # a part under 1 m is not worth a turn: the other side flies the whole lane
+            # (dropping it would leave its strip unseen)
+            if a.length_m <= 1.0:
+                return list(keep_l), [shared, *keep_r]
+            if b.length_m <= 1.0:
+                return [*keep_l, shared], list(keep_r)
+            return [*keep_l, a], [b, *keep_r]
 
         lo, hi = 0.0, 1.0
         best = (max(tl0, tr0), left, right)

@@ -19,16 +19,18 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from shapely.geometry import Point
+
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
 from .dubins import Pose
-from .errors import InvalidGeometryError, TargetInZoneError
-from .formation import Trim, cyclic_slots, respace
+from .errors import InvalidGeometryError, InvalidParameterError, TargetInZoneError
+from .formation import Trim, cyclic_slots, respace, speed_ranges_on
 from .geo import LocalFrame
-from .route import Arrival, approach, arrival_waypoints, synchronize
-from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
-from .zones import ZoneSet
+from .route import Arrival, Leg, approach, arrival_waypoints, synchronize
+from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, common_speed, require_vehicles
+from .zones import Track, Zone, ZoneSet, circle_points
 
 DEFAULT_HOVER_RADIUS_M = 50.0
 
@@ -53,19 +55,22 @@ class TargetPlan:
     slots: tuple[Slot, ...]
     arrivals: tuple[Arrival, ...]
     vehicles: tuple[VehiclePlan, ...]
+    orbit_speed_m_s: float = 0.0  # the orbiters' common speed on the orbit
+    legs: tuple[Leg, ...] = ()  # each positioned vehicle's arrival leg
+    tracks: tuple[Track, ...] = ()  # every path flown, densely sampled (zone checks)
 
     def slot_of(self, vehicle_id: int) -> Slot:
         return next(s for s in self.slots if s.vehicle_id == vehicle_id)
 
 
-def orbit_radius_m(vehicles: Sequence[PlanVehicle], params: MissionParams) -> float:
+def orbit_radius_m(
+    vehicles: Sequence[PlanVehicle], params: MissionParams, orbit_speed_m_s: float
+) -> float:
     """The common orbit radius: the requested one, never below any orbiter's minimum
-    turn radius at its mission speed (v^2 / (g tan(max bank))) or loiter radius."""
+    turn radius (v^2 / (g tan(max bank)), and its loiter radius) at the faster of its
+    mission speed (it arrives on the orbit at that speed) and the common orbit speed."""
     need = max(
-        (
-            max(v.profile.turn_radius_m(v.speed(params)), v.profile.loiter_radius_m)
-            for v in vehicles
-        ),
+        (v.profile.turn_radius_m(max(v.speed(params), orbit_speed_m_s)) for v in vehicles),
         default=0.0,
     )
     return max(params.radius_m or 0.0, need)
@@ -118,7 +123,9 @@ def plan_target(
         params = _with_radius(params, geometry.radius_m)
     orbiters = [v for v in vehicles if v.profile.is_fixed_wing]
     hoverers = [v for v in vehicles if not v.profile.is_fixed_wing]
-    r_orbit = orbit_radius_m(orbiters, params) if orbiters else 0.0
+    # orbiters share one speed on the orbit, or the phase spacing would drift
+    orbit_speed = common_speed(orbiters, params) if orbiters else 0.0
+    r_orbit = orbit_radius_m(orbiters, params, orbit_speed) if orbiters else 0.0
     r_hover = params.radius_m if params.radius_m is not None else DEFAULT_HOVER_RADIUS_M
     bearings = _phases(vehicles, centre, frame)
     slots: list[Slot] = []
@@ -145,6 +152,14 @@ def plan_target(
             raise TargetInZoneError(
                 f"vehicle {s.vehicle_id}'s slot around the target is inside no-fly zone {z.zone_id}"
             )
+    orbit_ring = circle_points(*centre, r_orbit) if orbiters else ()
+    for s in slots:
+        z = zs.entered(orbit_ring, s.alt_rel_m) if s.orbit else None
+        if z is not None:
+            raise TargetInZoneError(
+                f"the {r_orbit:.0f} m orbit around the target crosses no-fly zone {z.zone_id} "
+                f"at {s.alt_rel_m:.0f} m: {_clear_radii(zs, z, centre)}"
+            )
     by_id = {s.vehicle_id: s for s in slots}
     # orbiters arrive at their phase points together, tangent to the orbit
     sign = -1.0 if clockwise else 1.0
@@ -166,10 +181,13 @@ def plan_target(
     sync = synchronize([aps[v.vehicle_id][1].leg for v in orbiters if v.vehicle_id in aps])
     plans = []
     arrivals: list[Arrival] = []
+    tracks: list[Track] = []
     for v in vehicles:
         s = by_id[v.vehicle_id]
         wps: list[Waypoint] = []
         length, t = 0.0, 0.0
+        if s.orbit:
+            tracks.append(Track(v.vehicle_id, "orbit", orbit_ring, s.alt_rel_m))
         if v.vehicle_id in aps:
             start, ap = aps[v.vehicle_id]
             arr = sync.get(v.vehicle_id) or Arrival(
@@ -177,15 +195,36 @@ def plan_target(
             )
             arrivals.append(arr)
             wps += arrival_waypoints(frame, ap, arr, s.alt_rel_m, start)
+            tracks += ap.tracks(arr, s.alt_rel_m)
             length, t = arr.flown_m(ap.leg), arr.arrival_s
         else:
             lat, lon = frame.to_geodetic(s.x, s.y)
             wps.append(Waypoint(ItemKind.WAYPOINT, lat, lon, s.alt_rel_m))
-        wps.append(_hold(frame, centre, s, params, clockwise, v.speed(params)))
+            tracks.append(Track(v.vehicle_id, "slot", ((s.x, s.y),), s.alt_rel_m))
+        hold_speed = orbit_speed if s.orbit else v.speed(params)
+        wps.append(_hold(frame, centre, s, params, clockwise, hold_speed))
         plans.append(VehiclePlan(v.vehicle_id, tuple(wps), length, t))
     return TargetPlan(
-        frame, centre, r_orbit, clockwise, tuple(slots), tuple(arrivals), tuple(plans)
+        frame,
+        centre,
+        r_orbit,
+        clockwise,
+        tuple(slots),
+        tuple(arrivals),
+        tuple(plans),
+        orbit_speed,
+        tuple(aps[v.vehicle_id][1].leg for v in vehicles if v.vehicle_id in aps),
+        tuple(tracks),
     )
+
+
+def _clear_radii(zs: ZoneSet, zone: Zone, centre: tuple[float, float]) -> str:
+    """Which orbit radii clear `zone` (inflated by the margin): a circle around `centre`
+    misses it below its nearest distance or beyond its farthest."""
+    poly = zone.polygon.buffer(zs.margin_m, join_style="mitre") if zs.margin_m else zone.polygon
+    near = poly.distance(Point(centre))
+    far = max(math.dist(centre, c) for c in poly.exterior.coords)
+    return f"an orbit clears it below {near:.0f} m or beyond {far:.0f} m radius"
 
 
 def _with_radius(params: MissionParams, radius: float | None) -> MissionParams:
@@ -228,13 +267,20 @@ def respace_orbit(
     phases_rad: Mapping[int, float],
     radius_m: float,
     speed_m_s: float,
-    speed_ranges: Mapping[int, tuple[float, float]],
+    vehicles: Sequence[PlanVehicle],
 ) -> dict[int, Trim]:
     """After a vehicle joined or left an orbit: new equal phases (2 pi / N apart, order
-    kept) and each orbiter's speed trim; `Trim.target`/`move` are in radians."""
+    kept) and each orbiter's speed trim; `Trim.target`/`move` are in radians. A trim
+    stays within the vehicle's speed range on this orbit (`speed_range_on(radius_m)`:
+    a fixed-wing never flies faster than the orbit's radius allows at its max bank)."""
+    if not (math.isfinite(radius_m) and radius_m > 0.0):
+        raise InvalidParameterError(f"orbit radius must be > 0, got {radius_m}")
     period = 2 * math.pi * radius_m
     trims = respace(
-        {v: p * radius_m for v, p in phases_rad.items()}, period, speed_m_s, speed_ranges
+        {v: p * radius_m for v, p in phases_rad.items()},
+        period,
+        speed_m_s,
+        speed_ranges_on(vehicles, phases_rad, radius_m),
     )
     return {
         v: Trim(v, t.target / radius_m, t.move / radius_m, t.speed_m_s, t.settle_s)

@@ -4,13 +4,14 @@ the planned result per vehicle (geodetic waypoints the autopilot link uploads)."
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
-from swarm_node.core.profile import VehicleProfile
+from swarm_node.core.profile import G_M_S2, VehicleProfile
 from swarm_proto import MissionParams
 
-from .errors import InvalidParameterError, NoVehiclesError
+from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError
 from .geo import LocalFrame, VehiclePose
 from .turns import TurnModel, turn_model_for
 
@@ -50,6 +51,48 @@ class PlanVehicle:
 
     def turns(self, speed_m_s: float) -> TurnModel:
         return turn_model_for(self.profile, speed_m_s)
+
+    def max_speed_on_radius(self, radius_m: float) -> float:
+        """The fastest speed at which this vehicle can fly a turn of `radius_m`: for a
+        fixed-wing at its max bank, sqrt(R g tan(max bank)) (the inverse of
+        R = v^2 / (g tan(max bank))); unbounded for vehicles that turn on the spot."""
+        p = self.profile
+        if not p.is_fixed_wing:
+            return math.inf
+        if not (math.isfinite(p.max_bank_deg) and 0.0 < p.max_bank_deg < 90.0):
+            raise InvalidParameterError(
+                f"vehicle {self.vehicle_id}: max bank must be in (0, 90) deg, got {p.max_bank_deg}"
+            )
+        if not (math.isfinite(radius_m) and radius_m >= 0.0):
+            raise InvalidParameterError(f"turn radius must be >= 0, got {radius_m}")
+        return math.sqrt(radius_m * G_M_S2 * math.tan(math.radians(p.max_bank_deg)))
+
+    def speed_range_on(self, radius_m: float) -> tuple[float, float]:
+        """(min, max) speed on a path whose tightest turn (or orbit) has `radius_m`: the
+        speed range with the top capped by `max_speed_on_radius`, so a speed trim never
+        asks for a turn tighter than the path was planned with. Raises
+        `InfeasibleTimingError` if even the minimum speed needs a wider turn."""
+        lo, hi = self.speed_range()
+        cap = self.max_speed_on_radius(radius_m)
+        if cap < lo - 1e-9:
+            raise InfeasibleTimingError(
+                f"vehicle {self.vehicle_id}: a {radius_m:.1f} m turn needs <= {cap:.1f} m/s, "
+                f"below its minimum speed {lo:.1f} m/s"
+            )
+        return lo, max(min(hi, cap), lo)
+
+
+def common_speed(vehicles: Sequence[PlanVehicle], params: MissionParams) -> float:
+    """One speed every vehicle can fly (a formation that must keep its spacing): the
+    slowest mission speed, raised to the highest minimum; `InfeasibleTimingError` if the
+    speed ranges do not overlap."""
+    lo = max(v.speed_range()[0] for v in vehicles)
+    hi = min(v.speed_range()[1] for v in vehicles)
+    if lo > hi:
+        raise InfeasibleTimingError(
+            f"no common speed: the vehicles' ranges do not overlap ({lo:.1f} > {hi:.1f} m/s)"
+        )
+    return min(max(min(v.speed(params) for v in vehicles), lo), hi)
 
 
 def require_vehicles(vehicles: object) -> None:

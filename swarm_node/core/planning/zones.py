@@ -107,6 +107,32 @@ class ZoneSet:
         """Union of the zones inflated by the margin (+ `extra_m`) at an altitude."""
         return _union(self.at(alt_m), self.margin_m + extra_m)
 
+    def entered(
+        self,
+        points: Sequence[tuple[float, float]],
+        alt_lo_m: float | None,
+        alt_hi_m: float | None = None,
+        *,
+        inflated: bool = True,
+    ) -> Zone | None:
+        """The first zone applying in the altitude band whose interior (inflated by the
+        margin unless `inflated` is False) the polyline through `points` enters; None
+        when it stays clear (touching the boundary is clear)."""
+        if not points:
+            return None
+        line = LineString(points) if len(points) > 1 else Point(points[0])
+        grow = self.margin_m if inflated else 0.0
+        for z in self.at(alt_lo_m, alt_hi_m):
+            poly = z.polygon.buffer(grow, join_style="mitre") if grow > 0 else z.polygon
+            if line.intersects(poly.buffer(-1e-6)):
+                return z
+        return None
+
+    def entered_track(self, track: Track, *, inflated: bool = False) -> Zone | None:
+        """`entered` for a planned `Track` (raw zones by default: the property the
+        plans guarantee)."""
+        return self.entered(track.points, track.alt_lo_m, track.alt_hi_m, inflated=inflated)
+
     def zone_containing(self, x: float, y: float, alt_m: float | None = None) -> Zone | None:
         p = Point(x, y)
         for z in self.at(alt_m):
@@ -238,6 +264,34 @@ def _union(zones: Sequence[Zone], grow_m: float) -> BaseGeometry:
 
 
 @dataclass(frozen=True, slots=True)
+class Track:
+    """Where a plan flies a vehicle, as a densely sampled polyline (arcs every couple of
+    metres, circles closed): its approach, a waiting orbit, a target orbit, a patrol
+    loop, a landing leg. Every plan lists its tracks so that checks (and tests) can
+    verify that no planned path enters a no-fly zone, arcs included."""
+
+    vehicle_id: int
+    kind: str  # "approach", "wait", "orbit", "loop", "transit", "hold", "final"
+    points: tuple[tuple[float, float], ...]
+    alt_lo_m: float
+    alt_hi_m: float | None = None  # None: flown at alt_lo_m
+
+
+ARC_STEP_M = 2.0  # sampling step of planned arcs and circles
+
+
+def circle_points(
+    cx: float, cy: float, radius_m: float, step_m: float = ARC_STEP_M
+) -> tuple[tuple[float, float], ...]:
+    """A closed circle sampled every `step_m` of arc (at least 72 points, at most 2000)."""
+    n = min(max(72, math.ceil(2 * math.pi * radius_m / step_m)), 2000)
+    a = np.linspace(0.0, 2 * math.pi, n + 1)
+    return tuple(
+        zip((cx + radius_m * np.cos(a)).tolist(), (cy + radius_m * np.sin(a)).tolist(), strict=True)
+    )
+
+
+@dataclass(frozen=True, slots=True)
 class Conflict:
     """A route enters zone `zone_id`: at waypoint `index` (leg_end None) or on the leg
     `index` -> `leg_end`."""
@@ -281,6 +335,14 @@ class Obstacles:
     @property
     def is_empty(self) -> bool:
         return bool(self.blocked.is_empty)
+
+    def clearance(self, points: Sequence[tuple[float, float]]) -> float:
+        """Distance from the polyline through `points` to the polygons (0 if it touches
+        or enters them; infinite without polygons)."""
+        if self.is_empty or not points:
+            return math.inf
+        line = LineString(points) if len(points) > 1 else Point(points[0])
+        return float(self.blocked.distance(line))
 
     def crosses(self, points: Sequence[tuple[float, float]]) -> bool:
         if self.is_empty or len(points) < 2:

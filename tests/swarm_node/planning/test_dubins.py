@@ -124,3 +124,14 @@ def test_bad_radius_raises(r: float) -> None:
 def test_nan_pose_raises() -> None:
     with pytest.raises(InvalidParameterError):
         shortest_path(Pose(math.nan, 0, 0), Pose(1, 1, 0), 10.0)
+
+
+@given(poses, poses, radii, st.floats(0.5, 20.0))
+def test_vectorized_samples_are_the_sampled_poses(a: Pose, b: Pose, r: float, step: float) -> None:
+    path = shortest_path(a, b, r)
+    ref = np.array([(p.x, p.y) for p in path.sample(step)])
+    assert np.abs(path.sample_xy(step) - ref).max() < 1e-9
+    # waypoint_s gives the distances of the waypoints along the path
+    for s, p in zip(path.waypoint_s(), path.waypoints(), strict=True):
+        q = path.pose_at(s)
+        assert (q.x, q.y, q.yaw) == (p.x, p.y, p.yaw)

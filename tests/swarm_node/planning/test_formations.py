@@ -8,11 +8,11 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from shapely.geometry import Polygon
+from shapely.geometry import LinearRing, Point, Polygon
 
-from swarm_node.core.autopilot.items import ItemKind
+from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.planning import (
     InvalidGeometryError,
     LeadState,
@@ -30,10 +30,11 @@ from swarm_node.core.planning import (
     respace_perimeter,
     smooth_loop,
 )
-from swarm_node.core.profile import G_M_S2
+from swarm_node.core.planning.checks import arrival_spread_s
+from swarm_node.core.profile import G_M_S2, VehicleProfile
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
 
-from .conftest import ORIGIN
+from .conftest import ORIGIN, make_fleet
 
 Fleet = Callable[..., list[PlanVehicle]]
 
@@ -115,24 +116,54 @@ def test_target_inside_a_zone_raises(fleet: Fleet) -> None:
         plan_target(Geometry.point(*ORIGIN), fleet(["multirotor"]), zones=[zone])
 
 
-@settings(max_examples=60)
-@given(
-    st.dictionaries(
-        st.integers(1, 30), st.floats(0, 2 * math.pi, exclude_max=True), min_size=1, max_size=8
-    ),
-)
-def test_respace_orbit_gives_equal_phases_and_speeds_in_range(phases: dict[int, float]) -> None:
-    ranges = {v: (17.05, 30.0) for v in phases}
-    trims = respace_orbit(phases, 80.0, 26.0, ranges)
-    assert _gaps([t.target for t in trims.values()]) == pytest.approx(
-        [2 * math.pi / len(phases)] * len(phases)
+def _bank_radius(v: PlanVehicle, speed: float) -> float:
+    """v^2 / (g tan(max bank)): the tightest turn a fixed-wing can fly at `speed`."""
+    p = v.profile
+    return speed * speed / (G_M_S2 * math.tan(math.radians(p.max_bank_deg)))
+
+
+def test_respace_orbit_gives_equal_phases_and_speeds_the_orbit_allows(
+    profiles: dict[str, VehicleProfile],
+) -> None:
+    albatross = profiles["fixed_wing"]
+    r_min = albatross.turn_radius_m()  # the orbit at cruise speed
+
+    @settings(max_examples=60, deadline=None)
+    @given(
+        st.lists(st.floats(0, 2 * math.pi, exclude_max=True), min_size=1, max_size=8),
+        st.floats(r_min, 3 * r_min),
     )
-    settle = {round(t.settle_s, 9) for t in trims.values()}
-    assert len(settle) == 1
-    for v, t in trims.items():
-        assert ranges[v][0] - 1e-9 <= t.speed_m_s <= ranges[v][1] + 1e-9
-        # the trim closes the phase gap in the settle time
-        assert (t.speed_m_s - 26.0) * t.settle_s == pytest.approx(t.move * 80.0, abs=1e-6)
+    def check(phase_list: list[float], radius: float) -> None:
+        vs = make_fleet(profiles, ["fixed_wing"] * len(phase_list))
+        phases = {v.vehicle_id: p for v, p in zip(vs, phase_list, strict=True)}
+        speed = albatross.cruise_speed_m_s
+        trims = respace_orbit(phases, radius, speed, vs)
+        assert _gaps([t.target for t in trims.values()]) == pytest.approx(
+            [2 * math.pi / len(phases)] * len(phases)
+        )
+        assert len({round(t.settle_s, 9) for t in trims.values()}) == 1
+        for v in vs:
+            t = trims[v.vehicle_id]
+            lo, hi = v.speed_range()
+            assert lo - 1e-9 <= t.speed_m_s <= hi + 1e-9
+            # never faster than the orbit's radius allows at the max bank
+            assert _bank_radius(v, t.speed_m_s) <= radius * (1 + 1e-9)
+            # the trim closes the phase gap in the settle time
+            assert (t.speed_m_s - speed) * t.settle_s == pytest.approx(t.move * radius, abs=1e-6)
+
+    check()
+
+
+def test_respace_on_the_tightest_orbit_only_slows_down(
+    profiles: dict[str, VehicleProfile],
+) -> None:
+    # at cruise on the cruise-speed orbit a fixed-wing cannot speed up: the others wait
+    vs = make_fleet(profiles, ["fixed_wing"] * 3)
+    p = vs[0].profile
+    r = p.turn_radius_m(p.cruise_speed_m_s)
+    trims = respace_orbit({v.vehicle_id: 0.3 * i for i, v in enumerate(vs)}, r, 26.0, vs)
+    assert max(t.speed_m_s for t in trims.values()) <= p.cruise_speed_m_s + 1e-9
+    assert min(t.speed_m_s for t in trims.values()) < p.cruise_speed_m_s
 
 
 def test_cyclic_slots_keep_order() -> None:
@@ -174,23 +205,78 @@ def test_perimeter_fixed_wing_smoothed_and_evenly_spaced(fleet: Fleet) -> None:
     lo = max(v.speed_range()[0] for v in vs)
     hi = min(v.speed_range()[1] for v in vs)
     assert lo <= plan.speed_m_s <= hi
-    for vp in plan.vehicles:  # closed loop: back where it started
-        first, last = vp.waypoints[1], vp.waypoints[-1]
-        assert (first.lat_deg, first.lon_deg) == pytest.approx((last.lat_deg, last.lon_deg))
+    for vp in plan.vehicles:  # closed loop: back where the timed entry brought it
+        lap = _lap(vp.waypoints)
+        assert lap[-1] == pytest.approx(_entry(vp.waypoints))
 
 
-def test_perimeter_insertion_and_removal(fleet: Fleet) -> None:
-    vs = fleet(["multirotor"] * 3, _around(3))
-    plan = plan_perimeter(_square(), vs)
+def _lap(waypoints: tuple[Waypoint, ...]) -> list[tuple[float, float]]:
+    """The patrol laps: the positioned items after the last CHANGE_SPEED."""
+    k = max(i for i, w in enumerate(waypoints) if w.kind == ItemKind.CHANGE_SPEED)
+    return [(w.lat_deg, w.lon_deg) for w in waypoints[k + 1 :]]
+
+
+def _entry(waypoints: tuple[Waypoint, ...]) -> tuple[float, float]:
+    """Where the timed entry ends: the last item before the laps' CHANGE_SPEED."""
+    k = max(i for i, w in enumerate(waypoints) if w.kind == ItemKind.CHANGE_SPEED)
+    return waypoints[k - 1].lat_deg, waypoints[k - 1].lon_deg
+
+
+@pytest.mark.parametrize("role", ["fixed_wing", "multirotor"])
+def test_perimeter_entry_is_timed(profiles: dict[str, VehicleProfile], role: str) -> None:
+    @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @given(
+        st.lists(
+            st.tuples(
+                st.floats(-0.02, 0.02), st.floats(-0.02, 0.02), st.floats(0, 360, exclude_max=True)
+            ),
+            min_size=1,
+            max_size=4,
+        ),
+    )
+    def check(where: list[tuple[float, float, float]]) -> None:
+        poses: list[VehiclePose | None] = [
+            VehiclePose(ORIGIN[0] + a, ORIGIN[1] + b, 50.0, h) for a, b, h in where
+        ]
+        vs = make_fleet(profiles, [role] * len(where), poses)
+        plan = plan_perimeter(_square(), vs, MissionParams(altitude_step_m=10))
+        # every vehicle is at its phase point at the same moment (within 1 s)...
+        arrivals = {a.vehicle_id: a for a in plan.arrivals}
+        assert len(plan.legs) == len(vs)
+        assert arrival_spread_s(plan.legs, arrivals) <= 1.0
+        for a in arrivals.values():
+            assert a.arrival_s == pytest.approx(plan.arrival_s)
+        # ... and that point is its offset along the loop, L / N from the next one
+        ring = LinearRing(plan.loop)
+        for vp in plan.vehicles:
+            x, y = plan.frame.to_local(*_entry(vp.waypoints))
+            assert (
+                ring.project(Point(x, y)) == pytest.approx(plan.offset_of(vp.vehicle_id), abs=1.0)
+                or abs(ring.project(Point(x, y)) - plan.offset_of(vp.vehicle_id)) > ring.length - 1
+            )
+            assert ring.distance(Point(x, y)) < 0.5
+            assert vp.time_s == pytest.approx(plan.arrival_s + plan.lap_s * 1)
+
+    check()
+
+
+@pytest.mark.parametrize("role", ["multirotor", "fixed_wing"])
+def test_perimeter_insertion_and_removal(fleet: Fleet, role: str) -> None:
+    vs = fleet([role] * 4, _around(4))
+    plan = plan_perimeter(_square(), vs[:3])
     pos = {v: o for v, o in plan.offsets_m}
     pos.pop(vs[1].vehicle_id)  # one leaves
-    pos[999] = pos[vs[0].vehicle_id] + 30.0  # one joins just ahead of another
-    ranges = {v: (0.0, 15.0) for v in pos}
-    trims = respace_perimeter(plan, pos, ranges)
+    pos[vs[3].vehicle_id] = pos[vs[0].vehicle_id] + 30.0  # one joins just ahead of another
+    trims = respace_perimeter(plan, pos, [vs[0], vs[2], vs[3]])
     tg = sorted(t.target for t in trims.values())
     gaps = [(b - a) % plan.length_m for a, b in zip(tg, tg[1:] + tg[:1], strict=True)]
     assert gaps == pytest.approx([plan.length_m / 3] * 3)
-    assert all(0.0 <= t.speed_m_s <= 15.0 for t in trims.values())
+    for v in (vs[0], vs[2], vs[3]):
+        lo, hi = v.speed_range()
+        t = trims[v.vehicle_id]
+        assert lo - 1e-9 <= t.speed_m_s <= hi + 1e-9
+        if v.profile.is_fixed_wing:  # the loop's tightest turn still holds at the trim
+            assert _bank_radius(v, t.speed_m_s) <= plan.turn_radius_m * (1 + 1e-9)
 
 
 def test_perimeter_circle_and_too_narrow(fleet: Fleet) -> None:

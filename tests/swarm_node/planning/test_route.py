@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from swarm_node.core.autopilot.items import ItemKind
@@ -18,36 +19,38 @@ from swarm_node.core.planning import (
     VehiclePose,
     ZoneSet,
     plan_route,
+    plan_target,
     synchronize,
 )
 from swarm_node.core.planning.checks import arrival_spread_s, waypoint_zone_problems
-from swarm_node.core.profile import VehicleProfile
-from swarm_proto import Geometry, MissionParams, NoFlyZone
+from swarm_node.core.planning.route import leg_for
+from swarm_node.core.profile import G_M_S2, VehicleProfile
+from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
 
-from .conftest import ORIGIN
+from .conftest import ORIGIN, make_fleet
 
 Fleet = Callable[..., list[PlanVehicle]]
 
 
 @st.composite
 def legs(draw: st.DrawFn, profiles: dict[str, VehicleProfile]) -> list[Leg]:
-    n = draw(st.integers(1, 6))
+    """Arrival legs of seed vehicles as the planners build them (`leg_for`): paths of
+    any length, mission speeds anywhere in each vehicle's range."""
+    roles = draw(st.lists(st.sampled_from(["fixed_wing", "multirotor"]), min_size=1, max_size=6))
     out = []
-    for i in range(n):
-        role = draw(st.sampled_from(["fixed_wing", "multirotor"]))
-        p = profiles[role]
-        path = draw(st.floats(0.0, 8000.0))
-        if p.is_fixed_wing:
-            r = max(p.turn_radius_m(), p.loiter_radius_m)
-            lo, hi = p.min_speed_m_s * 1.1, p.max_speed_m_s
-            out.append(Leg(i, path, 2 * math.pi * r, lo, hi, p.cruise_speed_m_s))
-        else:
-            out.append(Leg(i, path, 0.0, 0.0, p.max_speed_m_s, p.cruise_speed_m_s))
+    for v in make_fleet(profiles, roles):
+        lo, hi = v.speed_range()
+        speed = draw(st.floats(max(lo, 1.0), hi))
+        out.append(leg_for(v, draw(st.floats(0.0, 8000.0)), speed))
     return out
 
 
+def bank_radius(profile: VehicleProfile, speed: float) -> float:
+    return speed * speed / (G_M_S2 * math.tan(math.radians(profile.max_bank_deg)))
+
+
 def test_simultaneous_arrivals_within_one_second(profiles: dict[str, VehicleProfile]) -> None:
-    @settings(max_examples=200)
+    @settings(max_examples=200, deadline=None)
     @given(legs(profiles))
     def check(ls: list[Leg]) -> None:
         arr = synchronize(ls)
@@ -56,17 +59,39 @@ def test_simultaneous_arrivals_within_one_second(profiles: dict[str, VehicleProf
             a = arr[leg.vehicle_id]
             assert leg.min_speed_m_s - 1e-9 <= a.speed_m_s <= leg.max_speed_m_s + 1e-9
             assert a.orbits == int(a.orbits) and a.orbits >= 0
-            assert a.hold_s == 0.0 or leg.orbit_m == 0.0  # only hover-capable vehicles wait
+            assert a.hold_s == 0.0 or leg.hover  # only hover-capable vehicles wait
+            if leg.radius_m > 0.0:  # fixed-wing: the trim never needs a tighter turn
+                assert bank_radius(profiles["fixed_wing"], a.speed_m_s) <= leg.radius_m + 1e-9
+                assert leg.orbit_m == pytest.approx(2 * math.pi * leg.radius_m)
 
     check()
 
 
-def test_no_radius_inflation_orbits_are_whole() -> None:
+def test_fixed_wing_legs_cap_speed_at_the_planned_radius(
+    profiles: dict[str, VehicleProfile],
+) -> None:
+    (v,) = make_fleet(profiles, ["fixed_wing"])
+    p = v.profile
+    leg = leg_for(v, 1000.0, p.cruise_speed_m_s)
+    # planned at the cruise radius (68.9 m for the Albatross): no faster than cruise,
+    # although the airframe could fly up to max_speed_m_s on a wider turn
+    assert leg.radius_m == pytest.approx(p.turn_radius_m(p.cruise_speed_m_s))
+    assert leg.max_speed_m_s == pytest.approx(p.cruise_speed_m_s)
+    assert leg.max_speed_m_s < p.max_speed_m_s
+    # a mission flown at max speed is planned on the wider radius and may use all of it
+    fast = leg_for(v, 1000.0, p.max_speed_m_s)
+    assert fast.max_speed_m_s == pytest.approx(p.max_speed_m_s)
+    assert fast.radius_m == pytest.approx(bank_radius(p, p.max_speed_m_s))
+
+
+def test_no_radius_inflation_orbits_are_whole(profiles: dict[str, VehicleProfile]) -> None:
     # two fixed-wing, one far: the near one orbits, both at speeds within range
-    c = 2 * math.pi * 80.0
-    arr = synchronize([Leg(1, 500.0, c, 17.0, 30.0, 26.0), Leg(2, 3000.0, c, 17.0, 30.0, 26.0)])
-    assert arr[1].orbits >= 1 and arr[2].orbits == 0
-    assert arr[1].arrival_s == pytest.approx(arr[2].arrival_s)
+    near, far = make_fleet(profiles, ["fixed_wing"] * 2)
+    ls = [leg_for(near, 500.0, 26.0), leg_for(far, 3000.0, 26.0)]
+    arr = synchronize(ls)
+    assert arr[near.vehicle_id].orbits >= 1 and arr[far.vehicle_id].orbits == 0
+    assert arr[near.vehicle_id].arrival_s == pytest.approx(arr[far.vehicle_id].arrival_s)
+    assert arrival_spread_s(ls, arr) <= 1e-6
 
 
 def test_infeasible_when_a_slow_vehicle_cannot_wait() -> None:
@@ -116,3 +141,80 @@ def test_route_point_inside_a_zone_raises(fleet: Fleet) -> None:
     zone = NoFlyZone(1, Geometry.circle(*ORIGIN, 200.0))
     with pytest.raises(TargetInZoneError):
         plan_route(route, vs, zones=[zone])
+
+
+# --------------------------------------------------------------------------- whole plans
+
+
+@st.composite
+def fleets(draw: st.DrawFn, profiles: dict[str, VehicleProfile]) -> list[PlanVehicle]:
+    """1-4 seed vehicles (all fixed-wing, or mixed) within 3 km of the origin, any
+    heading."""
+    roles = draw(
+        st.one_of(
+            st.lists(st.just("fixed_wing"), min_size=1, max_size=4),
+            st.lists(st.sampled_from(["fixed_wing", "multirotor"]), min_size=1, max_size=4),
+        )
+    )
+    poses: list[VehiclePose | None] = [
+        VehiclePose(
+            ORIGIN[0] + draw(st.floats(-0.027, 0.027)),
+            ORIGIN[1] + draw(st.floats(-0.035, 0.035)),
+            50.0,
+            draw(st.floats(0.0, 360.0, exclude_max=True)),
+        )
+        for _ in roles
+    ]
+    return make_fleet(profiles, roles, poses)
+
+
+def _check_arrivals(legs: tuple[Leg, ...], arrivals: dict[int, Any], vs: list[PlanVehicle]) -> None:
+    assert arrival_spread_s(legs, arrivals) <= 1.0
+    by_id = {v.vehicle_id: v for v in vs}
+    for leg in legs:
+        p = by_id[leg.vehicle_id].profile
+        a = arrivals[leg.vehicle_id]
+        if p.is_fixed_wing:  # v^2 / (g tan(max bank)) <= the radius the leg was planned at
+            assert leg.radius_m >= p.loiter_radius_m
+            assert bank_radius(p, a.speed_m_s) <= leg.radius_m * (1 + 1e-9)
+
+
+def test_target_and_route_plans_fly_every_leg_within_its_radius(
+    profiles: dict[str, VehicleProfile],
+) -> None:
+    @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @given(fleets(profiles), st.sampled_from([None, 20.0, 32.0]))
+    def check(vs: list[PlanVehicle], speed: float | None) -> None:
+        params = MissionParams(altitude_rel_m=100, altitude_step_m=10, speed_m_s=speed)
+        tp = plan_target(Geometry.point(*ORIGIN), vs, params)
+        orbiters = [v for v in vs if v.profile.is_fixed_wing]
+        # the orbiters arrive on the orbit together; hoverers just take their slots
+        orbiting = tuple(leg for leg in tp.legs if leg.radius_m > 0)
+        _check_arrivals(orbiting, {a.vehicle_id: a for a in tp.arrivals}, vs)
+        for v in orbiters:  # the common orbit speed fits the orbit
+            assert bank_radius(v.profile, tp.orbit_speed_m_s) <= tp.orbit_radius_m * (1 + 1e-9)
+        line = Geometry(
+            GeometryKind.POLYLINE,
+            (LatLon(*ORIGIN), LatLon(ORIGIN[0] + 0.004, ORIGIN[1] + 0.004)),
+        )
+        rp = plan_route(line, vs, params)
+        _check_arrivals(rp.legs, {a.vehicle_id: a for a in rp.arrivals}, vs)
+
+    check()
+
+
+def test_two_albatross_at_a_target_never_exceed_the_orbit_speed(fleet: Fleet) -> None:
+    # the audit's case: arrivals at 32.0 and 31.7 m/s on a 68.9 m orbit
+    vs = fleet(
+        ["fixed_wing"] * 2,
+        [
+            VehiclePose(ORIGIN[0] - 0.02, ORIGIN[1], 50.0, 0.0),
+            VehiclePose(ORIGIN[0] + 0.005, ORIGIN[1], 50.0, 90.0),
+        ],
+    )
+    plan = plan_target(Geometry.point(*ORIGIN), vs, MissionParams(altitude_rel_m=100))
+    p = vs[0].profile
+    for a in plan.arrivals:
+        assert a.speed_m_s <= p.cruise_speed_m_s + 1e-9
+        assert bank_radius(p, a.speed_m_s) <= plan.orbit_radius_m + 1e-9
+    _check_arrivals(plan.legs, {a.vehicle_id: a for a in plan.arrivals}, vs)
