@@ -42,7 +42,7 @@ from shapely.geometry.base import BaseGeometry
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_proto import NoFlyZone
 
-from .dubins import DubinsPath, FloatArray, Pose, all_paths
+from .dubins import DubinsPath, FloatArray, Pose, Word, all_paths
 from .errors import InvalidParameterError, NoSafeRouteError
 from .geo import LocalFrame
 from .vehicles import PlanVehicle
@@ -66,6 +66,9 @@ MAX_TURN_SAMPLE_RAD = math.pi / 6  # arcs become waypoints at most this far apar
 _MERGE_M = 0.5  # consecutive waypoints this close are one
 _HEADING_VARIANTS = (0.0, math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)
 _MAX_REJOIN = 80  # later waypoints a connection may rejoin the plan at
+_VIA_ARCS = tuple(
+    (left, math.radians(a)) for left in (True, False) for a in (90.0, 180.0, 270.0)
+)  # arcs a blocked turn may start or end with
 
 
 # --------------------------------------------------------------------------- corners
@@ -100,6 +103,17 @@ def max_corner_rad(radius_m: float, accept_m: float, tol_m: float = CORNER_TOL_M
         else:
             hi = mid
     return lo
+
+
+def _arc(start: Pose, left: bool, angle_rad: float, radius_m: float) -> DubinsPath:
+    """A plain arc from `start`, to the left or right."""
+    return DubinsPath(start, Word.LSL if left else Word.RSR, angle_rad, 0.0, 0.0, radius_m)
+
+
+def _arc_into(goal: Pose, left: bool, angle_rad: float, radius_m: float) -> DubinsPath:
+    """The arc to the left or right that ends at `goal`."""
+    back = _arc(Pose(goal.x, goal.y, goal.yaw + math.pi), not left, angle_rad, radius_m).end
+    return _arc(Pose(back.x, back.y, back.yaw + math.pi), left, angle_rad, radius_m)
 
 
 def _yaw(a: XY, b: XY) -> float:
@@ -346,9 +360,11 @@ def flyable_course(
     def remaining(j: int, last: int) -> float:
         return sum(seg_len(k) for k in range(j, last))
 
-    def targets_from(i: int) -> list[tuple[int, float, float]]:
+    def targets_from(i: int, variants: bool = False) -> list[tuple[int, float, float]]:
         """(index, heading, extra cost) of the poses a connection needed at i may end at:
-        the points after i up to the next one it must pass (or i's own straight leg)."""
+        the points after i up to the next one it must pass (or i's own straight leg),
+        heading along their legs or turned from them (a point it must pass: with
+        `variants` only, as it leaves it facing another corner)."""
         if i in straight:
             return [(i, _yaw(pts[i], pts[i + 1]), 0.0)]
         out_t: list[tuple[int, float, float]] = []
@@ -364,7 +380,8 @@ def flyable_course(
                 out_t.append((j, _yaw(pts[j], pts[j + 1]), 0.0))
             else:
                 base = _yaw(pts[j], pts[j + 1])
-                out_t += [(j, base + v, radius_m * abs(v)) for v in _HEADING_VARIANTS]
+                turned = _HEADING_VARIANTS if variants or not must(j) else (0.0,)
+                out_t += [(j, base + v, radius_m * abs(v)) for v in turned]
             if must(j):
                 break
             j += 1
@@ -374,19 +391,26 @@ def flyable_course(
     # of the last connection): (index, len(out), len(pieces), heading there, flown to it)
     window: list[tuple[int, int, int, float, float]] = []
 
-    def connect(i: int, yaw: float) -> None:
-        targets = targets_from(i)
+    Window = tuple[int, int, int, float, float]
+    Cand = tuple[float, Window, float, int, float, float, tuple[DubinsPath, ...]]
+
+    def candidates(i: int, vias: bool, variants: bool = False) -> list[Cand]:
+        """The connections from a pose of the window to a target of `targets_from(i)`,
+        cheapest first: every Dubins word; with `vias`, a first arc of 90, 180 or 270
+        degrees to either side before the word, or a last one after it (for a turn
+        whose words all cross a zone: it turns away first, or comes round last)."""
+        targets = targets_from(i, variants)
         last = max(t[0] for t in targets)
-        Cand = tuple[
-            float, tuple[int, int, int, float, float], float, int, float, float, DubinsPath
-        ]
-        full: list[Cand] = []
+        out_c: list[Cand] = []
         goes_on: dict[tuple[int, float], bool] = {}
-        for w in window:
+        starts = window if not vias else [window[0]] + ([window[-1]] if len(window) > 1 else [])
+        for w in starts:
             k, _o, _p, yaw_k, flown = w
             for lo_m in leads if k == i else (0.0,):
                 s = Pose(*pts[k], yaw_k).forward(lo_m)
                 for j, goal_yaw, extra in targets:
+                    if vias and j != last:
+                        continue
                     if j < last:
                         key = (j, goal_yaw)
                         if key not in goes_on:
@@ -396,26 +420,51 @@ def flyable_course(
                     for li_m in leads if j in straight else (0.0,):
                         g = Pose(*pts[j], goal_yaw).forward(-li_m)
                         base = flown + lo_m + li_m + remaining(j, last) + extra
-                        for path in all_paths(s, g, radius_m):
-                            full.append((base + path.length_m, w, lo_m, j, goal_yaw, li_m, path))
-        full.sort(key=lambda c: c[0])
+                        if not vias:
+                            for path in all_paths(s, g, radius_m):
+                                out_c.append(
+                                    (base + path.length_m, w, lo_m, j, goal_yaw, li_m, (path,))
+                                )
+                            continue
+                        for left, angle in _VIA_ARCS:
+                            first = _arc(s, left, angle, radius_m)
+                            for path in all_paths(first.end, g, radius_m):
+                                length = first.length_m + path.length_m
+                                out_c.append(
+                                    (base + length, w, lo_m, j, goal_yaw, li_m, (first, path))
+                                )
+                            final = _arc_into(g, left, angle, radius_m)
+                            for path in all_paths(s, final.start, radius_m):
+                                length = final.length_m + path.length_m
+                                out_c.append(
+                                    (base + length, w, lo_m, j, goal_yaw, li_m, (path, final))
+                                )
+        out_c.sort(key=lambda c: c[0])
+        return out_c
+
+    def connect(i: int, yaw: float) -> None:
+        tiers: list[list[Cand] | None] = [candidates(i, vias=False), None, None]
+        near = False  # an end is within the clearance of a zone: less clearance allowed
         for b in blocked:
-            near = False
-            for _cost, w, lo_m, j, goal_yaw, li_m, path in full:
-                k = w[0]
-                lo, hi = band(k, j)
-                s = Pose(*pts[k], w[3]).forward(lo_m)
-                g = Pose(*pts[j], goal_yaw).forward(-li_m)
-                if b.contains(pts[k], lo, hi) or b.contains(pts[j], lo, hi):
-                    near = True
-                    continue  # an end this near a zone: tried with less clearance
-                if not b.clear(np.asarray([pts[k], (s.x, s.y)]), lo, hi):
-                    continue
-                if not b.clear(np.asarray([(g.x, g.y), pts[j]]), lo, hi):
-                    continue
-                if b.clear(path.sample_xy(ARC_STEP_M), lo, hi):
-                    emit(w, lo_m, path, li_m, j, goal_yaw)
-                    return
+            for tier in range(3):  # the plain words, then arriving turned, then vias
+                if tiers[tier] is None:
+                    tiers[tier] = candidates(i, vias=tier == 2, variants=tier == 1)
+                for _cost, w, lo_m, j, goal_yaw, _li, chain in tiers[tier] or []:
+                    k = w[0]
+                    lo, hi = band(k, j)
+                    if b.contains(pts[k], lo, hi) or b.contains(pts[j], lo, hi):
+                        near = True
+                        continue  # an end this near a zone: tried with less clearance
+                    s = chain[0].start
+                    g = chain[-1].end
+                    if not b.clear(np.asarray([pts[k], (s.x, s.y)]), lo, hi):
+                        continue
+                    if not b.clear(np.asarray([(g.x, g.y), pts[j]]), lo, hi):
+                        continue
+                    xy = np.concatenate([p.sample_xy(ARC_STEP_M) for p in chain])
+                    if b.clear(xy, lo, hi):
+                        emit(w, lo_m, chain, j, goal_yaw)
+                        return
             if not near:
                 break
         raise NoSafeRouteError(
@@ -424,18 +473,14 @@ def flyable_course(
         )
 
     def emit(
-        w: tuple[int, int, int, float, float],
-        lo_m: float,
-        path: DubinsPath,
-        li_m: float,
-        j: int,
-        goal_yaw: float,
+        w: Window, lo_m: float, chain: tuple[DubinsPath, ...], j: int, goal_yaw: float
     ) -> None:
         nonlocal added
         k, out_len, pieces_len, _yaw_k, _flown = w
         del out[out_len:], out_alt[out_len:], src[out_len:], pieces[pieces_len:]
         a0, a1 = float(alts[k]), float(alts[j])
-        total = lo_m + path.length_m + li_m
+        g = chain[-1].end
+        total = lo_m + sum(p.length_m for p in chain) + math.dist((g.x, g.y), pts[j])
         added += total - remaining(k, j)
 
         def put(p: XY, s_m: float, source: int = -1) -> None:
@@ -448,12 +493,15 @@ def flyable_course(
             src.append(source)
 
         trace: list[XY] = [pts[k]]
+        s0 = lo_m
         if lo_m > 0.0:
-            put((path.start.x, path.start.y), lo_m)
-        for s in path.waypoint_s(sample_rad):
-            q = path.pose_at(s)
-            put((q.x, q.y), lo_m + s)
-        trace += [(float(x), float(y)) for x, y in path.sample_xy(ARC_STEP_M)]
+            put((chain[0].start.x, chain[0].start.y), lo_m)
+        for path in chain:
+            for s in path.waypoint_s(sample_rad):
+                q = path.pose_at(s)
+                put((q.x, q.y), s0 + s)
+            trace += [(float(x), float(y)) for x, y in path.sample_xy(ARC_STEP_M)]
+            s0 += path.length_m
         trace.append(pts[j])
         if math.dist(pts[j], out[-1]) < _MERGE_M and src[-1] == -1:
             out.pop(), out_alt.pop(), src.pop()
