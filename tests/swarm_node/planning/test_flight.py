@@ -355,3 +355,29 @@ def test_the_demo_surveys_fixed_wing_uploads_are_flown_clear_of_the_zone(
         # the share is the plan's, made flyable
         share = plan_share(mission, members, m.profile.vehicle_id, [zone], 0.0, 0.0)
         assert len(share) > 2
+
+
+def test_the_way_home_is_flown_clear_of_a_zone_from_where_the_aircraft_is(
+    seed: dict[str, VehicleProfile],
+) -> None:
+    """Heading north away from home with a zone just behind it to the south-east: the
+    node's return upload, flown from the aircraft's pose, stays clear of the zone."""
+    prof = _albatross(seed, 1)
+    home = GeoPoint(*_ll(0, 0), 10.0)
+    zone = _nfz(1, 90, 330, 35)
+    for heading in (0.0, 90.0, 180.0, 270.0):
+        ap = AutopilotState(
+            lat_deg=_ll(0, 420)[0], lon_deg=_ll(0, 420)[1], alt_rel_m=60.0,
+            heading_deg=heading, home=home, armed=True,
+        )  # fmt: skip
+        outs = MissionManager(prof).start_return(ap, [zone], 0.0)
+        upload = next(o.request for o in outs if isinstance(o, Submit))
+        items: tuple[Waypoint, ...] = upload.items  # type: ignore[attr-defined]
+        assert items[-1].kind == ItemKind.RTL
+        wps = [w for w in items if w.kind == ItemKind.WAYPOINT]
+        zs = ZoneSet.from_messages([zone], FRAME, now_unix_s=0.0)
+        pts = [FRAME.to_local(w.lat_deg, w.lon_deg) for w in wps]
+        start = Pose(0.0, 420.0, math.radians(90.0 - heading))
+        r = prof.turn_radius_m()
+        for radius in (r, 1.3 * r):
+            assert flight_problems(pts, [60.0] * len(pts), zs, radius_m=radius, start=start) == []
