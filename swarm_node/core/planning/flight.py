@@ -296,8 +296,10 @@ def flyable_course(
     next points up to the next one it must pass, heading along their legs or turned up
     to 90 degrees; a straight leg's start heading along it, or a little before it on
     its line), the cheapest whose sampled path keeps `clearance_m` clear of the zones
-    in its altitude band. Less clearance (a half, a quarter, none) only for a corner
-    whose ends are that near a zone. Raises `NoSafeRouteError` when none is clear."""
+    in its altitude band. Less clearance only for a corner with an end it must pass
+    near a zone (turning there may need to come closer): a half or a quarter of it
+    for an end within a turn radius of that clearance, none for an end within a
+    quarter of it. Raises `NoSafeRouteError` when none is clear."""
     if not (math.isfinite(radius_m) and radius_m > 0.0):
         raise InvalidParameterError(f"turn radius must be > 0, got {radius_m}")
     if len(points) != len(alts):
@@ -308,7 +310,11 @@ def flyable_course(
         return Course((), (), (), (), 0.0)
     limit = max_corner_rad(radius_m, accept_m, tol_m)
     sample_rad = min(MAX_TURN_SAMPLE_RAD, limit)
-    blocked = [_Blocked(zones, c) for c in (clearance_m, clearance_m / 2, clearance_m / 4, 0.0)]
+    levels = (clearance_m, clearance_m / 2, clearance_m / 4, 0.0)
+    blocked = [_Blocked(zones, c) for c in levels]
+    # an end this near a zone may need to turn closer to it than the clearance: half
+    # or a quarter of it within a turn radius of the clearance, none only inside it
+    nearby = [_Blocked(zones, c + (radius_m if c > levels[2] else 0.0)) for c in levels]
     leads = (0.0, radius_m / 2, radius_m, 2 * radius_m)  # lead-ins / lead-outs on straight legs
     out: list[XY] = [pts[0]]
     out_alt: list[float] = [float(alts[0])]
@@ -394,16 +400,20 @@ def flyable_course(
     Window = tuple[int, int, int, float, float]
     Cand = tuple[float, Window, float, int, float, float, tuple[DubinsPath, ...]]
 
-    def candidates(i: int, vias: bool, variants: bool = False) -> list[Cand]:
-        """The connections from a pose of the window to a target of `targets_from(i)`,
-        cheapest first: every Dubins word; with `vias`, a first arc of 90, 180 or 270
-        degrees to either side before the word, or a last one after it (for a turn
-        whose words all cross a zone: it turns away first, or comes round last)."""
+    def candidates(
+        i: int, vias: bool, variants: bool = False, win: list[Window] | None = None
+    ) -> list[Cand]:
+        """The connections from a pose of the window (or `win`) to a target of
+        `targets_from(i)`, cheapest first: every Dubins word; with `vias`, a first arc
+        of 90, 180 or 270 degrees to either side before the word, or a last one after
+        it (for a turn whose words all cross a zone: it turns away first, or comes
+        round last)."""
+        win = window if win is None else win
         targets = targets_from(i, variants)
         last = max(t[0] for t in targets)
         out_c: list[Cand] = []
         goes_on: dict[tuple[int, float], bool] = {}
-        starts = window if not vias else [window[0]] + ([window[-1]] if len(window) > 1 else [])
+        starts = win if not vias else [win[0]] + ([win[-1]] if len(win) > 1 else [])
         for w in starts:
             k, _o, _p, yaw_k, flown = w
             for lo_m in leads if k == i else (0.0,):
@@ -442,29 +452,57 @@ def flyable_course(
         out_c.sort(key=lambda c: c[0])
         return out_c
 
+    def clear_cand(c: Cand, b: _Blocked) -> bool:
+        _cost, w, _lo_m, j, _goal_yaw, _li, chain = c
+        k = w[0]
+        lo, hi = band(k, j)
+        s, g = chain[0].start, chain[-1].end
+        return (
+            b.clear(np.asarray([pts[k], (s.x, s.y)]), lo, hi)
+            and b.clear(np.asarray([(g.x, g.y), pts[j]]), lo, hi)
+            and b.clear(np.concatenate([p.sample_xy(ARC_STEP_M) for p in chain]), lo, hi)
+        )
+
+    def can_leave(j: int, yaw: float, b: _Blocked) -> bool:
+        """Whether the aircraft at `pts[j]` (a point it must pass) heading `yaw` can go
+        on: no corner it cannot make ahead, or a connection clear at `b`'s clearance (a look one corner ahead, so that a connection never ends where
+        the next one is impossible: heading at a zone close ahead)."""
+        if j >= n or not (
+            sharp_ahead(j, yaw)
+            or (j + 1 in straight and j + 1 < n and sharp_ahead(j + 1, _yaw(pts[j], pts[j + 1])))
+        ):
+            return True
+        here: list[Window] = [(j, 0, 0, yaw, 0.0)]
+        for tier in range(3):
+            for c in candidates(j, vias=tier == 2, variants=tier == 1, win=here):
+                lo, hi = band(c[1][0], c[3])
+                if not b.contains(pts[c[3]], lo, hi) and clear_cand(c, b):
+                    return True
+        return False
+
     def connect(i: int, yaw: float) -> None:
         tiers: list[list[Cand] | None] = [candidates(i, vias=False), None, None]
         near = False  # an end is within the clearance of a zone: less clearance allowed
-        for b in blocked:
+        for b, b_near in zip(blocked, nearby, strict=True):
             for tier in range(3):  # the plain words, then arriving turned, then vias
                 if tiers[tier] is None:
                     tiers[tier] = candidates(i, vias=tier == 2, variants=tier == 1)
-                for _cost, w, lo_m, j, goal_yaw, _li, chain in tiers[tier] or []:
+                for c in tiers[tier] or []:
+                    _cost, w, lo_m, j, goal_yaw, _li, chain = c
                     k = w[0]
                     lo, hi = band(k, j)
                     if b.contains(pts[k], lo, hi) or b.contains(pts[j], lo, hi):
                         near = True
                         continue  # an end this near a zone: tried with less clearance
-                    s = chain[0].start
-                    g = chain[-1].end
-                    if not b.clear(np.asarray([pts[k], (s.x, s.y)]), lo, hi):
+                    near = (
+                        near or b_near.contains(pts[k], lo, hi) or b_near.contains(pts[j], lo, hi)
+                    )
+                    if not clear_cand(c, b):
                         continue
-                    if not b.clear(np.asarray([(g.x, g.y), pts[j]]), lo, hi):
+                    if must(j) and j not in straight and not can_leave(j, goal_yaw, b):
                         continue
-                    xy = np.concatenate([p.sample_xy(ARC_STEP_M) for p in chain])
-                    if b.clear(xy, lo, hi):
-                        emit(w, lo_m, chain, j, goal_yaw)
-                        return
+                    emit(w, lo_m, chain, j, goal_yaw)
+                    return
             if not near:
                 break
         raise NoSafeRouteError(
@@ -535,6 +573,9 @@ def flyable_course(
         need = sharp_ahead(i, yaw)
         if not need and i not in straight and i + 1 in straight and i + 1 < n:
             need = sharp_ahead(i + 1, h)  # reaching a straight leg misaligned
+        if not need and i not in straight and i + 1 < n and must(i + 1) and i + 1 not in straight:
+            # flying on to a point it must pass: can it go on from there?
+            need = not any(can_leave(i + 1, h, b) for b in blocked)
         if need:
             connect(i, yaw)
             i, yaw = window[-1][0], window[-1][3]

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
-from shapely.geometry import LineString, Point
+from shapely.geometry import LineString, Point, Polygon
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.autopilot.state import AutopilotState
@@ -161,15 +161,17 @@ def test_a_flyable_sequence_is_left_as_it_is() -> None:
 
 
 def test_no_flyable_turn_raises_rather_than_uploading_one_into_a_zone() -> None:
-    # a dead end: flying east into a 200 m wide pocket of zones, then back out
+    # a dead end: flying east into a corridor 60 m wide between zones, then back out:
+    # no U-turn at 90 m fits, at any clearance
     zones = ZoneSet(
         (
-            Zone(1, Point(150, 0).buffer(40)),
-            Zone(2, Point(60, 100).buffer(60)),
-            Zone(3, Point(60, -100).buffer(60)),
+            Zone(1, Polygon([(-200, 30), (250, 30), (250, 300), (-200, 300)])),
+            Zone(2, Polygon([(-200, -30), (250, -30), (250, -300), (-200, -300)])),
+            Zone(3, Polygon([(150, -30), (250, -30), (250, 30), (150, 30)])),
         )
     )
-    pts = [(-300.0, 0.0), (40.0, 0.0), (-300.0, 5.0)]
+    pts = [(-300.0, 0.0), (100.0, 0.0), (-300.0, 5.0)]
+    assert flight_problems(pts, [60.0] * 3, zones, radius_m=R)
     with pytest.raises(NoSafeRouteError, match="no flyable turn"):
         flyable_course(pts, [60.0] * 3, zones, radius_m=R)
 
