@@ -56,14 +56,17 @@ from .planning import (
     LocalFrame,
     PlanningError,
     PlanVehicle,
+    Pose,
     VehiclePose,
     ZoneSet,
+    heading_to_yaw,
     plan_area,
     plan_objective,
     plan_perimeter,
     plan_route,
     plan_target,
 )
+from .planning.flight import FIXED_WING_ACCEPT_M, flyable_plan, flyable_waypoints
 from .profile import VehicleProfile
 
 PLANNERS: dict[MissionType, Callable[..., object]] = {
@@ -110,12 +113,10 @@ def with_defaults(mission: Mission, defaults: Mapping[str, float]) -> Mission:
 CLIMB_FRACTION = 0.8  # start the mission once this much of the take-off altitude is reached
 LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close to home
 TRANSIT_MARGIN_M = 20.0  # least clearance from a no-fly zone on transit legs
-# Fixed-wing waypoint acceptance. ArduPlane's WP_RADIUS default (90 m) makes a plane
-# count the closely spaced waypoints of a planned turn as reached at once and head for
-# one behind it, looping wide (through a no-fly zone, if one is near). Planned paths
-# ask for this radius on every waypoint instead; the autopilot also accepts a waypoint
-# it has flown past.
-FIXED_WING_ACCEPT_M = 15.0
+# Fixed-wing waypoint acceptance (planning.flight.FIXED_WING_ACCEPT_M, 15 m): every
+# plain waypoint asks for it (ArduPlane's 90 m default would count the closely spaced
+# waypoints of a planned turn as reached at once and loop wide); the flyable stage
+# plans every corner for it.
 TURN_RADIUS_MARGIN = 1.3
 FIRST_REQUEST_ID = 1_000_000  # the command manager uses small ids
 
@@ -193,10 +194,48 @@ def plan_share(
         home_alt_msl_m=home_alt_msl_m,
         zone_margin_m=max((flyable(m.profile).turn_radius_m() for m in members), default=0.0),
     )
-    for share in plan.vehicles:  # type: ignore[attr-defined]  # every plan has .vehicles
+    # every fixed-wing share flyable as planned (the plan's tracks follow)
+    plan = flyable_plan(plan, vehicles, zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
+    for share in plan.vehicles:
         if share.vehicle_id == self_id:
             return tuple(share.waypoints)
     raise PlanningError(f"the plan has no share for vehicle {self_id}")
+
+
+def fly_corners(
+    waypoints: Sequence[Waypoint],
+    profile: VehicleProfile,
+    zones: Sequence[NoFlyZone],
+    *,
+    start: tuple[float, float, float] | None,
+    free: frozenset[int],
+    now: float,
+    home_alt_msl_m: float,
+) -> tuple[Waypoint, ...]:
+    """A fixed-wing's waypoints made flyable from `start` (lat, lon, heading: where it
+    is now) at its planned turn radius (`planning.flight.flyable_waypoints`): the
+    points of `free` (item indexes: transit legs) may be skipped, the others are
+    passed. Other vehicles' waypoints unchanged. Raises `PlanningError` when a corner
+    has no connection clear of the zones, or the flown path would enter one."""
+    if not profile.is_fixed_wing:
+        return tuple(waypoints)
+    pos = [(w.lat_deg, w.lon_deg) for w in waypoints if w.kind == ItemKind.WAYPOINT]
+    if not pos:
+        return tuple(waypoints)
+    frame = LocalFrame.at([LatLon(*p) for p in pos + ([start[:2]] if start else [])])
+    speed = next(
+        (w.speed_m_s for w in waypoints if w.kind == ItemKind.CHANGE_SPEED and w.speed_m_s), None
+    )
+    pose = None
+    if start is not None:
+        x, y = frame.to_local(start[0], start[1])
+        pose = Pose(x, y, heading_to_yaw(start[2]))
+    zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
+    out, _tracks = flyable_waypoints(
+        waypoints, frame, zs, radius_m=flyable(profile).turn_radius_m(speed), start=pose,
+        free=free, vehicle_id=profile.vehicle_id,
+    )  # fmt: skip
+    return out
 
 
 def safe_transit(
@@ -424,20 +463,30 @@ class MissionManager:
         now: float,
         home_alt: float,
     ) -> tuple[Waypoint, ...]:
-        """Prefix the leg from where the vehicle is to its first waypoint, around zones."""
-        first = next((w for w in waypoints if w.kind == ItemKind.WAYPOINT), None)
-        if first is None or ap.lat_deg is None or ap.lon_deg is None or not zones:
+        """Prefix the leg from where the vehicle is to its first waypoint, around zones;
+        a fixed-wing's then made flyable from its pose (the leg's points and the plan's
+        first one, where the plan assumed it starts, may be skipped)."""
+        first_at = next((i for i, w in enumerate(waypoints) if w.kind == ItemKind.WAYPOINT), None)
+        if first_at is None or ap.lat_deg is None or ap.lon_deg is None:
             return waypoints
-        leg = self._transit(
-            (ap.lat_deg, ap.lon_deg),
-            ap.heading_deg,
-            (first.lat_deg, first.lon_deg),
-            first.alt_rel_m,
-            zones,
-            now,
-            home_alt,
-        )
-        return (*leg[:-1], *waypoints)
+        first = waypoints[first_at]
+        leg: list[Waypoint] = []
+        if zones:
+            leg = self._transit(
+                (ap.lat_deg, ap.lon_deg),
+                ap.heading_deg,
+                (first.lat_deg, first.lon_deg),
+                first.alt_rel_m,
+                zones,
+                now,
+                home_alt,
+            )[:-1]
+        out = (*leg, *waypoints)
+        free = frozenset(range(len(leg))) | {len(leg) + first_at}
+        return fly_corners(
+            out, self.profile, zones, start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
+            free=free, now=now, home_alt_msl_m=home_alt,
+        )  # fmt: skip
 
     def _transit(
         self,
@@ -508,6 +557,12 @@ class MissionManager:
             )
         except (PlanningError, ValueError):
             leg = []
+        note: list[Out] = []
+        if len(leg) > 1:
+            try:
+                leg = list(self._flyable_leg(leg, ap, zones, now, home.alt_msl_m))
+            except (PlanningError, ValueError) as exc:  # the zone-safe legs, as planned
+                note = [Log(f"return: no flyable turns ({exc}); flying the legs as they are")]
         if len(leg) <= 1:  # nothing in the way: plain RTL
             self._steps = [ReturnToLaunch()]
         else:
@@ -517,7 +572,24 @@ class MissionManager:
                 UploadMission(items=(*self._tight(leg), Waypoint(ItemKind.RTL))),
                 StartMission(),
             ]
-        return [*done, *self._next()]
+        return [*done, *note, *self._next()]
+
+    def _flyable_leg(
+        self,
+        leg: Sequence[Waypoint],
+        ap: AutopilotState,
+        zones: Sequence[NoFlyZone],
+        now: float,
+        home_alt: float,
+    ) -> tuple[Waypoint, ...]:
+        """A transit leg (its end included) a fixed-wing can fly from where it is: its
+        points but the end may be skipped."""
+        if ap.lat_deg is None or ap.lon_deg is None:
+            return tuple(leg)
+        return fly_corners(
+            leg, self.profile, zones, start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
+            free=frozenset(range(len(leg) - 1)), now=now, home_alt_msl_m=home_alt,
+        )  # fmt: skip
 
     def stop(self) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
@@ -554,6 +626,7 @@ class MissionManager:
             now,
             home.alt_msl_m,
         )
+        leg = list(self._flyable_leg(leg, ap, zones, now, home.alt_msl_m))
         land = Waypoint(ItemKind.LAND, point.lat_deg, point.lon_deg, 0.0)
         return (UploadMission(items=(*self._tight(leg[:-1]), land)), StartMission())
 

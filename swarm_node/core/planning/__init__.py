@@ -38,6 +38,16 @@ from .errors import (
     PlanningError,
     TargetInZoneError,
 )
+from .flight import (
+    FIXED_WING_ACCEPT_M,
+    Course,
+    FlownPath,
+    flight_problems,
+    flyable_course,
+    flyable_plan,
+    flyable_waypoints,
+    predict_flight,
+)
 from .formation import Trim, cyclic_slots, respace
 from .geo import LocalFrame, VehiclePose, heading_to_yaw, yaw_to_heading
 from .mumt import LeadState, MumtPlan, Offset, plan_mumt, vee_offsets
@@ -51,14 +61,17 @@ from .vehicles import PlanVehicle, VehiclePlan, common_speed
 from .zones import Conflict, Obstacles, Track, Zone, ZoneSet, circle_points, visibility_path
 
 __all__ = [
+    "FIXED_WING_ACCEPT_M",
     "AreaPlan",
     "Arrival",
     "AutolandPlan",
     "Conflict",
+    "Course",
     "CoveragePath",
     "DubinsPath",
     "DubinsTurns",
     "EmptyAreaError",
+    "FlownPath",
     "InfeasibleTimingError",
     "InvalidGeometryError",
     "InvalidParameterError",
@@ -102,6 +115,10 @@ __all__ = [
     "coverage_ratio",
     "cyclic_slots",
     "decompose",
+    "flight_problems",
+    "flyable_course",
+    "flyable_plan",
+    "flyable_waypoints",
     "heading_to_yaw",
     "lane_spacing_m",
     "lanes",
@@ -117,6 +134,7 @@ __all__ = [
     "plan_perimeter",
     "plan_route",
     "plan_target",
+    "predict_flight",
     "remaining_lanes",
     "replan",
     "replan_area",

@@ -10,13 +10,13 @@ from dataclasses import dataclass
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
 from .coverage import LanePlan, decompose, lane_spacing_m, plan_lanes
-from .dubins import Pose
+from .dubins import Pose, shortest_path
 from .errors import InvalidGeometryError, InvalidParameterError
 from .geo import LocalFrame
 from .split import SplitPlan, Worker, replan, split_lanes
-from .turns import TurnModel
+from .turns import DubinsTurns, TurnModel
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
-from .zones import Obstacles, ZoneSet
+from .zones import ARC_STEP_M, Obstacles, Track, ZoneSet
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,6 +28,7 @@ class AreaPlan:
     split: SplitPlan
     vehicles: tuple[VehiclePlan, ...]
     altitudes_m: tuple[tuple[int, float], ...]  # vehicle id -> altitude above home
+    tracks: tuple[Track, ...] = ()  # every path flown (lanes, transitions sampled along arcs)
 
     @property
     def makespan_s(self) -> float:
@@ -69,6 +70,32 @@ def _vehicle_plans(
         pts = a.path.points()
         wps = to_waypoints(frame, pts, altitudes[a.vehicle_id], speed_m_s=a.speed_m_s)
         out.append(VehiclePlan(a.vehicle_id, wps, a.path.length_m, a.time_s))
+    return tuple(out)
+
+
+def _tracks(
+    split: SplitPlan, workers: Sequence[Worker], altitudes: Mapping[int, float]
+) -> tuple[Track, ...]:
+    """Each vehicle's lanes and transitions as tracks (Dubins transitions sampled along
+    their arcs, rerouted ones as their polylines)."""
+    out: list[Track] = []
+    by_id = {w.vehicle_id: w for w in workers}
+    for a in split.assignments:
+        w, alt = by_id[a.vehicle_id], altitudes[a.vehicle_id]
+        prev, flown = w.start, 0
+        for leg in a.path.legs:
+            if leg.is_lane:
+                ln = a.path.lanes[flown]
+                out.append(Track(a.vehicle_id, "lane", (ln.a, ln.b), alt))
+                prev, flown = ln.end_pose(), flown + 1
+                continue
+            pts = leg.points
+            if isinstance(w.turns, DubinsTurns) and prev is not None and flown < len(a.path.lanes):
+                goal = a.path.lanes[flown].start_pose()
+                if abs(leg.length_m - w.turns.length(prev, goal)) < 1e-6:
+                    xy = shortest_path(prev, goal, w.turns.radius_m).sample_xy(ARC_STEP_M)
+                    pts = tuple((float(x), float(y)) for x, y in xy)
+            out.append(Track(a.vehicle_id, "transition", pts, alt))
     return tuple(out)
 
 
@@ -116,6 +143,7 @@ def plan_area(
         split,
         _vehicle_plans(split, frame, alts),
         tuple(alts.items()),
+        _tracks(split, workers, alts),
     )
 
 
@@ -149,4 +177,5 @@ def replan_area(
         split,
         _vehicle_plans(split, plan.frame, alts),
         tuple(alts.items()),
+        _tracks(split, workers, alts),
     )
