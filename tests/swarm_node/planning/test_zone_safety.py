@@ -190,7 +190,14 @@ def test_no_planned_path_enters_a_zone(profiles: dict[str, VehicleProfile], kind
     )
     seen: dict[str, int] = {}
 
-    @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    # derandomized: the same 30 scenes every run, so that "most can be planned" below is
+    # a property of the planners, not of which scenes a run happened to draw
+    @settings(
+        max_examples=30,
+        deadline=None,
+        derandomize=True,
+        suppress_health_check=[HealthCheck.too_slow],
+    )
     @given(scenes(profiles, mixed=kind != "perimeter"))  # a patrol needs one common speed
     def check(scene: tuple[list[PlanVehicle], list[NoFlyZone]]) -> None:
         vs, zones = scene
