@@ -77,8 +77,9 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
 
 @pytest.mark.soak
 def test_the_whole_demo_flies_over_the_radio() -> None:
-    """`swarm-sim demo --radio --vehicles 1,7,8`: plan, fly, return and land with every
+    """`swarm-sim demo --radio`: the default fleet (three VTOLs, two quadcopters, six
+    radio nodes with the ground station) plans, flies, returns and lands with every
     message between the vehicles and the ground station on the air (about 6 minutes)."""
-    from swarm_sim.demo import run_demo
+    from swarm_sim.demo import DEFAULT_FLEET, run_demo
 
-    assert run_demo((1, 7, 8), speedup=1.0, timeout_s=900.0, radio=True) == 0
+    assert run_demo(DEFAULT_FLEET, speedup=1.0, timeout_s=900.0, radio=True) == 0
