@@ -36,6 +36,15 @@ def shared_dir() -> Path:
     return SHARED
 
 
+@pytest.fixture(scope="session")
+def fleet_profiles() -> dict:
+    """Every seed system's profile by vehicle id: what a node resolves from the swarm
+    database, for fleets of simulated vehicles (`FastFleet.build(ids, fleet_profiles)`)."""
+    from swarm_node.database import seed_fleet
+
+    return {p.vehicle_id: p for p in seed_fleet()}
+
+
 @pytest.fixture
 def swarm_db(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """A seeded swarm database file, named by BANDADA_DB for this test and its children

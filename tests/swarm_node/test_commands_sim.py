@@ -7,9 +7,6 @@ from __future__ import annotations
 
 import math
 
-import pytest
-
-from swarm_node.database import SwarmDatabase
 from swarm_proto import (
     CommandKind,
     FsmState,
@@ -25,14 +22,8 @@ from swarm_sim.fast_fleet import FastFleet
 from tests.swarm_node.test_node_fences_sim import GCS, Operator, north
 
 
-@pytest.fixture(scope="module")
-def profiles() -> dict:
-    with SwarmDatabase.memory() as db:
-        return {p.vehicle_id: p for p in db.profiles()}
-
-
-def flying_a_mission(profiles: dict, vid: int) -> tuple[FastFleet, Operator]:
-    fleet = FastFleet.build([vid], profiles)
+def flying_a_mission(fleet_profiles: dict, vid: int) -> tuple[FastFleet, Operator]:
+    fleet = FastFleet.build([vid], fleet_profiles)
     v = fleet.vehicles[vid]
     assert fleet.run_until(lambda: v.link.state.ekf_has_position and v.link.state.home, 60)
     op = Operator(fleet)
@@ -47,8 +38,8 @@ def flying_a_mission(profiles: dict, vid: int) -> tuple[FastFleet, Operator]:
     return fleet, op
 
 
-def test_an_emergency_landing_lands_on_the_given_point(profiles: dict) -> None:
-    fleet, op = flying_a_mission(profiles, 7)  # a seed quadcopter
+def test_an_emergency_landing_lands_on_the_given_point(fleet_profiles: dict) -> None:
+    fleet, op = flying_a_mission(fleet_profiles, 7)  # a seed quadcopter
     v = fleet.vehicles[7]
     k = 111_320.0 * math.cos(math.radians(SITL_HOME.lat_deg))
     assert v.link.state.lat_deg is not None and v.link.state.lon_deg is not None
@@ -62,8 +53,8 @@ def test_an_emergency_landing_lands_on_the_given_point(profiles: dict) -> None:
     assert not v.node.active  # the sortie is over: ACTIVATE starts the next
 
 
-def test_a_released_parachute_ends_the_sortie(profiles: dict) -> None:
-    fleet, op = flying_a_mission(profiles, 1)  # a seed Albatross: parachute fitted
+def test_a_released_parachute_ends_the_sortie(fleet_profiles: dict) -> None:
+    fleet, op = flying_a_mission(fleet_profiles, 1)  # a seed Albatross: parachute fitted
     v = fleet.vehicles[1]
     assert op(CommandKind.PARACHUTE).accepted
     assert v.node.mission_state.name == "PARACHUTE"

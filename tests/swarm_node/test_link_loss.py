@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import pytest
 
-from swarm_node.database import SwarmDatabase
 from swarm_proto import Alert, AlertCode, CommandKind, FsmState, GeoPoint
 from swarm_sim.core import SITL_HOME
 from swarm_sim.fast_fleet import FastFleet
@@ -26,15 +25,11 @@ class DeadAutopilot:
         return None
 
 
-@pytest.fixture(scope="module")
-def profiles() -> dict:
-    with SwarmDatabase.memory() as db:
-        return {p.vehicle_id: p for p in db.profiles()}
 
 
 @pytest.mark.parametrize("vid", [7, 1])  # a seed quadcopter, a seed Albatross VTOL
-def test_link_loss_reaches_emergency_within_one_second(profiles: dict, vid: int) -> None:
-    fleet = FastFleet.build([vid], profiles)
+def test_link_loss_reaches_emergency_within_one_second(fleet_profiles: dict, vid: int) -> None:
+    fleet = FastFleet.build([vid], fleet_profiles)
     v = fleet.vehicles[vid]
     assert fleet.run_until(lambda: v.link.state.ekf_has_position and v.link.state.home, 60)
     op = Operator(fleet)

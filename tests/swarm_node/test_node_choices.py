@@ -20,7 +20,7 @@ from swarm_node.core.node import (
     Received,
     Submit,
 )
-from swarm_node.database import SwarmDatabase, seed_profiles
+from swarm_node.database import seed_profiles
 from swarm_proto import (
     Ack,
     Command,
@@ -90,14 +90,10 @@ def test_a_mission_ends_on_an_unlimited_loiter_over_its_last_waypoint() -> None:
     assert node.fsm.mission_id == -1  # mission complete: the return home began
 
 
-@pytest.fixture(scope="module")
-def profiles() -> dict:
-    with SwarmDatabase.memory() as db:
-        return {p.vehicle_id: p for p in db.profiles()}
 
 
-def test_the_simulated_autopilot_holds_the_base_and_the_final_loiter(profiles: dict) -> None:
-    fleet = FastFleet.build([1], profiles)  # a seed Albatross VTOL
+def test_the_simulated_autopilot_holds_the_base_and_the_final_loiter(fleet_profiles: dict) -> None:
+    fleet = FastFleet.build([1], fleet_profiles)  # a seed Albatross VTOL
     v = fleet.vehicles[1]
     sim = v.endpoint.autopilot
     assert fleet.run_until(lambda: v.link.state.ekf_has_position and v.link.state.home, 60)

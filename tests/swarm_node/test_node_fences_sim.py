@@ -9,7 +9,6 @@ import math
 
 import pytest
 
-from swarm_node.database import SwarmDatabase
 from swarm_proto import (
     Ack,
     Command,
@@ -27,10 +26,6 @@ INCLUSION_CIRCLE = 5003  # MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION
 EXCLUSION_CIRCLE = 5004  # MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
 
 
-@pytest.fixture(scope="module")
-def profiles() -> dict:
-    with SwarmDatabase.memory() as db:
-        return {p.vehicle_id: p for p in db.profiles()}
 
 
 def north(m: float) -> tuple[float, float]:
@@ -55,8 +50,8 @@ class Operator:
         return next(a for a in self.fleet.messages(Ack) if a.ref_id == seq)
 
 
-def test_a_zone_becomes_the_autopilots_fence_and_turns_the_vehicle_back(profiles: dict) -> None:
-    fleet = FastFleet.build([7], profiles)  # a seed quadcopter
+def test_a_zone_becomes_the_autopilots_fence_and_turns_the_vehicle_back(fleet_profiles: dict) -> None:
+    fleet = FastFleet.build([7], fleet_profiles)  # a seed quadcopter
     v = fleet.vehicles[7]
     sim = v.endpoint.autopilot
     assert fleet.run_until(lambda: v.link.state.ekf_has_position and v.link.state.home, 60)
@@ -100,8 +95,8 @@ def test_a_zone_becomes_the_autopilots_fence_and_turns_the_vehicle_back(profiles
     assert sim.fence_items == [] and sim.params["FENCE_ENABLE"][0] == 0.0
 
 
-def test_an_operating_area_becomes_an_inclusion_fence(profiles: dict) -> None:
-    fleet = FastFleet.build([10], profiles)  # a seed rover
+def test_an_operating_area_becomes_an_inclusion_fence(fleet_profiles: dict) -> None:
+    fleet = FastFleet.build([10], fleet_profiles)  # a seed rover
     v = fleet.vehicles[10]
     sim = v.endpoint.autopilot
     assert fleet.run_until(lambda: v.link.state.ekf_has_position and v.link.state.home, 60)

@@ -8,9 +8,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-import pytest
-
-from swarm_node.database.repository import SwarmDatabase
 from swarm_proto import (
     Ack,
     Alert,
@@ -46,15 +43,11 @@ def square(center_lat: float, center_lon: float, half_m: float) -> Geometry:
     )
 
 
-@pytest.fixture(scope="module")
-def profiles() -> dict:
-    with SwarmDatabase.memory() as db:
-        return {p.vehicle_id: p for p in db.profiles()}
 
 
-def test_a_mixed_fleet_flies_an_area_mission_and_lands(profiles: dict) -> None:
+def test_a_mixed_fleet_flies_an_area_mission_and_lands(fleet_profiles: dict) -> None:
     members = [1, 7, 8]  # an Albatross VTOL and two quadcopters from the seed
-    fleet = FastFleet.build(members, profiles)
+    fleet = FastFleet.build(members, fleet_profiles)
     fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
@@ -88,14 +81,14 @@ def test_a_mixed_fleet_flies_an_area_mission_and_lands(profiles: dict) -> None:
 
 
 def _fly_demo_survey(
-    profiles: dict, members: list[int], done: Callable[[FastFleet], bool], timeout_s: float
+    fleet_profiles: dict, members: list[int], done: Callable[[FastFleet], bool], timeout_s: float
 ) -> tuple[FastFleet, dict[int, float], float]:
     """The demo's survey (its field and no-fly zone) flown by `members` in fast time
     until `done`; the fleet, each vehicle's closest approach to the zone's centre (m)
     and the zone's radius."""
     from swarm_sim.demo import demo_area
 
-    fleet = FastFleet.build(members, profiles)
+    fleet = FastFleet.build(members, fleet_profiles)
     fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
@@ -125,7 +118,7 @@ def _fly_demo_survey(
     return fleet, closest, radius
 
 
-def test_the_demo_survey_flies_around_its_no_fly_zone(profiles: dict) -> None:
+def test_the_demo_survey_flies_around_its_no_fly_zone(fleet_profiles: dict) -> None:
     """The demo's scenario in fast time: three VTOLs and two quadcopters cover the field,
     none ever enters the no-fly zone inside it (lanes, approach legs and the way home),
     all land."""
@@ -133,7 +126,7 @@ def test_the_demo_survey_flies_around_its_no_fly_zone(profiles: dict) -> None:
 
     members = list(DEFAULT_FLEET)
     fleet, closest, radius = _fly_demo_survey(
-        profiles,
+        fleet_profiles,
         members,
         lambda f: all(v.node.fsm.state == FsmState.INACTIVE for v in f.vehicles.values()),
         900,
@@ -146,7 +139,7 @@ def test_the_demo_survey_flies_around_its_no_fly_zone(profiles: dict) -> None:
     assert completed == set(members)
 
 
-def test_one_albatross_with_many_lanes_flies_around_the_demo_zone(profiles: dict) -> None:
+def test_one_albatross_with_many_lanes_flies_around_the_demo_zone(fleet_profiles: dict) -> None:
     """The demo's survey for one Albatross and two quadcopters: the VTOL gets many lanes
     cut by the zone, joined around it; before the flyable stage its autopilot turned to
     the shorter side at a reversal and looped through the zone. Now it completes its
@@ -154,7 +147,7 @@ def test_one_albatross_with_many_lanes_flies_around_the_demo_zone(profiles: dict
     second one's battery may run out on the way home, which is not the point here)."""
     members = [1, 7, 8]
     fleet, closest, radius = _fly_demo_survey(
-        profiles,
+        fleet_profiles,
         members,
         lambda f: all(not v.link.state.armed and (v.link.state.alt_rel_m or 0.0) < 1.0
                       for v in f.vehicles.values()),
