@@ -27,6 +27,12 @@ def test_service_units_parse_and_stop_cleanly(unit: object) -> None:
     assert cp["Service"]["KillSignal"] == "SIGINT"
 
 
+def test_the_radio_gateway_runs_before_everything_else() -> None:
+    cp = configparser.ConfigParser(strict=False, interpolation=None)
+    cp.read(REPO / "deploy" / "systemd" / "radio-gateway.service")
+    assert int(cp["Service"]["Nice"]) < 0  # its slot timing matters most
+
+
 def test_udev_rules_name_the_devices() -> None:
     text = (REPO / "deploy" / "udev" / "99-bandada.rules").read_text()
     assert 'SYMLINK+="bandada-radio"' in text and 'SYMLINK+="bandada-autopilot"' in text

@@ -17,7 +17,7 @@ from swarm_proto import CommandArgs, CommandKind, FsmState, GeoPoint, Selector
 from swarm_proto.messages import RadioStats
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import RADIO_STATS
-from swarm_sim.demo import GCS_ID, start, stop
+from swarm_sim.demo import GCS_ID, _radio_up, start, stop
 
 pytestmark = pytest.mark.network
 
@@ -31,6 +31,7 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
     bus = SwarmBus.open(ZenohSettings(connect=(fleet.endpoint,)))
     bus.subscribe(RADIO_STATS, lambda m, k: stats.__setitem__(m.node_id, m))
     try:
+        _radio_up(stats, MEMBERS, fleet, Console(file=io.StringIO()))
         up = gs.wait_for(
             lambda v: all(
                 i in v.status
@@ -56,7 +57,10 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
         ):
             time.sleep(0.2)
         radio = stats[GCS_ID]
-        channel = fleet.channel.stats()["channel"]  # type: ignore[attr-defined]
+        # since the table was up (the AT configuration before it puts baud-probing noise
+        # on air: docs/radio.md)
+        assert fleet.channel is not None
+        channel = fleet.channel.stats()["channel"]
     finally:
         bus.close()
         gs.close()
