@@ -453,8 +453,9 @@ def _radio_up(
     before: dict[str, int] = dict(channel.stats()["channel"])
     channel.reset_stats()
     console.print(
-        f"  radio up: {len(want)} nodes in one slot table; the AT configuration put "
-        f"{before.get('packets', 0)} packets on air ({before.get('collisions', 0)} overlaps)"
+        f"  radio up: {len(want)} nodes in one slot table; before it (AT configuration, "
+        f"bootstrap) {before.get('packets', 0)} packets went on air, "
+        f"{before.get('collisions', 0)} overlapping"
     )
     return before
 
