@@ -544,17 +544,8 @@ class MissionManager:
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
             self._steps = [ReturnToLaunch()]
             return [*done, *self._next()]
-        alt = max(ap.alt_rel_m or 0.0, 30.0)
         try:
-            leg = self._transit(
-                (ap.lat_deg, ap.lon_deg),
-                ap.heading_deg,
-                (home.lat_deg, home.lon_deg),
-                alt,
-                zones,
-                now,
-                home.alt_msl_m,
-            )
+            leg = self._transit_from(ap, (home.lat_deg, home.lon_deg), zones, now, home.alt_msl_m)
         except (PlanningError, ValueError):
             leg = []
         note: list[Out] = []
@@ -573,6 +564,22 @@ class MissionManager:
                 StartMission(),
             ]
         return [*done, *note, *self._next()]
+
+    def _transit_from(
+        self,
+        ap: AutopilotState,
+        there: tuple[float, float],
+        zones: Sequence[NoFlyZone],
+        now: float,
+        home_alt: float,
+    ) -> list[Waypoint]:
+        """A zone-safe leg from where the vehicle is to `there`, at its current height
+        (at least 30 m above home)."""
+        assert ap.lat_deg is not None and ap.lon_deg is not None
+        alt = max(ap.alt_rel_m or 0.0, 30.0)
+        return self._transit(
+            (ap.lat_deg, ap.lon_deg), ap.heading_deg, there, alt, zones, now, home_alt
+        )
 
     def _flyable_leg(
         self,
@@ -616,16 +623,7 @@ class MissionManager:
         home = ap.home
         if home is None or ap.lat_deg is None or ap.lon_deg is None:
             raise PlanningError("no position or home")
-        alt = max(ap.alt_rel_m or 0.0, 30.0)
-        leg = self._transit(
-            (ap.lat_deg, ap.lon_deg),
-            ap.heading_deg,
-            (point.lat_deg, point.lon_deg),
-            alt,
-            zones,
-            now,
-            home.alt_msl_m,
-        )
+        leg = self._transit_from(ap, (point.lat_deg, point.lon_deg), zones, now, home.alt_msl_m)
         leg = list(self._flyable_leg(leg, ap, zones, now, home.alt_msl_m))
         land = Waypoint(ItemKind.LAND, point.lat_deg, point.lon_deg, 0.0)
         return (UploadMission(items=(*self._tight(leg[:-1]), land)), StartMission())
