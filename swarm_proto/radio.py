@@ -289,17 +289,9 @@ _TIME = _status_fixed("time_unix_s")
 
 
 def _status_int_bounds(name: str) -> _Bounds:
+    # nested Annotated aliases are flattened by typing: every Meta is in the extras
     hint = typing.get_type_hints(VehicleStatus, include_extras=True)[name]
-    return _bounds(tuple(_meta_items(hint)))
-
-
-def _meta_items(hint: Any) -> list[Any]:
-    """Every msgspec.Meta in an annotation, through nested Annotated aliases."""
-    out: list[Any] = []
-    if typing.get_origin(hint) is typing.Annotated:
-        base, *extras = typing.get_args(hint)
-        out += _meta_items(base) + list(extras)
-    return out
+    return _bounds(typing.get_args(hint)[1:])
 
 
 # integer fields packed as they are: their declared bounds, checked when encoding so
