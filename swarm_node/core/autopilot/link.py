@@ -17,6 +17,7 @@ checks the source and validates; then
 | COMMAND_ACK                              | request runner; stream requester (511)   |
 | PARAM_VALUE, MISSION_* (tracker.PROTOCOL)| request runner (if addressed to us)      |
 | STATUSTEXT                               | tracker (event) and request runner (quoted in refusals) |
+| SYS_STATUS, MISSION_CURRENT              | tracker, then the request runner (fence enable waits, mission start check) |
 | tracker.IGNORED                          | nowhere (listed on purpose)              |
 | anything else                            | counted as unhandled                     |
 """
@@ -42,6 +43,8 @@ from .tracker import PROTOCOL, StateTracker, Verdict
 MAV_TYPE_ONBOARD_CONTROLLER = 18
 MAV_AUTOPILOT_INVALID = 8
 MAV_STATE_ACTIVE = 4
+#: Telemetry the request runner also sees (after the tracker applied it).
+RUNNER_WATCHES = frozenset({"STATUSTEXT", "SYS_STATUS", "MISSION_CURRENT"})
 
 
 @dataclass(frozen=True)
@@ -139,7 +142,7 @@ class LinkCore:
                 out += self._send(self.streams.handle_ack(msg, now))
             sent, done = self.runner.handle(msg, self._context(), now)
             out += self._send(sent) + self._complete(done)
-        elif mtype == "STATUSTEXT":
+        elif mtype in RUNNER_WATCHES:
             sent, done = self.runner.handle(msg, self._context(), now)
             out += self._send(sent) + self._complete(done)
         return out

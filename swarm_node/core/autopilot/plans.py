@@ -12,10 +12,19 @@ built by pure functions and executed by `runner.RequestRunner`.
 | ReturnToLaunch | RTL mode                       | RTL mode (Q_RTL_MODE)     | RTL mode                       | RTL mode       |
 | Land           | LAND mode                      | QLAND mode                | DO_LAND_START (mission landing)| HOLD mode      |
 | Parachute      | DO_PARACHUTE release           | same                      | same                           | not applicable |
-| StartMission   | [DO_SET_MISSION_CURRENT] + [AUTO] + MISSION_START                                            ||||
+| StartMission   | DO_SET_MISSION_CURRENT (first, at least 1) + [AUTO] + MISSION_START, then MISSION_CURRENT checked ||||
 | Upload*/Download | mission protocol (mission_protocol.py); UploadFence(enable=...) + DO_FENCE_ENABLE          ||||
 | SetParam       | PARAM_SET, confirmed by the PARAM_VALUE echo                                                 ||||
 | Calibrate      | PREFLIGHT_CALIBRATION (gyro p1, baro p3, accel level p5=2, airspeed p6=2); compass: DO_START_MAG_CAL ||||
+
+StartMission: ArduPilot accepts MISSION_START in AUTO while a mission runs and ignores
+it, and a mission uploaded in AUTO keeps the old current item ("Auto mission changed but
+failed to restart command"), so DO_SET_MISSION_CURRENT always comes first (recorded:
+`mission-start-in-auto`), and the request succeeds only once MISSION_CURRENT has reported
+that item (else `ApError.NOT_STARTED`). UploadFence's DO_FENCE_ENABLE(1) waits until
+SYS_STATUS reports the geofence present: ArduPilot refuses the enable (FAILED) until it
+has loaded the uploaded fence (AC_Fence::present(); with FENCE_TYPE polygon-only, loading
+happens in the fence task after the upload and only once the EKF has an origin).
 
 Take-off needs the vehicle armed (Arm first): the plan fails early with a clear reason
 rather than letting ArduPilot answer FAILED. [x] = a step skipped when already true.
@@ -33,7 +42,7 @@ from . import requests as rq
 from .conversion import ConversionError, fence_items, mission_items, rally_items
 from .mission_item import MavCmd, MavFrame, MissionItem
 from .requests import ApError, ApRequest, ApResult, MissionKind
-from .state import AutopilotState
+from .state import SENSOR_GEOFENCE, AutopilotState
 
 FORCE_MAGIC = 21196  # COMPONENT_ARM_DISARM param2: skip checks
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
@@ -59,6 +68,8 @@ TRANSFERS = (
 #: Requests that do not depend on the vehicle type.
 TYPE_FREE = (rq.UploadMissionItems, rq.UploadFence, rq.UploadRally, rq.DownloadMission, rq.SetParam)
 CALIBRATIONS = ("gyro", "baro", "airspeed", "accel", "compass")
+FENCE_LOAD_WAIT_S = 5.0  # longest wait for SYS_STATUS to show the uploaded fence loaded
+FENCE_ENABLE_RETRIES = 3  # a FAILED enable (fence still not loaded) tried again
 
 
 class InvalidRequest(ValueError):
@@ -79,6 +90,20 @@ class CommandSpec:
     attempts: int | None = None
     in_progress_timeout_s: float = 10.0
     needs_armed: bool = False  # a FAILED answer while disarmed says "not armed"
+    wait_sensor: int = 0  # SYS_STATUS present bit to wait for (in a SYS_STATUS received
+    #                       after the step began) before sending; sent anyway after wait_s
+    wait_s: float = 0.0
+    failed_retries: int = 0  # FAILED answers retried (after retry_delay_s) this many times
+
+
+@dataclass(frozen=True, slots=True)
+class VerifySpec:
+    """No message: wait until the autopilot has reported MISSION_CURRENT == `seq` since
+    the request began; `timeout_s` without it fails the request (ApError.NOT_STARTED)."""
+
+    seq: int
+    label: str
+    timeout_s: float = 5.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,7 +121,7 @@ class TransferSpec:
     items: tuple[MissionItem, ...] | None = None  # None: download
 
 
-Step = CommandSpec | ParamSpec | TransferSpec
+Step = CommandSpec | ParamSpec | TransferSpec | VerifySpec
 
 
 @dataclass(frozen=True, slots=True)
@@ -319,14 +344,16 @@ def plan_request(request: ApRequest, ctx: PlanContext) -> Plan | ApResult:
             return _done(r, False, f"{vt.name} has no parachute", ApError.NOT_APPLICABLE)
         return Plan((_long(MavCmd.DO_PARACHUTE, name, PARACHUTE_RELEASE),))
     if isinstance(r, rq.StartMission):
-        steps: list[Step] = []
-        if r.first_item > 0:
-            steps.append(
-                _long(MavCmd.DO_SET_MISSION_CURRENT, "StartMission set current", r.first_item)
+        # issue 11: MISSION_START alone does nothing in AUTO while a mission runs
+        first = max(1, r.first_item)
+        return Plan(
+            (
+                _long(MavCmd.DO_SET_MISSION_CURRENT, "StartMission set current", first),
+                _mode(vt, "AUTO", "StartMission AUTO", skip_if_current=True),
+                _long(MavCmd.MISSION_START, "StartMission MISSION_START"),
+                VerifySpec(first, "StartMission"),
             )
-        steps.append(_mode(vt, "AUTO", "StartMission AUTO", skip_if_current=True))
-        steps.append(_long(MavCmd.MISSION_START, "StartMission MISSION_START"))
-        return Plan(tuple(steps))
+        )
     if isinstance(r, rq.UploadMission):
         try:
             items = mission_items(r.items, vt, st.home)
@@ -338,7 +365,16 @@ def plan_request(request: ApRequest, ctx: PlanContext) -> Plan | ApResult:
     if isinstance(r, rq.UploadFence):
         fence: list[Step] = [TransferSpec(MissionKind.FENCE, "UploadFence", tuple(fence_items(r)))]
         if r.enable is not None:
-            fence.append(_long(MavCmd.DO_FENCE_ENABLE, "UploadFence enable", float(r.enable)))
+            wait = {"wait_sensor": SENSOR_GEOFENCE, "wait_s": FENCE_LOAD_WAIT_S} if r.enable else {}
+            fence.append(
+                _long(
+                    MavCmd.DO_FENCE_ENABLE,
+                    "UploadFence enable",
+                    float(r.enable),
+                    failed_retries=FENCE_ENABLE_RETRIES if r.enable else 0,
+                    **wait,  # type: ignore[arg-type]
+                )
+            )
         return Plan(tuple(fence))
     if isinstance(r, rq.UploadRally):
         return Plan((TransferSpec(MissionKind.RALLY, "UploadRally", tuple(rally_items(r))),))

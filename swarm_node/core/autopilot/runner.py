@@ -13,6 +13,13 @@ within `timeout_s` resends (COMMAND_LONG with confirmation + 1) until `attempts`
 spent. A FAILED mode change while the EKF has no position reports NO_POSITION.
 A STATUSTEXT of severity WARNING or worse seen during the step is quoted in the reason
 (ArduPilot explains refusals that way: "PreArm: ...", "Mode change to GUIDED failed").
+
+Issue 11 (real ArduPilot SITL): a command may wait for a SYS_STATUS sensor bit before it
+is sent (DO_FENCE_ENABLE waits for the fence to be loaded) and retry FAILED answers; a
+`VerifySpec` step waits for MISSION_CURRENT to report an item (StartMission); a transfer
+waits (at most `ready_wait_s`) until the autopilot has booted ("ArduPilot Ready"), since
+ArduPilot answers a MISSION_COUNT before that with MISSION_ACK NO_SPACE ("Only 0 items
+are supported").
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ from .plans import (
     PlanContext,
     Step,
     TransferSpec,
+    VerifySpec,
     plan_request,
 )
 from .requests import ApError, ApRequest, ApResult, MissionKind
@@ -83,6 +91,8 @@ class RunnerSettings:
     param_attempts: int = 3
     mission_timeout_s: float = 1.5
     mission_retries: int = 5
+    ready_wait_s: float = 10.0  # longest wait for "ArduPilot Ready" before a transfer
+    ready_poll_s: float = 0.2
 
 
 @dataclass(slots=True)
@@ -135,6 +145,8 @@ class _CommandExec(_StepExec):
         self.warning = ""
         self.outcome = None
         self.last_result: int | None = None
+        self.failed_left = spec.failed_retries
+        self.wait_until: float | None = None  # waiting for spec.wait_sensor
 
     def _message(self) -> MAVLinkMessage:
         s, (ts, tc) = self.spec, self.target
@@ -159,6 +171,9 @@ class _CommandExec(_StepExec):
         if self.spec.skip_if_mode is not None and state.mode_number == self.spec.skip_if_mode:
             self.outcome = StepOutcome(True, f"already in {self.spec.mode_name}")
             return []
+        if self.spec.wait_sensor and self.spec.wait_s > 0:
+            self.wait_until = now + self.spec.wait_s  # until a fresh SYS_STATUS shows it
+            return []
         return self._send(now)
 
     def _fail(self, reason: str, error: ApError, mav_result: int | None = None) -> None:
@@ -175,6 +190,13 @@ class _CommandExec(_StepExec):
         if self.outcome is not None:
             return []
         mtype = msg.get_type()
+        if self.wait_until is not None:
+            if mtype == "SYS_STATUS" and (
+                int(msg.onboard_control_sensors_present) & self.spec.wait_sensor
+            ):
+                self.wait_until = None
+                return self._send(now)
+            return []
         if mtype == "STATUSTEXT":
             if int(msg.severity) <= MAV_SEVERITY_WARNING:
                 self.warning = str(msg.text).rstrip("\x00")[:80]
@@ -194,6 +216,9 @@ class _CommandExec(_StepExec):
             self.deadline = now + self.spec.in_progress_timeout_s
             return []
         name = f"COMMAND_ACK {mav_result_name(result)}"
+        if result == MAV_RESULT_FAILED and self.failed_left > 0:
+            self.failed_left -= 1
+            retried, self.attempts = True, min(self.attempts, self.attempts_max - 1)
         if retried and self.attempts < self.attempts_max:
             self.deadline = None
             self.resend_at = now + self.retry_delay_s
@@ -214,6 +239,11 @@ class _CommandExec(_StepExec):
     def on_timer(self, now: float, state: AutopilotState) -> list[MAVLinkMessage]:
         if self.outcome is not None:
             return []
+        if self.wait_until is not None:
+            if now < self.wait_until:
+                return []
+            self.wait_until = None  # not seen: send anyway (FAILED answers are retried)
+            return self._send(now)
         if self.resend_at is not None and now >= self.resend_at:
             return self._send(now)
         if self.deadline is None or now < self.deadline:
@@ -230,9 +260,53 @@ class _CommandExec(_StepExec):
     def next_deadline(self) -> float | None:
         if self.outcome is not None:
             return None
+        if self.wait_until is not None:
+            return self.wait_until
         if self.resend_at is not None:
             return self.resend_at
         return self.deadline
+
+
+class _VerifyExec(_StepExec):
+    """Waits for MISSION_CURRENT == spec.seq reported since the request began."""
+
+    def __init__(self, spec: VerifySpec, seen: set[int]) -> None:
+        self.spec = spec
+        self.seen = seen
+        self.deadline: float | None = None
+        self.outcome = None
+
+    def _check(self) -> None:
+        if self.spec.seq in self.seen:
+            self.outcome = StepOutcome(True)
+            self.deadline = None
+
+    def start(self, now: float, state: AutopilotState) -> list[MAVLinkMessage]:
+        self.deadline = now + self.spec.timeout_s
+        self._check()
+        return []
+
+    def handle(
+        self, msg: MAVLinkMessage, now: float, state: AutopilotState
+    ) -> list[MAVLinkMessage]:
+        if self.outcome is None:
+            self._check()
+        return []
+
+    def on_timer(self, now: float, state: AutopilotState) -> list[MAVLinkMessage]:
+        if self.outcome is not None or self.deadline is None or now < self.deadline:
+            return []
+        reason = (
+            f"{self.spec.label}: accepted, but MISSION_CURRENT stayed {state.mission_current} "
+            f"(not {self.spec.seq}) for {self.spec.timeout_s:g} s: the mission did not start"
+        )
+        error = ApError.NOT_STARTED if state.link_ok else ApError.LINK_DOWN
+        self.outcome = StepOutcome(False, reason, error)
+        self.deadline = None
+        return []
+
+    def next_deadline(self) -> float | None:
+        return None if self.outcome is not None else self.deadline
 
 
 class _ParamExec(_StepExec):
@@ -325,6 +399,10 @@ class _TransferExec(_StepExec):
                 retries=settings.mission_retries,
             )
         self.outcome = None
+        self.ready_wait_s = settings.ready_wait_s
+        self.ready_poll_s = settings.ready_poll_s
+        self.waiting_since: float | None = None  # waiting for "ArduPilot Ready"
+        self.poll_at: float | None = None
 
     def _check(self, state: AutopilotState) -> None:
         res = self.transfer.result
@@ -342,6 +420,9 @@ class _TransferExec(_StepExec):
         )
 
     def start(self, now: float, state: AutopilotState) -> list[MAVLinkMessage]:
+        if not state.autopilot_ready:  # ArduPilot refuses transfers while booting
+            self.waiting_since, self.poll_at = now, now + self.ready_poll_s
+            return []
         out = self.transfer.start(now)
         self._check(state)
         return out
@@ -349,16 +430,28 @@ class _TransferExec(_StepExec):
     def handle(
         self, msg: MAVLinkMessage, now: float, state: AutopilotState
     ) -> list[MAVLinkMessage]:
+        if self.waiting_since is not None:
+            return []
         out = self.transfer.handle(msg, now)
         self._check(state)
         return out
 
     def on_timer(self, now: float, state: AutopilotState) -> list[MAVLinkMessage]:
+        if self.waiting_since is not None:
+            if not state.autopilot_ready and now - self.waiting_since < self.ready_wait_s:
+                self.poll_at = now + self.ready_poll_s
+                return []
+            self.waiting_since = self.poll_at = None  # ready (or waited long enough)
+            out = self.transfer.start(now)
+            self._check(state)
+            return out
         out = self.transfer.on_timer(now)
         self._check(state)
         return out
 
     def next_deadline(self) -> float | None:
+        if self.waiting_since is not None:
+            return self.poll_at
         return self.transfer.next_deadline()
 
 
@@ -372,6 +465,7 @@ class _Job:
     step: _StepExec | None = None
     notes: list[str] = field(default_factory=list)
     items: tuple = ()
+    seen_current: set[int] = field(default_factory=set)  # MISSION_CURRENT seqs since submitted
 
 
 class RequestRunner:
@@ -415,6 +509,10 @@ class RequestRunner:
     ) -> tuple[list[MAVLinkMessage], list[Finished]]:
         out: list[MAVLinkMessage] = []
         done: list[Finished] = []
+        if msg.get_type() == "MISSION_CURRENT":
+            for job in self._active.values():
+                if job is not None:
+                    job.seen_current.add(int(msg.seq))
         for job in list(self._active.values()):
             if job is not None and job.step is not None:
                 out += job.step.handle(msg, now, ctx.state)
@@ -562,6 +660,8 @@ class RequestRunner:
             job.step = _CommandExec(spec, target, self.settings)
         elif isinstance(spec, ParamSpec):
             job.step = _ParamExec(spec, target, self.settings)
+        elif isinstance(spec, VerifySpec):
+            job.step = _VerifyExec(spec, job.seen_current)
         else:
             job.step = _TransferExec(spec, target, self.settings)
         out += job.step.start(now, ctx.state)

@@ -55,6 +55,12 @@ class AutopilotState(msgspec.Struct, frozen=True):
     last_message_s: float | None = None  # clock time of the last valid message from it
     link_losses: int = 0  # how many times the link was lost
     foreign_packets: int = 0  # valid MAVLink from other systems/components, ignored
+    # appended for issue 11 (real ArduPilot SITL)
+    sensors_present: int = 0  # SYS_STATUS onboard_control_sensors_present (MAV_SYS_STATUS_SENSOR)
+    sensors_enabled: int = 0  # SYS_STATUS onboard_control_sensors_enabled
+    sensors_health: int = 0  # SYS_STATUS onboard_control_sensors_health
+    autopilot_ready: bool = False  # booted: "ArduPilot Ready" or a HEARTBEAT in STANDBY or later
+    position_trusted: bool = False  # a GPS fix (2-D or better) or an EKF absolute position was seen
 
     @property
     def has_position(self) -> bool:
@@ -67,6 +73,9 @@ class AutopilotState(msgspec.Struct, frozen=True):
         horiz_abs = self.ekf_flags & (EKF_POS_HORIZ_ABS | EKF_PRED_POS_HORIZ_ABS)
         return bool(horiz_abs) and not self.ekf_flags & (EKF_CONST_POS_MODE | EKF_UNINITIALIZED)
 
+
+# MAV_SYS_STATUS_SENSOR bits (SYS_STATUS)
+SENSOR_GEOFENCE = 1 << 20  # present: ArduPilot's AC_Fence::present() (a fence it has loaded)
 
 # EKF_STATUS_FLAGS (common.xml)
 EKF_ATTITUDE = 1

@@ -56,6 +56,9 @@ UINT16_MAX = 65535
 _EARLIEST_GPS_UNIX_S = 1.42e9  # 2015: an older SYSTEM_TIME.time_unix_usec is not GPS time
 _LATEST_UNIX_S = 4.0e9
 _REBOOT_BACKSTEP_MS = 5000
+MAV_STATE_STANDBY = 3  # HEARTBEAT system_status: BOOT (1) / CALIBRATING (2) until "ArduPilot Ready"
+GPS_FIX_2D = 2
+READY_TEXT = "ArduPilot Ready"
 
 
 class Verdict(Enum):
@@ -232,6 +235,8 @@ class StateTracker:
         if boot_ms + _REBOOT_BACKSTEP_MS < self._state.boot_time_ms:
             self._gps_offset_s = None
             changes["position_time_unix_s"] = None
+            # a rebooted autopilot boots again and has no fix yet (issue 11)
+            changes.update(autopilot_ready=False, position_trusted=False)
             events.append(AutopilotRebooted(time_s=now, boot_time_ms=boot_ms))
         changes["boot_time_ms"] = boot_ms
         return events
@@ -280,6 +285,9 @@ class StateTracker:
             armed=armed,
             system_status=int(msg.system_status),
             last_heartbeat_s=now,
+            # real ArduPilot refuses uploads until booted (issue 11): BOOT / CALIBRATING before
+            # "ArduPilot Ready", STANDBY or later after it
+            autopilot_ready=int(msg.system_status) >= MAV_STATE_STANDBY,
         )
         return changes, events
 
@@ -302,7 +310,11 @@ class StateTracker:
                 raise _Invalid(f"hdg {msg.hdg}")
             changes["heading_deg"] = (msg.hdg / 100.0) % 360.0
         events = self._note_boot_time(int(msg.time_boot_ms), now, changes)
-        if lat == 0 and lon == 0:  # ArduPilot sends zeros until it has a position
+        trusted = changes.get("position_trusted", self._state.position_trusted)
+        if (lat == 0 and lon == 0) or not trusted:
+            # ArduPilot sends zeros, or a drifting estimate near (0, 0) (0.0003, 0.00002:
+            # recorded, fix NO_GPS, EKF uninitialised), until it has a position: "no
+            # position" until a 2-D fix or an EKF absolute position was seen (issue 11)
             changes.update(lat_deg=None, lon_deg=None, alt_msl_m=None, alt_rel_m=None)
         else:
             changes.update(lat_deg=lat / 1e7, lon_deg=lon / 1e7, alt_msl_m=alt_m, alt_rel_m=rel_m)
@@ -344,7 +356,12 @@ class StateTracker:
         remaining = int(msg.battery_remaining)
         if not -1 <= remaining <= 100:
             raise _Invalid(f"battery_remaining {remaining}")
-        changes: Changes = {"battery_pct": remaining}
+        changes: Changes = {
+            "battery_pct": remaining,
+            "sensors_present": int(msg.onboard_control_sensors_present),
+            "sensors_enabled": int(msg.onboard_control_sensors_enabled),
+            "sensors_health": int(msg.onboard_control_sensors_health),
+        }
         if msg.voltage_battery != UINT16_MAX:
             changes["battery_v"] = msg.voltage_battery / 1000.0
         return changes, []
@@ -367,10 +384,13 @@ class StateTracker:
         if not 0 <= fix <= 8:
             raise _Invalid(f"fix_type {fix}")
         sats = int(msg.satellites_visible)
-        return {
+        changes: Changes = {
             "gps_fix": GpsFix(fix) if fix <= 7 else GpsFix.FIX_3D,  # 8 = PPP
             "gps_sats": 0 if sats == 255 else sats,
-        }, []
+        }
+        if fix >= GPS_FIX_2D:
+            changes["position_trusted"] = True
+        return changes, []
 
     def _on_system_time(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
         changes: Changes = {}
@@ -429,7 +449,8 @@ class StateTracker:
         text = "".join(ch if ch.isprintable() else "?" for ch in str(text).rstrip("\x00"))
         chunk_id = int(getattr(msg, "id", 0))
         if chunk_id == 0:
-            return {}, [StatusText(time_s=now, severity=severity, text=text)]
+            ready: Changes = {"autopilot_ready": True} if text == READY_TEXT else {}
+            return ready, [StatusText(time_s=now, severity=severity, text=text)]
         _, parts = self._text_chunks.setdefault(chunk_id, (severity, []))
         parts.append(text)
         if len(text) >= 50 and len(parts) < 8:  # more chunks follow
@@ -446,11 +467,15 @@ class StateTracker:
             if not math.isfinite(v) or v < 0:
                 raise _Invalid(f"{name} {v}")
         need = EKF_ATTITUDE | EKF_VELOCITY_HORIZ | EKF_POS_HORIZ_ABS
-        ok = (flags & need) == need and not flags & (EKF_CONST_POS_MODE | EKF_UNINITIALIZED)
+        bad = flags & (EKF_CONST_POS_MODE | EKF_UNINITIALIZED)
+        ok = (flags & need) == need and not bad
         events: list[ApEvent] = []
         if ok != self._state.ekf_ok:
             events.append(EkfChanged(time_s=now, ok=ok, flags=flags))
-        return {"ekf_ok": ok, "ekf_flags": flags}, events
+        changes: Changes = {"ekf_ok": ok, "ekf_flags": flags}
+        if flags & EKF_POS_HORIZ_ABS and not bad:
+            changes["position_trusted"] = True
+        return changes, events
 
     def _on_extended_sys_state(
         self, msg: MAVLinkMessage, now: float

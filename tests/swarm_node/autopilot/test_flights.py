@@ -191,6 +191,7 @@ def test_copter_sortie() -> None:
         ("COMMAND_INT", 192),  # Goto
         ("COMMAND_LONG", 178),
         ("COMMAND_INT", 192),  # ChangeAltitude: reposition to the Goto target, higher
+        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1 (issue 11)
         ("MODE", 3),
         ("COMMAND_LONG", 300),
         ("MODE", 6),
@@ -230,6 +231,7 @@ def test_vtol_sortie() -> None:
         ("MODE", 15),
         ("COMMAND_LONG", 400),
         ("COMMAND_LONG", 22),
+        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1 (issue 11)
         ("MODE", 10),
         ("COMMAND_LONG", 300),
         ("COMMAND_LONG", 178),
@@ -269,15 +271,16 @@ def test_plane_sortie() -> None:
     assert land.ok, land
     f.wait(lambda: not f.state.armed or (f.state.alt_rel_m or 99) < 1.0, 900, "landing")
     sent = f.commands()
-    assert sent[:6] == [
+    assert sent[:7] == [
         ("MISSION_COUNT", 7),
         ("COMMAND_LONG", 400),
         ("PARAM_SET", "TKOFF_ALT"),
         ("MODE", 13),
+        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1 (issue 11)
         ("MODE", 10),
         ("COMMAND_LONG", 300),
     ]
-    assert sent[6:8] == [("MODE", 11), ("COMMAND_LONG", 189)]
+    assert sent[7:9] == [("MODE", 11), ("COMMAND_LONG", 189)]
 
 
 @pytest.mark.parametrize("model", ["rover", "boat"])
@@ -303,6 +306,7 @@ def test_ground_vehicle_sortie(model: str) -> None:
     assert f.commands() == [
         ("MISSION_COUNT", 4),
         ("COMMAND_LONG", 400),
+        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1 (issue 11)
         ("MODE", 10),
         ("COMMAND_LONG", 300),
         ("MODE", 11),

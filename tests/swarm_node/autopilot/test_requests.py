@@ -93,7 +93,11 @@ def run(h: Harness, request: rq.ApRequest, max_s: float = 60) -> tuple[rq.ApResu
             rq.Goto(lat_deg=37.5, lon_deg=-5.9, alt_rel_m=40),
             [("int", 192, (-1, 1, 0, math.nan, 375000000, -59000000, 40))],
         ),
-        (VehicleType.COPTER, rq.StartMission(), [("long", 176, (1, 3)), ("long", 300, (0,))]),
+        (
+            VehicleType.COPTER,
+            rq.StartMission(),  # DO_SET_MISSION_CURRENT 1 first: issue 11
+            [("long", 224, (1,)), ("long", 176, (1, 3)), ("long", 300, (0,))],
+        ),
         (
             VehicleType.PLANE,
             rq.StartMission(first_item=3),

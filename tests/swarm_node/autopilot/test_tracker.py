@@ -57,11 +57,42 @@ def gpi(
     )
 
 
-def tracker(**kw: Any) -> StateTracker:
+def gps(fix: int = 3) -> Any:
+    return mavlink.MAVLink_gps_raw_int_message(0, fix, 0, 0, 0, 65535, 65535, 0, 0, 0)
+
+
+def tracker(fixed: bool = True, **kw: Any) -> StateTracker:
     t = StateTracker(**kw)
     v, _ = t.handle(wire(hb()), T0)
     assert v is Verdict.ACCEPTED
+    if fixed:  # a GPS fix: positions count from now on
+        t.handle(wire(gps()), T0)
     return t
+
+
+def test_a_position_near_zero_before_the_fix_is_no_position() -> None:
+    """Issue 11, defect 8: real ArduPilot (the QuadPlane sortie) sends positions drifting
+    near (0, 0) before its fix (0.0003, 0.00002, fix NO_GPS): not a position until a 2-D
+    fix or an EKF absolute position is seen; a reboot forgets it."""
+    t = tracker(fixed=False)
+    t.handle(wire(gps(fix=0)), T0)
+    t.handle(wire(gpi(lat=-0.0000153, lon=0.0003226, rel=-0.2)), T0 + 0.1)
+    assert t.state.lat_deg is None and not t.state.has_position
+    t.handle(wire(gps(fix=1)), T0 + 0.2)
+    t.handle(wire(gpi(lat=0.0003, lon=0.00002)), T0 + 0.3)
+    assert not t.state.has_position
+    t.handle(wire(gps(fix=3)), T0 + 0.4)
+    t.handle(wire(gpi()), T0 + 0.5)
+    assert (t.state.lat_deg, t.state.lon_deg) == (37.4112, -5.9889)
+    t.handle(wire(gps(fix=0)), T0 + 0.6)  # a later loss keeps the EKF's estimate
+    t.handle(wire(gpi(lat=37.4113)), T0 + 0.7)
+    assert t.state.lat_deg == 37.4113
+    t.handle(wire(gpi(lat=0.0003, lon=0.00002, boot_ms=1)), T0 + 0.8)  # rebooted
+    assert not t.state.has_position and not t.state.position_trusted
+    ekf_abs = 0x33F  # EKF using GPS: attitude, velocities, absolute position
+    t.handle(wire(mavlink.MAVLink_ekf_status_report_message(ekf_abs, 0, 0, 0, 0, 0)), T0 + 1)
+    t.handle(wire(gpi(boot_ms=2)), T0 + 1.1)
+    assert t.state.lat_deg == 37.4112
 
 
 def test_the_handler_table_covers_what_the_issue_lists() -> None:
