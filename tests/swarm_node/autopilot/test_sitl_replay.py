@@ -60,9 +60,9 @@ class Expected:
             self.armed = bool(msg.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
             if self.first_heartbeat_t is None:
                 self.first_heartbeat_t = msg._timestamp
-        elif t == "GPS_RAW_INT" and msg.fix_type >= 2:
-            self.trusted = True
-        elif t == "EKF_STATUS_REPORT" and msg.flags & 16 and not msg.flags & (128 | 1024):
+        elif (t == "GPS_RAW_INT" and msg.fix_type >= 2) or (
+            t == "EKF_STATUS_REPORT" and msg.flags & 16 and not msg.flags & (128 | 1024)
+        ):
             self.trusted = True
         elif t == "GLOBAL_POSITION_INT":
             if (msg.lat or msg.lon) and not self.trusted:
