@@ -83,6 +83,8 @@ PREARM_DISPLAY_PERIOD_S = 30.0  # AP_Arming: failing pre-arm checks are repeated
 COPTER_LAND_SETTLE_S = 1.0  # touchdown -> land complete (copter land detector)
 PLANE_LAND_SETTLE_S = 5.0  # touchdown -> "Land complete" (recorded QuadPlane ~6 s)
 RTL_LOITER_TIME_S = 5.0  # RTL_LOIT_TIME
+FENCE_LOAD_DELAY_S = 0.1  # AC_PolyFence_loader loads an uploaded fence in the fence task
+FENCE_LOAD_RETRY_S = 0.5  # ... and retries while the EKF has no origin
 CRASH_IMPACT_M_S = 4.0
 
 
@@ -239,6 +241,7 @@ class SimAutopilot:
 
         self.boot_time = now
         self._t = now
+        self._now = now  # time of the message or timer being handled
         self._next_phys = now
         self.mode = BOOT_MODE[self.firmware]
         self.armed = False
@@ -265,6 +268,9 @@ class SimAutopilot:
 
         self.mission_items: list[MissionItem] = []
         self.fence_items: list[MissionItem] = []
+        # what AC_PolyFence_loader has loaded: ArduPilot loads an uploaded fence in its
+        # fence task a moment after the upload, and only once the EKF has an origin
+        self.fence_loaded: list[MissionItem] = []
         self.rally_items: list[MissionItem] = []
         self.mission_seq = 0  # current NAV command index, 0: none
         self.mission_running = False
@@ -293,6 +299,7 @@ class SimAutopilot:
     def handle(self, msg: Any, now: float) -> list[Any]:
         """Process one decoded MAVLink message from a client; returns messages to send."""
         self._advance(now)
+        self._now = now
         try:
             self._dispatch(msg, now)
         except (ValueError, TypeError, OverflowError) as exc:
@@ -305,6 +312,7 @@ class SimAutopilot:
     def on_timer(self, now: float) -> list[Any]:
         """Run physics, boot events, protocol timeouts and due telemetry up to `now`."""
         self._advance(now)
+        self._now = now
         for transfer in self.transfers.values():
             self._out.extend(transfer.update(now))
         self._emit_due(now)
@@ -621,7 +629,7 @@ class SimAutopilot:
         if (
             self._param("FENCE_ENABLE") == 0
             or not int(self._param("FENCE_TYPE")) & 4
-            or not self.fence_items
+            or not self.fence_loaded
             or self.body.on_ground
         ):
             self.fence_breached = False
@@ -638,9 +646,30 @@ class SimAutopilot:
                 self._set_mode(rtl)
         self.fence_breached = breached
 
+    def fence_present(self) -> bool:
+        """AC_Fence::present(): FENCE_TYPE has the circle or an altitude fence, or the
+        polygon/circle bit and a loaded fence. DO_FENCE_ENABLE(1) is FAILED without it."""
+        types = int(self._param("FENCE_TYPE"))
+        return bool(types & (1 | 2 | 8)) or bool(types & 4 and self.fence_loaded)
+
+    def _fence_uploaded(self) -> None:
+        self.fence_loaded = []  # re-indexed: unloaded until the fence task loads it
+        bisect.insort(
+            self._timeline, (self._now + FENCE_LOAD_DELAY_S, self._load_fence), key=lambda ev: ev[0]
+        )
+
+    def _load_fence(self) -> None:
+        if not self.home_set:  # "fence load requires origin": try again later
+            bisect.insort(
+                self._timeline, (self._t + FENCE_LOAD_RETRY_S, self._load_fence),
+                key=lambda ev: ev[0],
+            )  # fmt: skip
+            return
+        self.fence_loaded = list(self.fence_items)
+
     def _outside_fence(self) -> bool:
         b = self.body
-        items = self.fence_items
+        items = self.fence_loaded
         inclusion_seen, inside_any_inclusion = False, False
         i = 0
         while i < len(items):
@@ -699,22 +728,31 @@ class SimAutopilot:
         return Hold(n, e, alt, vtol=self._vtol_hovering())
 
     def _rtl_point(self) -> tuple[float, float]:
-        """Home, or the nearest rally point if it is closer (RALLY_INCL_HOME=1)."""
-        best = self.home_ne
+        n, e, _ = self._rtl_target()
+        return n, e
+
+    def _rtl_target(self) -> tuple[float, float, float | None]:
+        """Home, or the nearest rally point if it is closer (RALLY_INCL_HOME=1), with the
+        rally point's altitude (MSL; None for home)."""
+        best: tuple[float, float, float | None] = (*self.home_ne, None)
         b = self.body
         best_d = math.hypot(best[0] - b.n, best[1] - b.e)
         for item in self.rally_items:
             n, e = self.frame.to_ne(item.lat_deg, item.lon_deg)
             d = math.hypot(n - b.n, e - b.e)
             if d < best_d:
-                best, best_d = (n, e), d
+                alt = self._alt_from_frame(item.frame, item.z)
+                best, best_d = (n, e, alt), d
         return best
 
     def _rtl_task(self) -> NavTask:
         b = self.body
-        hn, he = self._rtl_point()
+        hn, he, rally_alt = self._rtl_target()
         if self.firmware == Firmware.COPTER:
+            # ArduCopter climbs to max(rally altitude, RTL_ALT) (and keeps a higher one)
             rtl_alt = max(b.alt, self.home_alt + self._param("RTL_ALT") / 100.0)
+            if rally_alt is not None:
+                rtl_alt = max(rtl_alt, rally_alt)
             tasks: list[NavTask] = []
             if b.alt < rtl_alt - 0.5:
                 tasks.append(FlyTo(b.n, b.e, rtl_alt, accept_m=2.0, stop=True))
@@ -728,6 +766,11 @@ class SimAutopilot:
             # fly home, then (in _nav_done) loiter there or land via DO_LAND_START
             rtl = self._param("RTL_ALTITUDE")
             alt = b.alt if rtl < 0 else self.home_alt + rtl
+            if rally_alt is not None:
+                # ArduPlane flies to a rally point at the rally point's own altitude
+                # (recorded: plane-rtl-rally-alt-zero descends into the ground; RTL_ALTITUDE
+                # is no floor)
+                alt = rally_alt
             return FlyTo(hn, he, alt, accept_m=self.loiter_radius, stop=False)
         return FlyTo(hn, he, b.alt, accept_m=self._param("WP_RADIUS"), stop=True)
 
@@ -842,6 +885,8 @@ class SimAutopilot:
             self._set_nav(self._hold_here())
 
     def _items_changed(self, mission_type: int) -> list[Any]:
+        if mission_type == FENCE:
+            self._fence_uploaded()
         return mission_runner.items_changed(self, mission_type)
 
     def _land_task(self, n: float, e: float, vtol: bool) -> Land:
@@ -926,7 +971,7 @@ class SimAutopilot:
             )
         if not self.mode_spec.armable:
             return f"{self.mode_name} mode not armable"
-        if self._param("FENCE_ENABLE") != 0 and self.fence_items and self._outside_fence():
+        if self._param("FENCE_ENABLE") != 0 and self.fence_loaded and self._outside_fence():
             return "Fence: vehicle outside fence"
         if self.battery.remaining_pct < 5:
             return "Battery 1 below minimum arming capacity"

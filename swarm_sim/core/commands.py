@@ -314,6 +314,10 @@ def cmd_fence_enable(ap: SimAutopilot, cmd: Cmd) -> int:
     action = int(cmd.p1) if math.isfinite(cmd.p1) else -1
     if action not in (0, 1, 2):
         return FAILED
+    if action == 1 and not ap.fence_present():
+        # GCS_MAVLINK::handle_command_do_fence_enable: FAILED unless AC_Fence::present()
+        # (FENCE_TYPE polygon-only and the uploaded fence not loaded yet: issue 11)
+        return FAILED
     ap.params["FENCE_ENABLE"] = (1.0 if action == 1 else 0.0, 2)
     return ACCEPTED
 

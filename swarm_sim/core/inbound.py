@@ -13,7 +13,15 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from . import commands, mission_runner
 from .firmware import SEV_INFO, SEV_WARNING, Behaviour, Firmware
-from .mission import GLOBAL_FRAMES, MISSION, ItemTransfer, MissionItem, Peer, validate_item
+from .mission import (
+    GLOBAL_FRAMES,
+    MISSION,
+    NO_SPACE,
+    ItemTransfer,
+    MissionItem,
+    Peer,
+    validate_item,
+)
 from .navigation import FlyTo, Hold, Loiter, Purpose
 
 if TYPE_CHECKING:
@@ -108,8 +116,15 @@ def on_position_target_local(ap: SimAutopilot, msg: Any, src: Peer, now: float) 
 
 def on_mission_count(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
     transfer = transfer_for(ap, msg)
-    if transfer is not None:
-        ap._out.extend(transfer.handle_count(src, int(msg.count), now))
+    if transfer is None:
+        return
+    if not ap.ready and int(msg.count) > 0:
+        # recorded: before "ArduPilot Ready" the storage holds 0 items: MISSION_ACK
+        # NO_SPACE at once and "Only 0 items are supported"
+        ap._out.append(transfer._ack(src, NO_SPACE))
+        ap._text(SEV_WARNING, "Only 0 items are supported")
+        return
+    ap._out.extend(transfer.handle_count(src, int(msg.count), now))
 
 
 def on_mission_item(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:

@@ -330,6 +330,8 @@ class ItemTransfer:
             if self.mission_type == MISSION:
                 out.append(self._statustext(SEV_INFO, "Flight plan received"))
         out.append(self._ack(peer, result))
+        if result == ACCEPTED and self.mission_type == FENCE:
+            out.append(self._statustext(7, "Fence Indexed OK"))  # recorded, after the ACK
         if result == ACCEPTED and self._on_change is not None:
             out.extend(self._on_change(self.mission_type))
         return out

@@ -11,7 +11,15 @@ from typing import TYPE_CHECKING, Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from .airframes import VehicleModel
-from .firmware import MISSION_CMD_NAMES, SEV_INFO, SEV_NOTICE, Behaviour, Firmware, mode_number
+from .firmware import (
+    MISSION_CMD_NAMES,
+    SEV_CRITICAL,
+    SEV_INFO,
+    SEV_NOTICE,
+    Behaviour,
+    Firmware,
+    mode_number,
+)
 from .mission import FRAME_ABSOLUTE, GLOBAL_FRAMES, MISSION, MissionItem
 from .navigation import FlyTo, Hold, Idle, Loiter, NavTask, Purpose, Sequence, Takeoff
 
@@ -25,6 +33,17 @@ def items_changed(ap: SimAutopilot, mission_type: int) -> list[Any]:
         ap.params["MIS_TOTAL"] = (float(max(0, len(ap.mission_items) - 1)), 4)
         names = sorted(ap.params)
         out.append(ap._param_value("MIS_TOTAL", names.index("MIS_TOTAL"), len(names)))
+        if ap.mode_spec.behaviour == Behaviour.AUTO and ap.mission_running:
+            # AP_Mission in AUTO: the current item's index is kept and restarted in the
+            # new mission; when the new mission has no such item it carries on with the
+            # old one (recorded: mission-start-in-auto; MISSION_START does not help,
+            # DO_SET_MISSION_CURRENT or leaving AUTO and coming back does)
+            if 0 < ap.mission_seq < len(ap.mission_items):
+                ap.mission_complete = False
+                run_from(ap, ap.mission_seq)
+            else:
+                ap._text(SEV_CRITICAL, "Auto mission changed but failed to restart command")
+            return out
         ap.mission_seq = 0
         ap.mission_complete = False
         ap._jumps.clear()
@@ -42,7 +61,7 @@ def start_or_resume(ap: SimAutopilot) -> None:
         ap.mission_running = False
         ap._set_nav(ap._hold_here() if not ap.body.on_ground else Idle())
         return
-    if ap.mission_complete or ap.mission_seq <= 0:
+    if ap.mission_complete or not 0 < ap.mission_seq < len(ap.mission_items):
         ap.mission_complete = False
         ap._jumps.clear()
         start = 1

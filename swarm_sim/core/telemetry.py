@@ -119,7 +119,7 @@ def sys_status(ap: SimAutopilot) -> Any:
     # bits as in the recorded SITL streams: GEOFENCE present (copter, or with fence
     # items), enabled with FENCE_ENABLE, healthy unless breached (MAVProxy reports
     # "fence breach" when the health bit is missing)
-    fence_present = ap.firmware.name == "COPTER" or bool(ap.fence_items)
+    fence_present = ap.fence_present()  # AC_Fence::sys_status_present()
     present = (
         _BASE_SENSORS
         | _RC_RECEIVER

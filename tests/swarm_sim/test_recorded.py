@@ -91,6 +91,9 @@ def mission_exchange(msgs: list[Any]) -> list[str]:
 
 
 def start_like_the_script(p: Pilot) -> None:
+    # the recorded script uploaded after "ArduPilot Ready": before it, ArduPilot (and
+    # the simulator) refuse a MISSION_COUNT with NO_SPACE
+    assert p.h.run_until(lambda: p.ap.ready, 10)
     for msg_id, interval in INTERVALS_US.items():
         assert p.command(511, msg_id, interval) == 0
     p.c.mav.mission_clear_all_send(p.ap.sysid, 1, 0)

@@ -424,8 +424,8 @@ class StateTracker:
         if total == UINT16_MAX:
             changes["mission_count"] = 0
         elif total > 0:
-            if seq > total:
-                raise _Invalid(f"seq {seq} beyond total {total}")
+            # seq may exceed total: a mission uploaded in AUTO with fewer items keeps the
+            # old current item (recorded: mission-start-in-auto, seq 5 of total 3)
             changes["mission_count"] = total + 1  # ArduPilot's total excludes home (item 0)
         changes["mission_state"] = int(getattr(msg, "mission_state", 0))
         events: list[ApEvent] = []
