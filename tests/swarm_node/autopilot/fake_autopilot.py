@@ -63,6 +63,7 @@ class FakeAutopilot:
         self._next_telemetry = 0.0
         self.telemetry_period_s = 0.1
         self.on_command: Callable[[object], None] | None = None
+        self.report_current = True  # MISSION_CURRENT after DO_SET_MISSION_CURRENT
 
     # ---------------------------------------------------------------- output
 
@@ -184,7 +185,7 @@ class FakeAutopilot:
             elif cmd == 192 and int(msg.param2) & 1:
                 self.custom_mode = 4 if self.kind == "copter" else 15  # GUIDED
         out.append(self._ack(cmd, result, msg))
-        if result == 0 and cmd == 224:  # DO_SET_MISSION_CURRENT: ArduPilot reports it at once
+        if result == 0 and cmd == 224 and self.report_current:  # DO_SET_MISSION_CURRENT: ArduPilot reports it at once
             total = max(0, len(self.servers[0].items) - 1)
             out.append(
                 self._pack(mavlink.MAVLink_mission_current_message(int(msg.param1), total, 3, 0))
