@@ -20,6 +20,7 @@ Pure: no I/O; `now` is passed in.
 from __future__ import annotations
 
 import itertools
+import math
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
@@ -154,6 +155,26 @@ def _land_request(profile: VehicleProfile) -> tuple[ApRequest, ...]:
     return (Land(),)
 
 
+#: Lowest rally point altitude above home per vehicle type (issue 11): ArduPlane's RTL
+#: flies to a rally point at the rally point's own altitude (RTL_ALTITUDE is no floor:
+#: recorded, a QuadPlane sent to a rally point at 0 m flew into the ground) and circles it
+#: there; ArduCopter climbs to max(rally altitude, RTL_ALT) and lands below it.
+SAFE_RALLY_ALT_REL_M: dict[VehicleType, float] = {
+    VehicleType.PLANE: 40.0,
+    VehicleType.VTOL: 40.0,
+    VehicleType.COPTER: 15.0,  # ArduCopter's RTL_ALT default
+}
+
+
+def rally_alt_rel_m(vehicle_type: VehicleType, base_alt_rel_m: float) -> float:
+    """The rally point's altitude above home for the base: the operator's base altitude,
+    never below the vehicle type's safe floor (ground vehicles: the base's own)."""
+    floor = SAFE_RALLY_ALT_REL_M.get(vehicle_type)
+    if floor is None or not math.isfinite(base_alt_rel_m):
+        return base_alt_rel_m if math.isfinite(base_alt_rel_m) else 0.0
+    return max(base_alt_rel_m, floor)
+
+
 def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
     """What to do with a command; None when it does not address this vehicle (a command
     is answered by the vehicles it addresses only: one Ack per vehicle of the swarm for
@@ -177,13 +198,8 @@ def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
             return reject(AckReason.INVALID, "SET_BASE needs a point")
         reqs: tuple[ApRequest, ...] = ()
         if ap.link_ok and ap.home is not None:  # RTL goes to the nearest rally point: the base
-            reqs = (
-                UploadRally(
-                    points=(
-                        (a.point.lat_deg, a.point.lon_deg, a.point.alt_msl_m - ap.home.alt_msl_m),
-                    )
-                ),
-            )
+            alt = rally_alt_rel_m(p.vehicle_type, a.point.alt_msl_m - ap.home.alt_msl_m)
+            reqs = (UploadRally(points=((a.point.lat_deg, a.point.lon_deg, alt),)),)
         return CommandPlan(
             requests=reqs, effects=(SetBase(a.point),), ack=None if reqs else _ack(cmd, view, True)
         )

@@ -156,6 +156,8 @@ def _param_table(
         "SYSID_THISMAV": (float(opts.sysid), 2),
         "ARMING_CHECK": (1.0, 6),
         "FENCE_ENABLE": (0.0, 2),
+        # AP_Rally: ArduPlane 0 (the recorded QuadPlane), ArduCopter and Rover 1
+        "RALLY_INCL_HOME": (0.0 if fw == Firmware.PLANE else 1.0, 2),
         "FENCE_ACTION": (1.0, 2),
         # ArduPilot's defaults: Copter ALT_MAX|CIRCLE|POLYGON, Plane POLYGON, Rover
         # CIRCLE|POLYGON; the simulator enforces the POLYGON bit (polygon/circle items)
@@ -732,11 +734,14 @@ class SimAutopilot:
         return n, e
 
     def _rtl_target(self) -> tuple[float, float, float | None]:
-        """Home, or the nearest rally point if it is closer (RALLY_INCL_HOME=1), with the
-        rally point's altitude (MSL; None for home)."""
+        """The nearest rally point, or home if it is nearer and RALLY_INCL_HOME is 1 (as
+        ArduPilot's AP_Rally, RALLY_LIMIT_KM not modelled), with the rally point's altitude
+        (MSL; None for home)."""
         best: tuple[float, float, float | None] = (*self.home_ne, None)
         b = self.body
         best_d = math.hypot(best[0] - b.n, best[1] - b.e)
+        if self._param("RALLY_INCL_HOME") == 0 and self.rally_items:
+            best_d = math.inf
         for item in self.rally_items:
             n, e = self.frame.to_ne(item.lat_deg, item.lon_deg)
             d = math.hypot(n - b.n, e - b.e)

@@ -51,7 +51,8 @@ def test_set_base_uploads_the_base_as_the_rally_point_and_answers_after_it() -> 
     )
     (rally,) = [o.request for o in out if isinstance(o, Submit)]
     assert isinstance(rally, UploadRally)
-    assert rally.points == ((BASE.lat_deg, BASE.lon_deg, pytest.approx(5.0)),)  # above home
+    # 5 m above home, raised to the quadcopter's safe floor (ArduCopter's RTL_ALT default)
+    assert rally.points == ((BASE.lat_deg, BASE.lon_deg, pytest.approx(15.0)),)
     assert not [o for o in out if isinstance(o, Publish) and isinstance(o.msg, Ack)]
     assert node.base == BASE  # the base is set at once, the Ack waits for the autopilot
     out = node.handle(AutopilotResult(ApResult(rally.request_id, True)), 0.1)
@@ -65,6 +66,30 @@ def test_set_base_uploads_the_base_as_the_rally_point_and_answers_after_it() -> 
     )
     assert not [o for o in out if isinstance(o, Submit)]
     assert [o.msg.accepted for o in out if isinstance(o, Publish)] == [True]  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize(
+    ("model", "base_above_home_m", "rally_m"),
+    [
+        ("Albatross 250 VTOL", 0.0, 40.0),  # the recorded crash: a rally point at 0 m
+        ("Albatross 250 VTOL", 75.0, 75.0),  # the operator's altitude when higher
+        ("Generic Quadcopter", -3.0, 15.0),
+        ("Generic Quadcopter", 25.0, 25.0),
+    ],
+)
+def test_the_rally_point_is_never_below_a_safe_altitude(
+    model: str, base_above_home_m: float, rally_m: float
+) -> None:
+    """Issue 11, defect 1: SET_BASE uploaded base - home altitude, 0 m when the operator
+    gave none; ArduPlane's RTL flew the QuadPlane into the ground at that rally point."""
+    node = NodeCore(seed_profiles()[model], now=0.0)
+    node.handle(AutopilotUpdate(flying()), 0.0)
+    base = GeoPoint(BASE.lat_deg, BASE.lon_deg, HOME.alt_msl_m + base_above_home_m)
+    out = node.handle(
+        Received(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base))), 0.0
+    )
+    (rally,) = [o.request for o in out if isinstance(o, Submit)]
+    assert isinstance(rally, UploadRally) and rally.points[0][2] == pytest.approx(rally_m)
 
 
 def test_a_mission_ends_on_an_unlimited_loiter_over_its_last_waypoint() -> None:
@@ -100,7 +125,9 @@ def test_the_simulated_autopilot_holds_the_base_and_the_final_loiter(fleet_profi
     op = Operator(fleet)
     base = GeoPoint(*north(30.0), SITL_HOME.alt_m)
     assert op(CommandKind.SET_BASE, point=base).accepted
-    assert [(it.command, round(it.z, 3)) for it in sim.rally_items] == [(NAV_RALLY_POINT, 0.0)]
+    # the base at home's altitude: the rally point at the VTOL's safe floor, 40 m above
+    # home (at 0 m ArduPlane's RTL flies into the ground: issue 11)
+    assert [(it.command, round(it.z, 3)) for it in sim.rally_items] == [(NAV_RALLY_POINT, 40.0)]
     rally = sim.rally_items[0]
     assert math.isclose(rally.lat_deg, base.lat_deg, abs_tol=1e-7)
     assert fleet.run_until(lambda: v.node.fsm.state == FsmState.GO_MISSION, 30)
