@@ -7,7 +7,7 @@ from typing import Any
 
 from rich.table import Table
 
-from swarm_proto import Ack, AlertFlag, VehicleType
+from swarm_proto import Ack, AlertFlag, VehicleStatus, VehicleType
 from swarm_proto.ardupilot import mode_name
 
 from .ground import FleetView
@@ -17,9 +17,18 @@ def flag_names(flags: AlertFlag) -> str:
     return ",".join(f.name.lower() for f in AlertFlag if f and f in flags and f.name) or "-"
 
 
+def data_age_s(status: VehicleStatus, now_unix_s: float) -> float:
+    """How old the autopilot data in a status is: its `time_unix_s` is the time of the
+    autopilot's sample (GPS time), and after an autopilot link loss the node keeps
+    sending the last one (issue 11): `age s` says when the ground station last heard the
+    node, `data s` how old what it says is. Clamped at 0 (a vehicle clock ahead)."""
+    return round(max(0.0, now_unix_s - status.time_unix_s), 1)
+
+
 def fleet_rows(view: FleetView) -> list[dict[str, Any]]:
     """One plain dict per vehicle (also the --json output)."""
     now = time.monotonic()
+    now_unix = time.time()
     rows = []
     for vid in view.vehicle_ids():
         st, info = view.status.get(vid), view.info.get(vid)
@@ -50,6 +59,7 @@ def fleet_rows(view: FleetView) -> list[dict[str, Any]]:
                 groundspeed_m_s=round(st.groundspeed_m_s, 1),
                 heading_deg=round(st.heading_deg),
                 alerts=flag_names(st.alerts),
+                data_age_s=data_age_s(st, now_unix),
             )
         rows.append(row)
     return rows
@@ -71,6 +81,7 @@ COLUMNS = [
     ("heading_deg", "hdg"),
     ("alerts", "alerts"),
     ("age_s", "age s"),
+    ("data_age_s", "data s"),
 ]
 
 

@@ -9,7 +9,9 @@ and `ready` (the vehicle has started correctly: link, GPS, EKF and home).
 Each condition has hysteresis in time: it is raised after holding for `raise_after_s`
 and cleared after being absent for `clear_after_s`, so a voltage sag or one late
 packet does not flap alerts. Autopilot link loss is raised at once (the link itself
-already waited its timeout).
+already waited its timeout), as a WARNING: it becomes an EMERGENCY (CRITICAL on the
+ground) only when the loss lasts `link_emergency_after_s` (issue 11: on a loaded host
+one 0.8 s gap, back 0.4 s later, ended a mission ArduPilot was flying fine).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ class Thresholds:
     raise_after_s: float = 1.0
     clear_after_s: float = 3.0
     link_grace_s: float = 10.0  # at start, the autopilot link may take this long to come up
+    link_emergency_after_s: float = 2.0  # a link loss lasting this long is an emergency
 
     @classmethod
     def from_profile(cls, profile: VehicleProfile) -> Thresholds:
@@ -204,6 +207,12 @@ class VehicleMonitor:
         for code, spec in SPECS.items():
             tr = self._tracked.setdefault(code, _Tracked())
             severity = spec.armed_severity if s.armed else spec.ground_severity
+            if (
+                code == AlertCode.AUTOPILOT_LINK_LOSS
+                and code in seen
+                and (tr.since is None or now - tr.since < t.link_emergency_after_s)
+            ):
+                severity = Severity.WARNING  # a short gap: the mission goes on
             if code in seen:
                 tr.clear_since = None
                 if tr.since is None:

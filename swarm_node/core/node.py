@@ -470,6 +470,9 @@ class NodeCore:
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
         if now >= self.fsm.next_deadline():
+            # issue 11: alerts that escalate with time (a lasting link loss) are
+            # re-evaluated at every tick, not only when the link reports a new state
+            out += [Publish(a) for a in self.monitor.update(self.autopilot, now)]
             out += self._tick_fsm(now)
         if now >= self._next_status:
             self._next_status = max(self._next_status + self.settings.status_period_s, now)

@@ -150,3 +150,26 @@ def test_emergency_land_asks_for_the_landing_point() -> None:
     r = runner.invoke(app, ["--connect", "tcp/127.0.0.1:1", "cmd", "emergency-land"])
     text = " ".join((r.stdout + str(r.stderr)).replace("│", " ").split())  # rich's box
     assert r.exit_code == 2 and "where the landing route ends" in text
+
+
+def test_status_shows_how_old_the_autopilot_data_is() -> None:
+    """Issue 11, defect 9: after an autopilot link loss the node keeps sending its last
+    state; `gcs status` showed it heard 0.1 s ago, as fresh. The `data s` column is the
+    age of the autopilot's sample (VehicleStatus.time_unix_s), with the link-loss flag."""
+    import time as _time
+
+    from gcs_cli.render import COLUMNS, fleet_rows
+    from swarm_proto import AlertFlag, VehicleStatus
+
+    view = FleetView()
+    now = _time.time()
+    view.status[7] = VehicleStatus(
+        7, now - 30.0, 37.4, -5.9, 70.0, 60.0, armed=True,
+        alerts=AlertFlag.AUTOPILOT_LINK_LOSS,
+    )  # fmt: skip
+    view.heard_at[7] = _time.monotonic()
+    (row,) = fleet_rows(view)
+    assert row["age_s"] is not None and row["age_s"] < 1.0  # heard just now...
+    assert 29.0 <= row["data_age_s"] <= 31.0  # ...about 30 s old data
+    assert row["alerts"] == "autopilot_link_loss"
+    assert ("data_age_s", "data s") in COLUMNS

@@ -43,7 +43,9 @@ def to_vehicle_status(
     """The status to publish, or None while the autopilot has no position yet.
 
     `time_unix_s` is the GPS time of the position sample (SYSTEM_TIME and the sample's
-    time since boot) when the autopilot has GPS time, else `now_unix_s`.
+    time since boot) when the autopilot has GPS time, else `now_unix_s`; while the link
+    is down without GPS time, the time of the last message from the autopilot (the link
+    clock, which is the node's): the data's age shows, it never looks fresh (issue 11).
     `mission_progress` None = computed from the autopilot's mission (see above).
     """
     if state.lat_deg is None or state.lon_deg is None:
@@ -51,6 +53,8 @@ def to_vehicle_status(
     alt_msl = state.alt_msl_m if state.alt_msl_m is not None else 0.0
     alt_rel = state.alt_rel_m if state.alt_rel_m is not None else 0.0
     t = state.position_time_unix_s if state.position_time_unix_s is not None else now_unix_s
+    if state.position_time_unix_s is None and not state.link_ok and state.last_message_s:
+        t = min(now_unix_s, state.last_message_s)
     progress = mission_progress_pct(state) if mission_progress is None else mission_progress
     heading = state.heading_deg % 360.0 if math.isfinite(state.heading_deg) else 0.0
     return VehicleStatus(

@@ -427,7 +427,10 @@ class StateTracker:
             # seq may exceed total: a mission uploaded in AUTO with fewer items keeps the
             # old current item (recorded: mission-start-in-auto, seq 5 of total 3)
             changes["mission_count"] = total + 1  # ArduPilot's total excludes home (item 0)
-        changes["mission_state"] = int(getattr(msg, "mission_state", 0))
+        mission_state = int(getattr(msg, "mission_state", 0))
+        if not 0 <= mission_state <= 5:  # MISSION_STATE
+            raise _Invalid(f"mission_state {mission_state}")
+        changes["mission_state"] = mission_state
         events: list[ApEvent] = []
         if seq != self._state.mission_current:
             events.append(MissionCurrentChanged(time_s=now, seq=seq))

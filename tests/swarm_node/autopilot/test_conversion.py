@@ -161,6 +161,18 @@ def test_vehicle_status_from_state() -> None:
     )  # type: ignore[union-attr]
 
 
+def test_status_after_a_link_loss_carries_the_time_of_the_last_data() -> None:
+    """Issue 11, defect 9: after a link loss the node republishes the last state; its
+    time is the last sample's (GPS time, or without it the last message's), never now."""
+    here = {"lat_deg": 37.4, "lon_deg": -5.9, "alt_msl_m": 50.0, "alt_rel_m": 40.0}
+    up = AutopilotState(link_ok=True, last_message_s=1000.0, **here)
+    down = AutopilotState(link_ok=False, last_message_s=1000.0, **here)
+    gps = AutopilotState(link_ok=False, last_message_s=1000.0, position_time_unix_s=999.9, **here)
+    assert to_vehicle_status(up, vehicle_id=1, now_unix_s=1000.1).time_unix_s == 1000.1  # type: ignore[union-attr]
+    assert to_vehicle_status(down, vehicle_id=1, now_unix_s=1030.0).time_unix_s == 1000.0  # type: ignore[union-attr]
+    assert to_vehicle_status(gps, vehicle_id=1, now_unix_s=1030.0).time_unix_s == 999.9  # type: ignore[union-attr]
+
+
 def test_mission_progress() -> None:
     assert mission_progress_pct(AutopilotState()) == 0
     assert mission_progress_pct(AutopilotState(mission_count=6, mission_current=1)) == 0

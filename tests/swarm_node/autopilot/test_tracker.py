@@ -165,7 +165,8 @@ def test_mode_and_armed_changes_are_events() -> None:
         mavlink.MAVLink_ekf_status_report_message(831, math.nan, 0, 0, 0, 0),
         mavlink.MAVLink_home_position_message(950_000_000, 0, 0, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0),
         mavlink.MAVLink_extended_sys_state_message(0, 9),
-        mavlink.MAVLink_mission_current_message(9, 5, 3, 0),
+        # (seq beyond total is real: a mission uploaded in AUTO keeps its old item)
+        mavlink.MAVLink_mission_current_message(2, 5, 9, 0),  # no MISSION_STATE 9
     ],
     ids=lambda m: m.get_type(),
 )
