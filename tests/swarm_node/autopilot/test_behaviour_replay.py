@@ -6,6 +6,7 @@ tests/swarm_sim/test_recorded_behaviours.py.)"""
 
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,10 +17,11 @@ from pymavlink import mavutil
 
 from swarm_node.core.autopilot.events import ApEvent, MissionCurrentChanged, StatusText
 from swarm_node.core.autopilot.link import Emit, LinkCore, LinkSettings
-from swarm_node.core.autopilot.state import SENSOR_GEOFENCE
+
 from swarm_node.core.autopilot.status import to_vehicle_status
 from swarm_proto import VehicleType, validate
 
+SENSOR_GEOFENCE = 1 << 20  # MAV_SYS_STATUS_GEOFENCE
 RECORDINGS = (
     "fence-enable-after-upload",
     "mission-start-in-auto",
@@ -126,7 +128,7 @@ def test_fence_present_and_enabled_as_sys_status_says(base: Path) -> None:
         for _, m in r.raw
         if m.get_type() == "SYS_STATUS"
     ]
-    flips = [b for a, b in zip(enabled, enabled[1:], strict=False) if a != b]
+    flips = [b for a, b in itertools.pairwise(enabled) if a != b]
     assert flips == [True, False] * 3  # three rounds: DO_FENCE_ENABLE 1, then 0
     acks = [m.result for _, m in r.raw if m.get_type() == "COMMAND_ACK" and m.command == 207]
     assert acks == [0] * 6
