@@ -17,7 +17,6 @@ from pymavlink import mavutil
 
 from swarm_node.core.autopilot.events import ApEvent, MissionCurrentChanged, StatusText
 from swarm_node.core.autopilot.link import Emit, LinkCore, LinkSettings
-
 from swarm_node.core.autopilot.status import to_vehicle_status
 from swarm_proto import VehicleType, validate
 
