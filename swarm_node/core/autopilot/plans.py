@@ -365,14 +365,15 @@ def plan_request(request: ApRequest, ctx: PlanContext) -> Plan | ApResult:
     if isinstance(r, rq.UploadFence):
         fence: list[Step] = [TransferSpec(MissionKind.FENCE, "UploadFence", tuple(fence_items(r)))]
         if r.enable is not None:
-            wait = {"wait_sensor": SENSOR_GEOFENCE, "wait_s": FENCE_LOAD_WAIT_S} if r.enable else {}
+            # enabling waits until ArduPilot has loaded the fence (SYS_STATUS present)
             fence.append(
                 _long(
                     MavCmd.DO_FENCE_ENABLE,
                     "UploadFence enable",
                     float(r.enable),
                     failed_retries=FENCE_ENABLE_RETRIES if r.enable else 0,
-                    **wait,  # type: ignore[arg-type]
+                    wait_sensor=SENSOR_GEOFENCE if r.enable else 0,
+                    wait_s=FENCE_LOAD_WAIT_S if r.enable else 0.0,
                 )
             )
         return Plan(tuple(fence))
