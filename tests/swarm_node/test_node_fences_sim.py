@@ -10,9 +10,9 @@ import math
 import pytest
 
 from swarm_proto import (
+    Ack,
     Alert,
     AlertCode,
-    Ack,
     Command,
     CommandArgs,
     CommandKind,
