@@ -383,3 +383,27 @@ def test_the_way_home_is_flown_clear_of_a_zone_from_where_the_aircraft_is(
         r = prof.turn_radius_m()
         for radius in (r, 1.3 * r):
             assert flight_problems(pts, [60.0] * len(pts), zs, radius_m=radius, start=start) == []
+
+
+def test_a_way_home_that_does_not_start_falls_back_to_rtl(
+    seed: dict[str, VehicleProfile],
+) -> None:
+    """Issue 11, defect 3: the way home is uploaded while the aircraft loiters in AUTO;
+    if the autopilot does not start it (StartMission ends NOT_STARTED: MISSION_CURRENT
+    never reported item 1), the node flies plain RTL instead of loitering forever."""
+    from swarm_node.core.autopilot.requests import ApError, ApResult, ReturnToLaunch, StartMission
+
+    prof = _albatross(seed, 1)
+    home = GeoPoint(*_ll(0, 0), 10.0)
+    zone = _nfz(1, 90, 330, 35)
+    ap = AutopilotState(
+        lat_deg=_ll(0, 420)[0], lon_deg=_ll(0, 420)[1], alt_rel_m=60.0,
+        heading_deg=0.0, home=home, armed=True,
+    )  # fmt: skip
+    manager = MissionManager(prof)
+    upload = next(o.request for o in manager.start_return(ap, [zone], 0.0) if isinstance(o, Submit))
+    (start,) = [o.request for o in manager.on_result(ApResult(upload.request_id, True), 1.0)]  # type: ignore[attr-defined]
+    assert isinstance(start, StartMission)
+    failed = ApResult(start.request_id, False, "did not start", error=ApError.NOT_STARTED)
+    (rtl,) = [o.request for o in manager.on_result(failed, 7.0)]  # type: ignore[attr-defined]
+    assert isinstance(rtl, ReturnToLaunch)
