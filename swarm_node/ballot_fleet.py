@@ -194,3 +194,20 @@ class BallotFleet:
             deliveries=self.deliveries,
             end_s=last,
         )
+
+
+def lossy_trial(seed: int, encoding: str = "lan") -> tuple[BallotFleet, TrialResult]:
+    """One of the issue's lossy trials: 20 % loss, 3-10 voters with coarse scores (so
+    ties happen), a random quantity, in 80 % of the trials a voter dying in the first
+    second, each voter starting up to 2 s late with probability 0.3 (random join order)."""
+    r = random.Random(seed)
+    n = r.randint(3, 10)
+    ids = r.sample(range(1, 60), n)
+    scores = {v: round(r.random(), 2) for v in ids}
+    death = {r.choice(ids): r.uniform(0.0, 1.0)} if r.random() < 0.8 else {}
+    start = {v: r.uniform(0.0, 2.0) if r.random() < 0.3 else 0.0 for v in ids}
+    f = BallotFleet(
+        scores, r.randint(1, n - 1), seed=seed, loss=0.2, start_s=start, death_s=death,
+        encoding=encoding,
+    )  # fmt: skip
+    return f, f.run()
