@@ -22,7 +22,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from swarm_proto import Geometry, GeometryKind, LatLon, MissionType
+from swarm_proto import Geometry, GeometryKind, LatLon, Mission, MissionType
 
 from ..planning.geo import LocalFrame
 from ..profile import PayloadClass, VehicleProfile
@@ -175,3 +175,16 @@ def payload_wanted(model: str, classes: Mapping[str, PayloadClass]) -> PayloadCl
     if model not in classes:
         raise ScoreError(f"unknown payload model {model!r} (not in the swarm database)")
     return classes[model]
+
+
+def mission_terms(
+    score: PaperScore,
+    mission: Mission,
+    me: Candidate,
+    classes: Mapping[str, PayloadClass],
+    lead: LatLon | None = None,
+) -> Terms:
+    """A vehicle's own score for a QUANTITY mission: the payload the mission's selector
+    asks for, the reference point of its kind (`lead`: the MUM-T lead's position)."""
+    want = payload_wanted(mission.selection.payload_model, classes)
+    return score.terms(me, want, reference_point(mission.mission_type, mission.geometry, lead))

@@ -13,12 +13,13 @@ from swarm_node.core.mission.scoring import (
     Candidate,
     PaperScore,
     ScoreError,
+    mission_terms,
     payload_wanted,
     reference_point,
 )
 from swarm_node.core.profile import PayloadClass
 from swarm_node.database import SwarmDatabase, seed_payload_classes
-from swarm_proto import Geometry, GeometryKind, LatLon, MissionType
+from swarm_proto import Geometry, GeometryKind, LatLon, Mission, MissionType, Selector, SelectorKind
 
 EO15 = "EO 1.5 Mpx 2-axis gimbal"
 EO1080 = "EO 1080p 2-axis gimbal"
@@ -154,3 +155,22 @@ def test_reference_points() -> None:
 def test_candidate_of_a_profile(fleet_profiles: dict) -> None:
     c = Candidate.of(fleet_profiles[7], REF, 90.0)
     assert c.payload.model == EO1080 and c.cruise_speed_m_s == 10.0 and c.battery_pct == 90.0
+
+
+def test_a_vehicles_own_score_for_a_quantity_mission(fleet_profiles: dict) -> None:
+    """The six-VTOL scenario of the issue: a target 2 km north, two cameras asked for;
+    the formula computed by hand here."""
+    classes = seed_payload_classes()
+    target = LatLon(REF.lat_deg + 2000.0 / 111_000.0, REF.lon_deg)
+    m = Mission(
+        9, 900, MissionType.TARGET, Geometry(GeometryKind.POINT, (target,)),
+        selection=Selector(SelectorKind.QUANTITY, quantity=2, payload_model=EO15),
+    )  # fmt: skip
+    vtol = Candidate.of(fleet_profiles[1], REF, 60.0)  # EO 1.5 Mpx: the model
+    t = mission_terms(PaperScore(), m, vtol, classes)
+    arrival = PaperScore.arrival_s(vtol, target)
+    assert arrival == pytest.approx(2000.0 / 26.0, rel=0.01)
+    hand = 1 - 0.6 / 1.1 * 0 - 0.2 / 1.1 * math.tanh(0.01 * arrival) - 0.3 / 1.1 * 0.4  # type: ignore[operator]
+    assert (t.payload, t.battery) == (0.0, pytest.approx(0.4)) and t.score == pytest.approx(hand)
+    quad = Candidate.of(fleet_profiles[7], REF, 60.0)  # EO 1080p: same subtype
+    assert mission_terms(PaperScore(), m, quad, classes).payload == 0.5
