@@ -142,11 +142,17 @@ def run() -> dict:
         for n in (6, 20, 50)
     }
     radio6 = agree_radio(6)
+    lossy_radio = [agree_radio(6, seed=s, loss=0.2)["agree_ms"] for s in range(1, 11)]
     return {
         "agree_ms": agree,
         **lossy_trials(200),
         "agree_ms_radio_6": radio6["agree_ms"],
         "radio_6": radio6,
+        "agree_ms_radio_6_loss_20": {
+            "median": round(statistics.median(lossy_radio), 1),
+            "max": max(lossy_radio),
+            "seeds": len(lossy_radio),
+        },
         "vote_radio_bytes": {"n_6": vote_bytes(6), "n_20": vote_bytes(20), "n_50": vote_bytes(50)},
         "radio_limits_bytes": {"unfragmented": MAX_RECORD_VALUE, "message": MAX_MESSAGE_BYTES},
     }
