@@ -255,3 +255,67 @@ def test_a_vote_round_for_six_over_the_emulated_tdm_channel() -> None:
 
     r = agree_radio(6, seed=3)
     assert r["collisions"] == 0 and r["votes_sent"] > 0
+
+
+@given(
+    votes=st.lists(
+        st.tuples(
+            st.integers(1, 8),  # voter (6..8 outside the electorate)
+            st.lists(
+                st.tuples(st.integers(1, 8), st.floats(allow_nan=True, allow_infinity=True)),
+                max_size=8,
+            ),
+            st.booleans(),
+            st.sampled_from(["ours", "other", "mission"]),
+        ),
+        max_size=30,
+    )
+)
+@settings(max_examples=150, derandomize=True)
+def test_bad_votes_never_crash_nor_corrupt_the_table(
+    votes: list[tuple[int, list[tuple[int, float]], bool, str]],
+) -> None:
+    """Votes built by hand (no decoder in front: out-of-range, NaN, duplicate entries,
+    strangers, other rosters and missions): the ballot never raises, its table only
+    holds electorate members with scores in range, and its own entry is there."""
+    electorate = frozenset({1, 2, 3, 4, 5})
+    b = Ballot(MID, 1, electorate, 2, 0.7, 0.0)
+    t = 0.0
+    for voter, entries, committed, which in votes:
+        t += 0.01
+        v = Vote(
+            MID + (which == "mission"),
+            voter,
+            tuple(VoteScore(vid, s) for vid, s in entries),
+            members_hash=b.roster_hash ^ (which == "other"),
+            committed=committed,
+        )
+        b.handle(v, t)
+        b.on_timer(t)
+    assert set(b.table) <= electorate and 1 in b.table
+    assert all(0 <= k <= 10_000 for k in b.table.values())
+    if b.outcome is not None:
+        assert set(b.outcome.winners) | set(b.outcome.stayers) == set(b.table)
+
+
+def test_a_restarted_voter_with_another_score_still_converges() -> None:
+    """Two values for one vehicle (a voter that restarted and scored itself again): the
+    lower is kept everywhere, so the tables still converge and all decide alike."""
+    ballots = {v: Ballot(MID, v, frozenset({1, 2, 3}), 1, s, 0.0)
+               for v, s in {1: 0.9, 2: 0.5, 3: 0.4}.items()}  # fmt: skip
+    ballots[3].table[1] = 1000  # 3 heard an older, lower score of vehicle 1
+    t = 0.0
+    while not all(b.done for b in ballots.values()) and t < 30.0:
+        t = min(d for b in ballots.values() if (d := b.next_deadline()) is not None)
+        for b in ballots.values():
+            if b.next_deadline() == t:
+                for o in b.on_timer(t):
+                    if isinstance(o, SendVote):
+                        for other in ballots.values():
+                            if other is not b:
+                                other.handle(o.vote, t)
+    outcomes = {b.outcome for b in ballots.values()}
+    assert len(outcomes) == 1
+    o = outcomes.pop()
+    assert o is not None and o.winners == (2,)
+    assert ballots[1].counts["score_conflict"] == 1
