@@ -20,6 +20,17 @@ RESULTS = REPO / "bench" / "results"
 
 # figures each issue names, per results file (nested keys joined with "/")
 NAMED: dict[str, tuple[str, ...]] = {
+    "voting": (
+        "agree_ms/n_6/loss_0/median",
+        "agree_ms/n_6/loss_20/median",
+        "agree_ms/n_20/loss_0/median",
+        "agree_ms/n_20/loss_20/median",
+        "agree_ms/n_50/loss_0/median",
+        "agree_ms/n_50/loss_20/median",
+        "agree_ms_radio_6",
+        "double_assignments",
+        "left_out",
+    ),
     "proto": (
         "status_radio_bytes",
         "status_lan_bytes",
@@ -35,17 +46,6 @@ NAMED: dict[str, tuple[str, ...]] = {
         "ompl_us_per_call",
         "dubins_max_err_m",
         "split_imbalance",
-    ),
-    "voting": (
-        "agree_ms/n_6/loss_0/median",
-        "agree_ms/n_6/loss_20/median",
-        "agree_ms/n_20/loss_0/median",
-        "agree_ms/n_20/loss_20/median",
-        "agree_ms/n_50/loss_0/median",
-        "agree_ms/n_50/loss_20/median",
-        "agree_ms_radio_6",
-        "double_assignments",
-        "left_out",
     ),
 }
 RADIO_ROW = (
