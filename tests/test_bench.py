@@ -20,6 +20,17 @@ RESULTS = REPO / "bench" / "results"
 
 # figures each issue names, per results file (nested keys joined with "/")
 NAMED: dict[str, tuple[str, ...]] = {
+    "voting": (
+        "agree_ms/n_6/loss_0/median",
+        "agree_ms/n_6/loss_20/median",
+        "agree_ms/n_20/loss_0/median",
+        "agree_ms/n_20/loss_20/median",
+        "agree_ms/n_50/loss_0/median",
+        "agree_ms/n_50/loss_20/median",
+        "agree_ms_radio_6",
+        "double_assignments",
+        "left_out",
+    ),
     "proto": (
         "status_radio_bytes",
         "status_lan_bytes",
@@ -102,6 +113,12 @@ def test_proto_benchmark_has_a_sample_of_every_message() -> None:
 def test_proto_results_match_the_messages_measured() -> None:
     measured = _load("proto")["messages"]
     assert set(measured) == {c.__name__ for c in MESSAGE_TYPES}
+
+
+def test_voting_trials_never_assign_twice_nor_leave_out() -> None:
+    data = _load("voting")
+    assert data["trials"] == 200
+    assert data["double_assignments"] == data["left_out"] == data["disagreements"] == 0
 
 
 def test_an_unknown_benchmark_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
