@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 
+import msgspec
 import numpy as np
 import pymap3d
 import pytest
@@ -378,3 +379,32 @@ def test_a_copter_a_plane_and_a_rover_cross_in_fast_time() -> None:
     assert min(separations(on.samples)) > 10.0
     off = run(starts, duration_s=60.0, avoid=False)
     assert min(separations(off.samples)) < 5.0
+
+
+def test_release_needs_the_release_distance_not_just_the_protection_one() -> None:
+    """Clear means every miss from the planned altitude above 30 m: a peer parked
+    25 m from where we would fly keeps the manoeuvre on (no resume, no oscillation)."""
+    av = avoider(2, clear_hold_s=0.0)
+    av.handle(PlannedAltitude(alt_rel_m=100.0), T)
+    assert manoeuvres(feed(av, head_on()))
+    now = T + 0.2
+    # the peer now hovers 25 m east of our path, our own climb done (115 m)
+    near = [status(1, 0, 25, 100, t=now), status(2, -300, 0, 115, ve=20, t=now)]
+    for _ in range(10):
+        assert manoeuvres(feed(av, near, now)) == []
+        now += 0.2
+    far = [status(1, 0, 45, 100, t=now), status(2, -300, 0, 115, ve=20, t=now)]
+    (m,) = manoeuvres(feed(av, far, now))
+    assert m.kind is ManoeuvreKind.RESUME
+
+
+def test_altitudes_are_compared_above_mean_sea_level_not_home() -> None:
+    """Same height above their homes, but 1's home is 10 m higher: 1 is the higher
+    aircraft and climbs, although 2 has the higher id."""
+    a = status(1, 0, 0, 100, ve=20)
+    a = msgspec.structs.replace(a, alt_msl_m=a.alt_msl_m + 10.0)
+    b = status(2, 800, 0, 100, ve=-20)
+    assert manoeuvres(feed(avoider(2), [a, b])) == []
+    (m,) = manoeuvres(feed(avoider(1), [a, b]))
+    assert m.kind is ManoeuvreKind.CLIMB
+    assert m.target_alt_rel_m == pytest.approx(105.0, abs=0.01)  # 15 m over 2, in 1's terms
