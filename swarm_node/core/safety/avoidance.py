@@ -422,19 +422,16 @@ class CollisionAvoider:
         by_rank = (dz > cfg.tie_band_m) | (
             (np.abs(dz) <= cfg.tie_band_m) & (ids[:, None] > ids[None, :])
         )
-        gives = np.where(coop_air[None, :], by_rank, dz >= -cfg.tie_band_m)
-        gives &= conflict & coop_air[:, None]
         # what each stands at: its altitude or where it is going, whichever is higher
         alt_cpa = alt[None, :] + k.vel[None, :, 2] * a.t_cpa_s
         level = np.maximum(alt[None, :], alt_cpa) + k.margin_m[None, :]
-        target = alt.copy()
-        for _ in range(n):
-            ref = np.where(coop_air[None, :], target[None, :], level)
-            need = np.where(gives, ref + cfg.vertical_sep_m, -np.inf).max(axis=1)
-            new = np.maximum(alt, need)
-            if np.array_equal(new, target):
-                break
-            target = new
+        target = self._stack(by_rank, coop_air, conflict, dz, alt, level)
+        if target is None:
+            # the band made a cycle (A over B over C over A by id and altitude): rank
+            # this cluster by altitude then id alone, which cannot cycle
+            lexical = (dz > 0) | ((dz == 0) & (ids[:, None] > ids[None, :]))
+            target = self._stack(lexical, coop_air, conflict, dz, alt, level)
+            assert target is not None
         if target[0] > alt[0] + 0.5:
             return _Decision(ManoeuvreKind.CLIMB, float(target[0]), against, soonest, closest)
         # stand-on: level off if climbing into a conflict above
@@ -442,6 +439,33 @@ class CollisionAvoider:
         if above.any() and own.vel_down_m_s < -cfg.level_climb_m_s:
             return _Decision(ManoeuvreKind.LEVEL, float(alt[0]), against, soonest, closest)
         return _Decision(None, None, against, soonest, closest)
+
+    def _stack(
+        self,
+        by_rank: np.ndarray,
+        coop_air: np.ndarray,
+        conflict: np.ndarray,
+        dz: np.ndarray,
+        alt: np.ndarray,
+        level: np.ndarray,
+    ) -> np.ndarray | None:
+        """Every aircraft's target: `vertical_sep_m` above the target (or, for traffic
+        that will not manoeuvre, the level) of each vehicle it gives way to, as a fixed
+        point; None if the give-way relation has a cycle (no fixed point)."""
+        cfg = self.config
+        # i gives way to j (i climbs above j): both cooperative aircraft and i ranks
+        # higher, or j will not manoeuvre and is not well above i
+        gives = np.where(coop_air[None, :], by_rank, dz >= -cfg.tie_band_m)
+        gives &= conflict & coop_air[:, None]
+        target = alt.copy()
+        for _ in range(len(alt) + 1):
+            ref = np.where(coop_air[None, :], target[None, :], level)
+            need = np.where(gives, ref + cfg.vertical_sep_m, -np.inf).max(axis=1)
+            new = np.maximum(alt, need)
+            if np.array_equal(new, target):
+                return target
+            target = new
+        return None
 
     # ------------------------------------------------------------------ transitions
     def _ceiling_rel(self) -> float:

@@ -408,3 +408,53 @@ def test_altitudes_are_compared_above_mean_sea_level_not_home() -> None:
     (m,) = manoeuvres(feed(avoider(1), [a, b]))
     assert m.kind is ManoeuvreKind.CLIMB
     assert m.target_alt_rel_m == pytest.approx(105.0, abs=0.01)  # 15 m over 2, in 1's terms
+
+
+def test_a_band_cycle_falls_back_to_altitude_then_id() -> None:
+    """3 over 2 by id, 2 over 1 by id, 1 over 3 by 8 m: a cycle; ranked by altitude
+    alone instead, the lowest keeps its altitude and each other climbs 15 m above the
+    one below it."""
+    three = [
+        status(3, -600, 0, 100, ve=20),
+        status(2, 600, 0, 104, ve=-20),
+        status(1, 0, -600, 108, vn=20),
+    ]
+    targets = {}
+    for vid in (1, 2, 3):
+        ms = manoeuvres(feed(avoider(vid), three))
+        targets[vid] = ms[0].target_alt_rel_m if ms else None
+    assert targets[3] is None  # the lowest
+    assert targets[2] == pytest.approx(115.0, abs=0.01)
+    assert targets[1] == pytest.approx(130.0, abs=0.01)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(1, 60), st.floats(95, 112), st.floats(300, 700)),
+        min_size=3,
+        max_size=6,
+        unique_by=lambda v: v[0],
+    ),
+    st.floats(0, 360),
+)
+def test_many_converging_aircraft_end_up_in_layers_every_vehicle_agrees_on(
+    fleet: list[tuple[int, float, float]], phase_deg: float
+) -> None:
+    """N aircraft converging on one point at random altitudes (ties, bands and cycles
+    included), each deciding alone from the same reports: the altitudes they will fly
+    (their targets, or their own altitude when they keep it) are all at least the
+    vertical separation apart (less the 0.5 m a vehicle does not climb for)."""
+    statuses = []
+    for k, (vid, alt, radius) in enumerate(fleet):
+        ang = np.radians(phase_deg + 360.0 * k / len(fleet))
+        e, n = radius * np.cos(ang), radius * np.sin(ang)
+        speed = radius / 25.0  # all at the centre in 25 s
+        statuses.append(status(vid, e, n, alt, ve=-speed * np.cos(ang), vn=-speed * np.sin(ang)))
+    final = []
+    for s in statuses:
+        ms = manoeuvres(feed(avoider(s.vehicle_id), statuses))
+        assert all(m.kind is ManoeuvreKind.CLIMB for m in ms)
+        final.append(ms[0].target_alt_rel_m if ms else s.alt_rel_m)
+    final.sort()
+    assert all(b - a >= 15.0 - 0.5 - 1e-6 for a, b in itertools.pairwise(final)), final
