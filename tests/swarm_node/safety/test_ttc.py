@@ -117,3 +117,37 @@ def test_cpa_is_the_minimum_over_the_horizon(
     sampled = np.linalg.norm(rp[None, :] + rv[None, :] * ts[:, None], axis=1)
     assert a.miss_m <= sampled.min() + 1e-4  # relative speeds under 3e-5 m/s: CPA now
     assert a.miss_m == pytest.approx(float(np.linalg.norm(rp + rv * a.t_cpa_s)), abs=1e-9)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.floats(-1500, 1500),
+    st.floats(-1500, 1500),
+    st.floats(-50, 50),
+    st.floats(-40, 40),
+    st.floats(-40, 40),
+    st.floats(0.0, 5.0),
+    st.floats(0.0, 5.0),
+)
+def test_an_older_report_of_the_same_motion_never_looks_safer(
+    e: float, n: float, up: float, ve: float, vn: float, age1: float, extra: float
+) -> None:
+    """The same motion reported earlier (so extrapolated to the same place now) only
+    widens the protection volume: miss less margin never grows with age."""
+    own = at(1, 0, 0, 0, vel_east_m_s=20.0, time_s=100.0)
+
+    def report(age: float) -> Track:  # where it was `age` s before now
+        return at(
+            2,
+            e - ve * age,
+            n - vn * age,
+            up,
+            vel_east_m_s=ve,
+            vel_north_m_s=vn,
+            time_s=100.0 - age,
+            max_speed_m_s=35.0,
+        )
+
+    young = approaches(own, [report(age1)], 100.0, 30.0)
+    old = approaches(own, [report(age1 + extra)], 100.0, 30.0)
+    assert old.miss_m[0] - old.margin_m[0] <= young.miss_m[0] - young.margin_m[0] + 0.05
