@@ -30,6 +30,7 @@ from swarm_node.core.safety.avoidance import (
     CollisionAvoider,
     Manoeuvre,
     ManoeuvreKind,
+    Traffic,
 )
 from swarm_proto import VehicleInfo, VehicleStatus, VehicleType
 
@@ -48,6 +49,7 @@ class Start:
     vel_north_m_s: float
     climb_rate_m_s: float = 5.0
     sink_rate_m_s: float = 3.0
+    cooperative: bool = True  # False: no avoider, others see it as ADS-B traffic
 
 
 @dataclass(slots=True)
@@ -99,6 +101,7 @@ def run(
     avoid: bool = True,
     dt_s: float = 0.1,
     telemetry_period_s: float = 0.2,
+    adsb_period_s: float = 1.0,
     record_period_s: float = 0.2,
     origin: tuple[float, float, float] = ORIGIN,
     config: dict[str, float] | None = None,
@@ -115,6 +118,7 @@ def run(
             AvoidanceConfig(b.start.vehicle_id, b.start.vehicle_type, **(config or {}))
         )
         for b in bodies
+        if b.start.cooperative
     }
     result = Result(manoeuvres={b.start.vehicle_id: [] for b in bodies})
     infos = [
@@ -128,6 +132,7 @@ def run(
             av.handle(info, T0_UNIX_S)
     steps = round(duration_s / dt_s)
     tel_every = max(1, round(telemetry_period_s / dt_s))
+    adsb_every = max(1, round(adsb_period_s / dt_s))
     rec_every = max(1, round(record_period_s / dt_s))
     for step in range(steps + 1):
         t = step * dt_s
@@ -147,13 +152,18 @@ def run(
                 for i, b in enumerate(bodies)
             ]
             for i, b in enumerate(bodies):
-                av = avoiders[b.start.vehicle_id]
-                av.handle(statuses[i], now)
-                if step % tel_every == 0:
-                    for j, s in enumerate(statuses):
-                        if j != i:
-                            av.handle(s, now)
-                for out in av.on_timer(now):
+                mine = avoiders.get(b.start.vehicle_id)
+                if mine is None:
+                    continue  # non-cooperative: flies on, whatever happens
+                mine.handle(statuses[i], now)
+                for j, s in enumerate(statuses):
+                    if j == i:
+                        continue
+                    if bodies[j].start.cooperative and step % tel_every == 0:
+                        mine.handle(s, now)
+                    elif not bodies[j].start.cooperative and step % adsb_every == 0:
+                        mine.handle(_traffic(s), now)
+                for out in mine.on_timer(now):
                     if isinstance(out, Manoeuvre):
                         result.manoeuvres[b.start.vehicle_id].append(out)
                         _apply(b, out)
@@ -176,6 +186,20 @@ def _status(b: _Body, lat: float, lon: float, h: float, now: float) -> VehicleSt
         vel_east_m_s=ve,
         vel_down_m_s=-b.vu,
         armed=True,
+    )
+
+
+def _traffic(s: VehicleStatus) -> Traffic:
+    """What an ADS-B receiver would report of a vehicle (ICAO address = its id)."""
+    return Traffic(
+        s.vehicle_id,
+        s.lat_deg,
+        s.lon_deg,
+        s.alt_msl_m,
+        s.vel_north_m_s,
+        s.vel_east_m_s,
+        s.vel_down_m_s,
+        s.time_unix_s,
     )
 
 

@@ -458,3 +458,20 @@ def test_many_converging_aircraft_end_up_in_layers_every_vehicle_agrees_on(
         final.append(ms[0].target_alt_rel_m if ms else s.alt_rel_m)
     final.sort()
     assert all(b - a >= 15.0 - 0.5 - 1e-6 for a, b in itertools.pairwise(final)), final
+
+
+def test_a_non_cooperative_intruder_in_fast_time() -> None:
+    """A manned aircraft (ADS-B at 1 Hz, no avoider) flies through two crossing drones
+    at their altitude: the drones climb over it, it never changes anything."""
+    starts = [
+        Start(1, VehicleType.PLANE, -500, 0, 100, 20, 0),
+        Start(2, VehicleType.PLANE, 0, -500, 100, 0, 20),
+        Start(9, VehicleType.MANNED, 700, 700, 100, -28, -28, cooperative=False),
+    ]
+    on = run(starts, duration_s=60.0, avoid=True)
+    assert on.manoeuvres[9] == []
+    intruder_alts = [s[4] for s in on.samples if s[1] == 9]
+    assert max(intruder_alts) - min(intruder_alts) < 0.5  # it never climbed (curvature: 0.15 m)
+    assert min(separations(on.samples)) > 10.0
+    off = run(starts, duration_s=60.0, avoid=False)
+    assert min(separations(off.samples)) < 5.0
