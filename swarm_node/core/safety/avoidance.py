@@ -304,7 +304,8 @@ class CollisionAvoider:
     def on_timer(self, now: float) -> list[Output]:
         if self._next is None or now < self._next:
             return []
-        self._next = max(self._next + self.config.period_s, now)
+        nxt = self._next + self.config.period_s
+        self._next = nxt if nxt > now else now + self.config.period_s  # late: no catch-up burst
         self._count("ticks")
         stale = [
             k for k, c in self._contacts.items() if now - c.received_s > self.config.forget_after_s

@@ -302,6 +302,10 @@ def test_the_deadline_is_the_next_5hz_tick() -> None:
     av.on_timer(T)
     assert av.next_deadline() == pytest.approx(T + 0.2)
     assert av.on_timer(T + 0.1) == []  # early: nothing
+    av.on_timer(T + 5.0)  # called late: the next tick is a period later, not now again
+    assert av.next_deadline() == pytest.approx(T + 5.2)
+    ticks = av.counters["ticks"]
+    assert av.on_timer(T + 5.0) == [] and av.counters["ticks"] == ticks
 
 
 def test_bad_input_is_counted_not_raised() -> None:
