@@ -34,6 +34,7 @@ from swarm_proto import (
 )
 from swarm_proto.session import ZenohSettings
 
+from .analyze import app as analyze_app
 from .db import DbOption
 from .db import app as db_app
 from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
@@ -43,6 +44,7 @@ app = typer.Typer(help="bandada ground station.", no_args_is_help=True)
 app.add_typer(db_app, name="db")
 zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
 app.add_typer(zone_app, name="zone")
+app.add_typer(analyze_app, name="analyze")
 console = Console()
 
 

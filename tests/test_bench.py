@@ -41,6 +41,15 @@ NAMED: dict[str, tuple[str, ...]] = {
     ),
     "sim": ("vehicles_per_core_at_10x",),
     "node": ("cpu_s_per_sim_s/peers_10", "cpu_s_per_sim_s/peers_50", "cpu_s_per_sim_s/peers_100"),
+    "separation": (
+        "avoid_cpu_us_per_tick/peers_10",
+        "avoid_cpu_us_per_tick/peers_50",
+        *(
+            f"stress_eight_headon/{side}/{k}"
+            for side in ("on", "off")
+            for k in ("min_sep_m", "risk", "danger", "near")
+        ),
+    ),
     "planners": (
         "dubins_batch_us_per_path",
         "ompl_us_per_call",
@@ -136,3 +145,9 @@ def test_results_directory_is_the_one_bench_writes() -> None:
     from bench import __main__ as runner
 
     assert Path(runner.RESULTS) == RESULTS
+
+
+def test_separation_stress_case_shows_what_avoidance_changes() -> None:
+    stress = _load("separation")["stress_eight_headon"]
+    assert stress["on"]["near"] == 0 and stress["on"]["danger"] == 0
+    assert stress["off"]["near"] > 0
