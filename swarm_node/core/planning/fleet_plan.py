@@ -414,6 +414,10 @@ def _plan(
     planner = PLANNERS.get(mission.mission_type)
     if planner is None:
         raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
+    if mission.mission_type == MissionType.AREA:
+        return _plan_area(
+            mission, vehicles, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
+        )
     detail = planner(
         mission.geometry,
         vehicles,
@@ -428,6 +432,48 @@ def _plan(
         detail, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
     )
     return _fleet_plan(mission, vehicles, detail)
+
+
+#: rounds of the area split fed with the time the flyable stage added to each share
+FLYABLE_ROUNDS = 3
+
+
+def _plan_area(
+    mission: Mission,
+    vehicles: Sequence[PlanVehicle],
+    *,
+    zones: Sequence[NoFlyZone],
+    now_unix_s: float,
+    home_alt_msl_m: float,
+) -> FleetPlan:
+    """An area plan whose split knows each vehicle's endurance (`plan_area(endurance=
+    True)`: the vehicles are at their homes) and the time the flyable stage adds to a
+    fixed-wing's share: the split is made again with each vehicle's added time as its
+    `extra_s` (up to FLYABLE_ROUNDS splits), and the plan with the least makespan as
+    flown is kept."""
+    margin = max((v.profile.turn_radius_m() for v in vehicles), default=0.0)
+    extra: dict[int, float] = {}
+    best: tuple[float, object] | None = None
+    for _ in range(FLYABLE_ROUNDS if any(v.profile.is_fixed_wing for v in vehicles) else 1):
+        raw = plan_area(
+            mission.geometry, vehicles, mission.params, zones=zones, now_unix_s=now_unix_s,
+            home_alt_msl_m=home_alt_msl_m, zone_margin_m=margin, endurance=True, extra_s=extra,
+        )  # fmt: skip
+        detail = flyable_plan(
+            raw, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
+        )
+        span = max(vp.time_s for vp in detail.vehicles)
+        if best is None or span < best[0] - 1e-6:
+            best = (span, detail)
+        added = {
+            vp.vehicle_id: max(vp.time_s - raw.split.of(vp.vehicle_id).path_time_s, 0.0)
+            for vp in detail.vehicles
+        }
+        if all(abs(added[k] - extra.get(k, 0.0)) < 0.02 * span for k in added):
+            break
+        extra = added
+    assert best is not None
+    return _fleet_plan(mission, vehicles, best[1])
 
 
 def plan_fleet(
