@@ -36,6 +36,15 @@ NAMED: dict[str, tuple[str, ...]] = {
         "dubins_max_err_m",
         "split_imbalance",
     ),
+    "mission": (
+        "battery_min_pct_at_landing",
+        "makespan_planned_vs_flown",
+        "inherit_coverage",
+        "double_flown_fraction",
+        "baseline/battery_min_pct_at_landing",
+        "baseline/makespan_planned_vs_flown",
+        "baseline/inherit_coverage",
+    ),
 }
 RADIO_ROW = (
     "rf_bps",

@@ -14,7 +14,7 @@ from .dubins import Pose, shortest_path
 from .endurance import Endurance, accel_m_s2
 from .errors import InvalidGeometryError, InvalidParameterError
 from .geo import LocalFrame
-from .split import SplitPlan, Worker, replan, split_lanes
+from .split import MakespanCost, SplitPlan, Worker, replan, split_lanes
 from .turns import DubinsTurns, TurnModel
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
 from .zones import ARC_STEP_M, Obstacles, Track, ZoneSet
@@ -55,6 +55,7 @@ def _workers(
     *,
     altitudes: Mapping[int, float] | None = None,
     extra_s: Mapping[int, float] | None = None,
+    stops: bool = True,
 ) -> list[Worker]:
     """Each vehicle as a split worker: its mission speed and turns, the time it loses
     stopping on waypoints, and with `altitudes` (a sortie from where it is, its home)
@@ -72,7 +73,7 @@ def _workers(
                 speed,
                 v.turns(speed),
                 start,
-                accel_m_s2=accel_m_s2(v.profile),
+                accel_m_s2=accel_m_s2(v.profile) if stops else 0.0,
                 extra_s=(extra_s or {}).get(v.vehicle_id, 0.0),
                 budget_s=budget,
             )
@@ -135,6 +136,7 @@ def plan_area(
     frame: LocalFrame | None = None,
     endurance: bool = False,
     extra_s: Mapping[int, float] | None = None,
+    legacy_split: bool = False,
 ) -> AreaPlan:
     """Cover a POLYGON (holes are not covered, zones are cut out and never entered) with
     `vehicles`: lane spacing from the altitude, the narrowest camera HFOV and the side
@@ -144,7 +146,9 @@ def plan_area(
     homes with a full battery, and no block and its way home take more than the
     battery allows (`endurance.Endurance`; `InfeasibleTimingError` if the fleet cannot
     cover the area). `extra_s`: seconds a vehicle's block is known to take beyond its
-    path (the turns the flyable stage adds, see `fleet_plan`)."""
+    path (the turns the flyable stage adds, see `fleet_plan`). `legacy_split`: the
+    split before issue 12 (every vehicle timed at constant speed, one turn allowance
+    for all from the widest turn radius), the benchmark's baseline."""
     require_vehicles(vehicles)
     if geometry.kind != GeometryKind.POLYGON:
         raise InvalidGeometryError(f"an area mission needs a POLYGON, got {geometry.kind.name}")
@@ -162,10 +166,19 @@ def plan_area(
     region = decompose(poly, zones_here)
     spacing = lane_spacing_m(lo, _hfov(vehicles, hfov_deg), params.side_overlap)
     workers = _workers(
-        vehicles, params, frame, altitudes=alts if endurance else None, extra_s=extra_s
+        vehicles,
+        params,
+        frame,
+        altitudes=alts if endurance else None,
+        extra_s=extra_s,
+        stops=not legacy_split,
     )
     lp = plan_lanes(region, spacing, _reference_turns(workers), min_coverage=min_coverage)
-    split = split_lanes(lp.lanes, workers, obstacles=region.obstacles)
+    cost = None
+    if legacy_split:
+        r = max(w.turns.radius_m for w in workers)
+        cost = MakespanCost(math.pi * r + 2.0 * r, region.obstacles)
+    split = split_lanes(lp.lanes, workers, cost=cost, obstacles=region.obstacles)
     return AreaPlan(
         frame,
         zones_here,

@@ -39,6 +39,10 @@ DEFAULT_ACCEL_M_S2 = {VehicleType.COPTER: 2.5, VehicleType.ROVER: 1.0, VehicleTy
 #: QuadPlane lift-system defaults (Q_WP_SPEED_UP, Q_WP_SPEED_DN), for VTOL climbs and landings
 VTOL_CLIMB_M_S = 2.5
 VTOL_SINK_M_S = 1.5
+#: QuadPlane forward transition: accelerate on the lift motors to the minimum airspeed,
+#: then Q_TRANSITION_MS (5 s) to complete it (assumption: 3 m/s/s)
+VTOL_TRANSITION_ACCEL_M_S2 = 3.0
+VTOL_TRANSITION_S = 5.0
 #: the last metres of a landing at ArduPilot's LAND_SPEED (0.5 m/s)
 LAND_FINAL_M = 10.0
 LAND_FINAL_M_S = 0.5
@@ -74,6 +78,19 @@ def stop_and_go_s(points: Sequence[tuple[float, float]], speed_m_s: float, accel
     """Time along a polyline braking for each of its points after the first (constant
     speed when `accel` is 0)."""
     return sum(leg_s(math.dist(a, b), speed_m_s, accel) for a, b in itertools.pairwise(points))
+
+
+def transition_s(profile: VehicleProfile, speed_m_s: float) -> float:
+    """Seconds a VTOL starting its share in hover loses to the forward transition,
+    against flying the same distance at `speed_m_s`: it accelerates to its minimum
+    airspeed (1.1 x stall) at VTOL_TRANSITION_ACCEL_M_S2, then takes VTOL_TRANSITION_S
+    to reach `speed_m_s`. 0 for other vehicles."""
+    if profile.vehicle_type != VehicleType.VTOL or speed_m_s <= 0.0:
+        return 0.0
+    v_min = min(1.1 * profile.min_speed_m_s, speed_m_s)
+    t1 = v_min / VTOL_TRANSITION_ACCEL_M_S2
+    d = v_min * t1 / 2.0 + VTOL_TRANSITION_S * (v_min + speed_m_s) / 2.0
+    return max(t1 + VTOL_TRANSITION_S - d / speed_m_s, 0.0)
 
 
 @dataclass(frozen=True, slots=True)

@@ -32,9 +32,11 @@ order give the same plan.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import msgspec
 
@@ -43,6 +45,7 @@ from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Mission, MissionType, NoFlyZone
 
 from .area import AreaPlan, plan_area, replan_area
+from .endurance import transition_s
 from .errors import InvalidParameterError, NoVehiclesError, PlanningError
 from .flight import flyable_plan
 from .geo import LocalFrame
@@ -436,6 +439,9 @@ def _plan(
 
 #: rounds of the area split fed with the time the flyable stage added to each share
 FLYABLE_ROUNDS = 3
+#: plan areas as before issue 12 (no endurance, no waypoint stops, one split): only for
+#: the benchmark's baseline (bench/mission.py)
+BASELINE_SPLIT = False
 
 
 def _plan_area(
@@ -452,26 +458,42 @@ def _plan_area(
     `extra_s` (up to FLYABLE_ROUNDS splits), and the plan with the least makespan as
     flown is kept."""
     margin = max((v.profile.turn_radius_m() for v in vehicles), default=0.0)
-    extra: dict[int, float] = {}
-    best: tuple[float, object] | None = None
-    for _ in range(FLYABLE_ROUNDS if any(v.profile.is_fixed_wing for v in vehicles) else 1):
+    aware = not BASELINE_SPLIT
+    # a VTOL starts its share in hover: the forward transition costs it time
+    start = {
+        v.vehicle_id: transition_s(v.profile, v.speed(mission.params)) if aware else 0.0
+        for v in vehicles
+    }
+    extra = dict(start)
+    best: tuple[float, Any] | None = None
+    rounds = FLYABLE_ROUNDS if aware and any(v.profile.is_fixed_wing for v in vehicles) else 1
+    for _ in range(rounds):
         raw = plan_area(
             mission.geometry, vehicles, mission.params, zones=zones, now_unix_s=now_unix_s,
-            home_alt_msl_m=home_alt_msl_m, zone_margin_m=margin, endurance=True, extra_s=extra,
+            home_alt_msl_m=home_alt_msl_m, zone_margin_m=margin, endurance=aware, extra_s=extra,
+            legacy_split=not aware,
         )  # fmt: skip
         detail = flyable_plan(
             raw, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
         )
+        detail = dataclasses.replace(
+            detail,
+            vehicles=tuple(
+                dataclasses.replace(vp, time_s=vp.time_s + start[vp.vehicle_id])
+                for vp in detail.vehicles
+            ),
+        )
         span = max(vp.time_s for vp in detail.vehicles)
         if best is None or span < best[0] - 1e-6:
             best = (span, detail)
-        added = {
+        # what the flyable stage added to each share, and the transition
+        new = {
             vp.vehicle_id: max(vp.time_s - raw.split.of(vp.vehicle_id).path_time_s, 0.0)
             for vp in detail.vehicles
         }
-        if all(abs(added[k] - extra.get(k, 0.0)) < 0.02 * span for k in added):
+        if all(abs(new[k] - extra.get(k, 0.0)) < 0.02 * span for k in new):
             break
-        extra = added
+        extra = new
     assert best is not None
     return _fleet_plan(mission, vehicles, best[1])
 
