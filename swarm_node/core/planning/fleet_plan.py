@@ -156,6 +156,13 @@ class Share:
         lat, lon = frame.to_geodetic(f * bx, f * by)
         return k, lat, lon
 
+    def planned_s_at(self, progress_m: float) -> float:
+        """Planned seconds from the share's start to `progress_m` along it (the share's
+        time spread evenly over its metres)."""
+        if self.length_m <= 0.0:
+            return 0.0
+        return self.time_s * min(max(progress_m, 0.0), self.length_m) / self.length_m
+
     def progress_m(self, reached_index: int, lat_deg: float | None, lon_deg: float | None) -> float:
         """Metres of this share flown: `along_m` of the last item reached
         (`reached_index`, an index into `waypoints`; < 0: none yet) plus the projection
