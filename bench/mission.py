@@ -13,9 +13,11 @@ each beside its baseline measured in the same run.
   plus the replanned split (`FleetPlan.replan`) cover this fraction of the area, and
   this fraction of it is seen twice (swaths at the lane spacing, counted with
   multiplicity). Baseline: no inheritance (the survivors finish their own shares).
-- `premission_arrival_spread_s`: see `premission()`.
+- `premission_arrival_spread_s`: three VTOLs scattered in the air fly their
+  PREMISSION legs to their entries in FastFleet (`premission_flight`): the spread of
+  their arrival times. Baseline: the same legs at cruise without synchronization.
 
-`survey(...)`, `inherit(...)` and `premission(...)` are what the tests run.
+`survey(...)`, `inherit(...)` and `premission_flight(...)` are what the tests run.
 """
 
 from __future__ import annotations
@@ -25,6 +27,9 @@ from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import Any
 
+import msgspec
+
+from swarm_node.core.autopilot.items import ItemKind
 from swarm_node.core.planning import (
     PlanVehicle,
     VehiclePose,
@@ -222,6 +227,163 @@ def _rest_of_own_shares(plan: FleetPlan, progress: Mapping[int, float], exclude:
     return list(remaining_lanes(keep, pct))
 
 
+# --------------------------------------------------------------------------- premission
+
+PREMISSION_FLEET = (1, 2, 3)
+_DRIVER_FIRST_ID = 7_000_000  # request ids of this driver (results kept from the nodes)
+
+
+def premission_flight(
+    profiles: Mapping[int, VehicleProfile],
+    members: Sequence[int] = PREMISSION_FLEET,
+    *,
+    timeout_s: float = 600.0,
+    trace: list[tuple[float, int, float, float, int, float]] | None = None,
+) -> dict[str, Any]:
+    """Three Albatross VTOLs in FastFleet (simulated ArduPilot, real MAVLink through the
+    node's autopilot link, driven here directly: the node does not wire PREMISSION yet)
+    take off and fly to scattered points; then, from where each is and its heading,
+    `premission` plans their legs to their shares of an area plan, each uploads its
+    approach and share and starts it at once. Measured: when each reaches its entry
+    item (MISSION_ITEM_REACHED) after the start; the spread of those times, against the
+    predicted arrival. Baseline (same run, same legs): flying the Dubins legs at cruise
+    without the synchronizing speeds and orbits (`path / cruise`)."""
+    from swarm_node.core.autopilot.requests import (
+        ApRequest,
+        Arm,
+        Goto,
+        SetMode,
+        StartMission,
+        Takeoff,
+        UploadMission,
+    )
+    from swarm_node.core.node import AutopilotResult
+    from swarm_node.core.planning.flight import FIXED_WING_ACCEPT_M
+    from swarm_node.core.planning.premission import premission
+    from swarm_sim.core import SITL_HOME
+    from swarm_sim.fast_fleet import FastFleet
+
+    fleet = FastFleet.build(list(members), profiles, spacing_m=60.0)
+    fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
+    ids = iter(range(_DRIVER_FIRST_ID, _DRIVER_FIRST_ID + 10_000))
+    results: dict[int, bool] = {}
+    deliver = fleet._deliver
+
+    def keep_ours(vid: int, event: Any, at: float) -> None:
+        if isinstance(event, AutopilotResult) and event.result.request_id >= _DRIVER_FIRST_ID:
+            results[event.result.request_id] = event.result.ok
+            return
+        deliver(vid, event, at)
+
+    fleet._deliver = keep_ours  # type: ignore[method-assign]
+
+    def run_steps(vid: int, steps: Sequence[ApRequest]) -> None:
+        v = fleet.vehicles[vid]
+        for step in steps:
+            rid = next(ids)
+            req = msgspec.structs.replace(step, request_id=rid)
+            fleet._link_out(vid, v.link.submit(rid, req, fleet.now))
+            if not fleet.run_until(lambda rid=rid: rid in results, 60):
+                raise RuntimeError(f"vehicle {vid}: {type(step).__name__} got no result")
+            if not results[rid]:
+                raise RuntimeError(f"vehicle {vid}: {type(step).__name__} failed")
+
+    for vid in members:
+        run_steps(vid, [SetMode(mode="GUIDED"), Arm(), Takeoff(alt_rel_m=80.0)])
+    fleet.run_until(
+        lambda: all((v.link.state.alt_rel_m or 0.0) > 70.0 for v in fleet.vehicles.values()), 300
+    )
+    # scatter: each to its own point around the field, where it circles in GUIDED
+    la, lo = SITL_HOME.lat_deg, SITL_HOME.lon_deg
+    spots = [(la + 0.004, lo - 0.006), (la - 0.004, lo + 0.002), (la + 0.001, lo + 0.008)]
+    for vid, (sla, slo) in zip(members, spots, strict=False):
+        run_steps(vid, [Goto(lat_deg=sla, lon_deg=slo, alt_rel_m=80.0)])
+    fleet.run_for(90.0)
+    # the fleet's area plan, made at the homes (as every member makes it)
+    area = Geometry.polygon(
+        [(la + 0.006, lo - 0.004), (la + 0.006, lo + 0.004), (la + 0.010, lo + 0.004),
+         (la + 0.010, lo - 0.004)]
+    )  # fmt: skip
+    homes = {vid: fleet.vehicles[vid].link.state.home for vid in members}
+    vs = [
+        PlanVehicle(profiles[vid], VehiclePose(h.lat_deg, h.lon_deg) if h else None)
+        for vid, h in homes.items()
+    ]
+    params = MissionParams(altitude_rel_m=80.0, side_overlap=0.2)
+    mission = Mission(9, GCS, MissionType.AREA, area, params, Selector.ids(*members))
+    plan = plan_fleet(mission, vs, zones=[], now_unix_s=fleet.now, home_alt_msl_m=0.0)
+    posed = []
+    for vid in members:
+        s = fleet.vehicles[vid].link.state
+        assert s.lat_deg is not None and s.lon_deg is not None
+        posed.append(
+            PlanVehicle(
+                profiles[vid],
+                VehiclePose(
+                    s.lat_deg, s.lon_deg, s.alt_rel_m or 0.0, s.heading_deg, s.airspeed_m_s
+                ),
+            )
+        )
+    pm = premission(plan, posed)
+    entry_seq = {}
+    for vid in members:
+        wps = [
+            msgspec.structs.replace(w, acceptance_radius_m=FIXED_WING_ACCEPT_M)
+            if w.kind == ItemKind.WAYPOINT
+            else w
+            for w in pm.mission_waypoints(plan.share(vid))
+        ]
+        leg = pm.legs[vid]
+        last_wp = max(k for k, w in enumerate(leg.waypoints) if w.kind == ItemKind.WAYPOINT)
+        entry_seq[vid] = last_wp + 1  # item 0 is home
+        run_steps(vid, [UploadMission(items=tuple(wps))])
+    t0: dict[int, float] = {}
+    for vid in members:
+        t0[vid] = fleet.now
+        run_steps(vid, [StartMission()])
+    reached: dict[int, float] = {}
+    # arrival: the closest pass by the entry point while its item is being flown
+    frame = pm.frame
+    closest: dict[int, tuple[float, float]] = {}
+
+    def step() -> bool:
+        for vid in members:
+            s = fleet.vehicles[vid].link.state
+            if vid in reached or s.lat_deg is None or s.lon_deg is None:
+                continue
+            e = pm.legs[vid].entry
+            d = math.dist(frame.to_local(s.lat_deg, s.lon_deg), (e.x, e.y))
+            if s.mission_reached >= entry_seq[vid] - 1 and d < closest.get(vid, (math.inf, 0))[0]:
+                closest[vid] = (d, fleet.now - t0[vid])
+            if s.mission_reached >= entry_seq[vid] and (d > 40.0 or vid not in closest):
+                reached[vid] = closest.get(vid, (0.0, fleet.now - t0[vid]))[1]
+            if trace is not None and s.lat_deg is not None and s.lon_deg is not None:
+                trace.append((fleet.now - t0[vid], vid, s.lat_deg, s.lon_deg,
+                              s.mission_reached, s.airspeed_m_s))  # fmt: skip
+        return len(reached) == len(members)
+
+    fleet.run_until(step, timeout_s)
+    cruise = {vid: pm.legs[vid].path_m / profiles[vid].cruise_speed_m_s for vid in members}
+    flown = list(reached.values())
+    return {
+        "finished": len(reached) == len(members),
+        "predicted_arrival_s": round(pm.arrival_s, 1),
+        "predicted_spread_s": round(pm.spread_s, 3),
+        "arrivals_s": {str(vid): round(t, 1) for vid, t in reached.items()},
+        "legs": {
+            str(vid): {
+                "path_m": round(leg.path_m),
+                "orbits": leg.orbits,
+                "hold_s": round(leg.hold_s, 1),
+                "speed_m_s": round(leg.speed_m_s, 2),
+            }
+            for vid, leg in pm.legs.items()
+        },
+        "premission_arrival_spread_s": round(max(flown) - min(flown), 2) if flown else None,
+        "baseline_unsynchronized_spread_s": round(max(cruise.values()) - min(cruise.values()), 2),
+    }
+
+
 # --------------------------------------------------------------------------- run
 
 
@@ -232,7 +394,9 @@ def run() -> dict[str, Any]:
     new = survey(profiles)
     old = survey(profiles, baseline=True)
     inh = inherit(profiles)
+    pre = premission_flight(profiles)
     out: dict[str, Any] = {
+        "premission_arrival_spread_s": pre["premission_arrival_spread_s"],
         "battery_min_pct_at_landing": new["battery_min_pct_at_landing"],
         "makespan_planned_vs_flown": new["makespan_planned_vs_flown"],
         "inherit_coverage": inh["inherit_coverage"],
@@ -242,7 +406,9 @@ def run() -> dict[str, Any]:
             "makespan_planned_vs_flown": old["makespan_planned_vs_flown"],
             "battery_critical_alerts": old["battery_critical_alerts"],
             "inherit_coverage": inh["baseline_no_inherit_coverage"],
+            "premission_arrival_spread_s": pre["baseline_unsynchronized_spread_s"],
         },
+        "premission": pre,
         "survey_1_7_8": new,
         "survey_1_7_8_baseline": old,
         "inherit": inh,

@@ -44,6 +44,8 @@ NAMED: dict[str, tuple[str, ...]] = {
         "baseline/battery_min_pct_at_landing",
         "baseline/makespan_planned_vs_flown",
         "baseline/inherit_coverage",
+        "premission_arrival_spread_s",
+        "baseline/premission_arrival_spread_s",
     ),
 }
 RADIO_ROW = (

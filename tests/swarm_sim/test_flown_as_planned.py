@@ -20,3 +20,21 @@ def test_the_fleet_1_7_8_lands_above_critical_and_flies_its_planned_makespan(
         assert v["battery_at_landing_pct"] > v["critical_pct"], (vid, v)
         assert v["flown_s"] is not None, (vid, v)
     assert 0.85 <= got["makespan_planned_vs_flown"] <= 1.15, got
+
+
+def test_premission_legs_bring_scattered_vtols_to_their_entries_together(
+    fleet_profiles: dict,
+) -> None:
+    """Three Albatross VTOLs circling at scattered points fly their PREMISSION legs
+    (Dubins from their pose and heading, arrival speed, a waiting orbit) in fast time:
+    predicted together, they pass their entry points within a few seconds of each other
+    (flying the same legs at cruise they would be 40 s apart)."""
+    from bench.mission import premission_flight
+
+    got = premission_flight(fleet_profiles)
+    assert got["finished"], got
+    assert got["predicted_spread_s"] <= 2.0
+    assert got["premission_arrival_spread_s"] <= 4.0, got
+    assert got["baseline_unsynchronized_spread_s"] > 5 * got["premission_arrival_spread_s"]
+    for vid, t in got["arrivals_s"].items():
+        assert abs(t - got["predicted_arrival_s"]) <= 4.0, (vid, t)

@@ -27,6 +27,7 @@ clock.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -47,6 +48,8 @@ from .zones import ZoneSet
 SYNC_GAIN_PER_S = 0.02
 #: lateness differences below this are left alone
 SYNC_DEADBAND_S = 1.0
+#: how fast a vehicle changes speed on a new speed command (TECS-like, assumption)
+SPEED_CHANGE_M_S2 = 2.0
 
 
 @dataclass(frozen=True)
@@ -140,7 +143,9 @@ def premission(
 ) -> PremissionPlan:
     """Every vehicle of `vehicles` (posed where it is now, heading included; each with
     a share in `plan`) from its pose to its entry, arriving together (not before
-    `not_before_s` from now). Raises `InfeasibleTimingError` when no common arrival
+    `not_before_s` from now). The time a vehicle takes to change from the speed it
+    flies now (`VehiclePose.groundspeed_m_s`) to its arrival speed is counted
+    (`SPEED_CHANGE_M_S2`). Raises `InfeasibleTimingError` when no common arrival
     fits the speed ranges and orbits, `NoSafeRouteError` when an approach has no
     clear way."""
     vs = sorted(vehicles, key=lambda v: v.vehicle_id)
@@ -170,15 +175,26 @@ def premission(
         speed = min(max(_share_speed(share, fv), fv.speed_range()[0]), fv.speed_range()[1])
         alt = share.waypoints[k].alt_rel_m
         aps[v.vehicle_id] = (start, goal, speed, alt, approach(fv, start, goal, speed, zs, alt))
+    # from the speed each flies now to its arrival speed it gains (or loses) distance:
+    # counted as path made longer (shorter), and the arrival solved again
     legs: list[Leg] = [ap.leg for *_rest, ap in aps.values()]
     sync: dict[int, Arrival] = synchronize(legs, not_before_s=not_before_s)
+    for _ in range(2):
+        adjusted = []
+        for v, leg in zip(vs, legs, strict=True):
+            assert v.pose is not None
+            v0 = v.pose.groundspeed_m_s
+            dv = sync[v.vehicle_id].speed_m_s - v0 if v0 > 0.0 else 0.0
+            lag = math.copysign(dv * dv / (2.0 * SPEED_CHANGE_M_S2), dv)
+            adjusted.append(dataclasses.replace(leg, path_m=max(leg.path_m + lag, 0.0)))
+        sync = synchronize(adjusted, not_before_s=not_before_s)
     out: dict[int, PremissionLeg] = {}
     for v in vs:
         start, goal, speed, alt, ap = aps[v.vehicle_id]
         arr = sync[v.vehicle_id]
         wps = list(arrival_waypoints(frame, ap, arr, alt, start))
         wps.append(Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=speed))
-        arrival = arr.hold_s + arr.flown_m(ap.leg) / arr.speed_m_s
+        arrival = arr.arrival_s
         out[v.vehicle_id] = PremissionLeg(
             v.vehicle_id,
             tuple(wps),
