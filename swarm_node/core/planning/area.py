@@ -56,17 +56,25 @@ def _workers(
     altitudes: Mapping[int, float] | None = None,
     extra_s: Mapping[int, float] | None = None,
     stops: bool = True,
+    battery_pct: Mapping[int, float] | None = None,
+    homes: Mapping[int, tuple[float, float]] | None = None,
 ) -> list[Worker]:
     """Each vehicle as a split worker: its mission speed and turns, the time it loses
-    stopping on waypoints, and with `altitudes` (a sortie from where it is, its home)
-    the time at cruise its battery allows for its block and the way home."""
+    stopping on waypoints, and with `altitudes` the time at cruise its battery allows
+    for its block and the way home: a sortie from where it is (its home) with a full
+    battery, or, for a vehicle in `battery_pct`, what that charge leaves in the air
+    (the way home to `homes`, else to where it is)."""
     out = []
     for v in vehicles:
         speed = v.speed(params)
         start = Pose(*frame.pose(v.pose)) if v.pose is not None else None
         budget = math.inf
         if altitudes is not None:
-            budget = Endurance.of(v.profile, altitudes[v.vehicle_id]).cruise_budget_s
+            e = Endurance.of(v.profile, altitudes[v.vehicle_id])
+            if battery_pct is None:
+                budget = e.cruise_budget_s
+            elif v.vehicle_id in battery_pct:
+                budget = e.airborne_budget_s(battery_pct[v.vehicle_id], v.profile)
         out.append(
             Worker(
                 v.vehicle_id,
@@ -76,6 +84,7 @@ def _workers(
                 accel_m_s2=accel_m_s2(v.profile) if stops else 0.0,
                 extra_s=(extra_s or {}).get(v.vehicle_id, 0.0),
                 budget_s=budget,
+                home=(homes or {}).get(v.vehicle_id),
             )
         )
     return out
@@ -196,10 +205,15 @@ def replan_area(
     progress_pct: Mapping[int, float],
     vehicles: Sequence[PlanVehicle],
     params: MissionParams = DEFAULT_PARAMS,
+    *,
+    battery_pct: Mapping[int, float] | None = None,
+    homes: Mapping[int, tuple[float, float]] | None = None,
 ) -> AreaPlan:
     """Share what is left of `plan` (from each vehicle's completion percentage) among
     `vehicles` from where they are now: the ones of the old plan missing here dropped
-    out; new ones joined (they fly at the next free altitude step)."""
+    out; new ones joined (they fly at the next free altitude step). A vehicle in
+    `battery_pct` gets no more than that charge flies, with the way home to its
+    `homes` entry (local metres in the plan's frame; else where it is now)."""
     require_vehicles(vehicles)
     for vid, pct in progress_pct.items():
         if not (math.isfinite(pct) and 0.0 <= pct <= 100.0):
@@ -210,7 +224,14 @@ def replan_area(
         if v.vehicle_id not in alts:
             top += params.altitude_step_m
             alts[v.vehicle_id] = top
-    workers = _workers(vehicles, params, plan.frame)
+    workers = _workers(
+        vehicles,
+        params,
+        plan.frame,
+        altitudes=alts if battery_pct else None,
+        battery_pct=battery_pct,
+        homes=homes,
+    )
     split = replan(plan.split, progress_pct, workers, obstacles=plan.obstacles)
     alts = {v.vehicle_id: alts[v.vehicle_id] for v in vehicles}
     return AreaPlan(

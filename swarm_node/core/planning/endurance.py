@@ -130,6 +130,17 @@ class Endurance:
         left = self.usable_mah - self.hover_a * (self.climb_s + self.land_s) / 3.6
         return max(left, 0.0) * 3.6 / self.cruise_a
 
+    def airborne_budget_s(self, battery_pct: float, profile: VehicleProfile) -> float:
+        """Seconds at cruise left to a vehicle in the air with `battery_pct`, keeping
+        its critical level, the reserve and its landing: inf without battery figures."""
+        if math.isinf(self.usable_mah):
+            return math.inf
+        cap = profile.battery_capacity_mah
+        frac = min(max(battery_pct, 0.0), 100.0) / 100.0
+        left = cap * max(frac - profile.battery_critical_pct / 100.0 - RESERVE_FRACTION, 0.0)
+        left -= self.hover_a * self.land_s / 3.6
+        return max(left, 0.0) * 3.6 / self.cruise_a
+
     def used_pct(self, cruise_s: float, capacity_mah: float) -> float:
         """Battery used (% of capacity) by a sortie with `cruise_s` at cruise."""
         if math.isinf(self.usable_mah) or capacity_mah <= 0.0:

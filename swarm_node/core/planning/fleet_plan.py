@@ -48,7 +48,7 @@ from .area import AreaPlan, plan_area, replan_area
 from .endurance import transition_s
 from .errors import InvalidParameterError, NoVehiclesError, PlanningError
 from .flight import flyable_plan
-from .geo import LocalFrame
+from .geo import LocalFrame, VehiclePose
 from .objective import plan_objective
 from .perimeter import PerimeterPlan, plan_perimeter
 from .route import plan_route
@@ -217,6 +217,7 @@ class FleetPlan:
     detail: object
     makespan_s: float
     vehicles: tuple[PlanVehicle, ...] = field(default=(), repr=False)  # as planned (flyable)
+    homes: Mapping[int, VehiclePose] = field(default_factory=dict, repr=False)  # first plan's poses
 
     def share(self, vehicle_id: int) -> Share:
         try:
@@ -232,11 +233,15 @@ class FleetPlan:
         zones: Sequence[NoFlyZone],
         now_unix_s: float,
         home_alt_msl_m: float,
+        battery_pct: Mapping[int, float] | None = None,
     ) -> FleetPlan:
         """What is left of this plan shared among `vehicles` (the survivors and any
         joiner, each posed where it is now) from every old member's progress in metres
         along its share (missing: 0). Old members missing from `vehicles` dropped out.
-        See the module docstring for what each mission type does."""
+        AREA: a vehicle in `battery_pct` gets no more than its charge flies with the
+        way home to where it started (`homes`) and its landing (`InfeasibleTimingError`
+        when the survivors cannot cover what is left). See the module docstring for
+        what each mission type does."""
         for vid, m in progress_m.items():
             if not math.isfinite(m):
                 raise InvalidParameterError(f"vehicle {vid}: progress {m} m is not finite")
@@ -245,20 +250,36 @@ class FleetPlan:
         if kind == MissionType.AREA:
             assert isinstance(self.detail, AreaPlan)
             pct = {vid: self.area_percent(vid, m) for vid, m in sorted(progress_m.items())}
-            detail: object = replan_area(self.detail, pct, vs, self.mission.params)
+            frame = self.detail.frame
+            homes = {
+                vid: frame.to_local(h.lat_deg, h.lon_deg) for vid, h in sorted(self.homes.items())
+            }
+            detail: object = replan_area(
+                self.detail, pct, vs, self.mission.params, battery_pct=battery_pct, homes=homes
+            )
             detail = flyable_plan(
                 detail, vs, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
             )
-            return _fleet_plan(self.mission, vs, detail)
+            return _fleet_plan(self.mission, vs, detail, self.homes)
         if kind == MissionType.PERIMETER:
             assert isinstance(self.detail, PerimeterPlan)
             mission = _with_params(self.mission, loops=self._laps_left(progress_m, vs))
             return _plan(
-                mission, vs, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
+                mission,
+                vs,
+                zones=zones,
+                now_unix_s=now_unix_s,
+                home_alt_msl_m=home_alt_msl_m,
+                homes=self.homes,
             )
         if kind in (MissionType.TARGET, MissionType.OBJECTIVE):
             return _plan(
-                self.mission, vs, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
+                self.mission,
+                vs,
+                zones=zones,
+                now_unix_s=now_unix_s,
+                home_alt_msl_m=home_alt_msl_m,
+                homes=self.homes,
             )
         if kind == MissionType.ROUTE:
             return self._replan_route(
@@ -340,6 +361,7 @@ class FleetPlan:
             detail,
             max((s.time_s for s in ordered.values()), default=0.0),
             tuple(vehicles),
+            {**self.homes, **joined.homes} if joiners else self.homes,
         )
 
 
@@ -401,7 +423,12 @@ def _makespan(detail: object, shares: Mapping[int, Share]) -> float:
     return max((s.time_s for s in shares.values()), default=0.0)
 
 
-def _fleet_plan(mission: Mission, vehicles: Sequence[PlanVehicle], detail: object) -> FleetPlan:
+def _fleet_plan(
+    mission: Mission,
+    vehicles: Sequence[PlanVehicle],
+    detail: object,
+    homes: Mapping[int, VehiclePose] | None = None,
+) -> FleetPlan:
     plans: tuple[VehiclePlan, ...] = detail.vehicles  # type: ignore[attr-defined]
     by_id = {vp.vehicle_id: Share.of(vp) for vp in plans}
     roster = tuple(v.vehicle_id for v in vehicles)
@@ -409,7 +436,11 @@ def _fleet_plan(mission: Mission, vehicles: Sequence[PlanVehicle], detail: objec
     if missing:
         raise PlanningError(f"the plan has no share for vehicles {missing}")
     shares = {vid: by_id[vid] for vid in roster}
-    return FleetPlan(mission, roster, shares, detail, _makespan(detail, shares), tuple(vehicles))
+    if homes is None:  # a first plan: the vehicles are where they start from
+        homes = {v.vehicle_id: v.pose for v in vehicles if v.pose is not None}
+    return FleetPlan(
+        mission, roster, shares, detail, _makespan(detail, shares), tuple(vehicles), dict(homes)
+    )
 
 
 def _plan(
@@ -419,6 +450,7 @@ def _plan(
     zones: Sequence[NoFlyZone],
     now_unix_s: float,
     home_alt_msl_m: float,
+    homes: Mapping[int, VehiclePose] | None = None,
 ) -> FleetPlan:
     """`vehicles` already sorted and flyable."""
     planner = PLANNERS.get(mission.mission_type)
@@ -441,7 +473,7 @@ def _plan(
     detail = flyable_plan(
         detail, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
     )
-    return _fleet_plan(mission, vehicles, detail)
+    return _fleet_plan(mission, vehicles, detail, homes)
 
 
 #: rounds of the area split fed with the time the flyable stage added to each share

@@ -407,3 +407,41 @@ def test_objective_replan_spreads_the_survivors_over_the_points(fleet: Fleet) ->
     groups = dict(new.detail.groups)  # type: ignore[attr-defined]
     assert sorted(len(g) for g in groups.values()) == [1, 2]
     assert new.roster == tuple(v.vehicle_id for v in vs[1:])
+
+
+def test_area_replan_keeps_each_survivor_within_its_battery(fleet: Fleet) -> None:
+    from swarm_node.core.planning import InfeasibleTimingError
+    from swarm_node.core.planning.endurance import Endurance
+
+    vs = fleet(["multirotor"] * 3, _homes(3))
+    mission = _mission(
+        MissionType.AREA, SMALL, altitude_rel_m=80.0, altitude_step_m=5.0, side_overlap=0.2
+    )
+    fp = _plan(mission, vs)
+    assert set(fp.homes) == set(fp.roster)
+    progress, posed = {}, []
+    for v in vs:
+        m, pv = _at(fp.share(v.vehicle_id), 0.3, v)
+        progress[v.vehicle_id] = m
+        posed.append(pv)
+    survivors = posed[:2]
+    battery = {v.vehicle_id: 95.0 for v in survivors}
+    new = fp.replan(
+        progress, survivors, zones=[], now_unix_s=0.0, home_alt_msl_m=0.0, battery_pct=battery
+    )
+    assert new.homes == fp.homes  # the way home still goes where they took off
+    assert isinstance(new.detail, AreaPlan)
+    frame = new.detail.frame
+    for v in survivors:
+        a = new.detail.split.of(v.vehicle_id)
+        if not a.path.lanes:
+            continue
+        home = frame.to_local(fp.homes[v.vehicle_id].lat_deg, fp.homes[v.vehicle_id].lon_deg)
+        back = math.dist(a.path.lanes[-1].b, home) / a.speed_m_s
+        budget = Endurance.of(v.profile, 80.0).airborne_budget_s(95.0, v.profile)
+        assert a.time_s + back <= budget + 1e-6
+    with pytest.raises(InfeasibleTimingError):
+        fp.replan(
+            progress, survivors, zones=[], now_unix_s=0.0, home_alt_msl_m=0.0,
+            battery_pct={v.vehicle_id: 27.0 for v in survivors},
+        )  # fmt: skip
