@@ -13,6 +13,7 @@ published progress how much of its share is flown.
   share are converted exactly to the coverage path's percentage: the share's waypoints
   at every lane's ends are found (the flyable stage keeps them), so the lane being
   flown is cut where the vehicle is; on a transition the last lane counts as done.
+  With the survivors' `battery_pct`, none gets more than its charge flies home.
 - PERIMETER: the patrol re-phased among the survivors from where they are
   (`plan_perimeter`: equal spacing, their order along the loop kept, a synchronized
   entry), for as many laps as the survivor with most laps left still had to fly
