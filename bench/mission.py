@@ -238,6 +238,7 @@ def premission_flight(
     members: Sequence[int] = PREMISSION_FLEET,
     *,
     timeout_s: float = 600.0,
+    closed_loop: bool = True,
     trace: list[tuple[float, int, float, float, int, float]] | None = None,
 ) -> dict[str, Any]:
     """Three Albatross VTOLs in FastFleet (simulated ArduPilot, real MAVLink through the
@@ -246,11 +247,15 @@ def premission_flight(
     `premission` plans their legs to their shares of an area plan, each uploads its
     approach and share and starts it at once. Measured: when each reaches its entry
     item (MISSION_ITEM_REACHED) after the start; the spread of those times, against the
-    predicted arrival. Baseline (same run, same legs): flying the Dubins legs at cruise
-    without the synchronizing speeds and orbits (`path / cruise`)."""
+    predicted arrival. With `closed_loop`, once past its waiting orbit each vehicle's
+    airspeed is set every second to what brings it to its entry at the predicted time
+    (`premission_speed` on `PremissionLeg.remaining_m`), as the node is to do.
+    Baseline (same legs): flying the Dubins legs at cruise without the synchronizing
+    speeds and orbits (`path / cruise`)."""
     from swarm_node.core.autopilot.requests import (
         ApRequest,
         Arm,
+        ChangeSpeed,
         Goto,
         SetMode,
         StartMission,
@@ -258,8 +263,9 @@ def premission_flight(
         UploadMission,
     )
     from swarm_node.core.node import AutopilotResult
+    from swarm_node.core.planning.fleet_plan import flyable
     from swarm_node.core.planning.flight import FIXED_WING_ACCEPT_M
-    from swarm_node.core.planning.premission import premission
+    from swarm_node.core.planning.premission import premission, premission_speed
     from swarm_sim.core import SITL_HOME
     from swarm_sim.fast_fleet import FastFleet
 
@@ -345,12 +351,35 @@ def premission_flight(
     # arrival: the closest pass by the entry point while its item is being flown
     frame = pm.frame
     closest: dict[int, tuple[float, float]] = {}
+    next_control = dict.fromkeys(members, fleet.now + 1.0)
+    commanded = {vid: pm.legs[vid].speed_m_s for vid in members}
+    ranges = {}
+    for vid in members:
+        fv = PlanVehicle(flyable(profiles[vid]))
+        r = max(pm.legs[vid].orbit_m / (2 * math.pi), fv.profile.turn_radius_m())
+        ranges[vid] = fv.speed_range_on(r)
+
+    def control(vid: int) -> None:
+        s = fleet.vehicles[vid].link.state
+        assert s.lat_deg is not None and s.lon_deg is not None
+        left = pm.legs[vid].remaining_m(s.mission_reached - 1, s.lat_deg, s.lon_deg)
+        if left is None:
+            return
+        v = premission_speed(left, pm.arrival_s - (fleet.now - t0[vid]), ranges[vid])
+        if abs(v - commanded[vid]) >= 0.2:
+            commanded[vid] = v
+            rid = next(ids)
+            req = ChangeSpeed(request_id=rid, speed_m_s=v)
+            fleet._link_out(vid, fleet.vehicles[vid].link.submit(rid, req, fleet.now))
 
     def step() -> bool:
         for vid in members:
             s = fleet.vehicles[vid].link.state
             if vid in reached or s.lat_deg is None or s.lon_deg is None:
                 continue
+            if closed_loop and fleet.now >= next_control[vid]:
+                next_control[vid] = fleet.now + 1.0
+                control(vid)
             e = pm.legs[vid].entry
             d = math.dist(frame.to_local(s.lat_deg, s.lon_deg), (e.x, e.y))
             if s.mission_reached >= entry_seq[vid] - 1 and d < closest.get(vid, (math.inf, 0))[0]:
@@ -395,8 +424,10 @@ def run() -> dict[str, Any]:
     old = survey(profiles, baseline=True)
     inh = inherit(profiles)
     pre = premission_flight(profiles)
+    open_loop = premission_flight(profiles, closed_loop=False)
     out: dict[str, Any] = {
         "premission_arrival_spread_s": pre["premission_arrival_spread_s"],
+        "premission_open_loop_spread_s": open_loop["premission_arrival_spread_s"],
         "battery_min_pct_at_landing": new["battery_min_pct_at_landing"],
         "makespan_planned_vs_flown": new["makespan_planned_vs_flown"],
         "inherit_coverage": inh["inherit_coverage"],

@@ -38,7 +38,7 @@ from swarm_proto import LatLon, NoFlyZone
 from .area import AreaPlan
 from .dubins import Pose
 from .errors import InvalidParameterError, PlanningError
-from .fleet_plan import FleetPlan, Share, _local_xy, flyable
+from .fleet_plan import FleetPlan, Share, _local_xy, along_metres, flyable
 from .geo import LocalFrame
 from .route import Arrival, Leg, approach, arrival_waypoints, synchronize
 from .vehicles import PlanVehicle
@@ -68,6 +68,20 @@ class PremissionLeg:
     @property
     def flown_m(self) -> float:
         return self.path_m + self.orbits * self.orbit_m
+
+    def remaining_m(self, reached_index: int, lat_deg: float, lon_deg: float) -> float | None:
+        """Metres of the approach left to a vehicle whose last reached item of
+        `waypoints` is `reached_index` (< 0: none) at (lat, lon): along the approach's
+        waypoints to the entry; None while a waiting orbit is still to be flown (its
+        progress is not measured)."""
+        loiter = next(
+            (k for k, w in enumerate(self.waypoints) if w.kind == ItemKind.LOITER_TURNS), None
+        )
+        if loiter is not None and reached_index < loiter:
+            return None
+        along = along_metres(self.waypoints)
+        share = Share(self.vehicle_id, self.waypoints, along, along[-1] if along else 0.0, 0.0)
+        return max(share.length_m - share.progress_m(reached_index, lat_deg, lon_deg), 0.0)
 
 
 @dataclass(frozen=True)
@@ -209,6 +223,19 @@ def premission(
         )
     t = next(iter(sync.values())).arrival_s if sync else 0.0
     return PremissionPlan(frame, t, out)
+
+
+def premission_speed(
+    remaining_m: float, time_left_s: float, speed_range: tuple[float, float]
+) -> float:
+    """Closed-loop PREMISSION airspeed: what reaches the entry `time_left_s` from now
+    over `remaining_m`, within `speed_range` (the top when the time is up)."""
+    lo, hi = speed_range
+    if not (math.isfinite(remaining_m) and math.isfinite(time_left_s)):
+        raise InvalidParameterError("remaining metres and time must be finite")
+    if time_left_s <= 0.0:
+        return hi
+    return min(max(remaining_m / time_left_s, lo), hi)
 
 
 # --------------------------------------------------------------------------- MISSION

@@ -23,6 +23,7 @@ from swarm_node.core.planning.premission import (
     entry_index,
     lateness_s,
     premission,
+    premission_speed,
     sync_speed,
 )
 from swarm_proto import Geometry, Mission, MissionParams, MissionType
@@ -170,3 +171,28 @@ def test_lateness_against_the_planned_schedule(
     assert lateness_s(share, half, share.time_s / 2) == pytest.approx(0.0)
     assert lateness_s(share, half, share.time_s / 2 + 7.0) == pytest.approx(7.0)
     assert share.planned_s_at(share.length_m * 2) == pytest.approx(share.time_s)
+
+
+def test_closed_loop_premission_speed_and_what_is_left_of_a_leg(
+    vtols: tuple[list[PlanVehicle], FleetPlan],
+) -> None:
+    assert premission_speed(600.0, 30.0, (18.0, 30.0)) == pytest.approx(20.0)
+    assert premission_speed(600.0, 10.0, (18.0, 30.0)) == 30.0
+    assert premission_speed(100.0, 30.0, (18.0, 30.0)) == 18.0
+    assert premission_speed(100.0, 0.0, (18.0, 30.0)) == 30.0
+    with pytest.raises(InvalidParameterError):
+        premission_speed(math.inf, 3.0, (18.0, 30.0))
+    vs, plan = vtols
+    pm = premission(plan, _posed(vs, random.Random(4)))
+    for leg in pm.legs.values():
+        loiter = [k for k, w in enumerate(leg.waypoints) if w.kind == ItemKind.LOITER_TURNS]
+        first = next(k for k, w in enumerate(leg.waypoints) if w.kind == ItemKind.WAYPOINT)
+        w = leg.waypoints[first]
+        left = leg.remaining_m(first, w.lat_deg, w.lon_deg)
+        if loiter and loiter[0] > first:
+            assert left is None  # the orbit is still to come
+            continue
+        assert left is not None and 0.0 <= left <= leg.path_m + 1.0
+        last = max(k for k, w in enumerate(leg.waypoints) if w.kind == ItemKind.WAYPOINT)
+        e = leg.waypoints[last]
+        assert leg.remaining_m(last, e.lat_deg, e.lon_deg) == pytest.approx(0.0, abs=1e-6)
