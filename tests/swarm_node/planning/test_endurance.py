@@ -4,6 +4,7 @@ each waypoint is charged for it."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import msgspec
@@ -102,3 +103,56 @@ def test_a_fleet_short_of_endurance_is_refused() -> None:
         split_lanes(lanes, [Worker(1, 10.0, TURNS, home, budget_s=60.0)])
     with pytest.raises(InvalidParameterError):
         Worker(1, 10.0, TURNS, accel_m_s2=-1.0)
+
+
+def test_the_demo_survey_split_keeps_1_7_8_within_their_batteries(fleet_profiles: dict) -> None:
+    """The split `plan_fleet` makes for the demo survey (the fleet 1, 7, 8 at the
+    simulator's homes): every share plus the straight way home from its last lane fits
+    the vehicle's budget; today's split gave quadcopter 8 more than its battery flies."""
+    from swarm_node.core.planning import PlanVehicle, VehiclePose
+    from swarm_node.core.planning import fleet_plan as fp
+    from swarm_node.core.planning.area import AreaPlan
+    from swarm_proto import Mission, MissionParams, MissionType
+    from swarm_sim.core import SITL_HOME
+    from swarm_sim.demo import demo_area
+    from swarm_sim.runtime.server import spread_homes
+
+    area, zone = demo_area()
+    homes = spread_homes(SITL_HOME, 3, 40.0)
+    vs = [
+        PlanVehicle(fleet_profiles[vid], VehiclePose(h.lat_deg, h.lon_deg))
+        for vid, h in zip((1, 7, 8), homes, strict=True)
+    ]
+    mission = Mission(
+        7, 900, MissionType.AREA, area, MissionParams(altitude_rel_m=60.0, side_overlap=0.6)
+    )
+    plan = fp.plan_fleet(mission, vs, zones=[zone], now_unix_s=0.0, home_alt_msl_m=SITL_HOME.alt_m)
+    assert isinstance(plan.detail, AreaPlan)
+    frame = plan.detail.frame
+    for v in vs:
+        a = plan.detail.split.of(v.vehicle_id)
+        budget = Endurance.of(v.profile, 60.0).cruise_budget_s
+        assert v.pose is not None
+        home = frame.to_local(v.pose.lat_deg, v.pose.lon_deg)
+        back = math.dist(a.path.lanes[-1].b, home) / a.speed_m_s if a.path.lanes else 0.0
+        assert a.time_s + back <= budget + 1e-6, (v.vehicle_id, a.time_s, back, budget)
+    # before issue 12 the split left quadcopter 8 over its budget
+    old = fp.BASELINE_SPLIT
+    fp.BASELINE_SPLIT = True
+    try:
+        base = fp.plan_fleet(
+            mission, vs, zones=[zone], now_unix_s=0.0, home_alt_msl_m=SITL_HOME.alt_m
+        )
+    finally:
+        fp.BASELINE_SPLIT = old
+    assert isinstance(base.detail, AreaPlan)
+    over = []
+    for v in vs[1:]:
+        a = base.detail.split.of(v.vehicle_id)
+        stop_go = dataclasses.replace(a, accel_m_s2=accel_m_s2(v.profile))
+        assert v.pose is not None
+        home = base.detail.frame.to_local(v.pose.lat_deg, v.pose.lon_deg)
+        back = math.dist(a.path.lanes[-1].b, home) / a.speed_m_s
+        if stop_go.path_time_s + back > Endurance.of(v.profile, 60.0).cruise_budget_s:
+            over.append(v.vehicle_id)
+    assert over, "the baseline split no longer overruns: this test shows nothing"

@@ -256,7 +256,7 @@ def test_a_vtol_lost_at_40_percent_leaves_its_lanes_to_the_others_flown_once(
 
 
 @settings(
-    max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=4, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(st.integers(0, 5), st.lists(st.floats(0.05, 0.95), min_size=6, max_size=6), st.randoms())
 def test_area_replan_covers_what_is_left_once_and_ignores_input_order(

@@ -65,7 +65,7 @@ def _posed(vs: list[PlanVehicle], rnd: random.Random) -> list[PlanVehicle]:
 
 
 @settings(
-    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(st.integers(0, 10_000))
 def test_the_fleet_arrives_at_its_entries_together_within_its_speed_ranges(
