@@ -3,8 +3,9 @@ share so that the fleet arrives together, and in MISSION a speed rule that keeps
 vehicles of one mission on the same schedule.
 
 `premission(plan, vehicles, ...)`: each vehicle's entry is where its share's work
-starts (an area share's first lane start, heading along the lane; any other share's
-first waypoint, heading along its first leg). A fixed-wing flies the shortest Dubins
+starts, past the approach its planner made from the vehicle's home (`entry_index`: an
+area share's first lane start, heading along the lane; a route's first point; a
+patrol's start on its loop; a target slot), heading along the share's next leg. A fixed-wing flies the shortest Dubins
 path from its pose (position and heading) to the entry pose, at its planned turn
 radius (`fleet_plan.flyable`), clear of the zones (`route.approach`: else around
 them); a hover-capable vehicle flies straight and may wait on the spot. The common
@@ -40,7 +41,10 @@ from .dubins import Pose
 from .errors import InvalidParameterError, PlanningError
 from .fleet_plan import FleetPlan, Share, _local_xy, along_metres, flyable
 from .geo import LocalFrame
-from .route import Arrival, Leg, approach, arrival_waypoints, synchronize
+from .objective import ObjectivePlan
+from .perimeter import PerimeterPlan
+from .route import Arrival, Leg, RoutePlan, approach, arrival_waypoints, synchronize
+from .target import TargetPlan
 from .vehicles import PlanVehicle
 from .zones import ZoneSet
 
@@ -103,22 +107,43 @@ class PremissionPlan:
 
 
 def entry_index(plan: FleetPlan, vehicle_id: int) -> int:
-    """The item where a share's work starts: an area share's first lane start (the
-    flyable stage keeps it), else its first WAYPOINT."""
+    """The item where a share's work starts, past the approach its planner made from
+    where the vehicle was at planning time: an area share's first lane start (the
+    flyable stage keeps it); a route's first point or a patrol's start on its loop (the
+    last waypoint before the share's second CHANGE_SPEED: the arrival speed, then the
+    mission speed); a target slot (the last waypoint before the final hold); else the
+    first waypoint."""
     share = plan.share(vehicle_id)
-    positioned = [k for k, w in enumerate(share.waypoints) if w.kind == ItemKind.WAYPOINT]
+    wps = share.waypoints
+    positioned = [k for k, w in enumerate(wps) if w.kind == ItemKind.WAYPOINT]
     if not positioned:
         raise PlanningError(f"vehicle {vehicle_id}'s share has no waypoint to enter at")
-    if isinstance(plan.detail, AreaPlan):
-        path = plan.detail.split.of(vehicle_id).path
-        if path.lanes:
+    detail = plan.detail[0] if isinstance(plan.detail, tuple) else plan.detail
+    if isinstance(detail, AreaPlan):
+        path = detail.split.of(vehicle_id).path if vehicle_id in plan.roster else None
+        if path is not None and path.lanes:
             a = path.lanes[0].a
-            xy = _local_xy(plan.detail.frame, share.waypoints)
+            xy = _local_xy(detail.frame, wps)
             for k in positioned:
                 p = xy[k]
                 if p is not None and math.dist(p, a) < 0.05:
                     return k
+        return positioned[0]
+    if isinstance(detail, RoutePlan | PerimeterPlan):
+        speeds = [k for k, w in enumerate(wps) if w.kind == ItemKind.CHANGE_SPEED]
+        if len(speeds) >= 2:
+            before = [k for k in positioned if k < speeds[1]]
+            if before:
+                return before[-1]
+        return positioned[0]
+    if isinstance(detail, TargetPlan | ObjectivePlan) and wps[-1].kind in _HOLDS:
+        before = [k for k in positioned if k < len(wps) - 1]
+        if before:
+            return before[-1]
     return positioned[0]
+
+
+_HOLDS = frozenset({ItemKind.LOITER_TURNS, ItemKind.LOITER_UNLIMITED, ItemKind.LOITER_TIME})
 
 
 def _entry_pose(frame: LocalFrame, share: Share, k: int) -> Pose:

@@ -196,3 +196,62 @@ def test_closed_loop_premission_speed_and_what_is_left_of_a_leg(
         last = max(k for k, w in enumerate(leg.waypoints) if w.kind == ItemKind.WAYPOINT)
         e = leg.waypoints[last]
         assert leg.remaining_m(last, e.lat_deg, e.lon_deg) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_fixed_wing_route_fleet_meets_at_the_routes_first_point(profiles: dict) -> None:
+    """A route planned from the homes; airborne elsewhere, the fleet's PREMISSION legs
+    all end at the route's first point (each at its altitude), heading along the
+    route, predicted together."""
+    from swarm_proto import GeometryKind, LatLon
+
+    from .conftest import make_fleet
+
+    homes: list[VehiclePose | None] = [VehiclePose(LA - 0.003, LO + 0.001 * i) for i in range(3)]
+    vs = make_fleet(profiles, ["fixed_wing"] * 3, homes)
+    route = Geometry(
+        GeometryKind.POLYLINE,
+        (LatLon(LA + 0.004, LO), LatLon(LA + 0.008, LO + 0.004), LatLon(LA + 0.012, LO)),
+    )
+    mission = Mission(4, 900, MissionType.ROUTE, route, MissionParams(altitude_step_m=10.0))
+    plan = plan_fleet(mission, vs, zones=[], now_unix_s=0.0, home_alt_msl_m=0.0)
+    pm = premission(plan, _posed(vs, random.Random(9)))
+    first = pm.frame.to_local(LA + 0.004, LO)
+    second = pm.frame.to_local(LA + 0.008, LO + 0.004)
+    yaw = math.atan2(second[1] - first[1], second[0] - first[0])
+    for leg in pm.legs.values():
+        assert math.dist((leg.entry.x, leg.entry.y), first) < 0.5
+        assert abs(math.remainder(leg.entry.yaw - yaw, 2 * math.pi)) < 1e-3
+    assert pm.spread_s <= 2.0
+
+
+def test_target_and_perimeter_shares_are_entered_past_their_planned_approach(
+    profiles: dict,
+) -> None:
+    from .conftest import make_fleet
+
+    homes: list[VehiclePose | None] = [VehiclePose(LA - 0.003, LO + 0.001 * i) for i in range(3)]
+    vs = make_fleet(profiles, ["fixed_wing"] * 3, homes)
+    centre = (LA + 0.006, LO + 0.003)
+    target = Mission(
+        5, 900, MissionType.TARGET, Geometry.point(*centre), MissionParams(radius_m=150.0)
+    )
+    square = Geometry.polygon(
+        [(LA + 0.004, LO), (LA + 0.004, LO + 0.008), (LA + 0.012, LO + 0.008), (LA + 0.012, LO)]
+    )
+    patrol = Mission(6, 900, MissionType.PERIMETER, square, MissionParams(altitude_step_m=10.0))
+    for mission in (target, patrol):
+        plan = plan_fleet(mission, vs, zones=[], now_unix_s=0.0, home_alt_msl_m=0.0)
+        pm = premission(plan, _posed(vs, random.Random(2)))
+        assert pm.spread_s <= 2.0
+        for vid in plan.roster:
+            k = entry_index(plan, vid)
+            share = plan.share(vid)
+            assert share.along_m[k] > 0.0  # past the approach planned from home
+            if mission is target:
+                assert k == len(share.waypoints) - 2  # the slot, before the hold
+                e = pm.legs[vid].entry
+                c = pm.frame.to_local(*centre)
+                assert math.dist((e.x, e.y), c) == pytest.approx(
+                    plan.detail.slot_of(vid).radius_m,
+                    rel=0.01,  # type: ignore[attr-defined]
+                )
