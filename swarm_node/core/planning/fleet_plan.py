@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import msgspec
+import numpy as np
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.profile import VehicleProfile
@@ -48,7 +49,7 @@ from swarm_proto import Mission, MissionType, NoFlyZone
 from .area import AreaPlan, plan_area, replan_area
 from .endurance import transition_s
 from .errors import InvalidParameterError, NoVehiclesError, PlanningError
-from .flight import flyable_plan
+from .flight import FIXED_WING_ACCEPT_M, flyable_plan, predict_flight
 from .geo import LocalFrame, VehiclePose
 from .objective import plan_objective
 from .perimeter import PerimeterPlan, plan_perimeter
@@ -516,10 +517,15 @@ def _plan_area(
         detail = flyable_plan(
             raw, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
         )
+        by_id = {v.vehicle_id: v for v in vehicles}
         detail = dataclasses.replace(
             detail,
             vehicles=tuple(
-                dataclasses.replace(vp, time_s=vp.time_s + start[vp.vehicle_id])
+                dataclasses.replace(
+                    vp,
+                    time_s=(_flown_s(vp, by_id[vp.vehicle_id], detail.frame) if aware else None)
+                    or vp.time_s + start[vp.vehicle_id],
+                )
                 for vp in detail.vehicles
             ),
         )
@@ -536,6 +542,31 @@ def _plan_area(
         extra = new
     assert best is not None
     return _fleet_plan(mission, vehicles, best[1])
+
+
+def _flown_s(vp: VehiclePlan, v: PlanVehicle, frame: LocalFrame) -> float | None:
+    """A fixed-wing share's time as its autopilot flies it: the path `predict_flight`
+    predicts through its waypoints (at the turn radius of its speed, the acceptance
+    radius the mission manager asks for) at its speed, plus a VTOL's transition; None
+    for other vehicles or when the prediction stops short."""
+    if not v.profile.is_fixed_wing:
+        return None
+    pts = [
+        frame.to_local(w.lat_deg, w.lon_deg) for w in vp.waypoints if w.kind == ItemKind.WAYPOINT
+    ]
+    speed = next(
+        (w.speed_m_s for w in vp.waypoints if w.kind == ItemKind.CHANGE_SPEED and w.speed_m_s),
+        v.profile.cruise_speed_m_s,
+    )
+    if len(pts) < 2 or speed <= 0.0:
+        return None
+    flown = predict_flight(
+        pts, radius_m=v.profile.turn_radius_m(speed), accept_m=FIXED_WING_ACCEPT_M, step_m=2.0
+    )
+    if flown.reached < len(pts):
+        return None
+    length = float(np.hypot(*np.diff(flown.points, axis=0).T).sum())
+    return length / speed + transition_s(v.profile, speed)
 
 
 def plan_fleet(
