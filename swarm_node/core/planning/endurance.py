@@ -8,7 +8,8 @@ take longer, or cost more battery, than its length over the speed says:
   accelerates away) flies each leg with a trapezoidal speed profile from and to the
   speed v0 = sqrt(2 a r) it still has at the acceptance radius r (`STOP_ACCEPT_M`):
   d / v + (v - v0)^2 / (a v), or 2 (vp - v0) / a with vp = sqrt(a d + v0^2) for a leg
-  too short to reach v (`leg_s`, `stop_and_go_s`);
+  too short to reach v (`leg_s`), and at a corner of angle t cancels the part of v0
+  no longer pointing the new way, v0 (1 - cos t) / a (`stop_and_go_s`);
 - the battery: a sortie is a climb (lift motors), the share and the way home (cruise
   current), and a landing (lift motors). `Endurance.cruise_budget_s` is the time at
   cruise the battery allows once the climb and landing are paid for, keeping
@@ -76,8 +77,18 @@ def leg_s(length_m: float, speed_m_s: float, accel: float) -> float:
 
 def stop_and_go_s(points: Sequence[tuple[float, float]], speed_m_s: float, accel: float) -> float:
     """Time along a polyline braking for each of its points after the first (constant
-    speed when `accel` is 0)."""
-    return sum(leg_s(math.dist(a, b), speed_m_s, accel) for a, b in itertools.pairwise(points))
+    speed when `accel` is 0); at a corner of angle t the vehicle also has to cancel
+    the part of its speed v0 that no longer points the new way, v0 (1 - cos t) / a."""
+    pts = [p for i, p in enumerate(points) if i == 0 or math.dist(p, points[i - 1]) > 1e-9]
+    total = sum(leg_s(math.dist(a, b), speed_m_s, accel) for a, b in itertools.pairwise(pts))
+    if accel <= 0.0:
+        return total
+    v0 = min(math.sqrt(2.0 * accel * STOP_ACCEPT_M), speed_m_s)
+    for a, b, c in zip(pts, pts[1:], pts[2:], strict=False):
+        h1 = math.atan2(b[1] - a[1], b[0] - a[0])
+        h2 = math.atan2(c[1] - b[1], c[0] - b[0])
+        total += v0 * (1.0 - math.cos(h2 - h1)) / accel
+    return total
 
 
 def transition_s(profile: VehicleProfile, speed_m_s: float) -> float:

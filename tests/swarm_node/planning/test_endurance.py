@@ -53,6 +53,13 @@ def test_stop_and_go_charges_each_waypoint() -> None:
     # a long leg costs (v - v0)^2 / (a v) beyond d / v, v0 the speed at 2 m from the point
     v0 = math.sqrt(2 * 2.5 * 2.0)
     assert leg_s(1000.0, 10.0, 2.5) == pytest.approx(100.0 + (10.0 - v0) ** 2 / 25.0)
+    # a corner of angle t costs v0 (1 - cos t) / a more than going on straight
+    on = [(0.0, 0.0), (100.0, 0.0), (200.0, 0.0)]
+    back = [(0.0, 0.0), (100.0, 0.0), (0.0, 0.0)]
+    assert stop_and_go_s(pts, 10.0, 2.5) - stop_and_go_s(on, 10.0, 2.5) == pytest.approx(v0 / 2.5)
+    assert stop_and_go_s(back, 10.0, 2.5) - stop_and_go_s(on, 10.0, 2.5) == pytest.approx(
+        2 * v0 / 2.5
+    )
 
 
 def test_endurance_of_the_seed_quadcopter_and_albatross(profiles: dict) -> None:
