@@ -56,6 +56,17 @@ NAMED: dict[str, tuple[str, ...]] = {
         "dubins_max_err_m",
         "split_imbalance",
     ),
+    "mission": (
+        "battery_min_pct_at_landing",
+        "makespan_planned_vs_flown",
+        "inherit_coverage",
+        "double_flown_fraction",
+        "baseline/battery_min_pct_at_landing",
+        "baseline/makespan_planned_vs_flown",
+        "baseline/inherit_coverage",
+        "premission_arrival_spread_s",
+        "baseline/premission_arrival_spread_s",
+    ),
 }
 RADIO_ROW = (
     "rf_bps",
