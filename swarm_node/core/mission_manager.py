@@ -52,6 +52,7 @@ from .autopilot.requests import (
 )
 from .autopilot.state import AutopilotState
 from .fences import FENCE_FIRST_REQUEST_ID
+from .margins import track_margin_m
 from .planning import (
     LocalFrame,
     PlanningError,
@@ -166,6 +167,12 @@ def flyable(profile: VehicleProfile) -> VehicleProfile:
     )
 
 
+def zone_margin_m(profile: VehicleProfile) -> float:
+    """How far a plan keeps from the zones for this vehicle: a fixed-wing's planned turn
+    radius, a copter's corner rounding and cross-track (`margins.track_margin_m`)."""
+    return max(flyable(profile).turn_radius_m(), track_margin_m(profile))
+
+
 def plan_share(
     mission: Mission,
     members: Sequence[Member],
@@ -192,7 +199,7 @@ def plan_share(
         zones=zones,
         now_unix_s=now,
         home_alt_msl_m=home_alt_msl_m,
-        zone_margin_m=max((flyable(m.profile).turn_radius_m() for m in members), default=0.0),
+        zone_margin_m=max((zone_margin_m(m.profile) for m in members), default=0.0),
     )
     # every fixed-wing share flyable as planned (the plan's tracks follow)
     plan = flyable_plan(plan, vehicles, zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
