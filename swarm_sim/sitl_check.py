@@ -67,6 +67,7 @@ from swarm_proto.session import ZenohSettings
 HOME = (37.4112, -5.9889, 10.0, 0.0)  # lat, lon, alt MSL, heading: as the recordings
 SWARM = "sitl"
 GEOFENCE_BIT = 1 << 20  # MAV_SYS_STATUS_GEOFENCE
+WAY_HOME_WAIT_S = 120.0  # wall: a vehicle not home-bound this long after its survey is stuck
 SAFE_RALLY_ALT_M = 15.0  # a rally point below this (above home) is not a safe way home
 RESULTS = Path(__file__).resolve().parent.parent / "bench" / "results" / "sitl.json"
 CHECKS = ("status", "rally", "fence", "survey", "way home", "rtl/land", "link loss")
@@ -564,7 +565,18 @@ class Harness:
             )
             return bool(flew and obs is not None and not obs.armed and here and here.alt_rel < 2.0)
 
-        self.wait(lambda: all(down(r) for r in self.runs), self.args.survey_timeout, 1.0)
+        def stuck(run: Run) -> bool:
+            """Its survey completed WAY_HOME_WAIT_S ago and it is still not home-bound."""
+            done = self.alerts(run.spec.node_id, AlertCode.MISSION_COMPLETE, t0_unix)
+            if not done or time.time() - done[0].time_unix_s < WAY_HOME_WAIT_S:
+                return False
+            obs = run.observer
+            here = obs.here() if obs is not None else None
+            return here is not None and distance_m(here.lat, here.lon, *run.home) > 150.0
+
+        self.wait(
+            lambda: all(down(r) or stuck(r) for r in self.runs), self.args.survey_timeout, 1.0
+        )
         for run in self.runs:
             vid = run.spec.node_id
             obs = run.observer
