@@ -345,7 +345,7 @@ def zone_add(
     ids: list[int] = typer.Option(
         [], "--id", help="vehicles that must hold it (default: all alive)"
     ),
-    timeout: float = typer.Option(5.0, help="seconds to wait for the vehicles to hold it"),
+    timeout: float = typer.Option(10.0, help="seconds to wait for the vehicles to hold it"),
 ) -> None:
     """Declare a no-fly zone, or with --operating-area the area the vehicles must not
     leave. Both also become the autopilots' fences (docs/node.md, "Fences"). It is sent
@@ -396,7 +396,7 @@ def zone_remove(
     ids: list[int] = typer.Option(
         [], "--id", help="vehicles that must drop it (default: all alive)"
     ),
-    timeout: float = typer.Option(5.0, help="seconds to wait for the vehicles to drop it"),
+    timeout: float = typer.Option(10.0, help="seconds to wait for the vehicles to drop it"),
 ) -> None:
     """Withdraw a no-fly zone or operating area (republished inactive: the vehicles
     drop it by id; the geometry sent is a placeholder), and say which vehicles did."""

@@ -276,7 +276,7 @@ class GroundStation:
         self.bus.publish(zone)
 
     def declare_zone(
-        self, zone: NoFlyZone, *, expect: Iterable[int] | None = None, timeout_s: float = 5.0
+        self, zone: NoFlyZone, *, expect: Iterable[int] | None = None, timeout_s: float = 10.0
     ) -> set[int]:
         """Publish a zone, again every `repeat_s`, until every expected vehicle (default:
         the vehicles discovered alive) holds it, as each one's zones queryable shows;
@@ -291,7 +291,7 @@ class GroundStation:
             left = end - time.monotonic()
             wait_end = time.monotonic() + min(self.repeat_s, max(left, 0.0))
             while True:
-                confirmed |= self.holders(zone, timeout_s=max(0.2, min(1.0, left)))
+                confirmed |= self.holders(zone, timeout_s=1.0)
                 if expected and expected <= confirmed:
                     return confirmed
                 if time.monotonic() >= wait_end:

@@ -68,7 +68,11 @@ HOME = (37.4112, -5.9889, 10.0, 0.0)  # lat, lon, alt MSL, heading: as the recor
 SWARM = "sitl"
 GEOFENCE_BIT = 1 << 20  # MAV_SYS_STATUS_GEOFENCE
 WAY_HOME_WAIT_S = 120.0  # wall: a vehicle not home-bound this long after its survey is stuck
-SAFE_RALLY_ALT_M = 15.0  # a rally point below this (above home) is not a safe way home
+SAFE_RALLY_ALT_M = 15.0
+SURVEY_ALT_M = {
+    "copter": 40.0,
+    "quadplane": 60.0,
+}  # a rally point below this (above home) is not a safe way home
 RESULTS = Path(__file__).resolve().parent.parent / "bench" / "results" / "sitl.json"
 CHECKS = ("status", "rally", "fence", "survey", "way home", "rtl/land", "link loss")
 CHECK_TEXT = {
@@ -205,6 +209,13 @@ class Observer:
                     if on and not self.fence_enabled:
                         self.fence_enabled_at = now
                     self.fence_enabled = on
+                elif kind == "AUTOPILOT_VERSION" and not self.version:
+                    v = int(msg.flight_sw_version)
+                    kinds = {0: "dev", 64: "alpha", 128: "beta", 192: "rc", 255: "official"}
+                    raw = bytes(msg.flight_custom_version)
+                    git = raw.decode("ascii") if raw.isascii() and raw.isalnum() else raw.hex()
+                    self.version = (f"{v >> 24 & 255}.{v >> 16 & 255}.{v >> 8 & 255}-"
+                                    f"{kinds.get(v & 255, v & 255)} ({git})")  # fmt: skip
                 elif kind == "STATUSTEXT":
                     text = str(msg.text)
                     self.texts.append((now, text))
@@ -213,6 +224,8 @@ class Observer:
 
     def _ask_streams(self) -> None:
         ts, tc = self.conn.target_system, 1
+        if not self.version:  # MAV_CMD_REQUEST_MESSAGE AUTOPILOT_VERSION
+            self.conn.mav.command_long_send(ts, tc, 512, 0, 148, 0, 0, 0, 0, 0, 0)
         for msg_id, hz in ((33, 10.0), (1, 2.0), (0, 1.0)):  # GLOBAL_POSITION_INT, SYS_STATUS, HB
             self.conn.mav.command_long_send(ts, tc, 511, 0, msg_id, 1e6 / hz, 0, 0, 0, 0, 0)
         self.conn.mav.heartbeat_send(6, 8, 0, 0, 0)
@@ -547,13 +560,19 @@ class Harness:
             run.result.set("fence", ok, detail)
 
     def check_survey(self, area: Any, zone: NoFlyZone) -> None:
-        ids = [r.spec.node_id for r in self.runs]
-        mission = Mission(4242, self.ground.gcs_id, MissionType.AREA, area,
-                          MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
-                          Selector.ids(*ids), "sitl-check survey", time.time())  # fmt: skip
-        self.log(f"area survey around the zone by {ids}, 60 m above home")
+        """Each vehicle surveys the field alone (at the same time), so that each plan
+        keeps its own vehicle type's margin from the zone (a mixed fleet's plan keeps
+        the largest, the fixed-wing's)."""
         t0, t0_unix = time.monotonic(), time.time()
-        acks = {a.vehicle_id: a for a in self.ground.mission(mission, timeout_s=15.0)}
+        acks = {}
+        for run in self.runs:
+            vid = run.spec.node_id
+            alt = SURVEY_ALT_M[run.spec.kind]
+            mission = Mission(4200 + vid, self.ground.gcs_id, MissionType.AREA, area,
+                              MissionParams(altitude_rel_m=alt, side_overlap=0.6),
+                              Selector.ids(vid), f"sitl-check {run.spec.kind}", time.time())  # fmt: skip
+            self.log(f"{run.spec.kind}: area survey around the zone, {alt:g} m above home")
+            acks.update({a.vehicle_id: a for a in self.ground.mission(mission, timeout_s=15.0)})
         centre = zone.geometry.points[0]
         radius = zone.geometry.radius_m or 0.0
 
