@@ -572,7 +572,9 @@ class Harness:
                               MissionParams(altitude_rel_m=alt, side_overlap=0.6),
                               Selector.ids(vid), f"sitl-check {run.spec.kind}", time.time())  # fmt: skip
             self.log(f"{run.spec.kind}: area survey around the zone, {alt:g} m above home")
-            acks.update({a.vehicle_id: a for a in self.ground.mission(mission, timeout_s=15.0)})
+            for a in self.ground.mission(mission, timeout_s=15.0):
+                if a.vehicle_id == vid:  # the others answer NOT_ADDRESSED
+                    acks[vid] = a
         centre = zone.geometry.points[0]
         radius = zone.geometry.radius_m or 0.0
 
