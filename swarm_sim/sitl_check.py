@@ -50,6 +50,7 @@ from rich.table import Table
 
 from gcs_cli.ground import GroundStation
 from swarm_proto import (
+    Ack,
     AlertCode,
     AlertFlag,
     CommandArgs,
@@ -564,7 +565,7 @@ class Harness:
         keeps its own vehicle type's margin from the zone (a mixed fleet's plan keeps
         the largest, the fixed-wing's)."""
         t0, t0_unix = time.monotonic(), time.time()
-        acks = {}
+        acks: dict[int, Ack] = {}
         for run in self.runs:
             vid = run.spec.node_id
             alt = SURVEY_ALT_M[run.spec.kind]
@@ -572,9 +573,9 @@ class Harness:
                               MissionParams(altitude_rel_m=alt, side_overlap=0.6),
                               Selector.ids(vid), f"sitl-check {run.spec.kind}", time.time())  # fmt: skip
             self.log(f"{run.spec.kind}: area survey around the zone, {alt:g} m above home")
-            for a in self.ground.mission(mission, timeout_s=15.0):
-                if a.vehicle_id == vid:  # the others answer NOT_ADDRESSED
-                    acks[vid] = a
+            for answer in self.ground.mission(mission, timeout_s=15.0):
+                if answer.vehicle_id == vid:  # the others answer NOT_ADDRESSED
+                    acks[vid] = answer
         centre = zone.geometry.points[0]
         radius = zone.geometry.radius_m or 0.0
 
