@@ -753,7 +753,13 @@ def table(runs: list[Run]) -> Table:
 
 
 def results(h: Harness) -> dict[str, Any]:
+    from datetime import UTC, datetime
+
     out: dict[str, Any] = {
+        "_meta": {
+            "command": "make sitl-check" + (" SITL_ARGS=--sim" if h.args.sim else ""),
+            "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        },
         "target": "swarm-sim" if h.args.sim else "ardupilot-sitl",
         "ardupilot": {r.spec.kind: (r.observer.version if r.observer else "") for r in h.runs}
         if not h.args.sim
