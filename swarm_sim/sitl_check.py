@@ -633,8 +633,8 @@ class Harness:
             started = None
             if after:
                 d0 = distance_m(after[0].lat, after[0].lon, *run.home)
-                for s in after:
-                    if distance_m(s.lat, s.lon, *run.home) < d0 - max(10.0, 0.3 * d0):
+                for s in after:  # halfway home (a final loiter never gets there)
+                    if distance_m(s.lat, s.lon, *run.home) < min(0.5 * d0, d0 - 20.0):
                         started = s.t - t_done
                         break
             run.result.figures["way_home_started_s"] = (
@@ -644,7 +644,7 @@ class Harness:
             at_home = here is not None and distance_m(here.lat, here.lon, *run.home) < 100.0
             landed = down(run)
             run.result.set("way home", started is not None and landed and at_home,
-                           f"home-bound {_opt(started, 'after {:.1f} s', 'never')}; "
+                           f"halfway home {_opt(started, 'after {:.1f} s', 'never')}; "
                            f"{'landed and disarmed' if landed else 'not landed/disarmed'}"
                            f"{' near home' if at_home else ' away from home'}")  # fmt: skip
 
