@@ -375,9 +375,9 @@ def _declare(
     link: Link, zone: NoFlyZone, what: str, done: str, ids: list[int], timeout: float
 ) -> None:
     """Send a zone until the vehicles hold it; exit 1 unless every one expected does."""
-    with link.open() as gs:
-        expected = set(ids) if ids else gs.discover()
-        confirmed = gs.declare_zone(zone, expect=expected, timeout_s=timeout)
+    with link.open() as gs:  # default: the vehicles discovered alive, or heard meanwhile
+        confirmed = gs.declare_zone(zone, expect=set(ids) if ids else None, timeout_s=timeout)
+        expected = set(ids) if ids else set(gs.snapshot().vehicle_ids()) | confirmed
     held = ", ".join(str(v) for v in sorted(confirmed)) or "none"
     console.print(f"{what} {done}; held by vehicles: {held}")
     missing = sorted(expected - confirmed)

@@ -263,8 +263,9 @@ class GroundStation:
                     found.add(int(params["node_id"]))
         except Exception:  # a closed session: nothing more to discover
             return set()
-        found.discard(self.gcs_id)
         with self._lock:
+            found |= self.view.alive  # and what the liveliness subscriber has seen
+            found.discard(self.gcs_id)
             self.view.alive |= found
         self.wait_for(lambda v: all(i in v.status or i in v.info for i in found), window_s)
         with self._lock:
@@ -283,10 +284,14 @@ class GroundStation:
         returns the ids of the vehicles that confirmed holding it (this very zone, or
         its withdrawal)."""
         validate(zone)
+        given = expect is not None
         expected = set(expect) if expect is not None else self.discover()
         end = time.monotonic() + timeout_s
         confirmed: set[int] = set()
         while True:
+            if not given:  # vehicles heard since (a slow discovery on a loaded host)
+                with self._lock:
+                    expected |= set(self.view.vehicle_ids())
             self.bus.publish(zone)
             left = end - time.monotonic()
             wait_end = time.monotonic() + min(self.repeat_s, max(left, 0.0))
