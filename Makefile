@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.bandada-installed
 BENCH  ?=
 PYTEST_ARGS ?=
 
-.PHONY: all demo test lint typecheck unit bench soak scale docs clean install
+.PHONY: all demo test lint typecheck unit bench soak scale docs clean install sitl-check
 
 all: test
 
@@ -45,6 +45,13 @@ soak: $(STAMP)
 
 scale: $(STAMP)
 	$(BIN)/python -m pytest -q -m scale $(PYTEST_ARGS)
+
+## sitl-check: the nodes against real ArduPilot SITL (docs/sitl.md); not part of `make test`.
+## Needs ARDUPILOT_SITL_BIN (a directory with arducopter and arduplane); SITL_ARGS=--sim
+## runs it against swarm-sim vehicles instead. Writes bench/results/sitl.json.
+SITL_ARGS ?=
+sitl-check: $(STAMP)
+	$(BIN)/python -m swarm_sim.sitl_check $(SITL_ARGS)
 
 ## docs: regenerate the generated documents (keyspace, state diagrams)
 docs: $(STAMP)

@@ -255,7 +255,6 @@ def cmd(
         )
     args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id)
     with ctx.obj.open() as gs:
-        gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)
         acks = gs.command(k, selector_from(ids, fleet, 0, ""), args, timeout_s=timeout)
     _print_acks(acks, f"{k.name.lower()}")
 
@@ -319,7 +318,6 @@ def mission(
     except (ValueError, msgspec.ValidationError) as exc:
         raise typer.BadParameter(str(exc)) from exc
     with ctx.obj.open() as gs:
-        gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)
         acks = gs.mission(m, timeout_s=timeout)
     _print_acks(acks, f"mission {m.mission_id} ({mtype.name.lower()})")
 
@@ -375,9 +373,15 @@ def zone_add(
         "--operating-area",
         help="an operating area the vehicles must stay inside (2-D: no floor or ceiling)",
     ),
+    ids: list[int] = typer.Option(
+        [], "--id", help="vehicles that must hold it (default: all alive)"
+    ),
+    timeout: float = typer.Option(10.0, help="seconds to wait for the vehicles to hold it"),
 ) -> None:
     """Declare a no-fly zone, or with --operating-area the area the vehicles must not
-    leave. Both also become the autopilots' fences (docs/node.md, "Fences")."""
+    leave. Both also become the autopilots' fences (docs/node.md, "Fences"). It is sent
+    again until every vehicle alive (or each --id) holds it, and says which do; a node
+    started later learns it from the others."""
     geometry = geometry_from(polygon, None, circle, None, None)
     now = time.time()
     try:
@@ -394,24 +398,42 @@ def zone_add(
         )
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
-    with ctx.obj.open() as gs:
-        gs.zone(zone)
-        time.sleep(0.5)
-    console.print(f"{'operating area' if operating_area else 'zone'} {zone_id} declared")
+    what = f"{'operating area' if operating_area else 'zone'} {zone_id}"
+    _declare(ctx.obj, zone, what, "declared", ids, timeout)
+
+
+def _declare(
+    link: Link, zone: NoFlyZone, what: str, done: str, ids: list[int], timeout: float
+) -> None:
+    """Send a zone until the vehicles hold it; exit 1 unless every one expected does."""
+    with link.open() as gs:  # default: the vehicles discovered alive, or heard meanwhile
+        confirmed = gs.declare_zone(zone, expect=set(ids) if ids else None, timeout_s=timeout)
+        expected = set(ids) if ids else set(gs.snapshot().vehicle_ids()) | confirmed
+    held = ", ".join(str(v) for v in sorted(confirmed)) or "none"
+    console.print(f"{what} {done}; held by vehicles: {held}")
+    missing = sorted(expected - confirmed)
+    if missing:
+        console.print(f"[yellow]{what}: not confirmed by {', '.join(map(str, missing))}[/]")
+    if not expected:
+        console.print(f"[yellow]{what}: no vehicle is alive to hold it[/]")
+    if missing or not expected:
+        raise typer.Exit(1)
 
 
 @zone_app.command("remove")
 def zone_remove(
     ctx: typer.Context,
     zone_id: int = typer.Argument(..., help="zone id"),
+    ids: list[int] = typer.Option(
+        [], "--id", help="vehicles that must drop it (default: all alive)"
+    ),
+    timeout: float = typer.Option(10.0, help="seconds to wait for the vehicles to drop it"),
 ) -> None:
     """Withdraw a no-fly zone or operating area (republished inactive: the vehicles
-    drop it by id; the geometry sent is a placeholder)."""
+    drop it by id; the geometry sent is a placeholder), and say which vehicles did."""
     placeholder = Geometry.circle(0.0, 0.0, 1.0)
-    with ctx.obj.open() as gs:
-        gs.zone(NoFlyZone(zone_id, placeholder, active=False))
-        time.sleep(0.5)
-    console.print(f"zone {zone_id} withdrawn")
+    zone = NoFlyZone(zone_id, placeholder, active=False)
+    _declare(ctx.obj, zone, f"zone {zone_id}", "withdrawn", ids, timeout)
 
 
 @app.command()

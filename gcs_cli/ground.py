@@ -27,6 +27,7 @@ from swarm_proto import (
     Mission,
     NoFlyZone,
     Selector,
+    SelectorKind,
     SwarmView,
     VehicleInfo,
     VehicleStatus,
@@ -34,13 +35,15 @@ from swarm_proto import (
     lan,
     validate,
 )
+from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus, ZenohSettings
-from swarm_proto.topics import ACK, ALERT, INFO, PEERS, STATUS
+from swarm_proto.topics import ACK, ALERT, ALIVE, INFO, PEERS, STATUS, ZONES
 
 DEFAULT_GCS_ID = 900
 
 
 REPEAT_S = 1.0  # commands and missions are sent again this often until answered
+DISCOVER_S = 2.0  # a fresh ground station's window to hear the vehicles that are alive
 
 
 def new_seq() -> int:
@@ -207,8 +210,9 @@ class GroundStation:
         *,
         timeout_s: float = 5.0,
     ) -> list[Ack]:
-        """Publish a command and collect the acks of the vehicles it addresses (all
-        that are known to be addressed, or whatever arrives within the timeout)."""
+        """Publish a command and collect the acks of the vehicles it addresses (the
+        listed ids, or the vehicles discovered alive that it addresses; or whatever
+        arrives within the timeout when none is known)."""
         cmd = Command(
             self.gcs_id,
             new_seq(),
@@ -218,22 +222,113 @@ class GroundStation:
             max(0.0, time.time()),
         )
         return self._send_and_wait(
-            cmd, AckRef.COMMAND, cmd.seq, self._addressed(cmd.target), timeout_s
+            cmd, AckRef.COMMAND, cmd.seq, self.expected(cmd.target), timeout_s
         )
 
     def mission(self, mission: Mission, *, timeout_s: float = 5.0) -> list[Ack]:
         """Publish a mission and collect the answers: every vehicle answers a mission,
-        those it does not address with NOT_ADDRESSED. Waits for the vehicles known to be
-        addressed (or, if none is known, for every known vehicle)."""
-        expect = self._addressed(mission.selection)
+        those it does not address with NOT_ADDRESSED. Waits for the addressed vehicles:
+        the listed ids, or (fleet, all) the vehicles discovered alive that it addresses
+        (if none is known, for every vehicle discovered)."""
+        expect = self.expected(mission.selection)
         if expect is None:
             with self._lock:
                 expect = set(self.view.vehicle_ids()) or None
         return self._send_and_wait(mission, AckRef.MISSION, mission.mission_id, expect, timeout_s)
 
+    def expected(self, target: Selector) -> set[int] | None:
+        """Who must answer: a list of ids is taken as given (a fresh ground station
+        need not have heard them); otherwise the vehicles alive now (discovered first)
+        that the selector addresses. None: nobody known."""
+        if target.kind == SelectorKind.IDS:
+            return set(target.vehicle_ids)
+        self.discover()
+        return self._addressed(target)
+
+    def discover(self, window_s: float = DISCOVER_S) -> set[int]:
+        """The vehicles alive now: ask Zenoh for every liveliness token (a reply from
+        the router or peers, not only what this session happened to hear yet), then wait
+        up to `window_s` until each of them has been heard (its type and fleet known).
+        Returns the ids of the vehicles among them (ground stations left out)."""
+        found: set[int] = set()
+        try:
+            replies = self.bus.session.liveliness().get(
+                ALIVE.wildcard(self.swarm), timeout=window_s
+            )
+            for reply in replies:
+                if reply.ok is None:
+                    continue
+                params = ALIVE.parse(self.swarm, str(reply.ok.key_expr))
+                if params is not None and params["node_id"].isdigit():
+                    found.add(int(params["node_id"]))
+        except Exception:  # a closed session: nothing more to discover
+            return set()
+        with self._lock:
+            found |= self.view.alive  # and what the liveliness subscriber has seen
+            found.discard(self.gcs_id)
+            self.view.alive |= found
+        self.wait_for(lambda v: all(i in v.status or i in v.info for i in found), window_s)
+        with self._lock:
+            return {i for i in found if self.view.type_of(i) != VehicleType.GCS}
+
     def zone(self, zone: NoFlyZone) -> None:
+        """Publish a zone once (see `declare_zone` to know who holds it)."""
         validate(zone)
         self.bus.publish(zone)
+
+    def declare_zone(
+        self, zone: NoFlyZone, *, expect: Iterable[int] | None = None, timeout_s: float = 10.0
+    ) -> set[int]:
+        """Publish a zone, again every `repeat_s`, until every expected vehicle (default:
+        the vehicles discovered alive) holds it, as each one's zones queryable shows;
+        returns the ids of the vehicles that confirmed holding it (this very zone, or
+        its withdrawal)."""
+        validate(zone)
+        given = expect is not None
+        expected = set(expect) if expect is not None else self.discover()
+        end = time.monotonic() + timeout_s
+        confirmed: set[int] = set()
+        while True:
+            if not given:  # vehicles heard since (a slow discovery on a loaded host)
+                with self._lock:
+                    expected |= set(self.view.vehicle_ids())
+            self.bus.publish(zone)
+            left = end - time.monotonic()
+            wait_end = time.monotonic() + min(self.repeat_s, max(left, 0.0))
+            while True:
+                confirmed |= self.holders(zone, timeout_s=1.0)
+                if expected and expected <= confirmed:
+                    return confirmed
+                if time.monotonic() >= wait_end:
+                    break
+                time.sleep(0.1)
+            if time.monotonic() >= end:
+                return confirmed
+
+    def holders(self, zone: NoFlyZone, timeout_s: float = 1.0) -> set[int]:
+        """The vehicles whose zones queryable answers with exactly this zone."""
+        return {vid for vid, z in self.zones_held(zone.zone_id, timeout_s).items() if z == zone}
+
+    def zones_held(self, zone_id: int, timeout_s: float = 1.0) -> dict[int, NoFlyZone]:
+        """Each vehicle's copy of one zone, as its zones queryable answers."""
+        held: dict[int, NoFlyZone] = {}
+        key = ZONES.key(self.swarm, zone_id=zone_id)
+        try:
+            replies = list(self.bus.session.get(key, timeout=timeout_s))
+        except Exception:  # a closed session
+            return held
+        for reply in replies:
+            if reply.ok is None:
+                continue
+            params = ZONES.parse(self.swarm, str(reply.ok.key_expr))
+            if params is None or not params["vehicle_id"].isdigit():
+                continue
+            try:
+                z = lan.decode(reply.ok.payload.to_bytes(), NoFlyZone)
+            except DecodeError:
+                continue
+            held[int(params["vehicle_id"])] = z
+        return held
 
     def _addressed(self, target: Selector) -> set[int] | None:
         with self._lock:

@@ -221,6 +221,14 @@ PEERS = Topic(
     SwarmView,
     "Queryable: the node's view of the swarm (its live peers); LAN only.",
 )
+ZONES = Topic(
+    "zones",
+    "vehicle/{vehicle_id}/zones/{zone_id}",
+    None,
+    "Queryable: the no-fly zones and operating areas the node holds (withdrawn ones "
+    "too), one NoFlyZone reply per zone on its own key; a (re)started node and the "
+    "ground station ask it (`vehicle/*/zones/*`). LAN only.",
+)
 DATABASE = Topic(
     "database",
     "db/{node_id}",
@@ -249,6 +257,7 @@ TOPICS: tuple[Topic, ...] = (
     TARGET,
     ALIVE,
     PEERS,
+    ZONES,
     DATABASE,
     RADIO_STATS,
 )

@@ -59,6 +59,7 @@ from .commands import (
     emergency_requests,
     plan_command,
 )
+from .emergency_route import zone_safe_emergency
 from .fences import (
     FENCE_FULL_HEIGHT_REL_M,
     FENCE_MAX_ITEMS,
@@ -535,7 +536,13 @@ class NodeCore:
                 self.self_id, max(0.0, now), o.severity, o.code, f"emergency: {o.code.name}"
             )
             out: list[Output] = [Publish(alert)]
-            return out + [Submit(r) for r in emergency_requests(o.code, self.profile)]
+            requests, why = zone_safe_emergency(
+                emergency_requests(o.code, self.profile), self.autopilot, self.base,
+                self.planning_zones(now), self.profile, now,
+            )  # fmt: skip
+            if why:
+                out.append(Note(logging.WARNING, f"emergency: {why}"))
+            return out + [Submit(r) for r in requests]
         if isinstance(o, fsm.ReturnHome):
             note = Note(logging.WARNING, f"returning home: {o.reason}")
             return [note, *self._from_manager(self._start_return(now))]

@@ -19,9 +19,10 @@ from typing import Protocol
 import msgspec
 import zenoh
 
-from swarm_proto import Alert, Clock, MissionType, PeerEntry, SwarmView, lan
+from swarm_proto import Alert, Clock, MissionType, NoFlyZone, PeerEntry, SwarmView, lan
+from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus
-from swarm_proto.topics import COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE
+from swarm_proto.topics import COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE, ZONES
 
 from ..core.autopilot.requests import ApRequest, ApResult
 from ..core.autopilot.state import AutopilotState
@@ -87,6 +88,13 @@ class NoAutopilot:
         pass
 
 
+class _Learned(msgspec.Struct, frozen=True):
+    """A zone read from a peer's zones queryable: taken only if the node holds no zone
+    of that id yet (what is published live always wins over what is read back)."""
+
+    zone: NoFlyZone
+
+
 class NodeRuntime:
     def __init__(
         self,
@@ -113,11 +121,14 @@ class NodeRuntime:
             ),
             mission_defaults=mission_defaults_of(database) if database is not None else {},
         )
-        self.inbox: queue.SimpleQueue[Input] = queue.SimpleQueue()
+        self.inbox: queue.SimpleQueue[Input | _Learned] = queue.SimpleQueue()
         self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)
         if bus is not None:
             bus.on_bad_input = self._bad_input
         self._queryable: zenoh.Queryable | None = None
+        self._zones_queryable: zenoh.Queryable | None = None
+        self._ask_zones: queue.SimpleQueue[int | None] = queue.SimpleQueue()
+        self._zone_asker: threading.Thread | None = None
         self.database = database
         self._db_server: DatabaseQueryable | None = None
         self._lock = threading.Lock()  # guards the core against the peers queryable
@@ -147,6 +158,52 @@ class NodeRuntime:
 
     def _alive(self, node_id: int, alive: bool) -> None:
         self.inbox.put(PeerAlive(node_id, alive))
+        if alive and node_id != self.core.self_id:
+            self._ask_zones.put(node_id)  # learn the zones it holds (off Zenoh's thread)
+
+    # ------------------------------------------------------------------ durable zones
+    def _answer_zones(self, query: zenoh.Query) -> None:
+        """Every zone this node holds (withdrawn ones too), one reply per zone key."""
+        with self._lock:
+            zones = list(self.core.monitor.zones.values())
+        for z in zones:
+            key = ZONES.key(self.config.swarm, vehicle_id=self.core.self_id, zone_id=z.zone_id)
+            if zenoh.KeyExpr(key).intersects(query.key_expr):
+                query.reply(key, lan.encode(z))
+
+    def _zone_asking(self) -> None:
+        """Ask each peer that comes alive which zones it holds: a node started after a
+        zone was declared (or restarted) learns it from any peer that holds it."""
+        while True:
+            node_id = self._ask_zones.get()
+            if node_id is None:
+                return
+            try:
+                replies = list(
+                    self.bus.session.get(
+                        ZONES.key(self.config.swarm, vehicle_id=node_id), timeout=2.0
+                    )
+                )
+            except Exception:  # the session is closing
+                log.debug("zones query failed", exc_info=True)
+                continue
+            for reply in replies:
+                if reply.ok is None:
+                    continue
+                try:
+                    zone = lan.decode(reply.ok.payload.to_bytes(), NoFlyZone)
+                except DecodeError as exc:
+                    self._bad_input(str(reply.ok.key_expr), exc)
+                    continue
+                self.inbox.put(_Learned(zone))
+
+    def _handle(self, event: Input | _Learned, now: float) -> list[Output]:
+        if isinstance(event, _Learned):
+            if event.zone.zone_id in self.core.monitor.zones:
+                return []
+            log.info("node %d: zone %d learned from a peer", self.core.self_id, event.zone.zone_id)
+            return self.core.handle(Received(event.zone), now)
+        return self.core.handle(event, now)
 
     def _answer_peers(self, query: zenoh.Query) -> None:
         with self._lock:
@@ -170,6 +227,13 @@ class NodeRuntime:
     def start(self) -> None:
         for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET):
             self.bus.subscribe(topic, self._received)
+        self._zone_asker = threading.Thread(
+            target=self._zone_asking, name=f"zones-{self.core.self_id}", daemon=True
+        )
+        self._zone_asker.start()
+        self._zones_queryable = self.bus.session.declare_queryable(
+            ZONES.key(self.config.swarm, vehicle_id=self.core.self_id), self._answer_zones
+        )
         self.bus.watch_alive(self._alive)
         self.bus.declare_alive(self.core.self_id)
         key = PEERS.key(self.config.swarm, vehicle_id=self.core.self_id)
@@ -190,16 +254,16 @@ class NodeRuntime:
                 deadline = min(self.core.next_deadline(), next_ap)
                 wait = min(self.clock.to_wall(deadline - now), 0.25)
                 try:
-                    event: Input | None = self.inbox.get(timeout=max(0.0, wait))
+                    event: Input | _Learned | None = self.inbox.get(timeout=max(0.0, wait))
                 except queue.Empty:
                     event = None
                 now = self.clock.now()
                 with self._lock:
                     if event is not None:
-                        self._execute(self.core.handle(event, now))
+                        self._execute(self._handle(event, now))
                         while True:  # drain what arrived meanwhile
                             try:
-                                self._execute(self.core.handle(self.inbox.get_nowait(), now))
+                                self._execute(self._handle(self.inbox.get_nowait(), now))
                             except queue.Empty:
                                 break
                     if now >= next_ap:
@@ -252,12 +316,17 @@ class NodeRuntime:
         if self._db_server is not None:
             self._db_server.close()
             self._db_server = None
-        if self._queryable is not None:
-            try:
-                self._queryable.undeclare()
-            except Exception:
-                log.debug("queryable undeclare failed", exc_info=True)
-            self._queryable = None
+        if self._zone_asker is not None:
+            self._ask_zones.put(None)
+            self._zone_asker.join(3.0)
+            self._zone_asker = None
+        for q in (self._queryable, self._zones_queryable):
+            if q is not None:
+                try:
+                    q.undeclare()
+                except Exception:
+                    log.debug("queryable undeclare failed", exc_info=True)
+        self._queryable = self._zones_queryable = None
         self.bus.close()
         self.autopilot.close()
         if self.database is not None:

@@ -174,6 +174,7 @@ def _param_table(
             "WPNAV_SPEED_UP": (af.climb_rate_m_s * 100, 9),
             "WPNAV_SPEED_DN": (af.sink_rate_m_s * 100, 9),
             "WPNAV_RADIUS": (af.wp_radius_m * 100, 9),
+            "WPNAV_ACCEL": (af.accel_m_s2 * 100, 9),
             "RTL_ALT": (af.rtl_alt_m * 100, 9),
             "LAND_SPEED": (af.land_speed_m_s * 100, 4),
             "DISARM_DELAY": (10.0, 2),
@@ -408,6 +409,13 @@ class SimAutopilot:
         if self.firmware == Firmware.PLANE:
             return self._param("AIRSPEED_CRUISE")
         return self._param("WP_SPEED")
+
+    @property
+    def wp_accel(self) -> float:
+        """Horizontal acceleration in AUTO (copter: WPNAV_ACCEL)."""
+        if self.firmware == Firmware.COPTER:
+            return self._param("WPNAV_ACCEL") / 100.0
+        return self.airframe.accel_m_s2
 
     @property
     def loiter_radius(self) -> float:

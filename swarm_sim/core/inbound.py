@@ -9,6 +9,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+import msgspec
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from . import commands, mission_runner
@@ -237,6 +238,11 @@ def on_param_set(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
         return
     if name not in ("MIS_TOTAL", "SYSID_THISMAV", "Q_ENABLE", "FRAME_CLASS"):
         ap.params[name] = (value, ap.params[name][1])
+    if name == "BATT_CAPACITY" and value > 0:  # a bigger battery, as charged as before
+        b = ap.battery
+        left = b.remaining_frac
+        b.params = msgspec.structs.replace(b.params, capacity_mah=value)
+        b.consumed_mah = value * (1.0 - left)
     names = sorted(ap.params)
     ap._out.append(ap._param_value(name, names.index(name), len(names)))
 

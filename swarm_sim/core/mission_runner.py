@@ -107,6 +107,19 @@ def jump(ap: SimAutopilot, seq: int, item: MissionItem) -> int:
     return seq + 1
 
 
+def _next_waypoint(ap: SimAutopilot) -> tuple[float, float] | None:
+    """(n, e) of the next NAV item if it is a plain waypoint (ArduCopter rounds the
+    corner towards it instead of stopping), else None."""
+    items = ap.mission_items
+    k = ap.mission_seq + 1
+    while k < len(items) and not is_nav(items[k].command) and items[k].command != 177:
+        k += 1
+    if k >= len(items) or items[k].command != 16 or items[k].param1 > 0:
+        return None
+    n, e, _alt = item_location(ap, items[k])
+    return n, e
+
+
 def start_nav_item(ap: SimAutopilot, item: MissionItem) -> str:
     """Start the task for a NAV item: "started", "done" (complete at once) or "mode"
     (the item switched modes)."""
@@ -118,8 +131,9 @@ def start_nav_item(ap: SimAutopilot, item: MissionItem) -> str:
         accept = item.param2 if item.param2 > 0 else ap._wp_radius()
         hold = 0.0 if fw == Firmware.PLANE else max(0.0, item.param1)
         prev = ap.nav.destination if isinstance(ap._leaf_task(), FlyTo) else None
-        origin = (prev[0], prev[1]) if prev is not None and ap.fixed_wing else None
-        task = FlyTo(n, e, alt, accept_m=accept, hold_s=hold, stop=not ap.fixed_wing, origin=origin)
+        origin = (prev[0], prev[1]) if prev is not None else None  # the leg is flown as a line
+        task = FlyTo(n, e, alt, accept_m=accept, hold_s=hold, stop=not ap.fixed_wing, origin=origin,
+                     next_ne=_next_waypoint(ap) if fw == Firmware.COPTER else None)  # fmt: skip
         ap._set_nav(task, Purpose.MISSION)
     elif cmd in (17, 18, 19, 31):  # LOITER_UNLIM, _TURNS, _TIME, _TO_ALT
         radius = abs(item.param3) if cmd != 31 else abs(item.param2)

@@ -15,6 +15,15 @@ from typing import Protocol
 
 from .kinematics import Body, Guide, Target
 
+#: The radius of the turn ArduCopter flies at a corner between two AUTO waypoints, fitted
+#: to the recorded `copter-corner-cutting` flights (WPNAV_SPEED 10 m/s, WPNAV_ACCEL
+#: 2.5 m/s^2, WPNAV_JERK 1 m/s^3, WPNAV_RADIUS 2 m): 90-degree corners passed 1.1-1.2 m
+#: away on their inside, 0.8-0.9 m off the planned lines (a 2.9 m arc passes 1.2 m from
+#: the corner and 0.85 m from the lines).
+COPTER_CORNER_RADIUS_M = 3.4
+#: Sharper turns than this are flown by braking to the point (no rounding).
+COPTER_ROUNDED_TURN_MAX_RAD = math.radians(100.0)
+
 
 class Purpose(IntEnum):
     """Why the current navigation task runs (decides what happens when it completes)."""
@@ -37,6 +46,8 @@ class NavContext(Protocol):
     def fixed_wing(self) -> bool: ...
     @property
     def wp_speed(self) -> float: ...
+    @property
+    def wp_accel(self) -> float: ...
     @property
     def loiter_radius(self) -> float: ...
 
@@ -111,6 +122,7 @@ class FlyTo(NavTask):
     vtol: bool = False
     hold_s: float = 0.0  # wait at the point (copter/rover NAV_WAYPOINT param1)
     origin: tuple[float, float] | None = None
+    next_ne: tuple[float, float] | None = None  # copter: the next waypoint, to round the corner
     reached: bool = False
     reached_dist_m: float = 0.0
     held_s: float = 0.0
@@ -120,8 +132,40 @@ class FlyTo(NavTask):
         speed = self.speed if self.speed > 0 else ctx.wp_speed
         if self.vtol:
             speed = 0.0  # the VTOL speed
+        corner = self._corner(ctx, speed)
+        if corner is not None:
+            return corner
         return Target(Guide.GOTO, self.n, self.e, self.alt, speed=speed, stop=self.stop,
                       fixed_wing=not self.vtol, track_from=self.origin)  # fmt: skip
+
+    def _corner(self, ctx: NavContext, speed: float) -> Target | None:
+        """A multirotor in AUTO with another waypoint after this one does not stop at
+        the corner (ArduCopter's S-curves): it slows to the speed of a turn of
+        COPTER_CORNER_RADIUS_M and rounds the corner on its inside, following the next
+        leg from where the turn begins."""
+        if self.next_ne is None or self.origin is None or ctx.fixed_wing or self.hold_s > 0:
+            return None
+        b = ctx.body
+        in_n, in_e = self.n - self.origin[0], self.e - self.origin[1]
+        out_n, out_e = self.next_ne[0] - self.n, self.next_ne[1] - self.e
+        len_in, len_out = math.hypot(in_n, in_e), math.hypot(out_n, out_e)
+        if len_in < 1.0 or len_out < 1.0:
+            return None
+        cos_t = (in_n * out_n + in_e * out_e) / (len_in * len_out)
+        turn = math.acos(max(-1.0, min(1.0, cos_t)))
+        if not math.radians(5.0) <= turn <= COPTER_ROUNDED_TURN_MAX_RAD:
+            return None  # nearly straight on, or a sharp turn: it brakes to the point
+        accel = max(ctx.wp_accel, 0.5)
+        tangent = min(COPTER_CORNER_RADIUS_M * math.tan(turn / 2.0), 0.5 * len_in, 0.5 * len_out)
+        left = ((self.n - b.n) * in_n + (self.e - b.e) * in_e) / len_in  # along, to the corner
+        if left <= tangent:  # in the turn: follow the next leg
+            return Target(Guide.GOTO, self.next_ne[0], self.next_ne[1], self.alt, speed=speed,
+                          stop=False, fixed_wing=False, track_from=(self.n, self.e))  # fmt: skip
+        # brake to the turn's speed at the start of the turn
+        v_turn = math.sqrt(accel * COPTER_CORNER_RADIUS_M)
+        v = min(speed, math.sqrt(v_turn * v_turn + 2.0 * accel * (left - tangent)))
+        return Target(Guide.GOTO, self.n, self.e, self.alt, speed=v, stop=False,
+                      fixed_wing=False, track_from=self.origin)  # fmt: skip
 
     def update(self, ctx: NavContext, dt: float) -> bool:
         b = ctx.body
@@ -133,6 +177,8 @@ class FlyTo(NavTask):
                 on_point = dist <= self.accept_m or self._passed(b)
             else:
                 on_point = dist <= self.accept_m and abs(self.alt - b.alt) <= 2.0
+                if self.next_ne is not None and self.hold_s <= 0 and abs(self.alt - b.alt) <= 2.0:
+                    on_point = on_point or self._passed(b)  # a rounded corner, passed
             if on_point:
                 self.reached = True
                 self.reached_dist_m = dist

@@ -43,6 +43,7 @@ import msgspec
 import numpy as np
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
+from swarm_node.core.margins import track_margin_m
 from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Mission, MissionType, NoFlyZone
 
@@ -469,13 +470,24 @@ def _plan(
         zones=zones,
         now_unix_s=now_unix_s,
         home_alt_msl_m=home_alt_msl_m,
-        zone_margin_m=max((v.profile.turn_radius_m() for v in vehicles), default=0.0),
+        zone_margin_m=zone_margin_m(vehicles),
     )
     # every fixed-wing share flyable as planned (the plan's tracks follow)
     detail = flyable_plan(
         detail, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
     )
     return _fleet_plan(mission, vehicles, detail, homes)
+
+
+def zone_margin_m(vehicles: Sequence[PlanVehicle]) -> float:
+    """How far a plan keeps from the zones: the widest planned turn radius of a
+    fixed-wing (`vehicles` are already `flyable`), or what ArduPilot flies off a
+    multirotor's or ground vehicle's legs around its corners (`margins.track_margin_m`,
+    issue 11)."""
+    return max(
+        (max(v.profile.turn_radius_m(), track_margin_m(v.profile)) for v in vehicles),
+        default=0.0,
+    )
 
 
 #: rounds of the area split fed with the time the flyable stage added to each share
@@ -498,7 +510,7 @@ def _plan_area(
     fixed-wing's share: the split is made again with each vehicle's added time as its
     `extra_s` (up to FLYABLE_ROUNDS splits), and the plan with the least makespan as
     flown is kept."""
-    margin = max((v.profile.turn_radius_m() for v in vehicles), default=0.0)
+    margin = zone_margin_m(vehicles)
     aware = not BASELINE_SPLIT
     # a VTOL starts its share in hover: the forward transition costs it time
     start = {

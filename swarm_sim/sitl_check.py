@@ -1,0 +1,829 @@
+"""`make sitl-check`: bandada against real ArduPilot SITL, as a new user would run it.
+
+Starts ArduCopter (`--model +`, instance 0, tcp 5760) and an ArduPlane QuadPlane
+(`--model quadplane`, instance 1, tcp 5770) from `ARDUPILOT_SITL_BIN` with the default
+parameter files of the ArduPilot tree, a Zenoh router (`swarm-node router`) and one
+`swarm-node run` per vehicle, then drives them with the ground station library and
+checks, per vehicle type, against what ArduPilot itself reports on a second and third
+MAVLink port of each SITL (SERIAL1 +2: telemetry, SERIAL2 +3: mission downloads):
+
+- status: the node's VehicleStatus matches SITL (type, mode, armed, position)
+- rally: SET_BASE -> the rally point ArduPilot holds, at a safe altitude
+- fence: a zone -> ArduPilot's fence holds it, enabled, with no failed enable
+- survey: an area survey around the zone flown with no breach (least clearance from
+  the track ArduPilot reports at 10 Hz)
+- way home: after the survey, the way home flown, landed, disarmed
+- rtl/land: GUIDED, arm, take-off, then `rtl` and `land` commands obeyed
+- link loss: SITL frozen (SIGSTOP) -> the node reports AUTOPILOT_LINK_LOSS; back after
+  SIGCONT
+
+It prints a PASS/FAIL table and writes bench/results/sitl.json. `--sim` runs the same
+against swarm-sim vehicles (no ArduPilot needed; the simulator accepts several clients
+on one port, so every link uses the vehicle's port). Times (`*_s`) are wall seconds
+(SITL runs `--speedup` times faster than real time). docs/sitl.md tells how to build
+SITL.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import functools
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table
+
+from gcs_cli.ground import GroundStation
+from swarm_proto import (
+    Ack,
+    AlertCode,
+    AlertFlag,
+    CommandArgs,
+    CommandKind,
+    GeoPoint,
+    Mission,
+    MissionParams,
+    MissionType,
+    NoFlyZone,
+    Selector,
+    VehicleType,
+)
+from swarm_proto.session import ZenohSettings
+
+HOME = (37.4112, -5.9889, 10.0, 0.0)  # lat, lon, alt MSL, heading: as the recordings
+SWARM = "sitl"
+GEOFENCE_BIT = 1 << 20  # MAV_SYS_STATUS_GEOFENCE
+WAY_HOME_WAIT_S = 120.0  # wall: a vehicle not home-bound this long after its survey is stuck
+SAFE_RALLY_ALT_M = 15.0
+SURVEY_ALT_M = {
+    "copter": 40.0,
+    "quadplane": 60.0,
+}  # a rally point below this (above home) is not a safe way home
+RESULTS = Path(__file__).resolve().parent.parent / "bench" / "results" / "sitl.json"
+CHECKS = ("status", "rally", "fence", "survey", "way home", "rtl/land", "link loss")
+CHECK_TEXT = {
+    "status": "status matches SITL",
+    "rally": "base -> rally point, safe altitude",
+    "fence": "zone -> fence enabled first try",
+    "survey": "survey around the zone, no breach",
+    "way home": "way home flown, landed, disarmed",
+    "rtl/land": "RTL / LAND commands",
+    "link loss": "link loss reported, link back",
+}
+
+
+@dataclass(frozen=True)
+class VehicleSpec:
+    kind: str  # "copter" / "quadplane": the row in the results
+    node_id: int  # the seed database's system (7: quadcopter, 1: Albatross VTOL)
+    instance: int
+    binary: str
+    model: str
+    parm: str
+    vehicle_type: VehicleType
+    sim_model: str
+    home_east_m: float = 0.0
+
+    @property
+    def port(self) -> int:
+        return 5760 + 10 * self.instance
+
+
+VEHICLES = (
+    VehicleSpec("copter", 7, 0, "arducopter", "+", "copter.parm", VehicleType.COPTER, "copter"),
+    VehicleSpec(
+        "quadplane",
+        1,
+        1,
+        "arduplane",
+        "quadplane",
+        "quadplane.parm",
+        VehicleType.VTOL,
+        "vtol",
+        home_east_m=30.0,
+    ),
+)
+# Extra parameters (a user's own parm file would carry them): the copter's default
+# 3.3 Ah battery drains in a few minutes of SITL (behaviours.md).
+EXTRA_PARAMS = {"copter": {"BATT_CAPACITY": 20000}, "quadplane": {}}
+
+
+def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float, float]:
+    return (
+        lat + north_m / 111_320.0,
+        lon + east_m / (111_320.0 * math.cos(math.radians(lat))),
+    )
+
+
+def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
+    dn = (lat2 - lat1) * 111_320.0
+    de = (lon2 - lon1) * 111_320.0 * math.cos(math.radians((lat1 + lat2) / 2))
+    return math.hypot(dn, de)
+
+
+def _opt(x: float | None, fmt: str, none: str) -> str:
+    return none if x is None else fmt.format(x)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+# --------------------------------------------------------------------------- MAVLink
+
+
+@dataclass
+class Sample:
+    t: float  # wall, monotonic
+    lat: float
+    lon: float
+    alt_rel: float
+
+
+class Observer:
+    """What ArduPilot itself says, on a MAVLink port of its own: HEARTBEAT (mode, armed),
+    GLOBAL_POSITION_INT at 10 Hz, SYS_STATUS (fence enabled), STATUSTEXT."""
+
+    def __init__(self, url: str) -> None:
+        from pymavlink import mavutil
+
+        self.conn: Any = mavutil.mavlink_connection(
+            url, source_system=250, source_component=191, retries=60
+        )
+        self.lock = threading.Lock()
+        self.track: list[Sample] = []
+        self.mode = -1
+        self.armed = False
+        self.fence_enabled_at: float | None = None
+        self.fence_enabled = False
+        self.texts: list[tuple[float, str]] = []
+        self.last_heard = 0.0
+        self.version = ""
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True, name=f"observer-{url}")
+        self._thread.start()
+
+    def _run(self) -> None:
+        asked = 0.0
+        while not self._stop.is_set():
+            try:
+                msg = self.conn.recv_match(blocking=True, timeout=0.3)
+            except Exception:  # SITL gone (or frozen and the socket reset)
+                time.sleep(0.2)
+                continue
+            now = time.monotonic()
+            if now - asked > 5.0 and getattr(self.conn, "target_system", None):
+                asked = now
+                self._ask_streams()
+            if msg is None:
+                continue
+            kind = msg.get_type()
+            if msg.get_srcComponent() != 1:
+                continue  # the autopilot's messages only
+            with self.lock:
+                self.last_heard = now
+                if kind == "HEARTBEAT" and msg.type != 6:
+                    self.mode = int(msg.custom_mode)
+                    self.armed = bool(msg.base_mode & 128)
+                elif kind == "GLOBAL_POSITION_INT":
+                    self.track.append(Sample(now, msg.lat / 1e7, msg.lon / 1e7,
+                                             msg.relative_alt / 1000.0))  # fmt: skip
+                elif kind == "SYS_STATUS":
+                    on = bool(msg.onboard_control_sensors_enabled & GEOFENCE_BIT)
+                    if on and not self.fence_enabled:
+                        self.fence_enabled_at = now
+                    self.fence_enabled = on
+                elif kind == "AUTOPILOT_VERSION" and not self.version:
+                    v = int(msg.flight_sw_version)
+                    kinds = {0: "dev", 64: "alpha", 128: "beta", 192: "rc", 255: "official"}
+                    raw = bytes(msg.flight_custom_version)
+                    git = raw.decode("ascii") if raw.isascii() and raw.isalnum() else raw.hex()
+                    self.version = (f"{v >> 24 & 255}.{v >> 16 & 255}.{v >> 8 & 255}-"
+                                    f"{kinds.get(v & 255, v & 255)} ({git})")  # fmt: skip
+                elif kind == "STATUSTEXT":
+                    text = str(msg.text)
+                    self.texts.append((now, text))
+                    if text.startswith(("ArduCopter V", "ArduPlane V")) and not self.version:
+                        self.version = text
+
+    def _ask_streams(self) -> None:
+        ts, tc = self.conn.target_system, 1
+        if not self.version:  # MAV_CMD_REQUEST_MESSAGE AUTOPILOT_VERSION
+            self.conn.mav.command_long_send(ts, tc, 512, 0, 148, 0, 0, 0, 0, 0, 0)
+        for msg_id, hz in ((33, 10.0), (1, 2.0), (0, 1.0)):  # GLOBAL_POSITION_INT, SYS_STATUS, HB
+            self.conn.mav.command_long_send(ts, tc, 511, 0, msg_id, 1e6 / hz, 0, 0, 0, 0, 0)
+        self.conn.mav.heartbeat_send(6, 8, 0, 0, 0)
+
+    def here(self) -> Sample | None:
+        with self.lock:
+            return self.track[-1] if self.track else None
+
+    def since(self, t0: float) -> list[Sample]:
+        with self.lock:
+            return [s for s in self.track if s.t >= t0]
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(2.0)
+        with contextlib.suppress(Exception):
+            self.conn.close()
+
+
+class Downloader:
+    """Reads ArduPilot's mission, fence or rally items on a MAVLink port of its own."""
+
+    def __init__(self, url: str) -> None:
+        from pymavlink import mavutil
+
+        self.conn: Any = mavutil.mavlink_connection(
+            url, source_system=251, source_component=191, retries=60
+        )
+
+    def download(self, mission_type: int, timeout_s: float = 15.0) -> list[Any] | None:
+        c = self.conn
+        if not getattr(c, "target_system", None) and c.wait_heartbeat(timeout=timeout_s) is None:
+            return None
+        ts = c.target_system
+        end = time.monotonic() + timeout_s
+        while c.recv_match(blocking=False) is not None:  # drain
+            pass
+        count = None
+        while count is None and time.monotonic() < end:
+            c.mav.mission_request_list_send(ts, 1, mission_type)
+            m = c.recv_match(type="MISSION_COUNT", blocking=True, timeout=1.0)
+            if m is not None and m.mission_type == mission_type:
+                count = m.count
+        if count is None:
+            return None
+        items: list[Any] = []
+        while len(items) < count and time.monotonic() < end:
+            c.mav.mission_request_int_send(ts, 1, len(items), mission_type)
+            m = c.recv_match(type="MISSION_ITEM_INT", blocking=True, timeout=1.0)
+            if m is not None and m.mission_type == mission_type and m.seq == len(items):
+                items.append(m)
+        c.mav.mission_ack_send(ts, 1, 0, mission_type)
+        return items if len(items) == count else None
+
+    def set_param(self, name: str, value: float, timeout_s: float = 15.0) -> bool:
+        c = self.conn
+        if not getattr(c, "target_system", None) and c.wait_heartbeat(timeout=timeout_s) is None:
+            return False
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            c.mav.param_set_send(c.target_system, 1, name.encode(), float(value), 9)
+            m = c.recv_match(type="PARAM_VALUE", blocking=True, timeout=1.0)
+            if m is not None and m.param_id == name and abs(m.param_value - value) < 1e-3:
+                return True
+        return False
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self.conn.close()
+
+
+# --------------------------------------------------------------------------- processes
+
+
+@dataclass
+class Result:
+    checks: dict[str, tuple[bool, str]] = field(default_factory=dict)
+    figures: dict[str, float | None] = field(
+        default_factory=lambda: {
+            "min_zone_clearance_m": None,
+            "rally_alt_rel_m": None,
+            "fence_enabled_after_s": None,
+            "way_home_started_s": None,
+        }
+    )
+
+    def set(self, check: str, ok: bool, detail: str) -> None:
+        self.checks[check] = (ok, detail)
+
+
+@dataclass
+class Run:
+    spec: VehicleSpec
+    proc: subprocess.Popen[bytes]  # SITL (or swarm-sim vehicle)
+    node: subprocess.Popen[bytes] | None = None
+    observer: Observer | None = None
+    downloader: Downloader | None = None
+    result: Result = field(default_factory=Result)
+    home: tuple[float, float] = (0.0, 0.0)
+
+
+class Harness:
+    def __init__(self, args: argparse.Namespace, console: Console) -> None:
+        self.args = args
+        self.console = console
+        self.tmp = Path(tempfile.mkdtemp(prefix="bandada-sitl-"))
+        self.procs: list[subprocess.Popen[bytes]] = []
+        self.runs: list[Run] = []
+        self.router_port = free_port()
+        self.gs: GroundStation | None = None
+
+    # ----------------------------------------------------------------- start
+    def log(self, text: str) -> None:
+        self.console.print(f"[bold cyan]>[/] {text}")
+
+    def _spawn(self, cmd: list[str], name: str, cwd: Path | None = None) -> subprocess.Popen[bytes]:
+        out = open(self.tmp / f"{name}.log", "ab")  # noqa: SIM115
+        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        env.pop("BANDADA_CLOCK", None)
+        p = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=cwd or self.tmp,
+                             env=env, start_new_session=True)  # fmt: skip
+        self.procs.append(p)
+        return p
+
+    def defaults_dir(self) -> Path:
+        home = os.environ.get("ARDUPILOT_HOME")
+        if home:
+            return Path(home) / "Tools" / "autotest" / "default_params"
+        return Path(self.args.bin).resolve().parent.parent.parent / "Tools/autotest/default_params"
+
+    def start_vehicle(self, spec: VehicleSpec) -> Run:
+        lat, lon = offset(HOME[0], HOME[1], 0.0, spec.home_east_m)
+        home = f"{lat:.7f},{lon:.7f},{HOME[2]:g},{HOME[3]:g}"
+        if self.args.sim:
+            cmd = [sys.executable, "-c", "from swarm_sim.cli import main; main()", "vehicle",
+                   "--model", spec.sim_model,
+                   "--instance", str(spec.instance), "--speedup", str(self.args.speedup),
+                   "--home", home]  # fmt: skip
+            proc = self._spawn(cmd, f"sim-{spec.kind}")
+        else:
+            binary = Path(self.args.bin) / spec.binary
+            if not binary.is_file():
+                raise SystemExit(f"sitl-check: {binary} not found (ARDUPILOT_SITL_BIN)")
+            parm = self.defaults_dir() / spec.parm
+            if not parm.is_file():
+                raise SystemExit(f"sitl-check: {parm} not found (set ARDUPILOT_HOME)")
+            defaults = [str(parm)]
+            extra = EXTRA_PARAMS.get(spec.kind) or {}
+            if extra:
+                path = self.tmp / f"{spec.kind}-extra.parm"
+                path.write_text("".join(f"{k} {v}\n" for k, v in extra.items()))
+                defaults.append(str(path))
+            wd = self.tmp / f"sitl-{spec.kind}"
+            wd.mkdir(exist_ok=True)
+            cmd = [str(binary), "--model", spec.model, "--speedup", str(self.args.speedup),
+                   f"-I{spec.instance}", "-w", "--defaults", ",".join(defaults), "--home", home]  # fmt: skip
+            proc = self._spawn(cmd, f"sitl-{spec.kind}", cwd=wd)
+        run = Run(spec, proc, home=(lat, lon))
+        self.runs.append(run)
+        return run
+
+    def start(self) -> None:
+        py = sys.executable
+        self.log(f"router on tcp/127.0.0.1:{self.router_port}; logs in {self.tmp}")
+        self._spawn([py, "-m", "swarm_node.cli", "router", "--listen",
+                     f"tcp/127.0.0.1:{self.router_port}"], "router")  # fmt: skip
+        for base in VEHICLES:
+            spec = dataclasses.replace(base, instance=base.instance + self.args.first_instance)
+            what = f"swarm-sim {spec.sim_model}" if self.args.sim else f"SITL {spec.binary}"
+            self.log(f"{what} -I{spec.instance} on tcp:127.0.0.1:{spec.port}")
+            self.start_vehicle(spec)
+        time.sleep(2.0)
+        for run in self.runs:
+            s = run.spec
+            url = f"tcp:127.0.0.1:{s.port}"
+            run.node = self._spawn([py, "-m", "swarm_node.cli", "run", "--id", str(s.node_id),
+                                    "--autopilot", url, "--swarm", SWARM, "--db",
+                                    str(self.tmp / f"node{s.node_id}.db"), "--connect",
+                                    f"tcp/127.0.0.1:{self.router_port}", "--listen",
+                                    "tcp/127.0.0.1:0"], f"node{s.node_id}")  # fmt: skip
+        time.sleep(1.0)
+        for run in self.runs:
+            p = run.spec.port
+            obs, dl = (p, p) if self.args.sim else (p + 2, p + 3)
+            run.observer = Observer(f"tcp:127.0.0.1:{obs}")
+            run.downloader = Downloader(f"tcp:127.0.0.1:{dl}")
+            if self.args.sim:  # SITL reads them from a parm file
+                for name, value in EXTRA_PARAMS.get(run.spec.kind, {}).items():
+                    run.downloader.set_param(name, value)
+        self.gs = GroundStation(ZenohSettings(connect=(f"tcp/127.0.0.1:{self.router_port}",)),
+                                SWARM)  # fmt: skip
+
+    def close(self) -> None:
+        if self.gs is not None:
+            self.gs.close()
+        for run in self.runs:
+            if run.observer is not None:
+                run.observer.close()
+            if run.downloader is not None:
+                run.downloader.close()
+        for p in reversed(self.procs):  # nodes before SITL, the router last
+            if p.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(p.pid, signal.SIGCONT)
+                    p.send_signal(signal.SIGINT)
+        for p in reversed(self.procs):
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+    # ----------------------------------------------------------------- helpers
+    @property
+    def ground(self) -> GroundStation:
+        assert self.gs is not None
+        return self.gs
+
+    def wait(self, pred: Callable[[], bool], timeout_s: float, period: float = 0.2) -> bool:
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            if pred():
+                return True
+            time.sleep(period)
+        return pred()
+
+    def alerts(self, vid: int, code: AlertCode, since_unix: float) -> list[Any]:
+        view = self.ground.snapshot()
+        return [a for a in view.alerts
+                if a.vehicle_id == vid and a.code == code and a.time_unix_s >= since_unix]  # fmt: skip
+
+    def command(self, kind: CommandKind, run: Run, **args: Any) -> tuple[bool, str]:
+        acks = self.ground.command(kind, Selector.ids(run.spec.node_id), CommandArgs(**args),
+                                   timeout_s=15.0)  # fmt: skip
+        if not acks:
+            return False, f"{kind.name}: no answer"
+        a = acks[0]
+        return a.accepted, f"{kind.name}: {a.reason.name} {a.text}".strip()
+
+    # ----------------------------------------------------------------- checks
+    def check_status(self) -> bool:
+        self.log("waiting for both vehicles: node status with a GPS fix and home")
+        ids = [r.spec.node_id for r in self.runs]
+
+        def ready() -> bool:
+            v = self.ground.snapshot()
+            return all(i in v.status and v.status[i].gps_fix >= 3 and i in v.info
+                       and v.info[i].home is not None for i in ids)  # fmt: skip
+
+        up = self.wait(ready, self.args.boot_timeout)
+        view = self.ground.snapshot()
+        for run in self.runs:
+            vid, obs = run.spec.node_id, run.observer
+            assert obs is not None
+            st = view.status.get(vid)
+            info = view.info.get(vid)
+            here = obs.here()
+            if not up or st is None or info is None or here is None:
+                run.result.set("status", False, "no status with a GPS fix from the node")
+                continue
+            d = distance_m(st.lat_deg, st.lon_deg, here.lat, here.lon)
+            problems = []
+            if info.vehicle_type != run.spec.vehicle_type:
+                problems.append(f"type {info.vehicle_type.name}")
+            if st.ap_mode != obs.mode:
+                problems.append(f"mode {st.ap_mode} != {obs.mode}")
+            if st.armed != obs.armed:
+                problems.append("armed differs")
+            if d > 5.0:
+                problems.append(f"position {d:.1f} m off")
+            run.result.set("status", not problems,
+                           "; ".join(problems) or f"{info.vehicle_type.name}, mode {st.ap_mode}, "
+                           f"position within {d:.1f} m")  # fmt: skip
+        return up
+
+    def check_rally(self) -> None:
+        base = GeoPoint(HOME[0], HOME[1], HOME[2])
+        self.log(f"set the base at {base.lat_deg}, {base.lon_deg}, {base.alt_msl_m} m MSL")
+        acks = self.ground.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=base),
+                                   timeout_s=15.0)  # fmt: skip
+        answered = {a.vehicle_id: a for a in acks}
+        time.sleep(3.0)  # the node uploads the rally point
+        for run in self.runs:
+            a = answered.get(run.spec.node_id)
+            assert run.downloader is not None
+            items = None
+            for _ in range(5):
+                items = run.downloader.download(2)  # MAV_MISSION_TYPE_RALLY
+                if items:
+                    break
+                time.sleep(2.0)
+            if a is None or not a.accepted:
+                run.result.set("rally", False, f"SET_BASE not accepted: {a}")
+                continue
+            if not items:
+                run.result.set("rally", False, "no rally point in ArduPilot")
+                continue
+            item = items[0]
+            alt = float(item.z)
+            if item.frame in (0, 5):  # GLOBAL (MSL): relative to home
+                alt -= HOME[2]
+            d = distance_m(item.x / 1e7, item.y / 1e7, base.lat_deg, base.lon_deg)
+            run.result.figures["rally_alt_rel_m"] = round(alt, 2)
+            ok = d < 2.0 and alt >= SAFE_RALLY_ALT_M
+            run.result.set("rally", ok, f"{len(items)} item(s), {d:.1f} m from the base, "
+                           f"{alt:.1f} m above home (safe: >= {SAFE_RALLY_ALT_M:g})")  # fmt: skip
+
+    def check_fence(self, zone: NoFlyZone) -> None:
+        self.log("declare the no-fly zone (35 m circle) in the survey field")
+        t0, t0_unix = time.monotonic(), time.time()
+        held = self.ground.declare_zone(zone, timeout_s=15.0)
+        self.wait(lambda: all(r.observer is not None and r.observer.fence_enabled
+                              for r in self.runs), 30.0)  # fmt: skip
+        time.sleep(2.0)  # a late failed enable would be reported by now
+        for run in self.runs:
+            obs, dl = run.observer, run.downloader
+            assert obs is not None and dl is not None
+            items = dl.download(1) or []  # MAV_MISSION_TYPE_FENCE
+            circles = [i for i in items if i.command == 5004]  # FENCE_CIRCLE_EXCLUSION
+            enabled_at = obs.fence_enabled_at
+            after = None if enabled_at is None or enabled_at < t0 else enabled_at - t0
+            run.result.figures["fence_enabled_after_s"] = None if after is None else round(after, 2)
+            refused = [a for a in self.alerts(run.spec.node_id, AlertCode.NO_FLY_ZONE, t0_unix)
+                       if "fence" in a.text]  # fmt: skip
+            ok = (run.spec.node_id in held and len(circles) == 1 and abs(circles[0].param1 - 35.0)
+                  < 0.5 and after is not None and not refused)  # fmt: skip
+            detail = (f"held: {run.spec.node_id in held}; fence items {len(items)} "
+                      f"({len(circles)} exclusion circle); enabled "
+                      f"{_opt(after, 'after {:.1f} s', 'never')}")  # fmt: skip
+            if refused:
+                detail += f"; node alert: {refused[0].text}"
+            run.result.set("fence", ok, detail)
+
+    def check_survey(self, area: Any, zone: NoFlyZone) -> None:
+        """Each vehicle surveys the field alone (at the same time), so that each plan
+        keeps its own vehicle type's margin from the zone (a mixed fleet's plan keeps
+        the largest, the fixed-wing's)."""
+        t0, t0_unix = time.monotonic(), time.time()
+        acks: dict[int, Ack] = {}
+        for run in self.runs:
+            vid = run.spec.node_id
+            alt = SURVEY_ALT_M[run.spec.kind]
+            mission = Mission(4200 + vid, self.ground.gcs_id, MissionType.AREA, area,
+                              MissionParams(altitude_rel_m=alt, side_overlap=0.6),
+                              Selector.ids(vid), f"sitl-check {run.spec.kind}", time.time())  # fmt: skip
+            self.log(f"{run.spec.kind}: area survey around the zone, {alt:g} m above home")
+            for answer in self.ground.mission(mission, timeout_s=15.0):
+                if answer.vehicle_id == vid:  # the others answer NOT_ADDRESSED
+                    acks[vid] = answer
+        centre = zone.geometry.points[0]
+        radius = zone.geometry.radius_m or 0.0
+
+        def down(run: Run) -> bool:
+            obs = run.observer
+            here = obs.here() if obs is not None else None
+            flew = bool(
+                obs is not None and obs.since(t0) and max(s.alt_rel for s in obs.since(t0)) > 10
+            )
+            return bool(flew and obs is not None and not obs.armed and here and here.alt_rel < 2.0)
+
+        def stuck(run: Run) -> bool:
+            """Its survey completed WAY_HOME_WAIT_S ago and it is still not home-bound."""
+            done = self.alerts(run.spec.node_id, AlertCode.MISSION_COMPLETE, t0_unix)
+            if not done or time.time() - done[0].time_unix_s < WAY_HOME_WAIT_S:
+                return False
+            obs = run.observer
+            here = obs.here() if obs is not None else None
+            return here is not None and distance_m(here.lat, here.lon, *run.home) > 150.0
+
+        self.wait(
+            lambda: all(down(r) or stuck(r) for r in self.runs), self.args.survey_timeout, 1.0
+        )
+        for run in self.runs:
+            vid = run.spec.node_id
+            obs = run.observer
+            assert obs is not None
+            a = acks.get(vid)
+            track = [s for s in obs.since(t0) if s.alt_rel > 2.0]
+            clearance = min(
+                (distance_m(s.lat, s.lon, centre.lat_deg, centre.lon_deg) - radius for s in track),
+                default=None,
+            )
+            run.result.figures["min_zone_clearance_m"] = (
+                None if clearance is None else round(clearance, 2)
+            )
+            breaches = self.alerts(vid, AlertCode.GEOFENCE_BREACH, t0_unix)
+            fence_texts = [t for tt, t in obs.texts if tt >= t0 and "ence" in t and "reach" in t]
+            complete = self.alerts(vid, AlertCode.MISSION_COMPLETE, t0_unix)
+            ok = (a is not None and a.accepted and clearance is not None and clearance > 0
+                  and not breaches and not fence_texts and bool(complete))  # fmt: skip
+            detail = (f"ack {a.reason.name if a else 'none'}; least clearance "
+                      f"{_opt(clearance, '{:.1f} m', '-')}; "
+                      f"{len(breaches)} breach alerts; "
+                      f"{'complete' if complete else 'not complete'}")  # fmt: skip
+            if fence_texts:
+                detail += f"; ArduPilot: {fence_texts[0]}"
+            run.result.set("survey", ok, detail)
+            # the way home: from MISSION_COMPLETE, distance to home shrinking; landed, disarmed
+            if not complete:
+                run.result.set("way home", False, "the survey did not complete")
+                continue
+            t_done = time.monotonic() - (time.time() - complete[0].time_unix_s)
+            after = [s for s in track if s.t >= t_done]
+            started = None
+            if after:
+                d0 = distance_m(after[0].lat, after[0].lon, *run.home)
+                for s in after:  # halfway home (a final loiter never gets there)
+                    if distance_m(s.lat, s.lon, *run.home) < min(0.5 * d0, d0 - 20.0):
+                        started = s.t - t_done
+                        break
+            run.result.figures["way_home_started_s"] = (
+                None if started is None else round(started, 2)
+            )
+            here = obs.here()
+            at_home = here is not None and distance_m(here.lat, here.lon, *run.home) < 100.0
+            landed = down(run)
+            run.result.set("way home", started is not None and landed and at_home,
+                           f"halfway home {_opt(started, 'after {:.1f} s', 'never')}; "
+                           f"{'landed and disarmed' if landed else 'not landed/disarmed'}"
+                           f"{' near home' if at_home else ' away from home'}")  # fmt: skip
+
+    def check_rtl_land(self, run: Run) -> None:
+        obs = run.observer
+        assert obs is not None
+        from swarm_proto.ardupilot import mode_number
+
+        vt = run.spec.vehicle_type
+        steps: list[str] = []
+
+        def mode_is(*names: str) -> Callable[[], bool]:
+            nums = set()
+            for n in names:
+                with contextlib.suppress(ValueError):
+                    nums.add(mode_number(vt, n))
+            return lambda: obs.mode in nums
+
+        for kind, args in ((CommandKind.SET_MODE, {"text": "GUIDED"}), (CommandKind.ARM, {}),
+                           (CommandKind.TAKEOFF, {"value": 30.0})):  # fmt: skip
+            ok, text = self.command(kind, run, **args)
+            steps.append(text)
+            if not ok:
+                run.result.set("rtl/land", False, "; ".join(steps))
+                return
+        climbed = self.wait(lambda: (h := obs.here()) is not None and h.alt_rel > 20.0, 120.0)
+        ok, text = self.command(CommandKind.RTL, run)
+        steps.append(text)
+        rtl = ok and self.wait(mode_is("RTL", "QRTL"), 15.0)
+        time.sleep(5.0)
+        ok, text = self.command(CommandKind.LAND, run)
+        steps.append(text)
+        land = ok and self.wait(mode_is("LAND", "QLAND"), 15.0)
+        disarmed = self.wait(lambda: not obs.armed, 240.0, 1.0)
+        good = climbed and rtl and land and disarmed
+        run.result.set("rtl/land", good, f"climbed {climbed}, RTL {rtl}, LAND {land}, "
+                       f"disarmed {disarmed}")  # fmt: skip
+
+    def check_link_loss(self, run: Run) -> None:
+        vid = run.spec.node_id
+        t0_unix = time.time()
+        os.kill(run.proc.pid, signal.SIGSTOP)
+        try:
+            lost = self.wait(lambda: bool(self.alerts(vid, AlertCode.AUTOPILOT_LINK_LOSS,
+                                                      t0_unix)), 10.0)  # fmt: skip
+        finally:
+            os.kill(run.proc.pid, signal.SIGCONT)
+        t1 = time.monotonic()
+
+        def back_up() -> bool:
+            view = self.ground.snapshot()
+            s = view.status.get(vid)
+            return (
+                s is not None
+                and view.heard_at.get(vid, 0.0) > t1 + 1.0
+                and not s.alerts & AlertFlag.AUTOPILOT_LINK_LOSS
+            )
+
+        back = self.wait(back_up, 30.0)
+        run.result.set("link loss", lost and back, f"reported {lost}, link back {back}")
+
+    # ----------------------------------------------------------------- all
+    def _guarded(self, check: str, step: Callable[[], object]) -> None:
+        """A check that raises fails its row (for every vehicle without a result)."""
+        try:
+            step()
+        except Exception as exc:
+            self.console.print_exception()
+            for run in self.runs:
+                run.result.checks.setdefault(check, (False, f"error: {exc}"[:120]))
+
+    def run_all(self) -> None:
+        from swarm_sim.demo import demo_area
+
+        self.start()
+        if not self.check_status():
+            return
+        self._guarded("rally", self.check_rally)
+        area, zone = demo_area()
+        self._guarded("fence", lambda: self.check_fence(zone))
+        self._guarded("survey", lambda: self.check_survey(area, zone))
+        for run in self.runs:
+            self.log(f"{run.spec.kind}: take-off, RTL, LAND")
+            self._guarded("rtl/land", functools.partial(self.check_rtl_land, run))
+        for run in self.runs:
+            self.log(f"{run.spec.kind}: SITL frozen (SIGSTOP) to lose the link")
+            self._guarded("link loss", functools.partial(self.check_link_loss, run))
+
+
+def table(runs: list[Run]) -> Table:
+    t = Table(title="sitl-check")
+    t.add_column("check")
+    for run in runs:
+        t.add_column(run.spec.kind)
+    for check in CHECKS:
+        row = [CHECK_TEXT[check]]
+        for run in runs:
+            got = run.result.checks.get(check)
+            if got is None:
+                row.append("[yellow]not run[/]")
+            else:
+                ok, detail = got
+                row.append(f"[green]PASS[/] {detail}" if ok else f"[red]FAIL[/] {detail}")
+        t.add_row(*row)
+    return t
+
+
+def results(h: Harness) -> dict[str, Any]:
+    from datetime import UTC, datetime
+
+    out: dict[str, Any] = {
+        "_meta": {
+            "command": "make sitl-check" + (" SITL_ARGS=--sim" if h.args.sim else ""),
+            "date_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        },
+        "target": "swarm-sim" if h.args.sim else "ardupilot-sitl",
+        "ardupilot": {r.spec.kind: (r.observer.version if r.observer else "") for r in h.runs}
+        if not h.args.sim
+        else {},
+        "speedup": h.args.speedup,
+        "times": "wall seconds",
+        "vehicles": {},
+    }
+    for run in h.runs:
+        out["vehicles"][run.spec.kind] = {
+            "node_id": run.spec.node_id,
+            "checks": {
+                c: {"pass": run.result.checks[c][0], "detail": run.result.checks[c][1]}
+                if c in run.result.checks
+                else {"pass": False, "detail": "not run"}
+                for c in CHECKS
+            },
+            **run.result.figures,
+        }
+    out["passed"] = all(
+        v["checks"][c]["pass"] for v in out["vehicles"].values() for c in CHECKS
+    ) and bool(out["vehicles"])
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="python -m swarm_sim.sitl_check", description=__doc__.split("\n")[0]
+    )
+    p.add_argument("--bin", default=os.environ.get("ARDUPILOT_SITL_BIN", ""),
+                   help="directory with arducopter and arduplane (default $ARDUPILOT_SITL_BIN)")  # fmt: skip
+    p.add_argument("--sim", action="store_true", help="swarm-sim vehicles instead of SITL")
+    p.add_argument("--speedup", type=float, default=5.0)
+    p.add_argument("--first-instance", type=int, default=0,
+                   help="SITL -I of the copter (the QuadPlane is the next); ports 5760+10*I")  # fmt: skip
+    p.add_argument("--boot-timeout", type=float, default=180.0)
+    p.add_argument("--survey-timeout", type=float, default=900.0)
+    p.add_argument("--out", default=str(RESULTS))
+    p.add_argument("--keep", action="store_true", help="keep the logs directory")
+    args = p.parse_args(argv)
+    console = Console() if sys.stdout.isatty() else Console(width=200)
+    if not args.sim and not args.bin:
+        console.print("[red]sitl-check: set ARDUPILOT_SITL_BIN (see docs/sitl.md) or use --sim[/]")
+        return 2
+    h = Harness(args, console)
+    try:
+        h.run_all()
+    except KeyboardInterrupt:
+        console.print("[yellow]interrupted[/]")
+    finally:
+        h.close()
+    console.print(table(h.runs))
+    out = results(h)
+    path = Path(args.out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=2) + "\n")
+    console.print(f"wrote {path}; logs in {h.tmp}")
+    if not args.keep and out["passed"]:
+        import shutil
+
+        shutil.rmtree(h.tmp, ignore_errors=True)
+    console.print("[bold green]PASS[/]" if out["passed"] else "[bold red]FAIL[/]")
+    return 0 if out["passed"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
