@@ -52,6 +52,7 @@ from .autopilot.requests import (
 )
 from .autopilot.state import AutopilotState
 from .fences import FENCE_FIRST_REQUEST_ID
+from .mission.sortie import Sortie, Trigger
 from .planning import (
     LocalFrame,
     PlanningError,
@@ -364,21 +365,31 @@ class MissionManager:
     items: int = 0  # mission items uploaded (home + waypoints)
     last_item: int = 0  # reaching this item completes the mission
     zones: tuple[NoFlyZone, ...] = ()
+    sortie: Sortie = field(default_factory=Sortie)  # the one owner of the mission state
+    along_m: tuple[float, ...] = ()  # metres along the share at each item (index = seq)
+    hold_s: float = 0.0  # a timed hold on the share's unlimited loiter (target --duration)
+    hold_seq: int = 0  # that loiter's item
+    hold_since: float | None = None
+    _hold_wp: Waypoint | None = None
+    _stale: tuple[int, int] = (-1, 0)  # MISSION_ITEM_REACHED, MISSION_CURRENT of an earlier mission
+    _fresh_reached: bool = False  # the autopilot reported an item of this mission
+    _fresh_current: bool = False
     _steps: list[ApRequest] = field(default_factory=list)
     _in_flight: ApRequest | None = None  # the request we wait for
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
 
     @property
     def mission_state(self) -> MissionState:
-        return {
-            Phase.IDLE: MissionState.IDLE,
-            Phase.STARTING: MissionState.PREMISSION,
-            Phase.CLIMBING: MissionState.PREMISSION,
-            Phase.FLYING: MissionState.MISSION,
-            Phase.RETURNING: MissionState.MISSION,
-            Phase.LANDING: MissionState.MISSION,
-            Phase.PARACHUTE: MissionState.PARACHUTE,
-        }[self.phase]
+        return self.sortie.state
+
+    @property
+    def progress_pct(self) -> int:
+        return self.sortie.progress_pct
+
+    def plan(self, mission_id: int) -> None:
+        """The state machine began planning `mission_id` (the way home keeps the
+        progress of the mission just flown)."""
+        self.sortie.begin(keep_progress=mission_id == fsm.RETURN_MISSION)
 
     @property
     def land_radius_m(self) -> float:
@@ -406,17 +417,19 @@ class MissionManager:
     ) -> list[Out]:
         """Plan the mission and start flying this vehicle's share."""
         mid = mission.mission_id
+        if self.sortie.state not in (MissionState.PLANNING, MissionState.REPLAN):
+            self.sortie.begin(keep_progress=False)
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         try:
             waypoints = plan_share(mission, members, self.profile.vehicle_id, zones, now, home_alt)
         except (PlanningError, ValueError) as exc:
-            return [FsmEvent(fsm.PlanFailed(mid, f"planning: {exc}"[:64]))]
+            return self._failed(mid, f"planning: {exc}")
         if not waypoints:
-            return [FsmEvent(fsm.PlanFailed(mid, "nothing to fly for this vehicle"))]
+            return self._failed(mid, "nothing to fly for this vehicle")
         try:
             waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
         except (PlanningError, ValueError) as exc:
-            return [FsmEvent(fsm.PlanFailed(mid, f"approach: {exc}"[:64]))]
+            return self._failed(mid, f"approach: {exc}")
         self.zones = tuple(zones)
         self.mission_id = mid
         fleet_ids = sorted(m.profile.vehicle_id for m in members)
@@ -435,6 +448,13 @@ class MissionManager:
         self.items = len(waypoints) + 1
         self.last_item = self.items - (2 if last is not None else 1)  # the item that completes it
         self.takeoff_alt_m = mission.params.altitude_rel_m
+        self._timed_hold(waypoints, mission.params.duration_s)
+        self.along_m = along_path(ap, waypoints)
+        self.sortie.path_m = self.along_m[min(self.last_item, len(self.along_m) - 1)]
+        self.sortie.progress_m = 0.0
+        self._stale = (ap.mission_reached, ap.mission_current)
+        self._fresh_reached = self._fresh_current = False
+        self.sortie.go(Trigger.RELEASED)
         steps: list[ApRequest] = [UploadMission(items=waypoints)]
         if not ap.armed:
             steps += self._launch_steps()
@@ -443,6 +463,23 @@ class MissionManager:
         self._steps = steps
         self.phase = Phase.STARTING
         return [note, *self._next()]
+
+    def _failed(self, mid: int, reason: str) -> list[Out]:
+        self.sortie.go(Trigger.FAILED)
+        return [FsmEvent(fsm.PlanFailed(mid, reason[:64]))]
+
+    def _timed_hold(self, waypoints: Sequence[Waypoint], duration_s: float | None) -> None:
+        """A mission with a duration that holds on an unlimited loiter (a fixed-wing's
+        target orbit): the hold ends after `duration_s` on station, then the mission is
+        complete."""
+        self.hold_s, self.hold_seq, self.hold_since, self._hold_wp = 0.0, 0, None, None
+        if not duration_s:
+            return
+        for i, w in enumerate(waypoints[:-1]):  # the appended final loiter is not the hold
+            if w.kind == ItemKind.LOITER_UNLIMITED:
+                self.hold_s, self.hold_seq, self._hold_wp = float(duration_s), i + 1, w
+                self.last_item = max(self.last_item, i + 1)
+                return
 
     def _tight(self, waypoints: Sequence[Waypoint]) -> tuple[Waypoint, ...]:
         """Fixed-wing: every plain waypoint asks for FIXED_WING_ACCEPT_M acceptance."""
@@ -539,6 +576,8 @@ class MissionManager:
         `on_autopilot` completes). Without zones in the way, plain RTL."""
         self.mission_id = fsm.RETURN_MISSION
         self.phase = Phase.RETURNING
+        self.sortie.go(Trigger.RETURN)
+        self.hold_s, self.hold_seq = 0.0, 0
         done = [FsmEvent(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
         home = ap.home
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
@@ -598,8 +637,9 @@ class MissionManager:
             free=frozenset(range(len(leg) - 1)), now=now, home_alt_msl_m=home_alt,
         )  # fmt: skip
 
-    def stop(self) -> None:
+    def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
+        self.sortie.go(trigger)
 
     def take_over(self, phase: Phase) -> None:
         """The operator's command (RTL, LAND, EMERGENCY_LAND, PARACHUTE) flies the
@@ -607,6 +647,7 @@ class MissionManager:
         (RETURNING: a hover-capable vehicle is landed once near home, as on the node's
         own return)."""
         self.stop()
+        self.sortie.go(Trigger.PARACHUTE if phase == Phase.PARACHUTE else Trigger.TAKE_OVER)
         self.phase, self.mission_id = phase, fsm.RETURN_MISSION
 
     @property
@@ -640,9 +681,10 @@ class MissionManager:
             if phase == Phase.RETURNING and not isinstance(done, ReturnToLaunch):
                 self._steps = [ReturnToLaunch()]  # the zone-safe way home failed: plain RTL
                 return self._next()
-            self.stop()
             if phase == Phase.STARTING:
+                self.stop(Trigger.FAILED)
                 return [FsmEvent(fsm.PlanFailed(mid, f"autopilot: {result.reason}"[:64]))]
+            self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
         if self.phase == Phase.STARTING and not self._steps:
             if isinstance(done, Takeoff):
@@ -650,6 +692,7 @@ class MissionManager:
                 return []
             if isinstance(done, StartMission):
                 self.phase = Phase.FLYING
+                self.sortie.go(Trigger.STARTED)
                 return [FsmEvent(fsm.PlanSucceeded(mid))]
         return self._next()
 
@@ -659,18 +702,15 @@ class MissionManager:
             and not ap.armed
             and (ap.alt_rel_m or 0.0) < 2.0
         ):
-            self.stop()
+            self.stop(Trigger.LANDED)
             return [FsmEvent(fsm.LandingComplete())]
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
                 self.phase = Phase.STARTING
                 self._steps = [StartMission()]
                 return self._next()
-        elif self.phase == Phase.FLYING and self.items > 1:
-            if ap.mission_reached >= self.last_item and self.mission_id is not None:
-                mid = self.mission_id
-                self.stop()
-                return [FsmEvent(fsm.MissionComplete(mid))]
+        elif self.phase == Phase.FLYING and self.items > 1 and self.mission_id is not None:
+            return self._flying(ap, now)
         elif self.phase == Phase.RETURNING and self._in_flight is None and self.profile.can_hover:
             home = ap.home
             if (
@@ -686,9 +726,52 @@ class MissionManager:
                 return self._next()
         return []
 
-    def progress_pct(self, ap: AutopilotState) -> int | None:
-        """Mission progress from the autopilot (None: let the link compute it)."""
-        if self.phase == Phase.FLYING and self.items > 1:
-            done = max(0, min(ap.mission_reached, self.last_item))
-            return int(100 * done / max(1, self.last_item))
-        return None
+    def _flying(self, ap: AutopilotState, now: float) -> list[Out]:
+        """Progress along the share and its end: the last item reached, or the timed
+        hold over. Only items this mission's autopilot run reported count: the last
+        MISSION_ITEM_REACHED of an earlier mission is still in the state."""
+        stale_reached, stale_current = self._stale
+        self._fresh_reached |= ap.mission_reached != stale_reached
+        self._fresh_current |= ap.mission_current != stale_current
+        reached = max(0, min(ap.mission_reached, self.last_item)) if self._fresh_reached else 0
+        if self.along_m:
+            self.sortie.advance(self.along_m[min(reached, len(self.along_m) - 1)])
+        done = reached >= self.last_item and self.hold_seq == 0
+        if self.hold_seq and self._fresh_current and ap.mission_current >= self.hold_seq:
+            if self.hold_since is None and self._on_station(ap):
+                self.hold_since = now
+            done = self.hold_since is not None and now - self.hold_since >= self.hold_s
+        if not done or self.sortie.state != MissionState.MISSION:
+            return []
+        mid = self.mission_id
+        assert mid is not None
+        self.sortie.finish()
+        self.stop(Trigger.COMPLETE)
+        return [FsmEvent(fsm.MissionComplete(mid))]
+
+    def _on_station(self, ap: AutopilotState) -> bool:
+        """Within the hold's loiter circle (its radius plus a turn radius)."""
+        if ap.lat_deg is None or ap.lon_deg is None or not self.along_m:
+            return False
+        w = self._hold_wp
+        if w is None:
+            return True
+        r = abs(w.loiter_radius_m or 0.0) + max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
+        return _distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= r
+
+
+def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float, ...]:
+    """Metres along the path at each mission item (index = item seq, 0 = home): from
+    where the vehicle is through every item with a position."""
+    out = [0.0]
+    at = (ap.lat_deg, ap.lon_deg) if ap.lat_deg is not None and ap.lon_deg is not None else None
+    total = 0.0
+    for w in waypoints:
+        if w.kind in (ItemKind.CHANGE_SPEED, ItemKind.RTL) or (w.lat_deg == 0.0 and w.lon_deg == 0.0):
+            out.append(total)
+            continue
+        if at is not None:
+            total += _distance_m(at[0], at[1], w.lat_deg, w.lon_deg)
+        at = (w.lat_deg, w.lon_deg)
+        out.append(total)
+    return tuple(out)

@@ -74,6 +74,7 @@ from .mission_manager import Submit as ManagerSubmit
 from .monitoring import Thresholds, VehicleMonitor
 from .planning import PlanningError
 from .profile import VehicleProfile
+from .swarm.roster import MemberLost, Roster, RosterEvent, RosterMismatch
 
 log = logging.getLogger(__name__)
 
@@ -173,10 +174,8 @@ class NodeCore:
         self.active = True
         self.base: GeoPoint | None = None
         self.fleet_id = 0
-        self.fleet_members: tuple[int, ...] = ()
+        self.roster = Roster(vid)  # the members of the current mission, agreed by all
         self.missions: dict[int, Mission] = {}
-        self.mission_state = MissionState.IDLE
-        self.mission_progress_pct = 0
         self.bad_input: Counter[str] = Counter()
         self.fence = FenceKeeper()  # zones -> the autopilot's fence (fences.py)
         self.fence_plan: FencePlan | None = None
@@ -184,8 +183,18 @@ class NodeCore:
         self._fence_key: object = None
         self._next_status = self.now
         self._next_info = self.now
+        self.lost_members: list[MemberLost] = []  # roster events (replanning picks them up)
 
     # ------------------------------------------------------------------ views
+    @property
+    def mission_state(self) -> MissionState:
+        """Owned by the mission manager's sortie (mission/sortie.py), read here."""
+        return self.manager.mission_state
+
+    @property
+    def mission_progress_pct(self) -> int:
+        return self.manager.progress_pct
+
     def view(self) -> NodeView:
         return NodeView(
             self_id=self.self_id,
@@ -231,6 +240,9 @@ class NodeCore:
             mission_id=mid if mid is not None and mid > 0 else 0,
             fsm_state=self.fsm.state,
             errors=self.monitor.active_codes,
+            members_hash=self.roster.members_hash,
+            mission_progress_m=_clamp(self.manager.sortie.progress_m, 0.0, 1.0e6),
+            mission_path_m=_clamp(self.manager.sortie.path_m, 0.0, 1.0e6),
         )
 
     # ------------------------------------------------------------------ inputs
@@ -257,10 +269,6 @@ class NodeCore:
         self.autopilot = state
         out: list[Output] = [Publish(a) for a in self.monitor.update(state, now)]
         out += self._from_manager(self.manager.on_autopilot(state, now))
-        self.mission_state = self.manager.mission_state
-        progress = self.manager.progress_pct(state)
-        if progress is not None:
-            self.mission_progress_pct = progress
         return out + self._keep_fence(now)
 
     def _from_manager(self, outs: list[MissionOut]) -> list[Output]:
@@ -272,14 +280,17 @@ class NodeCore:
                 out.append(Note(logging.INFO, o.text))
             else:
                 self.fsm.post(o.event)
-        self.mission_state = self.manager.mission_state
         return out
 
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[Output]:
         if isinstance(msg, VehicleStatus):
             return self._peer_events(self.members.on_status(msg, now))
         if isinstance(msg, VehicleInfo):
-            return self._peer_events(self.members.on_info(msg, now))
+            out = self._peer_events(self.members.on_info(msg, now))
+            return out + self._roster_events(self.roster.on_info(msg))
+        if isinstance(msg, Ack):
+            self.roster.on_ack(msg)
+            return []
         if isinstance(msg, Command):
             return self._on_command(msg, now)
         if isinstance(msg, Mission):
@@ -347,15 +358,13 @@ class NodeCore:
         elif isinstance(effect, SetActive):
             self.active = effect.active
         elif isinstance(effect, CancelMission):
-            self.fsm.post(fsm.LeftFleet(f"mission {effect.mission_id} cancelled"))
+            self.fsm.post(fsm.Cancelled(effect.mission_id))
         elif isinstance(effect, TakeOver):
             self.manager.take_over(effect.phase)
-            self.mission_state = self.manager.mission_state
             if self.fsm.state in (FsmState.PLAN, FsmState.GO_MISSION):
                 self.fsm.post(fsm.Recalled(effect.reason))
         elif isinstance(effect, StopLanding):
             self.manager.stop()  # the operator holds the vehicle; LAND or RTL ends the sortie
-            self.mission_state = self.manager.mission_state
 
     def _on_mission(self, mission: Mission) -> list[Output]:
         repeat = self._repeat(mission)
@@ -371,15 +380,12 @@ class NodeCore:
         if ok:
             mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
             self.missions[mission.mission_id] = mission
-            self.fleet_members = tuple(mission.selection.vehicle_ids) or (self.self_id,)
             self.fsm.post(fsm.NewMission(mission.mission_id))
         return out
 
     def _on_fleet(self, msg: FleetAssignment) -> list[Output]:
         if self.self_id in msg.vehicle_ids:
             self.fleet_id = msg.fleet_id
-            if msg.mission_id == self.fsm.mission_id:
-                self.fleet_members = msg.vehicle_ids
         elif self.fleet_id == msg.fleet_id:
             self.fleet_id = 0  # dropped from the fleet
             self.fsm.post(fsm.LeftFleet("removed from the fleet"))
@@ -390,7 +396,7 @@ class NodeCore:
         """The highest this vehicle flies above home: zones below it may be overflown."""
         top = FENCE_FULL_HEIGHT_REL_M
         for m in self.missions.values():
-            n = max(1, len(m.selection.vehicle_ids))
+            n = max(1, len(m.selection.vehicle_ids), len(self.roster.members))
             top = max(top, m.params.altitude_rel_m + m.params.altitude_step_m * (n - 1))
         return top
 
@@ -449,6 +455,23 @@ class NodeCore:
                 out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
             elif isinstance(ev, PeerLeft):
                 out.append(Note(logging.WARNING, f"peer {ev.node_id} lost ({ev.why})"))
+                out += self._roster_events(self.roster.on_peer_left(ev.node_id, ev.why))
+        return out
+
+    def _roster_events(self, events: list[RosterEvent]) -> list[Output]:
+        out: list[Output] = []
+        for ev in events:
+            if isinstance(ev, MemberLost):
+                self.lost_members.append(ev)
+                del self.lost_members[:-20]
+                out.append(
+                    Note(logging.WARNING, f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})")
+                )
+            elif isinstance(ev, RosterMismatch):
+                out.append(
+                    Note(logging.ERROR, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} planned "
+                         f"with roster {ev.theirs:#06x}, ours is {ev.ours:#06x}")
+                )  # fmt: skip
         return out
 
     # ------------------------------------------------------------------ time
@@ -491,26 +514,16 @@ class NodeCore:
         )
 
     def _fleet_ready(self) -> bool:
-        """Every live member of this mission's fleet has reached PLAN for the same
-        mission (or already left it for GO_MISSION: a fast member must not strand the
-        others). Members that are lost do not hold the fleet back."""
+        """The roster is settled (every live peer that may be addressed has answered)
+        and every live member has reached PLAN for the same mission (or already left it
+        for GO_MISSION: a fast member must not strand the others). Members that are
+        lost do not hold the fleet back (roster.py)."""
         mid = self.fsm.mission_id
         if self.fsm.state != FsmState.PLAN or mid is None:
             return False
         if mid == fsm.RETURN_MISSION:
             return True  # each vehicle plans its own way back (no landing sequencing yet)
-        for vid in self.fleet_members:
-            if vid == self.self_id:
-                continue
-            peer = self.members.peers.get(vid)
-            if peer is None or not peer.present:
-                continue  # lost members do not hold the fleet back
-            info = peer.info
-            if info is None or info.fsm_state not in (FsmState.PLAN, FsmState.GO_MISSION):
-                return False
-            if mid > 0 and info.mission_id != mid:
-                return False
-        return True
+        return self.roster.ready(self.members.peers)
 
     def _tick_fsm(self, now: float) -> list[Output]:
         tr = self.fsm.tick(now, self.facts())
@@ -538,24 +551,25 @@ class NodeCore:
             return [note, *self._from_manager(self._start_return(now))]
         if isinstance(o, fsm.LeaveFleet):
             self.fleet_id = 0
-            self.fleet_members = (self.self_id,)
+            self.roster.close()
             return []
         if isinstance(o, fsm.FollowOperator):
             if o.mission_id is not None:
                 self.missions.pop(o.mission_id, None)  # left, not completed
             return [Note(logging.WARNING, f"left mission {o.mission_id}: {o.reason}")]
         if isinstance(o, fsm.BeginPlan):
-            self.mission_state = MissionState.PLANNING
-            self.mission_progress_pct = 0
+            mission = self.missions.get(o.mission_id)
+            if mission is None:
+                self.roster.close()
+            elif not o.replan:
+                self.roster.open(o.mission_id, mission.selection)
+            self.manager.plan(o.mission_id)
             return []
         if isinstance(o, fsm.ReleaseMission):
             return self._release(o.mission_id, now)
         if isinstance(o, fsm.MissionStarted):
-            self.mission_state = MissionState.MISSION
             return []
         if isinstance(o, fsm.MissionFinished):
-            self.mission_state = MissionState.IDLE
-            self.mission_progress_pct = 100
             mission = self.missions.pop(o.mission_id, None)
             if mission is not None:
                 return [
@@ -575,7 +589,6 @@ class NodeCore:
             return []
         if isinstance(o, fsm.Deactivated):
             self.manager.stop()
-            self.mission_state = MissionState.IDLE
             return [Note(logging.INFO, f"state machine deactivated: {o.reason}")]
         return []
 
@@ -588,6 +601,7 @@ class NodeCore:
         if mission is None:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
             return []
+        self.roster.freeze(self.members.peers)
         members, unknown = self._members()
         if unknown:
             self.fsm.post(
@@ -610,7 +624,7 @@ class NodeCore:
         would send two vehicles over the same ground)."""
         out = [Member(self.profile, self.autopilot.home)]
         unknown = []
-        for vid in self.fleet_members:
+        for vid in self.roster.flying:
             if vid == self.self_id:
                 continue
             peer = self.members.peers.get(vid)

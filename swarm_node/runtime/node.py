@@ -21,7 +21,7 @@ import zenoh
 
 from swarm_proto import Alert, Clock, MissionType, PeerEntry, SwarmView, lan
 from swarm_proto.session import SwarmBus
-from swarm_proto.topics import COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE
+from swarm_proto.topics import ACK, COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE
 
 from ..core.autopilot.requests import ApRequest, ApResult
 from ..core.autopilot.state import AutopilotState
@@ -168,7 +168,8 @@ class NodeRuntime:
         query.reply(query.key_expr, lan.encode(view))
 
     def start(self) -> None:
-        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET):
+        # ACK: the peers' answers to missions make the roster (core/swarm/roster.py)
+        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK):
             self.bus.subscribe(topic, self._received)
         self.bus.watch_alive(self._alive)
         self.bus.declare_alive(self.core.self_id)

@@ -1,0 +1,214 @@
+"""The fleet roster of a mission (the paper's swarm manager): which vehicles fly it,
+agreed by every node without a leader.
+
+Every vehicle answers every mission it hears (an Ack: accepted, or why not, and
+NOT_ADDRESSED when the selector does not name it), and every node hears every answer.
+The roster of a mission is this vehicle and the peers that accepted it: for an IDS
+selector the named vehicles that accepted, for ALL and FLEET the vehicles that found
+themselves addressed and accepted. A peer whose VehicleInfo shows it in PLAN or
+GO_MISSION for the mission has accepted too (an Ack lost on the radio is not fatal).
+
+While the fleet synchronises in STATE_PLAN the roster is open: it waits for an answer
+from every live peer that may be addressed (`pending`). When every live member is in
+PLAN and nobody is pending, the node freezes it (`freeze`): from the same answers every
+node freezes the same members, and `members_hash` (16 bits of BLAKE2s of the mission
+id and the sorted members, like the radio's slot `table_hash`) lets each node prove it:
+it is published in VehicleInfo and checked against the peers'. After the freeze, a
+member that leaves (liveliness or silence, an emergency, recalled by the operator) is a
+`MemberLost` event, once.
+
+Inputs (what `handle` takes):
+
+    Ack (ref MISSION)        -> an answer of a peer (any mission, kept for a while)
+    VehicleInfo              -> an answer (in PLAN/GO_MISSION for the mission); a
+                                member that left the mission -> MemberLost;
+                                a different members_hash -> RosterMismatch
+    PeerLeft                 -> a frozen member lost -> MemberLost
+
+Pure: no I/O, no clock.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+from swarm_proto import Ack, AckReason, AckRef, FsmState, Selector, SelectorKind, VehicleInfo
+
+from ..membership import Peer
+
+KEEP_MISSIONS = 16  # answers kept for this many recent missions
+
+
+def members_hash(mission_id: int, members: Iterable[int]) -> int:
+    """16 bits of BLAKE2s of the mission id and the sorted members; never 0 (0 = no
+    roster)."""
+    data = mission_id.to_bytes(4, "little", signed=True) + b"".join(
+        m.to_bytes(2, "little") for m in sorted(set(members))
+    )
+    h = int.from_bytes(hashlib.blake2s(data, digest_size=2, person=b"bdroster").digest(), "little")
+    return h or 1
+
+
+@dataclass(frozen=True)
+class MemberLost:
+    """A member of the frozen roster left the mission."""
+
+    mission_id: int
+    vehicle_id: int
+    why: str  # "liveliness" | "stale" | "emergency" | "left the mission"
+
+
+@dataclass(frozen=True)
+class RosterMismatch:
+    """A member planned with another roster (its members hash differs from ours)."""
+
+    mission_id: int
+    vehicle_id: int
+    theirs: int
+    ours: int
+
+
+RosterEvent = MemberLost | RosterMismatch
+
+
+@dataclass
+class Roster:
+    self_id: int
+    mission_id: int | None = None
+    selection: Selector = field(default_factory=Selector)
+    members: tuple[int, ...] = ()  # frozen members (sorted), () while open
+    lost: dict[int, str] = field(default_factory=dict)  # frozen members that left, and why
+    mismatches: int = 0
+    _answers: OrderedDict[int, dict[int, bool]] = field(default_factory=OrderedDict)
+
+    # ------------------------------------------------------------------ lifecycle
+    def open(self, mission_id: int, selection: Selector) -> None:
+        """This vehicle accepted `mission_id`: a new, open roster."""
+        self.mission_id, self.selection = mission_id, selection
+        self.members, self.lost = (), {}
+        self._answer(mission_id, self.self_id, True)
+
+    def close(self) -> None:
+        self.mission_id, self.members, self.lost = None, (), {}
+
+    @property
+    def frozen(self) -> bool:
+        return bool(self.members)
+
+    @property
+    def members_hash(self) -> int:
+        if not self.members or self.mission_id is None:
+            return 0
+        return members_hash(self.mission_id, self.members)
+
+    @property
+    def flying(self) -> tuple[int, ...]:
+        """Frozen members that have not left."""
+        return tuple(m for m in self.members if m not in self.lost)
+
+    # ------------------------------------------------------------------ answers
+    def _answer(self, mission_id: int, vid: int, accepted: bool) -> None:
+        answers = self._answers.setdefault(mission_id, {})
+        self._answers.move_to_end(mission_id)
+        if accepted or vid not in answers:  # an acceptance (info) outranks a stale refusal
+            answers[vid] = accepted
+        while len(self._answers) > KEEP_MISSIONS:
+            self._answers.popitem(last=False)
+
+    def on_ack(self, ack: Ack) -> None:
+        if ack.ref == AckRef.MISSION and ack.vehicle_id != self.self_id:
+            self._answer(ack.ref_id, ack.vehicle_id, ack.accepted)
+
+    def on_info(self, info: VehicleInfo) -> list[RosterEvent]:
+        mid = self.mission_id
+        vid = info.vehicle_id
+        if mid is None or vid == self.self_id:
+            return []
+        in_mission = info.mission_id == mid and info.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)
+        if in_mission and not self.frozen:
+            self._answer(mid, vid, True)
+        out: list[RosterEvent] = []
+        if self.frozen and vid in self.members and vid not in self.lost:
+            if info.fsm_state == FsmState.EMERGENCY:
+                out += self._lose(vid, "emergency")
+            elif info.mission_id != mid and info.fsm_state != FsmState.PLAN:
+                out += self._lose(vid, "left the mission")
+            else:
+                theirs = getattr(info, "members_hash", 0)
+                if in_mission and theirs and theirs != self.members_hash:
+                    self.mismatches += 1
+                    out.append(RosterMismatch(mid, vid, theirs, self.members_hash))
+        return out
+
+    def on_peer_left(self, vid: int, why: str) -> list[RosterEvent]:
+        if self.frozen and vid in self.members and vid not in self.lost:
+            return self._lose(vid, why)
+        return []
+
+    def _lose(self, vid: int, why: str) -> list[RosterEvent]:
+        assert self.mission_id is not None
+        self.lost[vid] = why
+        return [MemberLost(self.mission_id, vid, why)]
+
+    # ------------------------------------------------------------------ sync
+    def accepted(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
+        """The members as the answers stand: this vehicle and the live peers that
+        accepted."""
+        if self.mission_id is None:
+            return ()
+        answers = self._answers.get(self.mission_id, {})
+        ids = {self.self_id} | {
+            v for v, ok in answers.items() if ok and v in peers and peers[v].present
+        }
+        return tuple(sorted(ids))
+
+    def may_be_addressed(self, peer: Peer) -> bool:
+        sel = self.selection
+        if peer.is_ground_station or not peer.present:
+            return False
+        if sel.kind == SelectorKind.IDS:
+            return peer.node_id in sel.vehicle_ids
+        if sel.kind == SelectorKind.FLEET:
+            return peer.fleet_id == sel.fleet_id or peer.mission_id == self.mission_id
+        return True  # ALL (QUANTITY is answered UNSUPPORTED)
+
+    def pending(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
+        """Live peers that may be addressed and have not answered yet."""
+        if self.mission_id is None:
+            return ()
+        answers = self._answers.get(self.mission_id, {})
+        return tuple(
+            sorted(
+                vid
+                for vid, p in peers.items()
+                if vid != self.self_id and vid not in answers and self.may_be_addressed(p)
+            )
+        )
+
+    def ready(self, peers: Mapping[int, Peer]) -> bool:
+        """Nobody pending and every live member in PLAN (or already in GO_MISSION) for
+        this mission."""
+        mid = self.mission_id
+        if mid is None or self.pending(peers):
+            return False
+        for vid in self.accepted(peers):
+            if vid == self.self_id:
+                continue
+            info = peers[vid].info
+            if info is None or info.fsm_state not in (FsmState.PLAN, FsmState.GO_MISSION):
+                return False
+            if info.mission_id != mid:
+                return False
+        return True
+
+    def freeze(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
+        self.members = self.accepted(peers)
+        self.lost = {}
+        return self.members
+
+
+def refused(reason: AckReason) -> bool:
+    return reason != AckReason.OK
