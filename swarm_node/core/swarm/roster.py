@@ -35,7 +35,7 @@ from collections import OrderedDict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
-from swarm_proto import Ack, AckReason, AckRef, FsmState, Selector, SelectorKind, VehicleInfo
+from swarm_proto import Ack, AckRef, FsmState, Selector, SelectorKind, VehicleInfo
 
 from ..membership import Peer
 
@@ -144,7 +144,13 @@ class Roster:
         return out
 
     def on_peer_left(self, vid: int, why: str) -> list[RosterEvent]:
-        if self.frozen and vid in self.members and vid not in self.lost:
+        """A member lost: of the frozen roster, or (still in PLAN) a peer that had
+        accepted the mission."""
+        if vid in self.lost or self.mission_id is None:
+            return []
+        if self.frozen:
+            return self._lose(vid, why) if vid in self.members else []
+        if self._answers.get(self.mission_id, {}).get(vid):
             return self._lose(vid, why)
         return []
 
@@ -206,9 +212,5 @@ class Roster:
 
     def freeze(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
         self.members = self.accepted(peers)
-        self.lost = {}
+        self.lost = {v: why for v, why in self.lost.items() if v in self.members}
         return self.members
-
-
-def refused(reason: AckReason) -> bool:
-    return reason != AckReason.OK
