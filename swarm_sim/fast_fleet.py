@@ -23,6 +23,7 @@ import msgspec
 
 from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
+from swarm_node.core.mission.share import run_plan
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
@@ -30,6 +31,8 @@ from swarm_node.core.node import (
     NodeCore,
     NodeSettings,
     Note,
+    PlanDone,
+    PlanJob,
     Publish,
     Received,
     Submit,
@@ -66,6 +69,7 @@ class FastFleet:
     now: float
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
+    plan_delay_s: float = 0.0  # simulated time a plan job takes
 
     def __post_init__(self) -> None:
         self._bus: list[tuple[float, int, int, Input]] = []
@@ -127,6 +131,9 @@ class FastFleet:
                 self._link_out(vid, v.link.submit(token, o.request, self.now))
             elif isinstance(o, Note):
                 self.notes.append((self.now, vid, o.text))
+            elif isinstance(o, PlanJob):  # inline, after the simulated planning time
+                done = PlanDone(run_plan(o.request))
+                self._deliver(vid, done, self.now + self.plan_delay_s)
 
     def _link_out(self, vid: int, outputs: list[LinkOutput]) -> None:
         """Carry out the link's outputs: results to the node, bytes to the vehicle, and

@@ -16,18 +16,16 @@ Pure: `release`, `start_return`, `on_result` and `on_autopilot` take `now` and r
 from __future__ import annotations
 
 import itertools
-import math
-from collections.abc import Callable, Mapping, Sequence
+import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
 import msgspec
-from shapely.geometry import LineString
 
 from swarm_proto import (
     GeometryKind,
     GeoPoint,
-    LatLon,
     Mission,
     MissionParams,
     MissionState,
@@ -51,32 +49,28 @@ from .autopilot.requests import (
     UploadMission,
 )
 from .autopilot.state import AutopilotState
-from .fences import FENCE_FIRST_REQUEST_ID
-from .mission.sortie import Sortie, Trigger
-from .planning import (
-    LocalFrame,
-    PlanningError,
-    PlanVehicle,
-    Pose,
-    VehiclePose,
-    ZoneSet,
-    heading_to_yaw,
-    plan_area,
-    plan_objective,
-    plan_perimeter,
-    plan_route,
-    plan_target,
+from .mission.share import (
+    FleetPlan,
+    Member,
+    PlanOutcome,
+    PlanRequest,
+    plan_fleet,
 )
-from .planning.flight import FIXED_WING_ACCEPT_M, flyable_plan, flyable_waypoints
+from .mission.sortie import Sortie, Trigger
+from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Submit
+from .planning import (
+    PlanningError,
+)
+from .planning.flight import FIXED_WING_ACCEPT_M
+from .planning.transit import (
+    TRANSIT_MARGIN_M,
+    distance_m,
+    fixed_wing_transit,
+    fly_corners,
+    safe_transit,
+)
+from .planning.transit import flyable as flyable  # re-exported (was defined here)
 from .profile import VehicleProfile
-
-PLANNERS: dict[MissionType, Callable[..., object]] = {
-    MissionType.AREA: plan_area,
-    MissionType.TARGET: plan_target,
-    MissionType.PERIMETER: plan_perimeter,
-    MissionType.ROUTE: plan_route,
-    MissionType.OBJECTIVE: plan_objective,
-}
 
 #: parameters a planner reads as "not given" when 0 (besides None), per mission type
 UNSET_WHEN_ZERO: dict[MissionType, frozenset[str]] = {
@@ -113,12 +107,10 @@ def with_defaults(mission: Mission, defaults: Mapping[str, float]) -> Mission:
 
 CLIMB_FRACTION = 0.8  # start the mission once this much of the take-off altitude is reached
 LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close to home
-TRANSIT_MARGIN_M = 20.0  # least clearance from a no-fly zone on transit legs
 # Fixed-wing waypoint acceptance (planning.flight.FIXED_WING_ACCEPT_M, 15 m): every
 # plain waypoint asks for it (ArduPlane's 90 m default would count the closely spaced
 # waypoints of a planned turn as reached at once and loop wide); the flyable stage
 # plans every corner for it.
-TURN_RADIUS_MARGIN = 1.3
 FIRST_REQUEST_ID = 1_000_000  # the command manager uses small ids
 
 
@@ -132,39 +124,11 @@ class Phase(Enum):
     PARACHUTE = "parachute"  # released: coming down under the canopy
 
 
-@dataclass(frozen=True)
-class Member:
-    profile: VehicleProfile
-    home: GeoPoint | None
+Out = ModuleOutput  # the node's one output vocabulary (outputs.py)
 
 
-@dataclass(frozen=True)
-class Submit:
-    request: ApRequest
-
-
-@dataclass(frozen=True)
-class FsmEvent:
-    event: fsm.Event
-
-
-@dataclass(frozen=True)
-class Log:
-    text: str
-
-
-Out = Submit | FsmEvent | Log
-
-
-def flyable(profile: VehicleProfile) -> VehicleProfile:
-    """The profile planners should use: a fixed-wing's turns planned at
-    TURN_RADIUS_MARGIN times its minimum radius, so the autopilot's path following has
-    room to converge on the planned arcs instead of overshooting them."""
-    if not profile.is_fixed_wing:
-        return profile
-    return msgspec.structs.replace(
-        profile, loiter_radius_m=TURN_RADIUS_MARGIN * profile.turn_radius_m()
-    )
+def Log(text: str) -> Note:
+    return Note(logging.INFO, text)
 
 
 def plan_share(
@@ -175,185 +139,8 @@ def plan_share(
     now: float,
     home_alt_msl_m: float,
 ) -> tuple[Waypoint, ...]:
-    """This vehicle's waypoints in a plan made for every member (sorted by id, posed at
-    their homes: inputs every member sees the same)."""
-    planner = PLANNERS.get(mission.mission_type)
-    if planner is None:
-        raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
-    vehicles = [
-        PlanVehicle(
-            flyable(m.profile), VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None
-        )
-        for m in sorted(members, key=lambda m: m.profile.vehicle_id)
-    ]
-    plan = planner(
-        mission.geometry,
-        vehicles,
-        mission.params,
-        zones=zones,
-        now_unix_s=now,
-        home_alt_msl_m=home_alt_msl_m,
-        zone_margin_m=max((flyable(m.profile).turn_radius_m() for m in members), default=0.0),
-    )
-    # every fixed-wing share flyable as planned (the plan's tracks follow)
-    plan = flyable_plan(plan, vehicles, zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
-    for share in plan.vehicles:
-        if share.vehicle_id == self_id:
-            return tuple(share.waypoints)
-    raise PlanningError(f"the plan has no share for vehicle {self_id}")
-
-
-def fly_corners(
-    waypoints: Sequence[Waypoint],
-    profile: VehicleProfile,
-    zones: Sequence[NoFlyZone],
-    *,
-    start: tuple[float, float, float] | None,
-    free: frozenset[int],
-    now: float,
-    home_alt_msl_m: float,
-) -> tuple[Waypoint, ...]:
-    """A fixed-wing's waypoints made flyable from `start` (lat, lon, heading: where it
-    is now) at its planned turn radius (`planning.flight.flyable_waypoints`): the
-    points of `free` (item indexes: transit legs) may be skipped, the others are
-    passed. Other vehicles' waypoints unchanged. Raises `PlanningError` when a corner
-    has no connection clear of the zones, or the flown path would enter one."""
-    if not profile.is_fixed_wing:
-        return tuple(waypoints)
-    pos = [(w.lat_deg, w.lon_deg) for w in waypoints if w.kind == ItemKind.WAYPOINT]
-    if not pos:
-        return tuple(waypoints)
-    frame = LocalFrame.at([LatLon(*p) for p in pos + ([start[:2]] if start else [])])
-    speed = next(
-        (w.speed_m_s for w in waypoints if w.kind == ItemKind.CHANGE_SPEED and w.speed_m_s), None
-    )
-    pose = None
-    if start is not None:
-        x, y = frame.to_local(start[0], start[1])
-        pose = Pose(x, y, heading_to_yaw(start[2]))
-    zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
-    out, _tracks = flyable_waypoints(
-        waypoints, frame, zs, radius_m=flyable(profile).turn_radius_m(speed), start=pose,
-        free=free, vehicle_id=profile.vehicle_id,
-    )  # fmt: skip
-    return out
-
-
-def safe_transit(
-    start: tuple[float, float],
-    end: tuple[float, float],
-    alt_rel_m: float,
-    zones: Sequence[NoFlyZone],
-    *,
-    now: float,
-    home_alt_msl_m: float,
-    margin_m: float,
-    max_alt_rel_m: float = 120.0,
-) -> list[Waypoint]:
-    """Waypoints (excluding `start`, including `end`) that fly from start to end keeping
-    `margin_m` clear of every no-fly zone at that altitude: straight when the straight
-    leg is clear, else the shortest way round the inflated zones (visibility graph);
-    if the ends are too close to a zone for the margin, the raw-zone avoidance of the
-    planners (over or around). The legs a plan does not cover (to the first waypoint,
-    back to base) go through here."""
-    direct = [Waypoint(lat_deg=end[0], lon_deg=end[1], alt_rel_m=alt_rel_m)]
-    if not zones:
-        return direct
-    frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
-    a, b = frame.to_local(*start), frame.to_local(*end)
-    route: list[tuple[float, float, float]] | None = None
-    for m in (margin_m, margin_m / 2, margin_m / 4):  # an end close to a zone: less margin
-        zs = ZoneSet.from_messages(
-            zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=m
-        )
-        if not LineString([a, b]).intersects(zs.keep_out(alt_rel_m)):
-            return direct
-        try:
-            route = [
-                (x, y, alt_rel_m)
-                for x, y in zs.shortest_path(a, b, around_alt=(alt_rel_m, alt_rel_m))
-            ]
-            break
-        except PlanningError:
-            continue
-    if route is None:
-        zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
-        route = zs.avoid(
-            [(a[0], a[1], alt_rel_m), (b[0], b[1], alt_rel_m)], max_alt_rel_m=max_alt_rel_m
-        )
-    out = []
-    for x, y, alt in route[1:]:
-        lat, lon = frame.to_geodetic(x, y)
-        out.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt))
-    return out
-
-
-def fixed_wing_transit(
-    start: tuple[float, float],
-    heading_deg: float,
-    end: tuple[float, float],
-    alt_rel_m: float,
-    zones: Sequence[NoFlyZone],
-    *,
-    radius_m: float,
-    now: float,
-    home_alt_msl_m: float,
-) -> list[Waypoint]:
-    """A fixed-wing's transit: it cannot turn on the spot, so the first turn (up to two
-    turn radii wide) must not sweep through a zone. Flies the zone-safe polyline of
-    `safe_transit`, entering it along the Dubins word (of all six, for several entry
-    headings) whose sampled path keeps clear of the zones; its arcs become waypoints."""
-    from .planning.dubins import Pose, all_paths
-
-    legs = safe_transit(
-        start, end, alt_rel_m, zones, now=now, home_alt_msl_m=home_alt_msl_m, margin_m=radius_m
-    )
-    if not zones or radius_m <= 0:
-        return legs
-    frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=TRANSIT_MARGIN_M
-    )
-    blocked = zs.keep_out(alt_rel_m)
-    x0, y0 = frame.to_local(*start)
-    pose = Pose(x0, y0, math.radians(90.0 - heading_deg))
-    first = frame.to_local(legs[0].lat_deg, legs[0].lon_deg)
-    after = frame.to_local(legs[1].lat_deg, legs[1].lon_deg) if len(legs) > 1 else None
-    ref = after if after is not None else first
-    base = (
-        math.atan2(ref[1] - first[1], ref[0] - first[0])
-        if after is not None
-        else math.atan2(first[1] - y0, first[0] - x0)
-    )
-    best = None
-    for k in range(8):  # the natural entry heading first, then others 45 deg apart
-        goal = Pose(
-            first[0],
-            first[1],
-            base + k * math.pi / 4 * (1 if k % 2 else -1) * ((k + 1) // 2) / max(1, k),
-        )
-        for path in all_paths(pose, goal, radius_m):
-            if best is not None and path.length_m >= best.length_m:
-                break
-            pts = [(q.x, q.y) for q in path.sample(10.0)]
-            if not LineString(pts).intersects(blocked):
-                best = path
-                break
-        if best is not None and k == 0:
-            break
-    if best is None:
-        return legs  # no clear entry: the straight legs are the best we have
-    arc = []
-    for q in best.waypoints()[:-1]:
-        lat, lon = frame.to_geodetic(q.x, q.y)
-        arc.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt_rel_m))
-    return [*arc, *legs]
-
-
-def _distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
-    dn = (lat2 - lat1) * 111_320.0
-    de = (lon2 - lon1) * 111_320.0 * math.cos(math.radians(lat1))
-    return math.hypot(dn, de)
+    """This vehicle's waypoints in a plan made for every member (mission/share.py)."""
+    return plan_fleet(mission, members, zones, now, home_alt_msl_m).share(self_id)
 
 
 @dataclass
@@ -366,6 +153,7 @@ class MissionManager:
     last_item: int = 0  # reaching this item completes the mission
     zones: tuple[NoFlyZone, ...] = ()
     sortie: Sortie = field(default_factory=Sortie)  # the one owner of the mission state
+    owner: Owner = Owner.MISSION  # the rank of our requests (OPERATOR after a recall)
     along_m: tuple[float, ...] = ()  # metres along the share at each item (index = seq)
     hold_s: float = 0.0  # a timed hold on the share's unlimited loiter (target --duration)
     hold_seq: int = 0  # that loiter's item
@@ -374,6 +162,9 @@ class MissionManager:
     _stale: tuple[int, int] = (-1, 0)  # MISSION_ITEM_REACHED, MISSION_CURRENT of an earlier mission
     _fresh_reached: bool = False  # the autopilot reported an item of this mission
     _fresh_current: bool = False
+    fleet_plan: FleetPlan | None = None  # the whole fleet's plan (replanning starts from it)
+    _job: int = 0  # the plan job we wait for
+    _planning: tuple[Mission, tuple[NoFlyZone, ...]] | None = None
     _steps: list[ApRequest] = field(default_factory=list)
     _in_flight: ApRequest | None = None  # the request we wait for
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
@@ -390,6 +181,8 @@ class MissionManager:
         """The state machine began planning `mission_id` (the way home keeps the
         progress of the mission just flown)."""
         self.sortie.begin(keep_progress=mission_id == fsm.RETURN_MISSION)
+        self.owner = Owner.MISSION
+        self._planning = None
 
     @property
     def land_radius_m(self) -> float:
@@ -403,9 +196,6 @@ class MissionManager:
         U-turn as wide as two turn radii."""
         return max(TRANSIT_MARGIN_M, 2.0 * self.profile.turn_radius_m())
 
-    def owns(self, request_id: int) -> bool:
-        return FIRST_REQUEST_ID <= request_id < FENCE_FIRST_REQUEST_ID
-
     # ------------------------------------------------------------------ start
     def release(
         self,
@@ -415,15 +205,33 @@ class MissionManager:
         ap: AutopilotState,
         now: float,
     ) -> list[Out]:
-        """Plan the mission and start flying this vehicle's share."""
-        mid = mission.mission_id
+        """Plan the mission (a `PlanJob` the shell runs off the control loop; its
+        outcome comes back to `on_plan`) and then fly this vehicle's share."""
         if self.sortie.state not in (MissionState.PLANNING, MissionState.REPLAN):
             self.sortie.begin(keep_progress=False)
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        self._job += 1
+        self._planning = (mission, tuple(zones))
+        req = PlanRequest(self._job, mission, tuple(members), tuple(zones), now, home_alt)
+        fleet_ids = sorted(m.profile.vehicle_id for m in members)
+        return [Log(f"mission {mission.mission_id}: planning for fleet {fleet_ids}"), PlanJob(req)]
+
+    def on_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[Out]:
+        """The fleet's plan is made: fly our share from where the vehicle is now. An
+        outcome of an abandoned job (stopped, a newer mission) is ignored."""
+        if outcome.job_id != self._job or self._planning is None:
+            return []
+        mission, zones = self._planning
+        self._planning = None
+        mid = mission.mission_id
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        if outcome.plan is None:
+            return self._failed(mid, outcome.error)
+        self.fleet_plan = outcome.plan
         try:
-            waypoints = plan_share(mission, members, self.profile.vehicle_id, zones, now, home_alt)
-        except (PlanningError, ValueError) as exc:
-            return self._failed(mid, f"planning: {exc}")
+            waypoints = outcome.plan.share(self.profile.vehicle_id)
+        except PlanningError as exc:
+            return self._failed(mid, str(exc))
         if not waypoints:
             return self._failed(mid, "nothing to fly for this vehicle")
         try:
@@ -432,7 +240,7 @@ class MissionManager:
             return self._failed(mid, f"approach: {exc}")
         self.zones = tuple(zones)
         self.mission_id = mid
-        fleet_ids = sorted(m.profile.vehicle_id for m in members)
+        fleet_ids = list(outcome.plan.members)
         note = Log(
             f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
         )
@@ -466,7 +274,7 @@ class MissionManager:
 
     def _failed(self, mid: int, reason: str) -> list[Out]:
         self.sortie.go(Trigger.FAILED)
-        return [FsmEvent(fsm.PlanFailed(mid, reason[:64]))]
+        return [Post(fsm.PlanFailed(mid, reason[:64]))]
 
     def _timed_hold(self, waypoints: Sequence[Waypoint], duration_s: float | None) -> None:
         """A mission with a duration that holds on an unlimited loiter (a fixed-wing's
@@ -567,7 +375,7 @@ class MissionManager:
             return []
         req = msgspec.structs.replace(self._steps.pop(0), request_id=next(self._ids))
         self._in_flight = req
-        return [Submit(req)]
+        return [Submit(req, self.owner, Owner.MISSION)]
 
     # ------------------------------------------------------------------ return
     def start_return(self, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float) -> list[Out]:
@@ -578,7 +386,7 @@ class MissionManager:
         self.phase = Phase.RETURNING
         self.sortie.go(Trigger.RETURN)
         self.hold_s, self.hold_seq = 0.0, 0
-        done = [FsmEvent(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
+        done = [Post(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
         home = ap.home
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
             self._steps = [ReturnToLaunch()]
@@ -639,6 +447,7 @@ class MissionManager:
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
+        self._planning = None  # a plan job still running is abandoned
         self.sortie.go(trigger)
 
     def take_over(self, phase: Phase) -> None:
@@ -648,6 +457,7 @@ class MissionManager:
         own return)."""
         self.stop()
         self.sortie.go(Trigger.PARACHUTE if phase == Phase.PARACHUTE else Trigger.TAKE_OVER)
+        self.owner = Owner.OPERATOR  # landing the recalled vehicle is the operator's work
         self.phase, self.mission_id = phase, fsm.RETURN_MISSION
 
     @property
@@ -683,7 +493,7 @@ class MissionManager:
                 return self._next()
             if phase == Phase.STARTING:
                 self.stop(Trigger.FAILED)
-                return [FsmEvent(fsm.PlanFailed(mid, f"autopilot: {result.reason}"[:64]))]
+                return [Post(fsm.PlanFailed(mid, f"autopilot: {result.reason}"[:64]))]
             self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
         if self.phase == Phase.STARTING and not self._steps:
@@ -693,7 +503,7 @@ class MissionManager:
             if isinstance(done, StartMission):
                 self.phase = Phase.FLYING
                 self.sortie.go(Trigger.STARTED)
-                return [FsmEvent(fsm.PlanSucceeded(mid))]
+                return [Post(fsm.PlanSucceeded(mid))]
         return self._next()
 
     def on_autopilot(self, ap: AutopilotState, now: float) -> list[Out]:
@@ -703,7 +513,7 @@ class MissionManager:
             and (ap.alt_rel_m or 0.0) < 2.0
         ):
             self.stop(Trigger.LANDED)
-            return [FsmEvent(fsm.LandingComplete())]
+            return [Post(fsm.LandingComplete())]
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
                 self.phase = Phase.STARTING
@@ -717,7 +527,7 @@ class MissionManager:
                 home
                 and ap.lat_deg is not None
                 and ap.lon_deg is not None
-                and _distance_m(ap.lat_deg, ap.lon_deg, home.lat_deg, home.lon_deg)
+                and distance_m(ap.lat_deg, ap.lon_deg, home.lat_deg, home.lon_deg)
                 < self.land_radius_m
             ):
                 self.phase = Phase.LANDING
@@ -747,7 +557,7 @@ class MissionManager:
         assert mid is not None
         self.sortie.finish()
         self.stop(Trigger.COMPLETE)
-        return [FsmEvent(fsm.MissionComplete(mid))]
+        return [Post(fsm.MissionComplete(mid))]
 
     def _on_station(self, ap: AutopilotState) -> bool:
         """Within the hold's loiter circle (its radius plus a turn radius)."""
@@ -757,7 +567,7 @@ class MissionManager:
         if w is None:
             return True
         r = abs(w.loiter_radius_m or 0.0) + max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
-        return _distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= r
+        return distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= r
 
 
 def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float, ...]:
@@ -771,7 +581,7 @@ def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float
             out.append(total)
             continue
         if at is not None:
-            total += _distance_m(at[0], at[1], w.lat_deg, w.lon_deg)
+            total += distance_m(at[0], at[1], w.lat_deg, w.lon_deg)
         at = (w.lat_deg, w.lon_deg)
         out.append(total)
     return tuple(out)

@@ -1,5 +1,6 @@
-"""The vehicle node as one pure object: vehicle monitoring, swarm manager (membership,
-acceptance checks, VehicleInfo), state machine and command manager wired together.
+"""The vehicle node as one pure object: a router between vehicle monitoring, the swarm
+manager (membership, roster, acceptance checks, VehicleInfo), the state machine, the
+command manager, the mission manager and the fence keeper.
 
 The runtime (swarm_node.runtime.node) feeds it inputs from Zenoh and the autopilot link
 and carries out its outputs; tests and fast-time simulations join several NodeCores
@@ -8,6 +9,30 @@ with an in-memory bus and jump time from deadline to deadline.
     core.handle(input, now) -> list[Output]
     core.on_timer(now)      -> list[Output]
     core.next_deadline()    -> float
+
+Routes (every input is matched; an unknown one is counted in `unhandled`, never
+dropped silently):
+
+    AutopilotUpdate        -> monitoring, mission manager, fence keeper
+    AutopilotResult        -> AutopilotArbiter -> its owner: command manager (OPERATOR),
+                              mission manager (MISSION), fence keeper (FENCE),
+                              emergency procedure (EMERGENCY: a refusal is alerted)
+    PeerAlive              -> membership -> roster (MemberLost)
+    BadInput               -> counted, logged
+    Received(VehicleStatus)-> membership
+    Received(VehicleInfo)  -> membership, roster (answers, MemberLost, hash mismatch)
+    Received(Ack)          -> roster (the peers' answers to missions)
+    Received(Command)      -> command manager -> effects, autopilot requests (OPERATOR)
+    Received(Mission)      -> acceptance checks -> state machine (NewMission)
+    Received(NoFlyZone)    -> monitoring's zones, fence keeper
+    Received(FleetAssignment) -> fleet id
+    PlanDone               -> mission manager (the plan job's outcome: fly the share)
+    Received(Alert | Vote | TargetReport | SwarmView) -> declared, not used yet (counted)
+
+Modules answer in one vocabulary (outputs.py): Publish, Submit(owner, request),
+Post(fsm event), Note; the router posts events to the state machine, passes requests
+through the arbiter (precedence EMERGENCY > AVOIDANCE > OPERATOR > MISSION > FENCE) and
+hands the rest to the shell.
 """
 
 from __future__ import annotations
@@ -16,6 +41,7 @@ import logging
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import assert_never
 
 import msgspec
 
@@ -34,12 +60,16 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
     Severity,
+    SwarmView,
+    TargetReport,
     VehicleInfo,
     VehicleStatus,
+    Vote,
 )
 
 from . import state_machine as fsm
-from .autopilot.requests import ApRequest, ApResult
+from .arbiter import AutopilotArbiter, Routed
+from .autopilot.requests import ApResult
 from .autopilot.state import AutopilotState
 from .autopilot.status import to_vehicle_status
 from .commands import (
@@ -67,11 +97,10 @@ from .fences import (
     plan_fence,
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
-from .mission_manager import Log as ManagerLog
+from .mission.share import PlanOutcome
 from .mission_manager import Member, MissionManager, with_defaults
-from .mission_manager import Out as MissionOut
-from .mission_manager import Submit as ManagerSubmit
 from .monitoring import Thresholds, VehicleMonitor
+from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
 from .swarm.roster import MemberLost, Roster, RosterEvent, RosterMismatch
@@ -108,28 +137,22 @@ class BadInput:
     error: str
 
 
-Input = AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput
-
-
 @dataclass(frozen=True)
-class Publish:
-    msg: msgspec.Struct
+class PlanDone:
+    """A plan job's outcome (the shell ran the node's PlanJob)."""
+
+    outcome: PlanOutcome
 
 
-@dataclass(frozen=True)
-class Submit:
-    request: ApRequest
+Input = AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput | PlanDone
 
 
-@dataclass(frozen=True)
-class Note:
-    """Something worth a log line (membership changes, transitions, rejections)."""
-
-    level: int
-    text: str
-
-
-Output = Publish | Submit | Note
+Output = Publish | Submit | Note | PlanJob  # what the shell carries out (Post stays inside)
+__all__ = [  # noqa: RUF022 (inputs, outputs, the core)
+    "AutopilotResult", "AutopilotUpdate", "BadInput", "Input", "PeerAlive", "PlanDone",
+    "Received", "Note", "Output", "PlanJob", "Post", "Publish", "Submit",
+    "NodeCore", "NodeSettings",
+]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -177,6 +200,8 @@ class NodeCore:
         self.roster = Roster(vid)  # the members of the current mission, agreed by all
         self.missions: dict[int, Mission] = {}
         self.bad_input: Counter[str] = Counter()
+        self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
+        self.arbiter = AutopilotArbiter()
         self.fence = FenceKeeper()  # zones -> the autopilot's fence (fences.py)
         self.fence_plan: FencePlan | None = None
         self._zones_version = 0  # 0: no zone heard yet, the autopilot's fence is left alone
@@ -248,67 +273,121 @@ class NodeCore:
     # ------------------------------------------------------------------ inputs
     def handle(self, event: Input, now: float) -> list[Output]:
         self.now = now
-        if isinstance(event, AutopilotUpdate):
-            return self._on_autopilot(event.state, now)
-        if isinstance(event, AutopilotResult):
-            if self.fence.owns(event.result.request_id):
-                return self._fence_result(event.result, now)
-            if self.manager.owns(event.result.request_id):
-                return self._from_manager(self.manager.on_result(event.result, now))
-            reqs, acks = self.commands.on_result(event.result, now)
-            out: list[Output] = [Submit(r) for r in reqs]
-            return out + self._answer(acks)
-        if isinstance(event, PeerAlive):
-            return self._peer_events(self.members.on_alive(event.node_id, event.alive, now))
-        if isinstance(event, BadInput):
-            self.bad_input[event.key] += 1
-            return [Note(logging.WARNING, f"dropped malformed input on {event.key}: {event.error}")]
-        return self._on_message(event.msg, now)
+        out: list[ModuleOutput]
+        match event:
+            case AutopilotUpdate(state):
+                out = self._on_autopilot(state, now)
+            case AutopilotResult(result):
+                routed = self.arbiter.on_result(result)
+                if routed is None:
+                    out = self._unhandled("result", f"autopilot result {result.request_id}")
+                else:
+                    out = self._on_result(routed, now)
+            case PeerAlive(node_id, alive):
+                out = self._peer_events(self.members.on_alive(node_id, alive, now))
+            case BadInput(key, error):
+                self.bad_input[key] += 1
+                out = [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
+            case Received(msg):
+                out = self._on_message(msg, now)
+            case PlanDone(outcome):
+                out = self.manager.on_plan(outcome, self.autopilot, now)
+            case _:
+                assert_never(event)
+        return self._route(out, now)
 
-    def _on_autopilot(self, state: AutopilotState, now: float) -> list[Output]:
-        self.autopilot = state
-        out: list[Output] = [Publish(a) for a in self.monitor.update(state, now)]
-        out += self._from_manager(self.manager.on_autopilot(state, now))
-        return out + self._keep_fence(now)
-
-    def _from_manager(self, outs: list[MissionOut]) -> list[Output]:
+    def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
+        """Posts to the state machine, requests through the arbiter (a refusal goes
+        straight back to its module), the rest to the shell."""
         out: list[Output] = []
-        for o in outs:
-            if isinstance(o, ManagerSubmit):
-                out.append(Submit(o.request))
-            elif isinstance(o, ManagerLog):
-                out.append(Note(logging.INFO, o.text))
-            else:
-                self.fsm.post(o.event)
+        todo = list(outs)
+        while todo:
+            o = todo.pop(0)
+            match o:
+                case Post(event):
+                    self.fsm.post(event)
+                case Submit(request, owner, route):
+                    sent = self.arbiter.submit(owner, request, route)
+                    if isinstance(sent, Routed):
+                        todo[0:0] = self._on_result(sent, now)
+                    else:
+                        out.append(Submit(sent, owner, route))
+                case Publish():
+                    out.append(o)
+                case Note() | PlanJob():
+                    out.append(o)
+                case _:
+                    assert_never(o)
         return out
 
-    def _on_message(self, msg: msgspec.Struct, now: float) -> list[Output]:
-        if isinstance(msg, VehicleStatus):
-            return self._peer_events(self.members.on_status(msg, now))
-        if isinstance(msg, VehicleInfo):
-            out = self._peer_events(self.members.on_info(msg, now))
-            return out + self._roster_events(self.roster.on_info(msg))
-        if isinstance(msg, Ack):
-            self.roster.on_ack(msg)
-            return []
-        if isinstance(msg, Command):
-            return self._on_command(msg, now)
-        if isinstance(msg, Mission):
-            return self._on_mission(msg)
-        if isinstance(msg, NoFlyZone):
-            self.monitor.zones[msg.zone_id] = msg
-            self._zones_version += 1
-            return self._keep_fence(now)
-        if isinstance(msg, FleetAssignment):
-            return self._on_fleet(msg)
-        return []  # acks, alerts, votes, targets: not for the node core (yet)
+    def _on_result(self, routed: Routed, now: float) -> list[ModuleOutput]:
+        result = routed.result
+        match routed.owner:
+            case Owner.FENCE:
+                return self._fence_result(result, now)
+            case Owner.MISSION:
+                return self.manager.on_result(result, now)
+            case Owner.OPERATOR:
+                reqs, acks = self.commands.on_result(result, now)
+                return [*(Submit(r, Owner.OPERATOR) for r in reqs), *self._answer(acks)]
+            case Owner.EMERGENCY:
+                if result.ok:
+                    return []
+                text = f"emergency procedure refused: {result.reason}"
+                return [
+                    Note(logging.ERROR, text),
+                    Publish(Alert(self.self_id, max(0.0, now), Severity.CRITICAL,
+                                  AlertCode.GENERIC, text[:64])),
+                ]  # fmt: skip
+            case Owner.AVOIDANCE:
+                return self._unhandled("avoidance", "avoidance result (no avoidance yet)")
+            case _:
+                assert_never(routed.owner)
 
-    def _answer(self, acks: list[Ack]) -> list[Output]:
+    def _unhandled(self, kind: str, text: str) -> list[ModuleOutput]:
+        self.unhandled[kind] += 1
+        if self.unhandled[kind] == 1:
+            return [Note(logging.WARNING, f"no route for {text} (counted in unhandled)")]
+        return []
+
+    def _on_autopilot(self, state: AutopilotState, now: float) -> list[ModuleOutput]:
+        self.autopilot = state
+        out: list[ModuleOutput] = [Publish(a) for a in self.monitor.update(state, now)]
+        out += self.manager.on_autopilot(state, now)
+        return out + self._keep_fence(now)
+
+    def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
+        match msg:
+            case VehicleStatus():
+                return self._peer_events(self.members.on_status(msg, now))
+            case VehicleInfo():
+                out = self._peer_events(self.members.on_info(msg, now))
+                return out + self._roster_events(self.roster.on_info(msg))
+            case Ack():
+                self.roster.on_ack(msg)
+                return []
+            case Command():
+                return self._on_command(msg, now)
+            case Mission():
+                return self._on_mission(msg)
+            case NoFlyZone():
+                self.monitor.zones[msg.zone_id] = msg
+                self._zones_version += 1
+                return self._keep_fence(now)
+            case FleetAssignment():
+                return self._on_fleet(msg)
+            case Alert() | Vote() | TargetReport() | SwarmView():
+                self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
+                return []
+            case _:
+                return self._unhandled(type(msg).__name__, f"message {type(msg).__name__}")
+
+    def _answer(self, acks: list[Ack]) -> list[ModuleOutput]:
         for a in acks:
             self.answers.answered(a)
         return [Publish(a) for a in acks]
 
-    def _repeat(self, msg: Command | Mission) -> list[Output] | None:
+    def _repeat(self, msg: Command | Mission) -> list[ModuleOutput] | None:
         """A command or mission already taken up: its first answer again (nothing while it
         still runs). None: not a repeat."""
         key = answer_key(msg)
@@ -317,7 +396,7 @@ class NodeCore:
         ack = self.answers.answer_of(key)
         return [Publish(ack)] if ack is not None else []
 
-    def _on_command(self, cmd: Command, now: float) -> list[Output]:
+    def _on_command(self, cmd: Command, now: float) -> list[ModuleOutput]:
         repeat = self._repeat(cmd)
         if repeat is not None:
             return repeat
@@ -338,7 +417,8 @@ class NodeCore:
                     return self._answer([ack])
         for effect in plan.effects:
             self._apply(effect)
-        out: list[Output] = [Submit(r) for r in self.commands.start(cmd, requests, now)]
+        started = self.commands.start(cmd, requests, now)
+        out: list[ModuleOutput] = [Submit(r, Owner.OPERATOR) for r in started]
         if plan.ack is not None:
             out += self._answer([plan.ack])
             if not plan.ack.accepted:
@@ -366,7 +446,7 @@ class NodeCore:
         elif isinstance(effect, StopLanding):
             self.manager.stop()  # the operator holds the vehicle; LAND or RTL ends the sortie
 
-    def _on_mission(self, mission: Mission) -> list[Output]:
+    def _on_mission(self, mission: Mission) -> list[ModuleOutput]:
         repeat = self._repeat(mission)
         if repeat is not None:
             return repeat
@@ -376,14 +456,14 @@ class NodeCore:
         # only an acceptance is remembered: a rejected mission sent again is checked again
         # (the operator may have fixed what was wrong, e.g. set the base; a vehicle may
         # have joined the fleet the mission addresses)
-        out: list[Output] = self._answer([ack]) if ok else [Publish(ack)]
+        out: list[ModuleOutput] = self._answer([ack]) if ok else [Publish(ack)]
         if ok:
             mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
             self.missions[mission.mission_id] = mission
             self.fsm.post(fsm.NewMission(mission.mission_id))
         return out
 
-    def _on_fleet(self, msg: FleetAssignment) -> list[Output]:
+    def _on_fleet(self, msg: FleetAssignment) -> list[ModuleOutput]:
         if self.self_id in msg.vehicle_ids:
             self.fleet_id = msg.fleet_id
         elif self.fleet_id == msg.fleet_id:
@@ -400,7 +480,7 @@ class NodeCore:
             top = max(top, m.params.altitude_rel_m + m.params.altitude_step_m * (n - 1))
         return top
 
-    def _keep_fence(self, now: float) -> list[Output]:
+    def _keep_fence(self, now: float) -> list[ModuleOutput]:
         """Keep the autopilot's fence equal to the zones in force (fences.py): a new plan
         when a zone, its validity, home or the flight ceiling changed."""
         home = self.autopilot.home
@@ -410,7 +490,7 @@ class NodeCore:
         ceiling = self.fly_ceiling_rel_m()
         key = (self._zones_version, in_force, home, ceiling)
         if key == self._fence_key:
-            return [Submit(r) for r in self.fence.on_timer(now)]
+            return [Submit(r, Owner.FENCE) for r in self.fence.on_timer(now)]
         self._fence_key = key
         before = self.fence_plan
         plan = plan_fence(
@@ -421,7 +501,7 @@ class NodeCore:
             max_items=self.settings.fence_max_items,
         )
         self.fence_plan = plan
-        out: list[Output] = []
+        out: list[ModuleOutput] = []
         if plan.left_out and (before is None or before.left_out != plan.left_out):
             ids = ",".join(str(i) for i in plan.left_out)
             text = f"fence full: zones {ids} not in the autopilot"
@@ -430,11 +510,11 @@ class NodeCore:
                 Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
                               AlertCode.NO_FLY_ZONE, text[:64])),
             ]  # fmt: skip
-        return out + [Submit(r) for r in self.fence.update(plan.request, now)]
+        return out + [Submit(r, Owner.FENCE) for r in self.fence.update(plan.request, now)]
 
-    def _fence_result(self, result: ApResult, now: float) -> list[Output]:
+    def _fence_result(self, result: ApResult, now: float) -> list[ModuleOutput]:
         reqs, problem = self.fence.on_result(result, now)
-        out: list[Output] = [Submit(r) for r in reqs]
+        out: list[ModuleOutput] = [Submit(r, Owner.FENCE) for r in reqs]
         if problem is not None and self.fence.failures == 1:  # once per run of failures
             out += [
                 Note(logging.WARNING, f"{problem}; retrying every {self.fence.retry_s:g} s"),
@@ -448,8 +528,8 @@ class NodeCore:
         no-fly zones)."""
         return [z for z in self.monitor.zones.values() if z.in_force(now) and not z.operating_area]
 
-    def _peer_events(self, events: list[PeerEvent]) -> list[Output]:
-        out: list[Output] = []
+    def _peer_events(self, events: list[PeerEvent]) -> list[ModuleOutput]:
+        out: list[ModuleOutput] = []
         for ev in events:
             if isinstance(ev, PeerJoined):
                 out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
@@ -458,8 +538,8 @@ class NodeCore:
                 out += self._roster_events(self.roster.on_peer_left(ev.node_id, ev.why))
         return out
 
-    def _roster_events(self, events: list[RosterEvent]) -> list[Output]:
-        out: list[Output] = []
+    def _roster_events(self, events: list[RosterEvent]) -> list[ModuleOutput]:
+        out: list[ModuleOutput] = []
         for ev in events:
             if isinstance(ev, MemberLost):
                 self.lost_members.append(ev)
@@ -488,7 +568,7 @@ class NodeCore:
 
     def on_timer(self, now: float) -> list[Output]:
         self.now = now
-        out: list[Output] = []
+        out: list[ModuleOutput] = []
         out += self._peer_events(self.members.on_timer(now))
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
@@ -502,7 +582,7 @@ class NodeCore:
         if now >= self._next_info:
             self._next_info = max(self._next_info + self.settings.info_period_s, now)
             out.append(Publish(self.info()))
-        return out
+        return self._route(out, now)
 
     def facts(self) -> fsm.Facts:
         return fsm.Facts(
@@ -525,18 +605,22 @@ class NodeCore:
             return True  # each vehicle plans its own way back (no landing sequencing yet)
         return self.roster.ready(self.members.peers)
 
-    def _tick_fsm(self, now: float) -> list[Output]:
+    def _tick_fsm(self, now: float) -> list[ModuleOutput]:
         tr = self.fsm.tick(now, self.facts())
         if tr is None:
             return []
-        out: list[Output] = [Note(logging.INFO, f"{tr.before.name} -> {tr.after.name} ({tr.rule})")]
+        out: list[ModuleOutput] = [
+            Note(logging.INFO, f"{tr.before.name} -> {tr.after.name} ({tr.rule})")
+        ]
+        if tr.before == FsmState.EMERGENCY and tr.after != FsmState.EMERGENCY:
+            self.arbiter.release(Owner.EMERGENCY)
         for o in tr.outputs:
             out += self._carry_out(o, now)
         if tr.before != tr.after or any(isinstance(o, fsm.BeginPlan) for o in tr.outputs):
             out.append(Publish(self.info()))  # peers waiting on our state should not wait 1 s
         return out
 
-    def _carry_out(self, o: fsm.Output, now: float) -> list[Output]:
+    def _carry_out(self, o: fsm.Output, now: float) -> list[ModuleOutput]:
         if isinstance(o, fsm.RaiseAlert):
             return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, o.text[:64]))]
         if isinstance(o, fsm.StartEmergency):
@@ -544,11 +628,12 @@ class NodeCore:
             alert = Alert(
                 self.self_id, max(0.0, now), o.severity, o.code, f"emergency: {o.code.name}"
             )
-            out: list[Output] = [Publish(alert)]
-            return out + [Submit(r) for r in emergency_requests(o.code, self.profile)]
+            out: list[ModuleOutput] = [Publish(alert)]
+            self.arbiter.take(Owner.EMERGENCY)
+            return out + [Submit(r, Owner.EMERGENCY) for r in emergency_requests(o.code, self.profile)]
         if isinstance(o, fsm.ReturnHome):
             note = Note(logging.WARNING, f"returning home: {o.reason}")
-            return [note, *self._from_manager(self._start_return(now))]
+            return [note, *self._start_return(now)]
         if isinstance(o, fsm.LeaveFleet):
             self.fleet_id = 0
             self.roster.close()
@@ -564,6 +649,7 @@ class NodeCore:
             elif not o.replan:
                 self.roster.open(o.mission_id, mission.selection)
             self.manager.plan(o.mission_id)
+            self.arbiter.release(Owner.OPERATOR)  # the state machine decides the next flight
             return []
         if isinstance(o, fsm.ReleaseMission):
             return self._release(o.mission_id, now)
@@ -589,14 +675,15 @@ class NodeCore:
             return []
         if isinstance(o, fsm.Deactivated):
             self.manager.stop()
+            self.arbiter.release(Owner.OPERATOR)
             return [Note(logging.INFO, f"state machine deactivated: {o.reason}")]
         return []
 
-    def _release(self, mission_id: int, now: float) -> list[Output]:
+    def _release(self, mission_id: int, now: float) -> list[ModuleOutput]:
         """The fleet is synchronised: hand the mission to the mission manager (the
         return-to-base mission: fly back to base and land)."""
         if mission_id == fsm.RETURN_MISSION:
-            return self._from_manager(self._start_return(now))
+            return self._start_return(now)
         mission = self.missions.get(mission_id)
         if mission is None:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
@@ -610,11 +697,9 @@ class NodeCore:
             return [
                 Note(logging.ERROR, f"cannot plan mission {mission_id}: no profile for {unknown}")
             ]
-        return self._from_manager(
-            self.manager.release(mission, members, self.planning_zones(now), self.autopilot, now)
-        )
+        return self.manager.release(mission, members, self.planning_zones(now), self.autopilot, now)
 
-    def _start_return(self, now: float) -> list[MissionOut]:
+    def _start_return(self, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(self.autopilot, self.planning_zones(now), now)
 
     def _members(self) -> tuple[list[Member], list[int]]:
