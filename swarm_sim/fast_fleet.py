@@ -165,7 +165,8 @@ class FastFleet:
         self.now = max(self.now, self._deadline())
         while self._bus and self._bus[0][0] <= self.now:
             _, _, vid, event = heapq.heappop(self._bus)
-            self._node_out(vid, self.vehicles[vid].node.handle(event, self.now))
+            if vid in self.vehicles:  # a killed vehicle hears nothing
+                self._node_out(vid, self.vehicles[vid].node.handle(event, self.now))
         for vid, v in self.vehicles.items():
             ep = v.endpoint.next_deadline()
             if ep is not None and ep <= self.now:
@@ -179,6 +180,11 @@ class FastFleet:
                 self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
             if v.node.next_deadline() <= self.now:
                 self._node_out(vid, v.node.on_timer(self.now))
+
+    def kill(self, vid: int) -> SimVehicle:
+        """The vehicle and its node vanish at once (a crash, a dead companion computer):
+        nothing more is heard from it; the others notice by its silence."""
+        return self.vehicles.pop(vid)
 
     def run_for(self, seconds: float) -> None:
         end = self.now + seconds

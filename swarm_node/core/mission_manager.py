@@ -54,6 +54,7 @@ from .mission.share import (
     Member,
     PlanOutcome,
     PlanRequest,
+    Share,
     plan_fleet,
 )
 from .mission.sortie import Sortie, Trigger
@@ -140,7 +141,7 @@ def plan_share(
     home_alt_msl_m: float,
 ) -> tuple[Waypoint, ...]:
     """This vehicle's waypoints in a plan made for every member (mission/share.py)."""
-    return plan_fleet(mission, members, zones, now, home_alt_msl_m).share(self_id)
+    return plan_fleet(mission, members, zones, now, home_alt_msl_m).share(self_id).waypoints
 
 
 @dataclass
@@ -163,6 +164,10 @@ class MissionManager:
     _fresh_reached: bool = False  # the autopilot reported an item of this mission
     _fresh_current: bool = False
     fleet_plan: FleetPlan | None = None  # the whole fleet's plan (replanning starts from it)
+    share: Share | None = None  # our share of it, as flown
+    _share_index: tuple[int, ...] = ()  # uploaded item seq -> index in share.waypoints
+    _offset: float = 0.0  # metres flown before the last replan
+    replanned_from: dict[int, float] = field(default_factory=dict)  # the last replan's progress
     _job: int = 0  # the plan job we wait for
     _planning: tuple[Mission, tuple[NoFlyZone, ...]] | None = None
     _steps: list[ApRequest] = field(default_factory=list)
@@ -225,13 +230,28 @@ class MissionManager:
         self._planning = None
         mid = mission.mission_id
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        replan = self.sortie.state == MissionState.REPLAN
         if outcome.plan is None:
+            if replan:  # keep flying the share we have; the loss is logged
+                return [Log(f"mission {mid}: no replan ({outcome.error}); flying on"),
+                        *self._resume(mid)]  # fmt: skip
             return self._failed(mid, outcome.error)
+        old = self.share
         self.fleet_plan = outcome.plan
         try:
-            waypoints = outcome.plan.share(self.profile.vehicle_id)
+            share = outcome.plan.share(self.profile.vehicle_id)
         except PlanningError as exc:
+            if replan:
+                return [Log(f"mission {mid}: replan without us ({exc})"), *self._resume(mid)]
             return self._failed(mid, str(exc))
+        waypoints = share.waypoints
+        if replan and old is not None and waypoints == old.waypoints:
+            self.share = share
+            return self._resume(mid)  # our share did not change (a route): nothing to upload
+        if replan and not any(w.kind == ItemKind.WAYPOINT for w in waypoints):
+            self.sortie.finish()  # nothing left for us: the mission is done here
+            self.stop(Trigger.COMPLETE)
+            return [Post(fsm.PlanSucceeded(mid)), Post(fsm.MissionComplete(mid))]
         if not waypoints:
             return self._failed(mid, "nothing to fly for this vehicle")
         try:
@@ -240,7 +260,7 @@ class MissionManager:
             return self._failed(mid, f"approach: {exc}")
         self.zones = tuple(zones)
         self.mission_id = mid
-        fleet_ids = list(outcome.plan.members)
+        fleet_ids = list(outcome.plan.roster)
         note = Log(
             f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
         )
@@ -258,8 +278,11 @@ class MissionManager:
         self.takeoff_alt_m = mission.params.altitude_rel_m
         self._timed_hold(waypoints, mission.params.duration_s)
         self.along_m = along_path(ap, waypoints)
-        self.sortie.path_m = self.along_m[min(self.last_item, len(self.along_m) - 1)]
-        self.sortie.progress_m = 0.0
+        self.share = share
+        self._share_index = share_index_of_items(waypoints, share.waypoints)
+        self._offset = self.sortie.progress_m if replan else 0.0  # flown before the replan
+        self.sortie.path_m = self._offset + share.length_m
+        self.sortie.progress_m = self._offset
         self._stale = (ap.mission_reached, ap.mission_current)
         self._fresh_reached = self._fresh_current = False
         self.sortie.go(Trigger.RELEASED)
@@ -271,6 +294,50 @@ class MissionManager:
         self._steps = steps
         self.phase = Phase.STARTING
         return [note, *self._next()]
+
+    def begin_replan(self) -> None:
+        """A member was lost: the fleet replans what is left. We keep flying our share
+        meanwhile; the progress we published is what the others replan from."""
+        if self.sortie.state in (MissionState.MISSION, MissionState.PREMISSION):
+            self.sortie.go(Trigger.REPLAN)
+        self.owner = Owner.MISSION
+        self._planning = None
+
+    def replan(
+        self,
+        mission: Mission,
+        survivors: Sequence[Member],
+        progress_m: Mapping[int, float],
+        zones: Sequence[NoFlyZone],
+        ap: AutopilotState,
+        now: float,
+    ) -> list[Out]:
+        """What is left of the fleet plan (every old member's `progress_m` along its
+        share) shared among `survivors`, posed where their progress puts them: a
+        `PlanJob` whose outcome comes back to `on_plan`."""
+        base = self.fleet_plan
+        if base is None or self.sortie.state != MissionState.REPLAN:
+            return self.release(mission, survivors, zones, ap, now)
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        self._job += 1
+        self._planning = (mission, tuple(zones))
+        self.replanned_from = dict(progress_m)
+        req = PlanRequest(self._job, mission, tuple(survivors), tuple(zones), now, home_alt,
+                          base=base, progress_m=dict(progress_m))  # fmt: skip
+        ids = sorted(m.profile.vehicle_id for m in survivors)
+        done = {v: round(p) for v, p in sorted(progress_m.items())}
+        return [Log(f"mission {mission.mission_id}: replanning for {ids} from {done} m"),
+                PlanJob(req)]  # fmt: skip
+
+    def _resume(self, mid: int) -> list[Out]:
+        if self.sortie.state == MissionState.REPLAN:
+            self.sortie.go(Trigger.RESUMED)
+        return [Post(fsm.PlanSucceeded(mid))]
+
+    def share_progress_m(self) -> float:
+        """Metres flown along our share of the current fleet plan (published progress
+        less what was flown before the last replan)."""
+        return max(0.0, self.sortie.progress_m - self._offset)
 
     def _failed(self, mid: int, reason: str) -> list[Out]:
         self.sortie.go(Trigger.FAILED)
@@ -448,6 +515,7 @@ class MissionManager:
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
         self._planning = None  # a plan job still running is abandoned
+        self.share, self._share_index, self._offset = None, (), 0.0
         self.sortie.go(trigger)
 
     def take_over(self, phase: Phase) -> None:
@@ -544,8 +612,11 @@ class MissionManager:
         self._fresh_reached |= ap.mission_reached != stale_reached
         self._fresh_current |= ap.mission_current != stale_current
         reached = max(0, min(ap.mission_reached, self.last_item)) if self._fresh_reached else 0
-        if self.along_m:
-            self.sortie.advance(self.along_m[min(reached, len(self.along_m) - 1)])
+        if self.share is not None and self._share_index:
+            k = self._share_index[min(reached, len(self._share_index) - 1)] if reached else -1
+            self.sortie.advance(
+                self._offset + self.share.progress_m(k, ap.lat_deg, ap.lon_deg)
+            )
         done = reached >= self.last_item and self.hold_seq == 0
         if self.hold_seq and self._fresh_current and ap.mission_current >= self.hold_seq:
             if self.hold_since is None and self._on_station(ap):
@@ -568,6 +639,26 @@ class MissionManager:
             return True
         r = abs(w.loiter_radius_m or 0.0) + max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
         return distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= r
+
+
+def share_index_of_items(
+    uploaded: Sequence[Waypoint], share: Sequence[Waypoint]
+) -> tuple[int, ...]:
+    """For each uploaded item seq (0 = home), the index in `share` of the last share
+    waypoint passed at it (-1 before the share starts): the approach leg and the points
+    the flyable stage adds map to the share item before them."""
+    out = [-1]
+    k = -1
+    for w in uploaded:
+        for j in range(k + 1, len(share)):
+            sw = share[j]
+            if sw.kind == w.kind and abs(sw.lat_deg - w.lat_deg) < 1e-6 and abs(
+                sw.lon_deg - w.lon_deg
+            ) < 1e-6:
+                k = j
+                break
+        out.append(k)
+    return tuple(out)
 
 
 def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float, ...]:

@@ -209,6 +209,7 @@ class NodeCore:
         self._next_status = self.now
         self._next_info = self.now
         self.lost_members: list[MemberLost] = []  # roster events (replanning picks them up)
+        self._replanning = False  # in PLAN for a replan of the current mission
 
     # ------------------------------------------------------------------ views
     @property
@@ -547,6 +548,14 @@ class NodeCore:
                 out.append(
                     Note(logging.WARNING, f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})")
                 )
+                if (
+                    self.roster.frozen
+                    and self.fsm.mission_id == ev.mission_id
+                    and self.fsm.state in (FsmState.GO_MISSION, FsmState.PLAN)
+                    and self.manager.mission_state
+                    in (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
+                ):
+                    out.append(Post(fsm.Replan(ev.mission_id)))  # inherit its share
             elif isinstance(ev, RosterMismatch):
                 out.append(
                     Note(logging.ERROR, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} planned "
@@ -603,6 +612,8 @@ class NodeCore:
             return False
         if mid == fsm.RETURN_MISSION:
             return True  # each vehicle plans its own way back (no landing sequencing yet)
+        if self._replanning and self.roster.frozen:
+            return self.roster.ready_to_replan(self.members.peers)
         return self.roster.ready(self.members.peers)
 
     def _tick_fsm(self, now: float) -> list[ModuleOutput]:
@@ -648,7 +659,11 @@ class NodeCore:
                 self.roster.close()
             elif not o.replan:
                 self.roster.open(o.mission_id, mission.selection)
-            self.manager.plan(o.mission_id)
+            self._replanning = o.replan and mission is not None and self.roster.frozen
+            if self._replanning:
+                self.manager.begin_replan()
+            else:
+                self.manager.plan(o.mission_id)
             self.arbiter.release(Owner.OPERATOR)  # the state machine decides the next flight
             return []
         if isinstance(o, fsm.ReleaseMission):
@@ -688,6 +703,8 @@ class NodeCore:
         if mission is None:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
             return []
+        if self._replanning and self.roster.frozen:
+            return self._replan(mission, now)
         self.roster.freeze(self.members.peers)
         members, unknown = self._members()
         if unknown:
@@ -698,6 +715,44 @@ class NodeCore:
                 Note(logging.ERROR, f"cannot plan mission {mission_id}: no profile for {unknown}")
             ]
         return self.manager.release(mission, members, self.planning_zones(now), self.autopilot, now)
+
+    def _replan(self, mission: Mission, now: float) -> list[ModuleOutput]:
+        """Mission inheritance (paper Fig. 14 and 17): what is left of the fleet plan,
+        from every member's published progress along its share, shared among the
+        survivors, each posed where its progress puts it on its share (inputs every
+        survivor has the same: no leader)."""
+        base = self.manager.fleet_plan
+        peers = self.members.peers
+        survivors = self.roster.survivors(peers)
+        progress: dict[int, float] = {}
+        if base is not None:
+            for vid in base.roster:
+                if vid not in base.shares:
+                    continue
+                if vid == self.self_id:
+                    done = self.manager.share_progress_m()
+                else:
+                    p, path = self.roster.progress_of(vid)
+                    # less what it flew before the last replan; nothing heard: nothing flown
+                    done = p - (path - base.shares[vid].length_m) if path > 0.0 else 0.0
+                progress[vid] = min(max(done, 0.0), base.shares[vid].length_m)
+        members: list[Member] = []
+        for vid in survivors:
+            profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
+            if profile is None:
+                continue
+            pose: GeoPoint | None = None
+            if base is not None and vid in base.shares and base.shares[vid].waypoints:
+                try:
+                    _k, lat, lon = base.shares[vid].at(progress.get(vid, 0.0))
+                    pose = GeoPoint(lat, lon, 0.0)
+                except (PlanningError, ValueError):
+                    pose = None
+            members.append(Member(profile, pose))
+        self.roster.replanned(survivors)
+        return self.manager.replan(
+            mission, members, progress, self.planning_zones(now), self.autopilot, now
+        )
 
     def _start_return(self, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(self.autopilot, self.planning_zones(now), now)

@@ -25,7 +25,7 @@ from swarm_proto import (
 from tests.swarm_node.test_node_core import GCS, activate, command, fleet, flying, send
 
 
-def square(half_m: float = 150.0, lat: float = 37.4140, lon: float = -5.9889) -> Geometry:
+def square(half_m: float = 80.0, lat: float = 37.4130, lon: float = -5.9889) -> Geometry:
     dlat = half_m / 111_320.0
     dlon = half_m / (111_320.0 * math.cos(math.radians(lat)))
     return Geometry.polygon(
@@ -34,9 +34,9 @@ def square(half_m: float = 150.0, lat: float = 37.4140, lon: float = -5.9889) ->
     )  # fmt: skip
 
 
-def area(mid: int, selection: Selector | None = None) -> Mission:
+def area(mid: int, selection: Selector | None = None, half_m: float = 80.0) -> Mission:
     return Mission(
-        mid, GCS, MissionType.AREA, square(), MissionParams(altitude_rel_m=50.0),
+        mid, GCS, MissionType.AREA, square(half_m), MissionParams(altitude_rel_m=50.0),
         selection=selection or Selector(),
     )  # fmt: skip
 
@@ -97,7 +97,7 @@ def test_a_second_mission_is_flown_not_completed_at_once() -> None:
     the second one as soon as it started."""
     f = fleet(1)
     activate(f)
-    send(f, area(23))
+    send(f, area(23, half_m=40.0))
     keep_polling(f, 3.0, mission_reached=60, mission_current=61)
     assert any(isinstance(r, StartMission) for _, _, r in f.submitted)
     done = [a for a in f.messages(Alert) if a.code == AlertCode.MISSION_COMPLETE]
@@ -121,7 +121,7 @@ def test_a_cancelled_mission_is_not_reported_as_failed() -> None:
     """Defect 5: CANCEL_MISSION raised MISSION_FAILED."""
     f = fleet(1)
     activate(f)
-    send(f, area(25))
+    send(f, area(25, half_m=40.0))
     keep_polling(f, 3.0)
     assert f.nodes[1].fsm.mission_id == 25
     send(f, command(31, CommandKind.CANCEL_MISSION, mission_id=25))

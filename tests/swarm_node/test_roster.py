@@ -176,3 +176,19 @@ def msgspec_replace(m: VehicleInfo, **kw: float) -> VehicleInfo:
     import msgspec
 
     return msgspec.structs.replace(m, **kw)
+
+
+def test_a_member_that_finished_its_share_is_not_lost() -> None:
+    r = Roster(1)
+    r.open(MID, Selector())
+    peers = peers_of([2, 3], {2: info(2), 3: info(3)})
+    r.on_ack(ack(2, True))
+    r.on_ack(ack(3, True))
+    r.freeze(peers)
+    home = msgspec_replace(info(2, mid=0, state=FsmState.GO_MISSION), mission_progress_m=900.0,
+                           mission_path_m=900.0)  # fmt: skip
+    assert r.on_info(home) == [] and r.finished == {2}
+    recalled = msgspec_replace(info(3, mid=0, state=FsmState.GO_MISSION), mission_progress_m=300.0,
+                               mission_path_m=900.0)  # fmt: skip
+    assert r.on_info(recalled) == [MemberLost(MID, 3, "left the mission")]
+    assert r.flying == (1,)

@@ -40,7 +40,7 @@ def test_an_illegal_move_raises() -> None:
 
 @given(st.lists(st.floats(min_value=0, max_value=2000), max_size=30))
 def test_progress_never_falls(samples: list[float]) -> None:
-    s = Sortie(path_m=1000.0)
+    s = Sortie(state=MissionState.MISSION, path_m=1000.0)
     before = (0.0, 0)
     for x in samples:
         s.advance(x)
@@ -50,7 +50,7 @@ def test_progress_never_falls(samples: list[float]) -> None:
 
 
 def test_the_way_home_keeps_the_progress() -> None:
-    s = Sortie(path_m=500.0)
+    s = Sortie(state=MissionState.MISSION, path_m=500.0)
     s.advance(500.0)
     s.begin(keep_progress=True)
     assert s.progress_pct == 100

@@ -15,59 +15,42 @@ loop: the mission manager emits a `PlanJob` (a picklable `PlanRequest`), the she
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from swarm_proto import GeoPoint, Mission, MissionType, NoFlyZone
+from swarm_proto import GeoPoint, Mission, NoFlyZone
 
-from ..autopilot.items import Waypoint
-from ..planning import (
-    PlanningError,
-    PlanVehicle,
-    VehiclePose,
-    plan_area,
-    plan_objective,
-    plan_perimeter,
-    plan_route,
-    plan_target,
-)
-from ..planning.flight import flyable_plan
-from ..planning.transit import flyable
+from ..planning import PlanningError, PlanVehicle, VehiclePose
+from ..planning.fleet_plan import PLANNERS, FleetPlan, Share
+from ..planning.fleet_plan import plan_fleet as plan_whole_fleet
 from ..profile import VehicleProfile
 
-PLANNERS: dict[MissionType, Callable[..., object]] = {
-    MissionType.AREA: plan_area,
-    MissionType.TARGET: plan_target,
-    MissionType.PERIMETER: plan_perimeter,
-    MissionType.ROUTE: plan_route,
-    MissionType.OBJECTIVE: plan_objective,
-}
+__all__ = ["PLANNERS", "FleetPlan", "Member", "PlanOutcome", "PlanRequest", "Share",
+           "plan_fleet", "run_plan"]  # fmt: skip
 
 
 @dataclass(frozen=True)
 class Member:
+    """A roster member as the planners see it: its database profile and where it is
+    posed (its home for a new plan; for a replan, where its published progress puts it
+    on its share: the same on every node)."""
+
     profile: VehicleProfile
     home: GeoPoint | None
 
 
-@dataclass(frozen=True)
-class FleetPlan:
-    """Every member's waypoints (by vehicle id) and the planner's own plan object."""
-
-    mission_id: int
-    members: tuple[int, ...]
-    shares: dict[int, tuple[Waypoint, ...]]
-    plan: object = field(default=None, compare=False)
-
-    def share(self, vehicle_id: int) -> tuple[Waypoint, ...]:
-        if vehicle_id not in self.shares:
-            raise PlanningError(f"the plan has no share for vehicle {vehicle_id}")
-        return self.shares[vehicle_id]
+def _vehicles(members: Sequence[Member]) -> list[PlanVehicle]:
+    return [
+        PlanVehicle(m.profile, VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None)
+        for m in members
+    ]
 
 
 @dataclass(frozen=True)
 class PlanRequest:
-    """Everything a plan needs, picklable (a worker process may run it)."""
+    """Everything a plan needs, picklable (a worker process may run it). With `base`,
+    a replan: what is left of `base` (every old member's `progress_m` along its share)
+    shared among `members` (the survivors, posed where their progress puts them)."""
 
     job_id: int
     mission: Mission
@@ -75,6 +58,8 @@ class PlanRequest:
     zones: tuple[NoFlyZone, ...]
     now: float
     home_alt_msl_m: float
+    base: FleetPlan | None = None
+    progress_m: Mapping[int, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -91,38 +76,23 @@ def plan_fleet(
     now: float,
     home_alt_msl_m: float,
 ) -> FleetPlan:
-    """The whole fleet's plan (members sorted by id, posed at their homes: inputs every
-    member sees the same); every fixed-wing share made flyable as planned."""
-    planner = PLANNERS.get(mission.mission_type)
-    if planner is None:
-        raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
-    ordered = sorted(members, key=lambda m: m.profile.vehicle_id)
-    vehicles = [
-        PlanVehicle(
-            flyable(m.profile), VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None
-        )
-        for m in ordered
-    ]
-    plan = planner(
-        mission.geometry,
-        vehicles,
-        mission.params,
-        zones=zones,
-        now_unix_s=now,
-        home_alt_msl_m=home_alt_msl_m,
-        zone_margin_m=max((flyable(m.profile).turn_radius_m() for m in members), default=0.0),
-    )
-    plan = flyable_plan(plan, vehicles, zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
-    shares = {s.vehicle_id: tuple(s.waypoints) for s in plan.vehicles}
-    return FleetPlan(
-        mission.mission_id, tuple(m.profile.vehicle_id for m in ordered), shares, plan
+    """The whole fleet's plan (`planning.fleet_plan.plan_fleet`: members sorted by id,
+    posed at their homes, inputs every member sees the same)."""
+    return plan_whole_fleet(
+        mission, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m
     )
 
 
 def run_plan(req: PlanRequest) -> PlanOutcome:
     """Run a plan job; a planning error is an outcome, never an exception."""
     try:
-        plan = plan_fleet(req.mission, req.members, req.zones, req.now, req.home_alt_msl_m)
+        if req.base is None:
+            plan = plan_fleet(req.mission, req.members, req.zones, req.now, req.home_alt_msl_m)
+        else:
+            plan = req.base.replan(
+                req.progress_m, _vehicles(req.members), zones=req.zones,
+                now_unix_s=req.now, home_alt_msl_m=req.home_alt_msl_m,
+            )  # fmt: skip
     except (PlanningError, ValueError) as exc:
         return PlanOutcome(req.job_id, None, f"planning: {exc}")
     return PlanOutcome(req.job_id, plan)

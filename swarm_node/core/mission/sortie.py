@@ -39,6 +39,7 @@ ID, PL, PM, M, R, PC = (
 class Trigger(Enum):
     PLAN = "plan"  # the state machine began planning a mission (BeginPlan)
     REPLAN = "replan"  # a member was lost: replan in flight
+    RESUMED = "resumed"  # the replan left our share as it was: fly on
     RELEASED = "released"  # planned: upload, arm, take off
     STARTED = "started"  # the autopilot flies the mission
     RETURN = "return"  # fly the way home (the return-to-base mission)
@@ -61,13 +62,14 @@ def _add(froms: tuple[MissionState, ...], trigger: Trigger, to: MissionState) ->
 
 _ALL = (ID, PL, PM, M, R, PC)
 _add((ID, PL, PM, M, R), Trigger.PLAN, PL)
-_add((M,), Trigger.REPLAN, R)
+_add((PM, M, R), Trigger.REPLAN, R)
+_add((R,), Trigger.RESUMED, M)
 _add((PL, R), Trigger.RELEASED, PM)
 _add((PM,), Trigger.STARTED, M)
 _add((ID, PL, PM, M, R), Trigger.RETURN, M)
 _add((ID, PL, PM, M, R), Trigger.TAKE_OVER, M)
 _add((ID, PL, PM, M, R), Trigger.PARACHUTE, PC)
-_add((M,), Trigger.COMPLETE, ID)
+_add((M, R), Trigger.COMPLETE, ID)
 _add((PL, PM, R, M), Trigger.FAILED, ID)
 _add(_ALL, Trigger.LANDED, ID)
 _add(_ALL, Trigger.STOP, ID)
@@ -109,8 +111,9 @@ class Sortie:
             self.progress_pct = 0
 
     def advance(self, progress_m: float) -> None:
-        """Progress never falls within a mission."""
-        if self.path_m <= 0.0:
+        """Progress never falls within a mission; it is held while replanning (what
+        this vehicle published on entering REPLAN is what the fleet replans from)."""
+        if self.path_m <= 0.0 or self.state != MissionState.MISSION:
             return
         self.progress_m = min(self.path_m, max(self.progress_m, progress_m))
         self.progress_pct = max(self.progress_pct, int(100.0 * self.progress_m / self.path_m))

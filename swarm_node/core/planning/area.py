@@ -11,6 +11,7 @@ from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
 from .coverage import LanePlan, decompose, lane_spacing_m, plan_lanes
 from .dubins import Pose, shortest_path
+from .endurance import Endurance, accel_m_s2
 from .errors import InvalidGeometryError, InvalidParameterError
 from .geo import LocalFrame
 from .split import SplitPlan, Worker, replan, split_lanes
@@ -48,13 +49,34 @@ def _hfov(vehicles: Sequence[PlanVehicle], hfov_deg: float | None) -> float:
 
 
 def _workers(
-    vehicles: Sequence[PlanVehicle], params: MissionParams, frame: LocalFrame
+    vehicles: Sequence[PlanVehicle],
+    params: MissionParams,
+    frame: LocalFrame,
+    *,
+    altitudes: Mapping[int, float] | None = None,
+    extra_s: Mapping[int, float] | None = None,
 ) -> list[Worker]:
+    """Each vehicle as a split worker: its mission speed and turns, the time it loses
+    stopping on waypoints, and with `altitudes` (a sortie from where it is, its home)
+    the time at cruise its battery allows for its block and the way home."""
     out = []
     for v in vehicles:
         speed = v.speed(params)
         start = Pose(*frame.pose(v.pose)) if v.pose is not None else None
-        out.append(Worker(v.vehicle_id, speed, v.turns(speed), start))
+        budget = math.inf
+        if altitudes is not None:
+            budget = Endurance.of(v.profile, altitudes[v.vehicle_id]).cruise_budget_s
+        out.append(
+            Worker(
+                v.vehicle_id,
+                speed,
+                v.turns(speed),
+                start,
+                accel_m_s2=accel_m_s2(v.profile),
+                extra_s=(extra_s or {}).get(v.vehicle_id, 0.0),
+                budget_s=budget,
+            )
+        )
     return out
 
 
@@ -69,7 +91,7 @@ def _vehicle_plans(
     for a in split.assignments:
         pts = a.path.points()
         wps = to_waypoints(frame, pts, altitudes[a.vehicle_id], speed_m_s=a.speed_m_s)
-        out.append(VehiclePlan(a.vehicle_id, wps, a.path.length_m, a.time_s))
+        out.append(VehiclePlan(a.vehicle_id, wps, a.path.length_m, a.path_time_s))
     return tuple(out)
 
 
@@ -111,11 +133,18 @@ def plan_area(
     hfov_deg: float | None = None,
     min_coverage: float = 0.99,
     frame: LocalFrame | None = None,
+    endurance: bool = False,
+    extra_s: Mapping[int, float] | None = None,
 ) -> AreaPlan:
     """Cover a POLYGON (holes are not covered, zones are cut out and never entered) with
     `vehicles`: lane spacing from the altitude, the narrowest camera HFOV and the side
-    overlap; sweep direction searched; lanes split to minimize the makespan; each
-    vehicle at `altitude_rel_m + i * altitude_step_m`."""
+    overlap; sweep direction searched; lanes split to minimize the makespan (a vehicle
+    that stops on its waypoints charged for each stop); each vehicle at
+    `altitude_rel_m + i * altitude_step_m`. With `endurance` the vehicles are at their
+    homes with a full battery, and no block and its way home take more than the
+    battery allows (`endurance.Endurance`; `InfeasibleTimingError` if the fleet cannot
+    cover the area). `extra_s`: seconds a vehicle's block is known to take beyond its
+    path (the turns the flyable stage adds, see `fleet_plan`)."""
     require_vehicles(vehicles)
     if geometry.kind != GeometryKind.POLYGON:
         raise InvalidGeometryError(f"an area mission needs a POLYGON, got {geometry.kind.name}")
@@ -132,7 +161,9 @@ def plan_area(
     zones_here = ZoneSet(zs.at(lo, hi), zs.margin_m, zs.vertical_margin_m)
     region = decompose(poly, zones_here)
     spacing = lane_spacing_m(lo, _hfov(vehicles, hfov_deg), params.side_overlap)
-    workers = _workers(vehicles, params, frame)
+    workers = _workers(
+        vehicles, params, frame, altitudes=alts if endurance else None, extra_s=extra_s
+    )
     lp = plan_lanes(region, spacing, _reference_turns(workers), min_coverage=min_coverage)
     split = split_lanes(lp.lanes, workers, obstacles=region.obstacles)
     return AreaPlan(

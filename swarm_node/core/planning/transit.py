@@ -6,7 +6,8 @@ flyable from its pose at its planned turn radius.
     safe_transit        straight, or the shortest way round the inflated zones
     fixed_wing_transit  the same, entered along a zone-clear Dubins path
     fly_corners         a fixed-wing's waypoints flyable from where it is (flight.py)
-    flyable             the profile planners use (turns at 1.3 x the minimum radius)
+    flyable             (fleet_plan.py) the profile planners use: turns at 1.3 x the
+                        minimum radius
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import msgspec
 from shapely.geometry import LineString
 
 from swarm_proto import LatLon, NoFlyZone
@@ -23,23 +23,12 @@ from ..autopilot.items import ItemKind, Waypoint
 from ..profile import VehicleProfile
 from .dubins import Pose, all_paths
 from .errors import PlanningError
+from .fleet_plan import flyable
 from .flight import flyable_waypoints
 from .geo import LocalFrame, heading_to_yaw
 from .zones import ZoneSet
 
 TRANSIT_MARGIN_M = 20.0  # least clearance from a no-fly zone on transit legs
-TURN_RADIUS_MARGIN = 1.3
-
-
-def flyable(profile: VehicleProfile) -> VehicleProfile:
-    """The profile planners should use: a fixed-wing's turns planned at
-    TURN_RADIUS_MARGIN times its minimum radius, so the autopilot's path following has
-    room to converge on the planned arcs instead of overshooting them."""
-    if not profile.is_fixed_wing:
-        return profile
-    return msgspec.structs.replace(
-        profile, loiter_radius_m=TURN_RADIUS_MARGIN * profile.turn_radius_m()
-    )
 
 
 def fly_corners(

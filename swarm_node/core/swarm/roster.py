@@ -42,12 +42,14 @@ from ..membership import Peer
 KEEP_MISSIONS = 16  # answers kept for this many recent missions
 
 
-def members_hash(mission_id: int, members: Iterable[int]) -> int:
-    """16 bits of BLAKE2s of the mission id and the sorted members; never 0 (0 = no
-    roster)."""
+def members_hash(mission_id: int, members: Iterable[int], generation: int = 0) -> int:
+    """16 bits of BLAKE2s of the mission id, the sorted members and (after replans) how
+    many times the roster was replanned; never 0 (0 = no roster)."""
     data = mission_id.to_bytes(4, "little", signed=True) + b"".join(
         m.to_bytes(2, "little") for m in sorted(set(members))
     )
+    if generation:
+        data += b"R" + generation.to_bytes(2, "little")
     h = int.from_bytes(hashlib.blake2s(data, digest_size=2, person=b"bdroster").digest(), "little")
     return h or 1
 
@@ -81,18 +83,31 @@ class Roster:
     selection: Selector = field(default_factory=Selector)
     members: tuple[int, ...] = ()  # frozen members (sorted), () while open
     lost: dict[int, str] = field(default_factory=dict)  # frozen members that left, and why
+    finished: set[int] = field(default_factory=set)  # members that flew all their share
+    planned: tuple[int, ...] = ()  # the members the current plan was made for
+    generation: int = 0  # replans of this roster
+    #: each member's last published (progress_m, path_m) in this mission: a survivor's
+    #: progress is held while it replans, so every survivor replans from the same values
+    progress: dict[int, tuple[float, float]] = field(default_factory=dict)
     mismatches: int = 0
+    _previous_hash: int = 0
     _answers: OrderedDict[int, dict[int, bool]] = field(default_factory=OrderedDict)
 
     # ------------------------------------------------------------------ lifecycle
     def open(self, mission_id: int, selection: Selector) -> None:
         """This vehicle accepted `mission_id`: a new, open roster."""
         self.mission_id, self.selection = mission_id, selection
-        self.members, self.lost = (), {}
+        self._reset()
         self._answer(mission_id, self.self_id, True)
 
     def close(self) -> None:
-        self.mission_id, self.members, self.lost = None, (), {}
+        self.mission_id = None
+        self._reset()
+
+    def _reset(self) -> None:
+        self.members, self.lost, self.finished, self.planned = (), {}, set(), ()
+        self.generation = 0
+        self.progress = {}
 
     @property
     def frozen(self) -> bool:
@@ -100,14 +115,14 @@ class Roster:
 
     @property
     def members_hash(self) -> int:
-        if not self.members or self.mission_id is None:
+        if not self.planned or self.mission_id is None:
             return 0
-        return members_hash(self.mission_id, self.members)
+        return members_hash(self.mission_id, self.planned, self.generation)
 
     @property
     def flying(self) -> tuple[int, ...]:
-        """Frozen members that have not left."""
-        return tuple(m for m in self.members if m not in self.lost)
+        """Frozen members that have not left nor finished their share."""
+        return tuple(m for m in self.members if m not in self.lost and m not in self.finished)
 
     # ------------------------------------------------------------------ answers
     def _answer(self, mission_id: int, vid: int, accepted: bool) -> None:
@@ -130,15 +145,30 @@ class Roster:
         in_mission = info.mission_id == mid and info.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)
         if in_mission and not self.frozen:
             self._answer(mid, vid, True)
+        if in_mission:
+            mark = (info.mission_progress_m, info.mission_path_m)
+            self.progress[vid] = mark
         out: list[RosterEvent] = []
-        if self.frozen and vid in self.members and vid not in self.lost:
+        if self.frozen and vid in self.members and vid not in self.lost and vid not in self.finished:
             if info.fsm_state == FsmState.EMERGENCY:
                 out += self._lose(vid, "emergency")
             elif info.mission_id != mid and info.fsm_state != FsmState.PLAN:
-                out += self._lose(vid, "left the mission")
+                # progress is kept on the way home: a member that flew all its share
+                # says so in the same VehicleInfo that shows it left the mission
+                done, path = info.mission_progress_m, info.mission_path_m
+                if path > 0.0 and done >= path - 0.5:
+                    self.finished.add(vid)  # flew its share and went home: not lost
+                else:
+                    out += self._lose(vid, "left the mission")
             else:
-                theirs = getattr(info, "members_hash", 0)
-                if in_mission and theirs and theirs != self.members_hash:
+                theirs = info.members_hash
+                # a member one replan behind has not noticed the loss yet
+                if (
+                    in_mission
+                    and info.fsm_state == FsmState.GO_MISSION
+                    and theirs
+                    and theirs not in (self.members_hash, self._previous_hash)
+                ):
                     self.mismatches += 1
                     out.append(RosterMismatch(mid, vid, theirs, self.members_hash))
         return out
@@ -149,7 +179,7 @@ class Roster:
         if vid in self.lost or self.mission_id is None:
             return []
         if self.frozen:
-            return self._lose(vid, why) if vid in self.members else []
+            return self._lose(vid, why) if vid in self.flying else []
         if self._answers.get(self.mission_id, {}).get(vid):
             return self._lose(vid, why)
         return []
@@ -211,6 +241,42 @@ class Roster:
         return True
 
     def freeze(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
-        self.members = self.accepted(peers)
+        self.members = self.planned = self.accepted(peers)
         self.lost = {v: why for v, why in self.lost.items() if v in self.members}
         return self.members
+
+    # ------------------------------------------------------------------ replan
+    def ready_to_replan(self, peers: Mapping[int, Peer]) -> bool:
+        """Every live flying member is in PLAN for the mission (it noticed the loss and
+        published its progress) or already flies the replanned roster (its hash is the
+        next generation's): no leader, the same inputs everywhere."""
+        mid = self.mission_id
+        if mid is None or not self.frozen:
+            return False
+        nxt = members_hash(mid, self.survivors(peers), self.generation + 1)
+        for vid in self.survivors(peers):
+            if vid == self.self_id:
+                continue
+            info = peers[vid].info
+            if info is None or info.mission_id != mid:
+                return False
+            if info.fsm_state != FsmState.PLAN and info.members_hash != nxt:
+                return False
+        return True
+
+    def survivors(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
+        return tuple(
+            v for v in self.flying if v == self.self_id or (v in peers and peers[v].present)
+        )
+
+    def replanned(self, survivors: tuple[int, ...]) -> None:
+        """The replan is made for `survivors` (the next generation)."""
+        for v in set(self.flying) - set(survivors):
+            self.lost.setdefault(v, "stale")
+        self._previous_hash = self.members_hash
+        self.planned = survivors
+        self.generation += 1
+
+    def progress_of(self, vid: int) -> tuple[float, float]:
+        """A member's last published (progress_m, path_m); (0, 0): nothing heard."""
+        return self.progress.get(vid, (0.0, 0.0))
