@@ -97,13 +97,6 @@ class NoAutopilot:
         pass
 
 
-def _warm_up() -> bool:
-    """Imported by the worker at start, so the first plan does not pay for imports."""
-    from ..core.mission import share  # noqa: F401
-
-    return True
-
-
 class PlanWorker:
     """Runs plan jobs off the control loop; outcomes go to `deliver`."""
 
@@ -118,7 +111,6 @@ class PlanWorker:
         if self.kind == "process":
             ctx = multiprocessing.get_context("spawn")
             self._pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
-            self._pool.submit(_warm_up)
         else:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
 
@@ -237,7 +229,8 @@ class NodeRuntime:
             self.bus.subscribe(topic, self._received)
         self.bus.watch_alive(self._alive)
         self.bus.declare_alive(self.core.self_id)
-        self.planner.start()
+        # the planner's worker process starts with the first plan job (~1 s, off the
+        # loop): a node that never plans, or is starting up, does not pay for it
         key = PEERS.key(self.config.swarm, vehicle_id=self.core.self_id)
         self._queryable = self.bus.session.declare_queryable(key, self._answer_peers)
         if self.database is not None:  # peers and the ground station read our database
