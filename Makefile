@@ -56,6 +56,7 @@ sitl-check: $(STAMP)
 ## docs: regenerate the generated documents (keyspace, state diagrams)
 docs: $(STAMP)
 	$(BIN)/python -m swarm_proto.topics > docs/keyspace.md
+	$(BIN)/python -m swarm_node.docs_gen docs/state-machine.md
 
 clean:
 	rm -rf $(VENV) .mypy_cache .ruff_cache .pytest_cache .hypothesis *.egg-info

@@ -8,8 +8,13 @@ each beside its baseline measured in the same run.
   MISSION_COMPLETE) over the makespan planned (`FleetPlan.makespan_s`). Baseline: the
   split before issue 12 (`fleet_plan.BASELINE_SPLIT`: no endurance, every vehicle
   timed at constant speed, one split before the flyable stage).
-- `inherit_coverage`, `double_flown_fraction`: six Albatross VTOLs plan an area; one
-  is lost at 40 % of its share (the others at 40 % of theirs); the flown-before lanes
+- `inherit_coverage`, `double_flown_fraction`, `replan_agree_ms`: the node's mission
+  inheritance flown end to end in FastFleet (`swarm_sim.scenarios.inheritance`): six
+  VTOLs fly an area mission sent to ALL, one is killed at 40 % of its share; coverage
+  from the flown tracks (swath: camera footprint), double flying from the lane runs,
+  loss -> every survivor flying its new share, in simulated milliseconds.
+- `inherit.planning_coverage` (planning only, under `inherit`): six Albatross VTOLs plan
+  an area; one is lost at 40 % of its share (the others at 40 % of theirs); the flown-before lanes
   plus the replanned split (`FleetPlan.replan`) cover this fraction of the area, and
   this fraction of it is seen twice (swaths at the lane spacing, counted with
   multiplicity). Baseline: no inheritance (the survivors finish their own shares).
@@ -423,6 +428,9 @@ def run() -> dict[str, Any]:
     new = survey(profiles)
     old = survey(profiles, baseline=True)
     inh = inherit(profiles)
+    from swarm_sim.scenarios import inheritance
+
+    flown = inheritance(profiles, INHERIT_FLEET, victim=3, at_fraction=0.4)
     pre = premission_flight(profiles)
     open_loop = premission_flight(profiles, closed_loop=False)
     out: dict[str, Any] = {
@@ -430,8 +438,10 @@ def run() -> dict[str, Any]:
         "premission_open_loop_spread_s": open_loop["premission_arrival_spread_s"],
         "battery_min_pct_at_landing": new["battery_min_pct_at_landing"],
         "makespan_planned_vs_flown": new["makespan_planned_vs_flown"],
-        "inherit_coverage": inh["inherit_coverage"],
-        "double_flown_fraction": inh["double_flown_fraction"],
+        "inherit_coverage": round(flown.coverage, 4),
+        "double_flown_fraction": round(flown.double_flown, 4),
+        "replan_agree_ms": round(flown.agree_s * 1000.0),
+        "survivors_completed": sorted(flown.completed),
         "baseline": {
             "battery_min_pct_at_landing": old["battery_min_pct_at_landing"],
             "makespan_planned_vs_flown": old["makespan_planned_vs_flown"],

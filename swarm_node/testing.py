@@ -17,12 +17,15 @@ from dataclasses import dataclass, field
 import msgspec
 
 from swarm_node.core.autopilot.requests import ApRequest, ApResult
+from swarm_node.core.mission.share import run_plan
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
     Input,
     NodeCore,
     Note,
+    PlanDone,
+    PlanJob,
     Publish,
     Received,
     Submit,
@@ -43,6 +46,7 @@ class Fleet:
     loss: float = 0.0  # probability a message is lost on a link
     delay_s: tuple[float, float] = (0.0, 0.0)  # uniform delay range per link
     autopilot: AutopilotFn = always_ok
+    plan_delay_s: float = 0.0  # how long a plan job takes (it runs inline, in no time)
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
@@ -76,6 +80,9 @@ class Fleet:
                     self.deliver(node_id, AutopilotResult(answer))
             elif isinstance(o, Note):
                 self.notes.append((self.now, node_id, o.text))
+            elif isinstance(o, PlanJob):
+                done = PlanDone(run_plan(o.request))
+                self.deliver(node_id, done, self.now + self.plan_delay_s)
 
     def run_until(self, t_end: float) -> None:
         """Process inputs and timers in time order up to t_end."""

@@ -100,6 +100,7 @@ class AlertCode(IntEnum):
     AUTOPILOT_TEXT = 15  # a STATUSTEXT relayed from the autopilot
     MALFORMED_INPUT = 16  # a peer sent something we could not decode
     CONDITION_CLEARED = 17
+    MISSION_CANCELLED = 18  # the operator cancelled the mission (not a failure)
 
 
 class CommandKind(IntEnum):

@@ -248,6 +248,11 @@ class VehicleInfo(Struct, frozen=True):
     mission_id: MissionId = 0  # current mission, 0 = none
     fsm_state: FsmState = FsmState.INACTIVE
     errors: tuple[AlertCode, ...] = ()  # active error conditions
+    # appended (issue 12): the mission's roster hash (swarm_node roster.py; 0 = none) and
+    # how far along its planned path this vehicle is
+    members_hash: Annotated[int, Meta(ge=0, le=0xFFFF, description="roster hash, 0 = none")] = 0
+    mission_progress_m: DistanceM = 0.0  # metres of this vehicle's share flown
+    mission_path_m: DistanceM = 0.0  # length of this vehicle's share
 
 
 # --------------------------------------------------------------------------- control

@@ -23,6 +23,7 @@ import msgspec
 
 from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
+from swarm_node.core.mission.share import run_plan
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
@@ -30,6 +31,8 @@ from swarm_node.core.node import (
     NodeCore,
     NodeSettings,
     Note,
+    PlanDone,
+    PlanJob,
     Publish,
     Received,
     Submit,
@@ -66,6 +69,7 @@ class FastFleet:
     now: float
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
+    plan_delay_s: float = 0.0  # simulated time a plan job takes
 
     def __post_init__(self) -> None:
         self._bus: list[tuple[float, int, int, Input]] = []
@@ -127,6 +131,9 @@ class FastFleet:
                 self._link_out(vid, v.link.submit(token, o.request, self.now))
             elif isinstance(o, Note):
                 self.notes.append((self.now, vid, o.text))
+            elif isinstance(o, PlanJob):  # inline, after the simulated planning time
+                done = PlanDone(run_plan(o.request))
+                self._deliver(vid, done, self.now + self.plan_delay_s)
 
     def _link_out(self, vid: int, outputs: list[LinkOutput]) -> None:
         """Carry out the link's outputs: results to the node, bytes to the vehicle, and
@@ -158,7 +165,8 @@ class FastFleet:
         self.now = max(self.now, self._deadline())
         while self._bus and self._bus[0][0] <= self.now:
             _, _, vid, event = heapq.heappop(self._bus)
-            self._node_out(vid, self.vehicles[vid].node.handle(event, self.now))
+            if vid in self.vehicles:  # a killed vehicle hears nothing
+                self._node_out(vid, self.vehicles[vid].node.handle(event, self.now))
         for vid, v in self.vehicles.items():
             ep = v.endpoint.next_deadline()
             if ep is not None and ep <= self.now:
@@ -172,6 +180,11 @@ class FastFleet:
                 self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
             if v.node.next_deadline() <= self.now:
                 self._node_out(vid, v.node.on_timer(self.now))
+
+    def kill(self, vid: int) -> SimVehicle:
+        """The vehicle and its node vanish at once (a crash, a dead companion computer):
+        nothing more is heard from it; the others notice by its silence."""
+        return self.vehicles.pop(vid)
 
     def run_for(self, seconds: float) -> None:
         end = self.now + seconds

@@ -61,6 +61,7 @@ NAMED: dict[str, tuple[str, ...]] = {
         "makespan_planned_vs_flown",
         "inherit_coverage",
         "double_flown_fraction",
+        "replan_agree_ms",
         "baseline/battery_min_pct_at_landing",
         "baseline/makespan_planned_vs_flown",
         "baseline/inherit_coverage",

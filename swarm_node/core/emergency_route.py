@@ -20,9 +20,10 @@ from swarm_proto import GeoPoint, NoFlyZone
 from .autopilot.items import ItemKind, Waypoint
 from .autopilot.requests import ApRequest, ReturnToLaunch, StartMission, UploadMission
 from .autopilot.state import AutopilotState
-from .mission_manager import TRANSIT_MARGIN_M, fixed_wing_transit, flyable, safe_transit
 from .planning import PlanningError
+from .planning.fleet_plan import flyable
 from .planning.flight import FIXED_WING_ACCEPT_M
+from .planning.transit import TRANSIT_MARGIN_M, fixed_wing_transit, safe_transit
 from .profile import VehicleProfile
 
 MIN_RETURN_ALT_M = 30.0  # as the mission manager's way home

@@ -16,18 +16,16 @@ Pure: `release`, `start_return`, `on_result` and `on_autopilot` take `now` and r
 from __future__ import annotations
 
 import itertools
-import math
-from collections.abc import Callable, Mapping, Sequence
+import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
 import msgspec
-from shapely.geometry import LineString
 
 from swarm_proto import (
     GeometryKind,
     GeoPoint,
-    LatLon,
     Mission,
     MissionParams,
     MissionState,
@@ -51,31 +49,29 @@ from .autopilot.requests import (
     UploadMission,
 )
 from .autopilot.state import AutopilotState
-from .fences import FENCE_FIRST_REQUEST_ID
-from .planning import (
-    LocalFrame,
-    PlanningError,
-    PlanVehicle,
-    Pose,
-    VehiclePose,
-    ZoneSet,
-    heading_to_yaw,
-    plan_area,
-    plan_objective,
-    plan_perimeter,
-    plan_route,
-    plan_target,
+from .mission.share import (
+    FleetPlan,
+    Member,
+    PlanOutcome,
+    PlanRequest,
+    Share,
+    plan_fleet,
 )
-from .planning.flight import FIXED_WING_ACCEPT_M, flyable_waypoints
+from .mission.sortie import Sortie, Trigger
+from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Submit
+from .planning import (
+    PlanningError,
+)
+from .planning.flight import FIXED_WING_ACCEPT_M
+from .planning.transit import (
+    TRANSIT_MARGIN_M,
+    distance_m,
+    fixed_wing_transit,
+    fly_corners,
+    safe_transit,
+)
+from .planning.transit import flyable as flyable  # re-exported (was defined here)
 from .profile import VehicleProfile
-
-PLANNERS: dict[MissionType, Callable[..., object]] = {
-    MissionType.AREA: plan_area,
-    MissionType.TARGET: plan_target,
-    MissionType.PERIMETER: plan_perimeter,
-    MissionType.ROUTE: plan_route,
-    MissionType.OBJECTIVE: plan_objective,
-}
 
 #: parameters a planner reads as "not given" when 0 (besides None), per mission type
 UNSET_WHEN_ZERO: dict[MissionType, frozenset[str]] = {
@@ -112,12 +108,10 @@ def with_defaults(mission: Mission, defaults: Mapping[str, float]) -> Mission:
 
 CLIMB_FRACTION = 0.8  # start the mission once this much of the take-off altitude is reached
 LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close to home
-TRANSIT_MARGIN_M = 20.0  # least clearance from a no-fly zone on transit legs
 # Fixed-wing waypoint acceptance (planning.flight.FIXED_WING_ACCEPT_M, 15 m): every
 # plain waypoint asks for it (ArduPlane's 90 m default would count the closely spaced
 # waypoints of a planned turn as reached at once and loop wide); the flyable stage
 # plans every corner for it.
-TURN_RADIUS_MARGIN = 1.3
 FIRST_REQUEST_ID = 1_000_000  # the command manager uses small ids
 
 
@@ -131,39 +125,11 @@ class Phase(Enum):
     PARACHUTE = "parachute"  # released: coming down under the canopy
 
 
-@dataclass(frozen=True)
-class Member:
-    profile: VehicleProfile
-    home: GeoPoint | None
+Out = ModuleOutput  # the node's one output vocabulary (outputs.py)
 
 
-@dataclass(frozen=True)
-class Submit:
-    request: ApRequest
-
-
-@dataclass(frozen=True)
-class FsmEvent:
-    event: fsm.Event
-
-
-@dataclass(frozen=True)
-class Log:
-    text: str
-
-
-Out = Submit | FsmEvent | Log
-
-
-def flyable(profile: VehicleProfile) -> VehicleProfile:
-    """The profile planners should use: a fixed-wing's turns planned at
-    TURN_RADIUS_MARGIN times its minimum radius, so the autopilot's path following has
-    room to converge on the planned arcs instead of overshooting them."""
-    if not profile.is_fixed_wing:
-        return profile
-    return msgspec.structs.replace(
-        profile, loiter_radius_m=TURN_RADIUS_MARGIN * profile.turn_radius_m()
-    )
+def Log(text: str) -> Note:
+    return Note(logging.INFO, text)
 
 
 def plan_share(
@@ -174,169 +140,8 @@ def plan_share(
     now: float,
     home_alt_msl_m: float,
 ) -> tuple[Waypoint, ...]:
-    """This vehicle's waypoints in a plan made for every member (sorted by id, posed at
-    their homes: inputs every member sees the same): `planning.plan_fleet`'s share."""
-    from .planning.fleet_plan import plan_fleet
-
-    vehicles = [
-        PlanVehicle(m.profile, VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None)
-        for m in members
-    ]
-    plan = plan_fleet(mission, vehicles, zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
-    return plan.share(self_id).waypoints
-
-
-def fly_corners(
-    waypoints: Sequence[Waypoint],
-    profile: VehicleProfile,
-    zones: Sequence[NoFlyZone],
-    *,
-    start: tuple[float, float, float] | None,
-    free: frozenset[int],
-    now: float,
-    home_alt_msl_m: float,
-) -> tuple[Waypoint, ...]:
-    """A fixed-wing's waypoints made flyable from `start` (lat, lon, heading: where it
-    is now) at its planned turn radius (`planning.flight.flyable_waypoints`): the
-    points of `free` (item indexes: transit legs) may be skipped, the others are
-    passed. Other vehicles' waypoints unchanged. Raises `PlanningError` when a corner
-    has no connection clear of the zones, or the flown path would enter one."""
-    if not profile.is_fixed_wing:
-        return tuple(waypoints)
-    pos = [(w.lat_deg, w.lon_deg) for w in waypoints if w.kind == ItemKind.WAYPOINT]
-    if not pos:
-        return tuple(waypoints)
-    frame = LocalFrame.at([LatLon(*p) for p in pos + ([start[:2]] if start else [])])
-    speed = next(
-        (w.speed_m_s for w in waypoints if w.kind == ItemKind.CHANGE_SPEED and w.speed_m_s), None
-    )
-    pose = None
-    if start is not None:
-        x, y = frame.to_local(start[0], start[1])
-        pose = Pose(x, y, heading_to_yaw(start[2]))
-    zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
-    out, _tracks = flyable_waypoints(
-        waypoints, frame, zs, radius_m=flyable(profile).turn_radius_m(speed), start=pose,
-        free=free, vehicle_id=profile.vehicle_id,
-    )  # fmt: skip
-    return out
-
-
-def safe_transit(
-    start: tuple[float, float],
-    end: tuple[float, float],
-    alt_rel_m: float,
-    zones: Sequence[NoFlyZone],
-    *,
-    now: float,
-    home_alt_msl_m: float,
-    margin_m: float,
-    max_alt_rel_m: float = 120.0,
-) -> list[Waypoint]:
-    """Waypoints (excluding `start`, including `end`) that fly from start to end keeping
-    `margin_m` clear of every no-fly zone at that altitude: straight when the straight
-    leg is clear, else the shortest way round the inflated zones (visibility graph);
-    if the ends are too close to a zone for the margin, the raw-zone avoidance of the
-    planners (over or around). The legs a plan does not cover (to the first waypoint,
-    back to base) go through here."""
-    direct = [Waypoint(lat_deg=end[0], lon_deg=end[1], alt_rel_m=alt_rel_m)]
-    if not zones:
-        return direct
-    frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
-    a, b = frame.to_local(*start), frame.to_local(*end)
-    route: list[tuple[float, float, float]] | None = None
-    for m in (margin_m, margin_m / 2, margin_m / 4):  # an end close to a zone: less margin
-        zs = ZoneSet.from_messages(
-            zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=m
-        )
-        if not LineString([a, b]).intersects(zs.keep_out(alt_rel_m)):
-            return direct
-        try:
-            route = [
-                (x, y, alt_rel_m)
-                for x, y in zs.shortest_path(a, b, around_alt=(alt_rel_m, alt_rel_m))
-            ]
-            break
-        except PlanningError:
-            continue
-    if route is None:
-        zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
-        route = zs.avoid(
-            [(a[0], a[1], alt_rel_m), (b[0], b[1], alt_rel_m)], max_alt_rel_m=max_alt_rel_m
-        )
-    out = []
-    for x, y, alt in route[1:]:
-        lat, lon = frame.to_geodetic(x, y)
-        out.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt))
-    return out
-
-
-def fixed_wing_transit(
-    start: tuple[float, float],
-    heading_deg: float,
-    end: tuple[float, float],
-    alt_rel_m: float,
-    zones: Sequence[NoFlyZone],
-    *,
-    radius_m: float,
-    now: float,
-    home_alt_msl_m: float,
-) -> list[Waypoint]:
-    """A fixed-wing's transit: it cannot turn on the spot, so the first turn (up to two
-    turn radii wide) must not sweep through a zone. Flies the zone-safe polyline of
-    `safe_transit`, entering it along the Dubins word (of all six, for several entry
-    headings) whose sampled path keeps clear of the zones; its arcs become waypoints."""
-    from .planning.dubins import Pose, all_paths
-
-    legs = safe_transit(
-        start, end, alt_rel_m, zones, now=now, home_alt_msl_m=home_alt_msl_m, margin_m=radius_m
-    )
-    if not zones or radius_m <= 0:
-        return legs
-    frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=TRANSIT_MARGIN_M
-    )
-    blocked = zs.keep_out(alt_rel_m)
-    x0, y0 = frame.to_local(*start)
-    pose = Pose(x0, y0, math.radians(90.0 - heading_deg))
-    first = frame.to_local(legs[0].lat_deg, legs[0].lon_deg)
-    after = frame.to_local(legs[1].lat_deg, legs[1].lon_deg) if len(legs) > 1 else None
-    ref = after if after is not None else first
-    base = (
-        math.atan2(ref[1] - first[1], ref[0] - first[0])
-        if after is not None
-        else math.atan2(first[1] - y0, first[0] - x0)
-    )
-    best = None
-    for k in range(8):  # the natural entry heading first, then others 45 deg apart
-        goal = Pose(
-            first[0],
-            first[1],
-            base + k * math.pi / 4 * (1 if k % 2 else -1) * ((k + 1) // 2) / max(1, k),
-        )
-        for path in all_paths(pose, goal, radius_m):
-            if best is not None and path.length_m >= best.length_m:
-                break
-            pts = [(q.x, q.y) for q in path.sample(10.0)]
-            if not LineString(pts).intersects(blocked):
-                best = path
-                break
-        if best is not None and k == 0:
-            break
-    if best is None:
-        return legs  # no clear entry: the straight legs are the best we have
-    arc = []
-    for q in best.waypoints()[:-1]:
-        lat, lon = frame.to_geodetic(q.x, q.y)
-        arc.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt_rel_m))
-    return [*arc, *legs]
-
-
-def _distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
-    dn = (lat2 - lat1) * 111_320.0
-    de = (lon2 - lon1) * 111_320.0 * math.cos(math.radians(lat1))
-    return math.hypot(dn, de)
+    """This vehicle's waypoints in a plan made for every member (mission/share.py)."""
+    return plan_fleet(mission, members, zones, now, home_alt_msl_m).share(self_id).waypoints
 
 
 @dataclass
@@ -348,21 +153,41 @@ class MissionManager:
     items: int = 0  # mission items uploaded (home + waypoints)
     last_item: int = 0  # reaching this item completes the mission
     zones: tuple[NoFlyZone, ...] = ()
+    sortie: Sortie = field(default_factory=Sortie)  # the one owner of the mission state
+    owner: Owner = Owner.MISSION  # the rank of our requests (OPERATOR after a recall)
+    along_m: tuple[float, ...] = ()  # metres along the share at each item (index = seq)
+    hold_s: float = 0.0  # a timed hold on the share's unlimited loiter (target --duration)
+    hold_seq: int = 0  # that loiter's item
+    hold_since: float | None = None
+    _hold_wp: Waypoint | None = None
+    _stale: tuple[int, int] = (-1, 0)  # MISSION_ITEM_REACHED, MISSION_CURRENT of an earlier mission
+    _fresh_reached: bool = False  # the autopilot reported an item of this mission
+    _fresh_current: bool = False
+    fleet_plan: FleetPlan | None = None  # the whole fleet's plan (replanning starts from it)
+    share: Share | None = None  # our share of it, as flown
+    _share_index: tuple[int, ...] = ()  # uploaded item seq -> index in share.waypoints
+    _offset: float = 0.0  # metres flown before the last replan
+    replanned_from: dict[int, float] = field(default_factory=dict)  # the last replan's progress
+    _job: int = 0  # the plan job we wait for
+    _planning: tuple[Mission, tuple[NoFlyZone, ...]] | None = None
     _steps: list[ApRequest] = field(default_factory=list)
     _in_flight: ApRequest | None = None  # the request we wait for
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
 
     @property
     def mission_state(self) -> MissionState:
-        return {
-            Phase.IDLE: MissionState.IDLE,
-            Phase.STARTING: MissionState.PREMISSION,
-            Phase.CLIMBING: MissionState.PREMISSION,
-            Phase.FLYING: MissionState.MISSION,
-            Phase.RETURNING: MissionState.MISSION,
-            Phase.LANDING: MissionState.MISSION,
-            Phase.PARACHUTE: MissionState.PARACHUTE,
-        }[self.phase]
+        return self.sortie.state
+
+    @property
+    def progress_pct(self) -> int:
+        return self.sortie.progress_pct
+
+    def plan(self, mission_id: int) -> None:
+        """The state machine began planning `mission_id` (the way home keeps the
+        progress of the mission just flown)."""
+        self.sortie.begin(keep_progress=mission_id == fsm.RETURN_MISSION)
+        self.owner = Owner.MISSION
+        self._planning = None
 
     @property
     def land_radius_m(self) -> float:
@@ -376,9 +201,6 @@ class MissionManager:
         U-turn as wide as two turn radii."""
         return max(TRANSIT_MARGIN_M, 2.0 * self.profile.turn_radius_m())
 
-    def owns(self, request_id: int) -> bool:
-        return FIRST_REQUEST_ID <= request_id < FENCE_FIRST_REQUEST_ID
-
     # ------------------------------------------------------------------ start
     def release(
         self,
@@ -388,22 +210,57 @@ class MissionManager:
         ap: AutopilotState,
         now: float,
     ) -> list[Out]:
-        """Plan the mission and start flying this vehicle's share."""
+        """Plan the mission (a `PlanJob` the shell runs off the control loop; its
+        outcome comes back to `on_plan`) and then fly this vehicle's share."""
+        if self.sortie.state not in (MissionState.PLANNING, MissionState.REPLAN):
+            self.sortie.begin(keep_progress=False)
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        self._job += 1
+        self._planning = (mission, tuple(zones))
+        req = PlanRequest(self._job, mission, tuple(members), tuple(zones), now, home_alt)
+        fleet_ids = sorted(m.profile.vehicle_id for m in members)
+        return [Log(f"mission {mission.mission_id}: planning for fleet {fleet_ids}"), PlanJob(req)]
+
+    def on_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[Out]:
+        """The fleet's plan is made: fly our share from where the vehicle is now. An
+        outcome of an abandoned job (stopped, a newer mission) is ignored."""
+        if outcome.job_id != self._job or self._planning is None:
+            return []
+        mission, zones = self._planning
+        self._planning = None
         mid = mission.mission_id
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        replan = self.sortie.state == MissionState.REPLAN
+        if outcome.plan is None:
+            if replan:  # keep flying the share we have; the loss is logged
+                return [Log(f"mission {mid}: no replan ({outcome.error}); flying on"),
+                        *self._resume(mid)]  # fmt: skip
+            return self._failed(mid, outcome.error)
+        old = self.share
+        self.fleet_plan = outcome.plan
         try:
-            waypoints = plan_share(mission, members, self.profile.vehicle_id, zones, now, home_alt)
-        except (PlanningError, ValueError) as exc:
-            return [FsmEvent(fsm.PlanFailed(mid, f"planning: {exc}"[:64]))]
+            share = outcome.plan.share(self.profile.vehicle_id)
+        except PlanningError as exc:
+            if replan:
+                return [Log(f"mission {mid}: replan without us ({exc})"), *self._resume(mid)]
+            return self._failed(mid, str(exc))
+        waypoints = share.waypoints
+        if replan and old is not None and waypoints == old.waypoints:
+            self.share = share
+            return self._resume(mid)  # our share did not change (a route): nothing to upload
+        if replan and not any(w.kind == ItemKind.WAYPOINT for w in waypoints):
+            self.sortie.finish()  # nothing left for us: the mission is done here
+            self.stop(Trigger.COMPLETE)
+            return [Post(fsm.PlanSucceeded(mid)), Post(fsm.MissionComplete(mid))]
         if not waypoints:
-            return [FsmEvent(fsm.PlanFailed(mid, "nothing to fly for this vehicle"))]
+            return self._failed(mid, "nothing to fly for this vehicle")
         try:
             waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
         except (PlanningError, ValueError) as exc:
-            return [FsmEvent(fsm.PlanFailed(mid, f"approach: {exc}"[:64]))]
+            return self._failed(mid, f"approach: {exc}")
         self.zones = tuple(zones)
         self.mission_id = mid
-        fleet_ids = sorted(m.profile.vehicle_id for m in members)
+        fleet_ids = list(outcome.plan.roster)
         note = Log(
             f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
         )
@@ -419,6 +276,16 @@ class MissionManager:
         self.items = len(waypoints) + 1
         self.last_item = self.items - (2 if last is not None else 1)  # the item that completes it
         self.takeoff_alt_m = mission.params.altitude_rel_m
+        self._timed_hold(waypoints, mission.params.duration_s)
+        self.along_m = along_path(ap, waypoints)
+        self.share = share
+        self._share_index = share_index_of_items(waypoints, share.waypoints)
+        self._offset = self.sortie.progress_m if replan else 0.0  # flown before the replan
+        self.sortie.path_m = self._offset + share.length_m
+        self.sortie.progress_m = self._offset
+        self._stale = (ap.mission_reached, ap.mission_current)
+        self._fresh_reached = self._fresh_current = False
+        self.sortie.go(Trigger.RELEASED)
         steps: list[ApRequest] = [UploadMission(items=waypoints)]
         if not ap.armed:
             steps += self._launch_steps()
@@ -427,6 +294,67 @@ class MissionManager:
         self._steps = steps
         self.phase = Phase.STARTING
         return [note, *self._next()]
+
+    def begin_replan(self) -> None:
+        """A member was lost: the fleet replans what is left. We keep flying our share
+        meanwhile; the progress we published is what the others replan from."""
+        if self.sortie.state in (MissionState.MISSION, MissionState.PREMISSION):
+            self.sortie.go(Trigger.REPLAN)
+        self.owner = Owner.MISSION
+        self._planning = None
+
+    def replan(
+        self,
+        mission: Mission,
+        survivors: Sequence[Member],
+        progress_m: Mapping[int, float],
+        zones: Sequence[NoFlyZone],
+        ap: AutopilotState,
+        now: float,
+    ) -> list[Out]:
+        """What is left of the fleet plan (every old member's `progress_m` along its
+        share) shared among `survivors`, posed where their progress puts them: a
+        `PlanJob` whose outcome comes back to `on_plan`."""
+        base = self.fleet_plan
+        if base is None or self.sortie.state != MissionState.REPLAN:
+            return self.release(mission, survivors, zones, ap, now)
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        self._job += 1
+        self._planning = (mission, tuple(zones))
+        self.replanned_from = dict(progress_m)
+        req = PlanRequest(self._job, mission, tuple(survivors), tuple(zones), now, home_alt,
+                          base=base, progress_m=dict(progress_m))  # fmt: skip
+        ids = sorted(m.profile.vehicle_id for m in survivors)
+        done = {v: round(p) for v, p in sorted(progress_m.items())}
+        return [Log(f"mission {mission.mission_id}: replanning for {ids} from {done} m"),
+                PlanJob(req)]  # fmt: skip
+
+    def _resume(self, mid: int) -> list[Out]:
+        if self.sortie.state == MissionState.REPLAN:
+            self.sortie.go(Trigger.RESUMED)
+        return [Post(fsm.PlanSucceeded(mid))]
+
+    def share_progress_m(self) -> float:
+        """Metres flown along our share of the current fleet plan (published progress
+        less what was flown before the last replan)."""
+        return max(0.0, self.sortie.progress_m - self._offset)
+
+    def _failed(self, mid: int, reason: str) -> list[Out]:
+        self.sortie.go(Trigger.FAILED)
+        return [Post(fsm.PlanFailed(mid, reason[:64]))]
+
+    def _timed_hold(self, waypoints: Sequence[Waypoint], duration_s: float | None) -> None:
+        """A mission with a duration that holds on an unlimited loiter (a fixed-wing's
+        target orbit): the hold ends after `duration_s` on station, then the mission is
+        complete."""
+        self.hold_s, self.hold_seq, self.hold_since, self._hold_wp = 0.0, 0, None, None
+        if not duration_s:
+            return
+        for i, w in enumerate(waypoints[:-1]):  # the appended final loiter is not the hold
+            if w.kind == ItemKind.LOITER_UNLIMITED:
+                self.hold_s, self.hold_seq, self._hold_wp = float(duration_s), i + 1, w
+                self.last_item = max(self.last_item, i + 1)
+                return
 
     def _tight(self, waypoints: Sequence[Waypoint]) -> tuple[Waypoint, ...]:
         """Fixed-wing: every plain waypoint asks for FIXED_WING_ACCEPT_M acceptance."""
@@ -514,7 +442,7 @@ class MissionManager:
             return []
         req = msgspec.structs.replace(self._steps.pop(0), request_id=next(self._ids))
         self._in_flight = req
-        return [Submit(req)]
+        return [Submit(req, self.owner, Owner.MISSION)]
 
     # ------------------------------------------------------------------ return
     def start_return(self, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float) -> list[Out]:
@@ -523,7 +451,9 @@ class MissionManager:
         `on_autopilot` completes). Without zones in the way, plain RTL."""
         self.mission_id = fsm.RETURN_MISSION
         self.phase = Phase.RETURNING
-        done = [FsmEvent(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
+        self.sortie.go(Trigger.RETURN)
+        self.hold_s, self.hold_seq = 0.0, 0
+        done = [Post(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
         home = ap.home
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
             self._steps = [ReturnToLaunch()]
@@ -582,8 +512,11 @@ class MissionManager:
             free=frozenset(range(len(leg) - 1)), now=now, home_alt_msl_m=home_alt,
         )  # fmt: skip
 
-    def stop(self) -> None:
+    def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
+        self._planning = None  # a plan job still running is abandoned
+        self.share, self._share_index, self._offset = None, (), 0.0
+        self.sortie.go(trigger)
 
     def take_over(self, phase: Phase) -> None:
         """The operator's command (RTL, LAND, EMERGENCY_LAND, PARACHUTE) flies the
@@ -591,6 +524,8 @@ class MissionManager:
         (RETURNING: a hover-capable vehicle is landed once near home, as on the node's
         own return)."""
         self.stop()
+        self.sortie.go(Trigger.PARACHUTE if phase == Phase.PARACHUTE else Trigger.TAKE_OVER)
+        self.owner = Owner.OPERATOR  # landing the recalled vehicle is the operator's work
         self.phase, self.mission_id = phase, fsm.RETURN_MISSION
 
     @property
@@ -624,9 +559,10 @@ class MissionManager:
             if phase == Phase.RETURNING and not isinstance(done, ReturnToLaunch):
                 self._steps = [ReturnToLaunch()]  # the zone-safe way home failed: plain RTL
                 return self._next()
-            self.stop()
             if phase == Phase.STARTING:
-                return [FsmEvent(fsm.PlanFailed(mid, f"autopilot: {result.reason}"[:64]))]
+                self.stop(Trigger.FAILED)
+                return [Post(fsm.PlanFailed(mid, f"autopilot: {result.reason}"[:64]))]
+            self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
         if self.phase == Phase.STARTING and not self._steps:
             if isinstance(done, Takeoff):
@@ -634,7 +570,8 @@ class MissionManager:
                 return []
             if isinstance(done, StartMission):
                 self.phase = Phase.FLYING
-                return [FsmEvent(fsm.PlanSucceeded(mid))]
+                self.sortie.go(Trigger.STARTED)
+                return [Post(fsm.PlanSucceeded(mid))]
         return self._next()
 
     def on_autopilot(self, ap: AutopilotState, now: float) -> list[Out]:
@@ -643,25 +580,22 @@ class MissionManager:
             and not ap.armed
             and (ap.alt_rel_m or 0.0) < 2.0
         ):
-            self.stop()
-            return [FsmEvent(fsm.LandingComplete())]
+            self.stop(Trigger.LANDED)
+            return [Post(fsm.LandingComplete())]
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
                 self.phase = Phase.STARTING
                 self._steps = [StartMission()]
                 return self._next()
-        elif self.phase == Phase.FLYING and self.items > 1:
-            if ap.mission_reached >= self.last_item and self.mission_id is not None:
-                mid = self.mission_id
-                self.stop()
-                return [FsmEvent(fsm.MissionComplete(mid))]
+        elif self.phase == Phase.FLYING and self.items > 1 and self.mission_id is not None:
+            return self._flying(ap, now)
         elif self.phase == Phase.RETURNING and self._in_flight is None and self.profile.can_hover:
             home = ap.home
             if (
                 home
                 and ap.lat_deg is not None
                 and ap.lon_deg is not None
-                and _distance_m(ap.lat_deg, ap.lon_deg, home.lat_deg, home.lon_deg)
+                and distance_m(ap.lat_deg, ap.lon_deg, home.lat_deg, home.lon_deg)
                 < self.land_radius_m
             ):
                 self.phase = Phase.LANDING
@@ -670,9 +604,75 @@ class MissionManager:
                 return self._next()
         return []
 
-    def progress_pct(self, ap: AutopilotState) -> int | None:
-        """Mission progress from the autopilot (None: let the link compute it)."""
-        if self.phase == Phase.FLYING and self.items > 1:
-            done = max(0, min(ap.mission_reached, self.last_item))
-            return int(100 * done / max(1, self.last_item))
-        return None
+    def _flying(self, ap: AutopilotState, now: float) -> list[Out]:
+        """Progress along the share and its end: the last item reached, or the timed
+        hold over. Only items this mission's autopilot run reported count: the last
+        MISSION_ITEM_REACHED of an earlier mission is still in the state."""
+        stale_reached, stale_current = self._stale
+        self._fresh_reached |= ap.mission_reached != stale_reached
+        self._fresh_current |= ap.mission_current != stale_current
+        reached = max(0, min(ap.mission_reached, self.last_item)) if self._fresh_reached else 0
+        if self.share is not None and self._share_index:
+            k = self._share_index[min(reached, len(self._share_index) - 1)] if reached else -1
+            self.sortie.advance(
+                self._offset + self.share.progress_m(k, ap.lat_deg, ap.lon_deg)
+            )
+        done = reached >= self.last_item and self.hold_seq == 0
+        if self.hold_seq and self._fresh_current and ap.mission_current >= self.hold_seq:
+            if self.hold_since is None and self._on_station(ap):
+                self.hold_since = now
+            done = self.hold_since is not None and now - self.hold_since >= self.hold_s
+        if not done or self.sortie.state != MissionState.MISSION:
+            return []
+        mid = self.mission_id
+        assert mid is not None
+        self.sortie.finish()
+        self.stop(Trigger.COMPLETE)
+        return [Post(fsm.MissionComplete(mid))]
+
+    def _on_station(self, ap: AutopilotState) -> bool:
+        """Within the hold's loiter circle (its radius plus a turn radius)."""
+        if ap.lat_deg is None or ap.lon_deg is None or not self.along_m:
+            return False
+        w = self._hold_wp
+        if w is None:
+            return True
+        r = abs(w.loiter_radius_m or 0.0) + max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
+        return distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= r
+
+
+def share_index_of_items(
+    uploaded: Sequence[Waypoint], share: Sequence[Waypoint]
+) -> tuple[int, ...]:
+    """For each uploaded item seq (0 = home), the index in `share` of the last share
+    waypoint passed at it (-1 before the share starts): the approach leg and the points
+    the flyable stage adds map to the share item before them."""
+    out = [-1]
+    k = -1
+    for w in uploaded:
+        for j in range(k + 1, len(share)):
+            sw = share[j]
+            if sw.kind == w.kind and abs(sw.lat_deg - w.lat_deg) < 1e-6 and abs(
+                sw.lon_deg - w.lon_deg
+            ) < 1e-6:
+                k = j
+                break
+        out.append(k)
+    return tuple(out)
+
+
+def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float, ...]:
+    """Metres along the path at each mission item (index = item seq, 0 = home): from
+    where the vehicle is through every item with a position."""
+    out = [0.0]
+    at = (ap.lat_deg, ap.lon_deg) if ap.lat_deg is not None and ap.lon_deg is not None else None
+    total = 0.0
+    for w in waypoints:
+        if w.kind in (ItemKind.CHANGE_SPEED, ItemKind.RTL) or (w.lat_deg == 0.0 and w.lon_deg == 0.0):
+            out.append(total)
+            continue
+        if at is not None:
+            total += distance_m(at[0], at[1], w.lat_deg, w.lon_deg)
+        at = (w.lat_deg, w.lon_deg)
+        out.append(total)
+    return tuple(out)

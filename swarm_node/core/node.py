@@ -1,5 +1,6 @@
-"""The vehicle node as one pure object: vehicle monitoring, swarm manager (membership,
-acceptance checks, VehicleInfo), state machine and command manager wired together.
+"""The vehicle node as one pure object: a router between vehicle monitoring, the swarm
+manager (membership, roster, acceptance checks, VehicleInfo), the state machine, the
+command manager, the mission manager and the fence keeper.
 
 The runtime (swarm_node.runtime.node) feeds it inputs from Zenoh and the autopilot link
 and carries out its outputs; tests and fast-time simulations join several NodeCores
@@ -8,6 +9,30 @@ with an in-memory bus and jump time from deadline to deadline.
     core.handle(input, now) -> list[Output]
     core.on_timer(now)      -> list[Output]
     core.next_deadline()    -> float
+
+Routes (every input is matched; an unknown one is counted in `unhandled`, never
+dropped silently):
+
+    AutopilotUpdate        -> monitoring, mission manager, fence keeper
+    AutopilotResult        -> AutopilotArbiter -> its owner: command manager (OPERATOR),
+                              mission manager (MISSION), fence keeper (FENCE),
+                              emergency procedure (EMERGENCY: a refusal is alerted)
+    PeerAlive              -> membership -> roster (MemberLost)
+    BadInput               -> counted, logged
+    Received(VehicleStatus)-> membership
+    Received(VehicleInfo)  -> membership, roster (answers, MemberLost, hash mismatch)
+    Received(Ack)          -> roster (the peers' answers to missions)
+    Received(Command)      -> command manager -> effects, autopilot requests (OPERATOR)
+    Received(Mission)      -> acceptance checks -> state machine (NewMission)
+    Received(NoFlyZone)    -> monitoring's zones, fence keeper
+    Received(FleetAssignment) -> fleet id
+    PlanDone               -> mission manager (the plan job's outcome: fly the share)
+    Received(Alert | Vote | TargetReport | SwarmView) -> declared, not used yet (counted)
+
+Modules answer in one vocabulary (outputs.py): Publish, Submit(owner, request),
+Post(fsm event), Note; the router posts events to the state machine, passes requests
+through the arbiter (precedence EMERGENCY > AVOIDANCE > OPERATOR > MISSION > FENCE) and
+hands the rest to the shell.
 """
 
 from __future__ import annotations
@@ -16,6 +41,7 @@ import logging
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import assert_never
 
 import msgspec
 
@@ -34,12 +60,16 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
     Severity,
+    SwarmView,
+    TargetReport,
     VehicleInfo,
     VehicleStatus,
+    Vote,
 )
 
 from . import state_machine as fsm
-from .autopilot.requests import ApRequest, ApResult
+from .arbiter import AutopilotArbiter, Routed
+from .autopilot.requests import ApResult
 from .autopilot.state import AutopilotState
 from .autopilot.status import to_vehicle_status
 from .commands import (
@@ -68,13 +98,13 @@ from .fences import (
     plan_fence,
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
-from .mission_manager import Log as ManagerLog
+from .mission.share import PlanOutcome
 from .mission_manager import Member, MissionManager, with_defaults
-from .mission_manager import Out as MissionOut
-from .mission_manager import Submit as ManagerSubmit
 from .monitoring import Thresholds, VehicleMonitor
+from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
+from .swarm.roster import MemberLost, Roster, RosterEvent, RosterMismatch
 
 log = logging.getLogger(__name__)
 
@@ -108,28 +138,22 @@ class BadInput:
     error: str
 
 
-Input = AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput
-
-
 @dataclass(frozen=True)
-class Publish:
-    msg: msgspec.Struct
+class PlanDone:
+    """A plan job's outcome (the shell ran the node's PlanJob)."""
+
+    outcome: PlanOutcome
 
 
-@dataclass(frozen=True)
-class Submit:
-    request: ApRequest
+Input = AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput | PlanDone
 
 
-@dataclass(frozen=True)
-class Note:
-    """Something worth a log line (membership changes, transitions, rejections)."""
-
-    level: int
-    text: str
-
-
-Output = Publish | Submit | Note
+Output = Publish | Submit | Note | PlanJob  # what the shell carries out (Post stays inside)
+__all__ = [  # noqa: RUF022 (inputs, outputs, the core)
+    "AutopilotResult", "AutopilotUpdate", "BadInput", "Input", "PeerAlive", "PlanDone",
+    "Received", "Note", "Output", "PlanJob", "Post", "Publish", "Submit",
+    "NodeCore", "NodeSettings",
+]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -174,19 +198,30 @@ class NodeCore:
         self.active = True
         self.base: GeoPoint | None = None
         self.fleet_id = 0
-        self.fleet_members: tuple[int, ...] = ()
+        self.roster = Roster(vid)  # the members of the current mission, agreed by all
         self.missions: dict[int, Mission] = {}
-        self.mission_state = MissionState.IDLE
-        self.mission_progress_pct = 0
         self.bad_input: Counter[str] = Counter()
+        self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
+        self.arbiter = AutopilotArbiter()
         self.fence = FenceKeeper()  # zones -> the autopilot's fence (fences.py)
         self.fence_plan: FencePlan | None = None
         self._zones_version = 0  # 0: no zone heard yet, the autopilot's fence is left alone
         self._fence_key: object = None
         self._next_status = self.now
         self._next_info = self.now
+        self.lost_members: list[MemberLost] = []  # roster events (replanning picks them up)
+        self._replanning = False  # in PLAN for a replan of the current mission
 
     # ------------------------------------------------------------------ views
+    @property
+    def mission_state(self) -> MissionState:
+        """Owned by the mission manager's sortie (mission/sortie.py), read here."""
+        return self.manager.mission_state
+
+    @property
+    def mission_progress_pct(self) -> int:
+        return self.manager.progress_pct
+
     def view(self) -> NodeView:
         return NodeView(
             self_id=self.self_id,
@@ -232,73 +267,129 @@ class NodeCore:
             mission_id=mid if mid is not None and mid > 0 else 0,
             fsm_state=self.fsm.state,
             errors=self.monitor.active_codes,
+            members_hash=self.roster.members_hash,
+            mission_progress_m=_clamp(self.manager.sortie.progress_m, 0.0, 1.0e6),
+            mission_path_m=_clamp(self.manager.sortie.path_m, 0.0, 1.0e6),
         )
 
     # ------------------------------------------------------------------ inputs
     def handle(self, event: Input, now: float) -> list[Output]:
         self.now = now
-        if isinstance(event, AutopilotUpdate):
-            return self._on_autopilot(event.state, now)
-        if isinstance(event, AutopilotResult):
-            if self.fence.owns(event.result.request_id):
-                return self._fence_result(event.result, now)
-            if self.manager.owns(event.result.request_id):
-                return self._from_manager(self.manager.on_result(event.result, now))
-            reqs, acks = self.commands.on_result(event.result, now)
-            out: list[Output] = [Submit(r) for r in reqs]
-            return out + self._answer(acks)
-        if isinstance(event, PeerAlive):
-            return self._peer_events(self.members.on_alive(event.node_id, event.alive, now))
-        if isinstance(event, BadInput):
-            self.bad_input[event.key] += 1
-            return [Note(logging.WARNING, f"dropped malformed input on {event.key}: {event.error}")]
-        return self._on_message(event.msg, now)
+        out: list[ModuleOutput]
+        match event:
+            case AutopilotUpdate(state):
+                out = self._on_autopilot(state, now)
+            case AutopilotResult(result):
+                routed = self.arbiter.on_result(result)
+                if routed is None:
+                    out = self._unhandled("result", f"autopilot result {result.request_id}")
+                else:
+                    out = self._on_result(routed, now)
+            case PeerAlive(node_id, alive):
+                out = self._peer_events(self.members.on_alive(node_id, alive, now))
+            case BadInput(key, error):
+                self.bad_input[key] += 1
+                out = [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
+            case Received(msg):
+                out = self._on_message(msg, now)
+            case PlanDone(outcome):
+                out = self.manager.on_plan(outcome, self.autopilot, now)
+            case _:
+                assert_never(event)
+        return self._route(out, now)
 
-    def _on_autopilot(self, state: AutopilotState, now: float) -> list[Output]:
-        self.autopilot = state
-        out: list[Output] = [Publish(a) for a in self.monitor.update(state, now)]
-        out += self._from_manager(self.manager.on_autopilot(state, now))
-        self.mission_state = self.manager.mission_state
-        progress = self.manager.progress_pct(state)
-        if progress is not None:
-            self.mission_progress_pct = progress
-        return out + self._keep_fence(now)
-
-    def _from_manager(self, outs: list[MissionOut]) -> list[Output]:
+    def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
+        """Posts to the state machine, requests through the arbiter (a refusal goes
+        straight back to its module), the rest to the shell."""
         out: list[Output] = []
-        for o in outs:
-            if isinstance(o, ManagerSubmit):
-                out.append(Submit(o.request))
-            elif isinstance(o, ManagerLog):
-                out.append(Note(logging.INFO, o.text))
-            else:
-                self.fsm.post(o.event)
-        self.mission_state = self.manager.mission_state
+        todo = list(outs)
+        while todo:
+            o = todo.pop(0)
+            match o:
+                case Post(event):
+                    self.fsm.post(event)
+                case Submit(request, owner, route):
+                    sent = self.arbiter.submit(owner, request, route)
+                    if isinstance(sent, Routed):
+                        todo[0:0] = self._on_result(sent, now)
+                    else:
+                        out.append(Submit(sent, owner, route))
+                case Publish():
+                    out.append(o)
+                case Note() | PlanJob():
+                    out.append(o)
+                case _:
+                    assert_never(o)
         return out
 
-    def _on_message(self, msg: msgspec.Struct, now: float) -> list[Output]:
-        if isinstance(msg, VehicleStatus):
-            return self._peer_events(self.members.on_status(msg, now))
-        if isinstance(msg, VehicleInfo):
-            return self._peer_events(self.members.on_info(msg, now))
-        if isinstance(msg, Command):
-            return self._on_command(msg, now)
-        if isinstance(msg, Mission):
-            return self._on_mission(msg)
-        if isinstance(msg, NoFlyZone):
-            self.monitor.zones[msg.zone_id] = msg
-            self._zones_version += 1
-            return self._keep_fence(now)
-        if isinstance(msg, FleetAssignment):
-            return self._on_fleet(msg)
-        return []  # acks, alerts, votes, targets: not for the node core (yet)
+    def _on_result(self, routed: Routed, now: float) -> list[ModuleOutput]:
+        result = routed.result
+        match routed.owner:
+            case Owner.FENCE:
+                return self._fence_result(result, now)
+            case Owner.MISSION:
+                return self.manager.on_result(result, now)
+            case Owner.OPERATOR:
+                reqs, acks = self.commands.on_result(result, now)
+                return [*(Submit(r, Owner.OPERATOR) for r in reqs), *self._answer(acks)]
+            case Owner.EMERGENCY:
+                if result.ok:
+                    return []
+                text = f"emergency procedure refused: {result.reason}"
+                return [
+                    Note(logging.ERROR, text),
+                    Publish(Alert(self.self_id, max(0.0, now), Severity.CRITICAL,
+                                  AlertCode.GENERIC, text[:64])),
+                ]  # fmt: skip
+            case Owner.AVOIDANCE:
+                return self._unhandled("avoidance", "avoidance result (no avoidance yet)")
+            case _:
+                assert_never(routed.owner)
 
-    def _answer(self, acks: list[Ack]) -> list[Output]:
+    def _unhandled(self, kind: str, text: str) -> list[ModuleOutput]:
+        self.unhandled[kind] += 1
+        if self.unhandled[kind] == 1:
+            return [Note(logging.WARNING, f"no route for {text} (counted in unhandled)")]
+        return []
+
+    def _on_autopilot(self, state: AutopilotState, now: float) -> list[ModuleOutput]:
+        self.autopilot = state
+        out: list[ModuleOutput] = [Publish(a) for a in self.monitor.update(state, now)]
+        out += self.manager.on_autopilot(state, now)
+        return out + self._keep_fence(now)
+
+    def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
+        match msg:
+            case VehicleStatus():
+                return self._peer_events(self.members.on_status(msg, now))
+            case VehicleInfo():
+                out = self._peer_events(self.members.on_info(msg, now))
+                return out + self._roster_events(self.roster.on_info(msg))
+            case Ack():
+                self.roster.on_ack(msg)
+                return []
+            case Command():
+                return self._on_command(msg, now)
+            case Mission():
+                return self._on_mission(msg)
+            case NoFlyZone():
+                self.monitor.zones[msg.zone_id] = msg
+                self._zones_version += 1
+                return self._keep_fence(now)
+            case FleetAssignment():
+                return self._on_fleet(msg)
+            case Alert() | Vote() | TargetReport() | SwarmView():
+                self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
+                return []
+            case _:
+                return self._unhandled(type(msg).__name__, f"message {type(msg).__name__}")
+
+    def _answer(self, acks: list[Ack]) -> list[ModuleOutput]:
         for a in acks:
             self.answers.answered(a)
         return [Publish(a) for a in acks]
 
-    def _repeat(self, msg: Command | Mission) -> list[Output] | None:
+    def _repeat(self, msg: Command | Mission) -> list[ModuleOutput] | None:
         """A command or mission already taken up: its first answer again (nothing while it
         still runs). None: not a repeat."""
         key = answer_key(msg)
@@ -307,7 +398,7 @@ class NodeCore:
         ack = self.answers.answer_of(key)
         return [Publish(ack)] if ack is not None else []
 
-    def _on_command(self, cmd: Command, now: float) -> list[Output]:
+    def _on_command(self, cmd: Command, now: float) -> list[ModuleOutput]:
         repeat = self._repeat(cmd)
         if repeat is not None:
             return repeat
@@ -328,7 +419,8 @@ class NodeCore:
                     return self._answer([ack])
         for effect in plan.effects:
             self._apply(effect)
-        out: list[Output] = [Submit(r) for r in self.commands.start(cmd, requests, now)]
+        started = self.commands.start(cmd, requests, now)
+        out: list[ModuleOutput] = [Submit(r, Owner.OPERATOR) for r in started]
         if plan.ack is not None:
             out += self._answer([plan.ack])
             if not plan.ack.accepted:
@@ -348,17 +440,15 @@ class NodeCore:
         elif isinstance(effect, SetActive):
             self.active = effect.active
         elif isinstance(effect, CancelMission):
-            self.fsm.post(fsm.LeftFleet(f"mission {effect.mission_id} cancelled"))
+            self.fsm.post(fsm.Cancelled(effect.mission_id))
         elif isinstance(effect, TakeOver):
             self.manager.take_over(effect.phase)
-            self.mission_state = self.manager.mission_state
             if self.fsm.state in (FsmState.PLAN, FsmState.GO_MISSION):
                 self.fsm.post(fsm.Recalled(effect.reason))
         elif isinstance(effect, StopLanding):
             self.manager.stop()  # the operator holds the vehicle; LAND or RTL ends the sortie
-            self.mission_state = self.manager.mission_state
 
-    def _on_mission(self, mission: Mission) -> list[Output]:
+    def _on_mission(self, mission: Mission) -> list[ModuleOutput]:
         repeat = self._repeat(mission)
         if repeat is not None:
             return repeat
@@ -368,19 +458,16 @@ class NodeCore:
         # only an acceptance is remembered: a rejected mission sent again is checked again
         # (the operator may have fixed what was wrong, e.g. set the base; a vehicle may
         # have joined the fleet the mission addresses)
-        out: list[Output] = self._answer([ack]) if ok else [Publish(ack)]
+        out: list[ModuleOutput] = self._answer([ack]) if ok else [Publish(ack)]
         if ok:
             mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
             self.missions[mission.mission_id] = mission
-            self.fleet_members = tuple(mission.selection.vehicle_ids) or (self.self_id,)
             self.fsm.post(fsm.NewMission(mission.mission_id))
         return out
 
-    def _on_fleet(self, msg: FleetAssignment) -> list[Output]:
+    def _on_fleet(self, msg: FleetAssignment) -> list[ModuleOutput]:
         if self.self_id in msg.vehicle_ids:
             self.fleet_id = msg.fleet_id
-            if msg.mission_id == self.fsm.mission_id:
-                self.fleet_members = msg.vehicle_ids
         elif self.fleet_id == msg.fleet_id:
             self.fleet_id = 0  # dropped from the fleet
             self.fsm.post(fsm.LeftFleet("removed from the fleet"))
@@ -391,11 +478,11 @@ class NodeCore:
         """The highest this vehicle flies above home: zones below it may be overflown."""
         top = FENCE_FULL_HEIGHT_REL_M
         for m in self.missions.values():
-            n = max(1, len(m.selection.vehicle_ids))
+            n = max(1, len(m.selection.vehicle_ids), len(self.roster.members))
             top = max(top, m.params.altitude_rel_m + m.params.altitude_step_m * (n - 1))
         return top
 
-    def _keep_fence(self, now: float) -> list[Output]:
+    def _keep_fence(self, now: float) -> list[ModuleOutput]:
         """Keep the autopilot's fence equal to the zones in force (fences.py): a new plan
         when a zone, its validity, home or the flight ceiling changed."""
         home = self.autopilot.home
@@ -405,7 +492,7 @@ class NodeCore:
         ceiling = self.fly_ceiling_rel_m()
         key = (self._zones_version, in_force, home, ceiling)
         if key == self._fence_key:
-            return [Submit(r) for r in self.fence.on_timer(now)]
+            return [Submit(r, Owner.FENCE) for r in self.fence.on_timer(now)]
         self._fence_key = key
         before = self.fence_plan
         plan = plan_fence(
@@ -416,7 +503,7 @@ class NodeCore:
             max_items=self.settings.fence_max_items,
         )
         self.fence_plan = plan
-        out: list[Output] = []
+        out: list[ModuleOutput] = []
         if plan.left_out and (before is None or before.left_out != plan.left_out):
             ids = ",".join(str(i) for i in plan.left_out)
             text = f"fence full: zones {ids} not in the autopilot"
@@ -425,11 +512,11 @@ class NodeCore:
                 Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
                               AlertCode.NO_FLY_ZONE, text[:64])),
             ]  # fmt: skip
-        return out + [Submit(r) for r in self.fence.update(plan.request, now)]
+        return out + [Submit(r, Owner.FENCE) for r in self.fence.update(plan.request, now)]
 
-    def _fence_result(self, result: ApResult, now: float) -> list[Output]:
+    def _fence_result(self, result: ApResult, now: float) -> list[ModuleOutput]:
         reqs, problem = self.fence.on_result(result, now)
-        out: list[Output] = [Submit(r) for r in reqs]
+        out: list[ModuleOutput] = [Submit(r, Owner.FENCE) for r in reqs]
         if problem is not None and self.fence.failures == 1:  # once per run of failures
             out += [
                 Note(logging.WARNING, f"{problem}; retrying every {self.fence.retry_s:g} s"),
@@ -443,13 +530,38 @@ class NodeCore:
         no-fly zones)."""
         return [z for z in self.monitor.zones.values() if z.in_force(now) and not z.operating_area]
 
-    def _peer_events(self, events: list[PeerEvent]) -> list[Output]:
-        out: list[Output] = []
+    def _peer_events(self, events: list[PeerEvent]) -> list[ModuleOutput]:
+        out: list[ModuleOutput] = []
         for ev in events:
             if isinstance(ev, PeerJoined):
                 out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
             elif isinstance(ev, PeerLeft):
                 out.append(Note(logging.WARNING, f"peer {ev.node_id} lost ({ev.why})"))
+                out += self._roster_events(self.roster.on_peer_left(ev.node_id, ev.why))
+        return out
+
+    def _roster_events(self, events: list[RosterEvent]) -> list[ModuleOutput]:
+        out: list[ModuleOutput] = []
+        for ev in events:
+            if isinstance(ev, MemberLost):
+                self.lost_members.append(ev)
+                del self.lost_members[:-20]
+                out.append(
+                    Note(logging.WARNING, f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})")
+                )
+                if (
+                    self.roster.frozen
+                    and self.fsm.mission_id == ev.mission_id
+                    and self.fsm.state in (FsmState.GO_MISSION, FsmState.PLAN)
+                    and self.manager.mission_state
+                    in (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
+                ):
+                    out.append(Post(fsm.Replan(ev.mission_id)))  # inherit its share
+            elif isinstance(ev, RosterMismatch):
+                out.append(
+                    Note(logging.ERROR, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} planned "
+                         f"with roster {ev.theirs:#06x}, ours is {ev.ours:#06x}")
+                )  # fmt: skip
         return out
 
     # ------------------------------------------------------------------ time
@@ -466,7 +578,7 @@ class NodeCore:
 
     def on_timer(self, now: float) -> list[Output]:
         self.now = now
-        out: list[Output] = []
+        out: list[ModuleOutput] = []
         out += self._peer_events(self.members.on_timer(now))
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
@@ -483,7 +595,7 @@ class NodeCore:
         if now >= self._next_info:
             self._next_info = max(self._next_info + self.settings.info_period_s, now)
             out.append(Publish(self.info()))
-        return out
+        return self._route(out, now)
 
     def facts(self) -> fsm.Facts:
         return fsm.Facts(
@@ -495,39 +607,35 @@ class NodeCore:
         )
 
     def _fleet_ready(self) -> bool:
-        """Every live member of this mission's fleet has reached PLAN for the same
-        mission (or already left it for GO_MISSION: a fast member must not strand the
-        others). Members that are lost do not hold the fleet back."""
+        """The roster is settled (every live peer that may be addressed has answered)
+        and every live member has reached PLAN for the same mission (or already left it
+        for GO_MISSION: a fast member must not strand the others). Members that are
+        lost do not hold the fleet back (roster.py)."""
         mid = self.fsm.mission_id
         if self.fsm.state != FsmState.PLAN or mid is None:
             return False
         if mid == fsm.RETURN_MISSION:
             return True  # each vehicle plans its own way back (no landing sequencing yet)
-        for vid in self.fleet_members:
-            if vid == self.self_id:
-                continue
-            peer = self.members.peers.get(vid)
-            if peer is None or not peer.present:
-                continue  # lost members do not hold the fleet back
-            info = peer.info
-            if info is None or info.fsm_state not in (FsmState.PLAN, FsmState.GO_MISSION):
-                return False
-            if mid > 0 and info.mission_id != mid:
-                return False
-        return True
+        if self._replanning and self.roster.frozen:
+            return self.roster.ready_to_replan(self.members.peers)
+        return self.roster.ready(self.members.peers)
 
-    def _tick_fsm(self, now: float) -> list[Output]:
+    def _tick_fsm(self, now: float) -> list[ModuleOutput]:
         tr = self.fsm.tick(now, self.facts())
         if tr is None:
             return []
-        out: list[Output] = [Note(logging.INFO, f"{tr.before.name} -> {tr.after.name} ({tr.rule})")]
+        out: list[ModuleOutput] = [
+            Note(logging.INFO, f"{tr.before.name} -> {tr.after.name} ({tr.rule})")
+        ]
+        if tr.before == FsmState.EMERGENCY and tr.after != FsmState.EMERGENCY:
+            self.arbiter.release(Owner.EMERGENCY)
         for o in tr.outputs:
             out += self._carry_out(o, now)
         if tr.before != tr.after or any(isinstance(o, fsm.BeginPlan) for o in tr.outputs):
             out.append(Publish(self.info()))  # peers waiting on our state should not wait 1 s
         return out
 
-    def _carry_out(self, o: fsm.Output, now: float) -> list[Output]:
+    def _carry_out(self, o: fsm.Output, now: float) -> list[ModuleOutput]:
         if isinstance(o, fsm.RaiseAlert):
             return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, o.text[:64]))]
         if isinstance(o, fsm.StartEmergency):
@@ -535,37 +643,44 @@ class NodeCore:
             alert = Alert(
                 self.self_id, max(0.0, now), o.severity, o.code, f"emergency: {o.code.name}"
             )
-            out: list[Output] = [Publish(alert)]
+            out: list[ModuleOutput] = [Publish(alert)]
+            self.arbiter.take(Owner.EMERGENCY)
             requests, why = zone_safe_emergency(
                 emergency_requests(o.code, self.profile), self.autopilot, self.base,
                 self.planning_zones(now), self.profile, now,
             )  # fmt: skip
             if why:
                 out.append(Note(logging.WARNING, f"emergency: {why}"))
-            return out + [Submit(r) for r in requests]
+            return out + [Submit(r, Owner.EMERGENCY) for r in requests]
         if isinstance(o, fsm.ReturnHome):
             note = Note(logging.WARNING, f"returning home: {o.reason}")
-            return [note, *self._from_manager(self._start_return(now))]
+            return [note, *self._start_return(now)]
         if isinstance(o, fsm.LeaveFleet):
             self.fleet_id = 0
-            self.fleet_members = (self.self_id,)
+            self.roster.close()
             return []
         if isinstance(o, fsm.FollowOperator):
             if o.mission_id is not None:
                 self.missions.pop(o.mission_id, None)  # left, not completed
             return [Note(logging.WARNING, f"left mission {o.mission_id}: {o.reason}")]
         if isinstance(o, fsm.BeginPlan):
-            self.mission_state = MissionState.PLANNING
-            self.mission_progress_pct = 0
+            mission = self.missions.get(o.mission_id)
+            if mission is None:
+                self.roster.close()
+            elif not o.replan:
+                self.roster.open(o.mission_id, mission.selection)
+            self._replanning = o.replan and mission is not None and self.roster.frozen
+            if self._replanning:
+                self.manager.begin_replan()
+            else:
+                self.manager.plan(o.mission_id)
+            self.arbiter.release(Owner.OPERATOR)  # the state machine decides the next flight
             return []
         if isinstance(o, fsm.ReleaseMission):
             return self._release(o.mission_id, now)
         if isinstance(o, fsm.MissionStarted):
-            self.mission_state = MissionState.MISSION
             return []
         if isinstance(o, fsm.MissionFinished):
-            self.mission_state = MissionState.IDLE
-            self.mission_progress_pct = 100
             mission = self.missions.pop(o.mission_id, None)
             if mission is not None:
                 return [
@@ -585,19 +700,22 @@ class NodeCore:
             return []
         if isinstance(o, fsm.Deactivated):
             self.manager.stop()
-            self.mission_state = MissionState.IDLE
+            self.arbiter.release(Owner.OPERATOR)
             return [Note(logging.INFO, f"state machine deactivated: {o.reason}")]
         return []
 
-    def _release(self, mission_id: int, now: float) -> list[Output]:
+    def _release(self, mission_id: int, now: float) -> list[ModuleOutput]:
         """The fleet is synchronised: hand the mission to the mission manager (the
         return-to-base mission: fly back to base and land)."""
         if mission_id == fsm.RETURN_MISSION:
-            return self._from_manager(self._start_return(now))
+            return self._start_return(now)
         mission = self.missions.get(mission_id)
         if mission is None:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
             return []
+        if self._replanning and self.roster.frozen:
+            return self._replan(mission, now)
+        self.roster.freeze(self.members.peers)
         members, unknown = self._members()
         if unknown:
             self.fsm.post(
@@ -606,11 +724,47 @@ class NodeCore:
             return [
                 Note(logging.ERROR, f"cannot plan mission {mission_id}: no profile for {unknown}")
             ]
-        return self._from_manager(
-            self.manager.release(mission, members, self.planning_zones(now), self.autopilot, now)
+        return self.manager.release(mission, members, self.planning_zones(now), self.autopilot, now)
+
+    def _replan(self, mission: Mission, now: float) -> list[ModuleOutput]:
+        """Mission inheritance (paper Fig. 14 and 17): what is left of the fleet plan,
+        from every member's published progress along its share, shared among the
+        survivors, each posed where its progress puts it on its share (inputs every
+        survivor has the same: no leader)."""
+        base = self.manager.fleet_plan
+        peers = self.members.peers
+        survivors = self.roster.survivors(peers)
+        progress: dict[int, float] = {}
+        if base is not None:
+            for vid in base.roster:
+                if vid not in base.shares:
+                    continue
+                if vid == self.self_id:
+                    done = self.manager.share_progress_m()
+                else:
+                    p, path = self.roster.progress_of(vid)
+                    # less what it flew before the last replan; nothing heard: nothing flown
+                    done = p - (path - base.shares[vid].length_m) if path > 0.0 else 0.0
+                progress[vid] = min(max(done, 0.0), base.shares[vid].length_m)
+        members: list[Member] = []
+        for vid in survivors:
+            profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
+            if profile is None:
+                continue
+            pose: GeoPoint | None = None
+            if base is not None and vid in base.shares and base.shares[vid].waypoints:
+                try:
+                    _k, lat, lon = base.shares[vid].at(progress.get(vid, 0.0))
+                    pose = GeoPoint(lat, lon, 0.0)
+                except (PlanningError, ValueError):
+                    pose = None
+            members.append(Member(profile, pose))
+        self.roster.replanned(survivors)
+        return self.manager.replan(
+            mission, members, progress, self.planning_zones(now), self.autopilot, now
         )
 
-    def _start_return(self, now: float) -> list[MissionOut]:
+    def _start_return(self, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(self.autopilot, self.planning_zones(now), now)
 
     def _members(self) -> tuple[list[Member], list[int]]:
@@ -620,7 +774,7 @@ class NodeCore:
         would send two vehicles over the same ground)."""
         out = [Member(self.profile, self.autopilot.home)]
         unknown = []
-        for vid in self.fleet_members:
+        for vid in self.roster.flying:
             if vid == self.self_id:
                 continue
             peer = self.members.peers.get(vid)

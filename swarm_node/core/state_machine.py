@@ -107,6 +107,14 @@ class LeftFleet:
 
 
 @dataclass(frozen=True)
+class Cancelled:
+    """The operator cancelled the current mission (CANCEL_MISSION): not a failure; the
+    vehicle leaves the fleet and returns to base."""
+
+    mission_id: int
+
+
+@dataclass(frozen=True)
 class Recalled:
     """The operator took the vehicle out of its mission (RTL, LAND, EMERGENCY_LAND,
     PARACHUTE): the command manager already drives the autopilot; the vehicle leaves
@@ -123,6 +131,7 @@ Event = (
     | MissionComplete
     | LandingComplete
     | LeftFleet
+    | Cancelled
     | Recalled
 )
 
@@ -334,6 +343,20 @@ RULES: tuple[Rule, ...] = (
         outputs=lambda c: (
             LeaveFleet(getattr(c.event, "reason", "")),
             RaiseAlert(AlertCode.MISSION_FAILED, Severity.WARNING, "left the fleet, returning"),
+            BeginPlan(RETURN_MISSION),
+        ),
+    ),
+    Rule(
+        "cancelled",
+        (G, P),
+        "the operator cancelled the mission",
+        Action.NEW,
+        event=Cancelled,
+        guard=_is_current,
+        outputs=lambda c: (
+            LeaveFleet("mission cancelled"),
+            RaiseAlert(AlertCode.MISSION_CANCELLED, Severity.INFO, f"mission {_mid(c)} cancelled"),
+            FollowOperator(c.mission_id, "cancelled"),
             BeginPlan(RETURN_MISSION),
         ),
     ),

@@ -2,18 +2,25 @@
 
 One thread runs the loop: it waits on an inbox (fed by Zenoh callbacks and the
 autopilot link) until the core's next deadline, hands inputs and timers to the core
-and carries out its outputs: publish on Zenoh, submit to the autopilot, log. Every
-few hundred milliseconds the autopilot state snapshot is handed to the core (the
-link tracks MAVLink at full rate in its own thread; the core decides at 5 Hz).
+and carries out its outputs: publish on Zenoh, submit to the autopilot, run plan jobs,
+log. Every few hundred milliseconds the autopilot state snapshot is handed to the core
+(the link tracks MAVLink at full rate in its own thread; the core decides at 5 Hz).
+
+Planning never runs on that loop: a `PlanJob` goes to `PlanWorker`, a spawn-context
+process pool of one (the planners are CPU-bound Python holding the GIL; in a thread
+they would slow the loop), whose outcome comes back through the inbox as `PlanDone`.
+`planner="thread"` runs them in a thread instead (no process start-up; measured in
+`python -m bench planning`).
 """
 
 from __future__ import annotations
 
 import logging
+import multiprocessing
 import queue
 import threading
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Protocol
 
 import msgspec
@@ -22,10 +29,11 @@ import zenoh
 from swarm_proto import Alert, Clock, MissionType, NoFlyZone, PeerEntry, SwarmView, lan
 from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus
-from swarm_proto.topics import COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE, ZONES
+from swarm_proto.topics import ACK, COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE, ZONES
 
 from ..core.autopilot.requests import ApRequest, ApResult
 from ..core.autopilot.state import AutopilotState
+from ..core.mission.share import PlanOutcome, PlanRequest, run_plan
 from ..core.node import (
     AutopilotResult,
     AutopilotUpdate,
@@ -36,6 +44,8 @@ from ..core.node import (
     Note,
     Output,
     PeerAlive,
+    PlanDone,
+    PlanJob,
     Publish,
     Received,
     Submit,
@@ -95,6 +105,50 @@ class _Learned(msgspec.Struct, frozen=True):
     zone: NoFlyZone
 
 
+class PlanWorker:
+    """Runs plan jobs off the control loop; outcomes go to `deliver`."""
+
+    def __init__(self, deliver: Callable[[Input], None], kind: str = "process") -> None:
+        if kind not in ("process", "thread"):
+            raise ValueError(f"planner must be process or thread, not {kind!r}")
+        self.kind = kind
+        self._deliver = deliver
+        self._pool: Executor | None = None
+
+    def start(self) -> None:
+        if self.kind == "process":
+            ctx = multiprocessing.get_context("spawn")
+            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+        else:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
+
+    def submit(self, request: PlanRequest) -> None:
+        if self._pool is None:
+            self.start()
+        assert self._pool is not None
+        deliver = self._deliver
+
+        def done(f: Future[PlanOutcome]) -> None:
+            try:
+                outcome = f.result()
+            except Exception as exc:  # a crashed worker is a failed plan, not a hung node
+                log.exception("plan job %d failed", request.job_id)
+                outcome = PlanOutcome(request.job_id, None, f"planner crashed: {exc}"[:60])
+            deliver(PlanDone(outcome))
+
+        try:
+            self._pool.submit(run_plan, request).add_done_callback(done)
+        except Exception as exc:  # a broken pool: say so, and start a new one next time
+            log.exception("could not start plan job %d", request.job_id)
+            self._pool = None
+            deliver(PlanDone(PlanOutcome(request.job_id, None, f"planner: {exc}"[:60])))
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+
+
 class NodeRuntime:
     def __init__(
         self,
@@ -105,6 +159,7 @@ class NodeRuntime:
         *,
         bus: SwarmBus | None = None,
         database: SwarmDatabase | None = None,
+        planner: str = "process",
     ) -> None:
         self.config = config
         self.clock = clock
@@ -122,6 +177,7 @@ class NodeRuntime:
             mission_defaults=mission_defaults_of(database) if database is not None else {},
         )
         self.inbox: queue.SimpleQueue[Input | _Learned] = queue.SimpleQueue()
+        self.planner = PlanWorker(self.inbox.put, planner)
         self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)
         if bus is not None:
             bus.on_bad_input = self._bad_input
@@ -225,7 +281,8 @@ class NodeRuntime:
         query.reply(query.key_expr, lan.encode(view))
 
     def start(self) -> None:
-        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET):
+        # ACK: the peers' answers to missions make the roster (core/swarm/roster.py)
+        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK):
             self.bus.subscribe(topic, self._received)
         self._zone_asker = threading.Thread(
             target=self._zone_asking, name=f"zones-{self.core.self_id}", daemon=True
@@ -236,6 +293,8 @@ class NodeRuntime:
         )
         self.bus.watch_alive(self._alive)
         self.bus.declare_alive(self.core.self_id)
+        # the planner's worker process starts with the first plan job (~1 s, off the
+        # loop): a node that never plans, or is starting up, does not pay for it
         key = PEERS.key(self.config.swarm, vehicle_id=self.core.self_id)
         self._queryable = self.bus.session.declare_queryable(key, self._answer_peers)
         if self.database is not None:  # peers and the ground station read our database
@@ -293,6 +352,8 @@ class NodeRuntime:
                 self._submit(o.request)
             elif isinstance(o, Note):
                 log.log(o.level, "node %d: %s", self.core.self_id, o.text)
+            elif isinstance(o, PlanJob):
+                self.planner.submit(o.request)
 
     def _submit(self, request: ApRequest) -> None:
         log.info("node %d: autopilot <- %s", self.core.self_id, type(request).__name__)
@@ -313,6 +374,7 @@ class NodeRuntime:
         future.add_done_callback(done)
 
     def close(self) -> None:
+        self.planner.close()
         if self._db_server is not None:
             self._db_server.close()
             self._db_server = None

@@ -14,6 +14,7 @@ from swarm_node.core.state_machine import (
     Action,
     Activated,
     BeginPlan,
+    Cancelled,
     Deactivated,
     Emergency,
     Event,
@@ -111,6 +112,20 @@ CASES = [
         events=[LeftFleet("lost")],
         expect=P,
         outputs=(LeaveFleet, RaiseAlert, BeginPlan),
+    ),
+    Case(
+        "cancelled",
+        G,
+        events=[Cancelled(7)],
+        expect=P,
+        outputs=(LeaveFleet, RaiseAlert, FollowOperator, BeginPlan),
+    ),
+    Case(
+        "cancelled",
+        P,
+        events=[Cancelled(7)],
+        expect=P,
+        outputs=(LeaveFleet, RaiseAlert, FollowOperator, BeginPlan),
     ),
     Case(
         "recalled",

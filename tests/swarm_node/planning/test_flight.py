@@ -18,7 +18,9 @@ from shapely.geometry import LineString, Point, Polygon
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.autopilot.state import AutopilotState
+from swarm_node.core.mission.share import run_plan
 from swarm_node.core.mission_manager import Member, MissionManager, Submit, flyable, plan_share
+from swarm_node.core.outputs import PlanJob
 from swarm_node.core.planning import (
     FIXED_WING_ACCEPT_M,
     LocalFrame,
@@ -334,7 +336,10 @@ def test_the_demo_surveys_fixed_wing_uploads_are_flown_clear_of_the_zone(
             lat_deg=m.home.lat_deg, lon_deg=m.home.lon_deg, alt_rel_m=50.0,
             heading_deg=0.0, home=m.home, armed=True,
         )  # fmt: skip
-        outs = MissionManager(m.profile).release(mission, members, [zone], ap, 0.0)
+        manager = MissionManager(m.profile)
+        outs = manager.release(mission, members, [zone], ap, 0.0)
+        job = next(o for o in outs if isinstance(o, PlanJob))  # planning runs off the loop
+        outs = manager.on_plan(run_plan(job.request), ap, 0.0)
         upload = next(o.request for o in outs if isinstance(o, Submit))
         items: tuple[Waypoint, ...] = upload.items  # type: ignore[attr-defined]
         frame = LocalFrame.at([LatLon(m.home.lat_deg, m.home.lon_deg)])

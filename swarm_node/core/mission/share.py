@@ -1,0 +1,98 @@
+"""Planner glue: a mission and its roster in, the whole fleet's plan out.
+
+Every fleet member plans the whole mission for the whole fleet from the same inputs
+(the mission, the frozen roster's database profiles sorted by id, their homes, the
+zones) and keeps its own share, so the members agree without exchanging plans: the
+split must not depend on anything that differs between nodes (live positions, arrival
+times of telemetry). The whole `FleetPlan` is kept (every member's share), which is
+what replanning after a loss starts from.
+
+Planning can take seconds (a 4,000-vertex area), so it never runs on the node's control
+loop: the mission manager emits a `PlanJob` (a picklable `PlanRequest`), the shell runs
+`run_plan` in a worker (runtime) or inline (Fleet, FastFleet) and hands the
+`PlanOutcome` back as an input (`PlanDone`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+from swarm_proto import GeoPoint, Mission, NoFlyZone
+
+from ..planning import PlanningError, PlanVehicle, VehiclePose
+from ..planning.fleet_plan import PLANNERS, FleetPlan, Share
+from ..planning.fleet_plan import plan_fleet as plan_whole_fleet
+from ..profile import VehicleProfile
+
+__all__ = ["PLANNERS", "FleetPlan", "Member", "PlanOutcome", "PlanRequest", "Share",
+           "plan_fleet", "run_plan"]  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Member:
+    """A roster member as the planners see it: its database profile and where it is
+    posed (its home for a new plan; for a replan, where its published progress puts it
+    on its share: the same on every node)."""
+
+    profile: VehicleProfile
+    home: GeoPoint | None
+
+
+def _vehicles(members: Sequence[Member]) -> list[PlanVehicle]:
+    return [
+        PlanVehicle(m.profile, VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None)
+        for m in members
+    ]
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """Everything a plan needs, picklable (a worker process may run it). With `base`,
+    a replan: what is left of `base` (every old member's `progress_m` along its share)
+    shared among `members` (the survivors, posed where their progress puts them)."""
+
+    job_id: int
+    mission: Mission
+    members: tuple[Member, ...]
+    zones: tuple[NoFlyZone, ...]
+    now: float
+    home_alt_msl_m: float
+    base: FleetPlan | None = None
+    progress_m: Mapping[int, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PlanOutcome:
+    job_id: int
+    plan: FleetPlan | None
+    error: str = ""
+
+
+def plan_fleet(
+    mission: Mission,
+    members: Sequence[Member],
+    zones: Sequence[NoFlyZone],
+    now: float,
+    home_alt_msl_m: float,
+) -> FleetPlan:
+    """The whole fleet's plan (`planning.fleet_plan.plan_fleet`: members sorted by id,
+    posed at their homes, inputs every member sees the same)."""
+    return plan_whole_fleet(
+        mission, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m
+    )
+
+
+def run_plan(req: PlanRequest) -> PlanOutcome:
+    """Run a plan job; a planning error is an outcome, never an exception."""
+    try:
+        if req.base is None:
+            plan = plan_fleet(req.mission, req.members, req.zones, req.now, req.home_alt_msl_m)
+        else:
+            plan = req.base.replan(
+                req.progress_m, _vehicles(req.members), zones=req.zones,
+                now_unix_s=req.now, home_alt_msl_m=req.home_alt_msl_m,
+            )  # fmt: skip
+    except (PlanningError, ValueError) as exc:
+        return PlanOutcome(req.job_id, None, f"planning: {exc}")
+    return PlanOutcome(req.job_id, plan)

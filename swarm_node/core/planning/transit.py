@@ -1,0 +1,182 @@
+"""Transit geometry, pure (moved out of the mission manager): the legs a plan does not
+cover (from where a vehicle is to its first waypoint, back to base, to an emergency
+landing point), kept clear of the no-fly zones, and a fixed-wing's waypoints made
+flyable from its pose at its planned turn radius.
+
+    safe_transit        straight, or the shortest way round the inflated zones
+    fixed_wing_transit  the same, entered along a zone-clear Dubins path
+    fly_corners         a fixed-wing's waypoints flyable from where it is (flight.py)
+    flyable             (fleet_plan.py) the profile planners use: turns at 1.3 x the
+                        minimum radius
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from shapely.geometry import LineString
+
+from swarm_proto import LatLon, NoFlyZone
+
+from ..autopilot.items import ItemKind, Waypoint
+from ..profile import VehicleProfile
+from .dubins import Pose, all_paths
+from .errors import PlanningError
+from .fleet_plan import flyable
+from .flight import flyable_waypoints
+from .geo import LocalFrame, heading_to_yaw
+from .zones import ZoneSet
+
+TRANSIT_MARGIN_M = 20.0  # least clearance from a no-fly zone on transit legs
+
+
+def fly_corners(
+    waypoints: Sequence[Waypoint],
+    profile: VehicleProfile,
+    zones: Sequence[NoFlyZone],
+    *,
+    start: tuple[float, float, float] | None,
+    free: frozenset[int],
+    now: float,
+    home_alt_msl_m: float,
+) -> tuple[Waypoint, ...]:
+    """A fixed-wing's waypoints made flyable from `start` (lat, lon, heading: where it
+    is now) at its planned turn radius (`planning.flight.flyable_waypoints`): the
+    points of `free` (item indexes: transit legs) may be skipped, the others are
+    passed. Other vehicles' waypoints unchanged. Raises `PlanningError` when a corner
+    has no connection clear of the zones, or the flown path would enter one."""
+    if not profile.is_fixed_wing:
+        return tuple(waypoints)
+    pos = [(w.lat_deg, w.lon_deg) for w in waypoints if w.kind == ItemKind.WAYPOINT]
+    if not pos:
+        return tuple(waypoints)
+    frame = LocalFrame.at([LatLon(*p) for p in pos + ([start[:2]] if start else [])])
+    speed = next(
+        (w.speed_m_s for w in waypoints if w.kind == ItemKind.CHANGE_SPEED and w.speed_m_s), None
+    )
+    pose = None
+    if start is not None:
+        x, y = frame.to_local(start[0], start[1])
+        pose = Pose(x, y, heading_to_yaw(start[2]))
+    zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
+    out, _tracks = flyable_waypoints(
+        waypoints, frame, zs, radius_m=flyable(profile).turn_radius_m(speed), start=pose,
+        free=free, vehicle_id=profile.vehicle_id,
+    )  # fmt: skip
+    return out
+
+
+def safe_transit(
+    start: tuple[float, float],
+    end: tuple[float, float],
+    alt_rel_m: float,
+    zones: Sequence[NoFlyZone],
+    *,
+    now: float,
+    home_alt_msl_m: float,
+    margin_m: float,
+    max_alt_rel_m: float = 120.0,
+) -> list[Waypoint]:
+    """Waypoints (excluding `start`, including `end`) that fly from start to end keeping
+    `margin_m` clear of every no-fly zone at that altitude: straight when the straight
+    leg is clear, else the shortest way round the inflated zones (visibility graph);
+    if the ends are too close to a zone for the margin, the raw-zone avoidance of the
+    planners (over or around). The legs a plan does not cover (to the first waypoint,
+    back to base) go through here."""
+    direct = [Waypoint(lat_deg=end[0], lon_deg=end[1], alt_rel_m=alt_rel_m)]
+    if not zones:
+        return direct
+    frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
+    a, b = frame.to_local(*start), frame.to_local(*end)
+    route: list[tuple[float, float, float]] | None = None
+    for m in (margin_m, margin_m / 2, margin_m / 4):  # an end close to a zone: less margin
+        zs = ZoneSet.from_messages(
+            zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=m
+        )
+        if not LineString([a, b]).intersects(zs.keep_out(alt_rel_m)):
+            return direct
+        try:
+            route = [
+                (x, y, alt_rel_m)
+                for x, y in zs.shortest_path(a, b, around_alt=(alt_rel_m, alt_rel_m))
+            ]
+            break
+        except PlanningError:
+            continue
+    if route is None:
+        zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
+        route = zs.avoid(
+            [(a[0], a[1], alt_rel_m), (b[0], b[1], alt_rel_m)], max_alt_rel_m=max_alt_rel_m
+        )
+    out = []
+    for x, y, alt in route[1:]:
+        lat, lon = frame.to_geodetic(x, y)
+        out.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt))
+    return out
+
+
+def fixed_wing_transit(
+    start: tuple[float, float],
+    heading_deg: float,
+    end: tuple[float, float],
+    alt_rel_m: float,
+    zones: Sequence[NoFlyZone],
+    *,
+    radius_m: float,
+    now: float,
+    home_alt_msl_m: float,
+) -> list[Waypoint]:
+    """A fixed-wing's transit: it cannot turn on the spot, so the first turn (up to two
+    turn radii wide) must not sweep through a zone. Flies the zone-safe polyline of
+    `safe_transit`, entering it along the Dubins word (of all six, for several entry
+    headings) whose sampled path keeps clear of the zones; its arcs become waypoints."""
+    legs = safe_transit(
+        start, end, alt_rel_m, zones, now=now, home_alt_msl_m=home_alt_msl_m, margin_m=radius_m
+    )
+    if not zones or radius_m <= 0:
+        return legs
+    frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
+    zs = ZoneSet.from_messages(
+        zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=TRANSIT_MARGIN_M
+    )
+    blocked = zs.keep_out(alt_rel_m)
+    x0, y0 = frame.to_local(*start)
+    pose = Pose(x0, y0, math.radians(90.0 - heading_deg))
+    first = frame.to_local(legs[0].lat_deg, legs[0].lon_deg)
+    after = frame.to_local(legs[1].lat_deg, legs[1].lon_deg) if len(legs) > 1 else None
+    ref = after if after is not None else first
+    base = (
+        math.atan2(ref[1] - first[1], ref[0] - first[0])
+        if after is not None
+        else math.atan2(first[1] - y0, first[0] - x0)
+    )
+    best = None
+    for k in range(8):  # the natural entry heading first, then others 45 deg apart
+        goal = Pose(
+            first[0],
+            first[1],
+            base + k * math.pi / 4 * (1 if k % 2 else -1) * ((k + 1) // 2) / max(1, k),
+        )
+        for path in all_paths(pose, goal, radius_m):
+            if best is not None and path.length_m >= best.length_m:
+                break
+            pts = [(q.x, q.y) for q in path.sample(10.0)]
+            if not LineString(pts).intersects(blocked):
+                best = path
+                break
+        if best is not None and k == 0:
+            break
+    if best is None:
+        return legs  # no clear entry: the straight legs are the best we have
+    arc = []
+    for q in best.waypoints()[:-1]:
+        lat, lon = frame.to_geodetic(q.x, q.y)
+        arc.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt_rel_m))
+    return [*arc, *legs]
+
+
+def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
+    dn = (lat2 - lat1) * 111_320.0
+    de = (lon2 - lon1) * 111_320.0 * math.cos(math.radians(lat1))
+    return math.hypot(dn, de)

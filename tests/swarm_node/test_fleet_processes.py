@@ -1,0 +1,103 @@
+"""Fleet missions over real processes: simulated quadcopters (their own process, MAVLink
+on TCP), one `swarm-node` process each, Zenoh on 127.0.0.1, a ground station, all at
+5x real time (the demo's harness). A `--fleet` mission is split between the fleet's
+members; a second mission on the same nodes is flown; SIGKILLing a node's process
+mid-mission hands its share on to the survivor (mission inheritance)."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import time
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+
+from gcs_cli.ground import FleetView, GroundStation
+from swarm_proto import (
+    AckReason,
+    AlertCode,
+    CommandArgs,
+    CommandKind,
+    FsmState,
+    GeoPoint,
+    Mission,
+    MissionParams,
+    MissionState,
+    MissionType,
+    Selector,
+)
+from swarm_proto.session import ZenohSettings
+from swarm_sim.core import SITL_HOME
+from swarm_sim.demo import GCS_ID, start, stop
+from tests.swarm_sim.test_fast_fleet import square
+
+pytestmark = [pytest.mark.network, pytest.mark.soak, pytest.mark.timeout(900)]
+SPEEDUP = 5.0
+
+
+def completed(view: FleetView, vid: int, mid: int) -> bool:
+    return any(
+        a.vehicle_id == vid and a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {mid}"
+        for a in view.alerts
+    )
+
+
+def test_fleet_missions_split_fly_again_and_inherit(tmp_path: Path, swarm_db: Path) -> None:
+    members = (7, 8, 9)
+    fleet = start(members, SPEEDUP, tmp_path, Console(file=open(os.devnull, "w")))  # noqa: SIM115
+    gs = GroundStation(ZenohSettings(connect=(fleet.endpoint,)), gcs_id=GCS_ID)
+    try:
+        assert gs.wait_for(
+            lambda v: all(i in v.info and v.info[i].home is not None and i in v.status
+                          and v.status[i].gps_fix >= 3 for i in members), 120
+        )  # fmt: skip
+        base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+        gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=base), timeout_s=10.0)
+        assert gs.wait_for(lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in members), 60)
+        acks = gs.command(CommandKind.SET_FLEET, Selector.ids(7, 8), CommandArgs(fleet_id=2),
+                          timeout_s=10.0)  # fmt: skip
+        assert sorted(a.vehicle_id for a in acks if a.accepted) == [7, 8]
+        time.sleep(1.0)
+        area = square(SITL_HOME.lat_deg + 0.0012, SITL_HOME.lon_deg, 45.0)
+        params = MissionParams(altitude_rel_m=25.0)
+        # 1: a mission to fleet 2 is split between 7 and 8 (9 is not addressed)
+        acks = gs.mission(Mission(81, GCS_ID, MissionType.AREA, area, params, Selector.fleet(2)),
+                          timeout_s=10.0)  # fmt: skip
+        assert {a.vehicle_id: a.reason for a in acks} == {
+            7: AckReason.OK, 8: AckReason.OK, 9: AckReason.NOT_ADDRESSED
+        }
+        assert gs.wait_for(lambda v: all(v.info[i].members_hash for i in (7, 8)), 60)
+        view = gs.snapshot()
+        assert view.info[7].members_hash == view.info[8].members_hash
+        assert gs.wait_for(lambda v: completed(v, 7, 81) and completed(v, 8, 81), 240)
+        for vid in (7, 8):
+            log = (tmp_path / f"node-{vid}.log").read_text()
+            assert "mission 81: planned for fleet [7, 8]" in log
+        # 2: after landing, activated again, a second mission on the same nodes is flown
+        assert gs.wait_for(lambda v: all(v.fsm_state(i) == FsmState.INACTIVE for i in (7, 8)), 240)
+        gs.command(CommandKind.ACTIVATE, Selector.ids(7, 8), timeout_s=10.0)
+        assert gs.wait_for(lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in (7, 8)), 60)
+        acks = gs.mission(Mission(82, GCS_ID, MissionType.AREA, area, params, Selector.fleet(2)),
+                          timeout_s=10.0)  # fmt: skip
+        assert sorted(a.vehicle_id for a in acks if a.accepted) == [7, 8]
+        # 3: node 8 is SIGKILLed mid-mission: 7 replans and flies 8's share too
+        assert gs.wait_for(
+            lambda v: all(v.status[i].mission_state == MissionState.MISSION
+                          and v.status[i].mission_progress_pct >= 25 for i in (7, 8)), 240
+        )  # fmt: skip
+        path_before = gs.snapshot().info[7].mission_path_m
+        fleet.nodes[8].send_signal(signal.SIGKILL)
+        seen_replan = gs.wait_for(lambda v: v.status[7].mission_state == MissionState.REPLAN, 60)
+        assert gs.wait_for(lambda v: completed(v, 7, 82), 300)
+        assert not completed(gs.snapshot(), 8, 82)
+        log = (tmp_path / "node-7.log").read_text()
+        assert re.search(r"mission 82: member 8 lost", log), log[-2000:]
+        assert "mission 82: replanning for [7]" in log
+        assert seen_replan or "REPLAN" in log
+        assert gs.snapshot().info[7].mission_path_m > path_before  # it took on 8's lanes
+    finally:
+        gs.close()
+        stop(fleet)

@@ -1,0 +1,51 @@
+"""Mission inheritance in the fleet harness (node cores, scripted autopilots): a member
+lost in flight; the survivors enter REPLAN, agree on the same new plan from the same
+published progress, without a leader, and upload their new shares."""
+
+from __future__ import annotations
+
+from swarm_node.core.autopilot.requests import UploadMission
+from swarm_proto import FsmState, MissionState, VehicleStatus
+from tests.swarm_node.test_mission_defects import area, keep_polling, uploads
+from tests.swarm_node.test_node_core import activate, fleet
+
+
+def test_survivors_replan_the_lost_members_share_and_agree() -> None:
+    f = fleet(3)
+    activate(f)
+    f.submitted.clear()
+    keep_polling(f, 0.2)
+    from tests.swarm_node.test_node_core import send
+
+    send(f, area(41))
+    keep_polling(f, 4.0)
+    assert all(len(uploads(f, i)) == 1 for i in (1, 2, 3))
+    keep_polling(f, 3.0, mission_reached=4, mission_current=5)  # every vehicle under way
+    progress = {i: f.nodes[i].manager.share_progress_m() for i in (1, 2, 3)}
+    assert all(p > 0 for p in progress.values()), progress
+    keep_polling(f, 1.0, mission_reached=4, mission_current=5)  # its VehicleInfo is out
+    lost_at = f.nodes[3].manager.share_progress_m()
+    f.nodes.pop(3)  # vehicle 3 dies
+    keep_polling(f, 6.0, mission_reached=4, mission_current=5)
+    for i in (1, 2):
+        n = f.nodes[i]
+        assert n.roster.lost == {3: "stale"}
+        assert n.roster.generation == 1 and n.roster.planned == (1, 2)
+        assert n.fsm.state == FsmState.GO_MISSION and n.fsm.mission_id == 41
+        assert len(uploads(f, i)) == 2  # the new share
+        states = [s.mission_state for s in f.messages(VehicleStatus, sender=i)]
+        assert MissionState.REPLAN in states
+    # every survivor replanned from the same progress: 3's as it last published it
+    used = [f.nodes[i].manager.replanned_from for i in (1, 2)]
+    assert used[0] == used[1] and abs(used[0][3] - lost_at) < 1.0, (used, lost_at)
+    p1, p2 = (f.nodes[i].manager.fleet_plan for i in (1, 2))
+    assert p1 is not None and p2 is not None
+    assert p1.roster == p2.roster == (1, 2)
+    assert {v: s.waypoints for v, s in p1.shares.items()} == {
+        v: s.waypoints for v, s in p2.shares.items()
+    }
+    assert f.nodes[1].roster.members_hash == f.nodes[2].roster.members_hash
+    # the new shares are longer than what the survivors had left: they took 3's lanes
+    for i in (1, 2):
+        up = uploads(f, i)[-1]
+        assert isinstance(up, UploadMission) and up.items

@@ -1,0 +1,160 @@
+"""The mission layer over real node processes on loopback Zenoh, each flying a
+simulated vehicle over MAVLink: planning runs off the control loop (issue 12,
+defect 4)."""
+
+from __future__ import annotations
+
+import math
+import os
+import queue
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import msgspec
+import pytest
+
+from swarm_proto import (
+    Ack,
+    Command,
+    CommandArgs,
+    CommandKind,
+    FsmState,
+    Geometry,
+    GeoPoint,
+    Mission,
+    MissionParams,
+    MissionState,
+    MissionType,
+    SystemClock,
+    VehicleStatus,
+)
+from swarm_sim.core import SITL_HOME
+from swarm_sim.runtime import VehicleServer, VehicleSpec, spread_homes
+from tests.conftest import free_tcp_port
+from tests.swarm_node.processes import nodes, peers_of, plain_session, wait_until
+
+pytestmark = pytest.mark.network
+GCS = 900
+
+
+def wavy_area(n: int, lat0: float, lon0: float, radius_m: float = 150.0) -> Geometry:
+    """A valid polygon of `n` vertices (a wavy circle)."""
+    pts = []
+    for i in range(n):
+        a = 2 * math.pi * i / n
+        r = radius_m + 0.13 * radius_m * math.sin(7 * a)
+        pts.append((lat0 + r * math.sin(a) / 111_320.0,
+                    lon0 + r * math.cos(a) / (111_320.0 * math.cos(math.radians(lat0)))))  # fmt: skip
+    return Geometry.polygon(pts)
+
+
+@pytest.fixture
+def swarm(request: pytest.FixtureRequest) -> str:
+    return f"m{os.getpid()}{abs(hash(request.node.name)) % 10000}"
+
+
+@pytest.fixture
+def vehicles(request: pytest.FixtureRequest) -> Iterator[dict[int, str]]:
+    models: dict[int, str] = request.param
+    homes = spread_homes(SITL_HOME, len(models), 30.0)
+    specs = {
+        vid: VehicleSpec(model, instance=i, port=free_tcp_port(), home=homes[i], sysid=vid)
+        for i, (vid, model) in enumerate(models.items())
+    }
+    with VehicleServer(list(specs.values()), SystemClock()) as server:
+        yield {vid: f"tcp:127.0.0.1:{spec.tcp_port}" for vid, spec in specs.items()}
+        server.close()
+
+
+class Watch:
+    """Every status and ack of the swarm, as they arrive (with their arrival time)."""
+
+    def __init__(self, session: object, swarm: str) -> None:
+        self.statuses: queue.Queue[tuple[float, VehicleStatus]] = queue.Queue()
+        self.acks: queue.Queue[Ack] = queue.Queue()
+        self.subs = [
+            session.declare_subscriber(  # type: ignore[attr-defined]
+                f"bandada/{swarm}/vehicle/*/status",
+                lambda s: self.statuses.put(
+                    (time.monotonic(), msgspec.msgpack.decode(s.payload.to_bytes(), type=VehicleStatus))
+                ),
+            ),
+            session.declare_subscriber(  # type: ignore[attr-defined]
+                f"bandada/{swarm}/vehicle/*/ack",
+                lambda s: self.acks.put(msgspec.msgpack.decode(s.payload.to_bytes(), type=Ack)),
+            ),
+        ]
+
+    def close(self) -> None:
+        for s in self.subs:
+            s.undeclare()
+
+
+def send(client: object, swarm: str, msg: Command | Mission) -> None:
+    key = f"cmd/{GCS}" if isinstance(msg, Command) else f"mission/{msg.mission_id}"
+    client.put(f"bandada/{swarm}/{key}", msgspec.msgpack.encode(msg))  # type: ignore[attr-defined]
+
+
+def activate(client: object, swarm: str, watch: Watch, ids: list[int]) -> None:
+    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+    for i in ids:
+        assert wait_until(lambda i=i: peers_of(client, swarm, i) is not None, timeout=60)
+    send(client, swarm, Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
+    ready: set[int] = set()
+    t_end = time.monotonic() + 90
+    while ready != set(ids) and time.monotonic() < t_end:
+        try:
+            _, st = watch.statuses.get(timeout=1)
+        except queue.Empty:
+            continue
+        if st.fsm_state == FsmState.GO_MISSION:
+            ready.add(st.vehicle_id)
+    assert ready == set(ids)
+
+
+@pytest.mark.parametrize("vehicles", [{7: "copter"}], indirect=True)
+def test_planning_does_not_stall_status_or_commands(
+    zenoh_router: str, swarm: str, vehicles: dict[int, str], swarm_db: object, tmp_path: Path
+) -> None:
+    """A valid 4,000-vertex area mission takes seconds to plan; meanwhile the node keeps
+    publishing its 5 Hz status and answers a command (it used to stop for 4.9 s)."""
+    client = plain_session(zenoh_router)
+    watch = Watch(client, swarm)
+    try:
+        with nodes([7], zenoh_router, swarm, autopilots=vehicles):
+            activate(client, swarm, watch, [7])
+            area = wavy_area(4000, SITL_HOME.lat_deg + 0.003, SITL_HOME.lon_deg)
+            send(client, swarm, Mission(50, GCS, MissionType.AREA, area,
+                                        MissionParams(altitude_rel_m=40.0)))  # fmt: skip
+            planning: list[float] = []  # arrival times of statuses while PLANNING
+            acked_while_planning = False
+            sent_command = False
+            t_end = time.monotonic() + 120
+            while time.monotonic() < t_end:
+                try:
+                    t, st = watch.statuses.get(timeout=1)
+                except queue.Empty:
+                    continue
+                if st.mission_state == MissionState.PLANNING:
+                    planning.append(t)
+                    if len(planning) == 3 and not sent_command:
+                        send(client, swarm, Command(GCS, 60, CommandKind.SET_FLEET,
+                                                    args=CommandArgs(fleet_id=3)))  # fmt: skip
+                        sent_command = True
+                elif planning and st.mission_state in (MissionState.PREMISSION, MissionState.MISSION):
+                    break
+                while not watch.acks.empty():
+                    ack = watch.acks.get()
+                    if ack.ref_id == 60 and st.mission_state == MissionState.PLANNING:
+                        acked_while_planning = True
+            assert len(planning) >= 5, planning
+            window = planning[-1] - planning[0]
+            expected = window * 5.0  # status at 5 Hz
+            ratio = (len(planning) - 1) / expected if expected else 1.0
+            print(f"statuses while planning: {len(planning)} in {window:.1f} s (ratio {ratio:.2f})")
+            assert ratio > 0.5
+            assert acked_while_planning
+    finally:
+        watch.close()
+        client.close()

@@ -1,0 +1,62 @@
+"""The sortie table (mission/sortie.py): the wire MissionState as a checked table."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from swarm_node.core.mission.sortie import TRANSITIONS, IllegalMove, Sortie, Trigger, mermaid
+from swarm_proto import MissionState
+from tests.conftest import REPO
+
+
+def test_every_used_state_is_reachable_from_idle() -> None:
+    seen, todo = {MissionState.IDLE}, [MissionState.IDLE]
+    while todo:
+        s = todo.pop()
+        for (a, _t), b in TRANSITIONS.items():
+            if a == s and b not in seen:
+                seen.add(b)
+                todo.append(b)
+    used = {s for s, _ in TRANSITIONS} | set(TRANSITIONS.values())
+    assert seen == used
+    # the voting and add/swap states have no moves yet
+    assert set(MissionState) - used == {
+        MissionState.VOTING, MissionState.SENDING_MISSION, MissionState.WAITING_MISSION
+    }
+
+
+def test_an_illegal_move_raises() -> None:
+    s = Sortie()
+    with pytest.raises(IllegalMove):
+        s.go(Trigger.STARTED)
+    s.begin(keep_progress=False)
+    s.go(Trigger.RELEASED)
+    s.go(Trigger.STARTED)
+    assert s.state == MissionState.MISSION
+    assert [m.trigger for m in s.history] == [Trigger.PLAN, Trigger.RELEASED, Trigger.STARTED]
+
+
+@given(st.lists(st.floats(min_value=0, max_value=2000), max_size=30))
+def test_progress_never_falls(samples: list[float]) -> None:
+    s = Sortie(state=MissionState.MISSION, path_m=1000.0)
+    before = (0.0, 0)
+    for x in samples:
+        s.advance(x)
+        assert (s.progress_m, s.progress_pct) >= before
+        assert 0 <= s.progress_pct <= 100 and s.progress_m <= 1000.0
+        before = (s.progress_m, s.progress_pct)
+
+
+def test_the_way_home_keeps_the_progress() -> None:
+    s = Sortie(state=MissionState.MISSION, path_m=500.0)
+    s.advance(500.0)
+    s.begin(keep_progress=True)
+    assert s.progress_pct == 100
+    s.begin(keep_progress=False)
+    assert s.progress_pct == 0 and s.progress_m == 0.0
+
+
+def test_the_documented_diagram_is_the_table() -> None:
+    assert mermaid() in (REPO / "docs" / "state-machine.md").read_text(), "run make docs"
