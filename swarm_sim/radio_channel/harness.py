@@ -161,9 +161,7 @@ class Fleet:
                         )
             for idx, data in self.model.on_timer(t):
                 delay = self._rng.uniform(0, self.read_jitter_s) if self.read_jitter_s else 0.0
-                heapq.heappush(
-                    self._events, (t + delay, next(self._seq), "read", idx, data, False)
-                )
+                heapq.heappush(self._events, (t + delay, next(self._seq), "read", idx, data, False))
             for nid, m in list(self.members.items()):
                 if not m.active:
                     continue
@@ -182,9 +180,7 @@ class Fleet:
                     at += self._rng.uniform(0, self.write_jitter_s)
                 self.transmits.append((at, nid, a))
                 late = at > a.latest - m.offset_s  # past it the packet overruns its slot
-                heapq.heappush(
-                    self._events, (at, next(self._seq), "write", m.module, a.data, late)
-                )
+                heapq.heappush(self._events, (at, next(self._seq), "write", m.module, a.data, late))
             elif isinstance(a, Deliver):
                 self.deliveries.append((self.t, nid, a.src, a.data))
             else:
