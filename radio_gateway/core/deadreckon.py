@@ -122,9 +122,9 @@ class SendOnError:
 
     def sent(self, truth: Kinematics, now: float | None = None) -> None:
         """Record what went out (the peers now predict from it)."""
-        if self.last_sent is not None and now is not None:
-            if now - self.last_sent.t >= self.heartbeat_s - 1e-9:
-                self.heartbeats += 1
+        last = self.last_sent
+        if last is not None and now is not None and now - last.t >= self.heartbeat_s - 1e-9:
+            self.heartbeats += 1
         self.last_sent = truth
         self.sends += 1
 
