@@ -53,6 +53,7 @@ class Fleet:
     write_jitter_s: float = 0.0  # uniform extra delay of each serial write
     read_jitter_s: float = 0.0  # uniform extra delay before a host reads what arrived
     seed: int = 0
+    latest_keep: int = 1  # NodeConfig.latest_keep of every node
     model: RadioChannelModel = field(init=False)
     members: dict[int, Member] = field(default_factory=dict)
     deliveries: list[tuple[float, int, int, bytes]] = field(default_factory=list)
@@ -99,6 +100,7 @@ class Fleet:
             source_stratum=source_stratum,
             initial_members=initial_members,
             seed=self.seed,
+            latest_keep=self.latest_keep,
         )
         node = RadioNode(cfg, self.key, self.t + offset_s)
         every = produce_every_s if produce_every_s is not None else self.tdm.cycle_s
