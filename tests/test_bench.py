@@ -40,6 +40,22 @@ NAMED: dict[str, tuple[str, ...]] = {
         "high_latency2_encode_us",
     ),
     "sim": ("vehicles_per_core_at_10x",),
+    "radio_scale": (
+        "bare_limit_ratio",
+        *(
+            f"scale/n_{n}/loss_{loss}/{scheme}/{k}"
+            for n in (14, 25, 50)
+            for loss in ("0", "0.1")
+            for scheme in ("tdm5", "send_on_error")
+            for k in (
+                "position_error_p99_m",
+                "position_error_max_m",
+                "airtime_used",
+                "collisions",
+                "cmd_latency_p99_ms",
+            )
+        ),
+    ),
     "node": ("cpu_s_per_sim_s/peers_10", "cpu_s_per_sim_s/peers_50", "cpu_s_per_sim_s/peers_100"),
     "separation": (
         "avoid_cpu_us_per_tick/peers_10",
@@ -163,3 +179,12 @@ def test_separation_stress_case_shows_what_avoidance_changes() -> None:
     stress = _load("separation")["stress_eight_headon"]
     assert stress["on"]["near"] == 0 and stress["on"]["danger"] == 0
     assert stress["off"]["near"] > 0
+
+
+def test_radio_scale_rows_have_no_collisions() -> None:
+    data = _load("radio_scale")
+    assert data["bare_limit_ratio"] >= 0.95
+    for by_loss in data["scale"].values():
+        for by_scheme in by_loss.values():
+            for row in by_scheme.values():
+                assert row["collisions"] == 0, row

@@ -44,10 +44,15 @@ class NodeConfig:
     # spare room in our slot repeats peers' latest telemetry heard in the last period
     # (radio messages whose (version, type tag) is listed; default: VehicleStatus)
     relay_headers: frozenset[bytes] = frozenset({b"\x01\x01"})
+    # latest-only telemetry kept per key between slots (see Outbox): 2 with 400 ms cycles
+    # carries every 5 Hz status, two to a frame
+    latest_keep: int = 1
 
     def __post_init__(self) -> None:
         if not 1 <= self.node_id <= 65534:
             raise ValueError("node_id is 1..65534")
+        if self.latest_keep < 1:
+            raise ValueError("latest_keep is >= 1")
 
 
 @dataclass(frozen=True)
@@ -117,7 +122,9 @@ class RadioNode:
         )
         self.replay = ReplayGuard(c.replay_window_cycles)
         first = int(self.start_s // c.tdm.cycle_s)
-        self.outbox = Outbox(ack_timeout_s=1.5 * c.tdm.cycle_s, seq=first & 0xFFFF)
+        self.outbox = Outbox(
+            ack_timeout_s=1.5 * c.tdm.cycle_s, seq=first & 0xFFFF, latest_keep=c.latest_keep
+        )
         self._cycle = first - 1
         self._last_now = self.start_s
 

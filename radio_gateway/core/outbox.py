@@ -8,7 +8,11 @@ than `starve_s` moves up one class per `starve_s` waited, so slow classes are ne
 starved outright.
 
 - latest-only topics (telemetry) keep one message per key: a newer value replaces an
-  unsent older one, and a key is not sent more often than its maximum rate.
+  unsent older one, and a key is not sent more often than its maximum rate. With
+  `latest_keep` = k > 1 they keep the k newest unsent values instead, and a slot sends
+  them together (oldest first): a TDM whose slots come every k cycles carries every
+  status sampled at the cycle rate, in one authenticated frame (the per-packet sync,
+  guard and tag paid once per k statuses).
 - acked topics are split into 16-byte chunks (FRAG_ACKED records, any number per slot,
   a message spanning as many slots as it needs); every member acknowledges the chunks
   it holds; missing chunks are resent after `ack_timeout_s` until every member that was
@@ -96,7 +100,9 @@ class Outbox:
     starve_s: float = 5.0
     queue_limit: int = 64
     seq: int = 0
+    latest_keep: int = 1
     latest: dict[str, _Queued] = field(default_factory=dict)
+    older: dict[str, list[_Queued]] = field(default_factory=dict)  # latest_keep > 1
     last_sent: dict[str, float] = field(default_factory=dict)
     fifo: list[_Queued] = field(default_factory=list)
     chunked: list[_Chunked] = field(default_factory=list)
@@ -111,7 +117,13 @@ class Outbox:
         q = _Queued(msg, now, next(self._order))
         if msg.latest_only and not msg.acked:
             old = self.latest.get(msg.key)
-            if old is not None:
+            if old is not None and self.latest_keep > 1:
+                kept = self.older.setdefault(msg.key, [])
+                kept.append(old)
+                if len(kept) >= self.latest_keep:
+                    kept.pop(0)
+                    self.counts["replaced"] += 1
+            elif old is not None:
                 self.counts["replaced"] += 1
                 q.since = old.since
             self.latest[msg.key] = q
@@ -123,7 +135,8 @@ class Outbox:
         return True
 
     def pending(self) -> int:
-        return len(self.latest) + len(self.fifo) + len(self.chunked)
+        older = sum(len(v) for v in self.older.values())
+        return len(self.latest) + older + len(self.fifo) + len(self.chunked)
 
     def on_ack(self, from_node: int, ack: Ack) -> None:
         for c in self.chunked:
@@ -153,7 +166,8 @@ class Outbox:
         items: list[tuple[int, int, int, object]] = []
         for c in self.chunked:
             items.append((self._klass(c.msg, c.since, now), 0, c.order, c))
-        for q in list(self.latest.values()) + self.fifo:
+        older = [q for kept in self.older.values() for q in kept]
+        for q in older + list(self.latest.values()) + self.fifo:
             if self._rate_ok(q.msg, now):
                 items.append((self._klass(q.msg, q.since, now), 1, q.order, q))
         for _, _, _, item in sorted(items, key=lambda t: t[:3]):
@@ -173,8 +187,13 @@ class Outbox:
         return now - self.last_sent[msg.key] >= 0.75 / msg.max_rate_hz
 
     def _dequeue(self, q: _Queued) -> None:
+        kept = self.older.get(q.msg.key)
         if self.latest.get(q.msg.key) is q:
             del self.latest[q.msg.key]
+        elif kept is not None and q in kept:
+            kept.remove(q)
+            if not kept:
+                del self.older[q.msg.key]
         elif q in self.fifo:
             self.fifo.remove(q)
 

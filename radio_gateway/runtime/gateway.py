@@ -50,6 +50,7 @@ class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     guard_s: float = 0.005
     sync_s: float = 0.006  # the module's per-packet preamble
     min_payload: int = 42
+    latest_keep: int = 1  # 2 with cycle_s 0.4, min_payload 84: 5 Hz statuses, two a frame
     silent_periods: int = 5
     initial_members: tuple[int, ...] = ()
     local_ids: tuple[int, ...] = ()  # whose messages go on air; default: node_id
@@ -70,7 +71,11 @@ class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
             silent_periods=self.silent_periods,
         )
         return NodeConfig(
-            self.node_id, timing=timing, tdm=tdm, initial_members=self.initial_members
+            self.node_id,
+            timing=timing,
+            tdm=tdm,
+            initial_members=self.initial_members,
+            latest_keep=self.latest_keep,
         )
 
 

@@ -53,12 +53,13 @@ class Fleet:
     write_jitter_s: float = 0.0  # uniform extra delay of each serial write
     read_jitter_s: float = 0.0  # uniform extra delay before a host reads what arrived
     seed: int = 0
+    latest_keep: int = 1  # NodeConfig.latest_keep of every node
     model: RadioChannelModel = field(init=False)
     members: dict[int, Member] = field(default_factory=dict)
     deliveries: list[tuple[float, int, int, bytes]] = field(default_factory=list)
     notices: list[tuple[float, int, Notice]] = field(default_factory=list)
     transmits: list[tuple[float, int, Transmit]] = field(default_factory=list)
-    _events: list[tuple[float, int, str, int, bytes]] = field(default_factory=list)
+    _events: list[tuple[float, int, str, int, bytes, bool]] = field(default_factory=list)
     _seq: itertools.count[int] = field(default_factory=itertools.count)
     _rng: random.Random = field(init=False)
 
@@ -99,6 +100,7 @@ class Fleet:
             source_stratum=source_stratum,
             initial_members=initial_members,
             seed=self.seed,
+            latest_keep=self.latest_keep,
         )
         node = RadioNode(cfg, self.key, self.t + offset_s)
         every = produce_every_s if produce_every_s is not None else self.tdm.cycle_s
@@ -147,9 +149,9 @@ class Fleet:
             self.t = t
             by_module = {m.module: nid for nid, m in self.members.items()}
             while self._events and self._events[0][0] <= t:
-                _, _, kind, idx, data = heapq.heappop(self._events)
+                _, _, kind, idx, data, late = heapq.heappop(self._events)
                 if kind == "write":
-                    self.model.from_host(idx, data, t)
+                    self.model.from_host(idx, data, t, late=late)
                 else:
                     nid = by_module.get(idx)
                     if nid is not None and self.members[nid].active:
@@ -161,7 +163,7 @@ class Fleet:
                         )
             for idx, data in self.model.on_timer(t):
                 delay = self._rng.uniform(0, self.read_jitter_s) if self.read_jitter_s else 0.0
-                heapq.heappush(self._events, (t + delay, next(self._seq), "read", idx, data))
+                heapq.heappush(self._events, (t + delay, next(self._seq), "read", idx, data, False))
             for nid, m in list(self.members.items()):
                 if not m.active:
                     continue
@@ -179,7 +181,8 @@ class Fleet:
                 if self.write_jitter_s:
                     at += self._rng.uniform(0, self.write_jitter_s)
                 self.transmits.append((at, nid, a))
-                heapq.heappush(self._events, (at, next(self._seq), "write", m.module, a.data))
+                late = at > a.latest - m.offset_s  # past it the packet overruns its slot
+                heapq.heappush(self._events, (at, next(self._seq), "write", m.module, a.data, late))
             elif isinstance(a, Deliver):
                 self.deliveries.append((self.t, nid, a.src, a.data))
             else:

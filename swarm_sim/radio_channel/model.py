@@ -10,7 +10,22 @@ the RO idle timeout) and an RF side on one shared channel:
 - a module does not start a packet while it is receiving: once another packet's preamble
   has been on air for `detect_s` it waits for that packet to end (a *deferral*). Two
   packets that start within `detect_s` of each other collide;
-- the receiving host gets the bytes `latency_s` after the packet ends, at its serial rate.
+- the receiving host gets the bytes `latency_s` after the packet ends, at its serial rate;
+- a module needs `tx_setup_s` (plus up to `tx_setup_jitter_s`) after the RO timeout to set
+  up a transmission and cannot receive while setting up or transmitting (half-duplex
+  turnaround);
+- capture: a receiver hearing two overlapping packets keeps the one that started first
+  with probability `capture` (a stronger, earlier signal); the overlap still counts as a
+  collision (a TDM must have none);
+- a packet the host wrote late (`from_host(..., late=True)`: after the last moment its
+  schedule allowed) is counted apart: a collision involving one is a `collisions_late`
+  (the host's fault), one between on-time packets a `collisions_tdm` (the schedule's).
+
+`XTEND_DATASHEET` holds the figures from the XTend datasheet (Digi 9XTend product manual:
+6.5 ms RF initializer per packet at 115.2 kbps, ~0.8 ms transmit setup after the RO
+timeout with 100-200 us of uncertainty): emulations that check a schedule use them,
+independently of the `LinkTiming` the gateway sizes its slots with, so the check can
+disagree with the design.
 
 Bit errors are delivered as flipped bits (a real XTend drops packets failing its own CRC;
 passing them on tests the gateway's framing). A host whose serial rate differs from the
@@ -42,10 +57,25 @@ class ChannelParams:
     loss: float = 0.0  # probability a receiver misses a packet
     ber: float = 0.0  # bit error rate of delivered packets
     seed: int = 0
+    tx_setup_s: float = 0.0  # after the RO timeout, before the preamble starts
+    tx_setup_jitter_s: float = 0.0  # uniform extra setup time
+    capture: float = 0.0  # probability a receiver keeps the earlier of two overlapping
 
     def __post_init__(self) -> None:
-        if not (0 <= self.loss <= 1 and 0 <= self.ber <= 1):
-            raise ValueError("loss and ber are probabilities")
+        if not (0 <= self.loss <= 1 and 0 <= self.ber <= 1 and 0 <= self.capture <= 1):
+            raise ValueError("loss, ber and capture are probabilities")
+        if self.tx_setup_s < 0 or self.tx_setup_jitter_s < 0:
+            raise ValueError("setup times are >= 0")
+
+
+# the XTend at 115.2 kbps RF, from its datasheet (see the module docstring)
+XTEND_DATASHEET = ChannelParams(
+    sync_s=0.0065,
+    detect_s=0.0065,
+    latency_s=0.0005,
+    tx_setup_s=0.0008,
+    tx_setup_jitter_s=0.0002,
+)
 
 
 class Mode(Enum):
@@ -65,6 +95,9 @@ class Transmission:
     dt: int
     collided: bool = False
     delivered: bool = False
+    late: bool = False
+    setup: float = 0.0  # when the module stopped listening to set up this packet
+    first: bool = True  # started before every packet it overlaps (capture)
 
 
 @dataclass
@@ -84,6 +117,7 @@ class Module:
     line: bytearray = field(default_factory=bytearray)
     cmd_last: float = 0.0
     tx_free: float = -1e18  # its own previous packet ends
+    late: bool = False  # the buffered bytes include a late write
 
     def __post_init__(self) -> None:
         self.saved = dict(self.registers)
@@ -119,9 +153,9 @@ class RadioChannelModel:
     per_module: list[Counter[str]] = field(init=False)
     air: list[Transmission] = field(default_factory=list)
     _out: list[tuple[float, int, int, bytes]] = field(default_factory=list)  # heap
-    _pending: list[tuple[float, int, int, bytes]] = field(
+    _pending: list[tuple[float, int, int, bytes, bool]] = field(
         default_factory=list
-    )  # heap: ready packets
+    )  # heap: ready packets (late writes flagged)
     _seq: itertools.count[int] = field(default_factory=itertools.count)
     _rng: random.Random = field(init=False)
 
@@ -141,9 +175,15 @@ class RadioChannelModel:
         m.active_bd = m.registers["BD"]
 
     # ------------------------------------------------------------------ host side
-    def from_host(self, i: int, data: bytes, now: float, host_baud: int | None = None) -> None:
-        """Bytes the host of module i wrote (read by the emulator at `now`)."""
+    def from_host(
+        self, i: int, data: bytes, now: float, host_baud: int | None = None, late: bool = False
+    ) -> None:
+        """Bytes the host of module i wrote (read by the emulator at `now`); `late`: the
+        host wrote them after its schedule allowed (counted apart from TDM faults)."""
         m = self.modules[i]
+        if late:
+            m.late = True
+            self.counts["late_writes"] += 1
         if host_baud is not None and host_baud != m.baud:
             data = garble(data)
             self.per_module[i]["baud_mismatch"] += 1
@@ -276,13 +316,15 @@ class RadioChannelModel:
             if m.buf and now >= ready:
                 pk = m.registers["PK"]
                 data, m.buf = bytes(m.buf), bytearray()
+                late, m.late = m.late, False
                 for j in range(0, len(data), pk):
                     heapq.heappush(
-                        self._pending, (ready, next(self._seq), m.index, data[j : j + pk])
+                        self._pending,
+                        (ready, next(self._seq), m.index, data[j : j + pk], late),
                     )
         while self._pending and self._pending[0][0] <= now:
-            t, _, i, data = heapq.heappop(self._pending)
-            self._start(i, data, t)
+            t, _, i, data, late = heapq.heappop(self._pending)
+            self._start(i, data, t, late)
         self._deliver(now)
         out: list[tuple[int, bytes]] = []
         while self._out and self._out[0][0] <= now:
@@ -291,10 +333,14 @@ class RadioChannelModel:
         return out
 
     # ------------------------------------------------------------------ RF side
-    def _start(self, i: int, data: bytes, t: float) -> None:
+    def _start(self, i: int, data: bytes, t: float, late: bool = False) -> None:
         m = self.modules[i]
         r = m.registers
-        start = max(t, m.tx_free)
+        p = self.params
+        setup = p.tx_setup_s
+        if p.tx_setup_jitter_s:
+            setup += self._rng.uniform(0, p.tx_setup_jitter_s)
+        start = max(t + setup, m.tx_free)
         deferred = False
         while True:
             busy = [
@@ -313,15 +359,24 @@ class RadioChannelModel:
             self.per_module[i]["deferred"] += 1
         dur = self.params.sync_s + len(data) * 8.0 / m.rf_bps
         tx = Transmission(i, start, start + dur, data, m.rf_bps, r["HP"], r["ID"], r["DT"])
+        tx.late = late
+        tx.setup = start - setup
+        late_overlap = late
         for x in self.air:  # packets on one hopping channel (same HP) interfere
             if x.hp == tx.hp and x.start < tx.end and tx.start < x.end:
                 if not x.collided:
                     self.counts["collided_packets"] += 1
                 x.collided = True
                 tx.collided = True
+                late_overlap = late_overlap or x.late
+                if x.start >= tx.start:
+                    x.first = False
+                else:
+                    tx.first = False
         if tx.collided:
             self.counts["collided_packets"] += 1
             self.counts["collisions"] += 1  # overlap events
+            self.counts["collisions_late" if late_overlap else "collisions_tdm"] += 1
         m.tx_free = tx.end
         self.air.append(tx)
         self.counts["packets"] += 1
@@ -338,7 +393,7 @@ class RadioChannelModel:
             if x.delivered or now < x.end + lat:
                 continue
             x.delivered = True
-            if x.collided:
+            if x.collided and not (self.params.capture and x.first):
                 continue
             for m in self.modules:
                 if m.index == x.src:
@@ -352,9 +407,14 @@ class RadioChannelModel:
                 if x.dt != 0xFFFF and (x.dt & mk) != (r["DT"] & mk) and x.dt != r["MY"]:
                     c["filtered"] += 1
                     continue
-                if any(y.src == m.index and y.start < x.end and x.start < y.end for y in self.air):
+                if any(y.src == m.index and y.setup < x.end and x.start < y.end for y in self.air):
                     c["missed_half_duplex"] += 1
                     continue
+                if x.collided:  # the earlier of overlapping packets: captured, or not
+                    if self._rng.random() >= self.params.capture:
+                        c["lost_collision"] += 1
+                        continue
+                    c["captured"] += 1
                 if m.mode is Mode.COMMAND:
                     c["missed_command_mode"] += 1
                     continue

@@ -234,3 +234,17 @@ def test_air_garbage_is_counted() -> None:
     assert b.from_air(b"\x01\xee\x00", T) is None
     assert b.from_air(radio.encode(RadioStats(node_id=3, time_unix_s=T)), T) is None
     assert b.counts["air_undecodable"] == 1 and b.counts["air_not_on_air_topic"] == 1
+
+
+def test_latest_keep_sends_the_newest_values_together_oldest_first() -> None:
+    """latest_keep=2: one frame every other cycle carries both statuses of the period."""
+    ob = Outbox(latest_keep=2)
+    for i in range(3):
+        ob.submit(OutMessage("s", bytes([1, 0x64, i]) + bytes(37), 2, True, False, 5.0), 0.1 * i)
+    assert ob.pending() == 2 and ob.counts["replaced"] == 1
+    recs = ob.fill(200, 0.3, frozenset())
+    assert [r.data[2] for r in recs if isinstance(r, fr.Msg)] == [1, 2]
+    assert ob.pending() == 0
+    ob.submit(OutMessage("s", bytes([1, 0x64, 9]) + bytes(37), 2, True, False, 5.0), 0.31)
+    recs = ob.fill(200, 0.35, frozenset())  # under the rate limit since the last send
+    assert recs == [] and ob.pending() == 1

@@ -126,3 +126,46 @@ def test_unsaved_settings_are_lost_on_power_cycle_and_wrong_baud_garbles() -> No
     assert (0, b"OK\r") not in out and m.modules[0].mode is Mode.DATA
     assert out and out[0][1] != b"+++"  # what went out is garbage
     assert m.per_module[0]["baud_mismatch"] == 1
+
+
+def test_datasheet_timing_adds_setup_and_the_longer_preamble() -> None:
+    from swarm_sim.radio_channel.model import XTEND_DATASHEET
+
+    m = RadioChannelModel(2, XTEND_DATASHEET)
+    for i in range(2):
+        m.preset(i, **BANDADA)
+    m.from_host(0, b"x" * 40, T)
+    _run(m, T + 0.1)
+    tx = m.air[0]
+    char = 10 / 230_400
+    ready = T + 43 * char
+    assert ready + 0.0008 <= tx.start <= ready + 0.001 + 1e-9
+    assert tx.end - tx.start == pytest.approx(0.0065 + 40 * 8 / 115_200)
+
+
+def test_a_module_setting_up_to_transmit_misses_a_packet_half_duplex() -> None:
+    m = _model(3, tx_setup_s=0.002)
+    m.from_host(0, b"a" * 30, T)
+    # module 1's setup starts during module 0's preamble tail: it cannot hear 0 any more
+    m.from_host(1, b"b" * 10, T + 0.0095)
+    _run(m, T + 0.1)
+    assert m.per_module[1]["missed_half_duplex"] >= 1
+
+
+@pytest.mark.parametrize("capture", [0.0, 1.0])
+def test_capture_keeps_the_earlier_of_two_overlapping_packets(capture: float) -> None:
+    m = _model(3, capture=capture)
+    m.from_host(0, b"a" * 30, T)
+    m.from_host(1, b"b" * 30, T + 0.001)
+    got = _run(m, T + 0.1)
+    assert m.counts["collisions"] == 1 and m.counts["collisions_tdm"] == 1
+    assert got == ([(2, b"a" * 30)] if capture else [])
+
+
+def test_collisions_with_a_late_write_are_counted_apart() -> None:
+    m = _model()
+    m.from_host(0, b"a" * 30, T)
+    m.from_host(1, b"b" * 30, T + 0.001, late=True)
+    _run(m, T + 0.1)
+    assert m.counts["collisions_late"] == 1 and m.counts["collisions_tdm"] == 0
+    assert m.counts["late_writes"] == 1
