@@ -173,6 +173,7 @@ class SwarmLab:
 
         self.lab, self.topology, self.env = lab, topology, env
         self.py = sys.executable
+        self.bin = Path(sys.executable).parent  # the console scripts, as a user runs them
         lab.subnet("a")
         two = topology in ("b", "tls")
         if two:
@@ -194,7 +195,7 @@ class SwarmLab:
     # the command lines, as docs/deploy.md gives them
     def router_argv(self, log_denied: bool = False) -> list[str]:
         conf = self.certs / "router.json5" if self.topology == "tls" else ZENOH / "router.json5"
-        argv = [self.py, "-m", "swarm_node.cli", "router", "--config", str(conf)]
+        argv = [str(self.bin / "swarm-node"), "router", "--config", str(conf)]
         return [*argv, "--log-denied"] if log_denied else argv
 
     def zenoh_args(self, who: str, subnet_router: str) -> list[str]:
@@ -214,13 +215,13 @@ class SwarmLab:
 
     def start_vehicle(self, v: int) -> None:
         ns = self.vehicles[v]
-        self.lab.popen(ns, [self.py, "-m", "swarm_sim.cli", "vehicle", "--model", "vtol",
+        self.lab.popen(ns, [str(self.bin / "swarm-sim"), "vehicle", "--model", "vtol",
                             "--sysid", str(v)], f"sim-{v}.log", self.env)  # fmt: skip
         env = {**self.env, "BANDADA_DB": str(self.lab.logdir / f"swarm-{v}.db")}
-        self.lab.popen(ns, [self.py, "-m", "swarm_node.cli", "run", "--id", str(v),
+        self.lab.popen(ns, [str(self.bin / "swarm-node"), "run", "--id", str(v),
                             "--autopilot", "tcp:127.0.0.1:5760",
                             *self.zenoh_args(f"vehicle-{v}", self.vehicle_router())],
                        f"node-{v}.log", env)  # fmt: skip
 
     def gcs_argv(self, *args: str, who: str = f"gcs-{GCS_ID}") -> list[str]:
-        return [self.py, "-m", "gcs_cli.cli", *self.zenoh_args(who, ROUTER_A), *args]
+        return [str(self.bin / "gcs"), *self.zenoh_args(who, ROUTER_A), *args]
