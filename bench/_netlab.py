@@ -210,8 +210,18 @@ class SwarmLab:
     def vehicle_router(self) -> str:
         return ROUTER_B if self.topology in ("b", "tls") else ROUTER_A
 
-    def start_router(self, log_denied: bool = False) -> subprocess.Popen[bytes]:
-        return self.lab.popen(self.router, self.router_argv(log_denied), "router.log", self.env)
+    def start_router(
+        self, log_denied: bool = False, timeout: float = 60.0
+    ) -> subprocess.Popen[bytes]:
+        """Start the router and wait until it listens (it prints "zenoh router ...")."""
+        proc = self.lab.popen(self.router, self.router_argv(log_denied), "router.log", self.env)
+        log = self.lab.logdir / "router.log"
+        deadline = time.monotonic() + timeout
+        while "zenoh router" not in log.read_text(errors="replace"):
+            if proc.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"the router did not start: {log.read_text()[-2000:]}")
+            time.sleep(0.1)
+        return proc
 
     def start_vehicle(self, v: int) -> None:
         ns = self.vehicles[v]

@@ -29,6 +29,13 @@ NAMED: dict[str, tuple[str, ...]] = {
         "high_latency2_encode_us",
     ),
     "sim": ("vehicles_per_core_at_10x",),
+    "deploy": (
+        "status_latency_ms_p50",
+        "status_latency_ms_p99",
+        "tls/status_latency_ms_p50",
+        "tls/status_latency_ms_p99",
+        "join_s",
+    ),
     "node": ("cpu_s_per_sim_s/peers_10", "cpu_s_per_sim_s/peers_50", "cpu_s_per_sim_s/peers_100"),
     "planners": (
         "dubins_batch_us_per_path",
