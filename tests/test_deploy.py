@@ -171,3 +171,13 @@ def test_example_radio_config_loads() -> None:
 
     cfg = load_config(REPO / "deploy" / "config" / "radio.toml", {})
     assert cfg.port == "/dev/bandada-radio" and cfg.time_source.startswith("mavlink:")
+
+
+def test_radio_vehicle_node_config_loads_and_pairs_with_the_gateway() -> None:
+    from radio_gateway.runtime.gateway import load_config as gateway_config
+    from swarm_node.runtime.config import load_config
+
+    node = load_config(REPO / "deploy" / "config" / "node-radio.toml")
+    gateway = gateway_config(REPO / "deploy" / "config" / "radio.toml", {})
+    assert node.autopilot == "udpin:127.0.0.1:14550"
+    assert gateway.zenoh.connect == node.zenoh.listen == ("tcp/127.0.0.1:7447",)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -135,3 +136,44 @@ def test_tls_only_the_ground_station_commands(tls_lab: SwarmLab) -> None:
     log = (s.lab.logdir / "router.log").read_text()
     assert "CertCommonName(vehicle-2)" in log
     assert "unauthorized to Put (ingress) on bandada/default/cmd/900" in log
+
+
+_RADIO_PAIR = """
+import sys, time, queue
+from pathlib import Path
+from radio_gateway.runtime.gateway import load_config as gateway_config
+from swarm_node.runtime.config import load_config as node_config
+from swarm_proto import VehicleStatus
+from swarm_proto.session import SwarmBus
+from swarm_proto.topics import STATUS
+deploy = Path(sys.argv[1])
+node = SwarmBus.open(node_config(deploy / "node-radio.toml").zenoh)
+gateway = SwarmBus.open(gateway_config(deploy / "radio.toml", {}).zenoh)
+got = queue.Queue()
+gateway.subscribe(STATUS, lambda m, k: got.put(m.vehicle_id))
+for _ in range(50):
+    node.publish(VehicleStatus(vehicle_id=1, time_unix_s=time.time(), lat_deg=37.4,
+                               lon_deg=-6.0, alt_msl_m=50.0, alt_rel_m=40.0))
+    try:
+        print("gateway got status of", got.get(timeout=0.2))
+        break
+    except queue.Empty:
+        pass
+gateway.close()
+node.close()
+"""
+
+
+def test_vehicle_behind_a_radio_gateway_configs_join(tmp_path: Path, env: dict[str, str]) -> None:
+    """Topology c: on the companion computer (its own namespace, so port 7447 is ours),
+    the node with deploy/config/node-radio.toml and the gateway with the shipped
+    deploy/config/radio.toml share one Zenoh network as they are. (The radio link
+    itself: tests/radio_gateway/test_gateway_e2e.py and `swarm-sim demo --radio`.)"""
+    if _REASON:
+        pytest.skip(f"network namespaces unavailable: {_REASON}")
+    from bench._netlab import REPO
+
+    with NetLab(tmp_path) as lab:
+        ns = lab.host("companion", {})
+        r = lab.run(ns, [sys.executable, "-c", _RADIO_PAIR, str(REPO / "deploy" / "config")], env)
+        assert "gateway got status of 1" in r.stdout, r.stdout + r.stderr
