@@ -137,8 +137,15 @@ def router(
         session.close()
 
 
-@app.command()
-def certs(
+certs_app = typer.Typer(
+    help="A swarm's CA, certificates and mutual-TLS / access-control Zenoh configs.",
+    no_args_is_help=True,
+)
+app.add_typer(certs_app, name="certs")
+
+
+@certs_app.command("make")
+def certs_make(
     out: str = typer.Option(..., "--out", help="directory to write the CA, certificates, configs"),
     vehicles: str = typer.Option(..., help="vehicle ids: 1,2,5-7"),
     gcs: str = typer.Option("900", help="ground station ids"),
@@ -168,7 +175,7 @@ def certs(
             days=days,
         )
     except ValueError as exc:
-        typer.echo(f"swarm-node certs: {exc}", err=True)
+        typer.echo(f"swarm-node certs make: {exc}", err=True)
         raise typer.Exit(2) from exc
     for path in written:
         typer.echo(str(path))

@@ -181,3 +181,36 @@ def test_radio_vehicle_node_config_loads_and_pairs_with_the_gateway() -> None:
     gateway = gateway_config(REPO / "deploy" / "config" / "radio.toml", {})
     assert node.autopilot == "udpin:127.0.0.1:14550"
     assert gateway.zenoh.connect == node.zenoh.listen == ("tcp/127.0.0.1:7447",)
+
+
+def test_router_command_refuses_a_broken_config_in_one_line(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from swarm_node.cli import app as node_app
+
+    (tmp_path / "bad.json5").write_text("{ mode: ")
+    r = CliRunner().invoke(node_app, ["router", "--config", str(tmp_path / "bad.json5")])
+    assert r.exit_code == 2 and "cannot load Zenoh config" in r.output
+
+
+def test_certs_command_writes_a_swarm(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from swarm_node.cli import app as node_app
+
+    args = [
+        "certs",
+        "make",
+        "--out",
+        str(tmp_path / "c"),
+        "--vehicles",
+        "1-3",
+        "--router-host",
+        "10.0.0.1",
+    ]
+    r = CliRunner().invoke(node_app, args)
+    assert r.exit_code == 0, r.output
+    names = {Path(line).name for line in r.output.split()}
+    assert {"ca.pem", "router.json5", "vehicle-3.json5", "gcs-900.json5"} <= names
+    r = CliRunner().invoke(node_app, args)  # the CA exists: refused, nothing overwritten
+    assert r.exit_code == 2 and "exists" in r.output
