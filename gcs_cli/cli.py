@@ -266,7 +266,9 @@ def cmd(
         )
     args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id)
     with ctx.obj.open() as gs:
-        gs.wait_for(lambda v: bool(v.vehicle_ids()), 3.0)
+        # every vehicle named with --id (a fresh session hears a LAN's vehicles one by
+        # one; the acks awaited are those of the vehicles known to be addressed)
+        gs.wait_for(lambda v: set(ids) <= set(v.vehicle_ids()) and bool(v.vehicle_ids()), 3.0)
         acks = gs.command(k, selector_from(ids, fleet, 0, ""), args, timeout_s=timeout)
     _print_acks(acks, f"{k.name.lower()}")
 

@@ -68,7 +68,7 @@ def _set_fleet(s: SwarmLab, who: str = "gcs-900") -> subprocess.CompletedProcess
     ids = [a for v in VEHICLES for a in ("--id", str(v))]
     return s.lab.run(
         s.gcs,
-        s.gcs_argv("cmd", "set-fleet", "--fleet-id", "4", "--timeout", "3", *ids, who=who),
+        s.gcs_argv("cmd", "set-fleet", "--fleet-id", "4", *ids, who=who),
         s.env,
     )
 
