@@ -35,6 +35,7 @@ from swarm_proto import (
 from swarm_proto.session import ZenohSettings
 from swarm_proto.session import zenoh_config as zenoh_config_of
 
+from .analyze import app as analyze_app
 from .db import DbOption
 from .db import app as db_app
 from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
@@ -44,6 +45,7 @@ app = typer.Typer(help="bandada ground station.", no_args_is_help=True)
 app.add_typer(db_app, name="db")
 zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
 app.add_typer(zone_app, name="zone")
+app.add_typer(analyze_app, name="analyze")
 console = Console()
 
 
@@ -138,6 +140,12 @@ def geometry_from(
 
 
 def selector_from(ids: list[int], fleet: int, quantity: int, payload: str) -> Selector:
+    if not 0 <= quantity <= 255:
+        raise typer.BadParameter(f"--count must be 1..255, got {quantity}")
+    if payload and not quantity:
+        raise typer.BadParameter("--payload needs --count: voting picks a payload's vehicles")
+    if quantity and ids:
+        raise typer.BadParameter("--count and --id exclude each other: voting picks the ids")
     try:
         if quantity:
             return Selector(
@@ -286,8 +294,12 @@ def mission(
     points: str | None = typer.Option(None, help="'LAT,LON ...' (multi-objective)"),
     ids: list[int] = typer.Option([], "--id", help="vehicle ids (repeat)"),
     fleet: int = typer.Option(0, help="the fleet flies it"),
-    quantity: int = typer.Option(0, help="this many vehicles, chosen by voting"),
-    payload: str = typer.Option("", help="with --quantity: required payload model"),
+    quantity: int = typer.Option(
+        0, "--count", "--quantity", help="this many vehicles, chosen by voting (with --fleet: of it)"
+    ),
+    payload: str = typer.Option(
+        "", help="with --count: the payload model voting prefers (a swarm database model)"
+    ),
     alt: float | None = typer.Option(None, help="altitude above home, m"),
     speed: float | None = typer.Option(None, help="m/s (default: each vehicle's cruise)"),
     overlap: float | None = typer.Option(None, help="area: camera side overlap"),
@@ -317,6 +329,8 @@ def mission(
         "altitude_step_m": alt_step,
         "duration_s": duration,
     }
+    if payload:
+        check_payload_model(payload, db_path)
     values = {**mission_defaults(mtype, db_path, circle=circle is not None)}
     values.update({k: v for k, v in given.items() if v is not None})
     try:
@@ -348,6 +362,23 @@ def mission_defaults(mtype: MissionType, db_path: Path | None, *, circle: bool) 
     if circle:
         known.pop("radius_m", None)
     return known
+
+
+def check_payload_model(model: str, db_path: Path | None) -> None:
+    """Refuse a payload model the swarm database does not know (with suggestions): the
+    vehicles score it against their payload hierarchy. Unchecked (with a warning) when
+    the database cannot be read."""
+    from swarm_node.database import SwarmDatabase
+    from swarm_node.database.errors import ProfileError, SwarmDbError
+    from swarm_node.database.paths import resolve_db_path
+
+    try:
+        with SwarmDatabase.open(resolve_db_path(db_path)) as db:
+            db.payload_class(model)
+    except ProfileError as exc:
+        raise typer.BadParameter(str(exc), param_hint="--payload") from exc
+    except (SwarmDbError, OSError) as exc:
+        console.print(f"[yellow]gcs: payload model not checked, no database: {exc}[/]")
 
 
 @zone_app.command("add")

@@ -44,6 +44,9 @@ def run(
     status_hz: float | None = typer.Option(None, help="VehicleStatus rate (default 5)"),
     info_hz: float | None = typer.Option(None, help="VehicleInfo rate (default 1)"),
     log_level: str = typer.Option("INFO", help="DEBUG, INFO, WARNING, ERROR"),
+    record: str | None = typer.Option(
+        None, "--record", help="flight recorder: every VehicleStatus heard to this CSV"
+    ),
 ) -> None:
     """Run the node: autopilot link, monitoring, swarm manager, state machine."""
     import logging
@@ -76,13 +79,28 @@ def run(
     except ValueError as exc:
         typer.echo(f"swarm-node: {exc}", err=True)
         raise typer.Exit(2) from exc
+    recorder = None
+    if record:
+        from .runtime.recorder import StatusRecorder
+
+        try:
+            recorder = StatusRecorder(record)
+        except OSError as exc:
+            typer.echo(f"swarm-node: --record {record}: {exc.strerror or exc}", err=True)
+            raise typer.Exit(2) from exc
     stop = stop_event()
     try:
         node = build_node(cfg, clock_from_env())
     except (ValueError, OSError) as exc:
         typer.echo(f"swarm-node: {exc}", err=True)
         raise typer.Exit(2) from exc
-    node.run(stop)
+    if recorder is not None:
+        recorder.attach(node.bus)
+    try:
+        node.run(stop)
+    finally:
+        if recorder is not None:
+            recorder.close()
 
 
 @app.command()

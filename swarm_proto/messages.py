@@ -384,12 +384,18 @@ class VoteScore(Struct, frozen=True, array_like=True):
 
 
 class Vote(Struct, frozen=True):
-    """A voter's scores of the candidates for a QUANTITY mission (paper Figure 18)."""
+    """A voter's scores of the candidates for a QUANTITY mission (paper Figure 18): its
+    own, and every other member's as it received them (relayed), so that all voters end
+    with the same table; re-sent until the vote commits (docs/voting.md)."""
 
     mission_id: MissionId
     voter_id: VehicleId
     scores: tuple[VoteScore, ...]
     round: Uint8 = 0
+    # appended (issue 13): the roster hash of the electorate the voter votes in
+    # (swarm_node.core.mission.voting; 0 = none); votes with another hash are not counted
+    members_hash: Annotated[int, Meta(ge=0, le=0xFFFF, description="roster hash, 0 = none")] = 0
+    committed: bool = False  # the voter has decided (it stops re-sending once all have)
 
 
 class FleetAssignment(Struct, frozen=True):

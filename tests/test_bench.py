@@ -20,6 +20,17 @@ RESULTS = REPO / "bench" / "results"
 
 # figures each issue names, per results file (nested keys joined with "/")
 NAMED: dict[str, tuple[str, ...]] = {
+    "voting": (
+        "agree_ms/n_6/loss_0/median",
+        "agree_ms/n_6/loss_20/median",
+        "agree_ms/n_20/loss_0/median",
+        "agree_ms/n_20/loss_20/median",
+        "agree_ms/n_50/loss_0/median",
+        "agree_ms/n_50/loss_20/median",
+        "agree_ms_radio_6",
+        "double_assignments",
+        "left_out",
+    ),
     "proto": (
         "status_radio_bytes",
         "status_lan_bytes",
@@ -37,11 +48,31 @@ NAMED: dict[str, tuple[str, ...]] = {
         "join_s",
     ),
     "node": ("cpu_s_per_sim_s/peers_10", "cpu_s_per_sim_s/peers_50", "cpu_s_per_sim_s/peers_100"),
+    "separation": (
+        "avoid_cpu_us_per_tick/peers_10",
+        "avoid_cpu_us_per_tick/peers_50",
+        *(
+            f"stress_eight_headon/{side}/{k}"
+            for side in ("on", "off")
+            for k in ("min_sep_m", "risk", "danger", "near")
+        ),
+    ),
     "planners": (
         "dubins_batch_us_per_path",
         "ompl_us_per_call",
         "dubins_max_err_m",
         "split_imbalance",
+    ),
+    "mission": (
+        "battery_min_pct_at_landing",
+        "makespan_planned_vs_flown",
+        "inherit_coverage",
+        "double_flown_fraction",
+        "baseline/battery_min_pct_at_landing",
+        "baseline/makespan_planned_vs_flown",
+        "baseline/inherit_coverage",
+        "premission_arrival_spread_s",
+        "baseline/premission_arrival_spread_s",
     ),
 }
 RADIO_ROW = (
@@ -111,6 +142,12 @@ def test_proto_results_match_the_messages_measured() -> None:
     assert set(measured) == {c.__name__ for c in MESSAGE_TYPES}
 
 
+def test_voting_trials_never_assign_twice_nor_leave_out() -> None:
+    data = _load("voting")
+    assert data["trials"] == 200
+    assert data["double_assignments"] == data["left_out"] == data["disagreements"] == 0
+
+
 def test_an_unknown_benchmark_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["no_such_topic"]) == 2
     assert "unknown benchmark" in capsys.readouterr().err
@@ -126,3 +163,9 @@ def test_results_directory_is_the_one_bench_writes() -> None:
     from bench import __main__ as runner
 
     assert Path(runner.RESULTS) == RESULTS
+
+
+def test_separation_stress_case_shows_what_avoidance_changes() -> None:
+    stress = _load("separation")["stress_eight_headon"]
+    assert stress["on"]["near"] == 0 and stress["on"]["danger"] == 0
+    assert stress["off"]["near"] > 0

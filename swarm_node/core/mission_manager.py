@@ -66,7 +66,7 @@ from .planning import (
     plan_route,
     plan_target,
 )
-from .planning.flight import FIXED_WING_ACCEPT_M, flyable_plan, flyable_waypoints
+from .planning.flight import FIXED_WING_ACCEPT_M, flyable_waypoints
 from .profile import VehicleProfile
 
 PLANNERS: dict[MissionType, Callable[..., object]] = {
@@ -175,31 +175,15 @@ def plan_share(
     home_alt_msl_m: float,
 ) -> tuple[Waypoint, ...]:
     """This vehicle's waypoints in a plan made for every member (sorted by id, posed at
-    their homes: inputs every member sees the same)."""
-    planner = PLANNERS.get(mission.mission_type)
-    if planner is None:
-        raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
+    their homes: inputs every member sees the same): `planning.plan_fleet`'s share."""
+    from .planning.fleet_plan import plan_fleet
+
     vehicles = [
-        PlanVehicle(
-            flyable(m.profile), VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None
-        )
-        for m in sorted(members, key=lambda m: m.profile.vehicle_id)
+        PlanVehicle(m.profile, VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None)
+        for m in members
     ]
-    plan = planner(
-        mission.geometry,
-        vehicles,
-        mission.params,
-        zones=zones,
-        now_unix_s=now,
-        home_alt_msl_m=home_alt_msl_m,
-        zone_margin_m=max((flyable(m.profile).turn_radius_m() for m in members), default=0.0),
-    )
-    # every fixed-wing share flyable as planned (the plan's tracks follow)
-    plan = flyable_plan(plan, vehicles, zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
-    for share in plan.vehicles:
-        if share.vehicle_id == self_id:
-            return tuple(share.waypoints)
-    raise PlanningError(f"the plan has no share for vehicle {self_id}")
+    plan = plan_fleet(mission, vehicles, zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
+    return plan.share(self_id).waypoints
 
 
 def fly_corners(

@@ -56,6 +56,10 @@ class VehicleProfile(msgspec.Struct, frozen=True):
     max_altitude_m: float = 0.0  # ceiling above mean sea level; 0 = unknown
     max_wind_m_s: float = 0.0  # wind the airframe is rated for; 0 = unknown
     wingspan_m: float = 0.0  # span (fixed-wing), frame diagonal (multirotor) or width
+    battery_capacity_mah: float = 0.0  # 0 = unknown (no endurance limit in planning)
+    cruise_current_a: float = 0.0  # drawn at cruise speed (level flight / driving)
+    hover_current_a: float = 0.0  # drawn by the lift motors at hover (0: none)
+    accel_m_s2: float = 0.0  # horizontal acceleration when stopping on waypoints; 0 = unknown
 
     @property
     def payload_class(self) -> PayloadClass:

@@ -19,7 +19,8 @@ SELECT s.id AS vehicle_id, s.user_id, sm.name AS model, st.name AS system_subtyp
        mp.cruise_speed_m_s, mp.min_speed_m_s, mp.max_speed_m_s, mp.max_bank_deg,
        mp.climb_rate_m_s, mp.sink_rate_m_s, mp.loiter_radius_m, mp.has_parachute,
        mp.battery_low_pct, mp.battery_critical_pct, mp.max_tilt_deg, mp.max_altitude_m,
-       mp.max_wind_m_s, mp.wingspan_m,
+       mp.max_wind_m_s, mp.wingspan_m, mp.battery_capacity_mah, mp.cruise_current_a,
+       mp.hover_current_a, mp.accel_m_s2,
        pm.name AS payload_model, ps.name AS payload_subtype, pt.name AS payload_type,
        sen.kind AS sensor_kind, sp.hfov_deg, sp.vfov_deg, sp.width_px, sp.height_px,
        (gc.pan_axis_id IS NOT NULL) + (gc.tilt_axis_id IS NOT NULL)
@@ -94,4 +95,8 @@ def profile_from_row(row: Mapping[str, Any]) -> VehicleProfile:
         max_altitude_m=float(row["max_altitude_m"]),
         max_wind_m_s=float(row["max_wind_m_s"]),
         wingspan_m=float(row["wingspan_m"]),
+        battery_capacity_mah=float(row["battery_capacity_mah"]),
+        cruise_current_a=float(row["cruise_current_a"]),
+        hover_current_a=float(row["hover_current_a"]),
+        accel_m_s2=float(row["accel_m_s2"]),
     )

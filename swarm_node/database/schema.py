@@ -361,6 +361,21 @@ CREATE TABLE autodetection_classes (
 ) STRICT;
 """
 
+_V3 = """
+-- Endurance for the planners: battery capacity, the current drawn at cruise (level
+-- flight or driving at cruise speed) and at hover (lift motors), and the horizontal
+-- acceleration a vehicle that stops on its waypoints brakes and accelerates with.
+-- 0 = unknown (the planners then assume no endurance limit / ArduPilot defaults).
+ALTER TABLE system_model_params ADD COLUMN battery_capacity_mah REAL NOT NULL DEFAULT 0
+    CHECK (battery_capacity_mah BETWEEN 0 AND 1000000);
+ALTER TABLE system_model_params ADD COLUMN cruise_current_a REAL NOT NULL DEFAULT 0
+    CHECK (cruise_current_a BETWEEN 0 AND 1000);
+ALTER TABLE system_model_params ADD COLUMN hover_current_a REAL NOT NULL DEFAULT 0
+    CHECK (hover_current_a BETWEEN 0 AND 1000);
+ALTER TABLE system_model_params ADD COLUMN accel_m_s2 REAL NOT NULL DEFAULT 0
+    CHECK (accel_m_s2 BETWEEN 0 AND 100);
+"""
+
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "the four groups: Systems, Swarm, Payload, Common", _V1),
     Migration(
@@ -368,6 +383,7 @@ MIGRATIONS: tuple[Migration, ...] = (
         "model battery/tilt/wind limits, a system's payload, autodetection classes",
         _V2,
     ),
+    Migration(3, "model battery capacity, cruise and hover current, acceleration", _V3),
 )
 LATEST_VERSION = MIGRATIONS[-1].version
 

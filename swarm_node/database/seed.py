@@ -69,6 +69,11 @@ def _model_params() -> list[dict[str, Any]]:
             "battery_critical_pct": 15,
             "max_tilt_deg": 60.0,  # abnormal attitude: beyond the 45 deg bank limit + margin
             "max_wind_m_s": 10.8,  # paper: fixed-wing wind resistance 10.8-13.8 m/s (low end)
+            # 12S 22 Ah; 12 A in level cruise, 70 A on the lift motors (the simulator's
+            # Albatross; assumptions, the paper gives no battery figures)
+            "battery_capacity_mah": 22000.0,
+            "cruise_current_a": 12.0,
+            "hover_current_a": 70.0,
         },
         {
             "model": QUADCOPTER,
@@ -87,6 +92,12 @@ def _model_params() -> list[dict[str, Any]]:
             "battery_critical_pct": 15,
             "max_tilt_deg": 45.0,
             "max_wind_m_s": 10.0,  # assumption
+            # 3S 3300 mAh as in SITL; 30 A at hover, 36 A flying at 10 m/s (assumptions,
+            # the simulator's quad); ArduCopter WPNAV_ACCEL default 250 cm/s/s
+            "battery_capacity_mah": 3300.0,
+            "cruise_current_a": 36.0,
+            "hover_current_a": 30.0,
+            "accel_m_s2": 2.5,
         },
         {
             "model": ROVER,
@@ -101,6 +112,9 @@ def _model_params() -> list[dict[str, Any]]:
             "battery_low_pct": 25,
             "battery_critical_pct": 10,
             "max_tilt_deg": 35.0,  # roll-over risk beyond, assumption
+            "battery_capacity_mah": 10000.0,  # assumptions (the simulator's rover)
+            "cruise_current_a": 5.3,
+            "accel_m_s2": 1.0,
         },
         {
             "model": BOAT,
@@ -115,6 +129,9 @@ def _model_params() -> list[dict[str, Any]]:
             "battery_low_pct": 25,
             "battery_critical_pct": 10,
             "max_tilt_deg": 30.0,  # capsize risk beyond, assumption
+            "battery_capacity_mah": 20000.0,  # assumptions (the simulator's boat)
+            "cruise_current_a": 8.3,
+            "accel_m_s2": 0.5,
         },
         {
             "model": GROUND_STATION,
@@ -591,7 +608,7 @@ def document() -> dict[str, Any]:
     """The seed data as an export document (a fresh copy each call)."""
     return {
         "format": "bandada-swarm-db",
-        "schema_version": 2,
+        "schema_version": 3,
         "groups": {
             "systems": _systems(),
             "swarm": _swarm(),

@@ -177,7 +177,9 @@ class Loiter(NavTask):
             return Target(Guide.GOTO, self.n, self.e, self.alt, speed=ctx.wp_speed, stop=True)
         if ctx.fixed_wing and not self.vtol:
             radius = self.radius if self.radius > 0 else ctx.loiter_radius
-            return Target(Guide.LOITER, self.n, self.e, self.alt, radius=radius, ccw=self.ccw)
+            # ArduPlane loiters at the target airspeed DO_CHANGE_SPEED set, as it flies legs
+            return Target(Guide.LOITER, self.n, self.e, self.alt, speed=ctx.wp_speed,
+                          radius=radius, ccw=self.ccw)  # fmt: skip
         kind = Guide.LOITER if self.radius > 0.5 else Guide.HOLD
         return Target(kind, self.n, self.e, self.alt, speed=min(ctx.wp_speed, 5.0),
                       radius=self.radius, ccw=self.ccw, fixed_wing=not self.vtol)  # fmt: skip

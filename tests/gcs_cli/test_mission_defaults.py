@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from gcs_cli.cli import app
 from swarm_node.database import SwarmDatabase
-from swarm_proto import Ack, AckRef, Mission, VehicleInfo, VehicleType
+from swarm_proto import Ack, AckRef, Mission, SelectorKind, VehicleInfo, VehicleType
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import MISSION
 
@@ -71,3 +71,36 @@ def test_unset_parameters_come_from_the_database(zenoh_router: str, swarm_db: Pa
     m, _ = send_mission(zenoh_router, "md4", "area", "--polygon",
                         "37.41,-5.99 37.41,-5.98 37.42,-5.98", "--id", "5")  # fmt: skip
     assert (m.params.altitude_rel_m, m.params.side_overlap) == (100.0, 0.55)
+
+
+def test_count_and_payload_set_the_quantity_selector(zenoh_router: str, swarm_db: Path) -> None:
+    """`--count N --payload MODEL`: a QUANTITY selector (the vehicles vote; until the
+    node wiring lands they answer UNSUPPORTED, docs/node.md)."""
+    m, _ = send_mission(zenoh_router, "md5", "target", "--point", "37.41,-5.99",
+                        "--count", "2", "--payload", "EO 1080p 2-axis gimbal")  # fmt: skip
+    sel = m.selection
+    assert (sel.kind, sel.quantity, sel.payload_model, sel.fleet_id) == (
+        SelectorKind.QUANTITY, 2, "EO 1080p 2-axis gimbal", 0,
+    )  # fmt: skip
+    m, _ = send_mission(zenoh_router, "md6", "target", "--point", "37.41,-5.99",
+                        "--quantity", "1", "--fleet", "3")  # fmt: skip
+    assert (m.selection.kind, m.selection.quantity, m.selection.fleet_id) == (
+        SelectorKind.QUANTITY, 1, 3,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--payload", "EO 1080p 2-axis gimbal"], "--payload needs --count"),
+        (["--count", "2", "--id", "5"], "exclude each other"),
+        (["--count", "300"], "1..255"),
+        (["--count", "2", "--payload", "EO 1080p gimbal"], "unknown payload model"),
+    ],
+)
+def test_count_and_payload_errors_before_sending(
+    swarm_db: Path, args: list[str], says: str
+) -> None:
+    r = runner.invoke(app, ["mission", "target", "--point", "37.41,-5.99", *args])
+    assert r.exit_code == 2
+    assert says in " ".join(r.output.replace("│", " ").split())

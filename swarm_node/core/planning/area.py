@@ -11,9 +11,10 @@ from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
 from .coverage import LanePlan, decompose, lane_spacing_m, plan_lanes
 from .dubins import Pose, shortest_path
+from .endurance import Endurance, accel_m_s2
 from .errors import InvalidGeometryError, InvalidParameterError
 from .geo import LocalFrame
-from .split import SplitPlan, Worker, replan, split_lanes
+from .split import MakespanCost, SplitPlan, Worker, replan, split_lanes
 from .turns import DubinsTurns, TurnModel
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
 from .zones import ARC_STEP_M, Obstacles, Track, ZoneSet
@@ -48,13 +49,44 @@ def _hfov(vehicles: Sequence[PlanVehicle], hfov_deg: float | None) -> float:
 
 
 def _workers(
-    vehicles: Sequence[PlanVehicle], params: MissionParams, frame: LocalFrame
+    vehicles: Sequence[PlanVehicle],
+    params: MissionParams,
+    frame: LocalFrame,
+    *,
+    altitudes: Mapping[int, float] | None = None,
+    extra_s: Mapping[int, float] | None = None,
+    stops: bool = True,
+    battery_pct: Mapping[int, float] | None = None,
+    homes: Mapping[int, tuple[float, float]] | None = None,
 ) -> list[Worker]:
+    """Each vehicle as a split worker: its mission speed and turns, the time it loses
+    stopping on waypoints, and with `altitudes` the time at cruise its battery allows
+    for its block and the way home: a sortie from where it is (its home) with a full
+    battery, or, for a vehicle in `battery_pct`, what that charge leaves in the air
+    (the way home to `homes`, else to where it is)."""
     out = []
     for v in vehicles:
         speed = v.speed(params)
         start = Pose(*frame.pose(v.pose)) if v.pose is not None else None
-        out.append(Worker(v.vehicle_id, speed, v.turns(speed), start))
+        budget = math.inf
+        if altitudes is not None:
+            e = Endurance.of(v.profile, altitudes[v.vehicle_id])
+            if battery_pct is None:
+                budget = e.cruise_budget_s
+            elif v.vehicle_id in battery_pct:
+                budget = e.airborne_budget_s(battery_pct[v.vehicle_id], v.profile)
+        out.append(
+            Worker(
+                v.vehicle_id,
+                speed,
+                v.turns(speed),
+                start,
+                accel_m_s2=accel_m_s2(v.profile) if stops else 0.0,
+                extra_s=(extra_s or {}).get(v.vehicle_id, 0.0),
+                budget_s=budget,
+                home=(homes or {}).get(v.vehicle_id),
+            )
+        )
     return out
 
 
@@ -69,7 +101,7 @@ def _vehicle_plans(
     for a in split.assignments:
         pts = a.path.points()
         wps = to_waypoints(frame, pts, altitudes[a.vehicle_id], speed_m_s=a.speed_m_s)
-        out.append(VehiclePlan(a.vehicle_id, wps, a.path.length_m, a.time_s))
+        out.append(VehiclePlan(a.vehicle_id, wps, a.path.length_m, a.path_time_s))
     return tuple(out)
 
 
@@ -111,11 +143,21 @@ def plan_area(
     hfov_deg: float | None = None,
     min_coverage: float = 0.99,
     frame: LocalFrame | None = None,
+    endurance: bool = False,
+    extra_s: Mapping[int, float] | None = None,
+    legacy_split: bool = False,
 ) -> AreaPlan:
     """Cover a POLYGON (holes are not covered, zones are cut out and never entered) with
     `vehicles`: lane spacing from the altitude, the narrowest camera HFOV and the side
-    overlap; sweep direction searched; lanes split to minimize the makespan; each
-    vehicle at `altitude_rel_m + i * altitude_step_m`."""
+    overlap; sweep direction searched; lanes split to minimize the makespan (a vehicle
+    that stops on its waypoints charged for each stop); each vehicle at
+    `altitude_rel_m + i * altitude_step_m`. With `endurance` the vehicles are at their
+    homes with a full battery, and no block and its way home take more than the
+    battery allows (`endurance.Endurance`; `InfeasibleTimingError` if the fleet cannot
+    cover the area). `extra_s`: seconds a vehicle's block is known to take beyond its
+    path (the turns the flyable stage adds, see `fleet_plan`). `legacy_split`: the
+    split before issue 12 (every vehicle timed at constant speed, one turn allowance
+    for all from the widest turn radius), the benchmark's baseline."""
     require_vehicles(vehicles)
     if geometry.kind != GeometryKind.POLYGON:
         raise InvalidGeometryError(f"an area mission needs a POLYGON, got {geometry.kind.name}")
@@ -132,9 +174,20 @@ def plan_area(
     zones_here = ZoneSet(zs.at(lo, hi), zs.margin_m, zs.vertical_margin_m)
     region = decompose(poly, zones_here)
     spacing = lane_spacing_m(lo, _hfov(vehicles, hfov_deg), params.side_overlap)
-    workers = _workers(vehicles, params, frame)
+    workers = _workers(
+        vehicles,
+        params,
+        frame,
+        altitudes=alts if endurance else None,
+        extra_s=extra_s,
+        stops=not legacy_split,
+    )
     lp = plan_lanes(region, spacing, _reference_turns(workers), min_coverage=min_coverage)
-    split = split_lanes(lp.lanes, workers, obstacles=region.obstacles)
+    cost = None
+    if legacy_split:
+        r = max(w.turns.radius_m for w in workers)
+        cost = MakespanCost(math.pi * r + 2.0 * r, region.obstacles)
+    split = split_lanes(lp.lanes, workers, cost=cost, obstacles=region.obstacles)
     return AreaPlan(
         frame,
         zones_here,
@@ -152,10 +205,15 @@ def replan_area(
     progress_pct: Mapping[int, float],
     vehicles: Sequence[PlanVehicle],
     params: MissionParams = DEFAULT_PARAMS,
+    *,
+    battery_pct: Mapping[int, float] | None = None,
+    homes: Mapping[int, tuple[float, float]] | None = None,
 ) -> AreaPlan:
     """Share what is left of `plan` (from each vehicle's completion percentage) among
     `vehicles` from where they are now: the ones of the old plan missing here dropped
-    out; new ones joined (they fly at the next free altitude step)."""
+    out; new ones joined (they fly at the next free altitude step). A vehicle in
+    `battery_pct` gets no more than that charge flies, with the way home to its
+    `homes` entry (local metres in the plan's frame; else where it is now)."""
     require_vehicles(vehicles)
     for vid, pct in progress_pct.items():
         if not (math.isfinite(pct) and 0.0 <= pct <= 100.0):
@@ -166,7 +224,14 @@ def replan_area(
         if v.vehicle_id not in alts:
             top += params.altitude_step_m
             alts[v.vehicle_id] = top
-    workers = _workers(vehicles, params, plan.frame)
+    workers = _workers(
+        vehicles,
+        params,
+        plan.frame,
+        altitudes=alts if battery_pct else None,
+        battery_pct=battery_pct,
+        homes=homes,
+    )
     split = replan(plan.split, progress_pct, workers, obstacles=plan.obstacles)
     alts = {v.vehicle_id: alts[v.vehicle_id] for v in vehicles}
     return AreaPlan(

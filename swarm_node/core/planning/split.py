@@ -14,6 +14,7 @@ lane at each block boundary is cut so the two vehicles meet mid-lane.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Mapping, Sequence
@@ -21,7 +22,8 @@ from dataclasses import dataclass
 
 from .coverage import CoveragePath, Lane, connect, order
 from .dubins import Pose
-from .errors import InvalidParameterError, NoVehiclesError
+from .endurance import leg_s, stop_and_go_s
+from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError
 from .turns import TurnModel
 from .zones import Obstacles
 
@@ -36,12 +38,33 @@ class Worker:
     speed_m_s: float
     turns: TurnModel
     start: Pose | None = None  # where it is now (None: approach not counted)
+    accel_m_s2: float = 0.0  # it stops on every waypoint, braking at this (0: it does not)
+    extra_s: float = 0.0  # seconds its block is known to take beyond the path (turns added)
+    budget_s: float = math.inf  # the most its block plus the way home may take
+    home: tuple[float, float] | None = None  # where the way home goes (default: start)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.speed_m_s) and self.speed_m_s > 0.0):
             raise InvalidParameterError(
                 f"vehicle {self.vehicle_id}: speed must be > 0, got {self.speed_m_s}"
             )
+        for name in ("accel_m_s2", "extra_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise InvalidParameterError(f"vehicle {self.vehicle_id}: {name} must be >= 0")
+        if not (self.budget_s >= 0.0):
+            raise InvalidParameterError(f"vehicle {self.vehicle_id}: budget_s must be >= 0")
+
+    @property
+    def back_to(self) -> tuple[float, float] | None:
+        if self.home is not None:
+            return self.home
+        return (self.start.x, self.start.y) if self.start is not None else None
+
+    def return_s(self, end: tuple[float, float]) -> float:
+        """Straight way home from `end` at the worker's speed (0 with nowhere to go)."""
+        h = self.back_to
+        return math.dist(end, h) / self.speed_m_s if h is not None else 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,10 +72,20 @@ class Assignment:
     vehicle_id: int
     speed_m_s: float
     path: CoveragePath  # approach (if a start was given) + its lanes
+    accel_m_s2: float = 0.0  # the worker's: it stops on every point of its path
+    extra_s: float = 0.0  # the worker's known extra time (counted only with lanes)
+
+    @property
+    def path_time_s(self) -> float:
+        """Flying time of the path: length / speed, or stopping on every point of it."""
+        if self.accel_m_s2 <= 0.0:
+            return self.path.length_m / self.speed_m_s
+        return stop_and_go_s(self.path.points(), self.speed_m_s, self.accel_m_s2)
 
     @property
     def time_s(self) -> float:
-        return self.path.length_m / self.speed_m_s
+        """What the split balanced: the path time plus the known extra."""
+        return self.path_time_s + (self.extra_s if self.path.lanes else 0.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,23 +108,59 @@ class MakespanCost:
     """Time of a block of lanes for a worker. `estimate` is cheap (lane lengths plus one
     turn allowance per lane plus a straight approach); `exact` orders and connects."""
 
-    turn_allowance_m: float
+    turn_allowance_m: float | None = None  # None: each worker's own (pi R + 2 R)
     obstacles: Obstacles | None = None  # transitions are rerouted around them
+    budget_cut: tuple[tuple[int, float], ...] = ()  # vehicle id -> seconds off its budget
+
+    def allowance_m(self, w: Worker) -> float:
+        if self.turn_allowance_m is not None:
+            return self.turn_allowance_m
+        r = w.turns.radius_m
+        return math.pi * r + 2.0 * r
 
     def estimate(self, block: Sequence[Lane], w: Worker) -> float:
         if not block:
             return 0.0
-        length = sum(ln.length_m for ln in block) + self.turn_allowance_m * (len(block) - 1)
+        a, v = w.accel_m_s2, w.speed_m_s
+        t = (
+            sum(leg_s(ln.length_m, v, a) for ln in block)
+            + self.allowance_m(w) * (len(block) - 1) / v
+        )
         if w.start is not None:
             mid = block[0].a
-            length += math.hypot(mid[0] - w.start.x, mid[1] - w.start.y)
-        return length / w.speed_m_s
+            t += leg_s(math.hypot(mid[0] - w.start.x, mid[1] - w.start.y), v, a)
+        return t + w.extra_s
 
     def path(self, block: Sequence[Lane], w: Worker) -> CoveragePath:
         return connect(order(block, w.turns, w.start), w.turns, self.obstacles, w.start)
 
+    def assignment(self, block: Sequence[Lane], w: Worker) -> Assignment:
+        path = self.path(block, w) if block else CoveragePath((), ())
+        return Assignment(w.vehicle_id, w.speed_m_s, path, w.accel_m_s2, w.extra_s)
+
     def exact(self, block: Sequence[Lane], w: Worker) -> float:
-        return self.path(block, w).length_m / w.speed_m_s if block else 0.0
+        return self.assignment(block, w).time_s if block else 0.0
+
+    def fits(self, block: Sequence[Lane], w: Worker) -> bool:
+        """Whether the block and the way home (from the farther end of its first and
+        last lanes) fit in the worker's budget, by the estimate."""
+        if not block or math.isinf(w.budget_s):
+            return True
+        ends = (block[0].a, block[0].b, block[-1].a, block[-1].b)
+        back = max(w.return_s(p) for p in ends)
+        budget = w.budget_s - dict(self.budget_cut).get(w.vehicle_id, 0.0)
+        return self.estimate(block, w) + back <= budget
+
+    def overrun_s(self, a: Assignment, w: Worker) -> float:
+        """By how much an assignment and its way home overrun the worker's budget."""
+        if not a.path.lanes or math.isinf(w.budget_s):
+            return 0.0
+        end = a.path.lanes[-1].b
+        return max(a.time_s + w.return_s(end) - w.budget_s, 0.0)
+
+    def fits_exact(self, a: Assignment, w: Worker) -> bool:
+        """Whether an assignment and its way home fit in the worker's budget."""
+        return self.overrun_s(a, w) <= 1e-9
 
 
 def sweep_sorted(lanes: Sequence[Lane]) -> list[Lane]:
@@ -114,10 +183,14 @@ def _greedy(
         j = i
         if k == len(ws) - 1:
             j = len(lanes)
-            if cost.estimate(lanes[i:j], w) > limit:
+            if cost.estimate(lanes[i:j], w) > limit or not cost.fits(lanes[i:j], w):
                 return None
         else:
-            while j < len(lanes) and cost.estimate(lanes[i : j + 1], w) <= limit:
+            while (
+                j < len(lanes)
+                and cost.estimate(lanes[i : j + 1], w) <= limit
+                and cost.fits(lanes[i : j + 1], w)
+            ):
                 j += 1
         bounds.append(j)
         i = j
@@ -126,11 +199,14 @@ def _greedy(
 
 def _partition(
     lanes: Sequence[Lane], ws: Sequence[Worker], cost: MakespanCost
-) -> tuple[float, list[int]]:
+) -> tuple[float, list[int]] | None:
+    """The least makespan limit (by the estimate) the greedy fill meets, and its block
+    boundaries; None when the budgets leave lanes over at any limit."""
     hi = max(cost.estimate(lanes, w) for w in ws)
     lo = 0.0
     best = _greedy(lanes, ws, cost, hi)
-    assert best is not None
+    if best is None:
+        return None
     for _ in range(40):
         mid = (lo + hi) / 2.0
         got = _greedy(lanes, ws, cost, mid)
@@ -144,9 +220,11 @@ def _partition(
 def _arrangements(workers: Sequence[Worker]) -> list[tuple[Worker, ...]]:
     if len(workers) <= 6 and all(w.start is None for w in workers):
         # only distinct classes matter when nobody has a position
-        seen: dict[tuple[tuple[float, float], ...], tuple[Worker, ...]] = {}
+        seen: dict[tuple[tuple[float, ...], ...], tuple[Worker, ...]] = {}
         for p in itertools.permutations(workers):
-            key = tuple((w.speed_m_s, w.turns.radius_m) for w in p)
+            key = tuple(
+                (w.speed_m_s, w.turns.radius_m, w.accel_m_s2, w.extra_s, w.budget_s) for w in p
+            )
             seen.setdefault(key, p)
         return list(seen.values())
     if len(workers) <= 6:
@@ -172,54 +250,86 @@ def split_lanes(
         raise InvalidParameterError(f"duplicate vehicle ids in {ids}")
     ordered = sweep_sorted(lanes)
     if cost is None:
-        r = max(w.turns.radius_m for w in workers)
-        allowance = math.pi * r + 2.0 * r if r > 0 else 0.0
-        cost = MakespanCost(allowance, obstacles)
+        cost = MakespanCost(None, obstacles)
     if not ordered:
         return SplitPlan(
             tuple(Assignment(w.vehicle_id, w.speed_m_s, CoveragePath((), ())) for w in workers)
         )
-    scored = sorted(
-        ((*_partition(ordered, arr, cost), arr) for arr in _arrangements(workers)),
-        key=lambda t: t[0],
-    )
-    best_plan: tuple[float, list[int], tuple[Worker, ...]] | None = None
-    for _est, bounds, arr in scored[:3]:
-        bounds, span = _refine(ordered, arr, cost, bounds)
-        if best_plan is None or span < best_plan[0]:
-            best_plan = (span, bounds, arr)
-    assert best_plan is not None
-    _span, bounds, arr = best_plan
+    bounds, arr = _best_bounds(ordered, workers, cost)
     blocks = [list(ordered[bounds[k] : bounds[k + 1]]) for k in range(len(arr))]
     if cut_lanes:
         blocks = _cut_boundaries(blocks, arr, cost)
-    assigned = {
-        w.vehicle_id: Assignment(
-            w.vehicle_id, w.speed_m_s, cost.path(b, w) if b else CoveragePath((), ())
-        )
-        for w, b in zip(arr, blocks, strict=True)
-    }
+    assigned = {w.vehicle_id: cost.assignment(b, w) for w, b in zip(arr, blocks, strict=True)}
     return SplitPlan(tuple(assigned[w.vehicle_id] for w in workers))
+
+
+#: partitions made again with the budgets the estimate overran tightened
+_BUDGET_ROUNDS = 4
+
+
+def _best_bounds(
+    ordered: Sequence[Lane], workers: Sequence[Worker], cost: MakespanCost
+) -> tuple[list[int], tuple[Worker, ...]]:
+    """The block boundaries and arrangement of the least makespan with every block and
+    its way home within its worker's budget. The greedy fill checks budgets on the
+    estimate; where the exact time overruns one, that worker's budget is tightened by
+    the overrun for the estimate and the partition made again."""
+    cut: dict[int, float] = {}
+    worst = 0.0
+    for _ in range(_BUDGET_ROUNDS):
+        c = dataclasses.replace(cost, budget_cut=tuple(sorted(cut.items())))
+        parts = [(_partition(ordered, arr, c), arr) for arr in _arrangements(workers)]
+        scored = sorted(
+            ((p[0], p[1], arr) for p, arr in parts if p is not None), key=lambda t: t[0]
+        )
+        if not scored:
+            break
+        best: tuple[tuple[float, float], list[int], tuple[Worker, ...]] | None = None
+        for _est, bounds, arr in scored[:3]:
+            bounds, span = _refine(ordered, arr, cost, bounds)
+            if best is None or span < best[0]:
+                best = (span, bounds, arr)
+        assert best is not None
+        (worst, _span), bounds, arr = best
+        if worst <= 0.0:
+            return bounds, arr
+        for k, w in enumerate(arr):
+            a = cost.assignment(ordered[bounds[k] : bounds[k + 1]], w)
+            over = cost.overrun_s(a, w)
+            if over > 0.0:
+                cut[w.vehicle_id] = cut.get(w.vehicle_id, 0.0) + over + 1.0
+    budgets = ", ".join(
+        f"vehicle {w.vehicle_id} {w.budget_s:.0f} s" for w in workers if math.isfinite(w.budget_s)
+    )
+    short = f" (short by {worst:.0f} s)" if worst > 0.0 else ""
+    raise InfeasibleTimingError(
+        f"the vehicles' endurance does not cover the area{short}: at cruise, {budgets}"
+    )
 
 
 def _refine(
     lanes: Sequence[Lane], ws: Sequence[Worker], cost: MakespanCost, bounds: list[int]
-) -> tuple[list[int], float]:
+) -> tuple[list[int], tuple[float, float]]:
     """Move block boundaries one lane at a time while the exact makespan drops."""
-    memo: dict[tuple[int, int, int], float] = {}
+    memo: dict[tuple[int, int, int], tuple[float, float]] = {}
 
-    def t(k: int, b: list[int]) -> float:
+    def t(k: int, b: list[int]) -> tuple[float, float]:
+        """The block's exact time, and by how much it and the way home overrun the
+        worker's budget."""
         key = (k, b[k], b[k + 1])
         if key not in memo:
-            memo[key] = cost.exact(lanes[b[k] : b[k + 1]], ws[k])
+            a = cost.assignment(lanes[b[k] : b[k + 1]], ws[k])
+            memo[key] = (cost.overrun_s(a, ws[k]), a.time_s)
         return memo[key]
 
-    def span(b: list[int]) -> float:
-        return max(t(k, b) for k in range(len(ws)))
+    def span(b: list[int]) -> tuple[float, float]:
+        """First the total overrun of the budgets, then the makespan."""
+        ts = [t(k, b) for k in range(len(ws))]
+        return round(sum(o for o, _ in ts), 6), max(x for _, x in ts)
 
     cur = span(bounds)
     for _ in range(4 * len(lanes) + 10):
-        best_move: tuple[float, list[int]] | None = None
+        best_move: tuple[tuple[float, float], list[int]] | None = None
         for k in range(1, len(ws)):
             for step in (-1, 1):
                 b = list(bounds)
@@ -227,7 +337,8 @@ def _refine(
                 if not b[k - 1] <= b[k] <= b[k + 1]:
                     continue
                 s = span(b)
-                if s < cur - 1e-9 and (best_move is None or s < best_move[0]):
+                better = s[0] < cur[0] or (s[0] == cur[0] and s[1] < cur[1] - 1e-9)
+                if better and (best_move is None or s < best_move[0]):
                     best_move = (s, b)
         if best_move is None:
             break
@@ -245,7 +356,7 @@ def _cut_boundaries(
         left, right = blocks[k], blocks[k + 1]
         if not left or not right:
             continue
-        tl0, tr0 = cost.exact(left, ws[k]), cost.exact(right, ws[k + 1])
+        tl0, tr0 = _timed(cost, left, ws[k]), _timed(cost, right, ws[k + 1])
         give_right = tl0 > tr0
         shared = left[-1] if give_right else right[0]
         keep_l = left[:-1] if give_right else left
@@ -271,7 +382,7 @@ def _cut_boundaries(
         for _ in range(12):
             mid = (lo + hi) / 2.0
             lb, rb = split_at(mid)
-            tl, tr = cost.exact(lb, ws[k]), cost.exact(rb, ws[k + 1])
+            tl, tr = _timed(cost, lb, ws[k]), _timed(cost, rb, ws[k + 1])
             if max(tl, tr) < best[0]:
                 best = (max(tl, tr), lb, rb)
             if tl < tr:
@@ -280,6 +391,12 @@ def _cut_boundaries(
                 hi = mid
         blocks[k], blocks[k + 1] = best[1], best[2]
     return blocks
+
+
+def _timed(cost: MakespanCost, block: Sequence[Lane], w: Worker) -> float:
+    """The block's exact time, inf if it and the way home overrun the worker's budget."""
+    a = cost.assignment(block, w)
+    return a.time_s if cost.fits_exact(a, w) else math.inf
 
 
 # --------------------------------------------------------------------------- replan

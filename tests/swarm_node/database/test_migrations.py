@@ -156,7 +156,8 @@ def test_a_failing_migration_changes_nothing(
     monkeypatch.setattr(repo, "MIGRATIONS", broken)
     monkeypatch.setattr(repo, "LATEST_VERSION", LATEST_VERSION + 1)
     with pytest.raises(
-        UnusableDatabaseError, match=r"migrating schema v1 to v3 failed .*nothing was changed"
+        UnusableDatabaseError,
+        match=rf"migrating schema v1 to v{LATEST_VERSION + 1} failed .*nothing was changed",
     ):
         SwarmDatabase.open(path)
     assert path.read_bytes() == before

@@ -27,6 +27,7 @@ from swarm_node.database.queryable import (
     query,
     selector,
 )
+from swarm_node.database.schema import LATEST_VERSION
 from swarm_proto.session import ZenohSettings, open_session
 from swarm_proto.topics import DATABASE
 
@@ -77,7 +78,7 @@ def served(
 def test_info_profile_profiles_and_export(served: tuple[DatabaseQueryable, zenoh.Session]) -> None:
     q, client = served
     info = fetch_info(client, SWARM, 3)
-    assert info == DbInfo(3, 2, {k.replace(".", "/"): v for k, v in q.db.counts().items()})
+    assert info == DbInfo(3, LATEST_VERSION, {k.replace(".", "/"): v for k, v in q.db.counts().items()})
     me = fetch_profile(client, SWARM, 3)
     assert me == q.db.vehicle_profile(3)
     assert me.model == ALBATROSS and me.camera is not None

@@ -18,6 +18,7 @@ from swarm_node.core.planning import (
     shortest_path,
 )
 from swarm_node.core.planning.checks import dubins_problems
+from swarm_node.core.planning.dubins import all_paths
 
 coord = st.floats(-500, 500, allow_nan=False)
 yaw = st.floats(-math.pi, math.pi, allow_nan=False)
@@ -86,7 +87,12 @@ def test_batch_matches_single(a: Pose, b: Pose, r: float) -> None:
     lengths, words = batch_lengths([[a.x, a.y, a.yaw]], [[b.x, b.y, b.yaw]], r, words=True)
     p = shortest_path(a, b, r)
     assert lengths[0] == pytest.approx(p.length_m, abs=1e-9)
-    assert Word(int(words[0])) == p.word or lengths[0] == pytest.approx(0.0, abs=1e-9)
+    # the word may differ where two words tie for the shortest (e.g. RLR and LRL
+    # turning round on the spot): it must be one of the shortest
+    shortest = {
+        q.word for q in all_paths(a, b, r) if q.length_m == pytest.approx(p.length_m, abs=1e-9)
+    }
+    assert Word(int(words[0])) in shortest or lengths[0] == pytest.approx(0.0, abs=1e-9)
 
 
 def test_all_six_words_occur() -> None:

@@ -1,0 +1,1 @@
+"""Mission manager cores (paper section 2.3.5)."""

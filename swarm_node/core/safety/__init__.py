@@ -1,0 +1,1 @@
+"""Safety cores: closest-approach geometry (`ttc`) and collision avoidance (`avoidance`)."""

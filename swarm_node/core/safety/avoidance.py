@@ -1,0 +1,583 @@
+"""Collision avoidance (paper 2.3.6): a pure core, fed with the own vehicle's state, the
+peers' telemetry and non-cooperative traffic, ticking at 5 Hz.
+
+    inputs (handle)                          what it does with them
+    VehicleStatus, vehicle_id == own_id      the own state (position, NED velocity, armed)
+    VehicleStatus, another vehicle           a cooperative contact (it runs this same rule)
+    VehicleInfo                              a contact's VehicleType (default: aircraft)
+    Traffic                                  non-cooperative traffic (ADS-B): never manoeuvres
+    PlannedAltitude                          the altitude to come back to (None: where the
+                                             manoeuvre started)
+    Ceiling                                  the zones' ceiling above home (None: config's)
+    Forget                                   a contact lost (membership), dropped now
+
+    outputs (on_timer)                       meaning for the node
+    Manoeuvre(CLIMB | LEVEL | STOP)          submit `requests` as owner AVOIDANCE, suspend the
+                                             mission
+    Manoeuvre(RESUME)                        submit `requests`, give control back, resume
+    Alert                                    publish (COLLISION_RISK / CONDITION_CLEARED)
+
+Every tick, every known vehicle (own included) is extrapolated to `now` and the closest
+point of approach of every pair is computed (`ttc.pairwise`); a pair is in conflict when
+its predicted 3-D miss distance, less the staleness widening, is below `protect_m`
+within `horizon_s`. Manoeuvres are upward only:
+
+- Who climbs (the same rule in every vehicle, on the same reported numbers): of two
+  cooperative aircraft, the higher one; within `tie_band_m` of each other, the higher
+  id. Against traffic that will not manoeuvre (ADS-B, a MANNED vehicle, anything
+  disarmed or below `min_active_alt_rel_m`, rovers and boats), an aircraft climbs if
+  that traffic is not well above it. So the lower of a pair never climbs into the
+  upper one.
+- How high (three or more): targets stack in rank order, each `vertical_sep_m` above
+  the target of every vehicle it gives way to (a fixed point over the conflict graph),
+  capped by the ceiling. A climb target only rises until the conflict clears.
+- The vehicle that keeps its altitude but is climbing into a conflict above it levels
+  off (LEVEL); a fixed-wing keeps its path (DO_CHANGE_ALTITUDE), a multirotor holds
+  position while it climbs (a GUIDED reposition over itself); rovers and boats STOP
+  (HOLD mode) when they give way (ground pairs: the higher id) or when something
+  stands in their way.
+- Hysteresis: the manoeuvre ends only when, from the planned altitude (ground
+  vehicles: with the velocity they had), every predicted miss is above `release_m`
+  (> `protect_m`) for `clear_hold_s`; then RESUME, back to the planned altitude.
+
+The core never reads a clock: `now` is the caller's (the same clock as the contacts'
+`time_s`; VehicleStatus times are GPS UNIX seconds). A report is at least as old as
+the time since it was received.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from enum import StrEnum
+from typing import Any
+
+import numpy as np
+
+from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, VehicleType
+
+from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
+from .ttc import BadTrackError, Track, kinematic, pairwise
+
+GROUND = frozenset({VehicleType.ROVER, VehicleType.BOAT})
+MULTIROTOR = frozenset({VehicleType.COPTER})
+NEVER_MANOEUVRES = frozenset({VehicleType.MANNED})
+NOT_TRAFFIC = frozenset({VehicleType.GCS})
+
+# how fast each kind could be going: the staleness widening is age * this
+MAX_SPEED_M_S: dict[VehicleType, float] = {
+    VehicleType.OTHER: 35.0,
+    VehicleType.PLANE: 35.0,
+    VehicleType.VTOL: 35.0,
+    VehicleType.COPTER: 20.0,
+    VehicleType.ROVER: 10.0,
+    VehicleType.BOAT: 10.0,
+    VehicleType.MANNED: 60.0,
+}
+TRAFFIC_MAX_SPEED_M_S = 60.0
+
+
+class ManoeuvreKind(StrEnum):
+    CLIMB = "climb"  # give way upwards to target_alt_rel_m
+    LEVEL = "level"  # stop climbing: hold target_alt_rel_m (the current altitude)
+    STOP = "stop"  # rover / boat: stop (HOLD mode)
+    RESUME = "resume"  # clear: back to the planned altitude, the mission resumes
+
+
+@dataclass(frozen=True, slots=True)
+class Manoeuvre:
+    kind: ManoeuvreKind
+    requests: tuple[ApRequest, ...]  # to submit as owner AVOIDANCE, in order
+    target_alt_rel_m: float | None = None
+    against: tuple[int, ...] = ()  # the contacts it is for (traffic: -1 - ICAO address)
+    reason: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Traffic:
+    """A non-cooperative aircraft (ADS-B): it will not manoeuvre for us."""
+
+    icao_address: int
+    lat_deg: float
+    lon_deg: float
+    alt_msl_m: float
+    vel_north_m_s: float = 0.0
+    vel_east_m_s: float = 0.0
+    vel_down_m_s: float = 0.0
+    time_s: float = 0.0
+
+    @property
+    def contact_id(self) -> int:
+        return -1 - self.icao_address
+
+    @classmethod
+    def from_adsb(cls, report: Mapping[str, Any], *, received_s: float) -> Traffic:
+        """From a decoded ADSB_VEHICLE (pymavlink `to_dict()`): `lat`/`lon` degE7,
+        `altitude` mm MSL, `heading` cdeg, `hor_velocity` and `ver_velocity` cm/s (up
+        positive), `flags`, `ICAO_address`, `tslc` s. Position and altitude must be
+        flagged valid; a velocity not flagged valid counts as zero (the staleness
+        widening still applies). Raises ValueError naming what is wrong."""
+
+        def num(name: str, lo: float, hi: float) -> float:
+            v = report.get(name)
+            if isinstance(v, bool) or not isinstance(v, int | float):
+                raise ValueError(f"ADS-B {name} must be a number, got {v!r}")
+            if not (math.isfinite(v) and lo <= v <= hi):
+                raise ValueError(f"ADS-B {name} = {v!r} is not in [{lo}, {hi}]")
+            return float(v)
+
+        flags = int(num("flags", 0, 0xFFFF))
+        if flags & 3 != 3:
+            raise ValueError(f"ADS-B report without a valid position and altitude ({flags:#06x})")
+        lat = num("lat", -90e7, 90e7) / 1e7
+        lon = num("lon", -180e7, 180e7) / 1e7
+        alt = num("altitude", -1_000_000, 50_000_000) / 1000.0
+        vn = ve = vd = 0.0
+        if flags & 12 == 12:  # heading and velocity valid
+            course = math.radians(num("heading", 0, 35_999) / 100.0)
+            speed = num("hor_velocity", 0, 65_534) / 100.0
+            vn, ve = speed * math.cos(course), speed * math.sin(course)
+            vd = -num("ver_velocity", -32_767, 32_767) / 100.0
+        icao = int(num("ICAO_address", 0, 0xFFFFFF))
+        age = num("tslc", 0, 255)
+        if not math.isfinite(received_s):
+            raise ValueError("received_s must be finite")
+        return cls(icao, lat, lon, alt, vn, ve, vd, received_s - age)
+
+
+@dataclass(frozen=True, slots=True)
+class PlannedAltitude:
+    alt_rel_m: float | None  # above home; None: resume where the manoeuvre started
+
+
+@dataclass(frozen=True, slots=True)
+class Ceiling:
+    alt_rel_m: float | None  # the lowest zone ceiling over us, above home; None: none
+
+
+@dataclass(frozen=True, slots=True)
+class Forget:
+    vehicle_id: int
+
+
+Event = VehicleStatus | VehicleInfo | Traffic | PlannedAltitude | Ceiling | Forget
+Output = Manoeuvre | Alert
+
+
+@dataclass(frozen=True, slots=True)
+class AvoidanceConfig:
+    own_id: int
+    own_type: VehicleType
+    protect_m: float = 20.0  # predicted miss (3-D) below which a pair is in conflict
+    release_m: float = 30.0  # clear only when every miss from the planned altitude is above
+    vertical_sep_m: float = 15.0  # a climb targets this much above who it gives way to
+    tie_band_m: float = 5.0  # within this altitude difference the higher id climbs
+    horizon_s: float = 30.0  # how far ahead conflicts are looked for
+    climb_rate_m_s: float = 5.0  # to tell whether a climb can be done in time
+    ceiling_rel_m: float = 400.0  # never climb above this (above home)
+    clear_hold_s: float = 3.0  # clear this long before resuming
+    period_s: float = 0.2  # 5 Hz
+    forget_after_s: float = 10.0  # a contact silent this long is dropped
+    min_active_alt_rel_m: float = 10.0  # aircraft below this do not manoeuvre (take-off/land)
+    level_climb_m_s: float = 0.5  # a stand-on vehicle climbing faster than this levels off
+    retarget_m: float = 1.0  # a new climb request only for a target this much higher
+    own_max_speed_m_s: float = 0.0  # the own state is fresh; widen it by age * this
+
+    def __post_init__(self) -> None:
+        if not (0 < self.protect_m < self.release_m):
+            raise ValueError("need 0 < protect_m < release_m")
+        if self.vertical_sep_m <= 0 or self.period_s <= 0 or self.horizon_s <= 0:
+            raise ValueError("vertical_sep_m, period_s and horizon_s must be positive")
+        if self.climb_rate_m_s <= 0 or self.tie_band_m < 0 or self.clear_hold_s < 0:
+            raise ValueError("climb_rate_m_s must be positive, tie_band_m and clear_hold_s >= 0")
+
+
+@dataclass(slots=True)
+class _Contact:
+    track: Track
+    received_s: float
+    cooperative: bool
+    vehicle_type: VehicleType | None = None
+    armed: bool = True
+    alt_rel_m: float = math.inf
+
+
+@dataclass(slots=True)
+class _Active:
+    kind: ManoeuvreKind
+    planned_rel_m: float
+    target_rel_m: float | None
+    resume_vel: tuple[float, float, float]
+    against: tuple[int, ...]
+    clear_since: float | None = None
+
+
+@dataclass(slots=True)
+class _Decision:
+    kind: ManoeuvreKind | None
+    target_msl_m: float | None
+    against: tuple[int, ...]
+    soonest_s: float = math.inf
+    closest_m: float = math.inf
+
+
+@dataclass
+class CollisionAvoider:
+    config: AvoidanceConfig
+    _own: VehicleStatus | None = None
+    _own_received: float = 0.0
+    _contacts: dict[int, _Contact] = field(default_factory=dict)
+    _types: dict[int, VehicleType] = field(default_factory=dict)
+    _planned_rel: float | None = None
+    _zone_ceiling_rel: float | None = None
+    _active: _Active | None = None
+    _next: float | None = None
+    counters: dict[str, int] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ inputs
+    def handle(self, ev: Event, now: float) -> list[Output]:
+        if self._next is None:
+            self._next = now
+        match ev:
+            case VehicleStatus() if ev.vehicle_id == self.config.own_id:
+                self._own, self._own_received = ev, now
+            case VehicleStatus():
+                self._peer(ev, now)
+            case VehicleInfo():
+                if ev.vehicle_id != self.config.own_id:
+                    self._types[ev.vehicle_id] = ev.vehicle_type
+                    if ev.vehicle_type in NOT_TRAFFIC:
+                        self._contacts.pop(ev.vehicle_id, None)
+            case Traffic():
+                self._traffic(ev, now)
+            case PlannedAltitude():
+                self._planned_rel = ev.alt_rel_m
+            case Ceiling():
+                self._zone_ceiling_rel = ev.alt_rel_m
+            case Forget():
+                self._contacts.pop(ev.vehicle_id, None)
+        return []
+
+    def _count(self, what: str) -> None:
+        self.counters[what] = self.counters.get(what, 0) + 1
+
+    def _peer(self, s: VehicleStatus, now: float) -> None:
+        vtype = self._types.get(s.vehicle_id)
+        if vtype in NOT_TRAFFIC:
+            return
+        # the sample's own time unless it is in the future (a skewed clock): then when heard
+        t = s.time_unix_s if 0.0 < s.time_unix_s <= now else now
+        speed = MAX_SPEED_M_S.get(vtype or VehicleType.OTHER, 35.0)
+        try:
+            track = Track.from_status(s, time_s=t, max_speed_m_s=speed)
+        except BadTrackError:
+            self._count("bad_track")
+            return
+        self._contacts[s.vehicle_id] = _Contact(
+            track, now, True, vtype, armed=s.armed, alt_rel_m=s.alt_rel_m
+        )
+
+    def _traffic(self, tr: Traffic, now: float) -> None:
+        t = tr.time_s if tr.time_s <= now else now
+        try:
+            track = Track(
+                tr.contact_id,
+                tr.lat_deg,
+                tr.lon_deg,
+                tr.alt_msl_m,
+                tr.vel_north_m_s,
+                tr.vel_east_m_s,
+                tr.vel_down_m_s,
+                t,
+                TRAFFIC_MAX_SPEED_M_S,
+            )
+        except BadTrackError:
+            self._count("bad_track")
+            return
+        self._contacts[tr.contact_id] = _Contact(track, now, False)
+
+    # ------------------------------------------------------------------ timer
+    def next_deadline(self) -> float | None:
+        return self._next
+
+    def on_timer(self, now: float) -> list[Output]:
+        if self._next is None or now < self._next:
+            return []
+        nxt = self._next + self.config.period_s
+        self._next = nxt if nxt > now else now + self.config.period_s  # late: no catch-up burst
+        self._count("ticks")
+        stale = [
+            k for k, c in self._contacts.items() if now - c.received_s > self.config.forget_after_s
+        ]
+        for k in stale:
+            del self._contacts[k]
+        own = self._own
+        if own is None or not self._can_act(own):
+            if self._active is not None:  # landed, disarmed: nothing to come back to
+                self._active = None
+                return [self._alert(own, now, Severity.INFO, "avoidance: off (not flying)", True)]
+            return []
+        decision = self._decide(own, now, planned=False)
+        if self._active is None:
+            return self._start(own, decision, now)
+        return self._continue(own, decision, now)
+
+    @property
+    def manoeuvring(self) -> ManoeuvreKind | None:
+        return self._active.kind if self._active else None
+
+    def _can_act(self, own: VehicleStatus) -> bool:
+        if not own.armed:
+            return False
+        if self.config.own_type in GROUND:
+            return True
+        return own.alt_rel_m >= self.config.min_active_alt_rel_m
+
+    # ------------------------------------------------------------------ geometry
+    def _own_track(self, own: VehicleStatus, now: float, planned: bool) -> Track:
+        t = min(own.time_unix_s, now) if own.time_unix_s > 0 else self._own_received
+        t = min(t, self._own_received)
+        vn, ve, vd = own.vel_north_m_s, own.vel_east_m_s, own.vel_down_m_s
+        alt = own.alt_msl_m
+        if self._active is not None:
+            vd = 0.0  # our own manoeuvre: not a conflict, not a resolution
+        if planned and self._active is not None:
+            if self.config.own_type in GROUND:
+                vn, ve, vd = self._active.resume_vel
+            else:
+                alt = self._active.planned_rel_m + (own.alt_msl_m - own.alt_rel_m)
+                vd = 0.0
+        return Track(
+            own.vehicle_id,
+            own.lat_deg,
+            own.lon_deg,
+            alt,
+            vn,
+            ve,
+            vd,
+            t,
+            self.config.own_max_speed_m_s,
+        )
+
+    def _decide(self, own: VehicleStatus, now: float, planned: bool) -> _Decision:
+        cfg = self.config
+        contacts = list(self._contacts.values())
+        if not contacts:
+            return _Decision(None, None, ())
+        tracks = [self._own_track(own, now, planned), *(c.track for c in contacts)]
+        k = kinematic(tracks, now)
+        a = pairwise(k, cfg.horizon_s)
+        # a climb or a descent is not trusted to resolve anything before it is done: a
+        # pair conflicts if it does with the vertical rates or without them
+        level_k = replace(k, vel=k.vel * np.array([1.0, 1.0, 0.0]))
+        a0 = pairwise(level_k, cfg.horizon_s)
+        n = len(tracks)
+        miss = np.minimum(a.miss_m, a0.miss_m) - a.margin_m
+        if planned:
+            clear = miss[0, 1:] >= cfg.release_m
+            return _Decision(
+                None,
+                None,
+                tuple(c.track.vehicle_id for c, ok in zip(contacts, clear, strict=True) if not ok),
+            )
+        conflict = (miss < cfg.protect_m) & ~np.eye(n, dtype=bool)
+        if not conflict[0].any():
+            return _Decision(None, None, ())
+        against_idx = np.flatnonzero(conflict[0])
+        against = tuple(tracks[i].vehicle_id for i in against_idx)
+        soonest = float(np.minimum(a.t_cpa_s, a0.t_cpa_s)[0, against_idx].min())
+        closest = float(np.minimum(a.miss_m, a0.miss_m)[0, against_idx].min())
+
+        # who can manoeuvre, what kind each is, the reported altitudes the rule compares
+        types = [cfg.own_type, *(c.vehicle_type or VehicleType.OTHER for c in contacts)]
+        ground = np.array([t in GROUND for t in types])
+        coop_air = np.array(
+            [True]
+            + [
+                c.cooperative
+                and c.armed
+                and c.vehicle_type not in GROUND | NEVER_MANOEUVRES
+                and c.alt_rel_m >= cfg.min_active_alt_rel_m
+                for c in contacts
+            ]
+        )
+        coop_air[0] = cfg.own_type not in GROUND
+        alt = np.array([t.alt_msl_m for t in tracks])
+        ids = np.array([t.vehicle_id for t in tracks])
+
+        if cfg.own_type in GROUND:
+            # a rover or boat gives way to every aircraft and non-cooperative contact,
+            # to ground vehicles with a lower id, and never drives into a stopped one
+            speed = np.linalg.norm(k.vel[:, :2], axis=1)
+            gives = ~ground | (ids < ids[0]) | (speed < 0.5)
+            gives[0] = False
+            hit = conflict[0] & gives
+            if hit.any():
+                return _Decision(ManoeuvreKind.STOP, None, against, soonest, closest)
+            return _Decision(None, None, against, soonest, closest)
+
+        # i gives way to j (i climbs above j): j is not a cooperative aircraft and not
+        # well above i, or both are, and i is higher (within the band: higher id)
+        dz = alt[:, None] - alt[None, :]
+        by_rank = (dz > cfg.tie_band_m) | (
+            (np.abs(dz) <= cfg.tie_band_m) & (ids[:, None] > ids[None, :])
+        )
+        # what each stands at: its altitude or where it is going, whichever is higher
+        alt_cpa = alt[None, :] + k.vel[None, :, 2] * a.t_cpa_s
+        level = np.maximum(alt[None, :], alt_cpa) + k.margin_m[None, :]
+        target = self._stack(by_rank, coop_air, conflict, dz, alt, level)
+        if target is None:
+            # the band made a cycle (A over B over C over A by id and altitude): rank
+            # this cluster by altitude then id alone, which cannot cycle
+            lexical = (dz > 0) | ((dz == 0) & (ids[:, None] > ids[None, :]))
+            target = self._stack(lexical, coop_air, conflict, dz, alt, level)
+            assert target is not None
+        if target[0] > alt[0] + 0.5:
+            return _Decision(ManoeuvreKind.CLIMB, float(target[0]), against, soonest, closest)
+        # stand-on: level off if climbing into a conflict above
+        above = conflict[0] & (alt > alt[0])
+        if above.any() and own.vel_down_m_s < -cfg.level_climb_m_s:
+            return _Decision(ManoeuvreKind.LEVEL, float(alt[0]), against, soonest, closest)
+        return _Decision(None, None, against, soonest, closest)
+
+    def _stack(
+        self,
+        by_rank: np.ndarray,
+        coop_air: np.ndarray,
+        conflict: np.ndarray,
+        dz: np.ndarray,
+        alt: np.ndarray,
+        level: np.ndarray,
+    ) -> np.ndarray | None:
+        """Every aircraft's target: `vertical_sep_m` above the target (or, for traffic
+        that will not manoeuvre, the level) of each vehicle it gives way to, as a fixed
+        point; None if the give-way relation has a cycle (no fixed point)."""
+        cfg = self.config
+        # i gives way to j (i climbs above j): both cooperative aircraft and i ranks
+        # higher, or j will not manoeuvre and is not well above i
+        gives = np.where(coop_air[None, :], by_rank, dz >= -cfg.tie_band_m)
+        gives &= conflict & coop_air[:, None]
+        target = alt.copy()
+        for _ in range(len(alt) + 1):
+            ref = np.where(coop_air[None, :], target[None, :], level)
+            need = np.where(gives, ref + cfg.vertical_sep_m, -np.inf).max(axis=1)
+            new = np.maximum(alt, need)
+            if np.array_equal(new, target):
+                return target
+            target = new
+        return None
+
+    # ------------------------------------------------------------------ transitions
+    def _ceiling_rel(self) -> float:
+        c = self.config.ceiling_rel_m
+        if self._zone_ceiling_rel is not None:
+            c = min(c, self._zone_ceiling_rel)
+        return c
+
+    def _start(self, own: VehicleStatus, d: _Decision, now: float) -> list[Output]:
+        if d.kind is None:
+            return []
+        planned = own.alt_rel_m if self._planned_rel is None else self._planned_rel
+        self._active = _Active(
+            d.kind,
+            planned,
+            None,
+            (own.vel_north_m_s, own.vel_east_m_s, own.vel_down_m_s),
+            d.against,
+        )
+        self._count("manoeuvres")
+        return self._command(own, d, now)
+
+    def _continue(self, own: VehicleStatus, d: _Decision, now: float) -> list[Output]:
+        act = self._active
+        assert act is not None
+        if d.kind is None:
+            # clear from where we would be without the manoeuvre, for long enough?
+            if self._decide(own, now, planned=True).against:
+                act.clear_since = None
+                return []
+            if act.clear_since is None:
+                act.clear_since = now
+            if now - act.clear_since < self.config.clear_hold_s:
+                return []
+            return self._resume(own, now)
+        act.clear_since = None
+        if d.kind is ManoeuvreKind.CLIMB and act.kind is ManoeuvreKind.CLIMB:
+            assert d.target_msl_m is not None and act.target_rel_m is not None
+            target_rel = d.target_msl_m - (own.alt_msl_m - own.alt_rel_m)
+            if target_rel < act.target_rel_m + self.config.retarget_m:
+                return []  # a target only rises, and not by dithering steps
+        elif d.kind is act.kind:
+            return []
+        return self._command(own, d, now)
+
+    def _command(self, own: VehicleStatus, d: _Decision, now: float) -> list[Output]:
+        act = self._active
+        assert act is not None and d.kind is not None
+        act.kind, act.against = d.kind, d.against
+        who = ", ".join(str(i) if i >= 0 else f"ICAO {(-1 - i):06X}" for i in d.against)
+        when = f"in {d.soonest_s:.0f} s at {d.closest_m:.0f} m"
+        out: list[Output] = []
+        if d.kind is ManoeuvreKind.STOP:
+            act.target_rel_m = None
+            reqs: tuple[ApRequest, ...] = (SetMode(mode="HOLD"),)
+            text = f"avoid: stop for {who} {when}"
+            out.append(Manoeuvre(d.kind, reqs, None, d.against, text))
+            out.append(self._alert(own, now, Severity.WARNING, text))
+            return out
+        assert d.target_msl_m is not None
+        home = own.alt_msl_m - own.alt_rel_m
+        target_rel = d.target_msl_m - home
+        ceiling = self._ceiling_rel()
+        capped = target_rel > ceiling
+        target_rel = max(own.alt_rel_m, min(target_rel, ceiling))
+        act.target_rel_m = target_rel
+        if self.config.own_type in MULTIROTOR:
+            reqs = (Goto(lat_deg=own.lat_deg, lon_deg=own.lon_deg, alt_rel_m=target_rel),)
+        else:
+            reqs = (ChangeAltitude(alt_rel_m=target_rel),)
+        verb = "climb to" if d.kind is ManoeuvreKind.CLIMB else "level at"
+        climb_s = (target_rel - own.alt_rel_m) / self.config.climb_rate_m_s
+        severity, why = Severity.WARNING, ""
+        if capped:
+            severity, why = Severity.CRITICAL, " (ceiling)"
+        elif d.kind is ManoeuvreKind.CLIMB and climb_s > d.soonest_s:
+            severity, why = Severity.CRITICAL, f" (too slow: {climb_s:.0f} s to climb)"
+        text = f"avoid: {verb} {target_rel:.0f} m{why} for {who} {when}"
+        out.append(Manoeuvre(d.kind, reqs, target_rel, d.against, text))
+        out.append(self._alert(own, now, severity, text))
+        return out
+
+    def _resume(self, own: VehicleStatus, now: float) -> list[Output]:
+        act = self._active
+        assert act is not None
+        self._active = None
+        if self.config.own_type in GROUND:
+            reqs: tuple[ApRequest, ...] = ()
+            target: float | None = None
+            text = "avoid: clear, resuming"
+        else:
+            target = act.planned_rel_m
+            reqs = (ChangeAltitude(alt_rel_m=target),)
+            text = f"avoid: clear, back to {target:.0f} m"
+        return [
+            Manoeuvre(ManoeuvreKind.RESUME, reqs, target, (), text),
+            self._alert(own, now, Severity.INFO, text, cleared=True),
+        ]
+
+    def _alert(
+        self,
+        own: VehicleStatus | None,
+        now: float,
+        severity: Severity,
+        text: str,
+        cleared: bool = False,
+    ) -> Alert:
+        return Alert(
+            vehicle_id=self.config.own_id,
+            time_unix_s=max(0.0, now),
+            severity=severity,
+            code=AlertCode.CONDITION_CLEARED if cleared else AlertCode.COLLISION_RISK,
+            text=text[:64],
+        )

@@ -1,0 +1,203 @@
+"""Closest point of approach (CPA) between vehicles that keep their velocity: pure numpy.
+
+Every position is put in one local East-North-Up frame tangent at an origin (pymap3d,
+WGS84: geodetic -> ECEF -> ENU, exact on the ellipsoid, no flat-earth scale), and every
+NED velocity is rotated from its own vehicle's tangent plane into that frame (ENU ->
+ECEF -> ENU), so the geometry stays exact for vehicles kilometres apart.
+
+Altitudes are above mean sea level (`VehicleStatus.alt_msl_m`, ADS-B altitude): the one
+datum every vehicle shares (altitude above home is not, homes differ). They are used as
+heights over the ellipsoid; the geoid separation is the same to a few centimetres across
+the few kilometres avoidance looks at, so the relative geometry is exact to that.
+
+Stale telemetry is never trusted as fresh: a report `age` seconds old is first
+extrapolated to `now` with its velocity, and the vehicle may have done anything since,
+so its protection volume widens by `age * max_speed` (the distance it could have moved).
+Callers compare `miss_m - margin_m` with their thresholds.
+
+    rel_p = p_other - p_own, rel_v = v_other - v_own
+    t_cpa = clip(-(rel_p . rel_v) / |rel_v|^2, 0, horizon)     (0 when diverging)
+    d_cpa = |rel_p + rel_v * t_cpa|
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pymap3d
+
+from swarm_proto import VehicleStatus
+
+FloatArray = npt.NDArray[np.float64]
+
+EPS_SPEED2 = 1e-9  # |relative velocity|^2 below this: no relative motion, CPA is now
+
+
+class BadTrackError(ValueError):
+    """A track with a non-finite or impossible value (never fed to the geometry)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Track:
+    """Where a vehicle was at `time_s` and how it moved (NED velocity, m/s).
+
+    `time_s` is on the caller's clock (the one `now` is on); `max_speed_m_s` is how fast
+    it could go, used to widen its protection volume by what it could have moved since."""
+
+    vehicle_id: int
+    lat_deg: float
+    lon_deg: float
+    alt_msl_m: float
+    vel_north_m_s: float = 0.0
+    vel_east_m_s: float = 0.0
+    vel_down_m_s: float = 0.0
+    time_s: float = 0.0
+    max_speed_m_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        values = (
+            self.lat_deg,
+            self.lon_deg,
+            self.alt_msl_m,
+            self.vel_north_m_s,
+            self.vel_east_m_s,
+            self.vel_down_m_s,
+            self.time_s,
+            self.max_speed_m_s,
+        )
+        if not all(math.isfinite(v) for v in values):
+            raise BadTrackError(f"vehicle {self.vehicle_id}: non-finite track value {values}")
+        if not (-90.0 <= self.lat_deg <= 90.0 and -180.0 <= self.lon_deg <= 180.0):
+            raise BadTrackError(
+                f"vehicle {self.vehicle_id}: position ({self.lat_deg}, {self.lon_deg}) out of range"
+            )
+        if self.max_speed_m_s < 0.0:
+            raise BadTrackError(f"vehicle {self.vehicle_id}: negative max speed")
+
+    @classmethod
+    def from_status(
+        cls, s: VehicleStatus, *, time_s: float | None = None, max_speed_m_s: float = 0.0
+    ) -> Track:
+        """From a VehicleStatus; `time_s` defaults to the sample's own time."""
+        return cls(
+            s.vehicle_id,
+            s.lat_deg,
+            s.lon_deg,
+            s.alt_msl_m,
+            s.vel_north_m_s,
+            s.vel_east_m_s,
+            s.vel_down_m_s,
+            s.time_unix_s if time_s is None else time_s,
+            max_speed_m_s,
+        )
+
+    @property
+    def vertical_speed_m_s(self) -> float:
+        """Upwards positive."""
+        return -self.vel_down_m_s
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """A local ENU frame tangent at (lat0, lon0, h0)."""
+
+    lat0_deg: float
+    lon0_deg: float
+    h0_m: float = 0.0
+
+    def positions(self, lat: FloatArray, lon: FloatArray, h: FloatArray) -> FloatArray:
+        """(N, 3) east, north, up metres."""
+        e, n, u = pymap3d.geodetic2enu(lat, lon, h, self.lat0_deg, self.lon0_deg, self.h0_m)
+        return np.stack([np.asarray(e, float), np.asarray(n, float), np.asarray(u, float)], -1)
+
+    def velocities(
+        self, lat: FloatArray, lon: FloatArray, vn: FloatArray, ve: FloatArray, vd: FloatArray
+    ) -> FloatArray:
+        """(N, 3) ENU velocities in this frame, from NED velocities at (lat, lon)."""
+        x, y, z = pymap3d.enu2uvw(ve, vn, -vd, lat, lon)  # own tangent plane -> ECEF axes
+        e, n, u = pymap3d.uvw2enu(x, y, z, self.lat0_deg, self.lon0_deg)
+        return np.stack([np.asarray(e, float), np.asarray(n, float), np.asarray(u, float)], -1)
+
+
+@dataclass(frozen=True, slots=True)
+class Kinematic:
+    """Tracks put in one frame at one instant: extrapolated positions, velocities, and
+    the widening of each protection volume for staleness."""
+
+    ids: tuple[int, ...]
+    pos: FloatArray  # (N, 3) ENU m at `now`
+    vel: FloatArray  # (N, 3) ENU m/s
+    age_s: FloatArray  # (N,) how old each report is at `now` (>= 0)
+    margin_m: FloatArray  # (N,) age * max speed
+
+
+def kinematic(tracks: Sequence[Track], now: float, frame: Frame | None = None) -> Kinematic:
+    """Every track extrapolated to `now` in one frame (default: at the first track)."""
+    if not tracks:
+        empty = np.zeros((0, 3))
+        return Kinematic((), empty, empty, np.zeros(0), np.zeros(0))
+    lat = np.array([t.lat_deg for t in tracks])
+    lon = np.array([t.lon_deg for t in tracks])
+    h = np.array([t.alt_msl_m for t in tracks])
+    if frame is None:
+        frame = Frame(float(lat[0]), float(lon[0]), float(h[0]))
+    vn = np.array([t.vel_north_m_s for t in tracks])
+    ve = np.array([t.vel_east_m_s for t in tracks])
+    vd = np.array([t.vel_down_m_s for t in tracks])
+    age = np.maximum(0.0, now - np.array([t.time_s for t in tracks]))
+    vel = frame.velocities(lat, lon, vn, ve, vd)
+    pos = frame.positions(lat, lon, h) + vel * age[:, None]
+    margin = age * np.array([t.max_speed_m_s for t in tracks])
+    return Kinematic(tuple(t.vehicle_id for t in tracks), pos, vel, age, margin)
+
+
+@dataclass(frozen=True, slots=True)
+class Approach:
+    """Closest approach of pairs over [now, now + horizon] (arrays broadcast alike)."""
+
+    t_cpa_s: FloatArray  # seconds from now to the closest point (0: now, or diverging)
+    miss_m: FloatArray  # 3-D distance at the closest point
+    horizontal_m: FloatArray  # its horizontal part
+    vertical_m: FloatArray  # its vertical part (other above own: positive)
+    range_m: FloatArray  # 3-D distance now
+    margin_m: FloatArray  # the pair's staleness widening (add to thresholds)
+
+
+def closest_approach(rel_pos: FloatArray, rel_vel: FloatArray, horizon_s: float) -> Approach:
+    """CPA of relative motions `rel_pos + rel_vel * t`, t in [0, horizon] ((..., 3))."""
+    v2 = np.einsum("...i,...i->...", rel_vel, rel_vel)
+    pv = np.einsum("...i,...i->...", rel_pos, rel_vel)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(v2 > EPS_SPEED2, -pv / np.where(v2 > EPS_SPEED2, v2, 1.0), 0.0)
+    t = np.clip(t, 0.0, max(0.0, horizon_s))
+    at = rel_pos + rel_vel * t[..., None]
+    return Approach(
+        t_cpa_s=t,
+        miss_m=np.linalg.norm(at, axis=-1),
+        horizontal_m=np.linalg.norm(at[..., :2], axis=-1),
+        vertical_m=at[..., 2],
+        range_m=np.linalg.norm(rel_pos, axis=-1),
+        margin_m=np.zeros_like(t),
+    )
+
+
+def approaches(own: Track, others: Sequence[Track], now: float, horizon_s: float) -> Approach:
+    """CPA of `own` against each of `others` (arrays of len(others)), in own's frame."""
+    k = kinematic([own, *others], now)
+    a = closest_approach(k.pos[1:] - k.pos[0], k.vel[1:] - k.vel[0], horizon_s)
+    return Approach(
+        a.t_cpa_s, a.miss_m, a.horizontal_m, a.vertical_m, a.range_m, k.margin_m[1:] + k.margin_m[0]
+    )
+
+
+def pairwise(k: Kinematic, horizon_s: float) -> Approach:
+    """CPA of every pair (N, N matrices; the diagonal is each vehicle with itself)."""
+    a = closest_approach(
+        k.pos[None, :, :] - k.pos[:, None, :], k.vel[None, :, :] - k.vel[:, None, :], horizon_s
+    )
+    margin = k.margin_m[:, None] + k.margin_m[None, :]
+    return Approach(a.t_cpa_s, a.miss_m, a.horizontal_m, a.vertical_m, a.range_m, margin)

@@ -1,0 +1,481 @@
+"""CollisionAvoider: the paper's cases one by one, priority as a property, and the
+eight-aircraft head-on stress case in a point-mass fast-time simulation."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+import msgspec
+import numpy as np
+import pymap3d
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from swarm_node.core.autopilot.requests import ChangeAltitude, Goto, SetMode
+from swarm_node.core.safety.avoidance import (
+    AvoidanceConfig,
+    Ceiling,
+    CollisionAvoider,
+    Forget,
+    Manoeuvre,
+    ManoeuvreKind,
+    PlannedAltitude,
+    Traffic,
+)
+from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, VehicleType
+from swarm_sim.core.pointmass import Start, run, stress_eight_headon
+
+LAT0, LON0, HOME = 40.4168, -3.7038, 650.0
+T = 1_700_000_000.0
+
+
+def status(
+    vid: int,
+    e: float,
+    n: float,
+    up: float,
+    ve: float = 0.0,
+    vn: float = 0.0,
+    vu: float = 0.0,
+    t: float = T,
+    armed: bool = True,
+) -> VehicleStatus:
+    lat, lon, _h = pymap3d.enu2geodetic(e, n, up, LAT0, LON0, HOME)
+    return VehicleStatus(
+        vehicle_id=vid,
+        time_unix_s=t,
+        lat_deg=float(lat),
+        lon_deg=float(lon),
+        alt_msl_m=HOME + up,
+        alt_rel_m=up,
+        vel_north_m_s=vn,
+        vel_east_m_s=ve,
+        vel_down_m_s=-vu,
+        armed=armed,
+    )
+
+
+def avoider(vid: int, vtype: VehicleType = VehicleType.PLANE, **kw: float) -> CollisionAvoider:
+    return CollisionAvoider(AvoidanceConfig(vid, vtype, **kw))
+
+
+def feed(av: CollisionAvoider, statuses: Sequence[VehicleStatus], now: float = T) -> list:
+    for s in statuses:
+        av.handle(s, now)
+    return av.on_timer(now)
+
+
+def manoeuvres(out: list) -> list[Manoeuvre]:
+    return [o for o in out if isinstance(o, Manoeuvre)]
+
+
+def head_on(alt_a: float = 100.0, alt_b: float = 100.0) -> list[VehicleStatus]:
+    return [status(1, 0, 0, alt_a, ve=20), status(2, 800, 0, alt_b, ve=-20)]
+
+
+def test_head_on_only_the_higher_id_climbs_at_one_altitude() -> None:
+    pair = head_on()
+    out1 = feed(avoider(1), pair)
+    out2 = feed(avoider(2), pair)
+    assert manoeuvres(out1) == []
+    (m,) = manoeuvres(out2)
+    assert m.kind is ManoeuvreKind.CLIMB and m.against == (1,)
+    assert m.requests == (ChangeAltitude(alt_rel_m=pytest.approx(115.0, abs=0.01)),)
+    (alert,) = [o for o in out2 if isinstance(o, Alert)]
+    assert alert.code is AlertCode.COLLISION_RISK and alert.severity is Severity.WARNING
+    assert "climb to 115 m for 1" in alert.text
+
+
+def test_head_on_the_higher_vehicle_climbs_whatever_its_id() -> None:
+    pair = head_on(alt_a=110.0, alt_b=100.0)  # 1 is 10 m higher than 2
+    assert manoeuvres(feed(avoider(2), pair)) == []
+    (m,) = manoeuvres(feed(avoider(1), pair))
+    assert m.target_alt_rel_m == pytest.approx(115.0, abs=0.01)
+
+
+def test_crossing_at_right_angles() -> None:
+    pair = [status(1, -500, 0, 100, ve=25), status(2, 0, -500, 102, vn=25)]
+    assert manoeuvres(feed(avoider(1), pair)) == []
+    (m,) = manoeuvres(feed(avoider(2), pair))
+    assert m.kind is ManoeuvreKind.CLIMB
+
+
+def test_crossing_that_misses_by_far_is_no_conflict() -> None:
+    pair = [status(1, -500, 0, 100, ve=25), status(2, 0, -800, 100, vn=25)]  # 300 m apart
+    assert feed(avoider(2), pair) == []
+
+
+def test_overtaking_on_one_track() -> None:
+    pair = [status(1, 0, 0, 100, vn=15), status(2, 0, -300, 100, vn=30)]
+    (m,) = manoeuvres(feed(avoider(2), pair))
+    assert m.kind is ManoeuvreKind.CLIMB
+    assert manoeuvres(feed(avoider(1), pair)) == []
+
+
+def test_vertical_convergence_the_lower_one_levels_off() -> None:
+    """1 climbs towards 2 flying 30 m above it on the same track: 2 is already above
+    what 1 needs, so 2 keeps its altitude and 1 stops climbing."""
+    pair = [status(1, 0, 0, 100, vn=20, vu=5), status(2, 0, 0, 130, vn=20)]
+    (m,) = manoeuvres(feed(avoider(1), pair))
+    assert m.kind is ManoeuvreKind.LEVEL and m.requests == (ChangeAltitude(alt_rel_m=100.0),)
+    assert manoeuvres(feed(avoider(2), pair)) == []
+
+
+def test_three_way_targets_stack_by_rank() -> None:
+    three = [
+        status(1, -600, 0, 100, ve=20),
+        status(2, 600, 0, 101, ve=-20),
+        status(3, 0, -600, 99, vn=20),
+    ]
+    targets = {}
+    for vid in (1, 2, 3):
+        ms = manoeuvres(feed(avoider(vid), three))
+        targets[vid] = ms[0].target_alt_rel_m if ms else None
+    assert targets[1] is None
+    assert targets[2] == pytest.approx(115.0, abs=0.01)
+    assert targets[3] == pytest.approx(130.0, abs=0.01)
+
+
+def test_stale_telemetry_widens_the_protection_volume() -> None:
+    fresh = [status(1, 0, 0, 100, ve=20), status(2, 800, 60, 100, ve=-20)]  # 60 m abeam
+    assert feed(avoider(2), fresh) == []
+    old = status(1, 0, 0, 100, ve=20, t=T - 2.0)  # heard now, sampled 2 s ago
+    av = avoider(2)
+    av.handle(old, T)
+    (m,) = manoeuvres(feed(av, [fresh[1]]))
+    assert m.kind is ManoeuvreKind.CLIMB  # 60 m < 20 m + 2 s * 35 m/s
+
+
+def test_a_report_is_at_least_as_old_as_when_it_was_heard() -> None:
+    av = avoider(2)
+    av.handle(status(1, 0, 0, 100, ve=20), T)  # heard at T, says T
+    av.handle(status(2, 800, 60, 100, ve=-20, t=T + 2.0), T + 2.0)
+    assert manoeuvres(av.on_timer(T + 2.0))  # not heard for 2 s: widened
+
+
+def test_a_rover_and_a_plane() -> None:
+    """A plane low over a rover's road: the plane climbs, the rover stops."""
+    plane = status(1, -400, 0, 12, ve=20)  # 12 m over the rover in 20 s
+    rover = status(2, 0, -60, 0, vn=3)
+    infos = [
+        VehicleInfo(vehicle_id=1, vehicle_type=VehicleType.PLANE, model="", user_id=""),
+        VehicleInfo(vehicle_id=2, vehicle_type=VehicleType.ROVER, model="", user_id=""),
+    ]
+    av_plane, av_rover = avoider(1), avoider(2, VehicleType.ROVER)
+    for av in (av_plane, av_rover):
+        for i in infos:
+            av.handle(i, T)
+    (m,) = manoeuvres(feed(av_plane, [plane, rover]))
+    assert m.kind is ManoeuvreKind.CLIMB and m.target_alt_rel_m == pytest.approx(15.0, abs=0.1)
+    (r,) = manoeuvres(feed(av_rover, [plane, rover]))
+    assert r.kind is ManoeuvreKind.STOP and r.requests == (SetMode(mode="HOLD"),)
+
+
+def test_two_rovers_the_higher_id_stops() -> None:
+    a = status(1, 0, 0, 0, ve=4)
+    b = status(2, 100, -100, 0, vn=4)
+    rover = VehicleType.ROVER
+    infos = [VehicleInfo(vehicle_id=i, vehicle_type=rover, model="", user_id="") for i in (1, 2)]
+    av1, av2 = avoider(1, rover), avoider(2, rover)
+    for av in (av1, av2):
+        for i in infos:
+            av.handle(i, T)
+    assert manoeuvres(feed(av1, [a, b])) == []
+    (m,) = manoeuvres(feed(av2, [a, b]))
+    assert m.kind is ManoeuvreKind.STOP
+
+
+def test_a_multirotor_holds_over_itself_while_it_climbs() -> None:
+    pair = head_on()
+    (m,) = manoeuvres(feed(avoider(2, VehicleType.COPTER), pair))
+    (goto,) = m.requests
+    assert isinstance(goto, Goto)
+    assert (goto.lat_deg, goto.lon_deg) == (pair[1].lat_deg, pair[1].lon_deg)
+    assert goto.alt_rel_m == pytest.approx(115.0, abs=0.01)
+
+
+def test_a_non_cooperative_intruder_is_given_way_to_by_every_id() -> None:
+    own = status(1, 0, 0, 100, ve=20)  # the lowest id: against a peer it would not climb
+    lat, lon, h = pymap3d.enu2geodetic(1500, 0, 100, LAT0, LON0, HOME)
+    intruder = Traffic(0xABCDEF, float(lat), float(lon), float(h), vel_east_m_s=-40.0, time_s=T)
+    av = avoider(1)
+    av.handle(intruder, T)
+    (m,) = manoeuvres(feed(av, [own]))
+    assert m.kind is ManoeuvreKind.CLIMB and m.against == (-1 - 0xABCDEF,)
+    assert m.target_alt_rel_m is not None and m.target_alt_rel_m >= 115.0
+
+
+def test_an_intruder_well_above_is_not_climbed_into() -> None:
+    own = status(1, 0, 0, 100, ve=20, vu=3)
+    lat, lon, h = pymap3d.enu2geodetic(800, 0, 112, LAT0, LON0, HOME)
+    intruder = Traffic(0x123456, float(lat), float(lon), float(h), vel_east_m_s=-20.0, time_s=T)
+    av = avoider(1)
+    av.handle(intruder, T)
+    (m,) = manoeuvres(feed(av, [own]))
+    assert m.kind is ManoeuvreKind.LEVEL
+
+
+def test_traffic_from_an_adsb_report() -> None:
+    report = {
+        "ICAO_address": 0x4CA123,
+        "lat": 404168000,
+        "lon": -37038000,
+        "altitude": 950_000,
+        "heading": 9000,
+        "hor_velocity": 5000,
+        "ver_velocity": -200,
+        "flags": 1 | 2 | 4 | 8,
+        "tslc": 1,
+    }
+    tr = Traffic.from_adsb(report, received_s=T)
+    assert tr.contact_id == -1 - 0x4CA123
+    assert (tr.lat_deg, tr.lon_deg, tr.alt_msl_m) == (40.4168, -3.7038, 950.0)
+    assert tr.vel_east_m_s == pytest.approx(50.0) and tr.vel_north_m_s == pytest.approx(
+        0.0, abs=1e-9
+    )
+    assert tr.vel_down_m_s == pytest.approx(2.0) and tr.time_s == T - 1
+    for bad in (
+        {**report, "flags": 8},
+        {**report, "lat": None},
+        {**report, "altitude": float("nan")},
+    ):
+        with pytest.raises(ValueError):
+            Traffic.from_adsb(bad, received_s=T)
+
+
+def test_ceiling_caps_the_climb_and_says_so() -> None:
+    av = avoider(2)
+    av.handle(Ceiling(alt_rel_m=108.0), T)
+    out = feed(av, head_on())
+    (m,) = manoeuvres(out)
+    assert m.target_alt_rel_m == 108.0
+    (alert,) = [o for o in out if isinstance(o, Alert)]
+    assert alert.severity is Severity.CRITICAL and "ceiling" in alert.text
+
+
+def test_a_climb_too_slow_for_the_conflict_is_critical() -> None:
+    pair = [status(1, 0, 0, 100, ve=20), status(2, 200, 0, 100, ve=-20)]  # 5 s away
+    out = feed(avoider(2, climb_rate_m_s=1.0), pair)
+    (alert,) = [o for o in out if isinstance(o, Alert)]
+    assert alert.severity is Severity.CRITICAL and "to climb" in alert.text
+
+
+def test_not_flying_means_no_manoeuvre() -> None:
+    low = [status(1, 0, 0, 5, ve=20), status(2, 800, 0, 5, ve=-20)]
+    assert feed(avoider(2), low) == []
+    disarmed = [status(1, 0, 0, 100, ve=20), status(2, 800, 0, 100, ve=-20, armed=False)]
+    assert feed(avoider(2), disarmed) == []
+
+
+def test_a_disarmed_or_landing_peer_will_not_manoeuvre_so_we_do() -> None:
+    pair = [status(1, 0, 0, 5, ve=20), status(2, 800, 0, 12, ve=-20)]  # 1 below 10 m
+    (m,) = manoeuvres(feed(avoider(2), pair))
+    assert m.kind is ManoeuvreKind.CLIMB
+
+
+def test_hysteresis_resume_only_after_clear_for_the_hold_time() -> None:
+    av = avoider(2, clear_hold_s=3.0)
+    av.handle(PlannedAltitude(alt_rel_m=100.0), T)
+    assert manoeuvres(feed(av, head_on()))
+    # a tick later the peer is gone (lost): clear from the planned altitude
+    av.handle(Forget(vehicle_id=1), T + 0.2)
+    now, resumed_at = T + 0.2, None
+    while now < T + 6:
+        ms = manoeuvres(feed(av, [status(2, 0, 0, 110, ve=-20, t=now)], now))
+        if ms:
+            assert [m.kind for m in ms] == [ManoeuvreKind.RESUME]
+            assert ms[0].requests == (ChangeAltitude(alt_rel_m=100.0),)
+            resumed_at = now
+            break
+        now += 0.2
+    assert resumed_at is not None and resumed_at - (T + 0.2) >= 3.0 - 1e-6
+    assert av.manoeuvring is None
+
+
+def test_the_deadline_is_the_next_5hz_tick() -> None:
+    av = avoider(2)
+    assert av.next_deadline() is None
+    av.handle(head_on()[0], T)
+    assert av.next_deadline() == T
+    av.on_timer(T)
+    assert av.next_deadline() == pytest.approx(T + 0.2)
+    assert av.on_timer(T + 0.1) == []  # early: nothing
+    av.on_timer(T + 5.0)  # called late: the next tick is a period later, not now again
+    assert av.next_deadline() == pytest.approx(T + 5.2)
+    ticks = av.counters["ticks"]
+    assert av.on_timer(T + 5.0) == [] and av.counters["ticks"] == ticks
+
+
+def test_bad_input_is_counted_not_raised() -> None:
+    av = avoider(2)
+    av.handle(Traffic(1, float("nan"), 0.0, 100.0, time_s=T), T)
+    assert av.counters["bad_track"] == 1
+    assert feed(av, head_on()[1:]) == []
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.floats(-800, 800),
+    st.floats(-800, 800),
+    st.floats(20, 300),
+    st.floats(20, 300),
+    st.floats(0, 359),
+    st.floats(0, 359),
+    st.integers(1, 250),
+    st.integers(1, 250),
+)
+def test_two_aircraft_never_both_climb_and_the_lower_never_does(
+    e: float, n: float, za: float, zb: float, ca: float, cb: float, ida: int, idb: int
+) -> None:
+    if ida == idb:
+        idb = ida % 250 + 1
+    rad_a, rad_b = np.radians(ca), np.radians(cb)
+    a = status(ida, 0, 0, za, ve=20 * np.sin(rad_a), vn=20 * np.cos(rad_a))
+    b = status(idb, e, n, zb, ve=20 * np.sin(rad_b), vn=20 * np.cos(rad_b))
+    climbs = {}
+    for s in (a, b):
+        ms = manoeuvres(feed(avoider(s.vehicle_id), [a, b]))
+        climbs[s.vehicle_id] = bool(ms) and ms[0].kind is ManoeuvreKind.CLIMB
+    assert not (climbs[ida] and climbs[idb])
+    if abs(za - zb) > 5.0:
+        lower = ida if za < zb else idb
+        assert not climbs[lower]
+
+
+# --------------------------------------------------------------------------- fast time
+
+
+def separations(samples: list[tuple[float, int, float, float, float]]) -> list[float]:
+    """Pairwise 3-D distances at every time step, by an independent ECEF sum."""
+    by_t: dict[float, dict[int, np.ndarray]] = {}
+    for t, v, lat, lon, h in samples:
+        by_t.setdefault(t, {})[v] = np.array(pymap3d.geodetic2ecef(lat, lon, h))
+    return [
+        float(np.linalg.norm(pts[i] - pts[j]))
+        for pts in by_t.values()
+        for i, j in itertools.combinations(sorted(pts), 2)
+    ]
+
+
+def test_eight_fixed_wing_head_on_keep_apart_with_avoidance_and_collide_without() -> None:
+    on = run(stress_eight_headon(), duration_s=70.0, avoid=True)
+    off = run(stress_eight_headon(), duration_s=70.0, avoid=False)
+    d_on, d_off = separations(on.samples), separations(off.samples)
+    assert min(d_off) < 5.0 and sum(d < 5.0 for d in d_off) > 0  # the test can fail
+    assert min(d_on) > 10.0  # no danger (5-10 m), no near-collision (< 5 m)
+    for vid, ms in on.manoeuvres.items():
+        kinds = [m.kind for m in ms]
+        if vid == 1:
+            assert kinds == []  # the lowest rank keeps its altitude
+        else:  # no oscillation: one climb, one resume
+            assert kinds == [ManoeuvreKind.CLIMB, ManoeuvreKind.RESUME]
+
+
+def test_a_copter_a_plane_and_a_rover_cross_in_fast_time() -> None:
+    starts = [
+        Start(1, VehicleType.PLANE, -600, 0, 20, 20, 0),
+        Start(2, VehicleType.COPTER, 0, -300, 22, 0, 10),
+        Start(3, VehicleType.ROVER, 150, -150, 0, -5, 5, climb_rate_m_s=0.0),
+    ]
+    on = run(starts, duration_s=60.0, avoid=True)
+    assert min(separations(on.samples)) > 10.0
+    off = run(starts, duration_s=60.0, avoid=False)
+    assert min(separations(off.samples)) < 5.0
+
+
+def test_release_needs_the_release_distance_not_just_the_protection_one() -> None:
+    """Clear means every miss from the planned altitude above 30 m: a peer parked
+    25 m from where we would fly keeps the manoeuvre on (no resume, no oscillation)."""
+    av = avoider(2, clear_hold_s=0.0)
+    av.handle(PlannedAltitude(alt_rel_m=100.0), T)
+    assert manoeuvres(feed(av, head_on()))
+    now = T + 0.2
+    # the peer now hovers 25 m east of our path, our own climb done (115 m)
+    near = [status(1, 0, 25, 100, t=now), status(2, -300, 0, 115, ve=20, t=now)]
+    for _ in range(10):
+        assert manoeuvres(feed(av, near, now)) == []
+        now += 0.2
+    far = [status(1, 0, 45, 100, t=now), status(2, -300, 0, 115, ve=20, t=now)]
+    (m,) = manoeuvres(feed(av, far, now))
+    assert m.kind is ManoeuvreKind.RESUME
+
+
+def test_altitudes_are_compared_above_mean_sea_level_not_home() -> None:
+    """Same height above their homes, but 1's home is 10 m higher: 1 is the higher
+    aircraft and climbs, although 2 has the higher id."""
+    a = status(1, 0, 0, 100, ve=20)
+    a = msgspec.structs.replace(a, alt_msl_m=a.alt_msl_m + 10.0)
+    b = status(2, 800, 0, 100, ve=-20)
+    assert manoeuvres(feed(avoider(2), [a, b])) == []
+    (m,) = manoeuvres(feed(avoider(1), [a, b]))
+    assert m.kind is ManoeuvreKind.CLIMB
+    assert m.target_alt_rel_m == pytest.approx(105.0, abs=0.01)  # 15 m over 2, in 1's terms
+
+
+def test_a_band_cycle_falls_back_to_altitude_then_id() -> None:
+    """3 over 2 by id, 2 over 1 by id, 1 over 3 by 8 m: a cycle; ranked by altitude
+    alone instead, the lowest keeps its altitude and each other climbs 15 m above the
+    one below it."""
+    three = [
+        status(3, -600, 0, 100, ve=20),
+        status(2, 600, 0, 104, ve=-20),
+        status(1, 0, -600, 108, vn=20),
+    ]
+    targets = {}
+    for vid in (1, 2, 3):
+        ms = manoeuvres(feed(avoider(vid), three))
+        targets[vid] = ms[0].target_alt_rel_m if ms else None
+    assert targets[3] is None  # the lowest
+    assert targets[2] == pytest.approx(115.0, abs=0.01)
+    assert targets[1] == pytest.approx(130.0, abs=0.01)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(1, 60), st.floats(95, 112), st.floats(300, 700)),
+        min_size=3,
+        max_size=6,
+        unique_by=lambda v: v[0],
+    ),
+    st.floats(0, 360),
+)
+def test_many_converging_aircraft_end_up_in_layers_every_vehicle_agrees_on(
+    fleet: list[tuple[int, float, float]], phase_deg: float
+) -> None:
+    """N aircraft converging on one point at random altitudes (ties, bands and cycles
+    included), each deciding alone from the same reports: the altitudes they will fly
+    (their targets, or their own altitude when they keep it) are all at least the
+    vertical separation apart (less the 0.5 m a vehicle does not climb for)."""
+    statuses = []
+    for k, (vid, alt, radius) in enumerate(fleet):
+        ang = np.radians(phase_deg + 360.0 * k / len(fleet))
+        e, n = radius * np.cos(ang), radius * np.sin(ang)
+        speed = radius / 25.0  # all at the centre in 25 s
+        statuses.append(status(vid, e, n, alt, ve=-speed * np.cos(ang), vn=-speed * np.sin(ang)))
+    final = []
+    for s in statuses:
+        ms = manoeuvres(feed(avoider(s.vehicle_id), statuses))
+        assert all(m.kind is ManoeuvreKind.CLIMB for m in ms)
+        final.append(ms[0].target_alt_rel_m if ms else s.alt_rel_m)
+    final.sort()
+    assert all(b - a >= 15.0 - 0.5 - 1e-6 for a, b in itertools.pairwise(final)), final
+
+
+def test_a_non_cooperative_intruder_in_fast_time() -> None:
+    """A manned aircraft (ADS-B at 1 Hz, no avoider) flies through two crossing drones
+    at their altitude: the drones climb over it, it never changes anything."""
+    starts = [
+        Start(1, VehicleType.PLANE, -500, 0, 100, 20, 0),
+        Start(2, VehicleType.PLANE, 0, -500, 100, 0, 20),
+        Start(9, VehicleType.MANNED, 700, 700, 100, -28, -28, cooperative=False),
+    ]
+    on = run(starts, duration_s=60.0, avoid=True)
+    assert on.manoeuvres[9] == []
+    intruder_alts = [s[4] for s in on.samples if s[1] == 9]
+    assert max(intruder_alts) - min(intruder_alts) < 0.5  # it never climbed (curvature: 0.15 m)
+    assert min(separations(on.samples)) > 10.0
+    off = run(starts, duration_s=60.0, avoid=False)
+    assert min(separations(off.samples)) < 5.0
