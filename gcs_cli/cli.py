@@ -2,7 +2,7 @@
 operator command. Sub-command groups live in their own modules and are registered here.
 
 Every command that talks to the swarm takes --connect (Zenoh endpoints, default the lab
-router on tcp/127.0.0.1:7447), --swarm and --gcs-id.
+router on tcp/127.0.0.1:7447) or --zenoh-config (a Zenoh JSON5 file), --swarm and --gcs-id.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from swarm_proto import (
     SelectorKind,
 )
 from swarm_proto.session import ZenohSettings
+from swarm_proto.session import zenoh_config as zenoh_config_of
 
 from .analyze import app as analyze_app
 from .db import DbOption
@@ -65,16 +66,34 @@ class Link:
 @app.callback()
 def _group(
     ctx: typer.Context,
-    connect: list[str] = typer.Option(["tcp/127.0.0.1:7447"], help="Zenoh endpoints to connect to"),
+    connect: list[str] = typer.Option(
+        [], help="Zenoh endpoints to connect to (default tcp/127.0.0.1:7447, or the file's)"
+    ),
     listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
     mode: str = typer.Option("peer", help="Zenoh mode: peer or client"),
+    zenoh_config: str | None = typer.Option(
+        None,
+        "--zenoh-config",
+        help="a Zenoh JSON5 config (deploy/zenoh/peer.json5, or gcs-<id>.json5 from "
+        "`swarm-node certs make`); --connect/--listen/--mode override it",
+    ),
     swarm: str = typer.Option("default", help="swarm name"),
     gcs_id: int = typer.Option(DEFAULT_GCS_ID, help="this ground station's node id"),
 ) -> None:
     """bandada ground station."""
     if mode not in ("peer", "client", "router"):
         raise typer.BadParameter("mode is peer, client or router", param_hint="--mode")
-    settings = msgspec.convert({"mode": mode, "connect": connect, "listen": listen}, ZenohSettings)
+    if not connect and not zenoh_config:
+        connect = ["tcp/127.0.0.1:7447"]
+    settings = msgspec.convert(
+        {"mode": mode, "connect": connect, "listen": listen, "config_file": zenoh_config},
+        ZenohSettings,
+    )
+    if zenoh_config:
+        try:
+            zenoh_config_of(settings)
+        except ValueError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--zenoh-config") from exc
     ctx.obj = Link(settings, swarm, gcs_id)
 
 
@@ -255,6 +274,9 @@ def cmd(
         )
     args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id)
     with ctx.obj.open() as gs:
+        # every vehicle named with --id (a fresh session hears a LAN's vehicles one by
+        # one; the acks awaited are those of the vehicles known to be addressed)
+        gs.wait_for(lambda v: set(ids) <= set(v.vehicle_ids()) and bool(v.vehicle_ids()), 3.0)
         acks = gs.command(k, selector_from(ids, fleet, 0, ""), args, timeout_s=timeout)
     _print_acks(acks, f"{k.name.lower()}")
 

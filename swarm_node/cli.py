@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import typer
 
 app = typer.Typer(
@@ -30,6 +32,12 @@ def run(
     connect: list[str] = typer.Option([], help="Zenoh endpoints to connect to"),
     listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
     lease_ms: int | None = typer.Option(None, help="Zenoh lease: how soon a frozen peer is lost"),
+    zenoh_config: str | None = typer.Option(
+        None,
+        "--zenoh-config",
+        help="a Zenoh JSON5 config (deploy/zenoh/peer.json5, or one from `certs make`); "
+        "--mode/--connect/--listen/--lease-ms override it",
+    ),
     link_timeout: float | None = typer.Option(
         None, help="autopilot silence (s) that counts as link loss"
     ),
@@ -63,6 +71,7 @@ def run(
             zenoh_connect=tuple(connect),
             zenoh_listen=tuple(listen),
             zenoh_lease_ms=lease_ms,
+            zenoh_config_file=zenoh_config,
             link_timeout_s=link_timeout,
             status_hz=status_hz,
             info_hz=info_hz,
@@ -96,24 +105,98 @@ def run(
 
 @app.command()
 def router(
-    listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="Zenoh endpoints to listen on"),
+    listen: list[str] = typer.Option(
+        [], help="Zenoh endpoints to listen on (default tcp/0.0.0.0:7447, or the file's)"
+    ),
     connect: list[str] = typer.Option([], help="other routers to connect to"),
-    config: str | None = typer.Option(None, help="a Zenoh JSON5 config file applied first"),
+    config: str | None = typer.Option(
+        None,
+        "--config",
+        "--zenoh-config",
+        help="a Zenoh JSON5 config (deploy/zenoh/router.json5, or one from `certs make`); "
+        "everything it says is kept, --listen/--connect override its endpoints",
+    ),
+    log_denied: bool = typer.Option(
+        False,
+        "--log-denied",
+        help="log access-control decisions (Zenoh trace level: denied and allowed messages)",
+    ),
 ) -> None:
     """Run a Zenoh router (the lab router, or a multi-hop relay) until SIGINT/SIGTERM."""
-    from swarm_proto.session import ZenohSettings, open_session
+    import zenoh
+
+    from swarm_proto.session import ZenohSettings, open_session, zenoh_config
     from swarm_proto.shutdown import stop_event
 
+    acl_log = "zenoh::net::routing::interceptor::access_control=trace"
+    zenoh.init_log_from_env_or("info," + acl_log if log_denied else "warn")
     stop = stop_event()
+    if not listen and not config:
+        listen = ["tcp/0.0.0.0:7447"]
     settings = ZenohSettings(
         mode="router", listen=tuple(listen), connect=tuple(connect), config_file=config
     )
-    session = open_session(settings)
-    typer.echo(f"zenoh router {session.zid()} listening on {', '.join(listen)}", err=True)
+    try:
+        conf = zenoh_config(settings)
+        session = open_session(settings)
+    except Exception as exc:  # a bad file, an endpoint in use, a missing certificate
+        typer.echo(f"swarm-node router: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    endpoints = ", ".join(json.loads(conf.get_json("listen/endpoints") or "[]"))
+    scouting = json.loads(conf.get_json("scouting/multicast/enabled") or "false")
+    typer.echo(
+        f"zenoh router {session.zid()} listening on {endpoints}; multicast scouting "
+        f"{'on' if scouting else 'off'}",
+        err=True,
+    )
     try:
         stop.wait()
     finally:
         session.close()
+
+
+certs_app = typer.Typer(
+    help="A swarm's CA, certificates and mutual-TLS / access-control Zenoh configs.",
+    no_args_is_help=True,
+)
+app.add_typer(certs_app, name="certs")
+
+
+@certs_app.command("make")
+def certs_make(
+    out: str = typer.Option(..., "--out", help="directory to write the CA, certificates, configs"),
+    vehicles: str = typer.Option(..., help="vehicle ids: 1,2,5-7"),
+    gcs: str = typer.Option("900", help="ground station ids"),
+    router_host: list[str] = typer.Option(
+        ..., help="the router's address or host name as clients dial it (repeat)"
+    ),
+    swarm: str = typer.Option("default", help="swarm name"),
+    install_dir: str | None = typer.Option(
+        None, help="where the files will live on the hosts (paths in the JSON5 configs)"
+    ),
+    days: int = typer.Option(825, help="certificate validity"),
+) -> None:
+    """Make a swarm's CA, one certificate per vehicle, ground station and router, the
+    router's Zenoh config with mutual TLS and access control, and each host's config."""
+    from pathlib import Path
+
+    from .certs import make_swarm_certs, parse_ids
+
+    try:
+        written = make_swarm_certs(
+            Path(out),
+            swarm,
+            parse_ids(vehicles),
+            parse_ids(gcs),
+            router_host,
+            install_dir=Path(install_dir) if install_dir else None,
+            days=days,
+        )
+    except ValueError as exc:
+        typer.echo(f"swarm-node certs make: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    for path in written:
+        typer.echo(str(path))
 
 
 @app.command()

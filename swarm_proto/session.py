@@ -36,6 +36,12 @@ class ZenohSettings(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     what a field network wants. Give `connect` endpoints (the lab router, or peers), or
     turn multicast on with an explicit `scouting_interface`. The lease bounds how long
     a frozen peer stays "alive" (default 2 s; Zenoh's own default is 10 s).
+
+    `config_file` names a Zenoh JSON5 config (deploy/zenoh/*.json5, or one made by
+    `swarm-node certs make`). Then the file decides everything it says, and only the
+    fields given here with a value other than their default are applied over it (a
+    `--connect` on the command line wins over the file's endpoints; the default
+    `multicast_scouting = false` does not turn off the scouting the file enables).
     """
 
     mode: Mode = "peer"
@@ -46,27 +52,58 @@ class ZenohSettings(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     gossip_scouting: bool = True
     lease_ms: int = 2000
     keep_alive: int = 4
-    config_file: str | None = None  # a Zenoh JSON5 config applied before the fields above
+    config_file: str | None = None  # a Zenoh JSON5 config; the fields above override it
+
+
+def load_zenoh_file(path: str) -> zenoh.Config:
+    """A Zenoh JSON5 config file, or ValueError with the file and Zenoh's reason."""
+    try:
+        return zenoh.Config.from_file(path)
+    except Exception as exc:  # zenoh raises ZError (and OSError-like messages) here
+        raise ValueError(f"cannot load Zenoh config {path}: {exc}") from exc
 
 
 def zenoh_config(s: ZenohSettings) -> zenoh.Config:
-    conf = zenoh.Config.from_file(s.config_file) if s.config_file else zenoh.Config()
-    conf.insert_json5("mode", json.dumps(s.mode))
+    """The zenoh.Config for these settings (ValueError for an unreadable config file)."""
+    if s.config_file:
+        conf = load_zenoh_file(s.config_file)
+        default = ZenohSettings()
+
+        def given(name: str) -> bool:
+            return bool(getattr(s, name) != getattr(default, name))
+
+    else:
+        conf = zenoh.Config()
+
+        def given(name: str) -> bool:
+            return True
+
+    if given("mode"):
+        conf.insert_json5("mode", json.dumps(s.mode))
     if s.listen:
         conf.insert_json5("listen/endpoints", json.dumps(list(s.listen)))
-    elif s.mode == "peer" and s.connect and all(_is_loopback(e) for e in s.connect):
+    elif (
+        not s.config_file
+        and s.mode == "peer"
+        and s.connect
+        and all(_is_loopback(e) for e in s.connect)
+    ):
         # a simulation on one machine: do not listen on every interface (Zenoh's default)
         conf.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:0"]))
     if s.connect:
         conf.insert_json5("connect/endpoints", json.dumps(list(s.connect)))
     # multicast scouting: off unless asked for, or an interface to scout on is named
-    multicast = s.multicast_scouting or bool(s.scouting_interface)
-    conf.insert_json5("scouting/multicast/enabled", json.dumps(multicast))
+    if given("multicast_scouting") or given("scouting_interface"):
+        multicast = s.multicast_scouting or bool(s.scouting_interface)
+        conf.insert_json5("scouting/multicast/enabled", json.dumps(multicast))
     if s.scouting_interface:
         conf.insert_json5("scouting/multicast/interface", json.dumps(s.scouting_interface))
-    conf.insert_json5("scouting/gossip/enabled", json.dumps(s.gossip_scouting))
-    conf.insert_json5("transport/link/tx/lease", str(int(s.lease_ms)))
-    conf.insert_json5("transport/link/tx/keep_alive", str(int(s.keep_alive)))
+    if given("gossip_scouting"):
+        conf.insert_json5("scouting/gossip/enabled", json.dumps(s.gossip_scouting))
+    if given("lease_ms"):
+        conf.insert_json5("transport/link/tx/lease", str(int(s.lease_ms)))
+    if given("keep_alive"):
+        conf.insert_json5("transport/link/tx/keep_alive", str(int(s.keep_alive)))
     return conf
 
 

@@ -56,6 +56,13 @@ NAMED: dict[str, tuple[str, ...]] = {
             )
         ),
     ),
+    "deploy": (
+        "status_latency_ms_p50",
+        "status_latency_ms_p99",
+        "tls/status_latency_ms_p50",
+        "tls/status_latency_ms_p99",
+        "join_s",
+    ),
     "node": ("cpu_s_per_sim_s/peers_10", "cpu_s_per_sim_s/peers_50", "cpu_s_per_sim_s/peers_100"),
     "separation": (
         "avoid_cpu_us_per_tick/peers_10",

@@ -13,6 +13,8 @@ plan_timeout_s = 60.0
 mode = "peer"
 connect = ["tcp/192.168.1.10:7447"]
 lease_ms = 2000
+# config_file = "/etc/bandada/zenoh.json5"   # a Zenoh JSON5 config (e.g. from
+#                                 # `swarm-node certs make`); the keys above override it
 
 [profile]                         # optional: parameters without a database
 model = "Generic Quad"
@@ -26,7 +28,7 @@ from pathlib import Path
 
 import msgspec
 
-from swarm_proto.session import ZenohSettings
+from swarm_proto.session import ZenohSettings, zenoh_config
 from swarm_proto.topics import check_swarm_name
 
 from ..core.profile import VehicleProfile
@@ -83,16 +85,22 @@ def load_config(path: str | Path | None, **overrides: object) -> NodeConfig:
         except (OSError, msgspec.DecodeError) as exc:
             raise ValueError(f"cannot read config {path}: {exc}") from exc
     zenoh = dict(data.pop("zenoh", {}) or {})  # type: ignore[call-overload]
-    for key in ("mode", "listen", "connect", "lease_ms"):
+    file = zenoh.get("config_file")
+    if isinstance(file, str) and path is not None and not Path(file).is_absolute():
+        zenoh["config_file"] = str(Path(path).parent / file)  # relative to the TOML file
+    for key in ("mode", "listen", "connect", "lease_ms", "config_file"):
         value = overrides.pop(f"zenoh_{key}", None)
         if value not in (None, (), []):
             zenoh[key] = value
     data.update({k: v for k, v in overrides.items() if v is not None})
     data["zenoh"] = zenoh
     try:
-        return msgspec.convert(data, NodeConfig)
+        cfg = msgspec.convert(data, NodeConfig)
     except (msgspec.ValidationError, ValueError) as exc:
         raise ValueError(f"invalid node configuration: {exc}") from exc
+    if cfg.zenoh.config_file:
+        zenoh_config(cfg.zenoh)  # a missing or broken Zenoh file: a clear error now
+    return cfg
 
 
 def profile_from_config(cfg: NodeConfig) -> VehicleProfile:
