@@ -93,9 +93,10 @@ def test_batch_matches_single(a: Pose, b: Pose, r: float) -> None:
     shortest = {
         q.word for q in all_paths(a, b, r) if q.length_m == pytest.approx(p.length_m, abs=1e-9)
     }
-    same_pose = math.hypot(b.x - a.x, b.y - a.y) <= 1e-6 * r and abs(
-        math.remainder(b.yaw - a.yaw, 2 * math.pi)
-    ) <= 1e-6
+    same_pose = (
+        math.hypot(b.x - a.x, b.y - a.y) <= 1e-6 * r
+        and abs(math.remainder(b.yaw - a.yaw, 2 * math.pi)) <= 1e-6
+    )
     assert Word(int(words[0])) in shortest or same_pose
 
 
