@@ -49,6 +49,7 @@ from rich.console import Console
 from rich.table import Table
 
 from gcs_cli.ground import GroundStation
+from swarm_node.database import SwarmDatabase
 from swarm_proto import (
     Ack,
     AlertCode,
@@ -402,6 +403,7 @@ class Harness:
         for run in self.runs:
             s = run.spec
             url = f"tcp:127.0.0.1:{s.port}"
+            self._match_battery(self.tmp / f"node{s.node_id}.db", s)
             run.node = self._spawn([py, "-m", "swarm_node.cli", "run", "--id", str(s.node_id),
                                     "--autopilot", url, "--swarm", SWARM, "--db",
                                     str(self.tmp / f"node{s.node_id}.db"), "--connect",
@@ -560,6 +562,21 @@ class Harness:
                 detail += f"; node alert: {refused[0].text}"
             run.result.set("fence", ok, detail)
 
+    @staticmethod
+    def _match_battery(path: Path, spec: VehicleSpec) -> None:
+        """The node's database holds the battery the vehicle is given (EXTRA_PARAMS'
+        BATT_CAPACITY): the endurance-aware split plans each share with it."""
+        mah = EXTRA_PARAMS.get(spec.kind, {}).get("BATT_CAPACITY")
+        if mah is None:
+            return
+        with SwarmDatabase.open(path) as db:
+            model = db.vehicle_profile(spec.node_id).model
+            doc = db.export(["systems"])
+            rows = [r for r in doc["groups"]["systems"]["model-params"] if r["model"] == model]
+            for r in rows:
+                r["battery_capacity_mah"] = float(mah)
+            db.import_document({**doc, "groups": {"systems": {"model-params": rows}}})
+
     def check_survey(self, area: Any, zone: NoFlyZone) -> None:
         """Each vehicle surveys the field alone (at the same time), so that each plan
         keeps its own vehicle type's margin from the zone (a mixed fleet's plan keeps
@@ -596,8 +613,17 @@ class Harness:
             here = obs.here() if obs is not None else None
             return here is not None and distance_m(here.lat, here.lon, *run.home) > 150.0
 
+        def failed(run: Run) -> bool:
+            """Its mission was refused, or planning failed: nothing will fly."""
+            a = acks.get(run.spec.node_id)
+            return (a is not None and not a.accepted) or bool(
+                self.alerts(run.spec.node_id, AlertCode.PLAN_FAILED, t0_unix)
+            )
+
         self.wait(
-            lambda: all(down(r) or stuck(r) for r in self.runs), self.args.survey_timeout, 1.0
+            lambda: all(down(r) or stuck(r) or failed(r) for r in self.runs),
+            self.args.survey_timeout,
+            1.0,
         )
         for run in self.runs:
             vid = run.spec.node_id
