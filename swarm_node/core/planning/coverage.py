@@ -22,6 +22,8 @@
 
 from __future__ import annotations
 
+import collections
+import functools
 import itertools
 import math
 from collections.abc import Sequence
@@ -463,6 +465,56 @@ def _poses(lanes_: Sequence[Lane]) -> tuple[FloatArray, FloatArray]:
     return st, en
 
 
+# Transition-cost matrices of recent lane sets: the split orders many blocks of one
+# plan's lanes, whose matrices are slices of the whole set's (a pure function of
+# immutable arguments; bounded).
+_COST_SETS: collections.OrderedDict[tuple[Any, ...], tuple[dict[Lane, int], FloatArray]] = (
+    collections.OrderedDict()
+)
+_COST_SETS_MAX = 8
+
+
+def _lane_costs(lanes_: Sequence[Lane], turns: TurnModel) -> FloatArray:
+    """turns.cost_matrix from every lane end (both directions: rows 2i a->b, 2i+1 b->a)
+    to every lane start, sliced from a recent superset's matrix when there is one."""
+    try:
+        hash(turns)
+    except TypeError:
+        st, en = _poses(lanes_)
+        return turns.cost_matrix(en, st)
+    st, en = _poses(lanes_)
+    for (t, _lanes), (index, full) in reversed(_COST_SETS.items()):
+        if t != turns:
+            continue
+        rows = [index.get(ln) for ln in lanes_]
+        known = [i for i, r in enumerate(rows) if r is not None]
+        if len(known) < len(lanes_) - 2:
+            continue
+        # the lanes of the set: sliced; the others (a cut lane or two): computed
+        ki = np.array(known, dtype=np.intp)
+        kr = np.array([rows[i] for i in known], dtype=np.intp)
+        mine = np.column_stack([2 * ki, 2 * ki + 1]).ravel()
+        theirs = np.column_stack([2 * kr, 2 * kr + 1]).ravel()
+        out = np.empty((2 * len(lanes_), 2 * len(lanes_)))
+        out[np.ix_(mine, mine)] = full[np.ix_(theirs, theirs)]
+        new = np.setdiff1d(np.arange(2 * len(lanes_)), mine)
+        if len(new):
+            out[new, :] = turns.cost_matrix(en[new], st)
+            out[:, new] = turns.cost_matrix(en, st[new])
+        return out
+    cm = turns.cost_matrix(en, st)
+    _COST_SETS[(turns, tuple(lanes_))] = ({ln: i for i, ln in enumerate(lanes_)}, cm)
+    while len(_COST_SETS) > _COST_SETS_MAX:
+        _COST_SETS.popitem(last=False)
+    return np.array(cm)
+
+
+def clear_caches() -> None:
+    """Forget the memoized transitions and cost matrices (benchmarks time cold plans)."""
+    _COST_SETS.clear()
+    _cached_transition.cache_clear()
+
+
 def _padded(cm: FloatArray, first: FloatArray | None) -> FloatArray:
     """The transition matrix with a virtual start S (row 2n: the start pose, or free)
     and a virtual end E (column 2n+1: free), so every move is an interior one."""
@@ -482,22 +534,43 @@ def _flip(t: npt.NDArray[np.intp], m: int) -> npt.NDArray[np.intp]:
     return np.where(t < m, t ^ 1, t)
 
 
+@functools.lru_cache(maxsize=256)
+def _move_grids(n: int) -> tuple[Any, ...]:
+    """The index grids of `_improve`'s moves for a tour of n lanes (read-only)."""
+    pos = np.arange(1, n + 1)
+    i2, j2 = np.meshgrid(pos, pos, indexing="ij")
+    upper = j2 >= i2
+    ors = []
+    for k in (1, 2, 3):
+        if k > n:
+            break
+        ii = np.arange(1, n - k + 2)  # segment t[i..i+k-1]
+        p = np.arange(0, n + 1)  # insert between t[p] and t[p+1]
+        ig, pg = np.meshgrid(ii, p, indexing="ij")
+        eg = ig + k - 1
+        ok = (pg < ig - 1) | (pg > eg)
+        ors.append((k, ii, ii + k - 1, p, ig, pg, eg, ok))
+    for a in (pos, i2, j2, upper):
+        a.flags.writeable = False
+    return pos, i2, j2, upper, ors
+
+
 def _improve(t: npt.NDArray[np.intp], c: FloatArray, max_moves: int = 2000) -> npt.NDArray[np.intp]:
     """Steepest descent over 2-opt (reverse a run, which flips each lane's direction) and
     or-opt (move a run of 1-3 lanes elsewhere, either way round) moves, all evaluated at
     once with numpy over the padded matrix; t = [S, lanes..., E]."""
     m = c.shape[0] - 2
+    n = len(t) - 2
+    if n < 2:
+        return t
+    pos, i2, j2, upper, ors = _move_grids(n)
+    inf = np.inf
     for _ in range(max_moves):
-        n = len(t) - 2
-        if n < 2:
-            return t
         f = _flip(t, m)
         link = c[t[:-1], t[1:]]  # link[k]: t[k] -> t[k+1]
         pf = np.concatenate([[0.0], np.cumsum(link)])
         rl = c[f[1:], f[:-1]]  # reversed link between positions k and k+1
         pr = np.concatenate([[0.0], np.cumsum(rl)])
-        pos = np.arange(1, n + 1)
-        i2, j2 = np.meshgrid(pos, pos, indexing="ij")
         with np.errstate(invalid="ignore"):
             d2 = (
                 c[t[i2 - 1], f[j2]]
@@ -507,29 +580,20 @@ def _improve(t: npt.NDArray[np.intp], c: FloatArray, max_moves: int = 2000) -> n
                 - link[j2]
                 - (pf[j2] - pf[i2])
             )
-        d2 = np.where(j2 >= i2, d2, np.inf)
-        d2 = np.nan_to_num(d2, nan=np.inf)
+        d2 = np.where(upper & ~np.isnan(d2), d2, inf)
         best = float(d2.min())
         move: tuple[str, int, int, int, bool] | None = None
         if best < -1e-9:
             ri, rj = np.unravel_index(int(d2.argmin()), d2.shape)
             move = ("rev", int(pos[ri]), int(pos[rj]), 0, False)
-        for k in (1, 2, 3):
-            if k > n:
-                break
-            ii = np.arange(1, n - k + 2)  # segment t[i..i+k-1]
-            e = ii + k - 1
+        for k, ii, e, p, ig, pg, eg, ok in ors:
             gain = link[ii - 1] + link[e] - c[t[ii - 1], t[e + 1]]
-            p = np.arange(0, n + 1)  # insert between t[p] and t[p+1]
-            ig, pg = np.meshgrid(ii, p, indexing="ij")
-            eg = ig + k - 1
-            ok = (pg < ig - 1) | (pg > eg)
             with np.errstate(invalid="ignore"):
                 fwd = c[t[pg], t[ig]] + c[t[eg], t[pg + 1]] - link[pg]
                 inner = (pr[eg] - pr[ig]) - (pf[eg] - pf[ig])
                 bwd = c[t[pg], f[eg]] + c[f[ig], t[pg + 1]] - link[pg] + inner
                 dk = np.minimum(fwd, bwd) - gain[:, None]
-            dk = np.nan_to_num(np.where(ok, dk, np.inf), nan=np.inf)
+            dk = np.where(ok & ~np.isnan(dk), dk, inf)
             b = float(dk.min())
             if b < best - 1e-9 and b < -1e-9:
                 ra, rq = np.unravel_index(int(dk.argmin()), dk.shape)
@@ -577,17 +641,23 @@ def order(
     """The lanes in a short flight order and direction for this turn model (from
     `start` if given): the `restarts` cheapest seed patterns, each improved to a local
     optimum, best kept."""
+    return _order(lanes_, turns, start, restarts)[0]
+
+
+def _order(
+    lanes_: Sequence[Lane], turns: TurnModel, start: Pose | None, restarts: int
+) -> tuple[tuple[Lane, ...], float]:
+    """`order` and the sum of its transitions' lengths (from the cost matrix)."""
     if not lanes_:
-        return ()
-    st, en = _poses(lanes_)
-    cm = turns.cost_matrix(en, st)
+        return (), 0.0
+    cm = _lane_costs(lanes_, turns)
     n = len(lanes_)
     idx = np.arange(n)
     cm[2 * idx, 2 * idx] = cm[2 * idx + 1, 2 * idx + 1] = np.inf
     cm[2 * idx, 2 * idx + 1] = cm[2 * idx + 1, 2 * idx] = np.inf
     first = None
     if start is not None:
-        first = turns.cost_matrix(np.array([[start.x, start.y, start.yaw]]), st)[0]
+        first = turns.cost_matrix(np.array([[start.x, start.y, start.yaw]]), _poses(lanes_)[0])[0]
     c = _padded(cm, first)
     m = 2 * n
     tours = [np.array([m, *s, m + 1], dtype=np.intp) for s in _seeds(lanes_)]
@@ -595,7 +665,7 @@ def order(
     best = min((_improve(t, c) for t in tours[:restarts]), key=lambda t: _cost(t, c))
     return tuple(
         lanes_[v // 2] if v % 2 == 0 else lanes_[v // 2].reversed() for v in best[1:-1].tolist()
-    )
+    ), _cost(best, c)
 
 
 # --------------------------------------------------------------------------- connect
@@ -622,6 +692,20 @@ def connect(
 
 
 def _transition(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacles | None) -> Leg:
+    try:
+        return _cached_transition(a, b, turns, obstacles)  # type: ignore[arg-type]
+    except TypeError:  # a turn model that cannot be hashed
+        return _transition_uncached(a, b, turns, obstacles)
+
+
+# The split evaluates many blocks sharing most of their transitions (a pure function
+# of its arguments, all immutable: memoized, bounded).
+@functools.lru_cache(maxsize=16384)
+def _cached_transition(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacles | None) -> Leg:
+    return _transition_uncached(a, b, turns, obstacles)
+
+
+def _transition_uncached(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacles | None) -> Leg:
     pts = [(a.x, a.y)] + [(p.x, p.y) for p in turns.points(a, b)]
     length = turns.length(a, b)
     if obstacles is None or obstacles.is_empty:
@@ -653,12 +737,61 @@ def swaths(lanes_: Sequence[Lane], spacing_m: float) -> list[BaseGeometry]:
     return [LineString([ln.a, ln.b]).buffer(spacing_m / 2.0, cap_style="flat") for ln in lanes_]
 
 
+def _disjoint_swaths(lanes_: Sequence[Lane], spacing_m: float) -> bool:
+    """True when the lanes' swaths cannot overlap (their areas simply add up): sweep
+    lanes (no gap lanes), all parallel, lanes on one line disjoint along it and lines
+    at least a spacing apart across. What `lanes` makes; anything else is unioned."""
+    if any(ln.gap or ln.length_m <= 0.0 for ln in lanes_):
+        return False
+    yaw = lanes_[0].yaw
+    c, s = math.cos(yaw), math.sin(yaw)
+    by_line: dict[int, list[tuple[float, float, float]]] = {}
+    for ln in lanes_:
+        if abs(math.sin(ln.yaw - yaw)) > 1e-9:
+            return False
+        u0, u1 = ln.a[0] * c + ln.a[1] * s, ln.b[0] * c + ln.b[1] * s
+        v = -ln.a[0] * s + ln.a[1] * c
+        by_line.setdefault(ln.line, []).append((min(u0, u1), max(u0, u1), v))
+    tol = 1e-6 * max(spacing_m, 1.0)
+    across = []
+    for ivs in by_line.values():
+        ivs.sort()
+        v0 = ivs[0][2]
+        if any(abs(v - v0) > tol for _a, _b, v in ivs):
+            return False
+        if any(ivs[i][1] > ivs[i + 1][0] + tol for i in range(len(ivs) - 1)):
+            return False
+        across.append(v0)
+    across.sort()
+    return all(across[i + 1] - across[i] >= spacing_m - tol for i in range(len(across) - 1))
+
+
 def coverage_ratio(lanes_: Sequence[Lane], area: BaseGeometry, spacing_m: float) -> float:
-    """Fraction of `area` inside the union of the lanes' swaths at the lane spacing."""
+    """Fraction of `area` inside the union of the lanes' swaths at the lane spacing.
+
+    Sweep lanes' swaths tile the area without overlapping (`_disjoint_swaths`): then
+    the covered area is the sum of each swath's intersection with the area (one
+    vectorized GEOS call, no union); otherwise the swaths are unioned."""
     if area.is_empty or area.area <= 0:
         raise EmptyAreaError("coverage of an empty area")
     if not lanes_:
         return 0.0
+    if _disjoint_swaths(lanes_, spacing_m):
+        # in the frame where the lanes run along x, each swath is an axis-aligned box:
+        # GEOS's rectangle clipping, not a general overlay
+        yaw = lanes_[0].yaw
+        c, s = math.cos(yaw), math.sin(yaw)
+        rot = np.array([[c, -s], [s, c]])  # row vectors: (x, y) @ rot = rotated by -yaw
+        local = shapely.transform(area, lambda xy: xy @ rot)
+        ab = np.array([(*ln.a, *ln.b) for ln in lanes_], dtype=np.float64)
+        u0, v0 = (ab[:, :2] @ rot).T
+        u1 = (ab[:, 2:] @ rot)[:, 0]
+        lo, hi = np.minimum(u0, u1).tolist(), np.maximum(u0, u1).tolist()
+        h = spacing_m / 2.0
+        seen_area = 0.0
+        for x0, x1, v in zip(lo, hi, v0.tolist(), strict=True):
+            seen_area += float(shapely.clip_by_rect(local, x0, v - h, x1, v + h).area)
+        return min(seen_area / area.area, 1.0)
     seen = shapely.union_all(swaths(lanes_, spacing_m), grid_size=_GRID_M)
     return float(seen.intersection(area, grid_size=_GRID_M).area / area.area)
 
@@ -666,7 +799,7 @@ def coverage_ratio(lanes_: Sequence[Lane], area: BaseGeometry, spacing_m: float)
 def overlap_ratio(lanes_: Sequence[Lane], area: BaseGeometry, spacing_m: float) -> float:
     """Fraction of `area` seen by two or more swaths, counted with multiplicity
     (sum of swath areas inside `area` minus the area of their union, over `area`)."""
-    if not lanes_:
+    if not lanes_ or _disjoint_swaths(lanes_, spacing_m):
         return 0.0
     sw = swaths(lanes_, spacing_m)
     total = sum(s.intersection(area).area for s in sw)
@@ -797,6 +930,7 @@ def check_region(polygon: BaseGeometry) -> None:
 _EXTEND_LEVELS = (0.0, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5)
 _SHIFTS = (0.5, 0.0, 1.0)
 _NUDGES_DEG = (-1.0, -0.5, -0.25, 0.25, 0.5, 1.0)
+_RANK_RESTARTS = 1  # seed orders improved per candidate when ranking them
 
 
 @dataclass(frozen=True, slots=True)
@@ -826,7 +960,9 @@ def _least_extension(
         return got[i]
 
     lo, hi = 0, len(_EXTEND_LEVELS) - 1
-    if at(hi)[1] >= min_coverage:
+    if at(lo)[1] >= min_coverage:  # the usual case: no extension needed
+        hi = lo
+    elif at(hi)[1] >= min_coverage:
         while lo < hi:
             mid = (lo + hi) // 2
             if at(mid)[1] >= min_coverage:
@@ -863,13 +999,29 @@ def plan_lanes(
     else:
         cands = cands[:1]
     plans: list[LanePlan] = []
+    # without obstacles no transition is rerouted: a path's length is its lanes plus
+    # the order's transition costs, and only the chosen order needs connecting
+    lazy = region.obstacles.is_empty
+    unconnected: list[tuple[bool, float, int, LanePlan, tuple[Lane, ...]]] = []
     for angle in cands:
         for shift in _SHIFTS if polish else _SHIFTS[:1]:
             ls, cov, ext = _least_extension(region, angle, spacing_m, shift, min_coverage)
             if not ls:
                 continue
+            if lazy:
+                seq, cost = _order(ls, turns, start, _RANK_RESTARTS)
+                length = sum(ln.length_m for ln in ls) + cost
+                stub = LanePlan(angle, spacing_m, ext, ls, CoveragePath((), ()), cov, 0.0)
+                unconnected.append((cov >= min_coverage, -length, -len(unconnected), stub, seq))
+                continue
             path = connect(order(ls, turns, start), turns, region.obstacles, start)
             plans.append(LanePlan(angle, spacing_m, ext, ls, path, cov, 0.0))
+    if unconnected:
+        *_k, stub, _seq = max(unconnected, key=lambda u: u[:3])
+        path = connect(order(stub.lanes, turns, start), turns, region.obstacles, start)
+        plans.append(
+            LanePlan(stub.angle_rad, spacing_m, stub.extend, stub.lanes, path, stub.coverage, 0.0)
+        )
 
     def rank(p: LanePlan) -> tuple[bool, float]:
         return p.coverage >= min_coverage, -p.path.length_m
