@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
-from .coverage import LanePlan, decompose, lane_spacing_m, plan_lanes
+from .coverage import LanePlan, check_flyable, decompose, lane_spacing_m, plan_lanes
 from .dubins import Pose, shortest_path
 from .errors import InvalidGeometryError, InvalidParameterError
 from .geo import LocalFrame
@@ -17,6 +17,8 @@ from .split import SplitPlan, Worker, replan, split_lanes
 from .turns import DubinsTurns, TurnModel
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
 from .zones import ARC_STEP_M, Obstacles, Track, ZoneSet
+
+MAX_FLIGHT_S = 4 * 3600.0  # an area mission the swarm would fly longer than this is refused
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,11 +113,14 @@ def plan_area(
     hfov_deg: float | None = None,
     min_coverage: float = 0.99,
     frame: LocalFrame | None = None,
+    max_flight_s: float = MAX_FLIGHT_S,
 ) -> AreaPlan:
     """Cover a POLYGON (holes are not covered, zones are cut out and never entered) with
     `vehicles`: lane spacing from the altitude, the narrowest camera HFOV and the side
     overlap; sweep direction searched; lanes split to minimize the makespan; each
-    vehicle at `altitude_rel_m + i * altitude_step_m`."""
+    vehicle at `altitude_rel_m + i * altitude_step_m`. A field the vehicles together
+    would take over `max_flight_s` to fly (estimated before planning) is refused:
+    FieldTooBigError with the estimate."""
     require_vehicles(vehicles)
     if geometry.kind != GeometryKind.POLYGON:
         raise InvalidGeometryError(f"an area mission needs a POLYGON, got {geometry.kind.name}")
@@ -133,7 +138,9 @@ def plan_area(
     region = decompose(poly, zones_here)
     spacing = lane_spacing_m(lo, _hfov(vehicles, hfov_deg), params.side_overlap)
     workers = _workers(vehicles, params, frame)
-    lp = plan_lanes(region, spacing, _reference_turns(workers), min_coverage=min_coverage)
+    turns = _reference_turns(workers)
+    check_flyable(region, spacing, turns, sum(w.speed_m_s for w in workers), max_flight_s)
+    lp = plan_lanes(region, spacing, turns, min_coverage=min_coverage)
     split = split_lanes(lp.lanes, workers, obstacles=region.obstacles)
     return AreaPlan(
         frame,

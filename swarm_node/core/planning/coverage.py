@@ -34,11 +34,12 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 import shapely.affinity
+import shapely.errors
 from shapely.geometry import LineString, MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from .dubins import FloatArray, Pose, shortest_path
-from .errors import EmptyAreaError, InvalidGeometryError, InvalidParameterError
+from .errors import EmptyAreaError, FieldTooBigError, InvalidGeometryError, InvalidParameterError
 from .geo import validated_polygon
 from .turns import DubinsTurns, TurnModel
 from .zones import ARC_STEP_M, Obstacles, ZoneSet
@@ -535,24 +536,30 @@ def _flip(t: npt.NDArray[np.intp], m: int) -> npt.NDArray[np.intp]:
 
 
 @functools.lru_cache(maxsize=256)
-def _move_grids(n: int) -> tuple[Any, ...]:
-    """The index grids of `_improve`'s moves for a tour of n lanes (read-only)."""
+def _moves(n: int) -> tuple[npt.NDArray[np.intp], ...]:
+    """Every move of `_improve` on a tour of n lanes, as flat index arrays (read-only):
+    2-opt reversals of t[i..j] (i <= j), then or-opt moves of t[i..e] (1-3 lanes)
+    between t[p] and t[p+1] (p outside the run)."""
     pos = np.arange(1, n + 1)
     i2, j2 = np.meshgrid(pos, pos, indexing="ij")
-    upper = j2 >= i2
-    ors = []
+    up = j2 >= i2
+    ri, rj = i2[up], j2[up]
+    ii_, ee_, pp_ = [], [], []
     for k in (1, 2, 3):
         if k > n:
             break
-        ii = np.arange(1, n - k + 2)  # segment t[i..i+k-1]
+        ii = np.arange(1, n - k + 2)  # run t[i..i+k-1]
         p = np.arange(0, n + 1)  # insert between t[p] and t[p+1]
         ig, pg = np.meshgrid(ii, p, indexing="ij")
         eg = ig + k - 1
         ok = (pg < ig - 1) | (pg > eg)
-        ors.append((k, ii, ii + k - 1, p, ig, pg, eg, ok))
-    for a in (pos, i2, j2, upper):
+        ii_.append(ig[ok])
+        ee_.append(eg[ok])
+        pp_.append(pg[ok])
+    out = (ri, rj, np.concatenate(ii_), np.concatenate(ee_), np.concatenate(pp_))
+    for a in out:
         a.flags.writeable = False
-    return pos, i2, j2, upper, ors
+    return out
 
 
 def _improve(t: npt.NDArray[np.intp], c: FloatArray, max_moves: int = 2000) -> npt.NDArray[np.intp]:
@@ -563,51 +570,45 @@ def _improve(t: npt.NDArray[np.intp], c: FloatArray, max_moves: int = 2000) -> n
     n = len(t) - 2
     if n < 2:
         return t
-    pos, i2, j2, upper, ors = _move_grids(n)
+    ri, rj, oi, oe, op = _moves(n)
     inf = np.inf
     for _ in range(max_moves):
         f = _flip(t, m)
         link = c[t[:-1], t[1:]]  # link[k]: t[k] -> t[k+1]
         pf = np.concatenate([[0.0], np.cumsum(link)])
         rl = c[f[1:], f[:-1]]  # reversed link between positions k and k+1
+        # (S and E are never inside a reversed run: their links, infinite reversed,
+        # must not poison the prefix sums of the others)
+        rl[0] = rl[-1] = 0.0
         pr = np.concatenate([[0.0], np.cumsum(rl)])
         with np.errstate(invalid="ignore"):
             d2 = (
-                c[t[i2 - 1], f[j2]]
-                + c[f[i2], t[j2 + 1]]
-                + (pr[j2] - pr[i2])
-                - link[i2 - 1]
-                - link[j2]
-                - (pf[j2] - pf[i2])
+                c[t[ri - 1], f[rj]]
+                + c[f[ri], t[rj + 1]]
+                + (pr[rj] - pr[ri])
+                - link[ri - 1]
+                - link[rj]
+                - (pf[rj] - pf[ri])
             )
-        d2 = np.where(upper & ~np.isnan(d2), d2, inf)
-        best = float(d2.min())
-        move: tuple[str, int, int, int, bool] | None = None
-        if best < -1e-9:
-            ri, rj = np.unravel_index(int(d2.argmin()), d2.shape)
-            move = ("rev", int(pos[ri]), int(pos[rj]), 0, False)
-        for k, ii, e, p, ig, pg, eg, ok in ors:
-            gain = link[ii - 1] + link[e] - c[t[ii - 1], t[e + 1]]
-            with np.errstate(invalid="ignore"):
-                fwd = c[t[pg], t[ig]] + c[t[eg], t[pg + 1]] - link[pg]
-                inner = (pr[eg] - pr[ig]) - (pf[eg] - pf[ig])
-                bwd = c[t[pg], f[eg]] + c[f[ig], t[pg + 1]] - link[pg] + inner
-                dk = np.minimum(fwd, bwd) - gain[:, None]
-            dk = np.where(ok & ~np.isnan(dk), dk, inf)
-            b = float(dk.min())
-            if b < best - 1e-9 and b < -1e-9:
-                ra, rq = np.unravel_index(int(dk.argmin()), dk.shape)
-                ia, qa = int(ii[ra]), int(p[rq])
-                rev = bool(bwd[ra, rq] < fwd[ra, rq])
-                best, move = b, ("move", ia, ia + k - 1, qa, rev)
-        if move is None:
+            lp = link[op]
+            fwd = c[t[op], t[oi]] + c[t[oe], t[op + 1]] - lp
+            bwd = (
+                c[t[op], f[oe]] + c[f[oi], t[op + 1]] - lp + ((pr[oe] - pr[oi]) - (pf[oe] - pf[oi]))
+            )
+            gain = link[oi - 1] + link[oe] - c[t[oi - 1], t[oe + 1]]
+            do = np.fmin(fwd, bwd) - gain
+        d2[np.isnan(d2)] = inf
+        do[np.isnan(do)] = inf
+        k2, ko = int(d2.argmin()), int(do.argmin())
+        b2, bo = float(d2[k2]), float(do[ko])
+        if min(b2, bo) >= -1e-9:
             return t
-        kind, i, j, q, rev = move
-        seg = t[i : j + 1]
-        if kind == "rev":
+        if b2 <= bo + 1e-9:
+            i, j = int(ri[k2]), int(rj[k2])
             t = np.concatenate([t[:i], f[i : j + 1][::-1], t[j + 1 :]])
         else:
-            piece = f[i : j + 1][::-1] if rev else seg
+            i, j, q = int(oi[ko]), int(oe[ko]), int(op[ko])
+            piece = f[i : j + 1][::-1] if bwd[ko] < fwd[ko] else t[i : j + 1]
             rest = np.concatenate([t[:i], t[j + 1 :]])
             at = q + 1 if q < i else q + 1 - (j - i + 1)
             t = np.concatenate([rest[:at], piece, rest[at:]])
@@ -636,7 +637,7 @@ def _along(ln: Lane) -> float:
 
 
 def order(
-    lanes_: Sequence[Lane], turns: TurnModel, start: Pose | None = None, *, restarts: int = 4
+    lanes_: Sequence[Lane], turns: TurnModel, start: Pose | None = None, *, restarts: int = 2
 ) -> tuple[Lane, ...]:
     """The lanes in a short flight order and direction for this turn model (from
     `start` if given): the `restarts` cheapest seed patterns, each improved to a local
@@ -777,23 +778,31 @@ def coverage_ratio(lanes_: Sequence[Lane], area: BaseGeometry, spacing_m: float)
     if not lanes_:
         return 0.0
     if _disjoint_swaths(lanes_, spacing_m):
-        # in the frame where the lanes run along x, each swath is an axis-aligned box:
-        # GEOS's rectangle clipping, not a general overlay
-        yaw = lanes_[0].yaw
-        c, s = math.cos(yaw), math.sin(yaw)
-        rot = np.array([[c, -s], [s, c]])  # row vectors: (x, y) @ rot = rotated by -yaw
-        local = shapely.transform(area, lambda xy: xy @ rot)
-        ab = np.array([(*ln.a, *ln.b) for ln in lanes_], dtype=np.float64)
-        u0, v0 = (ab[:, :2] @ rot).T
-        u1 = (ab[:, 2:] @ rot)[:, 0]
-        lo, hi = np.minimum(u0, u1).tolist(), np.maximum(u0, u1).tolist()
-        h = spacing_m / 2.0
-        seen_area = 0.0
-        for x0, x1, v in zip(lo, hi, v0.tolist(), strict=True):
-            seen_area += float(shapely.clip_by_rect(local, x0, v - h, x1, v + h).area)
-        return min(seen_area / area.area, 1.0)
+        try:
+            return _tiled_coverage(lanes_, area, spacing_m)
+        except shapely.errors.GEOSException:
+            pass  # a degenerate area the rectangle clipping cannot take: unioned
     seen = shapely.union_all(swaths(lanes_, spacing_m), grid_size=_GRID_M)
     return float(seen.intersection(area, grid_size=_GRID_M).area / area.area)
+
+
+def _tiled_coverage(lanes_: Sequence[Lane], area: BaseGeometry, spacing_m: float) -> float:
+    """Coverage of swaths that tile without overlapping: the sum of each swath's
+    intersection with the area. In the frame where the lanes run along x each swath is
+    an axis-aligned box: GEOS's rectangle clipping, not a general overlay."""
+    yaw = lanes_[0].yaw
+    c, s = math.cos(yaw), math.sin(yaw)
+    rot = np.array([[c, -s], [s, c]])  # row vectors: (x, y) @ rot = rotated by -yaw
+    local = shapely.transform(area, lambda xy: xy @ rot)
+    ab = np.array([(*ln.a, *ln.b) for ln in lanes_], dtype=np.float64)
+    u0, v0 = (ab[:, :2] @ rot).T
+    u1 = (ab[:, 2:] @ rot)[:, 0]
+    lo, hi = np.minimum(u0, u1).tolist(), np.maximum(u0, u1).tolist()
+    h = spacing_m / 2.0
+    seen_area = 0.0
+    for x0, x1, v in zip(lo, hi, v0.tolist(), strict=True):
+        seen_area += float(shapely.clip_by_rect(local, x0, v - h, x1, v + h).area)
+    return min(seen_area / area.area, 1.0)
 
 
 def overlap_ratio(lanes_: Sequence[Lane], area: BaseGeometry, spacing_m: float) -> float:
@@ -973,6 +982,70 @@ def _least_extension(
     return ls, cov, _EXTEND_LEVELS[hi]
 
 
+# GIS fields come with thousands of vertices: above this many the lanes are planned on
+# the field simplified within a tolerance tied to the lane spacing (coverage is still
+# measured on the field itself)
+_MAX_VERTICES = 256
+_SIMPLIFY_SPACINGS = 0.05  # simplification tolerance, in lane spacings
+
+
+def _vertex_count(g: BaseGeometry) -> int:
+    return int(shapely.get_num_coordinates(g))
+
+
+def simplified(region: Region, spacing_m: float) -> Region:
+    """The region whose cover has at most about `_MAX_VERTICES` vertices: the cover
+    simplified within a tolerance (Douglas-Peucker) then grown by it, so it contains the
+    original cover and lanes planned on it see all of it. The tolerance starts at 5 %
+    of the lane spacing and doubles, up to half a spacing, until the cover is small
+    enough. The keep-out, obstacles, polygon and coverage target stay exact. Unchanged
+    when already small."""
+    if _vertex_count(region.cover) <= _MAX_VERTICES:
+        return region
+    tol = _SIMPLIFY_SPACINGS * spacing_m
+    best = region
+    while tol <= 0.5 * spacing_m + 1e-9:
+        # every vertex dropped is within tol of the simplified boundary: grown by tol
+        # (mitred corners, a few vertices each) it contains the original
+        thin = region.cover.simplify(tol, preserve_topology=True)
+        cover = _polygonal(thin.buffer(tol, join_style="mitre", mitre_limit=2.0))
+        if not cover.is_empty and cover.is_valid:
+            best = Region(cover, region.keep_out, region.polygon, region.obstacles, region.target)
+            if _vertex_count(cover) <= _MAX_VERTICES:
+                break
+        tol *= 2.0
+    return best
+
+
+def estimated_flight_s(
+    region: Region, spacing_m: float, turns: TurnModel, speed_m_s: float
+) -> float:
+    """A quick estimate of the time to fly the whole region at `speed_m_s` (before any
+    planning): lane length (area / spacing) plus one turn per lane across the region's
+    extent, for the sweep along its longer side."""
+    if not (math.isfinite(speed_m_s) and speed_m_s > 0.0):
+        raise InvalidParameterError(f"speed must be > 0, got {speed_m_s}")
+    x0, y0, x1, y1 = region.cover.bounds
+    n_lanes = math.ceil(min(x1 - x0, y1 - y0) / spacing_m)
+    turn = SweepCost.for_turns(turns, spacing_m).turn_m
+    return (region.cover.area / spacing_m + n_lanes * turn) / speed_m_s
+
+
+def check_flyable(
+    region: Region, spacing_m: float, turns: TurnModel, speed_m_s: float, max_flight_s: float
+) -> float:
+    """The estimated flight time (s) of the region, or FieldTooBigError when it is over
+    `max_flight_s`: a field too big to fly is refused before it is planned."""
+    est = estimated_flight_s(region, spacing_m, turns, speed_m_s)
+    if est > max_flight_s:
+        raise FieldTooBigError(
+            f"field too big to fly: about {est / 3600.0:.1f} h of flight "
+            f"(limit {max_flight_s / 3600.0:.1f} h) at {speed_m_s:.1f} m/s",
+            est,
+        )
+    return est
+
+
 def plan_lanes(
     region: Region,
     spacing_m: float,
@@ -990,6 +1063,7 @@ def plan_lanes(
     and the centred grid (about ten times faster)."""
     if not 0.0 < min_coverage <= 1.0:
         raise InvalidParameterError(f"min_coverage must be in (0, 1], got {min_coverage}")
+    region = simplified(region, spacing_m)
     cands = [
         a
         for _c, a in sweep_angles(region, spacing_m, SweepCost.for_turns(turns, spacing_m), top=top)
@@ -1018,7 +1092,7 @@ def plan_lanes(
             plans.append(LanePlan(angle, spacing_m, ext, ls, path, cov, 0.0))
     if unconnected:
         *_k, stub, _seq = max(unconnected, key=lambda u: u[:3])
-        path = connect(order(stub.lanes, turns, start), turns, region.obstacles, start)
+        path = connect(order(stub.lanes, turns, start, restarts=4), turns, region.obstacles, start)
         plans.append(
             LanePlan(stub.angle_rad, spacing_m, stub.extend, stub.lanes, path, stub.coverage, 0.0)
         )
