@@ -47,10 +47,6 @@ def test_overlapping_swaths_are_unioned() -> None:
     assert cov.coverage_ratio([a, b], area, 20.0) == pytest.approx(30.0 * 100.0 / 5000.0)
 
 
-def _tour_cost(lanes_: tuple[cov.Lane, ...]) -> float:
-    return sum(TURNS.length(x.end_pose(), y.start_pose()) for x, y in zip(lanes_, lanes_[1:]))
-
-
 def test_order_local_search_improves_a_bad_tour() -> None:
     ls = [cov.Lane(k, (0.0, 40.0 * k), (500.0, 40.0 * k)) for k in range(8)]
     st, en = cov._poses(ls)
