@@ -464,6 +464,11 @@ def unwrap_time_ms(ms_mod: int, now_unix_s: float) -> float:
 
 
 _UNPACK = STATUS_LAYOUT.unpack_from
+# enum members by value (a value missing here is not a member: the checked path says so)
+_GPS_FIX = {int(m): m for m in GpsFix}
+_FSM = {int(m): m for m in FsmState}
+_MISSION = {int(m): m for m in MissionState}
+_ALERTS: dict[int, AlertFlag] = {}  # filled as values are seen (at most 2^16)
 _LAT_D, _LON_D, _ALT_D, _REL_D = _LAT.digits, _LON.digits, _ALT.digits, _REL.digits
 _VN_D, _VE_D, _VD_D, _HDG_D = _VN.digits, _VE.digits, _VD.digits, _HDG.digits
 _ASPD_D, _VOLT_D = _ASPD.digits, _VOLT.digits
@@ -511,6 +516,9 @@ def _decode_status(data: bytes, now_unix_s: float) -> VehicleStatus:
             f_aspd = round(aspd * _ASPD_RES, _ASPD_D)
             f_volt = round(volt * _VOLT_RES, _VOLT_D)
             bat = -1 if batt == 255 else batt
+            flag = _ALERTS.get(alerts)
+            if flag is None:
+                flag = _ALERTS[alerts] = AlertFlag(alerts)
             if (
                 _VID_LO <= vid <= _VID_HI
                 and _T_LO <= t <= _T_HI
@@ -542,15 +550,15 @@ def _decode_status(data: bytes, now_unix_s: float) -> VehicleStatus:
                     f_aspd,
                     bat,
                     f_volt,
-                    GpsFix(gps & 0x7),
+                    _GPS_FIX[gps & 0x7],
                     gps >> 3,
                     mode,
                     bool(flags & 1),
-                    FsmState((flags >> 1) & 0x3),
-                    MissionState((flags >> 3) & 0xF),
+                    _FSM[(flags >> 1) & 0x3],
+                    _MISSION[(flags >> 3) & 0xF],
                     prog,
                     fleet,
-                    AlertFlag(alerts),
+                    flag,
                 )
         except _DECODE_FAILURES:
             pass
