@@ -1077,12 +1077,16 @@ def plan_lanes(
     # the order's transition costs, and only the chosen order needs connecting
     lazy = region.obstacles.is_empty
     unconnected: list[tuple[bool, float, int, LanePlan, tuple[Lane, ...]]] = []
+    seen: set[tuple[Lane, ...]] = set()
     for angle in cands:
         for shift in _SHIFTS if polish else _SHIFTS[:1]:
             ls, cov, ext = _least_extension(region, angle, spacing_m, shift, min_coverage)
             if not ls:
                 continue
             if lazy:
+                if ls in seen:  # the same lanes as another placement (no slack): same path
+                    continue
+                seen.add(ls)
                 seq, cost = _order(ls, turns, start, _RANK_RESTARTS)
                 length = sum(ln.length_m for ln in ls) + cost
                 stub = LanePlan(angle, spacing_m, ext, ls, CoveragePath((), ()), cov, 0.0)
