@@ -203,12 +203,13 @@ def tcp_run(n: int, wall_s: float) -> dict[str, Any]:
 
 
 def _swarm_profiles(n: int) -> dict[int, Any]:
-    """`n` node profiles (ids 1..n), the seed systems' profiles in turn."""
+    """`n` node profiles (ids 1..n), the seed vehicles' profiles in turn."""
     import msgspec
 
     from swarm_node.database import seed_fleet
+    from swarm_sim.fast_fleet import MODEL_OF_TYPE
 
-    seeds = list(seed_fleet())
+    seeds = [p for p in seed_fleet() if p.vehicle_type in MODEL_OF_TYPE]  # no ground station
     return {
         vid: msgspec.structs.replace(seeds[(vid - 1) % len(seeds)], vehicle_id=vid)
         for vid in range(1, n + 1)
