@@ -309,7 +309,117 @@ def _check_status_ints(s: VehicleStatus) -> None:
             raise EncodeError(f"VehicleStatus.{name} = {value!r} is out of its range")
 
 
+def _closed(f: _Fixed) -> tuple[float, float]:
+    """A fixed field's bounds as a closed range (the layout's fields have no strict
+    lower bound; a strict upper bound is checked as `x < hi` by its caller)."""
+    b = f.bounds
+    assert b.gt is None and b.ge is not None
+    hi = b.le if b.le is not None else b.lt
+    assert hi is not None
+    return float(b.ge), float(hi)
+
+
+def _ints_range(name: str) -> tuple[int, int]:
+    b = _STATUS_INTS[name]
+    assert b.gt is None and b.lt is None and b.ge is not None and b.le is not None
+    return int(b.ge), int(b.le)
+
+
+# the status fields' limits as plain numbers, for the fast paths below; the fast paths
+# only accept what the checked paths (`_encode_status_checked`, `_decode_status_checked`)
+# accept, and hand anything else to them (for the exact error)
+assert all(f.bounds.lt is None for f in (_TIME, _LAT, _LON, _ALT, _REL, _VN, _VE, _VD, _ASPD))
+assert _VOLT.bounds.lt is None and _HDG.bounds.le is None and _HDG.bounds.lt is not None
+_T_LO, _T_HI = _closed(_TIME)
+_LAT_LO, _LAT_HI = _closed(_LAT)
+_LON_LO, _LON_HI = _closed(_LON)
+_ALT_LO, _ALT_HI = _closed(_ALT)
+_REL_LO, _REL_HI = _closed(_REL)
+_VN_LO, _VN_HI = _closed(_VN)
+_VE_LO, _VE_HI = _closed(_VE)
+_VD_LO, _VD_HI = _closed(_VD)
+_HDG_LO, _HDG_LT = _closed(_HDG)  # heading < 360
+_ASPD_LO, _ASPD_HI = _closed(_ASPD)
+_VOLT_LO, _VOLT_HI = _closed(_VOLT)
+_VID_LO, _VID_HI = _ints_range("vehicle_id")
+_BAT_LO, _BAT_HI = _ints_range("battery_pct")
+_MODE_LO, _MODE_HI = _ints_range("ap_mode")
+_PROG_LO, _PROG_HI = _ints_range("mission_progress_pct")
+_FLEET_LO, _FLEET_HI = _ints_range("fleet_id")
+assert _TIME.hi_q is not None and _HDG.hi_q is not None
+_T_RES, _T_HQ = _TIME.res, _TIME.hi_q
+_LAT_RES, _LON_RES, _ALT_RES, _REL_RES = _LAT.res, _LON.res, _ALT.res, _REL.res
+_VN_RES, _VE_RES, _VD_RES = _VN.res, _VE.res, _VD.res
+_HDG_RES, _HDG_HQ, _ASPD_RES, _VOLT_RES = _HDG.res, _HDG.hi_q, _ASPD.res, _VOLT.res
+_PACK = STATUS_LAYOUT.pack
+
+
 def _encode_status(s: VehicleStatus) -> bytes:
+    """The status layout, fast path: the same bytes as `_encode_status_checked` (the
+    same quantization, rounding and clamping) for every status within its bounds;
+    anything else (out of range, NaN, wrong type) goes through the checked path."""
+    try:
+        vid, t, lat, lon = s.vehicle_id, s.time_unix_s, s.lat_deg, s.lon_deg
+        alt, rel, vn, ve, vd = (
+            s.alt_msl_m,
+            s.alt_rel_m,
+            s.vel_north_m_s,
+            s.vel_east_m_s,
+            s.vel_down_m_s,
+        )
+        hdg, aspd, bat, volt = s.heading_deg, s.airspeed_m_s, s.battery_pct, s.battery_v
+        mode, prog, fleet = s.ap_mode, s.mission_progress_pct, s.fleet_id
+        if (
+            _VID_LO <= vid <= _VID_HI
+            and _T_LO <= t <= _T_HI
+            and _LAT_LO <= lat <= _LAT_HI
+            and _LON_LO <= lon <= _LON_HI
+            and _ALT_LO <= alt <= _ALT_HI
+            and _REL_LO <= rel <= _REL_HI
+            and _VN_LO <= vn <= _VN_HI
+            and _VE_LO <= ve <= _VE_HI
+            and _VD_LO <= vd <= _VD_HI
+            and _HDG_LO <= hdg < _HDG_LT
+            and _ASPD_LO <= aspd <= _ASPD_HI
+            and _BAT_LO <= bat <= _BAT_HI
+            and _VOLT_LO <= volt <= _VOLT_HI
+            and _MODE_LO <= mode <= _MODE_HI
+            and _PROG_LO <= prog <= _PROG_HI
+            and _FLEET_LO <= fleet <= _FLEET_HI
+        ):
+            q_t = round(t / _T_RES)
+            q_h = round(hdg / _HDG_RES)
+            return _PACK(
+                RADIO_SCHEMA_VERSION,
+                _STATUS_TAG,
+                vid,
+                (q_t if q_t <= _T_HQ else _T_HQ) % _MS_WRAP,
+                round(lat / _LAT_RES),
+                round(lon / _LON_RES),
+                round(alt / _ALT_RES),
+                round(rel / _REL_RES),
+                round(vn / _VN_RES),
+                round(ve / _VE_RES),
+                round(vd / _VD_RES),
+                q_h if q_h <= _HDG_HQ else _HDG_HQ,
+                round(aspd / _ASPD_RES),
+                255 if bat < 0 else bat,
+                round(volt / _VOLT_RES),
+                (int(s.gps_fix) & 0x7) | min(s.gps_sats, 31) << 3,
+                mode,
+                (1 if s.armed else 0)
+                | (int(s.fsm_state) & 0x3) << 1
+                | (int(s.mission_state) & 0xF) << 3,
+                prog,
+                fleet,
+                int(s.alerts),
+            )
+    except (struct.error, TypeError, ValueError, OverflowError):
+        pass
+    return _encode_status_checked(s)
+
+
+def _encode_status_checked(s: VehicleStatus) -> bytes:
     _check_status_ints(s)
     flags = (
         (1 if s.armed else 0) | (int(s.fsm_state) & 0x3) << 1 | (int(s.mission_state) & 0xF) << 3
@@ -353,7 +463,109 @@ def unwrap_time_ms(ms_mod: int, now_unix_s: float) -> float:
     return t / 1000.0
 
 
+_UNPACK = STATUS_LAYOUT.unpack_from
+# enum members by value (a value missing here is not a member: the checked path says so)
+_GPS_FIX = {int(m): m for m in GpsFix}
+_FSM = {int(m): m for m in FsmState}
+_MISSION = {int(m): m for m in MissionState}
+_ALERTS: dict[int, AlertFlag] = {}  # filled as values are seen (at most 2^16)
+_LAT_D, _LON_D, _ALT_D, _REL_D = _LAT.digits, _LON.digits, _ALT.digits, _REL.digits
+_VN_D, _VE_D, _VD_D, _HDG_D = _VN.digits, _VE.digits, _VD.digits, _HDG.digits
+_ASPD_D, _VOLT_D = _ASPD.digits, _VOLT.digits
+
+
 def _decode_status(data: bytes, now_unix_s: float) -> VehicleStatus:
+    """The status layout, fast path: the same status as `_decode_status_checked` (which
+    validates through msgspec.convert) for every payload whose values are all within
+    the message's bounds, built directly; anything else goes through the checked path
+    (for the exact error)."""
+    if len(data) >= STATUS_BYTES:
+        try:
+            (
+                _v,
+                _t,
+                vid,
+                t_ms,
+                lat,
+                lon,
+                alt,
+                rel,
+                vn,
+                ve,
+                vd,
+                hdg,
+                aspd,
+                batt,
+                volt,
+                gps,
+                mode,
+                flags,
+                prog,
+                fleet,
+                alerts,
+            ) = _UNPACK(data)
+            t = unwrap_time_ms(t_ms, now_unix_s)
+            f_lat = round(lat * _LAT_RES, _LAT_D)
+            f_lon = round(lon * _LON_RES, _LON_D)
+            f_alt = round(alt * _ALT_RES, _ALT_D)
+            f_rel = round(rel * _REL_RES, _REL_D)
+            f_vn = round(vn * _VN_RES, _VN_D)
+            f_ve = round(ve * _VE_RES, _VE_D)
+            f_vd = round(vd * _VD_RES, _VD_D)
+            f_hdg = round(hdg * _HDG_RES, _HDG_D)
+            f_aspd = round(aspd * _ASPD_RES, _ASPD_D)
+            f_volt = round(volt * _VOLT_RES, _VOLT_D)
+            bat = -1 if batt == 255 else batt
+            flag = _ALERTS.get(alerts)
+            if flag is None:
+                flag = _ALERTS[alerts] = AlertFlag(alerts)
+            if (
+                _VID_LO <= vid <= _VID_HI
+                and _T_LO <= t <= _T_HI
+                and _LAT_LO <= f_lat <= _LAT_HI
+                and _LON_LO <= f_lon <= _LON_HI
+                and _ALT_LO <= f_alt <= _ALT_HI
+                and _REL_LO <= f_rel <= _REL_HI
+                and _VN_LO <= f_vn <= _VN_HI
+                and _VE_LO <= f_ve <= _VE_HI
+                and _VD_LO <= f_vd <= _VD_HI
+                and _HDG_LO <= f_hdg < _HDG_LT
+                and _ASPD_LO <= f_aspd <= _ASPD_HI
+                and _BAT_LO <= bat <= _BAT_HI
+                and _VOLT_LO <= f_volt <= _VOLT_HI
+                and _PROG_LO <= prog <= _PROG_HI
+                and _FLEET_LO <= fleet <= _FLEET_HI
+            ):
+                return VehicleStatus(
+                    vid,
+                    t,
+                    f_lat,
+                    f_lon,
+                    f_alt,
+                    f_rel,
+                    f_vn,
+                    f_ve,
+                    f_vd,
+                    f_hdg,
+                    f_aspd,
+                    bat,
+                    f_volt,
+                    _GPS_FIX[gps & 0x7],
+                    gps >> 3,
+                    mode,
+                    bool(flags & 1),
+                    _FSM[(flags >> 1) & 0x3],
+                    _MISSION[(flags >> 3) & 0xF],
+                    prog,
+                    fleet,
+                    flag,
+                )
+        except _DECODE_FAILURES:
+            pass
+    return _decode_status_checked(data, now_unix_s)
+
+
+def _decode_status_checked(data: bytes, now_unix_s: float) -> VehicleStatus:
     if len(data) < STATUS_BYTES:
         raise DecodeError(
             f"VehicleStatus needs {STATUS_BYTES} bytes, got {len(data)}", reason="truncated"

@@ -33,13 +33,23 @@ NAMED: dict[str, tuple[str, ...]] = {
     ),
     "proto": (
         "status_radio_bytes",
+        "status_frame_bytes",
         "status_lan_bytes",
         "high_latency2_bytes",
+        "high_latency2_signed_bytes",
         "status_encode_us",
         "status_decode_us",
         "high_latency2_encode_us",
+        "high_latency2_decode_us",
+        "status_encode_vs_high_latency2",
+        "status_decode_vs_high_latency2",
     ),
-    "sim": ("vehicles_per_core_at_10x",),
+    "sim": (
+        "kept_pace",
+        "swarm_rt_factor/vehicles_10",
+        "swarm_rt_factor/vehicles_50",
+        "swarm_rt_factor/vehicles_100",
+    ),
     "radio_scale": (
         "bare_limit_ratio",
         *(
@@ -78,6 +88,7 @@ NAMED: dict[str, tuple[str, ...]] = {
         "ompl_us_per_call",
         "dubins_max_err_m",
         "split_imbalance",
+        "gis_4000/full_plan_ms",
     ),
     "mission": (
         "battery_min_pct_at_landing",
@@ -132,7 +143,7 @@ def test_planner_results_per_reference_polygon() -> None:
     polygons = _load("planners")["polygons"]
     assert len(polygons) == 4
     for name, figures in polygons.items():
-        for key in ("lanes", "coverage", "overlap", "path_m", "sweep_ms"):
+        for key in ("lanes", "coverage", "overlap", "path_m", "sweep_ms", "full_plan_ms"):
             assert key in figures, (name, key)
 
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
-from .coverage import LanePlan, decompose, lane_spacing_m, plan_lanes
+from .coverage import LanePlan, check_flyable, decompose, lane_spacing_m, plan_lanes
 from .dubins import Pose, shortest_path
 from .endurance import Endurance, accel_m_s2
 from .errors import InvalidGeometryError, InvalidParameterError
@@ -18,6 +18,8 @@ from .split import MakespanCost, SplitPlan, Worker, replan, split_lanes
 from .turns import DubinsTurns, TurnModel
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
 from .zones import ARC_STEP_M, Obstacles, Track, ZoneSet
+
+MAX_FLIGHT_S = 4 * 3600.0  # an area mission the swarm would fly longer than this is refused
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,6 +148,7 @@ def plan_area(
     endurance: bool = False,
     extra_s: Mapping[int, float] | None = None,
     legacy_split: bool = False,
+    max_flight_s: float = MAX_FLIGHT_S,
 ) -> AreaPlan:
     """Cover a POLYGON (holes are not covered, zones are cut out and never entered) with
     `vehicles`: lane spacing from the altitude, the narrowest camera HFOV and the side
@@ -157,7 +160,9 @@ def plan_area(
     cover the area). `extra_s`: seconds a vehicle's block is known to take beyond its
     path (the turns the flyable stage adds, see `fleet_plan`). `legacy_split`: the
     split before issue 12 (every vehicle timed at constant speed, one turn allowance
-    for all from the widest turn radius), the benchmark's baseline."""
+    for all from the widest turn radius), the benchmark's baseline. A field the vehicles
+    together would take over `max_flight_s` to fly (estimated before planning) is refused:
+    FieldTooBigError with the estimate."""
     require_vehicles(vehicles)
     if geometry.kind != GeometryKind.POLYGON:
         raise InvalidGeometryError(f"an area mission needs a POLYGON, got {geometry.kind.name}")
@@ -182,7 +187,9 @@ def plan_area(
         extra_s=extra_s,
         stops=not legacy_split,
     )
-    lp = plan_lanes(region, spacing, _reference_turns(workers), min_coverage=min_coverage)
+    turns = _reference_turns(workers)
+    check_flyable(region, spacing, turns, sum(w.speed_m_s for w in workers), max_flight_s)
+    lp = plan_lanes(region, spacing, turns, min_coverage=min_coverage)
     cost = None
     if legacy_split:
         r = max(w.turns.radius_m for w in workers)

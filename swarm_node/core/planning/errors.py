@@ -35,3 +35,12 @@ class NoSafeRouteError(PlanningError):
 
 class InfeasibleTimingError(PlanningError):
     """Simultaneous arrival or a landing sequence cannot be met within the speed ranges."""
+
+
+class FieldTooBigError(PlanningError):
+    """The area would take longer to fly than the vehicles can: refused before planning,
+    with the estimated flight time."""
+
+    def __init__(self, message: str, estimated_s: float) -> None:
+        super().__init__(message)
+        self.estimated_s = estimated_s
