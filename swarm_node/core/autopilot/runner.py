@@ -268,16 +268,22 @@ class _CommandExec(_StepExec):
 
 
 class _VerifyExec(_StepExec):
-    """Waits for MISSION_CURRENT == spec.seq reported since the request began."""
+    """Waits for MISSION_CURRENT reported since the request began to show the mission
+    started at spec.seq: that item, or a later one other than the item current before
+    the request (MISSION_CURRENT is the current NAV item: ArduPilot runs DO items such
+    as DO_CHANGE_SPEED at once and reports the first NAV item after them; the item
+    current before is what a mission that did not restart keeps reporting)."""
 
-    def __init__(self, spec: VerifySpec, seen: set[int]) -> None:
+    def __init__(self, spec: VerifySpec, seen: set[int], before: int | None = None) -> None:
         self.spec = spec
         self.seen = seen
+        self.before = before
         self.deadline: float | None = None
         self.outcome = None
 
     def _check(self) -> None:
-        if self.spec.seq in self.seen:
+        seq = self.spec.seq
+        if seq in self.seen or any(v > seq and v != self.before for v in self.seen):
             self.outcome = StepOutcome(True)
             self.deadline = None
 
@@ -466,6 +472,7 @@ class _Job:
     notes: list[str] = field(default_factory=list)
     items: tuple = ()
     seen_current: set[int] = field(default_factory=set)  # MISSION_CURRENT seqs since submitted
+    current_before: int | None = None  # MISSION_CURRENT when its first step started
 
 
 class RequestRunner:
@@ -656,12 +663,14 @@ class RequestRunner:
         assert job.plan is not None
         spec: Step = job.plan.steps[job.index]
         target = (ctx.state.sysid, ctx.state.compid)
+        if job.index == 0:
+            job.current_before = ctx.state.mission_current
         if isinstance(spec, CommandSpec):
             job.step = _CommandExec(spec, target, self.settings)
         elif isinstance(spec, ParamSpec):
             job.step = _ParamExec(spec, target, self.settings)
         elif isinstance(spec, VerifySpec):
-            job.step = _VerifyExec(spec, job.seen_current)
+            job.step = _VerifyExec(spec, job.seen_current, job.current_before)
         else:
             job.step = _TransferExec(spec, target, self.settings)
         out += job.step.start(now, ctx.state)

@@ -70,6 +70,33 @@ def test_a_mission_uploaded_in_auto_is_started() -> None:
     assert f.commands()[-2:] == [("COMMAND_LONG", 224), ("COMMAND_LONG", 300)]
 
 
+def test_a_mission_that_starts_with_a_do_item_is_started() -> None:
+    """MISSION_CURRENT is the current NAV item: a share that starts with DO_CHANGE_SPEED
+    (every fixed-wing share, a replanned share) reports the waypoint after it, never the
+    item StartMission set. Found when a replan's shares all failed NOT_STARTED; the old
+    current item (the loiter at the end of mission 1) still does not count."""
+    f = SimFlight("copter", VehicleType.COPTER)
+    ready(f)
+    first = [*_leg((100, 0), (200, 0)), _loiter_at(200, 0)]
+    assert f.do(rq.UploadMission(items=tuple(first))).ok
+    assert f.do(rq.SetMode(mode="GUIDED")).ok
+    assert f.do(rq.Arm()).ok
+    assert f.do(rq.Takeoff(alt_rel_m=20.0)).ok
+    f.wait(lambda: (f.state.alt_rel_m or 0) > 18.0, 60, "climb")
+    assert f.do(rq.StartMission()).ok
+    f.wait(lambda: f.state.mission_current == 3, 300, "loitering at the end of mission 1")
+    second = (Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=8.0), *_leg((150, 60), (40, 60)))
+    assert f.do(rq.UploadMission(items=second)).ok
+    started = f.do(rq.StartMission())
+    assert started.ok, started
+    target = offset(150, 60)
+    f.wait(
+        lambda: distance_m(f.state.lat_deg, f.state.lon_deg, *target) < 5.0,
+        120,
+        "flying mission 2",
+    )
+
+
 def test_a_mission_that_does_not_start_is_noticed() -> None:
     """An autopilot that accepts everything but never reports the new current item: the
     request fails NOT_STARTED instead of reporting success (the node then falls back)."""
