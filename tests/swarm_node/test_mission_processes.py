@@ -113,20 +113,22 @@ def activate(client: object, swarm: str, watch: Watch, ids: list[int]) -> None:
     assert ready == set(ids)
 
 
-@pytest.mark.parametrize("vehicles", [{7: "copter"}], indirect=True)
+@pytest.mark.parametrize("vehicles", [{1: "vtol"}], indirect=True)
 def test_planning_does_not_stall_status_or_commands(
     zenoh_router: str, swarm: str, vehicles: dict[int, str], swarm_db: object, tmp_path: Path
 ) -> None:
-    """A valid 4,000-vertex area mission takes seconds to plan; meanwhile the node keeps
-    publishing its 5 Hz status and answers a command (it used to stop for 4.9 s)."""
+    """A valid 4,000-vertex area mission for a VTOL (its fixed-wing turns made flyable)
+    takes a second or more to plan; meanwhile the node keeps publishing its 5 Hz status
+    and answers a command (it used to stop for 4.9 s). Since the planner became fast
+    (issue 20) a quadcopter's 150 m field plans in 0.1-0.4 s, too short to measure."""
     client = plain_session(zenoh_router)
     watch = Watch(client, swarm)
     try:
-        with nodes([7], zenoh_router, swarm, autopilots=vehicles):
-            activate(client, swarm, watch, [7])
-            area = wavy_area(4000, SITL_HOME.lat_deg + 0.003, SITL_HOME.lon_deg)
+        with nodes([1], zenoh_router, swarm, autopilots=vehicles):
+            activate(client, swarm, watch, [1])
+            area = wavy_area(4000, SITL_HOME.lat_deg + 0.004, SITL_HOME.lon_deg, 300.0)
             send(client, swarm, Mission(50, GCS, MissionType.AREA, area,
-                                        MissionParams(altitude_rel_m=40.0)))  # fmt: skip
+                                        MissionParams(altitude_rel_m=25.0)))  # fmt: skip
             planning: list[float] = []  # arrival times of statuses while PLANNING
             acked_while_planning = False
             sent_command = False
@@ -138,7 +140,7 @@ def test_planning_does_not_stall_status_or_commands(
                     continue
                 if st.mission_state == MissionState.PLANNING:
                     planning.append(t)
-                    if len(planning) == 3 and not sent_command:
+                    if not sent_command:
                         send(client, swarm, Command(GCS, 60, CommandKind.SET_FLEET,
                                                     args=CommandArgs(fleet_id=3)))  # fmt: skip
                         sent_command = True
@@ -148,7 +150,7 @@ def test_planning_does_not_stall_status_or_commands(
                     ack = watch.acks.get()
                     if ack.ref_id == 60 and st.mission_state == MissionState.PLANNING:
                         acked_while_planning = True
-            assert len(planning) >= 5, planning
+            assert len(planning) >= 3, planning
             window = planning[-1] - planning[0]
             expected = window * 5.0  # status at 5 Hz
             ratio = (len(planning) - 1) / expected if expected else 1.0
