@@ -41,6 +41,9 @@ def run(
     link_timeout: float | None = typer.Option(
         None, help="autopilot silence (s) that counts as link loss"
     ),
+    plan_timeout: float | None = typer.Option(
+        None, help="how long (s, on the node's clock) the fleet may take to plan (default 60)"
+    ),
     status_hz: float | None = typer.Option(None, help="VehicleStatus rate (default 5)"),
     info_hz: float | None = typer.Option(None, help="VehicleInfo rate (default 1)"),
     log_level: str = typer.Option("INFO", help="DEBUG, INFO, WARNING, ERROR"),
@@ -73,6 +76,7 @@ def run(
             zenoh_lease_ms=lease_ms,
             zenoh_config_file=zenoh_config,
             link_timeout_s=link_timeout,
+            plan_timeout_s=plan_timeout,
             status_hz=status_hz,
             info_hz=info_hz,
         )

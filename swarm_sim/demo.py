@@ -73,6 +73,13 @@ MISSION_ID = 1001
 ZONE_ID = 1
 
 
+def plan_timeout_s(speedup: float) -> float:
+    """The fleet's planning time limit on the scaled clock: planning is real work in wall
+    time (five nodes planning the survey share two cores: about 15 s), so at 5x the
+    default 60 s of simulated time would leave it 12 s of wall time."""
+    return min(3600.0, 60.0 * max(1.0, speedup))
+
+
 def link_timeout_s(speedup: float) -> float:
     """The nodes' autopilot link timeout, in simulated seconds: 2 s of wall time. A real
     vehicle uses 0.6 s; in fast time on a shared laptop a busy moment of a few hundred
@@ -224,7 +231,8 @@ def start(
         nodes[vid] = _spawn(
             [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid),
              "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}", "--connect", lans[vid],
-             "--listen", "tcp/127.0.0.1:0", "--link-timeout", str(link_timeout_s(speedup))],
+             "--listen", "tcp/127.0.0.1:0", "--link-timeout", str(link_timeout_s(speedup)),
+             "--plan-timeout", str(plan_timeout_s(speedup))],
             tmp / f"node-{vid}.log",
             env,
             nice=YIELD_TO_RADIO if radio else 0,

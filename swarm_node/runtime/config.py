@@ -74,6 +74,8 @@ class NodeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
             raise ValueError("status_hz must be 0.1..50 and info_hz 0.05..10")
         if not 0.2 <= self.link_timeout_s <= 30:
             raise ValueError("link_timeout_s must be 0.2..30")
+        if not 1.0 <= self.plan_timeout_s <= 3600.0:  # also false for NaN
+            raise ValueError("plan_timeout_s must be 1..3600")
 
 
 def load_config(path: str | Path | None, **overrides: object) -> NodeConfig:

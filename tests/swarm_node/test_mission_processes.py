@@ -77,7 +77,10 @@ class Watch:
             session.declare_subscriber(  # type: ignore[attr-defined]
                 f"bandada/{swarm}/vehicle/*/status",
                 lambda s: self.statuses.put(
-                    (time.monotonic(), msgspec.msgpack.decode(s.payload.to_bytes(), type=VehicleStatus))
+                    (
+                        time.monotonic(),
+                        msgspec.msgpack.decode(s.payload.to_bytes(), type=VehicleStatus),
+                    )
                 ),
             ),
             session.declare_subscriber(  # type: ignore[attr-defined]
@@ -144,7 +147,10 @@ def test_planning_does_not_stall_status_or_commands(
                         send(client, swarm, Command(GCS, 60, CommandKind.SET_FLEET,
                                                     args=CommandArgs(fleet_id=3)))  # fmt: skip
                         sent_command = True
-                elif planning and st.mission_state in (MissionState.PREMISSION, MissionState.MISSION):
+                elif planning and st.mission_state in (
+                    MissionState.PREMISSION,
+                    MissionState.MISSION,
+                ):
                     break
                 while not watch.acks.empty():
                     ack = watch.acks.get()

@@ -218,3 +218,21 @@ def _connectable(endpoint: str) -> bool:
     with socket.socket() as s:
         s.settimeout(0.5)
         return s.connect_ex((host, int(port))) == 0
+
+
+@pytest.mark.parametrize("bad", [0.0, -5.0, float("nan"), 1e9])
+def test_a_bad_plan_timeout_is_refused(bad: float) -> None:
+    """`--plan-timeout` (the demo scales it with its speed-up: planning is wall-clock
+    work) is checked like the other settings: a clear error, never a node that gives
+    up at once or waits forever."""
+    from swarm_node.runtime.config import load_config
+
+    with pytest.raises(ValueError, match="plan_timeout_s"):
+        load_config(None, node_id=1, plan_timeout_s=bad)
+    assert load_config(None, node_id=1, plan_timeout_s=300.0).plan_timeout_s == 300.0
+
+
+def test_the_demo_gives_planning_its_wall_time() -> None:
+    from swarm_sim.demo import plan_timeout_s
+
+    assert plan_timeout_s(5.0) == 300.0 and plan_timeout_s(1.0) == 60.0
