@@ -35,10 +35,8 @@ def _loiter_at(north: float, east: float, alt: float = 20.0) -> Waypoint:
     return Waypoint(ItemKind.LOITER_UNLIMITED, lat, lon, alt)
 
 
-def test_a_mission_uploaded_in_auto_is_started() -> None:
-    """Recorded (`mission-start-in-auto`): a copter loitering at the end of mission 1 in
-    AUTO gets mission 2; "Auto mission changed but failed to restart command";
-    MISSION_START alone leaves it loitering; the link's StartMission flies mission 2."""
+def loitering_after_mission_1() -> SimFlight:
+    """A simulated copter flown in AUTO to the unlimited loiter ending mission 1."""
     f = SimFlight("copter", VehicleType.COPTER)
     ready(f)
     first = [*_leg((100, 0), (200, 0)), _loiter_at(200, 0)]
@@ -49,6 +47,14 @@ def test_a_mission_uploaded_in_auto_is_started() -> None:
     f.wait(lambda: (f.state.alt_rel_m or 0) > 18.0, 60, "climb")
     assert f.do(rq.StartMission()).ok
     f.wait(lambda: f.state.mission_current == 3, 300, "loitering at the end of mission 1")
+    return f
+
+
+def test_a_mission_uploaded_in_auto_is_started() -> None:
+    """Recorded (`mission-start-in-auto`): a copter loitering at the end of mission 1 in
+    AUTO gets mission 2; "Auto mission changed but failed to restart command";
+    MISSION_START alone leaves it loitering; the link's StartMission flies mission 2."""
+    f = loitering_after_mission_1()
     # the way home: uploaded while in AUTO
     second = _leg((150, 60), (40, 60))
     assert f.do(rq.UploadMission(items=tuple(second))).ok
@@ -75,16 +81,7 @@ def test_a_mission_that_starts_with_a_do_item_is_started() -> None:
     (every fixed-wing share, a replanned share) reports the waypoint after it, never the
     item StartMission set. Found when a replan's shares all failed NOT_STARTED; the old
     current item (the loiter at the end of mission 1) still does not count."""
-    f = SimFlight("copter", VehicleType.COPTER)
-    ready(f)
-    first = [*_leg((100, 0), (200, 0)), _loiter_at(200, 0)]
-    assert f.do(rq.UploadMission(items=tuple(first))).ok
-    assert f.do(rq.SetMode(mode="GUIDED")).ok
-    assert f.do(rq.Arm()).ok
-    assert f.do(rq.Takeoff(alt_rel_m=20.0)).ok
-    f.wait(lambda: (f.state.alt_rel_m or 0) > 18.0, 60, "climb")
-    assert f.do(rq.StartMission()).ok
-    f.wait(lambda: f.state.mission_current == 3, 300, "loitering at the end of mission 1")
+    f = loitering_after_mission_1()
     second = (Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=8.0), *_leg((150, 60), (40, 60)))
     assert f.do(rq.UploadMission(items=second)).ok
     started = f.do(rq.StartMission())
