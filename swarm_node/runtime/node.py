@@ -178,9 +178,6 @@ class NodeRuntime:
         )
         self.inbox: queue.SimpleQueue[Input | _Learned] = queue.SimpleQueue()
         self.planner = PlanWorker(self.inbox.put, planner)
-        # plan jobs the core asked for, handed to the worker once the core's lock is
-        # released (starting the worker process must not hold up the peers queryable)
-        self._plan_jobs: list[PlanRequest] = []
         self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)
         if bus is not None:
             bus.on_bad_input = self._bad_input
@@ -333,9 +330,6 @@ class NodeRuntime:
                         self._execute(self.core.handle(AutopilotUpdate(self.autopilot.state), now))
                     if now >= self.core.next_deadline():
                         self._execute(self.core.on_timer(now))
-                    jobs, self._plan_jobs = self._plan_jobs, []
-                for job in jobs:
-                    self.planner.submit(job)
         finally:
             self.close()
 
@@ -359,7 +353,7 @@ class NodeRuntime:
             elif isinstance(o, Note):
                 log.log(o.level, "node %d: %s", self.core.self_id, o.text)
             elif isinstance(o, PlanJob):
-                self._plan_jobs.append(o.request)
+                self.planner.submit(o.request)
 
     def _submit(self, request: ApRequest) -> None:
         log.info("node %d: autopilot <- %s", self.core.self_id, type(request).__name__)

@@ -123,9 +123,8 @@ def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
         finally:
             watcher.close()
         # the node has just started planning the target mission (its planner process
-        # starts with the first plan job, now outside the core's lock): in the full suite
-        # one 3 s query went unanswered twice in a row before that change, so the
-        # operator's retry is still allowed here
+        # starts with the first plan job): in the full suite one 3 s query went
+        # unanswered twice in a row, so the operator's retry is allowed here
         for _ in range(3):
             r = gcs(router, swarm, "peers", "7")
             if r.exit_code == 0:  # type: ignore[attr-defined]
