@@ -295,6 +295,14 @@ class MissionManager:
         self.phase = Phase.STARTING
         return [note, *self._next()]
 
+    def vote(self) -> None:
+        """Idle candidates synchronised for a QUANTITY mission vote (mission/tasking.py)."""
+        self.sortie.go(Trigger.VOTE)
+
+    def elected(self) -> None:
+        """Chosen by the vote: the mission is planned for the winners (`release`)."""
+        self.sortie.go(Trigger.ELECTED)
+
     def begin_replan(self) -> None:
         """A member was lost: the fleet replans what is left. We keep flying our share
         meanwhile; the progress we published is what the others replan from."""

@@ -26,8 +26,10 @@ dropped silently):
     Received(Mission)      -> acceptance checks -> state machine (NewMission)
     Received(NoFlyZone)    -> monitoring's zones, fence keeper
     Received(FleetAssignment) -> fleet id
+    Received(Mission QUANTITY | Vote | TargetReport) -> tasking (mission/tasking.py): the
+                              vote, re-tasking; its outcome -> roster, state machine
     PlanDone               -> mission manager (the plan job's outcome: fly the share)
-    Received(Alert | Vote | TargetReport | SwarmView) -> declared, not used yet (counted)
+    Received(Alert | SwarmView) -> declared, not used (counted)
 
 Modules answer in one vocabulary (outputs.py): Publish, Submit(owner, request),
 Post(fsm event), Note; the router posts events to the state machine, passes requests
@@ -55,10 +57,12 @@ from swarm_proto import (
     FleetAssignment,
     FsmState,
     GeoPoint,
+    LatLon,
     Mission,
     MissionState,
     MissionType,
     NoFlyZone,
+    SelectorKind,
     Severity,
     SwarmView,
     TargetReport,
@@ -98,7 +102,17 @@ from .fences import (
     plan_fence,
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
+from .mission.scoring import Candidate
 from .mission.share import PlanOutcome
+from .mission.tasking import (
+    Derived,
+    Elected,
+    Standing,
+    Tasking,
+    TaskingOutput,
+    TaskingSettings,
+    VoteFailed,
+)
 from .mission_manager import Member, MissionManager, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
@@ -178,6 +192,8 @@ class NodeCore:
     fleet_profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)  # from the database
     # the database's default parameters per kind of mission (fill what a mission leaves unset)
     mission_defaults: Mapping[MissionType, Mapping[str, float]] = field(default_factory=dict)
+    # the database's voting weights, payload hierarchy and re-tasking rules
+    tasking_settings: TaskingSettings = field(default_factory=TaskingSettings)
 
     def __post_init__(self) -> None:
         vid = self.profile.vehicle_id
@@ -199,6 +215,7 @@ class NodeCore:
         self.base: GeoPoint | None = None
         self.fleet_id = 0
         self.roster = Roster(vid)  # the members of the current mission, agreed by all
+        self.tasking = Tasking(vid, self.tasking_settings, self.fleet_profiles)  # votes, targets
         self.missions: dict[int, Mission] = {}
         self.bad_input: Counter[str] = Counter()
         self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
@@ -371,6 +388,8 @@ class NodeCore:
             case Command():
                 return self._on_command(msg, now)
             case Mission():
+                if msg.selection.kind == SelectorKind.QUANTITY:
+                    return self._on_quantity(msg, now)
                 return self._on_mission(msg)
             case NoFlyZone():
                 self.monitor.zones[msg.zone_id] = msg
@@ -378,7 +397,11 @@ class NodeCore:
                 return self._keep_fence(now)
             case FleetAssignment():
                 return self._on_fleet(msg)
-            case Alert() | Vote() | TargetReport() | SwarmView():
+            case Vote():
+                return self._tasked(self.tasking.on_vote(msg, now), now)
+            case TargetReport():
+                return self._tasked(self.tasking.on_target(msg, now), now)
+            case Alert() | SwarmView():
                 self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
                 return []
             case _:
@@ -549,6 +572,7 @@ class NodeCore:
                 out.append(
                     Note(logging.WARNING, f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})")
                 )
+                out += self._tasked(self.tasking.voter_lost(ev.vehicle_id, self.now), self.now)
                 if (
                     self.roster.frozen
                     and self.fsm.mission_id == ev.mission_id
@@ -571,6 +595,7 @@ class NodeCore:
             self.members.next_deadline(),
             self.commands.next_deadline(),
             self.fence.next_deadline(),
+            self.tasking.next_deadline(),
         ):
             if d is not None:
                 candidates.append(d)
@@ -582,6 +607,9 @@ class NodeCore:
         out += self._peer_events(self.members.on_timer(now))
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
+        due = self.tasking.next_deadline()
+        if due is not None and now >= due:
+            out += self._tasked(self.tasking.on_timer(now), now)
         if now >= self.fsm.next_deadline():
             # issue 11: alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state
@@ -678,6 +706,11 @@ class NodeCore:
             return []
         if isinstance(o, fsm.ReleaseMission):
             return self._release(o.mission_id, now)
+        if isinstance(o, fsm.StandDown):
+            self.missions.pop(o.mission_id, None)
+            self.roster.close()
+            self.manager.stop()
+            return [Note(logging.INFO, f"mission {o.mission_id}: standing down ({o.reason})")]
         if isinstance(o, fsm.MissionStarted):
             return []
         if isinstance(o, fsm.MissionFinished):
@@ -715,6 +748,11 @@ class NodeCore:
             return []
         if self._replanning and self.roster.frozen:
             return self._replan(mission, now)
+        if mission.selection.kind == SelectorKind.QUANTITY:  # idle candidates: vote first
+            electorate = self.roster.freeze(self.members.peers)
+            self.manager.vote()
+            return self._tasked(self.tasking.start(mission, electorate, (), self._candidate(),
+                                                   now, home=None, lead=self._lead(mission)), now)  # fmt: skip
         self.roster.freeze(self.members.peers)
         members, unknown = self._members()
         if unknown:
@@ -763,6 +801,135 @@ class NodeCore:
         return self.manager.replan(
             mission, members, progress, self.planning_zones(now), self.autopilot, now
         )
+
+    # ------------------------------------------------------------------ tasking (issue 13)
+    def _on_quantity(self, mission: Mission, now: float) -> list[ModuleOutput]:
+        """A QUANTITY mission, sent or derived from a target report: are we a candidate
+        (the acceptance checks, then tasking's), then the vote: a flying fleet votes at
+        once, idle vehicles synchronise in PLAN first (mission/tasking.py)."""
+        repeat = self._repeat(mission)
+        if repeat is not None:
+            return repeat
+        reason, text = check_mission(mission, self.view()), ""
+        st: Standing | None = None
+        if reason == AckReason.OK:
+            mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
+            st = self._standing()
+            reason, text = self.tasking.answer(mission, st)
+        ok = reason == AckReason.OK
+        ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok,
+                  reason, text[:64])  # fmt: skip
+        out: list[ModuleOutput] = self._answer([ack]) if ok else [Publish(ack)]
+        if not ok or st is None:
+            return out
+        if st.flying is not None:
+            electorate, lost = self.tasking.electorate(mission, st)
+            return out + self._tasked(self.tasking.start(mission, electorate, lost, st.me, now,
+                                                         home=st.flying, lead=st.lead), now)  # fmt: skip
+        self.missions[mission.mission_id] = mission
+        self.fsm.post(fsm.NewMission(mission.mission_id))
+        return out
+
+    def _candidate(self) -> Candidate:
+        ap = self.autopilot
+        at = None if ap.lat_deg is None or ap.lon_deg is None else LatLon(ap.lat_deg, ap.lon_deg)
+        battery = float(ap.battery_pct) if ap.battery_pct >= 0 else None
+        return Candidate.of(self.profile, at, battery)
+
+    def _lead(self, mission: Mission) -> LatLon | None:
+        peer = self.members.peers.get(mission.params.lead_vehicle_id)
+        st = peer.status if peer is not None else None
+        return LatLon(st.lat_deg, st.lon_deg) if st is not None else None
+
+    def _standing(self) -> Standing:
+        r, f = self.roster, self.fsm
+        flying, replanning = None, False
+        if (
+            r.frozen
+            and r.mission_id is not None
+            and r.mission_id > 0
+            and f.mission_id == r.mission_id
+        ):
+            flying = r.mission_id
+            replanning = f.state != FsmState.GO_MISSION or self.manager.mission_state not in (
+                MissionState.PREMISSION, MissionState.MISSION)  # fmt: skip
+        present = {
+            v: p for v, p in self.members.peers.items() if p.present and not p.is_ground_station
+        }
+        return Standing(
+            self.self_id,
+            self.fleet_id,
+            self._candidate(),
+            idle=f.state == FsmState.GO_MISSION and f.mission_id is None and self.active,
+            flying=flying,
+            replanning=replanning,
+            fleet=r.planned,
+            away=frozenset(
+                v
+                for v in r.planned
+                if v not in r.flying or (v != self.self_id and v not in present)
+            ),
+            peer_fleets={v: p.fleet_id for v, p in present.items()},
+            peer_missions={
+                v: p.mission_id
+                for v, p in present.items()
+                if p.mission_id > 0 and p.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)
+            },
+        )
+
+    def _tasked(self, outs: list[TaskingOutput], now: float) -> list[ModuleOutput]:
+        out: list[ModuleOutput] = []
+        for o in outs:
+            match o:
+                case Publish() | Note():
+                    out.append(o)
+                case Derived(mission):
+                    out += self._on_quantity(mission, now)
+                case Elected():
+                    out += self._elected(o, now)
+                case VoteFailed(mid, home, _reason):
+                    if home is None and self.fsm.mission_id == mid:
+                        self.fsm.post(fsm.Unassigned(mid, "vote failed"))
+                case _:
+                    assert_never(o)
+        return out
+
+    def _elected(self, e: Elected, now: float) -> list[ModuleOutput]:
+        """The vote decided: winners fly the mission as a new fleet (selected by their
+        ids); a flying fleet's others lose them ("voted out") and replan; idle vehicles
+        not chosen stand down."""
+        mid, winners = e.mission.mission_id, e.outcome.winners
+        if e.home is None:  # idle vehicles synchronised in PLAN for it
+            if self.fsm.mission_id != mid or self.fsm.state != FsmState.PLAN:
+                return []
+            if not e.goes:
+                self.fsm.post(fsm.Unassigned(mid, "not chosen"))
+                return []
+            self.missions[mid] = e.mission
+            self.roster.elected(winners)
+            self.manager.elected()
+            members, unknown = self._members()
+            if unknown:
+                self.fsm.post(fsm.PlanFailed(mid, f"no profile for fleet members {unknown}"[:64]))
+                return []
+            return self.manager.release(e.mission, members, self.planning_zones(now),
+                                        self.autopilot, now)  # fmt: skip
+        if e.goes:
+            if self.fsm.mission_id == e.home:
+                self.missions.pop(e.home, None)  # left for the new mission, not completed
+            self.missions[mid] = e.mission
+            self.fsm.post(fsm.NewMission(mid))
+            out: list[ModuleOutput] = [
+                Note(logging.INFO, f"leaving mission {e.home} for mission {mid}")
+            ]
+            if not e.outcome.stayers and self.self_id == min(winners):
+                text = f"mission {e.home} left unfinished: its fleet went to {mid}"
+                out.append(Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
+                                         AlertCode.MISSION_FAILED, text[:64])))  # fmt: skip
+            return out
+        if self.roster.mission_id == e.home:
+            return self._roster_events(self.roster.voted_out(winners))
+        return []
 
     def _start_return(self, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(self.autopilot, self.planning_zones(now), now)
