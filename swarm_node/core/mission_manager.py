@@ -155,6 +155,7 @@ class MissionManager:
     zones: tuple[NoFlyZone, ...] = ()
     sortie: Sortie = field(default_factory=Sortie)  # the one owner of the mission state
     owner: Owner = Owner.MISSION  # the rank of our requests (OPERATOR after a recall)
+    base: GeoPoint | None = None  # the operator's base (the autopilot's rally point)
     along_m: tuple[float, ...] = ()  # metres along the share at each item (index = seq)
     hold_s: float = 0.0  # a timed hold on the share's unlimited loiter (target --duration)
     hold_seq: int = 0  # that loiter's item
@@ -192,7 +193,8 @@ class MissionManager:
     @property
     def land_radius_m(self) -> float:
         """How close RTL must bring the vehicle before it lands: a VTOL loiters around
-        home at its turn radius in RTL, a multirotor comes right over it."""
+        home (or the rally point) at its turn radius in RTL, a multirotor comes right
+        over it."""
         return max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
 
     @property
@@ -598,12 +600,15 @@ class MissionManager:
         elif self.phase == Phase.FLYING and self.items > 1 and self.mission_id is not None:
             return self._flying(ap, now)
         elif self.phase == Phase.RETURNING and self._in_flight is None and self.profile.can_hover:
-            home = ap.home
+            # RTL flies to the nearer of home and the rally point (the base: ArduPilot's
+            # RALLY_INCL_HOME): land near either (a VTOL whose home is far from the base
+            # circled the base for ever)
+            places = [p for p in (ap.home, self.base) if p is not None]
             if (
-                home
+                places
                 and ap.lat_deg is not None
                 and ap.lon_deg is not None
-                and distance_m(ap.lat_deg, ap.lon_deg, home.lat_deg, home.lon_deg)
+                and min(distance_m(ap.lat_deg, ap.lon_deg, p.lat_deg, p.lon_deg) for p in places)
                 < self.land_radius_m
             ):
                 self.phase = Phase.LANDING

@@ -457,7 +457,7 @@ class NodeCore:
 
     def _apply(self, effect: Effect) -> None:
         if isinstance(effect, SetBase):
-            self.base = effect.point
+            self.base = self.manager.base = effect.point
         elif isinstance(effect, SetFleet):
             self.fleet_id = effect.fleet_id
         elif isinstance(effect, SetActive):

@@ -89,3 +89,38 @@ def test_six_vtols_two_retasked_the_other_four_finish_the_area_and_all_land(
     assert r.completed.get(r.mission_id) == set(r.winners)
     assert r.coverage >= 0.99
     assert r.landed == frozenset(members)
+
+
+def test_a_vtol_whose_home_is_far_from_the_base_lands_at_the_base(fleet_profiles: dict) -> None:
+    """RTL flies to the nearer of home and the rally point (the base): a VTOL whose home
+    was 300 m from the base circled the base for ever (the node only landed it near its
+    home), so the six-VTOL re-tasking never ended."""
+    from swarm_proto import (
+        Command,
+        CommandArgs,
+        CommandKind,
+        FsmState,
+        GeoPoint,
+        Mission,
+        MissionParams,
+        MissionType,
+    )
+    from swarm_sim.core import SITL_HOME
+    from swarm_sim.fast_fleet import FastFleet
+    from swarm_sim.scenarios import GCS, square
+
+    fleet = FastFleet.build([1, 2], fleet_profiles, spacing_m=300.0)
+    fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
+    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+    fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
+    assert fleet.run_until(
+        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
+    )
+    area = square(SITL_HOME.lat_deg + 0.004, SITL_HOME.lon_deg - 0.002, 120.0)
+    fleet.broadcast(Mission(5, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=50.0)))
+    landed = fleet.run_until(
+        lambda: all(v.node.fsm.state == FsmState.INACTIVE and not v.link.state.armed
+                    for v in fleet.vehicles.values()),
+        1800,
+    )  # fmt: skip
+    assert landed, [(v, x.node.manager.phase, x.link.state.mode_name) for v, x in fleet.vehicles.items()]
