@@ -4,8 +4,8 @@ part, every score, who went), and `gcs mission ... --count N` shows its vote aft
 acks (`VoteWatch`, hooked in cli.py).
 
 What a vote decided is read from what the vehicles publish: their Votes (the last ones
-carry the whole table and `committed`), their VehicleInfo (a winner flies the mission)
-and the ranking the vehicles use (`swarm_node.core.mission.voting.rank`) when the
+carry the whole table and `committed`), the INFO alert each winner raises ("chosen for
+mission N, score S") and the ranking the vehicles use (`swarm_node.core.mission.voting.rank`) when the
 quantity is known.
 """
 
@@ -91,7 +91,7 @@ class VoteResult:
     scores: dict[int, float]  # the table the vehicles decided on (or the largest heard)
     decided: bool  # some voter said committed
     winners: tuple[int, ...] | None  # by the vehicles' ranking, when the quantity is known
-    went: set[int] = field(default_factory=set)  # vehicles flying the mission now
+    went: set[int] = field(default_factory=set)  # vehicles that said they were chosen
     voters: set[int] = field(default_factory=set)
 
 
@@ -113,7 +113,7 @@ def vote_table(r: VoteResult) -> Table:
     order = sorted(r.scores, key=lambda v: (-score_key(r.scores[v]), v))
     state = "decided" if r.decided else "not decided yet"
     t = Table(title=f"mission {r.mission_id}: vote {state}")
-    for col in ("vehicle", "score", "decision", "flying it"):
+    for col in ("vehicle", "score", "decision", "said chosen"):
         t.add_column(col, justify="right" if col != "decision" else "left")
     for vid in order:
         decision = "goes" if vid in goes else "stays"
@@ -123,9 +123,10 @@ def vote_table(r: VoteResult) -> Table:
     return t
 
 
-def went_on(view: FleetView, mission_id: int) -> set[int]:
-    """Vehicles whose VehicleInfo shows them on the mission."""
-    return {v for v, i in view.info.items() if i.mission_id == mission_id}
+def chosen(view: FleetView, mission_id: int) -> set[int]:
+    """Vehicles that said they were chosen (each winner raises an INFO alert)."""
+    said = f"chosen for mission {mission_id},"
+    return {a.vehicle_id for a in view.alerts if a.text.startswith(said)}
 
 
 def show_vote(
@@ -140,8 +141,8 @@ def show_vote(
     give the winners a second to show the mission in their VehicleInfo."""
     votes = watch.wait(mission_id, voters, wait_s)
     if votes:  # (the predicate runs under the station's lock: it reads the view given)
-        gs.wait_for(lambda view: len(went_on(view, mission_id)) >= (quantity or 1), 2.0)
-    r = result_of(mission_id, watch.of(mission_id), quantity, went_on(gs.snapshot(), mission_id))
+        gs.wait_for(lambda view: len(chosen(view, mission_id)) >= (quantity or 1), 2.0)
+    r = result_of(mission_id, watch.of(mission_id), quantity, chosen(gs.snapshot(), mission_id))
     if not r.voters:
         console.print(f"[yellow]mission {mission_id}: no vote heard[/]")
         return r

@@ -142,15 +142,11 @@ def retasking(
         ):
             replanned_s = fleet.now - reported
         assert fleet.now - reported < 300, fleet.notes[-20:]
-    plans = {
-        tuple(
-            sorted(
-                (v, s.waypoints)
-                for v, s in fleet.vehicles[m].node.manager.fleet_plan.shares.items()
-            )
-        )  # type: ignore[union-attr]
-        for m in stayers
-    }
+    plans = set()
+    for m in stayers:
+        plan = fleet.vehicles[m].node.manager.fleet_plan
+        assert plan is not None
+        plans.add(tuple(sorted((v, s.waypoints) for v, s in plan.shares.items())))
     result = Retasking(mid, (lat, lon), outcome, scored, winners, stayers, decided_s, flying_s, replanned_s,
                        0.0, same_plan=len(plans) == 1)  # fmt: skip
     if not to_the_end:

@@ -54,6 +54,7 @@ from .mission.share import (
     Member,
     PlanOutcome,
     PlanRequest,
+    Replay,
     Share,
     plan_fleet,
 )
@@ -211,15 +212,19 @@ class MissionManager:
         zones: Sequence[NoFlyZone],
         ap: AutopilotState,
         now: float,
+        *,
+        lineage: Replay | None = None,
     ) -> list[Out]:
         """Plan the mission (a `PlanJob` the shell runs off the control loop; its
-        outcome comes back to `on_plan`) and then fly this vehicle's share."""
+        outcome comes back to `on_plan`) and then fly this vehicle's share. With
+        `lineage`, the plan of a fleet this vehicle joins, made again (swarm/regroup.py)."""
         if self.sortie.state not in (MissionState.PLANNING, MissionState.REPLAN):
             self.sortie.begin(keep_progress=False)
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         self._job += 1
         self._planning = (mission, tuple(zones))
-        req = PlanRequest(self._job, mission, tuple(members), tuple(zones), now, home_alt)
+        req = PlanRequest(self._job, mission, tuple(members), tuple(zones), now, home_alt,
+                          lineage=lineage)  # fmt: skip
         fleet_ids = sorted(m.profile.vehicle_id for m in members)
         return [Log(f"mission {mission.mission_id}: planning for fleet {fleet_ids}"), PlanJob(req)]
 

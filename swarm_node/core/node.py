@@ -54,14 +54,17 @@ from swarm_proto import (
     Alert,
     AlertCode,
     Command,
+    CommandKind,
     FleetAssignment,
     FsmState,
     GeoPoint,
     LatLon,
+    LineageStep,
     Mission,
     MissionState,
     MissionType,
     NoFlyZone,
+    PlanLineage,
     SelectorKind,
     Severity,
     SwarmView,
@@ -103,7 +106,7 @@ from .fences import (
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission.scoring import Candidate
-from .mission.share import PlanOutcome
+from .mission.share import PlanOutcome, pose_on
 from .mission.tasking import (
     Derived,
     Elected,
@@ -118,7 +121,8 @@ from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
-from .swarm.roster import MemberLost, Roster, RosterEvent, RosterMismatch
+from .swarm.regroup import Lineage, Regroup, handed_lineage
+from .swarm.roster import MemberJoined, MemberLost, Roster, RosterEvent, RosterMismatch
 
 log = logging.getLogger(__name__)
 
@@ -216,6 +220,7 @@ class NodeCore:
         self.fleet_id = 0
         self.roster = Roster(vid)  # the members of the current mission, agreed by all
         self.tasking = Tasking(vid, self.tasking_settings, self.fleet_profiles)  # votes, targets
+        self.regroup = Regroup(vid)  # add and swap: lineages of the fleets flown in
         self.missions: dict[int, Mission] = {}
         self.bad_input: Counter[str] = Counter()
         self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
@@ -388,6 +393,7 @@ class NodeCore:
             case Command():
                 return self._on_command(msg, now)
             case Mission():
+                self.regroup.heard_mission(msg)  # a vehicle may be told to join it later
                 if msg.selection.kind == SelectorKind.QUANTITY:
                     return self._on_quantity(msg, now)
                 return self._on_mission(msg)
@@ -401,6 +407,9 @@ class NodeCore:
                 return self._tasked(self.tasking.on_vote(msg, now), now)
             case TargetReport():
                 return self._tasked(self.tasking.on_target(msg, now), now)
+            case PlanLineage():
+                self.regroup.on_lineage(msg)
+                return []
             case Alert() | SwarmView():
                 self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
                 return []
@@ -425,6 +434,8 @@ class NodeCore:
         repeat = self._repeat(cmd)
         if repeat is not None:
             return repeat
+        if cmd.kind in (CommandKind.JOIN_MISSION, CommandKind.SWAP_MISSION):
+            return self._on_regroup(cmd, now)
         plan = plan_command(cmd, self.view())
         if plan is None:
             return []
@@ -581,6 +592,18 @@ class NodeCore:
                     in (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
                 ):
                     out.append(Post(fsm.Replan(ev.mission_id)))  # inherit its share
+            elif isinstance(ev, MemberJoined):
+                if (
+                    self.fsm.mission_id == ev.mission_id
+                    and self.fsm.state in (FsmState.GO_MISSION, FsmState.PLAN)
+                    and self.manager.mission_state
+                    in (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
+                ):
+                    self.roster.join(ev.vehicle_id)
+                    out += [
+                        Note(logging.INFO, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} joins"),
+                        Post(fsm.Replan(ev.mission_id)),  # share what is left with it
+                    ]
             elif isinstance(ev, RosterMismatch):
                 out.append(
                     Note(logging.ERROR, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} planned "
@@ -646,6 +669,10 @@ class NodeCore:
             return True  # each vehicle plans its own way back (no landing sequencing yet)
         if self._replanning and self.roster.frozen:
             return self.roster.ready_to_replan(self.members.peers)
+        if self.regroup.joining == mid:  # a joiner: the fleet's lineage with it in
+            return mid in self.regroup.offered
+        if mid in self.regroup.adopting:  # an emptied fleet's mission, handed to ours
+            return True
         return self.roster.ready(self.members.peers)
 
     def _tick_fsm(self, now: float) -> list[ModuleOutput]:
@@ -715,6 +742,7 @@ class NodeCore:
             return []
         if isinstance(o, fsm.MissionFinished):
             mission = self.missions.pop(o.mission_id, None)
+            self._take_over_handed(o.mission_id)
             if mission is not None:
                 return [
                     Publish(
@@ -748,6 +776,8 @@ class NodeCore:
             return []
         if self._replanning and self.roster.frozen:
             return self._replan(mission, now)
+        if self.regroup.joining == mission_id or mission_id in self.regroup.adopting:
+            return self._join(mission_id, now)
         if mission.selection.kind == SelectorKind.QUANTITY:  # idle candidates: vote first
             electorate = self.roster.freeze(self.members.peers)
             self.manager.vote()
@@ -762,6 +792,7 @@ class NodeCore:
             return [
                 Note(logging.ERROR, f"cannot plan mission {mission_id}: no profile for {unknown}")
             ]
+        self.regroup.founded(mission, members)
         return self.manager.release(mission, members, self.planning_zones(now), self.autopilot, now)
 
     def _replan(self, mission: Mission, now: float) -> list[ModuleOutput]:
@@ -772,6 +803,29 @@ class NodeCore:
         base = self.manager.fleet_plan
         peers = self.members.peers
         survivors = self.roster.survivors(peers)
+        progress = self._progress_now()
+        members: list[Member] = []
+        for vid in survivors:
+            profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
+            if profile is None:
+                continue
+            members.append(Member(profile, pose_on(base, vid, progress) if base else None))
+        self.roster.replanned(survivors)
+        took_in = self.regroup.replanned(
+            mission.mission_id, [m.profile.vehicle_id for m in members], progress
+        )
+        out = self.manager.replan(
+            mission, members, progress, self.planning_zones(now), self.autopilot, now
+        )
+        lineage = self.regroup.lineages.get(mission.mission_id)
+        if took_in and lineage is not None:  # a vehicle joins: it needs how the plan came to be
+            out.append(Publish(lineage.message(self.self_id, self.roster.members_hash)))
+        return out
+
+    def _progress_now(self) -> dict[int, float]:
+        """Every member's metres along its share of the fleet plan: ours as flown, the
+        others' as they last published it (held while replanning: the same everywhere)."""
+        base = self.manager.fleet_plan
         progress: dict[int, float] = {}
         if base is not None:
             for vid in base.roster:
@@ -784,23 +838,7 @@ class NodeCore:
                     # less what it flew before the last replan; nothing heard: nothing flown
                     done = p - (path - base.shares[vid].length_m) if path > 0.0 else 0.0
                 progress[vid] = min(max(done, 0.0), base.shares[vid].length_m)
-        members: list[Member] = []
-        for vid in survivors:
-            profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
-            if profile is None:
-                continue
-            pose: GeoPoint | None = None
-            if base is not None and vid in base.shares and base.shares[vid].waypoints:
-                try:
-                    _k, lat, lon = base.shares[vid].at(progress.get(vid, 0.0))
-                    pose = GeoPoint(lat, lon, 0.0)
-                except (PlanningError, ValueError):
-                    pose = None
-            members.append(Member(profile, pose))
-        self.roster.replanned(survivors)
-        return self.manager.replan(
-            mission, members, progress, self.planning_zones(now), self.autopilot, now
-        )
+        return progress
 
     # ------------------------------------------------------------------ tasking (issue 13)
     def _on_quantity(self, mission: Mission, now: float) -> list[ModuleOutput]:
@@ -884,6 +922,7 @@ class NodeCore:
                 case Publish() | Note():
                     out.append(o)
                 case Derived(mission):
+                    self.regroup.heard_mission(mission)
                     out += self._on_quantity(mission, now)
                 case Elected():
                     out += self._elected(o, now)
@@ -912,6 +951,7 @@ class NodeCore:
             if unknown:
                 self.fsm.post(fsm.PlanFailed(mid, f"no profile for fleet members {unknown}"[:64]))
                 return []
+            self.regroup.founded(e.mission, members)
             return self.manager.release(e.mission, members, self.planning_zones(now),
                                         self.autopilot, now)  # fmt: skip
         if e.goes:
@@ -930,6 +970,111 @@ class NodeCore:
         if self.roster.mission_id == e.home:
             return self._roster_events(self.roster.voted_out(winners))
         return []
+
+    # ------------------------------------------------------------------ add / swap (issue 13)
+    def _on_regroup(self, cmd: Command, now: float) -> list[ModuleOutput]:
+        """JOIN_MISSION / SWAP_MISSION (swarm/regroup.py): the vehicle leaves what it
+        flies and joins the other fleet, which takes it in with a replan and tells it how
+        its plan came to be; a swap that empties a fleet hands its mission over."""
+        if cmd.target.kind == SelectorKind.QUANTITY or not cmd.target.addresses(
+            self.self_id, self.fleet_id
+        ):
+            plan = plan_command(cmd, self.view())  # not addressed: no answer; QUANTITY: refused
+            return self._answer([plan.ack]) if plan is not None and plan.ack else []
+        self.answers.taken(answer_key(cmd))
+        view = self.view()
+        st = self._standing()
+        reason, text, to = AckReason.OK, "", 0
+        if view.autopilot.home is None or view.base is None:
+            reason = AckReason.HOME_NOT_SET if view.autopilot.home is None else AckReason.NO_BASE
+        elif view.fsm_state == FsmState.EMERGENCY:
+            reason = AckReason.EMERGENCY
+        elif not view.ready or view.fsm_state == FsmState.INACTIVE:
+            reason = AckReason.NOT_READY
+        else:
+            flying = None if st.replanning else st.flying
+            reason, text, to = self.regroup.answer(cmd, flying, st.idle)
+        ok = reason == AckReason.OK
+        ack = Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, text[:64])
+        out = self._answer([ack])
+        if not ok:
+            return out
+        mission = with_defaults(self.regroup.heard[to], self.mission_defaults.get(
+            self.regroup.heard[to].mission_type, {}))  # fmt: skip
+        if st.flying is not None:
+            if cmd.kind == CommandKind.SWAP_MISSION and self._emptied(cmd, st.flying, to):
+                out += self._hand_over(st.flying, to)
+            self.missions.pop(st.flying, None)  # left, not completed
+        self.missions[to] = mission
+        self.regroup.joining = to
+        self.fsm.post(fsm.NewMission(to))
+        return [*out, Note(logging.INFO, f"joining mission {to}'s fleet")]
+
+    def _emptied(self, cmd: Command, ours: int, theirs: int) -> bool:
+        """This swap takes every member of our fleet and none of theirs."""
+        named = set(cmd.target.vehicle_ids)
+        if not set(self.roster.flying) <= named:
+            return False
+        peers = self.members.peers
+        return not any(
+            v in peers and peers[v].present and peers[v].mission_id == theirs for v in named
+        )
+
+    def _hand_over(self, ours: int, theirs: int) -> list[ModuleOutput]:
+        """Our fleet is emptied: its lineage, with the progress we leave at, goes to the
+        fleet of `theirs` (the paper's SENDING_MISSION)."""
+        lineage = self.regroup.lineages.get(ours)
+        if lineage is None:
+            return [Note(logging.WARNING, f"mission {ours}: no plan to hand over")]
+        last = Lineage(lineage.mission, lineage.first, list(lineage.steps))
+        self.regroup.replanned(ours, (), self._progress_now())  # the hand-over step
+        msg = self.regroup.lineages[ours].message(self.self_id, self.roster.members_hash, theirs)
+        self.regroup.lineages[ours] = last
+        self.regroup.on_lineage(msg)  # we go to their fleet: we take it up with them
+        return [Note(logging.INFO, f"mission {ours}: emptied, handed to mission {theirs}'s fleet"),
+                Publish(msg)]  # fmt: skip
+
+    def _take_over_handed(self, ours: int) -> None:
+        """Our mission is flown: take up an emptied fleet's mission handed to ours (the
+        fleet as the swap left it flies what is left of it), instead of flying home."""
+        handed = self.regroup.handover(ours)
+        if not handed:
+            return
+        msg = handed_lineage(handed)
+        mine = self.regroup.lineages.get(ours)
+        movers = set(handed)
+        adopters: tuple[int, ...] = mine.members if mine else (self.self_id,)
+        for step in mine.steps if mine else ():
+            if movers & set(step.members):
+                adopters = step.members
+                break
+        mid = msg.mission.mission_id
+        self.regroup.adopting[mid] = (msg, adopters)
+        self.missions[mid] = msg.mission
+        self.fsm.post(fsm.NewMission(mid))
+
+    def _join(self, mid: int, now: float) -> list[ModuleOutput]:
+        """Fly the plan of the fleet we join (or an emptied fleet's, handed to ours),
+        made again from its lineage."""
+        adopting = self.regroup.adopting.pop(mid, None)
+        if adopting is not None:
+            msg, adopters = adopting
+            lineage = Lineage.of(msg)
+        else:
+            msg, adopters = self.regroup.offered[mid], ()
+            lineage = self.regroup.adopted(msg)
+        try:
+            replay = lineage.replay(self.fleet_profiles, adopters)
+        except KeyError as exc:
+            self.fsm.post(fsm.PlanFailed(mid, f"no profile for fleet member {exc}"[:64]))
+            return []
+        if adopters:  # the hand-over step is ours now: taken up by the adopters
+            lineage.steps[-1] = LineageStep(tuple(adopters), lineage.steps[-1].progress)
+            self.regroup.lineages[mid] = lineage
+        self.missions[mid] = msg.mission
+        self.roster.adopt(mid, lineage.everyone, lineage.members, len(lineage.steps))
+        return self.manager.release(msg.mission, replay.first, self.planning_zones(now),
+                                    self.autopilot, now, lineage=replay)  # fmt: skip
 
     def _start_return(self, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(self.autopilot, self.planning_zones(now), now)

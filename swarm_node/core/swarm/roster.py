@@ -73,7 +73,16 @@ class RosterMismatch:
     ours: int
 
 
-RosterEvent = MemberLost | RosterMismatch
+@dataclass(frozen=True)
+class MemberJoined:
+    """A vehicle outside the frozen roster is in PLAN for our mission: it joins the
+    fleet (JOIN_MISSION, SWAP_MISSION; swarm/regroup.py)."""
+
+    mission_id: int
+    vehicle_id: int
+
+
+RosterEvent = MemberLost | RosterMismatch | MemberJoined
 
 
 @dataclass
@@ -149,10 +158,14 @@ class Roster:
             mark = (info.mission_progress_m, info.mission_path_m)
             self.progress[vid] = mark
         out: list[RosterEvent] = []
+        if self.frozen and in_mission and info.fsm_state == FsmState.PLAN and vid not in self.flying:
+            return [MemberJoined(mid, vid)]  # a vehicle joining (or a lost one back)
         if self.frozen and vid in self.members and vid not in self.lost and vid not in self.finished:
             if info.fsm_state == FsmState.EMERGENCY:
                 out += self._lose(vid, "emergency")
-            elif info.mission_id != mid and info.fsm_state != FsmState.PLAN:
+            elif info.mission_id != mid and (
+                info.fsm_state != FsmState.PLAN or info.mission_id > 0  # planning another
+            ):
                 # progress is kept on the way home: a member that flew all its share
                 # says so in the same VehicleInfo that shows it left the mission
                 done, path = info.mission_progress_m, info.mission_path_m
@@ -296,6 +309,26 @@ class Roster:
         self.members = self.planned = tuple(sorted(set(winners)))
         self.lost = {v: why for v, why in self.lost.items() if v in self.members}
         self.finished &= set(self.members)
+
+    # ------------------------------------------------------------------ add / swap
+    def join(self, vid: int) -> None:
+        """A vehicle joins the frozen roster (the next replan takes it in)."""
+        if self.frozen and vid not in self.flying:
+            self.members = tuple(sorted({*self.members, vid}))
+            self.lost.pop(vid, None)
+            self.finished.discard(vid)
+
+    def adopt(
+        self, mission_id: int, members: Iterable[int], planned: Iterable[int], generation: int
+    ) -> None:
+        """Take a fleet's roster as its lineage shows it (a vehicle joining the fleet, or a
+        fleet taking over an emptied fleet's mission): frozen at once."""
+        self.mission_id = mission_id
+        self._reset()
+        self.planned = tuple(sorted(set(planned)))
+        self.members = tuple(sorted(set(members) | set(self.planned)))
+        self.lost = {v: "left before" for v in self.members if v not in self.planned}
+        self.generation = generation
 
     def progress_of(self, vid: int) -> tuple[float, float]:
         """A member's last published (progress_m, path_m); (0, 0): nothing heard."""
