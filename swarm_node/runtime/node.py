@@ -34,6 +34,7 @@ from swarm_proto.topics import (
     COMMAND,
     FLEET,
     INFO,
+    LINEAGE,
     MISSION,
     PEERS,
     STATUS,
@@ -314,7 +315,7 @@ class NodeRuntime:
 
     def start(self) -> None:
         # ACK: the peers' answers to missions make the roster (core/swarm/roster.py)
-        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET):
+        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET, LINEAGE):
             self.bus.subscribe(topic, self._received)
         self._zone_asker = threading.Thread(
             target=self._zone_asking, name=f"zones-{self.core.self_id}", daemon=True

@@ -2,7 +2,8 @@
 flying a simulated vehicle over MAVLink, and the real `gcs` command line sending
 `mission target --count 2 --payload MODEL`. The idle candidates synchronise, vote with
 no leader, the two with the payload asked for go, the other two stand down; `gcs`
-prints every score and who goes."""
+prints every score and who goes. Then `gcs cmd join-mission` adds one of the others to
+the winners' fleet (add, with the plan lineage over Zenoh)."""
 
 from __future__ import annotations
 
@@ -71,6 +72,23 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
             )
             print(out)
             print(f"gcs mission --count 2: answered, voted and shown in {took:.1f} s")
+            # add: vehicle 1 (stood down) joins the winners' fleet; they replan with it
+            # and send it their plan's lineage (over Zenoh), it flies its share of it
+            join = [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm",
+                    swarm, "cmd", "join-mission", "--id", "1", "--mission-id", "77"]  # fmt: skip
+            done = subprocess.run(join, capture_output=True, text=True, timeout=60)
+            assert done.returncode == 0, done.stdout + done.stderr
+            joined = wait_until(
+                lambda: all(
+                    infos[v].mission_id == 77 and infos[v].fsm_state == FsmState.GO_MISSION
+                    for v in (1, 7, 8)
+                )
+                and len({infos[v].members_hash for v in (1, 7, 8)}) == 1,
+                30,
+            )
+            assert joined is not None, {v: (i.mission_id, i.fsm_state, i.members_hash)
+                                        for v, i in infos.items()}  # fmt: skip
+            print(f"join-mission: vehicle 1 flies mission 77 with 7 and 8 after {joined:.1f} s")
     finally:
         sub.undeclare()
         watch.close()

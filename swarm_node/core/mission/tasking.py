@@ -11,10 +11,11 @@ Who votes (the electorate), on each vehicle, from state every member already agr
   knows are gone are not waited for;
 - a vehicle flying nothing (GO_MISSION, no mission) takes the mission up as any other:
   the idle candidates synchronise in STATE_PLAN and the frozen roster is the electorate;
-- only one fleet votes: an idle vehicle that hears a fleet flying, or a fleet member that
-  hears a fleet flying a mission of a lower id, is not a candidate (NOT_ADDRESSED, "the
-  fleet of mission N votes"); returning, landing or planning vehicles answer BUSY, and so
-  does a vehicle already voting (one vote at a time).
+- only one fleet votes, the one flying the most vehicles (ties: the lower mission id),
+  counted from the VehicleInfo of the vehicles the selector addresses: an idle vehicle
+  that hears a fleet flying, or a member of a smaller fleet, is not a candidate
+  (NOT_ADDRESSED, "the fleet of mission N votes"); returning, landing or planning
+  vehicles answer BUSY, and so does a vehicle already voting (one vote at a time).
 
 Each voter scores itself once (`scoring.PaperScore`, the database's `voting` weights and
 payload hierarchy) and runs a `voting.Ballot`; every vehicle ends with the same winners.
@@ -267,6 +268,12 @@ class Standing:
     lead: LatLon | None = None  # MUM-T: the lead's position
 
 
+def _voting_fleet(fleets: Mapping[int, int]) -> int | None:
+    """Which flying fleet votes: the one flying the most vehicles (ties: the lower
+    mission id); None when no fleet flies."""
+    return min(fleets, key=lambda m: (-fleets[m], m), default=None)
+
+
 def _addressed(sel: Selector, fleet_id: int) -> bool:
     return sel.fleet_id == 0 or fleet_id == sel.fleet_id
 
@@ -351,19 +358,23 @@ class Tasking:
             payload_wanted(sel.payload_model, self.settings.payload_classes)
         except ScoreError as exc:
             return AckReason.INVALID, str(exc)[:64]
-        flying = {
-            m for v, m in st.peer_missions.items() if _addressed(sel, st.peer_fleets.get(v, 0))
-        }
+        fleets = Counter(
+            m
+            for v, m in st.peer_missions.items()
+            if m != mission.mission_id and _addressed(sel, st.peer_fleets.get(v, 0))
+        )
         if st.flying is not None:
             if st.replanning:
                 return AckReason.BUSY, f"replanning mission {st.flying}"
-            lower = min((m for m in flying if m != st.flying), default=None)
-            if lower is not None and lower < st.flying:
-                return AckReason.NOT_ADDRESSED, f"the fleet of mission {lower} votes"
+            fleets[st.flying] += 1
+        voters = _voting_fleet(fleets)
+        if st.flying is not None:
+            if voters != st.flying:
+                return AckReason.NOT_ADDRESSED, f"the fleet of mission {voters} votes"
             return AckReason.OK, ""
         if st.idle:
-            if flying:
-                return AckReason.NOT_ADDRESSED, f"the fleet of mission {min(flying)} votes"
+            if voters is not None:
+                return AckReason.NOT_ADDRESSED, f"the fleet of mission {voters} votes"
             return AckReason.OK, ""
         return AckReason.BUSY, "on another mission or returning"
 
