@@ -28,6 +28,9 @@ dropped silently):
     Received(FleetAssignment) -> fleet id
     Received(Mission QUANTITY | Vote | TargetReport) -> tasking (mission/tasking.py): the
                               vote, re-tasking; its outcome -> roster, state machine
+    Received(Command JOIN_MISSION | SWAP_MISSION), Received(PlanLineage)
+                           -> regroup (swarm/regroup.py): add and swap; both carried
+                              out by FleetChanges (fleet_changes.py)
     PlanDone               -> mission manager (the plan job's outcome: fly the share)
     Received(Alert | SwarmView) -> declared, not used (counted)
 
@@ -58,8 +61,6 @@ from swarm_proto import (
     FleetAssignment,
     FsmState,
     GeoPoint,
-    LatLon,
-    LineageStep,
     Mission,
     MissionState,
     MissionType,
@@ -104,24 +105,16 @@ from .fences import (
     FencePlan,
     plan_fence,
 )
+from .fleet_changes import FleetChanges
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
-from .mission.scoring import Candidate
 from .mission.share import PlanOutcome, pose_on
-from .mission.tasking import (
-    Derived,
-    Elected,
-    Standing,
-    Tasking,
-    TaskingOutput,
-    TaskingSettings,
-    VoteFailed,
-)
+from .mission.tasking import Tasking, TaskingSettings
 from .mission_manager import Member, MissionManager, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
-from .swarm.regroup import Lineage, Regroup, handed_lineage
+from .swarm.regroup import Regroup
 from .swarm.roster import MemberJoined, MemberLost, Roster, RosterEvent, RosterMismatch
 
 log = logging.getLogger(__name__)
@@ -221,6 +214,7 @@ class NodeCore:
         self.roster = Roster(vid)  # the members of the current mission, agreed by all
         self.tasking = Tasking(vid, self.tasking_settings, self.fleet_profiles)  # votes, targets
         self.regroup = Regroup(vid)  # add and swap: lineages of the fleets flown in
+        self.changes = FleetChanges(self)  # carries out the two above (fleet_changes.py)
         self.missions: dict[int, Mission] = {}
         self.bad_input: Counter[str] = Counter()
         self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
@@ -395,7 +389,7 @@ class NodeCore:
             case Mission():
                 self.regroup.heard_mission(msg)  # a vehicle may be told to join it later
                 if msg.selection.kind == SelectorKind.QUANTITY:
-                    return self._on_quantity(msg, now)
+                    return self.changes.on_quantity(msg, now)
                 return self._on_mission(msg)
             case NoFlyZone():
                 self.monitor.zones[msg.zone_id] = msg
@@ -404,9 +398,9 @@ class NodeCore:
             case FleetAssignment():
                 return self._on_fleet(msg)
             case Vote():
-                return self._tasked(self.tasking.on_vote(msg, now), now)
+                return self.changes.tasked(self.tasking.on_vote(msg, now), now)
             case TargetReport():
-                return self._tasked(self.tasking.on_target(msg, now), now)
+                return self.changes.tasked(self.tasking.on_target(msg, now), now)
             case PlanLineage():
                 self.regroup.on_lineage(msg)
                 return []
@@ -435,7 +429,7 @@ class NodeCore:
         if repeat is not None:
             return repeat
         if cmd.kind in (CommandKind.JOIN_MISSION, CommandKind.SWAP_MISSION):
-            return self._on_regroup(cmd, now)
+            return self.changes.on_regroup(cmd, now)
         plan = plan_command(cmd, self.view())
         if plan is None:
             return []
@@ -583,7 +577,7 @@ class NodeCore:
                 out.append(
                     Note(logging.WARNING, f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})")
                 )
-                out += self._tasked(self.tasking.voter_lost(ev.vehicle_id, self.now), self.now)
+                out += self.changes.tasked(self.tasking.voter_lost(ev.vehicle_id, self.now), self.now)
                 if (
                     self.roster.frozen
                     and self.fsm.mission_id == ev.mission_id
@@ -632,7 +626,7 @@ class NodeCore:
         out += self._keep_fence(now)
         due = self.tasking.next_deadline()
         if due is not None and now >= due:
-            out += self._tasked(self.tasking.on_timer(now), now)
+            out += self.changes.tasked(self.tasking.on_timer(now), now)
         if now >= self.fsm.next_deadline():
             # issue 11: alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state
@@ -742,7 +736,7 @@ class NodeCore:
             return []
         if isinstance(o, fsm.MissionFinished):
             mission = self.missions.pop(o.mission_id, None)
-            self._take_over_handed(o.mission_id)
+            self.changes.take_over_handed(o.mission_id)
             if mission is not None:
                 return [
                     Publish(
@@ -777,12 +771,13 @@ class NodeCore:
         if self._replanning and self.roster.frozen:
             return self._replan(mission, now)
         if self.regroup.joining == mission_id or mission_id in self.regroup.adopting:
-            return self._join(mission_id, now)
+            return self.changes.join(mission_id, now)
         if mission.selection.kind == SelectorKind.QUANTITY:  # idle candidates: vote first
             electorate = self.roster.freeze(self.members.peers)
             self.manager.vote()
-            return self._tasked(self.tasking.start(mission, electorate, (), self._candidate(),
-                                                   now, home=None, lead=self._lead(mission)), now)  # fmt: skip
+            start = self.tasking.start(mission, electorate, (), self.changes.candidate(), now,
+                                       home=None, lead=self.changes.lead(mission))  # fmt: skip
+            return self.changes.tasked(start, now)
         self.roster.freeze(self.members.peers)
         members, unknown = self._members()
         if unknown:
@@ -839,242 +834,6 @@ class NodeCore:
                     done = p - (path - base.shares[vid].length_m) if path > 0.0 else 0.0
                 progress[vid] = min(max(done, 0.0), base.shares[vid].length_m)
         return progress
-
-    # ------------------------------------------------------------------ tasking (issue 13)
-    def _on_quantity(self, mission: Mission, now: float) -> list[ModuleOutput]:
-        """A QUANTITY mission, sent or derived from a target report: are we a candidate
-        (the acceptance checks, then tasking's), then the vote: a flying fleet votes at
-        once, idle vehicles synchronise in PLAN first (mission/tasking.py)."""
-        repeat = self._repeat(mission)
-        if repeat is not None:
-            return repeat
-        reason, text = check_mission(mission, self.view()), ""
-        st: Standing | None = None
-        if reason == AckReason.OK:
-            mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
-            st = self._standing()
-            reason, text = self.tasking.answer(mission, st)
-        ok = reason == AckReason.OK
-        ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok,
-                  reason, text[:64])  # fmt: skip
-        out: list[ModuleOutput] = self._answer([ack]) if ok else [Publish(ack)]
-        if not ok or st is None:
-            return out
-        if st.flying is not None:
-            electorate, lost = self.tasking.electorate(mission, st)
-            return out + self._tasked(self.tasking.start(mission, electorate, lost, st.me, now,
-                                                         home=st.flying, lead=st.lead), now)  # fmt: skip
-        self.missions[mission.mission_id] = mission
-        self.fsm.post(fsm.NewMission(mission.mission_id))
-        return out
-
-    def _candidate(self) -> Candidate:
-        ap = self.autopilot
-        at = None if ap.lat_deg is None or ap.lon_deg is None else LatLon(ap.lat_deg, ap.lon_deg)
-        battery = float(ap.battery_pct) if ap.battery_pct >= 0 else None
-        return Candidate.of(self.profile, at, battery)
-
-    def _lead(self, mission: Mission) -> LatLon | None:
-        peer = self.members.peers.get(mission.params.lead_vehicle_id)
-        st = peer.status if peer is not None else None
-        return LatLon(st.lat_deg, st.lon_deg) if st is not None else None
-
-    def _standing(self) -> Standing:
-        r, f = self.roster, self.fsm
-        flying, replanning = None, False
-        if (
-            r.frozen
-            and r.mission_id is not None
-            and r.mission_id > 0
-            and f.mission_id == r.mission_id
-        ):
-            flying = r.mission_id
-            replanning = f.state != FsmState.GO_MISSION or self.manager.mission_state not in (
-                MissionState.PREMISSION, MissionState.MISSION)  # fmt: skip
-        present = {
-            v: p for v, p in self.members.peers.items() if p.present and not p.is_ground_station
-        }
-        return Standing(
-            self.self_id,
-            self.fleet_id,
-            self._candidate(),
-            idle=f.state == FsmState.GO_MISSION and f.mission_id is None and self.active,
-            flying=flying,
-            replanning=replanning,
-            fleet=r.planned,
-            away=frozenset(
-                v
-                for v in r.planned
-                if v not in r.flying or (v != self.self_id and v not in present)
-            ),
-            peer_fleets={v: p.fleet_id for v, p in present.items()},
-            peer_missions={
-                v: p.mission_id
-                for v, p in present.items()
-                if p.mission_id > 0 and p.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)
-            },
-        )
-
-    def _tasked(self, outs: list[TaskingOutput], now: float) -> list[ModuleOutput]:
-        out: list[ModuleOutput] = []
-        for o in outs:
-            match o:
-                case Publish() | Note():
-                    out.append(o)
-                case Derived(mission):
-                    self.regroup.heard_mission(mission)
-                    out += self._on_quantity(mission, now)
-                case Elected():
-                    out += self._elected(o, now)
-                case VoteFailed(mid, home, _reason):
-                    if home is None and self.fsm.mission_id == mid:
-                        self.fsm.post(fsm.Unassigned(mid, "vote failed"))
-                case _:
-                    assert_never(o)
-        return out
-
-    def _elected(self, e: Elected, now: float) -> list[ModuleOutput]:
-        """The vote decided: winners fly the mission as a new fleet (selected by their
-        ids); a flying fleet's others lose them ("voted out") and replan; idle vehicles
-        not chosen stand down."""
-        mid, winners = e.mission.mission_id, e.outcome.winners
-        if e.home is None:  # idle vehicles synchronised in PLAN for it
-            if self.fsm.mission_id != mid or self.fsm.state != FsmState.PLAN:
-                return []
-            if not e.goes:
-                self.fsm.post(fsm.Unassigned(mid, "not chosen"))
-                return []
-            self.missions[mid] = e.mission
-            self.roster.elected(winners)
-            self.manager.elected()
-            members, unknown = self._members()
-            if unknown:
-                self.fsm.post(fsm.PlanFailed(mid, f"no profile for fleet members {unknown}"[:64]))
-                return []
-            self.regroup.founded(e.mission, members)
-            return self.manager.release(e.mission, members, self.planning_zones(now),
-                                        self.autopilot, now)  # fmt: skip
-        if e.goes:
-            if self.fsm.mission_id == e.home:
-                self.missions.pop(e.home, None)  # left for the new mission, not completed
-            self.missions[mid] = e.mission
-            self.fsm.post(fsm.NewMission(mid))
-            out: list[ModuleOutput] = [
-                Note(logging.INFO, f"leaving mission {e.home} for mission {mid}")
-            ]
-            if not e.outcome.stayers and self.self_id == min(winners):
-                text = f"mission {e.home} left unfinished: its fleet went to {mid}"
-                out.append(Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
-                                         AlertCode.MISSION_FAILED, text[:64])))  # fmt: skip
-            return out
-        if self.roster.mission_id == e.home:
-            return self._roster_events(self.roster.voted_out(winners))
-        return []
-
-    # ------------------------------------------------------------------ add / swap (issue 13)
-    def _on_regroup(self, cmd: Command, now: float) -> list[ModuleOutput]:
-        """JOIN_MISSION / SWAP_MISSION (swarm/regroup.py): the vehicle leaves what it
-        flies and joins the other fleet, which takes it in with a replan and tells it how
-        its plan came to be; a swap that empties a fleet hands its mission over."""
-        if cmd.target.kind == SelectorKind.QUANTITY or not cmd.target.addresses(
-            self.self_id, self.fleet_id
-        ):
-            plan = plan_command(cmd, self.view())  # not addressed: no answer; QUANTITY: refused
-            return self._answer([plan.ack]) if plan is not None and plan.ack else []
-        self.answers.taken(answer_key(cmd))
-        view = self.view()
-        st = self._standing()
-        reason, text, to = AckReason.OK, "", 0
-        if view.autopilot.home is None or view.base is None:
-            reason = AckReason.HOME_NOT_SET if view.autopilot.home is None else AckReason.NO_BASE
-        elif view.fsm_state == FsmState.EMERGENCY:
-            reason = AckReason.EMERGENCY
-        elif not view.ready or view.fsm_state == FsmState.INACTIVE:
-            reason = AckReason.NOT_READY
-        else:
-            flying = None if st.replanning else st.flying
-            reason, text, to = self.regroup.answer(cmd, flying, st.idle)
-        ok = reason == AckReason.OK
-        ack = Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, text[:64])
-        out = self._answer([ack])
-        if not ok:
-            return out
-        mission = with_defaults(self.regroup.heard[to], self.mission_defaults.get(
-            self.regroup.heard[to].mission_type, {}))  # fmt: skip
-        if st.flying is not None:
-            if cmd.kind == CommandKind.SWAP_MISSION and self._emptied(cmd, st.flying, to):
-                out += self._hand_over(st.flying, to)
-            self.missions.pop(st.flying, None)  # left, not completed
-        self.missions[to] = mission
-        self.regroup.joining = to
-        self.fsm.post(fsm.NewMission(to))
-        return [*out, Note(logging.INFO, f"joining mission {to}'s fleet")]
-
-    def _emptied(self, cmd: Command, ours: int, theirs: int) -> bool:
-        """This swap takes every member of our fleet and none of theirs."""
-        named = set(cmd.target.vehicle_ids)
-        if not set(self.roster.flying) <= named:
-            return False
-        peers = self.members.peers
-        return not any(
-            v in peers and peers[v].present and peers[v].mission_id == theirs for v in named
-        )
-
-    def _hand_over(self, ours: int, theirs: int) -> list[ModuleOutput]:
-        """Our fleet is emptied: its lineage, with the progress we leave at, goes to the
-        fleet of `theirs` (the paper's SENDING_MISSION)."""
-        lineage = self.regroup.lineages.get(ours)
-        if lineage is None:
-            return [Note(logging.WARNING, f"mission {ours}: no plan to hand over")]
-        last = Lineage(lineage.mission, lineage.first, list(lineage.steps))
-        self.regroup.replanned(ours, (), self._progress_now())  # the hand-over step
-        msg = self.regroup.lineages[ours].message(self.self_id, self.roster.members_hash, theirs)
-        self.regroup.lineages[ours] = last
-        self.regroup.on_lineage(msg)  # we go to their fleet: we take it up with them
-        return [Note(logging.INFO, f"mission {ours}: emptied, handed to mission {theirs}'s fleet"),
-                Publish(msg)]  # fmt: skip
-
-    def _take_over_handed(self, ours: int) -> None:
-        """Our mission is flown: take up an emptied fleet's mission handed to ours (the
-        fleet as the swap left it flies what is left of it), instead of flying home."""
-        handed = self.regroup.handover(ours)
-        if not handed:
-            return
-        msg = handed_lineage(handed)
-        mine = self.regroup.lineages.get(ours)
-        movers = set(handed)
-        adopters: tuple[int, ...] = mine.members if mine else (self.self_id,)
-        for step in mine.steps if mine else ():
-            if movers & set(step.members):
-                adopters = step.members
-                break
-        mid = msg.mission.mission_id
-        self.regroup.adopting[mid] = (msg, adopters)
-        self.missions[mid] = msg.mission
-        self.fsm.post(fsm.NewMission(mid))
-
-    def _join(self, mid: int, now: float) -> list[ModuleOutput]:
-        """Fly the plan of the fleet we join (or an emptied fleet's, handed to ours),
-        made again from its lineage."""
-        adopting = self.regroup.adopting.pop(mid, None)
-        if adopting is not None:
-            msg, adopters = adopting
-            lineage = Lineage.of(msg)
-        else:
-            msg, adopters = self.regroup.offered[mid], ()
-            lineage = self.regroup.adopted(msg)
-        try:
-            replay = lineage.replay(self.fleet_profiles, adopters)
-        except KeyError as exc:
-            self.fsm.post(fsm.PlanFailed(mid, f"no profile for fleet member {exc}"[:64]))
-            return []
-        if adopters:  # the hand-over step is ours now: taken up by the adopters
-            lineage.steps[-1] = LineageStep(tuple(adopters), lineage.steps[-1].progress)
-            self.regroup.lineages[mid] = lineage
-        self.missions[mid] = msg.mission
-        self.roster.adopt(mid, lineage.everyone, lineage.members, len(lineage.steps))
-        return self.manager.release(msg.mission, replay.first, self.planning_zones(now),
-                                    self.autopilot, now, lineage=replay)  # fmt: skip
 
     def _start_return(self, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(self.autopilot, self.planning_zones(now), now)
