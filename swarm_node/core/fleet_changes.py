@@ -69,8 +69,9 @@ class FleetChanges:
             return out
         if st.flying is not None:
             electorate, lost = self.node.tasking.electorate(mission, st)
-            return out + self.tasked(self.node.tasking.start(mission, electorate, lost, st.me, now,
-                                                         home=st.flying, lead=st.lead), now)  # fmt: skip
+            start = self.node.tasking.start(mission, electorate, lost, st.me, now,
+                                            home=st.flying, lead=self.lead(mission))  # fmt: skip
+            return out + self.tasked(start, now)
         self.node.missions[mission.mission_id] = mission
         self.node.fsm.post(fsm.NewMission(mission.mission_id))
         return out

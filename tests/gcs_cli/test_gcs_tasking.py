@@ -51,3 +51,4 @@ def test_the_vote_table_ranks_as_the_vehicles_do() -> None:
     undecided = result_of(77, votes(committed=False), None, went=set())
     assert not undecided.decided and undecided.winners is None
     assert set(undecided.scores) == {1, 7, 8, 9}
+

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import msgspec
 import pytest
+from typer.testing import CliRunner
 
 from swarm_node.core.mission.scoring import Candidate, PaperScore, mission_terms
 from swarm_node.core.mission.tasking import (
@@ -266,3 +267,30 @@ def test_retask_rules_from_the_database_and_bad_ones() -> None:
                 {"speed.person": 1.0}, {"colour": 1.0}, {"hold_s": float("nan")}):  # fmt: skip
         with pytest.raises(RetaskError):
             RetaskRules.from_params(bad)
+
+
+@pytest.mark.parametrize(
+    ("module", "name", "value", "says"),
+    [
+        ("target re-tasking", "count.person", 1.5, "count.person must be a whole number"),
+        ("target re-tasking", "min_confidence", 3.0, "min_confidence must be in [0, 1]"),
+        ("voting", "weight_payload", -1.0, "voting weights"),
+    ],
+)
+def test_a_node_refuses_to_start_on_bad_voting_or_retasking_parameters(
+    swarm_db: object, module: str, name: str, value: float, says: str
+) -> None:
+    """The database's parameters are checked when the node starts: one line, exit 2."""
+    import sqlite3
+
+    from swarm_node.cli import app as node_app
+
+    with sqlite3.connect(str(swarm_db)) as c:
+        c.execute(
+            "UPDATE module_params SET value = ? WHERE name = ? AND module_id = "
+            "(SELECT id FROM modules WHERE name = ?)",
+            (value, name, module),
+        )
+    r = CliRunner().invoke(node_app, ["run", "--id", "1", "--connect", "tcp/127.0.0.1:1"])
+    assert r.exit_code == 2, r.output
+    assert says in r.output and "Traceback" not in r.output

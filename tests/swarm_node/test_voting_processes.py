@@ -50,7 +50,7 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
             gcs = [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm",
                    swarm, "mission", "target", "--point", target, "--count", "2", "--payload",
                    PAYLOAD, "--alt", "30", "--duration", "30", "--mission-id", "77",
-                   "--timeout", "8", "--vote-wait", "20"]  # fmt: skip
+                   "--timeout", "15", "--vote-wait", "20"]  # fmt: skip
             t0 = time.monotonic()
             done = subprocess.run(gcs, capture_output=True, text=True, timeout=90,
                                   env={**os.environ, "COLUMNS": "120"})  # fmt: skip

@@ -265,7 +265,6 @@ class Standing:
     away: frozenset[int] = frozenset()  # fleet members no longer flying it
     peer_fleets: Mapping[int, int] = field(default_factory=dict)  # live vehicles' fleet ids
     peer_missions: Mapping[int, int] = field(default_factory=dict)  # live vehicles flying, by id
-    lead: LatLon | None = None  # MUM-T: the lead's position
 
 
 def _voting_fleet(fleets: Mapping[int, int]) -> int | None:
