@@ -31,6 +31,7 @@ from swarm_proto import (
     CommandArgs,
     CommandKind,
     FsmState,
+    Geometry,
     GeoPoint,
     Mission,
     MissionParams,
@@ -45,6 +46,20 @@ from .fast_fleet import FastFleet
 from .scenarios import GCS, Tracks, square
 
 AREA_ID = 70
+
+
+def coverage(tracks: Tracks, area: Geometry, profile: VehicleProfile, alt_m: float) -> float:
+    """The fraction of `area` under the flown tracks' camera swath (`profile`'s camera
+    at `alt_m`)."""
+    camera = profile.camera
+    assert camera is not None
+    swath = 2.0 * alt_m * math.tan(math.radians(camera.hfov_deg) / 2.0)
+    poly = Polygon([tracks.frame.to_local(p.lat_deg, p.lon_deg) for p in area.points])
+    flown = unary_union(
+        [LineString([(x, y) for x, y, _h in pts]).buffer(swath / 2.0)
+         for pts in tracks.points.values() if len(pts) > 1]
+    )  # fmt: skip
+    return float(flown.intersection(poly).area / poly.area)
 
 
 @dataclass
@@ -161,15 +176,7 @@ def retasking(
         )
 
     assert fleet.run_until(landed, 3600), fleet.notes[-20:]
-    camera = profiles[members[0]].camera
-    assert camera is not None
-    swath = 2.0 * alt_m * math.tan(math.radians(camera.hfov_deg) / 2.0)
-    poly = Polygon([frame.to_local(p.lat_deg, p.lon_deg) for p in area.points])
-    flown = unary_union(
-        [LineString([(x, y) for x, y, _h in pts]).buffer(swath / 2.0)
-         for pts in tracks.points.values() if len(pts) > 1]
-    )  # fmt: skip
-    result.coverage = flown.intersection(poly).area / poly.area
+    result.coverage = coverage(tracks, area, profiles[members[0]], alt_m)
     for a in fleet.messages(Alert):
         if a.code == AlertCode.MISSION_COMPLETE:
             m = int(a.text.split()[-1])

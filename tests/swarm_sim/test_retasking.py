@@ -11,6 +11,7 @@ import math
 import pytest
 
 from swarm_node.core.autopilot.state import AutopilotState
+from swarm_node.core.planning import LocalFrame
 from swarm_node.core.profile import PayloadClass, VehicleProfile
 from swarm_node.database import SwarmDatabase, seed_payload_classes
 from swarm_sim.retasking import AREA_ID, Retasking, retasking
@@ -124,3 +125,74 @@ def test_a_vtol_whose_home_is_far_from_the_base_lands_at_the_base(fleet_profiles
         1800,
     )  # fmt: skip
     assert landed, [(v, x.node.manager.phase, x.link.state.mode_name) for v, x in fleet.vehicles.items()]
+
+
+def test_a_quadcopter_joins_a_surveying_fleet_and_the_area_is_covered(fleet_profiles: dict) -> None:
+    """Add in fast time over real MAVLink bytes: quadcopters 7 and 8 survey an area, at
+    a third of their shares quadcopter 9 is told to join (JOIN_MISSION); the fleet
+    replans what is left with it, 9 replays the fleet's plan from the lineage, the three
+    cover the whole area (flown tracks) and land."""
+    from swarm_proto import (
+        Command,
+        CommandArgs,
+        CommandKind,
+        FsmState,
+        GeoPoint,
+        Mission,
+        MissionParams,
+        MissionType,
+        Selector,
+    )
+    from swarm_sim.core import SITL_HOME
+    from swarm_sim.fast_fleet import FastFleet
+    from swarm_sim.retasking import coverage
+    from swarm_sim.scenarios import GCS, Tracks, square
+
+    fleet = FastFleet.build([7, 8, 9], fleet_profiles, spacing_m=20.0)
+    fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
+    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+    fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
+    assert fleet.run_until(
+        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
+    )
+    alt = 30.0
+    area = square(SITL_HOME.lat_deg + 0.0015, SITL_HOME.lon_deg, 70.0)
+    fleet.broadcast(Mission(80, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=alt),
+                            Selector.ids(7, 8)))  # fmt: skip
+    tracks = Tracks(LocalFrame.at(list(area.points)), alt)
+
+    def third() -> bool:
+        tracks.sample(fleet)
+        ms = [fleet.vehicles[v].node.manager for v in (7, 8)]
+        return all(m.share is not None and m.share_progress_m() > m.share.length_m / 3 for m in ms)
+
+    assert fleet.run_until(third, 600), fleet.notes[-10:]
+    fleet.broadcast(Command(GCS, 2, CommandKind.JOIN_MISSION, Selector.ids(9),
+                            CommandArgs(mission_id=80)))  # fmt: skip
+
+    def joined() -> bool:
+        tracks.sample(fleet)
+        nodes = [fleet.vehicles[v].node for v in (7, 8, 9)]
+        return all(
+            n.fsm.state == FsmState.GO_MISSION and n.fsm.mission_id == 80
+            and n.manager.fleet_plan is not None and n.manager.fleet_plan.roster == (7, 8, 9)
+            for n in nodes
+        )  # fmt: skip
+
+    assert fleet.run_until(joined, 120), fleet.notes[-20:]
+    hashes = {fleet.vehicles[v].node.roster.members_hash for v in (7, 8, 9)}
+    plans = set()
+    for v in (7, 8, 9):
+        plan = fleet.vehicles[v].node.manager.fleet_plan
+        assert plan is not None
+        plans.add(tuple(sorted((k, s.waypoints) for k, s in plan.shares.items())))
+    assert len(hashes) == 1 and len(plans) == 1  # the joiner holds the fleet's plan
+
+    def landed() -> bool:
+        tracks.sample(fleet)
+        return all(v.node.fsm.state == FsmState.INACTIVE and not v.link.state.armed
+                   for v in fleet.vehicles.values())  # fmt: skip
+
+    assert fleet.run_until(landed, 1800), fleet.notes[-20:]
+    assert 9 in tracks.points  # it flew lanes of the area
+    assert coverage(tracks, area, fleet_profiles[7], alt) >= 0.99
