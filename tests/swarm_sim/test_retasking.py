@@ -74,7 +74,8 @@ def test_three_vtols_send_two_to_a_reported_person_and_the_third_replans(
     assert r.same_plan
 
 
-@pytest.mark.soak  # about five minutes: six fleet plans and four replans of a 700 m field
+@pytest.mark.soak  # three to six minutes: six fleet plans and four replans of a 700 m field
+@pytest.mark.timeout(1800)
 def test_six_vtols_two_retasked_the_other_four_finish_the_area_and_all_land(
     fleet_profiles: dict,
 ) -> None:
