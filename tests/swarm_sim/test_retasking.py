@@ -111,14 +111,15 @@ def test_a_vtol_whose_home_is_far_from_the_base_lands_at_the_base(fleet_profiles
     from swarm_sim.fast_fleet import FastFleet
     from swarm_sim.scenarios import GCS, square
 
-    fleet = FastFleet.build([1, 2], fleet_profiles, spacing_m=300.0)
+    fleet = FastFleet.build([1], fleet_profiles)
     fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
-    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+    west = 300.0 / (111_320.0 * 0.79)  # the base 300 m west of its home
+    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg - west, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
     assert fleet.run_until(
         lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
     )
-    area = square(SITL_HOME.lat_deg + 0.004, SITL_HOME.lon_deg - 0.002, 120.0)
+    area = square(SITL_HOME.lat_deg + 0.003, SITL_HOME.lon_deg - west, 80.0)
     fleet.broadcast(Mission(5, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=50.0)))
     landed = fleet.run_until(
         lambda: all(v.node.fsm.state == FsmState.INACTIVE and not v.link.state.armed
