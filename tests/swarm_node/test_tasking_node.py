@@ -42,6 +42,7 @@ from tests.swarm_node.test_mission_defects import area, uploads
 from tests.swarm_node.test_node_core import GCS, acks, activate, flying, profile, send
 
 BATTERY = {1: 95, 2: 60, 3: 88, 4: 75, 5: 50, 6: 99}
+UNDER_WAY = dict(mission_reached=4, mission_current=5)
 
 
 def settings() -> TaskingSettings:
@@ -294,3 +295,37 @@ def test_a_node_refuses_to_start_on_bad_voting_or_retasking_parameters(
     r = CliRunner().invoke(node_app, ["run", "--id", "1", "--connect", "tcp/127.0.0.1:1"])
     assert r.exit_code == 2, r.output
     assert says in r.output and "Traceback" not in r.output
+
+
+def test_twice_in_a_row_the_fleet_the_first_vote_made_votes_next() -> None:
+    """Two QUANTITY missions one after the other on the same nodes: the first is voted by
+    the idle vehicles, the second by the fleet the first made (the only fleet flying);
+    the idle ones are not candidates for it."""
+    f = tasking_fleet(4)
+    activate(f)
+    send(f, target(81, 2))
+    poll(f, 6.0, **UNDER_WAY)
+    first = f.nodes[1].tasking.outcomes[81].winners
+    assert set(first) == {1, 3}
+    send(f, target(82, 1))
+    poll(f, 8.0, **UNDER_WAY)
+    a = acks(f, 82)
+    assert a[2].reason == a[4].reason == AckReason.NOT_ADDRESSED and "mission 81" in a[2].text
+    assert a[1].accepted and a[3].accepted
+    assert f.nodes[1].fsm.mission_id == 82  # 95 % beats 88 %
+    assert f.nodes[3].fsm.mission_id == 81 and f.nodes[3].roster.planned == (3,)
+    assert f.nodes[3].roster.lost == {1: "voted out"}
+
+
+def test_a_voter_lost_mid_vote_is_not_waited_for() -> None:
+    """The best-placed voter dies as the mission arrives: the others hear it go silent
+    (2 s), stop waiting for it and decide among themselves, the same everywhere."""
+    f = tasking_fleet(4)
+    fly_area(f)
+    send(f, target(83, 1), to=[2, 3, 4])  # vehicle 1 (95 %) never gets it: it dies now
+    f.nodes.pop(1)
+    poll(f, 10.0, **UNDER_WAY)
+    outcomes = {f.nodes[v].tasking.outcomes[83] for v in (2, 3, 4)}
+    assert len(outcomes) == 1
+    (oc,) = outcomes
+    assert oc.winners == (3,) and 1 in oc.absent  # 88 %: the best of the living
