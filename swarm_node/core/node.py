@@ -109,6 +109,7 @@ from .fleet_changes import FleetChanges
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission.share import PlanOutcome, pose_on
 from .mission.tasking import Tasking, TaskingSettings
+from .mission.voting import VoterLost
 from .mission_manager import Member, MissionManager, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
@@ -397,10 +398,8 @@ class NodeCore:
                 return self._keep_fence(now)
             case FleetAssignment():
                 return self._on_fleet(msg)
-            case Vote():
-                return self.changes.tasked(self.tasking.on_vote(msg, now), now)
-            case TargetReport():
-                return self.changes.tasked(self.tasking.on_target(msg, now), now)
+            case Vote() | TargetReport():  # the vote, re-tasking (mission/tasking.py)
+                return self.changes.tasked(self.tasking.handle(msg, now), now)
             case PlanLineage():
                 self.regroup.on_lineage(msg)
                 return []
@@ -577,7 +576,7 @@ class NodeCore:
                 out.append(
                     Note(logging.WARNING, f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})")
                 )
-                out += self.changes.tasked(self.tasking.voter_lost(ev.vehicle_id, self.now), self.now)
+                out += self.changes.tasked(self.tasking.handle(VoterLost(ev.vehicle_id), self.now), self.now)
                 if (
                     self.roster.frozen
                     and self.fsm.mission_id == ev.mission_id

@@ -40,9 +40,10 @@ Inputs and outputs:
 |---|---|
 | `answer(mission, standing)` | candidate or why not (the node acks) |
 | `start(...)` | a ballot starts; its first vote goes out |
-| `Vote` | to the ballot of its mission (unknown missions counted) |
-| `voter_lost(vid)` | to every ballot (the roster lost a member) |
-| `TargetReport` | rules, duplicates, hold -> `Derived(mission)` |
+| `handle(Vote)` | to the ballot of its mission (unknown missions counted) |
+| `handle(VoterLost)` | to every ballot (the roster lost a member) |
+| `handle(TargetReport)` | rules, duplicates, hold -> `Derived(mission)` |
+| `on_timer(now)` | ballots' re-sends and deadlines, reports' hold |
 
 Outputs: `Publish(Vote | Alert)`, `Note`, `Elected`, `VoteFailed`, `Derived`.
 Pure: no I/O, `now` passed in.
@@ -306,6 +307,7 @@ class Derived:
 
 
 TaskingOutput = Publish | Note | Elected | VoteFailed | Derived
+TaskingInput = Vote | VoterLost | TargetReport
 
 
 # --------------------------------------------------------------------------- the module
@@ -420,6 +422,14 @@ class Tasking:
             f"{terms.payload:g}, time {terms.time:.3f}, battery {terms.battery:.2f})",
         )
         return [note, *self._ballot_out(self.ballots[mid], ballot.on_timer(now), now)]
+
+    def handle(self, event: TaskingInput, now: float) -> list[TaskingOutput]:
+        """A vote, a voter the roster lost, a target report."""
+        if isinstance(event, Vote):
+            return self.on_vote(event, now)
+        if isinstance(event, VoterLost):
+            return self.voter_lost(event.vehicle_id, now)
+        return self.on_target(event, now)
 
     def on_vote(self, vote: Vote, now: float) -> list[TaskingOutput]:
         r = self.ballots.get(vote.mission_id)
