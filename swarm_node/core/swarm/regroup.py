@@ -15,8 +15,8 @@ JOIN_MISSION (args.mission_id M), for each vehicle it addresses (`answer`):
   BUSY when returning, landing or planning, the usual acceptance checks first;
   accepted: the vehicle leaves what it flies (its old fleet sees it leave and replans),
   enters PLAN for M and says so in its VehicleInfo. M's members see a vehicle outside
-  the roster in PLAN for M (`roster.MemberJoined`), replan with it (posed where it is:
-  it has no share yet) and publish the lineage; the joiner replays the lineage that
+  the roster in PLAN for M (`roster.MemberJoined`), replan with it (unposed: it has no
+  share, and its live position differs between vehicles) and publish the lineage; the joiner replays the lineage that
   ends with that replan and flies its share.
 SWAP_MISSION (args.mission_id A, args.other_mission_id B): each addressed vehicle
   flying A joins B, each flying B joins A (any other: NOT_FOUND). When the vehicles
