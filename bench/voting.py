@@ -4,7 +4,12 @@ Simulated time throughout (the ballots are pure cores): `agree_ms` is from the m
 reaching every voter to the last voter's decision, on a LAN-like bus (1-10 ms per
 message, seeded loss), median and worst over 20 seeds; `agree_ms_radio_6` is the same
 for six gateways on the emulated TDM channel (XTend 115.2 kbps, 200 ms cycle, statuses
-at 5 Hz alongside, votes on the VOTE topic's radio policy)."""
+at 5 Hz alongside, votes on the VOTE topic's radio policy, compared with the same votes
+not acknowledged: `radio_6_policy`). `retasking_fastfleet`: the paper's experiment
+in FastFleet, from a payload's target report to the vote decided, to the winners flying
+the target mission and to the others flying their replanned shares (simulated s, with
+planning taking no simulated time: what planning takes is measured apart, as the wall
+time of the plan jobs on this machine, `*_plan_wall_s_max`)."""
 
 from __future__ import annotations
 
@@ -130,6 +135,78 @@ def agree_radio(n: int = 6, seed: int = 1, loss: float = 0.0) -> dict[str, float
     }
 
 
+def radio_policies(seeds: int = 10) -> dict[str, dict[str, float]]:
+    """The VOTE topic's radio policy (CONTROL, acknowledged) against not acknowledged:
+    the ballot re-sends on its own, so is the gateway's retransmission worth its air?"""
+    import msgspec
+
+    from swarm_proto.topics import RadioPolicy
+
+    global VOTE
+    chosen = VOTE
+    out: dict[str, dict[str, float]] = {}
+    try:
+        for name, policy in (
+            ("acked", chosen.radio),
+            ("not_acked", RadioPolicy(True, chosen.radio.klass, acked=False)),
+        ):
+            VOTE = msgspec.structs.replace(chosen, radio=policy)
+            for loss in (0.0, 0.2):
+                ms = [agree_radio(6, seed=s, loss=loss)["agree_ms"] for s in range(1, seeds + 1)]
+                out.setdefault(name, {})[f"loss_{round(loss * 100)}_median_ms"] = round(
+                    statistics.median(ms), 1
+                )
+    finally:
+        VOTE = chosen
+    return out
+
+
+def node_level() -> dict[str, dict[str, object]]:
+    """The paper's re-tasking in FastFleet (real MAVLink bytes, simulated time): a
+    payload reports a person during a VTOL survey, 2 vehicles are voted to it."""
+    import time
+
+    import swarm_sim.fast_fleet as ff
+    from swarm_node.core.mission.share import PlanOutcome, PlanRequest
+    from swarm_node.database import seed_fleet
+    from swarm_sim.retasking import retasking
+
+    profiles = {p.vehicle_id: p for p in seed_fleet()}
+    out: dict[str, dict[str, object]] = {}
+    real_run_plan = ff.run_plan
+    took: list[tuple[int, bool, float]] = []  # (mission id, replan?, wall s) per plan job
+
+    def timed(req: PlanRequest) -> PlanOutcome:
+        t0 = time.perf_counter()
+        try:
+            return real_run_plan(req)
+        finally:
+            took.append((req.mission.mission_id, req.base is not None, time.perf_counter() - t0))
+
+    ff.run_plan = timed  # FastFleet plans inline in no simulated time: measure the wall time
+    try:
+        for name, members, kw in (
+            ("vtol_3", (1, 2, 3), dict(source=2, at_progress=0.05, half_m=200.0)),
+            ("vtol_6", (1, 2, 3, 4, 5, 6), dict(source=3, at_progress=0.3, half_m=350.0)),
+        ):
+            took.clear()
+            r = retasking(profiles, members, to_the_end=False, **kw)  # type: ignore[arg-type]
+            target = [s for mid, _, s in took if mid == r.mission_id]
+            replans = [s for mid, again, s in took if mid != r.mission_id and again]
+            out[name] = {
+                "report_to_decided_s": round(r.report_to_decided_s, 2),
+                "report_to_winners_flying_s": round(r.report_to_flying_s, 2),
+                "report_to_others_replanned_s": round(r.report_to_replanned_s, 2),
+                "target_plan_wall_s_max": round(max(target, default=0.0), 2),
+                "area_replan_wall_s_max": round(max(replans, default=0.0), 2),
+                "winners": list(r.winners),
+                "same_replan_everywhere": r.same_plan,
+            }
+    finally:
+        ff.run_plan = real_run_plan
+    return out
+
+
 def vote_bytes(n: int) -> int:
     v = Vote(2**32 - 1, 65534, tuple(VoteScore(65534 - i, 0.1234) for i in range(n)),
              round=255, members_hash=0xFFFF, committed=True)  # fmt: skip
@@ -153,6 +230,8 @@ def run() -> dict:
             "max": max(lossy_radio),
             "seeds": len(lossy_radio),
         },
+        "radio_6_policy": radio_policies(),
+        "retasking_fastfleet": node_level(),
         "vote_radio_bytes": {"n_6": vote_bytes(6), "n_20": vote_bytes(20), "n_50": vote_bytes(50)},
         "radio_limits_bytes": {"unfragmented": MAX_RECORD_VALUE, "message": MAX_MESSAGE_BYTES},
     }

@@ -40,12 +40,17 @@ from .db import DbOption
 from .db import app as db_app
 from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
 from .render import ack_table, fleet_rows, fleet_table
+from .tasking import VoteWatch, show_vote
+from .tasking import app as target_app
+from .tasking import vote as show_a_vote
 
 app = typer.Typer(help="bandada ground station.", no_args_is_help=True)
 app.add_typer(db_app, name="db")
 zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
 app.add_typer(zone_app, name="zone")
 app.add_typer(analyze_app, name="analyze")
+app.add_typer(target_app, name="target")  # issue 13: re-tasking, and the vote shown
+app.command("vote")(show_a_vote)
 console = Console()
 
 
@@ -252,11 +257,13 @@ def cmd(
     ),
     fleet_id: int = typer.Option(0, help="set-fleet: the new fleet id"),
     mission_id: int = typer.Option(0, help="cancel-mission / join-mission: the mission"),
+    other_mission_id: int = typer.Option(0, help="swap-mission: the other fleet's mission"),
     timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
 ) -> None:
     """Send an operator command (rtl, land, emergency-land, abort-landing, parachute,
     set-base, calibrate, arm, disarm, takeoff, set-mode, goto, set-speed, set-altitude,
-    set-fleet, cancel-mission, activate, shutdown) and show every vehicle's ack."""
+    set-fleet, cancel-mission, join-mission, swap-mission, activate, shutdown) and show
+    every vehicle's ack."""
     try:
         k = CommandKind[kind.upper().replace("-", "_")]
     except KeyError as exc:
@@ -272,7 +279,8 @@ def cmd(
             "emergency-land needs --point LAT,LON: where the landing route ends",
             param_hint="--point",
         )
-    args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id)
+    args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id,
+                       other_mission_id=other_mission_id)  # fmt: skip
     with ctx.obj.open() as gs:
         # every vehicle named with --id (a fresh session hears a LAN's vehicles one by
         # one; the acks awaited are those of the vehicles known to be addressed)
@@ -300,6 +308,7 @@ def mission(
     payload: str = typer.Option(
         "", help="with --count: the payload model voting prefers (a swarm database model)"
     ),
+    vote_wait: float = typer.Option(15.0, help="with --count: seconds to wait for the vote"),
     alt: float | None = typer.Option(None, help="altitude above home, m"),
     speed: float | None = typer.Option(None, help="m/s (default: each vehicle's cruise)"),
     overlap: float | None = typer.Option(None, help="area: camera side overlap"),
@@ -321,6 +330,8 @@ def mission(
             f"unknown mission type {mission_type!r}", param_hint="TYPE"
         ) from exc
     geometry = geometry_from(polygon, point, circle, line, points)
+    if not 0.0 <= vote_wait < 3600.0:
+        raise typer.BadParameter("must be in [0, 3600) s", param_hint="--vote-wait")
     given = {
         "altitude_rel_m": alt,
         "speed_m_s": speed,
@@ -340,7 +351,11 @@ def mission(
     except (ValueError, msgspec.ValidationError) as exc:
         raise typer.BadParameter(str(exc)) from exc
     with ctx.obj.open() as gs:
+        watch = VoteWatch(gs) if quantity else None  # the vote follows the mission at once
         acks = gs.mission(m, timeout_s=timeout)
+        if watch is not None and any(a.accepted for a in acks):  # every score, who goes
+            voters = {a.vehicle_id for a in acks if a.accepted}
+            show_vote(gs, watch, m.mission_id, voters, quantity, vote_wait)
     _print_acks(acks, f"mission {m.mission_id} ({mtype.name.lower()})")
 
 

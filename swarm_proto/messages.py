@@ -532,6 +532,50 @@ class RadioStats(Struct, frozen=True):
     peers: tuple[PeerRadioStats, ...] = ()
 
 
+# --------------------------------------------------------------------------- add / swap
+
+
+class LineageHome(Struct, frozen=True, array_like=True):
+    """A member of a fleet's first plan and the home that plan posed it at."""
+
+    vehicle_id: VehicleId
+    home: GeoPoint | None = None
+
+
+class LineageProgress(Struct, frozen=True, array_like=True):
+    """A member's progress along its share when the fleet replanned."""
+
+    vehicle_id: VehicleId
+    progress_m: DistanceM
+
+
+class LineageStep(Struct, frozen=True, array_like=True):
+    """One replan of a fleet: the members it was made for and the progress it started
+    from (every old member's metres along its share)."""
+
+    members: tuple[VehicleId, ...]
+    progress: tuple[LineageProgress, ...] = ()
+
+
+class PlanLineage(Struct, frozen=True):
+    """How a fleet's plan came to be (add and swap, docs/voting.md): the mission as the
+    fleet flies it, the first plan's members with their homes, and every replan since.
+    Every fleet member plans from the same inputs, so a vehicle joining the fleet
+    replays this and holds the fleet's plan too; a fleet emptied by a swap publishes
+    it, with the progress its members left at, for the fleet its mission is handed to."""
+
+    mission: Mission
+    sender_id: VehicleId
+    first: tuple[LineageHome, ...]
+    replans: tuple[LineageStep, ...] = ()
+    members_hash: Annotated[int, Meta(ge=0, le=0xFFFF, description="of the last step")] = 0
+    handed_to: MissionId = 0  # the emptied fleet's mission goes to this mission's fleet
+
+    @property
+    def mission_id(self) -> int:
+        return self.mission.mission_id
+
+
 #: Every message type, in radio type-tag order (index + 1 is the tag). Append only.
 MESSAGE_TYPES: tuple[type[Struct], ...] = (
     VehicleStatus,
@@ -545,6 +589,7 @@ MESSAGE_TYPES: tuple[type[Struct], ...] = (
     NoFlyZone,
     TargetReport,
     RadioStats,
+    PlanLineage,
 )
 
 

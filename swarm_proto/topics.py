@@ -24,6 +24,7 @@ from .messages import (
     FleetAssignment,
     Mission,
     NoFlyZone,
+    PlanLineage,
     RadioStats,
     SwarmView,
     TargetReport,
@@ -208,6 +209,15 @@ TARGET = Topic(
     priority=Priority.DATA_HIGH,
     radio=RadioPolicy(True, RadioClass.ALERT, acked=True),
 )
+LINEAGE = Topic(
+    "lineage",
+    "lineage/{mission_id}/{sender_id}",
+    PlanLineage,
+    "How a fleet's plan came to be, for a vehicle joining it (add, swap) or a fleet "
+    "taking over an emptied fleet's mission; published by the fleet's members.",
+    priority=Priority.INTERACTIVE_LOW,
+    radio=RadioPolicy(True, RadioClass.CONTROL, acked=True),
+)
 ALIVE = Topic(
     "alive",
     "alive/{node_id}",
@@ -255,6 +265,7 @@ TOPICS: tuple[Topic, ...] = (
     FLEET,
     ZONE,
     TARGET,
+    LINEAGE,
     ALIVE,
     PEERS,
     ZONES,

@@ -14,6 +14,7 @@ travels is what would travel on Zenoh.
 
 from __future__ import annotations
 
+import functools
 import heapq
 import itertools
 from collections.abc import Callable, Mapping, Sequence
@@ -24,6 +25,7 @@ import msgspec
 from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
 from swarm_node.core.mission.share import run_plan
+from swarm_node.core.mission.tasking import TaskingSettings
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
@@ -52,6 +54,16 @@ MODEL_OF_TYPE = {
     VehicleType.ROVER: "rover",
     VehicleType.BOAT: "boat",
 }
+
+
+@functools.cache
+def seed_tasking() -> TaskingSettings:
+    """Voting weights, re-tasking rules and payload hierarchy of the seed database."""
+    from swarm_node.database import SwarmDatabase
+    from swarm_node.runtime.node import tasking_settings_of
+
+    with SwarmDatabase.memory() as db:
+        return tasking_settings_of(db)
 
 
 @dataclass
@@ -86,9 +98,11 @@ class FastFleet:
         spacing_m: float = 40.0,
         start_unix_s: float = 1.8e9,
         settings: NodeSettings | None = None,
+        tasking: TaskingSettings | None = None,
     ) -> FastFleet:
         """Vehicles `members` (database ids), each simulated as its profile's model,
-        homes `spacing_m` apart going east."""
+        homes `spacing_m` apart going east; voting and re-tasking as the seed database
+        sets them unless `tasking` is given."""
         vehicles: dict[int, SimVehicle] = {}
         homes = spread_homes(home, len(members), spacing_m)
         for i, vid in enumerate(members):
@@ -100,8 +114,9 @@ class FastFleet:
                 LinkSettings(vehicle_type=profile.vehicle_type, link_timeout_s=0.6), start_unix_s
             )
             node = NodeCore(
-                profile, settings or NodeSettings(), now=start_unix_s, fleet_profiles=profiles
-            )
+                profile, settings or NodeSettings(), now=start_unix_s, fleet_profiles=profiles,
+                tasking_settings=tasking or seed_tasking(),
+            )  # fmt: skip
             vehicles[vid] = SimVehicle(node, link, endpoint, next_poll=start_unix_s)
         return cls(vehicles, start_unix_s)
 

@@ -187,7 +187,7 @@ def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
         return CommandPlan(ack=_ack(cmd, view, False, reason, text))
 
     if cmd.target.kind == SelectorKind.QUANTITY:  # this vehicle is a candidate
-        return reject(AckReason.UNSUPPORTED, "choosing vehicles by voting is not implemented")
+        return reject(AckReason.UNSUPPORTED, "voting chooses vehicles for missions, not commands")
 
     def done(*effects: Effect) -> CommandPlan:
         return CommandPlan(effects=effects, ack=_ack(cmd, view, True))
@@ -343,8 +343,6 @@ def check_mission(mission: Mission, view: NodeView) -> AckReason:
     sel = mission.selection
     if not sel.addresses(view.self_id, view.fleet_id):
         return AckReason.NOT_ADDRESSED
-    if sel.kind == SelectorKind.QUANTITY:
-        return AckReason.UNSUPPORTED  # voting selects vehicles: the mission manager's job
     if view.autopilot.home is None:
         return AckReason.HOME_NOT_SET
     if view.base is None:

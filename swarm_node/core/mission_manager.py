@@ -54,6 +54,7 @@ from .mission.share import (
     Member,
     PlanOutcome,
     PlanRequest,
+    Replay,
     Share,
     plan_fleet,
 )
@@ -155,6 +156,7 @@ class MissionManager:
     zones: tuple[NoFlyZone, ...] = ()
     sortie: Sortie = field(default_factory=Sortie)  # the one owner of the mission state
     owner: Owner = Owner.MISSION  # the rank of our requests (OPERATOR after a recall)
+    base: GeoPoint | None = None  # the operator's base (the autopilot's rally point)
     along_m: tuple[float, ...] = ()  # metres along the share at each item (index = seq)
     hold_s: float = 0.0  # a timed hold on the share's unlimited loiter (target --duration)
     hold_seq: int = 0  # that loiter's item
@@ -192,7 +194,8 @@ class MissionManager:
     @property
     def land_radius_m(self) -> float:
         """How close RTL must bring the vehicle before it lands: a VTOL loiters around
-        home at its turn radius in RTL, a multirotor comes right over it."""
+        home (or the rally point) at its turn radius in RTL, a multirotor comes right
+        over it."""
         return max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
 
     @property
@@ -209,15 +212,19 @@ class MissionManager:
         zones: Sequence[NoFlyZone],
         ap: AutopilotState,
         now: float,
+        *,
+        lineage: Replay | None = None,
     ) -> list[Out]:
         """Plan the mission (a `PlanJob` the shell runs off the control loop; its
-        outcome comes back to `on_plan`) and then fly this vehicle's share."""
+        outcome comes back to `on_plan`) and then fly this vehicle's share. With
+        `lineage`, the plan of a fleet this vehicle joins, made again (swarm/regroup.py)."""
         if self.sortie.state not in (MissionState.PLANNING, MissionState.REPLAN):
             self.sortie.begin(keep_progress=False)
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         self._job += 1
         self._planning = (mission, tuple(zones))
-        req = PlanRequest(self._job, mission, tuple(members), tuple(zones), now, home_alt)
+        req = PlanRequest(self._job, mission, tuple(members), tuple(zones), now, home_alt,
+                          lineage=lineage)  # fmt: skip
         fleet_ids = sorted(m.profile.vehicle_id for m in members)
         return [Log(f"mission {mission.mission_id}: planning for fleet {fleet_ids}"), PlanJob(req)]
 
@@ -294,6 +301,14 @@ class MissionManager:
         self._steps = steps
         self.phase = Phase.STARTING
         return [note, *self._next()]
+
+    def vote(self) -> None:
+        """Idle candidates synchronised for a QUANTITY mission vote (mission/tasking.py)."""
+        self.sortie.go(Trigger.VOTE)
+
+    def elected(self) -> None:
+        """Chosen by the vote: the mission is planned for the winners (`release`)."""
+        self.sortie.go(Trigger.ELECTED)
 
     def begin_replan(self) -> None:
         """A member was lost: the fleet replans what is left. We keep flying our share
@@ -590,12 +605,15 @@ class MissionManager:
         elif self.phase == Phase.FLYING and self.items > 1 and self.mission_id is not None:
             return self._flying(ap, now)
         elif self.phase == Phase.RETURNING and self._in_flight is None and self.profile.can_hover:
-            home = ap.home
+            # RTL flies to the nearer of home and the rally point (the base: ArduPilot's
+            # RALLY_INCL_HOME): land near either (a VTOL whose home is far from the base
+            # circled the base for ever)
+            places = [p for p in (ap.home, self.base) if p is not None]
             if (
-                home
+                places
                 and ap.lat_deg is not None
                 and ap.lon_deg is not None
-                and distance_m(ap.lat_deg, ap.lon_deg, home.lat_deg, home.lon_deg)
+                and min(distance_m(ap.lat_deg, ap.lon_deg, p.lat_deg, p.lon_deg) for p in places)
                 < self.land_radius_m
             ):
                 self.phase = Phase.LANDING

@@ -26,8 +26,13 @@ dropped silently):
     Received(Mission)      -> acceptance checks -> state machine (NewMission)
     Received(NoFlyZone)    -> monitoring's zones, fence keeper
     Received(FleetAssignment) -> fleet id
+    Received(Mission QUANTITY | Vote | TargetReport) -> tasking (mission/tasking.py): the
+                              vote, re-tasking; its outcome -> roster, state machine
+    Received(Command JOIN_MISSION | SWAP_MISSION), Received(PlanLineage)
+                           -> regroup (swarm/regroup.py): add and swap; both carried
+                              out by FleetChanges (fleet_changes.py)
     PlanDone               -> mission manager (the plan job's outcome: fly the share)
-    Received(Alert | Vote | TargetReport | SwarmView) -> declared, not used yet (counted)
+    Received(Alert | SwarmView) -> declared, not used (counted)
 
 Modules answer in one vocabulary (outputs.py): Publish, Submit(owner, request),
 Post(fsm event), Note; the router posts events to the state machine, passes requests
@@ -52,6 +57,7 @@ from swarm_proto import (
     Alert,
     AlertCode,
     Command,
+    CommandKind,
     FleetAssignment,
     FsmState,
     GeoPoint,
@@ -59,6 +65,8 @@ from swarm_proto import (
     MissionState,
     MissionType,
     NoFlyZone,
+    PlanLineage,
+    SelectorKind,
     Severity,
     SwarmView,
     TargetReport,
@@ -97,14 +105,18 @@ from .fences import (
     FencePlan,
     plan_fence,
 )
+from .fleet_changes import FleetChanges
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
-from .mission.share import PlanOutcome
+from .mission.share import PlanOutcome, pose_on
+from .mission.tasking import Tasking, TaskingSettings
+from .mission.voting import VoterLost
 from .mission_manager import Member, MissionManager, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
-from .swarm.roster import MemberLost, Roster, RosterEvent, RosterMismatch
+from .swarm.regroup import Regroup
+from .swarm.roster import MemberJoined, MemberLost, Roster, RosterEvent, RosterMismatch
 
 log = logging.getLogger(__name__)
 
@@ -178,6 +190,8 @@ class NodeCore:
     fleet_profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)  # from the database
     # the database's default parameters per kind of mission (fill what a mission leaves unset)
     mission_defaults: Mapping[MissionType, Mapping[str, float]] = field(default_factory=dict)
+    # the database's voting weights, payload hierarchy and re-tasking rules
+    tasking_settings: TaskingSettings = field(default_factory=TaskingSettings)
 
     def __post_init__(self) -> None:
         vid = self.profile.vehicle_id
@@ -199,6 +213,9 @@ class NodeCore:
         self.base: GeoPoint | None = None
         self.fleet_id = 0
         self.roster = Roster(vid)  # the members of the current mission, agreed by all
+        self.tasking = Tasking(vid, self.tasking_settings, self.fleet_profiles)  # votes, targets
+        self.regroup = Regroup(vid)  # add and swap: lineages of the fleets flown in
+        self.changes = FleetChanges(self)  # carries out the two above (fleet_changes.py)
         self.missions: dict[int, Mission] = {}
         self.bad_input: Counter[str] = Counter()
         self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
@@ -371,6 +388,9 @@ class NodeCore:
             case Command():
                 return self._on_command(msg, now)
             case Mission():
+                self.regroup.heard_mission(msg)  # a vehicle may be told to join it later
+                if msg.selection.kind == SelectorKind.QUANTITY:
+                    return self.changes.on_quantity(msg, now)
                 return self._on_mission(msg)
             case NoFlyZone():
                 self.monitor.zones[msg.zone_id] = msg
@@ -378,7 +398,12 @@ class NodeCore:
                 return self._keep_fence(now)
             case FleetAssignment():
                 return self._on_fleet(msg)
-            case Alert() | Vote() | TargetReport() | SwarmView():
+            case Vote() | TargetReport():  # the vote, re-tasking (mission/tasking.py)
+                return self.changes.tasked(self.tasking.handle(msg, now), now)
+            case PlanLineage():
+                self.regroup.on_lineage(msg)
+                return []
+            case Alert() | SwarmView():
                 self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
                 return []
             case _:
@@ -402,6 +427,8 @@ class NodeCore:
         repeat = self._repeat(cmd)
         if repeat is not None:
             return repeat
+        if cmd.kind in (CommandKind.JOIN_MISSION, CommandKind.SWAP_MISSION):
+            return self.changes.on_regroup(cmd, now)
         plan = plan_command(cmd, self.view())
         if plan is None:
             return []
@@ -434,7 +461,7 @@ class NodeCore:
 
     def _apply(self, effect: Effect) -> None:
         if isinstance(effect, SetBase):
-            self.base = effect.point
+            self.base = self.manager.base = effect.point
         elif isinstance(effect, SetFleet):
             self.fleet_id = effect.fleet_id
         elif isinstance(effect, SetActive):
@@ -549,6 +576,7 @@ class NodeCore:
                 out.append(
                     Note(logging.WARNING, f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})")
                 )
+                out += self.changes.tasked(self.tasking.handle(VoterLost(ev.vehicle_id), self.now), self.now)
                 if (
                     self.roster.frozen
                     and self.fsm.mission_id == ev.mission_id
@@ -557,6 +585,18 @@ class NodeCore:
                     in (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
                 ):
                     out.append(Post(fsm.Replan(ev.mission_id)))  # inherit its share
+            elif isinstance(ev, MemberJoined):
+                if (
+                    self.fsm.mission_id == ev.mission_id
+                    and self.fsm.state in (FsmState.GO_MISSION, FsmState.PLAN)
+                    and self.manager.mission_state
+                    in (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
+                ):
+                    self.roster.join(ev.vehicle_id)
+                    out += [
+                        Note(logging.INFO, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} joins"),
+                        Post(fsm.Replan(ev.mission_id)),  # share what is left with it
+                    ]
             elif isinstance(ev, RosterMismatch):
                 out.append(
                     Note(logging.ERROR, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} planned "
@@ -571,6 +611,7 @@ class NodeCore:
             self.members.next_deadline(),
             self.commands.next_deadline(),
             self.fence.next_deadline(),
+            self.tasking.next_deadline(),
         ):
             if d is not None:
                 candidates.append(d)
@@ -582,6 +623,9 @@ class NodeCore:
         out += self._peer_events(self.members.on_timer(now))
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
+        due = self.tasking.next_deadline()
+        if due is not None and now >= due:
+            out += self.changes.tasked(self.tasking.on_timer(now), now)
         if now >= self.fsm.next_deadline():
             # issue 11: alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state
@@ -618,6 +662,10 @@ class NodeCore:
             return True  # each vehicle plans its own way back (no landing sequencing yet)
         if self._replanning and self.roster.frozen:
             return self.roster.ready_to_replan(self.members.peers)
+        if self.regroup.joining == mid:  # a joiner: the fleet's lineage with it in
+            return mid in self.regroup.offered
+        if mid in self.regroup.adopting:  # an emptied fleet's mission, handed to ours
+            return True
         return self.roster.ready(self.members.peers)
 
     def _tick_fsm(self, now: float) -> list[ModuleOutput]:
@@ -678,10 +726,16 @@ class NodeCore:
             return []
         if isinstance(o, fsm.ReleaseMission):
             return self._release(o.mission_id, now)
+        if isinstance(o, fsm.StandDown):
+            self.missions.pop(o.mission_id, None)
+            self.roster.close()
+            self.manager.stop()
+            return [Note(logging.INFO, f"mission {o.mission_id}: standing down ({o.reason})")]
         if isinstance(o, fsm.MissionStarted):
             return []
         if isinstance(o, fsm.MissionFinished):
             mission = self.missions.pop(o.mission_id, None)
+            self.changes.take_over_handed(o.mission_id)
             if mission is not None:
                 return [
                     Publish(
@@ -715,6 +769,14 @@ class NodeCore:
             return []
         if self._replanning and self.roster.frozen:
             return self._replan(mission, now)
+        if self.regroup.joining == mission_id or mission_id in self.regroup.adopting:
+            return self.changes.join(mission_id, now)
+        if mission.selection.kind == SelectorKind.QUANTITY:  # idle candidates: vote first
+            electorate = self.roster.freeze(self.members.peers)
+            self.manager.vote()
+            start = self.tasking.start(mission, electorate, (), self.changes.candidate(), now,
+                                       home=None, lead=self.changes.lead(mission))  # fmt: skip
+            return self.changes.tasked(start, now)
         self.roster.freeze(self.members.peers)
         members, unknown = self._members()
         if unknown:
@@ -724,6 +786,7 @@ class NodeCore:
             return [
                 Note(logging.ERROR, f"cannot plan mission {mission_id}: no profile for {unknown}")
             ]
+        self.regroup.founded(mission, members)
         return self.manager.release(mission, members, self.planning_zones(now), self.autopilot, now)
 
     def _replan(self, mission: Mission, now: float) -> list[ModuleOutput]:
@@ -734,6 +797,29 @@ class NodeCore:
         base = self.manager.fleet_plan
         peers = self.members.peers
         survivors = self.roster.survivors(peers)
+        progress = self._progress_now()
+        members: list[Member] = []
+        for vid in survivors:
+            profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
+            if profile is None:
+                continue
+            members.append(Member(profile, pose_on(base, vid, progress) if base else None))
+        self.roster.replanned(survivors)
+        took_in = self.regroup.replanned(
+            mission.mission_id, [m.profile.vehicle_id for m in members], progress
+        )
+        out = self.manager.replan(
+            mission, members, progress, self.planning_zones(now), self.autopilot, now
+        )
+        lineage = self.regroup.lineages.get(mission.mission_id)
+        if took_in and lineage is not None:  # a vehicle joins: it needs how the plan came to be
+            out.append(Publish(lineage.message(self.self_id, self.roster.members_hash)))
+        return out
+
+    def _progress_now(self) -> dict[int, float]:
+        """Every member's metres along its share of the fleet plan: ours as flown, the
+        others' as they last published it (held while replanning: the same everywhere)."""
+        base = self.manager.fleet_plan
         progress: dict[int, float] = {}
         if base is not None:
             for vid in base.roster:
@@ -746,23 +832,7 @@ class NodeCore:
                     # less what it flew before the last replan; nothing heard: nothing flown
                     done = p - (path - base.shares[vid].length_m) if path > 0.0 else 0.0
                 progress[vid] = min(max(done, 0.0), base.shares[vid].length_m)
-        members: list[Member] = []
-        for vid in survivors:
-            profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
-            if profile is None:
-                continue
-            pose: GeoPoint | None = None
-            if base is not None and vid in base.shares and base.shares[vid].waypoints:
-                try:
-                    _k, lat, lon = base.shares[vid].at(progress.get(vid, 0.0))
-                    pose = GeoPoint(lat, lon, 0.0)
-                except (PlanningError, ValueError):
-                    pose = None
-            members.append(Member(profile, pose))
-        self.roster.replanned(survivors)
-        return self.manager.replan(
-            mission, members, progress, self.planning_zones(now), self.autopilot, now
-        )
+        return progress
 
     def _start_return(self, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(self.autopilot, self.planning_zones(now), now)

@@ -123,6 +123,15 @@ class Recalled:
     reason: str = ""
 
 
+@dataclass(frozen=True)
+class Unassigned:
+    """The vote of a QUANTITY mission this vehicle synchronised for (idle, in PLAN) did
+    not choose it, or failed: it stands down (mission/tasking.py)."""
+
+    mission_id: int
+    reason: str = ""
+
+
 Event = (
     NewMission
     | Replan
@@ -133,6 +142,7 @@ Event = (
     | LeftFleet
     | Cancelled
     | Recalled
+    | Unassigned
 )
 
 
@@ -186,6 +196,14 @@ class FollowOperator:
 
 
 @dataclass(frozen=True)
+class StandDown:
+    """Drop `mission_id` (a vote did not choose this vehicle): back to no mission."""
+
+    mission_id: int
+    reason: str
+
+
+@dataclass(frozen=True)
 class StartEmergency:
     code: AlertCode
     severity: Severity
@@ -222,6 +240,7 @@ Output = (
     | ReturnHome
     | LeaveFleet
     | FollowOperator
+    | StandDown
     | StartEmergency
     | RaiseAlert
     | Activated
@@ -418,6 +437,15 @@ RULES: tuple[Rule, ...] = (
         ),
     ),
     Rule(
+        "not chosen",
+        (P,),
+        "a vote chose other vehicles (or failed)",
+        Action.READY,
+        event=Unassigned,
+        guard=_is_current,
+        outputs=lambda c: (StandDown(_mid(c), getattr(c.event, "reason", "")),),
+    ),
+    Rule(
         "plan timeout",
         (P,),
         "too long in STATE_PLAN",
@@ -537,6 +565,8 @@ class StateMachine:
                 self.released = True
             elif isinstance(out, StartEmergency):
                 self.emergency = Emergency(out.code, out.severity)
+            elif isinstance(out, StandDown):
+                self.mission_id, self.released = None, False
             elif isinstance(out, ReturnHome | FollowOperator | Deactivated):
                 self.mission_id = None if isinstance(out, Deactivated) else RETURN_MISSION
                 self.released = False

@@ -323,6 +323,11 @@ def _swarm() -> dict[str, list[dict[str, Any]]]:
                 "subtype": None,
                 "description": "QUANTITY missions: score = 1 - sum(w v) (paper section 2.3.6)",
             },
+            {
+                "name": "target re-tasking",
+                "subtype": None,
+                "description": "a TargetReport -> a target mission for count.<class> vehicles, voted",
+            },
         ],
         "module-params": [
             # paper section 3: risk 10-40 m, danger 5-10 m, near-collision < 5 m
@@ -343,6 +348,17 @@ def _swarm() -> dict[str, list[dict[str, Any]]]:
             modp("voting", "weight_time", 0.2, ""),
             modp("voting", "weight_battery", 0.3, ""),
             modp("voting", "time_scale_per_s", 0.01, "1/s", "time score = atanh(t x scale)"),
+            # the paper's experiment: a target detected during a survey, 2 vehicles sent
+            # (assumptions: which classes, how sure, how long; docs/voting.md)
+            modp("target re-tasking", "count", 0.0, "", "vehicles per target, any class"),
+            modp("target re-tasking", "count.person", 2.0, "", "vehicles per person"),
+            modp("target re-tasking", "count.vehicle", 2.0, "", "vehicles per vehicle"),
+            modp("target re-tasking", "min_confidence", 0.8, "", "reports below are ignored"),
+            modp("target re-tasking", "duration_s", 120.0, "s", "hold on the target"),
+            modp("target re-tasking", "dedup_radius_m", 100.0, "m", "one target within"),
+            modp("target re-tasking", "hold_s", 0.5, "s", "reports gathered before tasking"),
+            modp("target re-tasking", "keep_s", 900.0, "s", "a tasked target is remembered"),
+            modp("target re-tasking", "payload_of_source", 1.0, "", "1: the reporter's payload"),
         ],
     }
 

@@ -29,11 +29,25 @@ import zenoh
 from swarm_proto import Alert, Clock, MissionType, NoFlyZone, PeerEntry, SwarmView, lan
 from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus
-from swarm_proto.topics import ACK, COMMAND, FLEET, INFO, MISSION, PEERS, STATUS, ZONE, ZONES
+from swarm_proto.topics import (
+    ACK,
+    COMMAND,
+    FLEET,
+    INFO,
+    LINEAGE,
+    MISSION,
+    PEERS,
+    STATUS,
+    TARGET,
+    VOTE,
+    ZONE,
+    ZONES,
+)
 
 from ..core.autopilot.requests import ApRequest, ApResult
 from ..core.autopilot.state import AutopilotState
 from ..core.mission.share import PlanOutcome, PlanRequest, run_plan
+from ..core.mission.tasking import RETASK_MODULE, VOTING_MODULE, TaskingSettings
 from ..core.node import (
     AutopilotResult,
     AutopilotUpdate,
@@ -51,7 +65,7 @@ from ..core.node import (
     Submit,
 )
 from ..core.profile import VehicleProfile
-from ..database import SwarmDatabase
+from ..database import ProfileError, SwarmDatabase
 from ..database.queryable import DatabaseQueryable
 from .config import NodeConfig
 
@@ -71,6 +85,22 @@ def node_settings(config: NodeConfig) -> NodeSettings:
 def mission_defaults_of(database: SwarmDatabase) -> dict[MissionType, dict[str, float]]:
     """Every kind of mission's default parameters, from the swarm database."""
     return {t: database.mission_defaults(t) for t in MissionType}
+
+
+def tasking_settings_of(database: SwarmDatabase) -> TaskingSettings:
+    """The voting weights, re-tasking rules and payload hierarchy from the swarm
+    database (a database without a module's row: that module's defaults; invalid
+    values: ScoreError / RetaskError, refused at start)."""
+
+    def params(module: str) -> dict[str, float]:
+        try:
+            return database.module_params(module)
+        except ProfileError:
+            return {}
+
+    return TaskingSettings(
+        params(VOTING_MODULE), params(RETASK_MODULE), database.payload_classes()
+    )
 
 
 class AutopilotPort(Protocol):
@@ -175,6 +205,9 @@ class NodeRuntime:
                 else {profile.vehicle_id: profile}
             ),
             mission_defaults=mission_defaults_of(database) if database is not None else {},
+            tasking_settings=(
+                tasking_settings_of(database) if database is not None else TaskingSettings()
+            ),
         )
         self.inbox: queue.SimpleQueue[Input | _Learned] = queue.SimpleQueue()
         self.planner = PlanWorker(self.inbox.put, planner)
@@ -282,7 +315,7 @@ class NodeRuntime:
 
     def start(self) -> None:
         # ACK: the peers' answers to missions make the roster (core/swarm/roster.py)
-        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK):
+        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET, LINEAGE):
             self.bus.subscribe(topic, self._received)
         self._zone_asker = threading.Thread(
             target=self._zone_asking, name=f"zones-{self.core.self_id}", daemon=True

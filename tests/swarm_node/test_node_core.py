@@ -260,31 +260,28 @@ def test_mission_acceptance_checks_in_the_papers_order() -> None:
     }
 
 
-def test_quantity_missions_and_commands_are_answered_unsupported() -> None:
-    """Choosing vehicles by voting is not implemented: candidates answer UNSUPPORTED,
-    the others NOT_ADDRESSED (missions) or nothing (commands)."""
+def test_quantity_commands_are_unsupported_and_quantity_missions_have_candidates() -> None:
+    """Voting chooses vehicles for missions (mission/tasking.py; test_tasking_node.py):
+    the candidates accept, the others answer NOT_ADDRESSED; a command to a voted
+    quantity is UNSUPPORTED (commands are answered by the vehicles they address only)."""
     f = fleet(3)
     activate(f)
     send(f, command(40, CommandKind.SET_FLEET, Selector.ids(3), fleet_id=2))
     f.run_until(f.now + 0.5)
-    two_of_fleet_0 = Selector(SelectorKind.QUANTITY, fleet_id=0, quantity=2)
     one_of_fleet_2 = Selector(SelectorKind.QUANTITY, fleet_id=2, quantity=1)
     geometry = Geometry.point(37.42, -5.98)
-    send(f, Mission(41, GCS, MissionType.OBJECTIVE, geometry, selection=two_of_fleet_0))
     send(f, Mission(42, GCS, MissionType.OBJECTIVE, geometry, selection=one_of_fleet_2))
     send(f, command(43, CommandKind.RTL, one_of_fleet_2))
     f.run_until(f.now + 1.0)
-    assert {v: a.reason for v, a in acks(f, 41).items()} == dict.fromkeys(
-        (1, 2, 3), AckReason.UNSUPPORTED
-    )
     assert {v: a.reason for v, a in acks(f, 42).items()} == {
         1: AckReason.NOT_ADDRESSED,
         2: AckReason.NOT_ADDRESSED,
-        3: AckReason.UNSUPPORTED,
+        3: AckReason.OK,
     }
     assert {v: a.reason for v, a in acks(f, 43).items()} == {3: AckReason.UNSUPPORTED}
     assert not any(isinstance(r, ReturnToLaunch) for _, _, r in f.submitted)
-    assert all(n.fsm.state == FsmState.GO_MISSION for n in f.nodes.values())
+    assert f.nodes[3].fsm.mission_id == 42  # the only candidate: chosen
+    assert f.nodes[3].tasking.outcomes[42].winners == (3,)
 
 
 def test_fleet_waits_in_plan_until_all_members_are_there() -> None:

@@ -192,3 +192,15 @@ def test_a_member_that_finished_its_share_is_not_lost() -> None:
                                mission_path_m=900.0)  # fmt: skip
     assert r.on_info(recalled) == [MemberLost(MID, 3, "left the mission")]
     assert r.flying == (1,)
+
+
+def test_mission_ids_past_2_31_hash_and_earlier_hashes_are_unchanged() -> None:
+    """Mission ids are uint32 (`gcs mission` picks them from the clock): one past 2^31
+    crashed the node's VehicleInfo (OverflowError). The hash of every id below 2^31 (and
+    of the return mission, -1) is what it was."""
+    from swarm_node.core.mission.voting import members_hash as ballot_hash
+
+
+    assert members_hash(3_000_000_000, (1, 2)) == ballot_hash(3_000_000_000, (1, 2)) > 0
+    assert members_hash(2**32 - 1, (1,)) == members_hash(-1, (1,))  # the same 4 bytes
+    assert members_hash(41, (1, 2, 3)) == 0xB823  # as before the fix

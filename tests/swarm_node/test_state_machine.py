@@ -35,8 +35,10 @@ from swarm_node.core.state_machine import (
     Replan,
     ReturnHome,
     Shutdown,
+    StandDown,
     StartEmergency,
     StateMachine,
+    Unassigned,
     mermaid,
 )
 from swarm_proto import AlertCode, FsmState, Severity
@@ -155,6 +157,7 @@ CASES = [
         expect=G,
         outputs=(RaiseAlert, LeaveFleet, ReturnHome),
     ),
+    Case("not chosen", P, events=[Unassigned(7, "not chosen")], expect=G, outputs=(StandDown,)),
     Case("plan timeout", P, now=31.0, expect=G, outputs=(RaiseAlert, LeaveFleet, ReturnHome)),
     Case(
         "fleet synced",
@@ -289,3 +292,13 @@ def test_the_documented_diagram_is_the_table() -> None:
     assert mermaid() in (REPO / "docs" / "state-machine.md").read_text(), (
         "regenerate the diagram in docs/state-machine.md"
     )
+
+
+def test_a_vehicle_a_vote_did_not_choose_stands_down_with_no_mission() -> None:
+    fsm = machine(P, mission=7, released=True)
+    fsm.post(Unassigned(6))  # another mission's vote: not ours
+    assert fsm.tick(0.2, OK) is None
+    fsm.post(Unassigned(7, "not chosen"))
+    t = fsm.tick(0.4, OK)
+    assert t is not None and t.outputs == [StandDown(7, "not chosen")]
+    assert fsm.state == G and fsm.mission_id is None and not fsm.released

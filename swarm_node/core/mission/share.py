@@ -25,8 +25,8 @@ from ..planning.fleet_plan import PLANNERS, FleetPlan, Share
 from ..planning.fleet_plan import plan_fleet as plan_whole_fleet
 from ..profile import VehicleProfile
 
-__all__ = ["PLANNERS", "FleetPlan", "Member", "PlanOutcome", "PlanRequest", "Share",
-           "plan_fleet", "run_plan"]  # fmt: skip
+__all__ = ["PLANNERS", "FleetPlan", "Member", "PlanOutcome", "PlanRequest", "Replay", "Share",
+           "plan_fleet", "pose_on", "replay", "run_plan"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,44 @@ def _vehicles(members: Sequence[Member]) -> list[PlanVehicle]:
     ]
 
 
+def pose_on(base: FleetPlan, vehicle_id: int, progress_m: Mapping[int, float]) -> GeoPoint | None:
+    """Where a member's progress puts it on its share of `base` (how a replan poses the
+    survivors; None: no share in `base`, a joiner)."""
+    share = base.shares.get(vehicle_id)
+    if share is None or not share.waypoints:
+        return None
+    try:
+        _k, lat, lon = share.at(progress_m.get(vehicle_id, 0.0))
+    except (PlanningError, ValueError):
+        return None
+    return GeoPoint(lat, lon, 0.0)
+
+
+@dataclass(frozen=True)
+class Replay:
+    """A fleet's plan as it came to be (swarm/regroup.py): the first plan's members at
+    their homes, then every replan's members (profiles) and the progress it started
+    from; the last replan may be handed to `adopters` (an emptied fleet's mission)."""
+
+    first: tuple[Member, ...]
+    steps: tuple[tuple[tuple[VehicleProfile, ...], Mapping[int, float]], ...] = ()
+
+
+def replay(
+    mission: Mission, lineage: Replay, zones: Sequence[NoFlyZone], now: float, home_alt_msl_m: float
+) -> FleetPlan:
+    """The plan a fleet flies, made again from its lineage: the same calls, with the same
+    inputs, every member made (`plan_fleet`, then `FleetPlan.replan` per step, survivors
+    posed by `pose_on`)."""
+    plan = plan_fleet(mission, lineage.first, zones, now, home_alt_msl_m)
+    for profiles, progress in lineage.steps:
+        members = [Member(p, pose_on(plan, p.vehicle_id, progress)) for p in profiles]
+        plan = plan.replan(
+            progress, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m
+        )
+    return plan
+
+
 @dataclass(frozen=True)
 class PlanRequest:
     """Everything a plan needs, picklable (a worker process may run it). With `base`,
@@ -60,6 +98,7 @@ class PlanRequest:
     home_alt_msl_m: float
     base: FleetPlan | None = None
     progress_m: Mapping[int, float] = field(default_factory=dict)
+    lineage: Replay | None = None  # a joiner: the fleet's plan made again (`replay`)
 
 
 @dataclass(frozen=True)
@@ -86,7 +125,9 @@ def plan_fleet(
 def run_plan(req: PlanRequest) -> PlanOutcome:
     """Run a plan job; a planning error is an outcome, never an exception."""
     try:
-        if req.base is None:
+        if req.lineage is not None:
+            plan = replay(req.mission, req.lineage, req.zones, req.now, req.home_alt_msl_m)
+        elif req.base is None:
             plan = plan_fleet(req.mission, req.members, req.zones, req.now, req.home_alt_msl_m)
         else:
             plan = req.base.replan(

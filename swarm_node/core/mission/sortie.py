@@ -9,6 +9,7 @@ mission manager's detail (`Phase`); the wire state says where the mission is:
 
     IDLE        nothing to fly
     PLANNING    the fleet synchronises in STATE_PLAN, the plan is made
+    VOTING      idle vehicles synchronised for a QUANTITY mission vote who flies it
     PREMISSION  the plan is uploaded; arming, take-off, climb to the mission altitude
     MISSION     flying: the share, then (a new mission, RETURN_MISSION) the way home
     REPLAN      a member was lost: the unflown part is being replanned in flight
@@ -26,13 +27,14 @@ from enum import Enum
 
 from swarm_proto import MissionState
 
-ID, PL, PM, M, R, PC = (
+ID, PL, PM, M, R, PC, V = (
     MissionState.IDLE,
     MissionState.PLANNING,
     MissionState.PREMISSION,
     MissionState.MISSION,
     MissionState.REPLAN,
     MissionState.PARACHUTE,
+    MissionState.VOTING,
 )
 
 
@@ -49,6 +51,8 @@ class Trigger(Enum):
     FAILED = "failed"  # planning or the autopilot refused
     LANDED = "landed"
     STOP = "stop"  # deactivated, emergency, operator holds the vehicle
+    VOTE = "vote"  # a QUANTITY mission: the synchronised candidates vote
+    ELECTED = "elected"  # chosen: plan the mission for the winners
 
 
 #: (state, trigger) -> next state; anything else is a bug
@@ -60,17 +64,19 @@ def _add(froms: tuple[MissionState, ...], trigger: Trigger, to: MissionState) ->
         TRANSITIONS[(s, trigger)] = to
 
 
-_ALL = (ID, PL, PM, M, R, PC)
-_add((ID, PL, PM, M, R), Trigger.PLAN, PL)
+_ALL = (ID, PL, PM, M, R, PC, V)
+_add((ID, PL, PM, M, R, V), Trigger.PLAN, PL)
+_add((PL,), Trigger.VOTE, V)
+_add((V,), Trigger.ELECTED, PL)
 _add((PM, M, R), Trigger.REPLAN, R)
 _add((R,), Trigger.RESUMED, M)
 _add((PL, R), Trigger.RELEASED, PM)
 _add((PM,), Trigger.STARTED, M)
-_add((ID, PL, PM, M, R), Trigger.RETURN, M)
-_add((ID, PL, PM, M, R), Trigger.TAKE_OVER, M)
-_add((ID, PL, PM, M, R), Trigger.PARACHUTE, PC)
+_add((ID, PL, PM, M, R, V), Trigger.RETURN, M)
+_add((ID, PL, PM, M, R, V), Trigger.TAKE_OVER, M)
+_add((ID, PL, PM, M, R, V), Trigger.PARACHUTE, PC)
 _add((M, R), Trigger.COMPLETE, ID)
-_add((PL, PM, R, M), Trigger.FAILED, ID)
+_add((PL, PM, R, M, V), Trigger.FAILED, ID)
 _add(_ALL, Trigger.LANDED, ID)
 _add(_ALL, Trigger.STOP, ID)
 

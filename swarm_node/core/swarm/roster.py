@@ -43,9 +43,9 @@ KEEP_MISSIONS = 16  # answers kept for this many recent missions
 
 
 def members_hash(mission_id: int, members: Iterable[int], generation: int = 0) -> int:
-    """16 bits of BLAKE2s of the mission id, the sorted members and (after replans) how
+    """16 bits of BLAKE2s of the mission id (its 4 bytes as uint32), the sorted members and (after replans) how
     many times the roster was replanned; never 0 (0 = no roster)."""
-    data = mission_id.to_bytes(4, "little", signed=True) + b"".join(
+    data = (mission_id & 0xFFFF_FFFF).to_bytes(4, "little") + b"".join(
         m.to_bytes(2, "little") for m in sorted(set(members))
     )
     if generation:
@@ -73,7 +73,16 @@ class RosterMismatch:
     ours: int
 
 
-RosterEvent = MemberLost | RosterMismatch
+@dataclass(frozen=True)
+class MemberJoined:
+    """A vehicle outside the frozen roster is in PLAN for our mission: it joins the
+    fleet (JOIN_MISSION, SWAP_MISSION; swarm/regroup.py)."""
+
+    mission_id: int
+    vehicle_id: int
+
+
+RosterEvent = MemberLost | RosterMismatch | MemberJoined
 
 
 @dataclass
@@ -149,10 +158,14 @@ class Roster:
             mark = (info.mission_progress_m, info.mission_path_m)
             self.progress[vid] = mark
         out: list[RosterEvent] = []
+        if self.frozen and in_mission and info.fsm_state == FsmState.PLAN and vid not in self.flying:
+            return [MemberJoined(mid, vid)]  # a vehicle joining (or a lost one back)
         if self.frozen and vid in self.members and vid not in self.lost and vid not in self.finished:
             if info.fsm_state == FsmState.EMERGENCY:
                 out += self._lose(vid, "emergency")
-            elif info.mission_id != mid and info.fsm_state != FsmState.PLAN:
+            elif info.mission_id != mid and (
+                info.fsm_state != FsmState.PLAN or info.mission_id > 0  # planning another
+            ):
                 # progress is kept on the way home: a member that flew all its share
                 # says so in the same VehicleInfo that shows it left the mission
                 done, path = info.mission_progress_m, info.mission_path_m
@@ -196,8 +209,11 @@ class Roster:
         if self.mission_id is None:
             return ()
         answers = self._answers.get(self.mission_id, {})
+        named = self.selection.vehicle_ids if self.selection.kind == SelectorKind.IDS else None
         ids = {self.self_id} | {
-            v for v, ok in answers.items() if ok and v in peers and peers[v].present
+            v
+            for v, ok in answers.items()
+            if ok and v in peers and peers[v].present and (named is None or v in named)
         }
         return tuple(sorted(ids))
 
@@ -207,9 +223,9 @@ class Roster:
             return False
         if sel.kind == SelectorKind.IDS:
             return peer.node_id in sel.vehicle_ids
-        if sel.kind == SelectorKind.FLEET:
+        if sel.kind == SelectorKind.FLEET or (sel.kind == SelectorKind.QUANTITY and sel.fleet_id):
             return peer.fleet_id == sel.fleet_id or peer.mission_id == self.mission_id
-        return True  # ALL (QUANTITY is answered UNSUPPORTED)
+        return True  # ALL, QUANTITY of any fleet (every vehicle answers: a candidate or not)
 
     def pending(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
         """Live peers that may be addressed and have not answered yet."""
@@ -276,6 +292,43 @@ class Roster:
         self._previous_hash = self.members_hash
         self.planned = survivors
         self.generation += 1
+
+    # ------------------------------------------------------------------ voting (issue 13)
+    def voted_out(self, winners: Iterable[int]) -> list[RosterEvent]:
+        """Members a vote sent to another mission leave this one: alive, but lost to
+        this fleet (`MemberLost`, "voted out"), so the others replan without them."""
+        out: list[RosterEvent] = []
+        for vid in sorted(set(winners)):
+            if self.frozen and vid in self.flying and vid != self.self_id:
+                out += self._lose(vid, "voted out")
+        return out
+
+    def elected(self, winners: Iterable[int]) -> None:
+        """A vote among this (frozen) roster chose `winners` to fly its mission: they are
+        the roster now (the others stood down)."""
+        self.members = self.planned = tuple(sorted(set(winners)))
+        self.lost = {v: why for v, why in self.lost.items() if v in self.members}
+        self.finished &= set(self.members)
+
+    # ------------------------------------------------------------------ add / swap
+    def join(self, vid: int) -> None:
+        """A vehicle joins the frozen roster (the next replan takes it in)."""
+        if self.frozen and vid not in self.flying:
+            self.members = tuple(sorted({*self.members, vid}))
+            self.lost.pop(vid, None)
+            self.finished.discard(vid)
+
+    def adopt(
+        self, mission_id: int, members: Iterable[int], planned: Iterable[int], generation: int
+    ) -> None:
+        """Take a fleet's roster as its lineage shows it (a vehicle joining the fleet, or a
+        fleet taking over an emptied fleet's mission): frozen at once."""
+        self.mission_id = mission_id
+        self._reset()
+        self.planned = tuple(sorted(set(planned)))
+        self.members = tuple(sorted(set(members) | set(self.planned)))
+        self.lost = {v: "left before" for v in self.members if v not in self.planned}
+        self.generation = generation
 
     def progress_of(self, vid: int) -> tuple[float, float]:
         """A member's last published (progress_m, path_m); (0, 0): nothing heard."""
