@@ -861,6 +861,13 @@ def _transition_uncached(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacle
     # clear too, nearer they are checked sampled
     trace: Sequence[XY] = pts
     if isinstance(turns, DubinsTurns):
+        # the curve stays within 0.035 R of the waypoints' hull: far from the obstacles'
+        # bounding box it is clear (most transitions of a plan, at the field's edges)
+        xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+        bx0, by0, bx1, by1 = obstacles.blocked.bounds
+        pad = 0.035 * turns.radius_m
+        if min(xs) - pad > bx1 or max(xs) + pad < bx0 or min(ys) - pad > by1 or max(ys) + pad < by0:
+            return Leg(tuple(pts), length, False)
         if obstacles.clearance(pts) > 0.035 * turns.radius_m:
             return Leg(tuple(pts), length, False)
         trace = shortest_path(a, b, turns.radius_m).sample_xy(ARC_STEP_M).tolist()

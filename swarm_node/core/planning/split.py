@@ -199,6 +199,7 @@ class _Blocks:
         self.cost = cost
         self.fast = type(cost) is MakespanCost
         self._cut = dict(cost.budget_cut)
+        self._until: dict[tuple[int, int], int] = {}
         self._tables: dict[int, tuple[list[float], list[float], list[float], list[float]]] = {}
 
     def _table(self, w: Worker) -> tuple[list[float], list[float], list[float], list[float]]:
@@ -223,6 +224,42 @@ class _Blocks:
         prefix, approach, _ba, _bb = self._table(w)
         t = (prefix[j] - prefix[i]) + self.cost.allowance_m(w) * (j - i - 1) / w.speed_m_s
         return t + approach[i] + w.extra_s
+
+    def fill(self, i: int, w: Worker, limit: float) -> int:
+        """The greedy fill from lane i: the largest j >= i such that every block
+        lanes[i:j'] with i < j' <= j is within `limit` by the estimate and fits the
+        budget (the first j' that fails stops it)."""
+        n = len(self.lanes)
+        if not self.fast:
+            j = i
+            while j < n and self.estimate(i, j + 1, w) <= limit and self.fits(i, j + 1, w):
+                j += 1
+            return j
+        # the estimate grows with j: bisect; the budget check does not depend on the
+        # limit: its first failure from i is found once
+        lo, hi = i, n  # est(i, lo) <= limit (lo == i: the empty block)
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            if self.estimate(i, mid, w) <= limit:
+                lo = mid
+            else:
+                hi = mid - 1
+        return min(lo, self._fits_until(i, w))
+
+    def _fits_until(self, i: int, w: Worker) -> int:
+        """The largest j such that every block lanes[i:j'] with i < j' <= j fits."""
+        key = (w.vehicle_id, i)
+        got = self._until.get(key)
+        if got is None:
+            n = len(self.lanes)
+            got = i
+            if math.isinf(w.budget_s):
+                got = n
+            else:
+                while got < n and self.fits(i, got + 1, w):
+                    got += 1
+            self._until[key] = got
+        return got
 
     def fits(self, i: int, j: int, w: Worker) -> bool:
         if not self.fast:
@@ -257,8 +294,7 @@ def _greedy(blocks: _Blocks, ws: Sequence[Worker], limit: float) -> list[int] | 
             if blocks.estimate(i, j, w) > limit or not blocks.fits(i, j, w):
                 return None
         else:
-            while j < n and blocks.estimate(i, j + 1, w) <= limit and blocks.fits(i, j + 1, w):
-                j += 1
+            j = blocks.fill(i, w, limit)
         bounds.append(j)
         i = j
     return bounds
