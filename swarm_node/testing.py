@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 import msgspec
 
 from swarm_node.core.autopilot.requests import ApRequest, ApResult
-from swarm_node.core.mission.share import run_plan
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
@@ -30,6 +29,7 @@ from swarm_node.core.node import (
     Received,
     Submit,
 )
+from swarm_node.plan_memo import PlanMemo
 
 AutopilotFn = Callable[[int, ApRequest], ApResult | None]  # (node id, request) -> answer
 
@@ -47,6 +47,7 @@ class Fleet:
     delay_s: tuple[float, float] = (0.0, 0.0)  # uniform delay range per link
     autopilot: AutopilotFn = always_ok
     plan_delay_s: float = 0.0  # how long a plan job takes (it runs inline, in no time)
+    plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
@@ -81,7 +82,7 @@ class Fleet:
             elif isinstance(o, Note):
                 self.notes.append((self.now, node_id, o.text))
             elif isinstance(o, PlanJob):
-                done = PlanDone(run_plan(o.request))
+                done = PlanDone(self.plans.run(o.request))
                 self.deliver(node_id, done, self.now + self.plan_delay_s)
 
     def run_until(self, t_end: float) -> None:

@@ -23,7 +23,6 @@ import msgspec
 
 from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
-from swarm_node.core.mission.share import run_plan
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
@@ -38,6 +37,7 @@ from swarm_node.core.node import (
     Submit,
 )
 from swarm_node.core.profile import VehicleProfile
+from swarm_node.plan_memo import PlanMemo
 from swarm_proto import VehicleType, lan
 
 from .core import SITL_HOME, Home, VehicleEndpoint
@@ -70,6 +70,7 @@ class FastFleet:
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
     plan_delay_s: float = 0.0  # simulated time a plan job takes
+    plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
 
     def __post_init__(self) -> None:
         # swarm messages and results in time order; a broadcast is one entry for all its
@@ -142,7 +143,7 @@ class FastFleet:
             elif isinstance(o, Note):
                 self.notes.append((self.now, vid, o.text))
             elif isinstance(o, PlanJob):  # inline, after the simulated planning time
-                done = PlanDone(run_plan(o.request))
+                done = PlanDone(self.plans.run(o.request))
                 self._deliver(vid, done, self.now + self.plan_delay_s)
 
     def _link_out(self, vid: int, outputs: list[LinkOutput]) -> None:

@@ -859,7 +859,7 @@ def _transition_uncached(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacle
     # the arcs between the waypoints (30 degrees apart) bulge out of their chords by up
     # to R (1 - cos 15 deg) < 0.035 R: farther than that from the obstacles the arcs are
     # clear too, nearer they are checked sampled
-    trace: Sequence[XY] = pts
+    trace: Sequence[XY] | FloatArray = pts
     if isinstance(turns, DubinsTurns):
         # the curve stays within 0.035 R of the waypoints' hull: far from the obstacles'
         # bounding box it is clear (most transitions of a plan, at the field's edges)
@@ -870,7 +870,7 @@ def _transition_uncached(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacle
             return Leg(tuple(pts), length, False)
         if obstacles.clearance(pts) > 0.035 * turns.radius_m:
             return Leg(tuple(pts), length, False)
-        trace = shortest_path(a, b, turns.radius_m).sample_xy(ARC_STEP_M).tolist()
+        trace = shortest_path(a, b, turns.radius_m).sample_xy(ARC_STEP_M)  # (n, 2) array
     if not obstacles.crosses(trace):
         return Leg(tuple(pts), length, False)
     around = obstacles.path((a.x, a.y), (b.x, b.y))

@@ -237,10 +237,15 @@ class _Blocks:
             return j
         # the estimate grows with j: bisect; the budget check does not depend on the
         # limit: its first failure from i is found once
+        if i >= n:
+            return i
+        prefix, approach, _ba, _bb = self._table(w)
+        allow, v, pi, ap, ex = self.cost.allowance_m(w), w.speed_m_s, prefix[i], approach[i], w.extra_s
         lo, hi = i, n  # est(i, lo) <= limit (lo == i: the empty block)
         while lo < hi:
             mid = (lo + hi + 1) // 2
-            if self.estimate(i, mid, w) <= limit:
+            # `estimate(i, mid, w)`, inlined (the same arithmetic)
+            if (prefix[mid] - pi) + allow * (mid - i - 1) / v + ap + ex <= limit:
                 lo = mid
             else:
                 hi = mid - 1

@@ -325,7 +325,7 @@ class Obstacles:
         if n > 1:
             ii, jj = np.triu_indices(n, k=1)
             segs = shapely.linestrings(np.stack([pts[ii], pts[jj]], axis=1))
-            ok = ~shapely.intersects(segs, self.inner)
+            ok = ~shapely.intersects(self.inner, segs)  # prepared first: GEOS uses it
             ii, jj = ii[ok], jj[ok]
             w = np.hypot(*(pts[ii] - pts[jj]).T)
             for i, j, d in zip(ii.tolist(), jj.tolist(), w.tolist(), strict=True):
@@ -347,7 +347,7 @@ class Obstacles:
     def crosses(self, points: Sequence[tuple[float, float]]) -> bool:
         if self.is_empty or len(points) < 2:
             return False
-        return bool(LineString(points).intersects(self.inner))
+        return bool(self.inner.intersects(LineString(points)))  # prepared first
 
     def _visible_from(self, p: tuple[float, float]) -> list[tuple[int, float]]:
         if not self.nodes:
@@ -355,7 +355,7 @@ class Obstacles:
         segs = shapely.linestrings(
             np.stack([np.broadcast_to(np.asarray(p), self._pts.shape), self._pts], axis=1)
         )
-        ok = np.flatnonzero(~shapely.intersects(segs, self.inner))
+        ok = np.flatnonzero(~shapely.intersects(self.inner, segs))  # prepared first
         d = np.hypot(*(self._pts[ok] - np.asarray(p)).T)
         return list(zip(ok.tolist(), d.tolist(), strict=True))
 
@@ -366,7 +366,7 @@ class Obstacles:
             return [a, b]
         if self.inner.contains(Point(a)) or self.inner.contains(Point(b)):
             raise NoSafeRouteError("route end point is inside an inflated no-fly zone")
-        if not LineString([a, b]).intersects(self.inner):
+        if not self.inner.intersects(LineString([a, b])):
             return [a, b]
         n = len(self.nodes)
         src, dst = n, n + 1
