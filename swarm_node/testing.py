@@ -54,6 +54,7 @@ class Fleet:
 
     def __post_init__(self) -> None:
         self.rng = random.Random(self.seed)
+        self._scans: dict[tuple[type, int | None], tuple[int, object, list]] = {}
         self._queue: list[tuple[float, int, int, Input]] = []
         self._seq = itertools.count()
 
@@ -109,8 +110,24 @@ class Fleet:
                             )
 
     def messages(self, cls: type, sender: int | None = None) -> list:
-        return [
-            m
-            for _, s, m in self.published
-            if isinstance(m, cls) and (sender is None or s == sender)
-        ]
+        """Every published `cls` (from `sender`), in order. Scans only what was published
+        since the last call with the same arguments (a predicate calling this at every
+        step of a long flight stays linear), unless `published` was changed under it."""
+        return _matching(self.published, self._scans, cls, sender)
+
+
+def _matching(
+    published: list[tuple[float, int, msgspec.Struct]],
+    scans: dict[tuple[type, int | None], tuple[int, object, list]],
+    cls: type,
+    sender: int | None,
+) -> list:
+    start, last, found = scans.get((cls, sender), (0, None, []))
+    if start > len(published) or (start and published[start - 1] is not last):
+        start, found = 0, []  # cleared or replaced: scan afresh
+    found = found + [
+        m for _, s, m in published[start:] if isinstance(m, cls) and (sender is None or s == sender)
+    ]
+    if published:
+        scans[(cls, sender)] = (len(published), published[-1], found)
+    return list(found)
