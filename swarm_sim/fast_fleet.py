@@ -218,13 +218,14 @@ class FastFleet:
         self.now = max(self.now, self._deadline())
         while self._bus and self._bus[0][0] <= self.now:
             _, _, targets, event = heapq.heappop(self._bus)
+            vehicles, now = self.vehicles, self.now
             for vid in targets:
-                v = self.vehicles.get(vid)
+                v = vehicles.get(vid)
                 if v is not None:  # a killed vehicle hears nothing
-                    out = v.node.handle(event, self.now)
-                    self._dirty.add(vid)  # its node had an input: its deadlines may move
+                    out = v.node.handle(event, now)
                     if out:
                         self._node_out(vid, out)
+            self._dirty.update(targets)  # their nodes had an input: deadlines may move
         for vid in self._dirty:
             self._schedule(vid)
         self._dirty.clear()

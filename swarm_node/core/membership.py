@@ -156,23 +156,23 @@ class SwarmMembership:
         status: VehicleStatus | None = None,
         info: VehicleInfo | None = None,
     ) -> list[PeerEvent]:
-        if node_id == self.self_id:
-            return []
         peer = self.peers.get(node_id)
         if peer is None:
+            if node_id == self.self_id:
+                return []
             peer = self.peers[node_id] = Peer(node_id)
         if now > peer.last_heard_s:
             peer.last_heard_s = now
         had_status = peer.status is not None
         if status is not None:
             peer.status = status
-        if info is not None:
+        elif info is not None:
             peer.info = info
         if peer.present:  # the usual event, O(1): a peer we know, heard again
             if peer.alive_token:
                 return []  # its liveliness token keeps it: never stale, not watched
             watch = self._watch if had_status else self._watch_info
-            if (status is None or had_status) and now >= self._latest_s and node_id in watch:
+            if (had_status or status is None) and now >= self._latest_s and node_id in watch:
                 self._latest_s = now
                 watch.move_to_end(node_id)  # the most recently heard of all
                 return []
