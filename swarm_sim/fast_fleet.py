@@ -71,6 +71,9 @@ class FastFleet:
     notes: list[tuple[float, int, str]] = field(default_factory=list)
     plan_delay_s: float = 0.0  # simulated time a plan job takes
     plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
+    # with a list here, every swarm message published is also appended to it as (sender,
+    # LAN bytes, type): the part of a fleet split over processes (parallel_fleet.py)
+    export: list[tuple[int, bytes, type]] | None = None
 
     def __post_init__(self) -> None:
         # swarm messages and results in time order; a broadcast is one entry for all its
@@ -98,11 +101,13 @@ class FastFleet:
         spacing_m: float = 40.0,
         start_unix_s: float = 1.8e9,
         settings: NodeSettings | None = None,
+        homes: Sequence[Home] | None = None,
     ) -> FastFleet:
         """Vehicles `members` (database ids), each simulated as its profile's model,
-        homes `spacing_m` apart going east."""
+        homes `spacing_m` apart going east (or `homes`, one per member)."""
         vehicles: dict[int, SimVehicle] = {}
-        homes = spread_homes(home, len(members), spacing_m)
+        if homes is None:
+            homes = spread_homes(home, len(members), spacing_m)
         for i, vid in enumerate(members):
             profile = profiles[vid]
             model = MODEL_OF_TYPE[profile.vehicle_type]
@@ -134,9 +139,12 @@ class FastFleet:
         for o in outputs:
             if isinstance(o, Publish):
                 self.published.append((self.now, vid, o.msg))
-                wire = lan.decode(lan.encode(o.msg), type(o.msg))
+                raw = lan.encode(o.msg)
+                wire = lan.decode(raw, type(o.msg))
                 others = tuple(other for other in self.vehicles if other != vid)
                 heapq.heappush(self._bus, (self.now, next(self._seq), others, Received(wire)))
+                if self.export is not None:
+                    self.export.append((vid, raw, type(o.msg)))
             elif isinstance(o, Submit):
                 token = next(self._tokens)
                 v.tokens[token] = o.request.request_id
@@ -215,7 +223,22 @@ class FastFleet:
         self._step()
 
     def _step(self) -> None:
-        self.now = max(self.now, self._deadline())
+        self._step_at(self._deadline())
+
+    def receive(self, raw: bytes, cls: type, at: float) -> None:
+        """A swarm message published elsewhere (another part of a split fleet), for
+        every vehicle here at `at`."""
+        msg = lan.decode(raw, cls)
+        heapq.heappush(self._bus, (at, next(self._seq), tuple(self.vehicles), Received(msg)))
+
+    def step_at(self, t: float) -> float:
+        """Everything due at `t` (a split fleet's common time; nothing may be due
+        earlier); returns the next deadline."""
+        self._step_at(t)
+        return self._deadline()
+
+    def _step_at(self, t: float) -> None:
+        self.now = max(self.now, t)
         while self._bus and self._bus[0][0] <= self.now:
             _, _, targets, event = heapq.heappop(self._bus)
             vehicles, now = self.vehicles, self.now

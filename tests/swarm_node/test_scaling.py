@@ -159,3 +159,19 @@ def _renumbered(profile: Any, vid: int) -> Any:
     import msgspec
 
     return msgspec.structs.replace(profile, vehicle_id=vid)
+
+
+def test_a_fleet_split_over_two_processes_is_one_swarm(fleet_profiles: dict) -> None:
+    """ParallelFleet (the sim benchmark's 100 vehicles on 2 cores): six vehicles in two
+    processes, every node hears all five others, across the split, and the parts
+    exchange what they publish."""
+    from swarm_sim.parallel_fleet import ParallelFleet
+
+    ids = (1, 7, 8, 10, 12, 2)
+    with ParallelFleet(ids, fleet_profiles, parts=2) as fleet:
+        assert len(fleet.workers) == 1  # the first part runs here
+        fleet.run_for(3.0)
+        peers = fleet.live_peers()
+    assert peers == {v: sorted(set(ids) - {v}) for v in ids}
+    assert fleet.exchanged > 0 and fleet.steps > 0
+    assert len(fleet.cpu_s) == 2
