@@ -228,7 +228,7 @@ class FastFleet:
     def receive(self, raw: bytes, cls: type, at: float) -> None:
         """A swarm message published elsewhere (another part of a split fleet), for
         every vehicle here at `at`."""
-        msg = lan.decode(raw, cls)
+        msg: msgspec.Struct = lan.decode(raw, cls)
         heapq.heappush(self._bus, (at, next(self._seq), tuple(self.vehicles), Received(msg)))
 
     def step_at(self, t: float) -> float:

@@ -34,7 +34,7 @@ class CountingPeers(dict):  # type: ignore[type-arg]
         return [(k, self._count(v)) for k, v in super().items()]
 
     def keys(self) -> Any:
-        return [self._count(k) for k in super().keys()]
+        return [self._count(k) for k in super().__iter__()]
 
     def _count(self, x: Any) -> Any:
         self.walked += 1

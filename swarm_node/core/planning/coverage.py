@@ -597,8 +597,8 @@ class _Costs:
             while len(_COST_SETS) > _COST_SETS_MAX:
                 _COST_SETS.popitem(last=False)
             rows = list(range(k))
-        r = np.array(rows, dtype=np.intp)
-        self.g = np.where(np.repeat(r, 2) >= 0, np.repeat(2 * r, 2) + np.tile([0, 1], k), -1)
+        at = np.array(rows, dtype=np.intp)
+        self.g = np.where(np.repeat(at, 2) >= 0, np.repeat(2 * at, 2) + np.tile([0, 1], k), -1)
 
     def pairs(self, u: npt.NDArray[np.intp], v: npt.NDArray[np.intp]) -> FloatArray:
         """Costs from the end of node u to the start of node v (nodes 2i a->b, 2i+1 b->a

@@ -12,6 +12,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.base import BaseGeometry
@@ -344,7 +345,7 @@ class Obstacles:
         line = LineString(points) if len(points) > 1 else Point(points[0])
         return float(self.blocked.distance(line))
 
-    def crosses(self, points: Sequence[tuple[float, float]]) -> bool:
+    def crosses(self, points: Sequence[tuple[float, float]] | npt.NDArray[np.float64]) -> bool:
         if self.is_empty or len(points) < 2:
             return False
         return bool(self.inner.intersects(LineString(points)))  # prepared first
