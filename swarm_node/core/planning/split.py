@@ -20,6 +20,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from . import coverage
 from .coverage import CoveragePath, Lane, connect, order, order_cost
 from .dubins import Pose
 from .endurance import leg_s, stop_and_go_s
@@ -131,12 +132,32 @@ class MakespanCost:
             t += leg_s(math.hypot(mid[0] - w.start.x, mid[1] - w.start.y), v, a)
         return t + w.extra_s
 
-    def path(self, block: Sequence[Lane], w: Worker) -> CoveragePath:
-        return connect(order(block, w.turns, w.start), w.turns, self.obstacles, w.start)
+    @staticmethod
+    def _end(w: Worker) -> tuple[float, float] | None:
+        """Where a worker with a battery budget goes after its block (its way home
+        counts when its block is ordered); None for the others."""
+        return w.back_to if math.isfinite(w.budget_s) else None
+
+    def path(self, block: Sequence[Lane], w: Worker, *, improve: bool = False) -> CoveragePath:
+        seq = order(block, w.turns, w.start, end=self._end(w), improve=improve)
+        return connect(seq, w.turns, self.obstacles, w.start)
 
     def assignment(self, block: Sequence[Lane], w: Worker) -> Assignment:
+        """The block ordered by its cheapest seed pattern (what the split times)."""
         path = self.path(block, w) if block else CoveragePath((), ())
         return Assignment(w.vehicle_id, w.speed_m_s, path, w.accel_m_s2, w.extra_s)
+
+    def final(self, block: Sequence[Lane], w: Worker) -> Assignment:
+        """The block as it is flown: its order improved by the local search
+        (`coverage._LOCAL_SEARCH`), kept only if that overruns the budget less and,
+        then, takes less time than the seed pattern the split timed."""
+        a = self.assignment(block, w)
+        if not block or not coverage._LOCAL_SEARCH:
+            return a
+        b = Assignment(
+            w.vehicle_id, w.speed_m_s, self.path(block, w, improve=True), w.accel_m_s2, w.extra_s
+        )
+        return b if (self.overrun_s(b, w), b.time_s) < (self.overrun_s(a, w), a.time_s) else a
 
     def exact(self, block: Sequence[Lane], w: Worker) -> float:
         return self.timed(block, w)[1]
@@ -150,7 +171,7 @@ class MakespanCost:
             return 0.0, 0.0
         plain = type(self) is MakespanCost and (self.obstacles is None or self.obstacles.is_empty)
         if plain and (w.accel_m_s2 <= 0.0 or isinstance(w.turns, PointTurns)):
-            lanes, transitions_m = order_cost(block, w.turns, w.start)
+            lanes, transitions_m = order_cost(block, w.turns, w.start, end=self._end(w))
             if w.accel_m_s2 <= 0.0:
                 t = (sum(ln.length_m for ln in lanes) + transitions_m) / w.speed_m_s
             else:  # point turns: the path's points are the start and the lanes' ends
@@ -367,7 +388,7 @@ def split_lanes(
     blocks = [list(ordered[bounds[k] : bounds[k + 1]]) for k in range(len(arr))]
     if cut_lanes:
         blocks = _cut_boundaries(blocks, arr, cost)
-    assigned = {w.vehicle_id: cost.assignment(b, w) for w, b in zip(arr, blocks, strict=True)}
+    assigned = {w.vehicle_id: cost.final(b, w) for w, b in zip(arr, blocks, strict=True)}
     return SplitPlan(tuple(assigned[w.vehicle_id] for w in workers))
 
 
