@@ -134,12 +134,18 @@ class MakespanCost:
 
     @staticmethod
     def _end(w: Worker) -> tuple[float, float] | None:
-        """Where a worker with a battery budget goes after its block (its way home
-        counts when its block is ordered); None for the others."""
+        """Where a worker with a battery budget goes after its block (the local search
+        counts its way home); None for the others."""
         return w.back_to if math.isfinite(w.budget_s) else None
 
     def path(self, block: Sequence[Lane], w: Worker, *, improve: bool = False) -> CoveragePath:
-        seq = order(block, w.turns, w.start, end=self._end(w), improve=improve)
+        """The block connected in its cheapest seed pattern's order (the order the
+        split times), or with `improve` that order improved by the local search, the
+        way home counted."""
+        if improve:
+            seq = order(block, w.turns, w.start, end=self._end(w), improve=True)
+        else:
+            seq = order(block, w.turns, w.start, improve=False)
         return connect(seq, w.turns, self.obstacles, w.start)
 
     def assignment(self, block: Sequence[Lane], w: Worker) -> Assignment:
@@ -171,7 +177,7 @@ class MakespanCost:
             return 0.0, 0.0
         plain = type(self) is MakespanCost and (self.obstacles is None or self.obstacles.is_empty)
         if plain and (w.accel_m_s2 <= 0.0 or isinstance(w.turns, PointTurns)):
-            lanes, transitions_m = order_cost(block, w.turns, w.start, end=self._end(w))
+            lanes, transitions_m = order_cost(block, w.turns, w.start)
             if w.accel_m_s2 <= 0.0:
                 t = (sum(ln.length_m for ln in lanes) + transitions_m) / w.speed_m_s
             else:  # point turns: the path's points are the start and the lanes' ends
