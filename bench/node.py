@@ -1,12 +1,25 @@
-"""CPU of one vehicle node as the swarm grows: a real `swarm-node run` process, linked
-over MAVLink to a simulated quadcopter (in its own process) and on loopback Zenoh,
-hears N synthetic peers (VehicleStatus at 5 Hz, VehicleInfo at 1 Hz, liveliness
-tokens). Baseline in the same run: a plain zenoh-python process that only subscribes
-to and decodes the same traffic.
+"""CPU of one vehicle node as the swarm grows, measured three ways in one run:
 
-Figures: cpu_s_per_sim_s for 10, 50 and 100 peers (`peers_10`, `peers_50`,
-`peers_100`), the same for the baseline, and membership timings measured on the way
-(join, SIGKILL and SIGSTOP detection)."""
+- `core_cpu_pct_at_peers` (issue 20): the node core alone (NodeCore, pure, in this
+  process) hearing 10, 100 and 1000 peers (VehicleStatus at 5 Hz, VehicleInfo at 1 Hz,
+  liveliness tokens, spread over each period as real peers are), with its autopilot
+  state polled at 5 Hz and its timers served as the runtime serves them, for 20
+  simulated seconds: core CPU seconds per simulated second, in % of one core. Beside
+  it, in the same run, `decode_cpu_pct_at_peers`: only decoding the same messages from
+  their LAN bytes (what any subscriber pays), and `peer_visits_per_event`: peers the
+  core looked at per input (flat: issue 20).
+- `real_processes_cpu_pct` (issue 20): a real swarm of 10 `swarm-node run` processes,
+  each linked over MAVLink to its own simulated quadcopter (one simulator process
+  serving all ten) on loopback Zenoh through a router, every node hearing the nine
+  others: each node process's CPU over the window, in % of one core (mean and max).
+  Beside it `synthetic_peers_cpu_pct_10`: the one node hearing 10 synthetic peers
+  played by one process (the older figure below), for the ratio between the two.
+- `cpu_s_per_sim_s`: a real `swarm-node run` process with its autopilot link to a
+  simulated quadcopter (in its own process), on loopback Zenoh at speed 1, hearing N
+  synthetic peers played by one other process and one Zenoh session. Baseline in the
+  same run: a plain zenoh-python process that only subscribes to and decodes the same
+  traffic. And membership timings measured on the way (join, SIGKILL and SIGSTOP
+  detection)."""
 
 from __future__ import annotations
 
@@ -27,6 +40,9 @@ from swarm_proto.session import SwarmBus, ZenohSettings, open_session
 
 WINDOW_S = 8.0
 PEER_COUNTS = (10, 50, 100)
+CORE_PEER_COUNTS = (10, 100, 1000)
+CORE_SIM_S = 20.0
+REAL_NODES = 10
 SWARM = "bench"
 
 
@@ -278,7 +294,141 @@ def link_loss_to_emergency_s(endpoint: str) -> float | None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def _peer_traffic(peers: int, sim_s: float) -> list[tuple[float, bytes, type]]:
+    """What `peers` peers publish for `sim_s` seconds, in time order, as LAN bytes."""
+    from swarm_proto import lan
+
+    out: list[tuple[float, bytes, type]] = []
+    for k in range(round(sim_s / 0.2)):
+        for i in range(peers):
+            vid = 1000 + i
+            at = 0.2 * k + 0.2 * i / peers  # spread over the period
+            a = 2 * math.pi * i / peers + 0.01 * k
+            st = VehicleStatus(vid, at, 37.41 + 0.01 * math.sin(a), -5.99 + 0.01 * math.cos(a),
+                               110.0, 100.0, 12.0, 3.0, 0.0, 45.0, 20.0, 80, 24.5,
+                               GpsFix.FIX_3D, 14, 10, True, FsmState.GO_MISSION)  # fmt: skip
+            out.append((at, lan.encode(st), VehicleStatus))
+            if k % 5 == 0:
+                info = VehicleInfo(vid, VehicleType.VTOL, "Albatross 250 VTOL", f"A{vid}",
+                                   fleet_id=1)  # fmt: skip
+                out.append((at, lan.encode(info), VehicleInfo))
+    return out
+
+
+def core_at_peers(
+    peers: int, sim_s: float = CORE_SIM_S, *, liveliness: bool = True
+) -> dict[str, float]:
+    """The node core alone hearing `peers` peers for `sim_s` simulated seconds: CPU %
+    of one core (core only, messages decoded beforehand), the same traffic only decoded,
+    and the peers the core looked at per input. With `liveliness` the peers hold tokens
+    (a LAN swarm); without, they are known by telemetry only and go stale by deadline
+    (peers behind a radio)."""
+    from swarm_node.core.node import AutopilotUpdate, NodeCore, NodeSettings, PeerAlive, Received
+    from swarm_node.database import seed_fleet
+    from swarm_proto import lan
+
+    profiles = {p.vehicle_id: p for p in seed_fleet()}
+    traffic = _peer_traffic(peers, sim_s)
+    t0 = time.process_time()
+    msgs = [(at, lan.decode(raw, cls)) for at, raw, cls in traffic]
+    decode_s = time.process_time() - t0
+    core = NodeCore(profiles[7], NodeSettings(), now=0.0, fleet_profiles=profiles)
+    if liveliness:
+        for i in range(peers):
+            core.handle(PeerAlive(1000 + i, True), 0.0)
+    events = 0
+    next_ap = 0.0
+    t0 = time.process_time()
+    for at, msg in msgs:
+        deadline = core.next_deadline()
+        while min(deadline, next_ap) <= at:  # the runtime's loop: timers and the 5 Hz poll
+            now = min(deadline, next_ap)
+            if now >= next_ap:
+                next_ap += 0.2
+                core.handle(AutopilotUpdate(core.autopilot), now)
+            if now >= core.next_deadline():
+                core.on_timer(now)
+            events += 1
+            deadline = core.next_deadline()
+        core.handle(Received(msg), at)
+        events += 1
+    core_s = time.process_time() - t0
+    assert len(core.members.live()) == peers
+    return {
+        "core_cpu_pct": round(100.0 * core_s / sim_s, 3),
+        "decode_cpu_pct": round(100.0 * decode_s / sim_s, 3),
+        "peer_visits_per_event": round(core.members.visits / events, 3),
+        "events_per_sim_s": round(events / sim_s, 1),
+    }
+
+
+def _vehicles_main(ports: list[int], stop: Any) -> None:
+    from swarm_proto import SystemClock
+    from swarm_sim.core import SITL_HOME
+    from swarm_sim.runtime import VehicleServer, VehicleSpec, spread_homes
+
+    homes = spread_homes(SITL_HOME, len(ports), 40.0)
+    specs = [VehicleSpec("copter", home=h, port=p, sysid=i + 1)
+             for i, (h, p) in enumerate(zip(homes, ports, strict=True))]  # fmt: skip
+    with VehicleServer(specs, SystemClock()):
+        stop.wait()
+
+
+def real_swarm(endpoint: str, n: int = REAL_NODES) -> dict[str, Any]:
+    """`n` real node processes, each with its own simulated quadcopter (one simulator
+    process serving them all), on loopback Zenoh: every node's CPU % over the window,
+    once every node lists every other."""
+    ctx = mp.get_context("spawn")
+    ids = list(range(1, n + 1))
+    ports = [_free_port() for _ in ids]
+    stop = ctx.Event()
+    sim = ctx.Process(target=_vehicles_main, args=(ports, stop))
+    sim.start()
+    tmp = tempfile.mkdtemp(prefix="bandada-bench-")
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "BANDADA_DB": os.path.join(tmp, "swarm.db")}
+    watcher = SwarmBus.open(ZenohSettings(connect=(endpoint,)), SWARM)
+    procs: dict[int, subprocess.Popen[bytes]] = {}
+    try:
+        time.sleep(2.0)  # the simulator's ports open
+        for vid, port in zip(ids, ports, strict=True):
+            procs[vid] = subprocess.Popen(
+                [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid), "--swarm", SWARM,
+                 "--connect", endpoint, "--autopilot", f"tcp:127.0.0.1:{port}",
+                 "--log-level", "ERROR"], env=env,
+            )  # fmt: skip
+        listed = _until(
+            lambda: all(_peers(watcher.session, i) == [j for j in ids if j != i] for i in ids), 120
+        )
+        time.sleep(3.0)  # past start-up
+        c0 = {vid: _cpu_s(p.pid) for vid, p in procs.items()}
+        t0 = time.monotonic()
+        time.sleep(WINDOW_S)
+        dt = time.monotonic() - t0
+        pct = {vid: 100.0 * (_cpu_s(p.pid) - c0[vid]) / dt for vid, p in procs.items()}
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in procs.values():
+            try:
+                p.wait(20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+        watcher.close()
+        stop.set()
+        sim.join(20)
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {
+        "nodes": n,
+        "all_listed_s": listed,
+        "node_cpu_pct_mean": round(sum(pct.values()) / len(pct), 2),
+        "node_cpu_pct_max": round(max(pct.values()), 2),
+    }
+
+
 def run() -> dict[str, Any]:
+    core = {f"peers_{n}": core_at_peers(n) for n in CORE_PEER_COUNTS}
+    radio = {f"peers_{n}": core_at_peers(n, liveliness=False) for n in CORE_PEER_COUNTS}
     ctx = mp.get_context("spawn")
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
@@ -320,7 +470,27 @@ def run() -> dict[str, Any]:
         membership["link_loss_to_emergency_s"] = link_loss_to_emergency_s(endpoint)
     finally:
         router.close()
+    router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+    try:
+        real = real_swarm(endpoint)
+    finally:
+        router.close()
+    synthetic_10 = round(100.0 * node_fig["peers_10"], 2)
     return {
+        "core_cpu_pct_at_peers": {k: v["core_cpu_pct"] for k, v in core.items()},
+        "decode_cpu_pct_at_peers": {k: v["decode_cpu_pct"] for k, v in core.items()},
+        "core_cpu_pct_at_peers_telemetry_only": {k: v["core_cpu_pct"] for k, v in radio.items()},
+        "peer_visits_per_event_telemetry_only": {
+            k: v["peer_visits_per_event"] for k, v in radio.items()
+        },
+        "core": core,
+        "core_telemetry_only": radio,
+        "real_processes_cpu_pct": {"nodes_10": real["node_cpu_pct_mean"]},
+        "real_processes": real,
+        "synthetic_peers_cpu_pct_10": synthetic_10,
+        "real_vs_synthetic_10": round(real["node_cpu_pct_mean"] / synthetic_10, 2)
+        if synthetic_10 > 0
+        else None,
         "membership": membership,
         "cpu_s_per_sim_s": node_fig,
         "baseline_plain_subscriber_cpu_s_per_sim_s": base_fig,

@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 import msgspec
 
 from swarm_node.core.autopilot.requests import ApRequest, ApResult
-from swarm_node.core.mission.share import run_plan
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
@@ -30,6 +29,7 @@ from swarm_node.core.node import (
     Received,
     Submit,
 )
+from swarm_node.plan_memo import PlanMemo
 
 AutopilotFn = Callable[[int, ApRequest], ApResult | None]  # (node id, request) -> answer
 
@@ -47,12 +47,14 @@ class Fleet:
     delay_s: tuple[float, float] = (0.0, 0.0)  # uniform delay range per link
     autopilot: AutopilotFn = always_ok
     plan_delay_s: float = 0.0  # how long a plan job takes (it runs inline, in no time)
+    plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.rng = random.Random(self.seed)
+        self._scans: dict[tuple[type, int | None], tuple[int, object, list]] = {}
         self._queue: list[tuple[float, int, int, Input]] = []
         self._seq = itertools.count()
 
@@ -81,7 +83,7 @@ class Fleet:
             elif isinstance(o, Note):
                 self.notes.append((self.now, node_id, o.text))
             elif isinstance(o, PlanJob):
-                done = PlanDone(run_plan(o.request))
+                done = PlanDone(self.plans.run(o.request))
                 self.deliver(node_id, done, self.now + self.plan_delay_s)
 
     def run_until(self, t_end: float) -> None:
@@ -108,8 +110,24 @@ class Fleet:
                             )
 
     def messages(self, cls: type, sender: int | None = None) -> list:
-        return [
-            m
-            for _, s, m in self.published
-            if isinstance(m, cls) and (sender is None or s == sender)
-        ]
+        """Every published `cls` (from `sender`), in order. Scans only what was published
+        since the last call with the same arguments (a predicate calling this at every
+        step of a long flight stays linear), unless `published` was changed under it."""
+        return _matching(self.published, self._scans, cls, sender)
+
+
+def _matching(
+    published: list[tuple[float, int, msgspec.Struct]],
+    scans: dict[tuple[type, int | None], tuple[int, object, list]],
+    cls: type,
+    sender: int | None,
+) -> list:
+    start, last, found = scans.get((cls, sender), (0, None, []))
+    if start > len(published) or (start and published[start - 1] is not last):
+        start, found = 0, []  # cleared or replaced: scan afresh
+    found = found + [
+        m for _, s, m in published[start:] if isinstance(m, cls) and (sender is None or s == sender)
+    ]
+    if published:
+        scans[(cls, sender)] = (len(published), published[-1], found)
+    return list(found)

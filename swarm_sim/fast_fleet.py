@@ -24,7 +24,6 @@ import msgspec
 
 from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
-from swarm_node.core.mission.share import run_plan
 from swarm_node.core.mission.tasking import TaskingSettings
 from swarm_node.core.node import (
     AutopilotResult,
@@ -40,6 +39,7 @@ from swarm_node.core.node import (
     Submit,
 )
 from swarm_node.core.profile import VehicleProfile
+from swarm_node.plan_memo import PlanMemo
 from swarm_proto import VehicleType, lan
 
 from .core import SITL_HOME, Home, VehicleEndpoint
@@ -82,11 +82,26 @@ class FastFleet:
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
     plan_delay_s: float = 0.0  # simulated time a plan job takes
+    plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
+    # with a list here, every swarm message published is also appended to it as (sender,
+    # LAN bytes, type): the part of a fleet split over processes (parallel_fleet.py)
+    export: list[tuple[int, bytes, type]] | None = None
 
     def __post_init__(self) -> None:
-        self._bus: list[tuple[float, int, int, Input]] = []
+        # swarm messages and results in time order; a broadcast is one entry for all its
+        # recipients (they take it in turn, as separate entries would be taken)
+        self._bus: list[tuple[float, int, tuple[int, ...], Input]] = []
         self._seq = itertools.count()
         self._tokens = itertools.count(1)
+        self._scans: dict[tuple[type, int | None], tuple[int, object, list]] = {}
+        # one global deadline heap (issue 20): each vehicle's earliest deadline (its
+        # endpoint, link, poll and node), pushed again whenever the vehicle was touched;
+        # entries that no longer match `_due` are stale and skipped
+        self._timers: list[tuple[float, int, int]] = []
+        self._due: dict[int, float] = {}
+        self._rank: dict[int, int] = {}
+        self._dirty: set[int] = set()
+        self._rescan()
 
     @classmethod
     def build(
@@ -99,12 +114,14 @@ class FastFleet:
         start_unix_s: float = 1.8e9,
         settings: NodeSettings | None = None,
         tasking: TaskingSettings | None = None,
+        homes: Sequence[Home] | None = None,
     ) -> FastFleet:
         """Vehicles `members` (database ids), each simulated as its profile's model,
-        homes `spacing_m` apart going east; voting and re-tasking as the seed database
-        sets them unless `tasking` is given."""
+        homes `spacing_m` apart going east (or `homes`, one per member); voting and
+        re-tasking as the seed database sets them unless `tasking` is given."""
         vehicles: dict[int, SimVehicle] = {}
-        homes = spread_homes(home, len(members), spacing_m)
+        if homes is None:
+            homes = spread_homes(home, len(members), spacing_m)
         for i, vid in enumerate(members):
             profile = profiles[vid]
             model = MODEL_OF_TYPE[profile.vehicle_type]
@@ -124,22 +141,25 @@ class FastFleet:
     def broadcast(self, msg: msgspec.Struct, to: Sequence[int] | None = None) -> None:
         """Deliver a swarm message (e.g. from a ground station) to nodes now."""
         decoded = lan.decode(lan.encode(msg), type(msg))
-        for vid in to if to is not None else list(self.vehicles):
-            self._deliver(vid, Received(decoded), self.now)
+        targets = tuple(to) if to is not None else tuple(self.vehicles)
+        heapq.heappush(self._bus, (self.now, next(self._seq), targets, Received(decoded)))
 
     def _deliver(self, vid: int, event: Input, at: float) -> None:
-        heapq.heappush(self._bus, (at, next(self._seq), vid, event))
+        heapq.heappush(self._bus, (at, next(self._seq), (vid,), event))
 
     # ------------------------------------------------------------------ plumbing
     def _node_out(self, vid: int, outputs: list) -> None:
         v = self.vehicles[vid]
+        self._dirty.add(vid)  # its node had an input: its deadlines may have moved
         for o in outputs:
             if isinstance(o, Publish):
                 self.published.append((self.now, vid, o.msg))
-                wire = lan.decode(lan.encode(o.msg), type(o.msg))
-                for other in self.vehicles:
-                    if other != vid:
-                        self._deliver(other, Received(wire), self.now)
+                raw = lan.encode(o.msg)
+                wire = lan.decode(raw, type(o.msg))
+                others = tuple(other for other in self.vehicles if other != vid)
+                heapq.heappush(self._bus, (self.now, next(self._seq), others, Received(wire)))
+                if self.export is not None:
+                    self.export.append((vid, raw, type(o.msg)))
             elif isinstance(o, Submit):
                 token = next(self._tokens)
                 v.tokens[token] = o.request.request_id
@@ -147,13 +167,14 @@ class FastFleet:
             elif isinstance(o, Note):
                 self.notes.append((self.now, vid, o.text))
             elif isinstance(o, PlanJob):  # inline, after the simulated planning time
-                done = PlanDone(run_plan(o.request))
+                done = PlanDone(self.plans.run(o.request))
                 self._deliver(vid, done, self.now + self.plan_delay_s)
 
     def _link_out(self, vid: int, outputs: list[LinkOutput]) -> None:
         """Carry out the link's outputs: results to the node, bytes to the vehicle, and
         the vehicle's immediate answers back into the link, until nothing is left."""
         v = self.vehicles[vid]
+        self._dirty.add(vid)
         while outputs:
             data = bytearray()
             for o in outputs:
@@ -167,34 +188,105 @@ class FastFleet:
             back = v.endpoint.receive(bytes(data), self.now) if data else b""
             outputs = v.link.receive(back, self.now) if back else []
 
+    # ------------------------------------------------------------------ scheduling
+    @staticmethod
+    def _vehicle_deadline(v: SimVehicle) -> float:
+        t = min(v.link.next_deadline(), v.node.next_deadline(), v.next_poll)
+        ep = v.endpoint.next_deadline()
+        return ep if ep is not None and ep < t else t
+
+    def _schedule(self, vid: int) -> None:
+        v = self.vehicles.get(vid)
+        if v is None:
+            self._due.pop(vid, None)
+            return
+        d = self._vehicle_deadline(v)
+        if self._due.get(vid) != d:
+            self._due[vid] = d
+            heapq.heappush(self._timers, (d, self._rank[vid], vid))
+
+    def _rescan(self) -> None:
+        """Every vehicle's deadline afresh: at each entry from outside (a test may have
+        changed a vehicle between runs: swapped its endpoint, sent its link a request)."""
+        self._rank = {vid: i for i, vid in enumerate(self.vehicles)}
+        self._timers = []
+        self._due = {}
+        self._dirty.clear()
+        for vid in self.vehicles:
+            self._schedule(vid)
+
+    def _next_timer(self) -> float:
+        timers = self._timers
+        while timers:
+            d, _rank, vid = timers[0]
+            if self._due.get(vid) == d and vid in self.vehicles:
+                return d
+            heapq.heappop(timers)  # stale: the vehicle moved its deadline or is gone
+        return float("inf")
+
     def _deadline(self) -> float:
+        for vid in self._dirty:
+            self._schedule(vid)
+        self._dirty.clear()
         t = self._bus[0][0] if self._bus else float("inf")
-        for v in self.vehicles.values():
-            t = min(t, v.link.next_deadline(), v.node.next_deadline(), v.next_poll)
-            ep = v.endpoint.next_deadline()
-            if ep is not None:
-                t = min(t, ep)
-        return t
+        return min(t, self._next_timer())
 
     def step(self) -> None:
-        self.now = max(self.now, self._deadline())
+        """Everything due at the next deadline: the swarm messages and results first,
+        then each vehicle whose time has come (in the fleet's order)."""
+        self._rescan()
+        self._step()
+
+    def _step(self) -> None:
+        self._step_at(self._deadline())
+
+    def receive(self, raw: bytes, cls: type, at: float) -> None:
+        """A swarm message published elsewhere (another part of a split fleet), for
+        every vehicle here at `at`."""
+        msg: msgspec.Struct = lan.decode(raw, cls)
+        heapq.heappush(self._bus, (at, next(self._seq), tuple(self.vehicles), Received(msg)))
+
+    def step_at(self, t: float) -> float:
+        """Everything due at `t` (a split fleet's common time; nothing may be due
+        earlier); returns the next deadline."""
+        self._step_at(t)
+        return self._deadline()
+
+    def _step_at(self, t: float) -> None:
+        self.now = max(self.now, t)
         while self._bus and self._bus[0][0] <= self.now:
-            _, _, vid, event = heapq.heappop(self._bus)
-            if vid in self.vehicles:  # a killed vehicle hears nothing
-                self._node_out(vid, self.vehicles[vid].node.handle(event, self.now))
-        for vid, v in self.vehicles.items():
-            ep = v.endpoint.next_deadline()
-            if ep is not None and ep <= self.now:
-                back = v.endpoint.on_timer(self.now)
-                if back:
-                    self._link_out(vid, v.link.receive(back, self.now))
-            if v.link.next_deadline() <= self.now:
-                self._link_out(vid, v.link.on_timer(self.now))
-            if v.next_poll <= self.now:
-                v.next_poll = max(v.next_poll + AP_POLL_S, self.now)
-                self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
-            if v.node.next_deadline() <= self.now:
-                self._node_out(vid, v.node.on_timer(self.now))
+            _, _, targets, event = heapq.heappop(self._bus)
+            vehicles, now = self.vehicles, self.now
+            for vid in targets:
+                v = vehicles.get(vid)
+                if v is not None:  # a killed vehicle hears nothing
+                    out = v.node.handle(event, now)
+                    if out:
+                        self._node_out(vid, out)
+            self._dirty.update(targets)  # their nodes had an input: deadlines may move
+        for vid in self._dirty:
+            self._schedule(vid)
+        self._dirty.clear()
+        due: set[int] = set()
+        while self._next_timer() <= self.now:
+            due.add(heapq.heappop(self._timers)[2])
+        for vid in sorted(due, key=self._rank.__getitem__):
+            self._timers_of(vid, self.vehicles[vid])
+            self._schedule(vid)
+
+    def _timers_of(self, vid: int, v: SimVehicle) -> None:
+        ep = v.endpoint.next_deadline()
+        if ep is not None and ep <= self.now:
+            back = v.endpoint.on_timer(self.now)
+            if back:
+                self._link_out(vid, v.link.receive(back, self.now))
+        if v.link.next_deadline() <= self.now:
+            self._link_out(vid, v.link.on_timer(self.now))
+        if v.next_poll <= self.now:
+            v.next_poll = max(v.next_poll + AP_POLL_S, self.now)
+            self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
+        if v.node.next_deadline() <= self.now:
+            self._node_out(vid, v.node.on_timer(self.now))
 
     def kill(self, vid: int) -> SimVehicle:
         """The vehicle and its node vanish at once (a crash, a dead companion computer):
@@ -203,22 +295,40 @@ class FastFleet:
 
     def run_for(self, seconds: float) -> None:
         end = self.now + seconds
+        self._rescan()
         while self._deadline() <= end:
-            self.step()
+            self._step()
         self.now = end
 
     def run_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
         end = self.now + timeout_s
+        self._rescan()
         while not predicate():
             if self._deadline() > end:
                 self.now = end
                 return False
-            self.step()
+            self._step()
         return True
 
     def messages(self, cls: type, sender: int | None = None) -> list:
-        return [
-            m
-            for _, s, m in self.published
-            if isinstance(m, cls) and (sender is None or s == sender)
-        ]
+        """Every published `cls` (from `sender`), in order. Scans only what was published
+        since the last call with the same arguments (a predicate calling this at every
+        step of a long flight stays linear), unless `published` was changed under it."""
+        return _matching(self.published, self._scans, cls, sender)
+
+
+def _matching(
+    published: list[tuple[float, int, msgspec.Struct]],
+    scans: dict[tuple[type, int | None], tuple[int, object, list]],
+    cls: type,
+    sender: int | None,
+) -> list:
+    start, last, found = scans.get((cls, sender), (0, None, []))
+    if start > len(published) or (start and published[start - 1] is not last):
+        start, found = 0, []  # cleared or replaced: scan afresh
+    found = found + [
+        m for _, s, m in published[start:] if isinstance(m, cls) and (sender is None or s == sender)
+    ]
+    if published:
+        scans[(cls, sender)] = (len(published), published[-1], found)
+    return list(found)

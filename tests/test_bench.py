@@ -49,6 +49,9 @@ NAMED: dict[str, tuple[str, ...]] = {
         "swarm_rt_factor/vehicles_10",
         "swarm_rt_factor/vehicles_50",
         "swarm_rt_factor/vehicles_100",
+        "swarm/vehicles_10/kept_pace_at_10x",
+        "swarm/vehicles_50/kept_pace_at_10x",
+        "swarm/vehicles_100/kept_pace_at_10x",
     ),
     "radio_scale": (
         "bare_limit_ratio",
@@ -73,7 +76,15 @@ NAMED: dict[str, tuple[str, ...]] = {
         "tls/status_latency_ms_p99",
         "join_s",
     ),
-    "node": ("cpu_s_per_sim_s/peers_10", "cpu_s_per_sim_s/peers_50", "cpu_s_per_sim_s/peers_100"),
+    "node": (
+        "cpu_s_per_sim_s/peers_10",
+        "cpu_s_per_sim_s/peers_50",
+        "cpu_s_per_sim_s/peers_100",
+        "core_cpu_pct_at_peers/peers_10",
+        "core_cpu_pct_at_peers/peers_100",
+        "core_cpu_pct_at_peers/peers_1000",
+        "real_processes_cpu_pct/nodes_10",
+    ),
     "separation": (
         "avoid_cpu_us_per_tick/peers_10",
         "avoid_cpu_us_per_tick/peers_50",

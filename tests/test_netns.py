@@ -64,11 +64,14 @@ def _fleet(s: SwarmLab, *, who: str = "gcs-900", want: int = len(VEHICLES)) -> l
     return rows
 
 
-def _set_fleet(s: SwarmLab, who: str = "gcs-900") -> subprocess.CompletedProcess[str]:
+def _set_fleet(
+    s: SwarmLab, who: str = "gcs-900", timeout_s: float = 5.0
+) -> subprocess.CompletedProcess[str]:
     ids = [a for v in VEHICLES for a in ("--id", str(v))]
+    wait = ["--timeout", str(timeout_s)]
     return s.lab.run(
         s.gcs,
-        s.gcs_argv("cmd", "set-fleet", "--fleet-id", "4", *ids, who=who),
+        s.gcs_argv("cmd", "set-fleet", "--fleet-id", "4", *ids, *wait, who=who),
         s.env,
     )
 
@@ -118,8 +121,8 @@ def test_tls_only_the_ground_station_commands(tls_lab: SwarmLab) -> None:
     r = _set_fleet(s)
     assert r.returncode == 0, r.stdout + r.stderr + _logs(s)
     # a vehicle's certificate (used from the ground station's host): it connects, but
-    # its command is not delivered: no vehicle answers
-    r = _set_fleet(s, who="vehicle-2")
+    # its command is not delivered: no vehicle answers (waited for 2 s, not the default 5)
+    r = _set_fleet(s, who="vehicle-2", timeout_s=2.0)
     assert r.returncode == 1 and "no answer" in r.stdout, r.stdout + r.stderr
     # certificates of another CA (even one named gcs-900): no connection at all
     from swarm_node.certs import make_swarm_certs

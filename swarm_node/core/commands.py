@@ -453,7 +453,9 @@ class CommandTracker:
         ]
 
     def next_deadline(self) -> float | None:
-        return min((r.deadline for r in self._running.values()), default=None)
+        if not self._running:  # the usual case: nothing running
+            return None
+        return min(r.deadline for r in self._running.values())
 
     def _ack(self, cmd: Command, ok: bool, reason: AckReason, text: str) -> Ack:
         return Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, text[:64])

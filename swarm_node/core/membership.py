@@ -8,10 +8,17 @@ a radio peer only goes silent). A peer that sends no VehicleStatus, only its 1 H
 VehicleInfo (a ground station), is given `info_stale_after_s` instead: over the radio
 info is the lowest class, so two seconds would be two missed updates. Pure: events and
 `now` in, PeerJoined/PeerLeft out.
+
+Cost per event does not grow with the swarm (issue 20): the peers that can go stale
+(present, no liveliness token) are kept in two lists, one per staleness rule, least
+recently heard first. Hearing a peer moves it to the end of its list; the next deadline
+is the first peer of each list; the timer looks only at peers whose time has come
+(`visits` counts the peers examined, for the scaling test).
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from swarm_proto import FsmState, VehicleInfo, VehicleStatus, VehicleType
@@ -72,6 +79,12 @@ class SwarmMembership:
     stale_after_s: float = 2.0  # a peer that sends VehicleStatus (5 Hz)
     info_stale_after_s: float = 5.0  # a peer that sends only VehicleInfo (1 Hz)
     peers: dict[int, Peer] = field(default_factory=dict)
+    # peers that may go stale, least recently heard first: those that send VehicleStatus,
+    # and those heard only by their VehicleInfo (the longer rule)
+    _watch: OrderedDict[int, Peer] = field(default_factory=OrderedDict, repr=False)
+    _watch_info: OrderedDict[int, Peer] = field(default_factory=OrderedDict, repr=False)
+    visits: int = 0  # peers examined by the timer and the deadline (not by their own event)
+    _latest_s: float = field(default=float("-inf"), repr=False)  # latest time any peer was heard
 
     def _stale_after(self, peer: Peer) -> float:
         if peer.status is None:
@@ -82,12 +95,17 @@ class SwarmMembership:
     def on_alive(self, node_id: int, alive: bool, now: float) -> list[PeerEvent]:
         if node_id == self.self_id:
             return []
-        peer = self.peers.setdefault(node_id, Peer(node_id))
+        peer = self.peers.get(node_id)
+        if peer is None:
+            peer = self.peers[node_id] = Peer(node_id)
         peer.alive_token = alive
         if alive:
             peer.last_heard_s = now
-            return self._join(peer, "liveliness")
-        return self._leave(peer, "liveliness")
+            out = self._join(peer, "liveliness")
+        else:
+            out = self._leave(peer, "liveliness")
+        self._rewatch(peer)
+        return out
 
     def on_status(self, msg: VehicleStatus, now: float) -> list[PeerEvent]:
         return self._heard(msg.vehicle_id, now, status=msg)
@@ -97,21 +115,23 @@ class SwarmMembership:
 
     def on_timer(self, now: float) -> list[PeerEvent]:
         out: list[PeerEvent] = []
-        for peer in self.peers.values():
-            if (
-                peer.present
-                and not peer.alive_token
-                and now - peer.last_heard_s >= self._stale_after(peer)
-            ):
+        for watch in (self._watch, self._watch_info):
+            while watch:
+                peer = next(iter(watch.values()))
+                self.visits += 1
+                if now - peer.last_heard_s < self._stale_after(peer):
+                    break  # the least recently heard is not stale: nor is anyone after it
                 out += self._leave(peer, "stale")
+                self._rewatch(peer)
         return out
 
     def next_deadline(self) -> float | None:
-        times = [
-            p.last_heard_s + self._stale_after(p)
-            for p in self.peers.values()
-            if p.present and not p.alive_token
-        ]
+        times = []
+        for watch in (self._watch, self._watch_info):
+            if watch:
+                peer = next(iter(watch.values()))
+                self.visits += 1
+                times.append(peer.last_heard_s + self._stale_after(peer))
         return min(times) if times else None
 
     # ------------------------------------------------------------------ views
@@ -136,15 +156,48 @@ class SwarmMembership:
         status: VehicleStatus | None = None,
         info: VehicleInfo | None = None,
     ) -> list[PeerEvent]:
-        if node_id == self.self_id:
-            return []
-        peer = self.peers.setdefault(node_id, Peer(node_id))
-        peer.last_heard_s = max(peer.last_heard_s, now)
+        peer = self.peers.get(node_id)
+        if peer is None:
+            if node_id == self.self_id:
+                return []
+            peer = self.peers[node_id] = Peer(node_id)
+        if now > peer.last_heard_s:
+            peer.last_heard_s = now
+        had_status = peer.status is not None
         if status is not None:
             peer.status = status
-        if info is not None:
+        elif info is not None:
             peer.info = info
-        return self._join(peer, "telemetry")
+        if peer.present:  # the usual event, O(1): a peer we know, heard again
+            if peer.alive_token:
+                return []  # its liveliness token keeps it: never stale, not watched
+            watch = self._watch if had_status else self._watch_info
+            if (had_status or status is None) and now >= self._latest_s and node_id in watch:
+                self._latest_s = now
+                watch.move_to_end(node_id)  # the most recently heard of all
+                return []
+        out = self._join(peer, "telemetry")
+        self._rewatch(peer)
+        return out
+
+    def _rewatch(self, peer: Peer) -> None:
+        """Put the peer at its place in the staleness lists (or out of them): O(1) when
+        it was heard last, which is every event in time order."""
+        nid = peer.node_id
+        self._watch.pop(nid, None)
+        self._watch_info.pop(nid, None)
+        if not peer.present or peer.alive_token:
+            return
+        watch = self._watch_info if peer.status is None else self._watch
+        self._latest_s = max(self._latest_s, peer.last_heard_s)
+        if watch and peer.last_heard_s < next(reversed(watch.values())).last_heard_s:
+            # heard earlier than the last one in the list (time went backwards): sorted
+            # in, O(n)
+            items = sorted([*watch.values(), peer], key=lambda p: p.last_heard_s)
+            watch.clear()
+            watch.update((p.node_id, p) for p in items)
+            return
+        watch[nid] = peer
 
     def _join(self, peer: Peer, how: str) -> list[PeerEvent]:
         if peer.present:

@@ -294,6 +294,8 @@ class NodeCore:
         self.now = now
         out: list[ModuleOutput]
         match event:
+            case Received(msg):  # first: by far the most frequent input
+                out = self._on_message(msg, now)
             case AutopilotUpdate(state):
                 out = self._on_autopilot(state, now)
             case AutopilotResult(result):
@@ -307,13 +309,11 @@ class NodeCore:
             case BadInput(key, error):
                 self.bad_input[key] += 1
                 out = [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
-            case Received(msg):
-                out = self._on_message(msg, now)
             case PlanDone(outcome):
                 out = self.manager.on_plan(outcome, self.autopilot, now)
             case _:
                 assert_never(event)
-        return self._route(out, now)
+        return self._route(out, now) if out else []
 
     def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
         """Posts to the state machine, requests through the arbiter (a refusal goes
@@ -378,7 +378,8 @@ class NodeCore:
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
         match msg:
             case VehicleStatus():
-                return self._peer_events(self.members.on_status(msg, now))
+                events = self.members.on_status(msg, now)  # usually none: a known peer
+                return self._peer_events(events) if events else []
             case VehicleInfo():
                 out = self._peer_events(self.members.on_info(msg, now))
                 return out + self._roster_events(self.roster.on_info(msg))
@@ -606,16 +607,17 @@ class NodeCore:
 
     # ------------------------------------------------------------------ time
     def next_deadline(self) -> float:
-        candidates = [self._next_status, self._next_info, self.fsm.next_deadline()]
+        # called at every step of a runtime or harness: O(1), no allocation
+        t = min(self._next_status, self._next_info, self.fsm.next_deadline())
         for d in (
             self.members.next_deadline(),
             self.commands.next_deadline(),
             self.fence.next_deadline(),
             self.tasking.next_deadline(),
         ):
-            if d is not None:
-                candidates.append(d)
-        return min(candidates)
+            if d is not None and d < t:
+                t = d
+        return t
 
     def on_timer(self, now: float) -> list[Output]:
         self.now = now

@@ -75,15 +75,18 @@ def test_unset_parameters_come_from_the_database(zenoh_router: str, swarm_db: Pa
 
 def test_count_and_payload_set_the_quantity_selector(zenoh_router: str, swarm_db: Path) -> None:
     """`--count N --payload MODEL`: a QUANTITY selector (the vehicles vote; until the
-    node wiring lands they answer UNSUPPORTED, docs/node.md)."""
+    node wiring lands they answer UNSUPPORTED, docs/node.md). The responder holds no
+    liveliness token, so the ground station knows nobody it must wait for and listens
+    for its whole --timeout: 1 s here (what is sent is checked, not the waiting)."""
     m, _ = send_mission(zenoh_router, "md5", "target", "--point", "37.41,-5.99",
-                        "--count", "2", "--payload", "EO 1080p 2-axis gimbal")  # fmt: skip
+                        "--count", "2", "--payload", "EO 1080p 2-axis gimbal",
+                        "--timeout", "1")  # fmt: skip
     sel = m.selection
     assert (sel.kind, sel.quantity, sel.payload_model, sel.fleet_id) == (
         SelectorKind.QUANTITY, 2, "EO 1080p 2-axis gimbal", 0,
     )  # fmt: skip
     m, _ = send_mission(zenoh_router, "md6", "target", "--point", "37.41,-5.99",
-                        "--quantity", "1", "--fleet", "3")  # fmt: skip
+                        "--quantity", "1", "--fleet", "3", "--timeout", "1")  # fmt: skip
     assert (m.selection.kind, m.selection.quantity, m.selection.fleet_id) == (
         SelectorKind.QUANTITY, 1, 3,
     )  # fmt: skip

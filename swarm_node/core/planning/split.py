@@ -20,11 +20,12 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from .coverage import CoveragePath, Lane, connect, order
+from . import coverage
+from .coverage import CoveragePath, Lane, connect, order, order_cost
 from .dubins import Pose
 from .endurance import leg_s, stop_and_go_s
 from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError
-from .turns import TurnModel
+from .turns import PointTurns, TurnModel
 from .zones import Obstacles
 
 _MAX_ARRANGEMENTS = 720
@@ -131,15 +132,66 @@ class MakespanCost:
             t += leg_s(math.hypot(mid[0] - w.start.x, mid[1] - w.start.y), v, a)
         return t + w.extra_s
 
-    def path(self, block: Sequence[Lane], w: Worker) -> CoveragePath:
-        return connect(order(block, w.turns, w.start), w.turns, self.obstacles, w.start)
+    @staticmethod
+    def _end(w: Worker) -> tuple[float, float] | None:
+        """Where a worker with a battery budget goes after its block (the local search
+        counts its way home); None for the others."""
+        return w.back_to if math.isfinite(w.budget_s) else None
+
+    def path(self, block: Sequence[Lane], w: Worker, *, improve: bool = False) -> CoveragePath:
+        """The block connected in its cheapest seed pattern's order (the order the
+        split times), or with `improve` that order improved by the local search, the
+        way home counted."""
+        if improve:
+            seq = order(block, w.turns, w.start, end=self._end(w), improve=True)
+        else:
+            seq = order(block, w.turns, w.start, improve=False)
+        return connect(seq, w.turns, self.obstacles, w.start)
 
     def assignment(self, block: Sequence[Lane], w: Worker) -> Assignment:
+        """The block ordered by its cheapest seed pattern (what the split times)."""
         path = self.path(block, w) if block else CoveragePath((), ())
         return Assignment(w.vehicle_id, w.speed_m_s, path, w.accel_m_s2, w.extra_s)
 
+    def final(self, block: Sequence[Lane], w: Worker) -> Assignment:
+        """The block as it is flown: its order improved by the local search
+        (`coverage._LOCAL_SEARCH`), kept only if that overruns the budget less and,
+        then, takes less time than the seed pattern the split timed."""
+        a = self.assignment(block, w)
+        if not block or not coverage._LOCAL_SEARCH:
+            return a
+        b = Assignment(
+            w.vehicle_id, w.speed_m_s, self.path(block, w, improve=True), w.accel_m_s2, w.extra_s
+        )
+        return b if (self.overrun_s(b, w), b.time_s) < (self.overrun_s(a, w), a.time_s) else a
+
     def exact(self, block: Sequence[Lane], w: Worker) -> float:
-        return self.assignment(block, w).time_s if block else 0.0
+        return self.timed(block, w)[1]
+
+    def timed(self, block: Sequence[Lane], w: Worker) -> tuple[float, float]:
+        """(`overrun_s`, `time_s`) of the block's assignment. Without obstacles the
+        path's length is the lanes plus the order's transition costs, and for a vehicle
+        at constant speed, or one with point turns, its time follows from them: the
+        path is not connected (the split asks this for many blocks)."""
+        if not block:
+            return 0.0, 0.0
+        plain = type(self) is MakespanCost and (self.obstacles is None or self.obstacles.is_empty)
+        if plain and (w.accel_m_s2 <= 0.0 or isinstance(w.turns, PointTurns)):
+            lanes, transitions_m = order_cost(block, w.turns, w.start)
+            if w.accel_m_s2 <= 0.0:
+                t = (sum(ln.length_m for ln in lanes) + transitions_m) / w.speed_m_s
+            else:  # point turns: the path's points are the start and the lanes' ends
+                pts = [] if w.start is None else [(w.start.x, w.start.y)]
+                for ln in lanes:
+                    pts += [ln.a, ln.b]
+                t = stop_and_go_s(pts, w.speed_m_s, w.accel_m_s2)
+            t += w.extra_s
+            over = 0.0
+            if not math.isinf(w.budget_s):
+                over = max(t + w.return_s(lanes[-1].b) - w.budget_s, 0.0)
+            return over, t
+        a = self.assignment(block, w)
+        return self.overrun_s(a, w), a.time_s
 
     def fits(self, block: Sequence[Lane], w: Worker) -> bool:
         """Whether the block and the way home (from the farther end of its first and
@@ -163,6 +215,95 @@ class MakespanCost:
         return self.overrun_s(a, w) <= 1e-9
 
 
+class _Blocks:
+    """`MakespanCost.estimate` and `fits` of the contiguous blocks lanes[i:j] of one lane
+    list in O(1) each (prefix sums per worker, built once): the partition search asks
+    for them hundreds of thousands of times. The same arithmetic as the cost's own
+    methods, which a subclass of MakespanCost may override: then those are called."""
+
+    def __init__(self, lanes: Sequence[Lane], cost: MakespanCost) -> None:
+        self.lanes = lanes
+        self.cost = cost
+        self.fast = type(cost) is MakespanCost
+        self._cut = dict(cost.budget_cut)
+        self._until: dict[tuple[int, int], int] = {}
+        self._tables: dict[int, tuple[list[float], list[float], list[float], list[float]]] = {}
+
+    def _table(self, w: Worker) -> tuple[list[float], list[float], list[float], list[float]]:
+        t = self._tables.get(w.vehicle_id)
+        if t is None:
+            a, v = w.accel_m_s2, w.speed_m_s
+            prefix = [0.0, *itertools.accumulate(leg_s(ln.length_m, v, a) for ln in self.lanes)]
+            approach = [0.0] * len(self.lanes)
+            if w.start is not None:
+                sx, sy = w.start.x, w.start.y
+                approach = [leg_s(math.hypot(ln.a[0] - sx, ln.a[1] - sy), v, a) for ln in self.lanes]
+            back_a = [w.return_s(ln.a) for ln in self.lanes]
+            back_b = [w.return_s(ln.b) for ln in self.lanes]
+            t = self._tables[w.vehicle_id] = (prefix, approach, back_a, back_b)
+        return t
+
+    def estimate(self, i: int, j: int, w: Worker) -> float:
+        if not self.fast:
+            return self.cost.estimate(self.lanes[i:j], w)
+        if j <= i:
+            return 0.0
+        prefix, approach, _ba, _bb = self._table(w)
+        t = (prefix[j] - prefix[i]) + self.cost.allowance_m(w) * (j - i - 1) / w.speed_m_s
+        return t + approach[i] + w.extra_s
+
+    def fill(self, i: int, w: Worker, limit: float) -> int:
+        """The greedy fill from lane i: the largest j >= i such that every block
+        lanes[i:j'] with i < j' <= j is within `limit` by the estimate and fits the
+        budget (the first j' that fails stops it)."""
+        n = len(self.lanes)
+        if not self.fast:
+            j = i
+            while j < n and self.estimate(i, j + 1, w) <= limit and self.fits(i, j + 1, w):
+                j += 1
+            return j
+        # the estimate grows with j: bisect; the budget check does not depend on the
+        # limit: its first failure from i is found once
+        if i >= n:
+            return i
+        prefix, approach, _ba, _bb = self._table(w)
+        allow, v, pi, ap, ex = self.cost.allowance_m(w), w.speed_m_s, prefix[i], approach[i], w.extra_s
+        lo, hi = i, n  # est(i, lo) <= limit (lo == i: the empty block)
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            # `estimate(i, mid, w)`, inlined (the same arithmetic)
+            if (prefix[mid] - pi) + allow * (mid - i - 1) / v + ap + ex <= limit:
+                lo = mid
+            else:
+                hi = mid - 1
+        return min(lo, self._fits_until(i, w))
+
+    def _fits_until(self, i: int, w: Worker) -> int:
+        """The largest j such that every block lanes[i:j'] with i < j' <= j fits."""
+        key = (w.vehicle_id, i)
+        got = self._until.get(key)
+        if got is None:
+            n = len(self.lanes)
+            got = i
+            if math.isinf(w.budget_s):
+                got = n
+            else:
+                while got < n and self.fits(i, got + 1, w):
+                    got += 1
+            self._until[key] = got
+        return got
+
+    def fits(self, i: int, j: int, w: Worker) -> bool:
+        if not self.fast:
+            return self.cost.fits(self.lanes[i:j], w)
+        if j <= i or math.isinf(w.budget_s):
+            return True
+        _p, _a, back_a, back_b = self._table(w)
+        back = max(back_a[i], back_b[i], back_a[j - 1], back_b[j - 1])
+        budget = w.budget_s - self._cut.get(w.vehicle_id, 0.0)
+        return self.estimate(i, j, w) + back <= budget
+
+
 def sweep_sorted(lanes: Sequence[Lane]) -> list[Lane]:
     """Lanes in sweep order: by line, then along the line."""
 
@@ -173,43 +314,37 @@ def sweep_sorted(lanes: Sequence[Lane]) -> list[Lane]:
     return sorted(lanes, key=key)
 
 
-def _greedy(
-    lanes: Sequence[Lane], ws: Sequence[Worker], cost: MakespanCost, limit: float
-) -> list[int] | None:
+def _greedy(blocks: _Blocks, ws: Sequence[Worker], limit: float) -> list[int] | None:
     """Block boundaries filling each worker up to `limit` seconds, or None."""
+    n = len(blocks.lanes)
     bounds = [0]
     i = 0
     for k, w in enumerate(ws):
         j = i
         if k == len(ws) - 1:
-            j = len(lanes)
-            if cost.estimate(lanes[i:j], w) > limit or not cost.fits(lanes[i:j], w):
+            j = n
+            if blocks.estimate(i, j, w) > limit or not blocks.fits(i, j, w):
                 return None
         else:
-            while (
-                j < len(lanes)
-                and cost.estimate(lanes[i : j + 1], w) <= limit
-                and cost.fits(lanes[i : j + 1], w)
-            ):
-                j += 1
+            j = blocks.fill(i, w, limit)
         bounds.append(j)
         i = j
     return bounds
 
 
 def _partition(
-    lanes: Sequence[Lane], ws: Sequence[Worker], cost: MakespanCost
+    blocks: _Blocks, ws: Sequence[Worker], cost: MakespanCost
 ) -> tuple[float, list[int]] | None:
     """The least makespan limit (by the estimate) the greedy fill meets, and its block
     boundaries; None when the budgets leave lanes over at any limit."""
-    hi = max(cost.estimate(lanes, w) for w in ws)
+    hi = max(blocks.estimate(0, len(blocks.lanes), w) for w in ws)
     lo = 0.0
-    best = _greedy(lanes, ws, cost, hi)
+    best = _greedy(blocks, ws, hi)
     if best is None:
         return None
     for _ in range(40):
         mid = (lo + hi) / 2.0
-        got = _greedy(lanes, ws, cost, mid)
+        got = _greedy(blocks, ws, mid)
         if got is None:
             lo = mid
         else:
@@ -259,7 +394,7 @@ def split_lanes(
     blocks = [list(ordered[bounds[k] : bounds[k + 1]]) for k in range(len(arr))]
     if cut_lanes:
         blocks = _cut_boundaries(blocks, arr, cost)
-    assigned = {w.vehicle_id: cost.assignment(b, w) for w, b in zip(arr, blocks, strict=True)}
+    assigned = {w.vehicle_id: cost.final(b, w) for w, b in zip(arr, blocks, strict=True)}
     return SplitPlan(tuple(assigned[w.vehicle_id] for w in workers))
 
 
@@ -278,7 +413,8 @@ def _best_bounds(
     worst = 0.0
     for _ in range(_BUDGET_ROUNDS):
         c = dataclasses.replace(cost, budget_cut=tuple(sorted(cut.items())))
-        parts = [(_partition(ordered, arr, c), arr) for arr in _arrangements(workers)]
+        blocks = _Blocks(ordered, c)
+        parts = [(_partition(blocks, arr, c), arr) for arr in _arrangements(workers)]
         scored = sorted(
             ((p[0], p[1], arr) for p, arr in parts if p is not None), key=lambda t: t[0]
         )
@@ -314,12 +450,11 @@ def _refine(
     memo: dict[tuple[int, int, int], tuple[float, float]] = {}
 
     def t(k: int, b: list[int]) -> tuple[float, float]:
-        """The block's exact time, and by how much it and the way home overrun the
-        worker's budget."""
+        """By how much the block and the way home overrun the worker's budget, and the
+        block's exact time."""
         key = (k, b[k], b[k + 1])
         if key not in memo:
-            a = cost.assignment(lanes[b[k] : b[k + 1]], ws[k])
-            memo[key] = (cost.overrun_s(a, ws[k]), a.time_s)
+            memo[key] = cost.timed(lanes[b[k] : b[k + 1]], ws[k])
         return memo[key]
 
     def span(b: list[int]) -> tuple[float, float]:
@@ -395,8 +530,8 @@ def _cut_boundaries(
 
 def _timed(cost: MakespanCost, block: Sequence[Lane], w: Worker) -> float:
     """The block's exact time, inf if it and the way home overrun the worker's budget."""
-    a = cost.assignment(block, w)
-    return a.time_s if cost.fits_exact(a, w) else math.inf
+    over, t = cost.timed(block, w)
+    return t if over <= 1e-9 else math.inf
 
 
 # --------------------------------------------------------------------------- replan

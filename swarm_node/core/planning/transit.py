@@ -16,6 +16,7 @@ import math
 from collections.abc import Sequence
 
 from shapely.geometry import LineString
+from shapely.geometry.base import BaseGeometry
 
 from swarm_proto import LatLon, NoFlyZone
 
@@ -24,7 +25,7 @@ from ..profile import VehicleProfile
 from .dubins import Pose, all_paths
 from .errors import PlanningError
 from .fleet_plan import flyable
-from .flight import flyable_waypoints
+from .flight import TURN_CLEARANCE_M, flyable_waypoints
 from .geo import LocalFrame, heading_to_yaw
 from .zones import ZoneSet
 
@@ -130,17 +131,38 @@ def fixed_wing_transit(
     """A fixed-wing's transit: it cannot turn on the spot, so the first turn (up to two
     turn radii wide) must not sweep through a zone. Flies the zone-safe polyline of
     `safe_transit`, entering it along the Dubins word (of all six, for several entry
-    headings) whose sampled path keeps clear of the zones; its arcs become waypoints."""
+    headings) whose sampled path keeps clear of the zones; its arcs become waypoints.
+    The entry keeps `flight.TURN_CLEARANCE_M` from the zones, as every turn the flyable
+    stage adds does (ArduPlane passes a planned arc's waypoints up to 37 m on their
+    inside); only when no entry keeps that much, TRANSIT_MARGIN_M (issue 20: an entry
+    kept 20 m clear was flown 9.9 m from the demo's zone on the way home)."""
     legs = safe_transit(
         start, end, alt_rel_m, zones, now=now, home_alt_msl_m=home_alt_msl_m, margin_m=radius_m
     )
     if not zones or radius_m <= 0:
         return legs
     frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=TRANSIT_MARGIN_M
-    )
-    blocked = zs.keep_out(alt_rel_m)
+    for clearance in (TURN_CLEARANCE_M, TRANSIT_MARGIN_M):
+        zs = ZoneSet.from_messages(
+            zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=clearance
+        )
+        entry = _entry(frame, start, heading_deg, legs, zs.keep_out(alt_rel_m), radius_m)
+        if entry is not None:
+            return [*(Waypoint(lat_deg=la, lon_deg=lo, alt_rel_m=alt_rel_m) for la, lo in entry),
+                    *legs]  # fmt: skip
+    return legs  # no clear entry: the straight legs are the best we have
+
+
+def _entry(
+    frame: LocalFrame,
+    start: tuple[float, float],
+    heading_deg: float,
+    legs: Sequence[Waypoint],
+    blocked: BaseGeometry,
+    radius_m: float,
+) -> list[tuple[float, float]] | None:
+    """The waypoints (lat, lon) of the shortest Dubins entry from the pose at `start`
+    onto the first leg whose sampled path does not touch `blocked`, or None."""
     x0, y0 = frame.to_local(*start)
     pose = Pose(x0, y0, math.radians(90.0 - heading_deg))
     first = frame.to_local(legs[0].lat_deg, legs[0].lon_deg)
@@ -168,12 +190,8 @@ def fixed_wing_transit(
         if best is not None and k == 0:
             break
     if best is None:
-        return legs  # no clear entry: the straight legs are the best we have
-    arc = []
-    for q in best.waypoints()[:-1]:
-        lat, lon = frame.to_geodetic(q.x, q.y)
-        arc.append(Waypoint(lat_deg=lat, lon_deg=lon, alt_rel_m=alt_rel_m))
-    return [*arc, *legs]
+        return None
+    return [frame.to_geodetic(q.x, q.y) for q in best.waypoints()[:-1]]
 
 
 def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:

@@ -12,6 +12,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.base import BaseGeometry
@@ -325,7 +326,7 @@ class Obstacles:
         if n > 1:
             ii, jj = np.triu_indices(n, k=1)
             segs = shapely.linestrings(np.stack([pts[ii], pts[jj]], axis=1))
-            ok = ~shapely.intersects(segs, self.inner)
+            ok = ~shapely.intersects(self.inner, segs)  # prepared first: GEOS uses it
             ii, jj = ii[ok], jj[ok]
             w = np.hypot(*(pts[ii] - pts[jj]).T)
             for i, j, d in zip(ii.tolist(), jj.tolist(), w.tolist(), strict=True):
@@ -344,10 +345,10 @@ class Obstacles:
         line = LineString(points) if len(points) > 1 else Point(points[0])
         return float(self.blocked.distance(line))
 
-    def crosses(self, points: Sequence[tuple[float, float]]) -> bool:
+    def crosses(self, points: Sequence[tuple[float, float]] | npt.NDArray[np.float64]) -> bool:
         if self.is_empty or len(points) < 2:
             return False
-        return bool(LineString(points).intersects(self.inner))
+        return bool(self.inner.intersects(LineString(points)))  # prepared first
 
     def _visible_from(self, p: tuple[float, float]) -> list[tuple[int, float]]:
         if not self.nodes:
@@ -355,7 +356,7 @@ class Obstacles:
         segs = shapely.linestrings(
             np.stack([np.broadcast_to(np.asarray(p), self._pts.shape), self._pts], axis=1)
         )
-        ok = np.flatnonzero(~shapely.intersects(segs, self.inner))
+        ok = np.flatnonzero(~shapely.intersects(self.inner, segs))  # prepared first
         d = np.hypot(*(self._pts[ok] - np.asarray(p)).T)
         return list(zip(ok.tolist(), d.tolist(), strict=True))
 
@@ -366,7 +367,7 @@ class Obstacles:
             return [a, b]
         if self.inner.contains(Point(a)) or self.inner.contains(Point(b)):
             raise NoSafeRouteError("route end point is inside an inflated no-fly zone")
-        if not LineString([a, b]).intersects(self.inner):
+        if not self.inner.intersects(LineString([a, b])):
             return [a, b]
         n = len(self.nodes)
         src, dst = n, n + 1

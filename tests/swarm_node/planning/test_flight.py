@@ -18,8 +18,8 @@ from shapely.geometry import LineString, Point, Polygon
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.autopilot.state import AutopilotState
-from swarm_node.core.mission.share import run_plan
-from swarm_node.core.mission_manager import Member, MissionManager, Submit, flyable, plan_share
+from swarm_node.core.mission.share import plan_fleet
+from swarm_node.core.mission_manager import Member, MissionManager, Submit, flyable
 from swarm_node.core.outputs import PlanJob
 from swarm_node.core.planning import (
     FIXED_WING_ACCEPT_M,
@@ -42,6 +42,7 @@ from swarm_node.core.planning import (
 from swarm_node.core.planning.checks import track_cover_problems, track_zone_problems
 from swarm_node.core.planning.flight import TURN_CLEARANCE_M, corner_overshoot_m, max_corner_rad
 from swarm_node.core.profile import VehicleProfile
+from swarm_node.plan_memo import PlanMemo
 from swarm_proto import (
     Geometry,
     GeometryKind,
@@ -326,8 +327,12 @@ def test_the_demo_surveys_fixed_wing_uploads_are_flown_clear_of_the_zone(
 ) -> None:
     """The demo's survey (the fast-fleet scenario without the simulator): what each
     Albatross's mission manager uploads, approach from where it is included, flies
-    clear of the zone as the autopilot is predicted to fly it."""
+    clear of the zone as the autopilot is predicted to fly it. Every member asks for
+    the same fleet plan: it is planned once (as FastFleet does) and each manager gets
+    its own copy."""
     mission, members, zone = _demo_inputs(seed, members_ids)
+    plans = PlanMemo()
+    whole = plan_fleet(mission, members, [zone], 0.0, 0.0)  # what `plan_share` plans
     for m in members:
         if not m.profile.is_fixed_wing:
             continue
@@ -339,7 +344,7 @@ def test_the_demo_surveys_fixed_wing_uploads_are_flown_clear_of_the_zone(
         manager = MissionManager(m.profile)
         outs = manager.release(mission, members, [zone], ap, 0.0)
         job = next(o for o in outs if isinstance(o, PlanJob))  # planning runs off the loop
-        outs = manager.on_plan(run_plan(job.request), ap, 0.0)
+        outs = manager.on_plan(plans.run(job.request), ap, 0.0)
         upload = next(o.request for o in outs if isinstance(o, Submit))
         items: tuple[Waypoint, ...] = upload.items  # type: ignore[attr-defined]
         frame = LocalFrame.at([LatLon(m.home.lat_deg, m.home.lon_deg)])
@@ -358,9 +363,10 @@ def test_the_demo_surveys_fixed_wing_uploads_are_flown_clear_of_the_zone(
                 start=Pose(x0, y0, math.pi / 2),
             )
             assert problems == [], (m.profile.vehicle_id, radius)
-        # the share is the plan's, made flyable
-        share = plan_share(mission, members, m.profile.vehicle_id, [zone], 0.0, 0.0)
+        # the share is the plan's, made flyable (`plan_share` is this plan's share)
+        share = whole.share(m.profile.vehicle_id).waypoints
         assert len(share) > 2
+    assert plans.planned == 1 and plans.reused == sum(m.profile.is_fixed_wing for m in members) - 1
 
 
 def test_the_way_home_is_flown_clear_of_a_zone_from_where_the_aircraft_is(
