@@ -664,8 +664,13 @@ def _register() -> None:
     from . import files, monitor, plot, recovery  # noqa: F401 (they register themselves)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """The `gcs` entry point: a usage error or a bad value is one line on stderr and
+def main(argv: list[str] | None = None) -> None:
+    """The `gcs` entry point (exits with `run`'s code)."""
+    sys.exit(run(argv))
+
+
+def run(argv: list[str] | None = None) -> int:
+    """`gcs` with these arguments, its exit code returned: a usage error or a bad value is one line on stderr and
     exit 2 (nothing sent); a failure the operator can act on (no router) one line and
     exit 1; anything else one line and exit 1 (GCS_DEBUG=1 shows the traceback)."""
     try:
@@ -695,4 +700,4 @@ _register()
 if __name__ == "__main__":  # python -m gcs_cli.cli: the package's module, commands registered
     from gcs_cli.cli import main as _main
 
-    sys.exit(_main())
+    _main()
