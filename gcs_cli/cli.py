@@ -683,6 +683,8 @@ def run(argv: list[str] | None = None) -> int:
     except _clickx.ClickException as exc:
         print(f"gcs: {' '.join(exc.format_message().split())}", file=sys.stderr)  # type: ignore[attr-defined]
         return int(getattr(exc, "exit_code", 1))
+    except SystemExit as exc:  # --show-completion and friends exit on their own
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except (typer.Abort, KeyboardInterrupt, BrokenPipeError):
         print("gcs: aborted", file=sys.stderr)
         return 130
