@@ -80,7 +80,8 @@ def read_state(path: Path) -> SwarmState:
 
 def collect(gs: GroundStation, timeout_s: float = 2.0) -> tuple[SwarmState, list[str]]:
     """The swarm's state as the vehicles tell it now, and what did not agree."""
-    gs.discover()
+    alive = gs.discover()
+    gs.wait_for(lambda v: all(i in v.info for i in alive), 2.5)  # VehicleInfo: 1 Hz
     view = gs.snapshot()
     warnings: list[str] = []
     vehicles = []
