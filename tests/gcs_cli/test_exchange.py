@@ -25,8 +25,8 @@ from swarm_proto import Ack, AckReason, AckRef, AlertCode, Selector
 GCS = 900
 
 
-def req(selector: Selector = Selector(), ref: AckRef = AckRef.COMMAND, **kw: object) -> Request:
-    return Request(ref, 42, GCS, selector, **kw)  # type: ignore[arg-type]
+def req(selector: Selector | None = None, ref: AckRef = AckRef.COMMAND, **kw: object) -> Request:
+    return Request(ref, 42, GCS, selector or Selector(), **kw)  # type: ignore[arg-type]
 
 
 def ack(vid: int, ok: bool = True, reason: AckReason = AckReason.OK, text: str = "",
@@ -164,7 +164,7 @@ answers = st.lists(
         st.floats(0.0, 12.0),
         st.integers(1, 8),
         st.sampled_from([AckReason.OK, AckReason.BUSY, AckReason.NOT_READY,
-                         AckReason.NOT_ADDRESSED]),  # fmt: skip
+                         AckReason.NOT_ADDRESSED]),
     ),
     max_size=20,
 )

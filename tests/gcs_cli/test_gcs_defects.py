@@ -143,7 +143,7 @@ def test_db_query_takes_the_global_connect(
     finally:
         db.close()
         session.close()
-    assert code == 0 and "Generic Quadcopter" in out or '"node_id": 7' in out, out
+    assert (code == 0 and "Generic Quadcopter" in out) or '"node_id": 7' in out, out
 
 
 def test_endpoints_in_either_spelling() -> None:
@@ -153,7 +153,7 @@ def test_endpoints_in_either_spelling() -> None:
     assert zenoh_endpoint("udp/[::1]:7447") == "udp/[::1]:7447"
     assert zenoh_endpoint("tls/router.lab:7447") == "tls/router.lab:7447"
     for bad in ("foo", "tcp/127.0.0.1", "tcp/127.0.0.1:0", "tcp/127.0.0.1:70000", "http://x:1"):
-        with pytest.raises(ValueError, match="e.g. tcp/127.0.0.1:7447"):
+        with pytest.raises(ValueError, match=r"e\.g\. tcp/127\.0\.0\.1:7447"):
             zenoh_endpoint(bad)
     assert mavlink_endpoint("tcp:127.0.0.1:5760") == "tcp:127.0.0.1:5760"
     assert mavlink_endpoint("tcp/127.0.0.1:5760") == "tcp:127.0.0.1:5760"  # Zenoh's spelling

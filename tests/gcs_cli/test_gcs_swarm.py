@@ -206,5 +206,5 @@ def test_six_vehicles_every_command_and_answer(
 
 
 def _fleet_known(s: Swarm, capsys: pytest.CaptureFixture[str]) -> bool:
-    code, out, _ = s.gcs(capsys, "status", "--json", "--wait", "0.3", "--fleet", "2")
+    _code, out, _ = s.gcs(capsys, "status", "--json", "--wait", "0.3", "--fleet", "2")
     return {r["id"] for r in json.loads(out)} == {1, 7}
