@@ -419,7 +419,7 @@ def query(
         raise _fail(f"--timeout must be a positive number of seconds, got {timeout:g}", 2)
     link = ctx.find_root().obj  # gcs's --connect, --zenoh-config and --swarm (issue 15)
     settings = getattr(link, "settings", None)
-    swarm = swarm or getattr(link, "swarm", "default")
+    swarm = swarm or str(getattr(link, "swarm", "default"))
     if connect:
         try:
             from swarm_proto.endpoints import zenoh_endpoint
