@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -220,7 +221,8 @@ def _from_geojson_geometry(g: Any, name: str, props: dict[str, Any]) -> list[Fea
 def _kml(raw: bytes) -> list[Feature]:
     from fastkml import kml
 
-    doc = kml.KML.from_string(raw.decode("utf-8"))
+    text = re.sub(r"^\s*<\?xml[^>]*\?>", "", raw.decode("utf-8"))  # lxml: str without it
+    doc = kml.KML.from_string(text)
     out: list[Feature] = []
 
     def walk(container: Any) -> None:
