@@ -164,7 +164,7 @@ def draw(
     ax.set_ylabel("north (m)")
     ax.grid(True, linewidth=0.3)
     ax.set_title(title or "bandada plan" + (" and flight" if track is not None else ""))
-    ax.legend(loc="upper left", fontsize=7, framealpha=0.8)
+    ax.legend(loc="best", fontsize=7, framealpha=0.8)
     fig.tight_layout()
     try:
         fig.savefig(out, format="png")
