@@ -18,7 +18,15 @@ from gcs_cli.geofiles import (
     save_zones,
     zone_features,
 )
-from swarm_proto import Geometry, GeometryKind, LatLon, Mission, MissionParams, MissionType, NoFlyZone
+from swarm_proto import (
+    Geometry,
+    GeometryKind,
+    LatLon,
+    Mission,
+    MissionParams,
+    MissionType,
+    NoFlyZone,
+)
 
 FIELD = [(37.410, -5.990), (37.410, -5.980), (37.418, -5.980), (37.418, -5.990)]
 HOLE = [(37.412, -5.987), (37.412, -5.985), (37.414, -5.985)]

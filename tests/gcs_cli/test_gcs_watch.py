@@ -1,0 +1,108 @@
+"""`gcs watch` in a pseudo-terminal, its screen read back with a terminal emulator
+(pyte): a vehicle's line with its position and packets per second, and an alert with
+its full meaning as it arrives."""
+
+from __future__ import annotations
+
+import os
+import pty
+import select
+import subprocess
+import sys
+import threading
+import time
+
+import pyte
+import pytest
+
+from swarm_proto import (
+    Alert,
+    AlertCode,
+    GpsFix,
+    Severity,
+    VehicleInfo,
+    VehicleStatus,
+    VehicleType,
+)
+from swarm_proto.session import SwarmBus, ZenohSettings
+
+pytestmark = pytest.mark.network
+COLS, ROWS = 110, 30
+
+
+def test_watch_on_a_terminal(zenoh_router: str) -> None:
+    screen = pyte.Screen(COLS, ROWS)
+    stream = pyte.ByteStream(screen)
+    master, slave = pty.openpty()
+    os.set_blocking(master, False)
+    env = {**os.environ, "COLUMNS": str(COLS), "LINES": str(ROWS), "TERM": "xterm-256color",
+           "PYTHONUNBUFFERED": "1"}  # fmt: skip
+    import fcntl
+    import struct
+    import termios
+
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", ROWS, COLS, 0, 0))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm", "watch",
+         "watch", "--duration", "10", "--period", "0.3"],
+        stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True,
+    )  # fmt: skip
+    os.close(slave)
+    stop = threading.Event()
+    bus = SwarmBus.open(ZenohSettings(mode="client", connect=(zenoh_router,)), "watch")
+
+    def vehicle() -> None:  # vehicle 4 at 5 Hz, and one alert after 3 s
+        t0 = time.monotonic()
+        alerted = False
+        bus.declare_alive(4)
+        while not stop.wait(0.2):
+            now = time.time()
+            bus.publish(VehicleStatus(4, now, 37.4123456, -5.9876543, 150.0, 120.0,
+                                      battery_pct=77, gps_fix=GpsFix.FIX_3D, gps_sats=14))  # fmt: skip
+            if int(now * 5) % 5 == 0:
+                bus.publish(VehicleInfo(4, VehicleType.PLANE, "Plane", "P4"))
+            if not alerted and time.monotonic() - t0 > 3.0:
+                bus.publish(Alert(4, now, Severity.CRITICAL, AlertCode.BATTERY_CRITICAL,
+                                  "battery 12% 13.1 V"))  # fmt: skip
+                alerted = True
+
+    t = threading.Thread(target=vehicle, daemon=True)
+    t.start()
+
+    def text() -> str:
+        return "\n".join(screen.display)
+
+    def read_until(pred: object, timeout: float) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            r, _, _ = select.select([master], [], [], 0.2)
+            if r:
+                try:
+                    stream.feed(os.read(master, 65536))
+                except OSError:
+                    return bool(pred())  # type: ignore[operator]
+            if pred():  # type: ignore[operator]
+                return True
+        return False
+
+    try:
+        seen = read_until(lambda: "battery critical" in text() and "37.41235" in text(), 25.0)
+        shot = text()
+        rows_then = list(screen.display)
+    finally:
+        stop.set()
+        t.join(2)
+        bus.close()
+        read_until(lambda: proc.poll() is not None, 30.0)  # keep reading: it must not block
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait(10)
+        os.close(master)
+    assert seen, shot
+    line = next(row for row in rows_then if row.lstrip().startswith("4 "))
+    assert "PLN" in line and "37.41235,-5.98765" in line and "77" in line and "3D/14" in line
+    pkt = float(line.split()[-1])
+    assert 2.0 <= pkt <= 8.0, line  # status at 5 Hz (and info at 1 Hz), as heard
+    assert "battery critical: the vehicle returns or lands: battery 12% 13.1 V" in shot, shot
+    assert float(line.split()[-3]) < 1.0  # link age: heard just now
+    assert proc.returncode == 0
