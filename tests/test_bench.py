@@ -74,6 +74,7 @@ NAMED: dict[str, tuple[str, ...]] = {
         "join_s",
     ),
     "node": ("cpu_s_per_sim_s/peers_10", "cpu_s_per_sim_s/peers_50", "cpu_s_per_sim_s/peers_100"),
+    "gcs": ("rtl_all_ms/10", "rtl_all_ms/25", "rtl_all_ms/50", "raw_zenoh_ms/10", "nodes/50"),
     "separation": (
         "avoid_cpu_us_per_tick/peers_10",
         "avoid_cpu_us_per_tick/peers_50",
