@@ -6,7 +6,9 @@ import time
 from typing import Any
 
 from rich import box
+from rich.console import Group
 from rich.table import Table
+from rich.text import Text
 
 from swarm_proto import Ack, AlertFlag, Selector, VehicleStatus, VehicleType
 from swarm_proto.ardupilot import autopilot_mismatch, mode_name
@@ -85,13 +87,16 @@ COLUMNS = [  # (row key, header) of the 100-column table
     ("alt_rel_m", "alt"),
     ("groundspeed_m_s", "gs"),
     ("heading_deg", "hdg"),
-    ("alerts", "alerts"),
-    ("age_s", "age s"),
-    ("data_age_s", "data s"),
+    ("age_s", "age"),
+    ("data_age_s", "data"),
+    # the active conditions: a line under the table per vehicle (the row in red)
 ]
 TYPE_SHORT = {"VTOL": "VTOL", "PLANE": "PLN", "COPTER": "COPT", "ROVER": "ROVR", "BOAT": "BOAT",
               "OTHER": "?", "GCS": "GCS", "MANNED": "MAN"}  # fmt: skip
 FSM_SHORT = {"INACTIVE": "INACT", "PLAN": "PLAN", "GO_MISSION": "GO", "EMERGENCY": "EMERG"}
+MISSION_SHORT = {"IDLE": "-", "PLANNING": "plan", "VOTING": "vote", "PREMISSION": "pre",
+                 "MISSION": "msn", "PARACHUTE": "chute", "SENDING_MISSION": "send",
+                 "WAITING_MISSION": "wait", "REPLAN": "replan"}  # fmt: skip
 GPS_SHORT = {"NO_GPS": "none", "NO_FIX": "nofix", "FIX_2D": "2D", "FIX_3D": "3D",
              "DGPS": "DGPS", "RTK_FLOAT": "RTKf", "RTK_FIXED": "RTK", "STATIC": "stat"}  # fmt: skip
 #: the alert flags as the table shows them (docs/ground-station.md has the legend)
@@ -115,7 +120,8 @@ def _cells(row: dict[str, Any]) -> list[str]:
 
     mission = g("mission")
     if mission is not None:
-        mission = mission if mission == "IDLE" else f"{mission[:8]} {g('progress_pct')}%"
+        short = MISSION_SHORT.get(mission, mission[:6])
+        mission = short if mission == "IDLE" else f"{short} {g('progress_pct')}%"
     lat, lon = g("lat"), g("lon")
     alerts = _short_flags(AlertFlag(g("alert_bits") or 0))
     if g("autopilot_mismatch") and "AP≠type" not in alerts:
@@ -136,38 +142,42 @@ def _cells(row: dict[str, Any]) -> list[str]:
         "alt_rel_m": "" if g("alt_rel_m") is None else f"{g('alt_rel_m'):.0f}",
         "groundspeed_m_s": "" if g("groundspeed_m_s") is None else f"{g('groundspeed_m_s'):.0f}",
         "heading_deg": "" if g("heading_deg") is None else str(g("heading_deg")),
-        "alerts": alerts,
-        "age_s": "" if g("age_s") is None else f"{g('age_s'):.1f}",
+        "alert_names": alerts,
+        "age_s": "" if g("age_s") is None else (
+            f"{g('age_s'):.1f}" if g("age_s") < 10 else f"{g('age_s'):.0f}"),
         "data_age_s": "" if data is None else (f"{data:.0f}" if data >= 10 else f"{data:.1f}"),
     }  # fmt: skip
-    return [cells[k] for k, _ in COLUMNS]
+    return [cells[k] for k, _ in COLUMNS] + [cells["alert_names"]]
 
 
 def fleet_table(
     view: FleetView, title: str = "fleet", shown: Selector | None = None, *, rates: bool = False
-) -> Table:
+) -> Group:
     """The fleet, one line per vehicle, in 100 columns (with `rates`, the packets per
-    second heard from each vehicle too: `gcs watch`)."""
-    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1),
-                  collapse_padding=True, title_justify="left")  # fmt: skip
+    second heard from each vehicle too: `gcs watch`), and under it one line per vehicle
+    with active conditions (flags: FLAG_SHORT)."""
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 0),
+                  title_justify="left")  # fmt: skip
     for key, header in COLUMNS:
         right = key in ("id", "battery_pct", "alt_rel_m", "groundspeed_m_s", "heading_deg",
                         "age_s", "data_age_s", "fleet")  # fmt: skip
-        table.add_column(header, justify="right" if right else "left",
-                         no_wrap=key != "alerts", overflow="fold")  # fmt: skip
+        table.add_column(header, justify="right" if right else "left", no_wrap=True)
     if rates:
         table.add_column("pkt/s", justify="right", no_wrap=True)
     now = time.monotonic()
+    notes: list[Text] = []
     for row in fleet_rows(view):
         if shown is not None and not shown.addresses(row["id"], row.get("fleet") or 0):
             continue
-        cells = _cells(row)
+        *cells, names = _cells(row)
         if rates:
             cells.append(f"{view.packets_per_s(row['id'], now):.1f}")
         bad = row.get("alert_bits") or row.get("autopilot_mismatch")
         style = "red" if bad else ("dim" if not row["alive"] else None)
         table.add_row(*cells, style=style)
-    return table
+        if names:
+            notes.append(Text(f"{row['id']:>5} ! {names}", style="red"))
+    return Group(table, *notes)
 
 
 def ack_table(acks: list[Ack], title: str) -> Table:

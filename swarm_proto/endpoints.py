@@ -12,7 +12,7 @@ _HOST_PORT = re.compile(r"^(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
 
 
 def _port_ok(port: str) -> bool:
-    return 1 <= int(port) <= 65535
+    return 0 <= int(port) <= 65535  # 0: any free port (to listen on)
 
 
 def zenoh_endpoint(text: str) -> str:

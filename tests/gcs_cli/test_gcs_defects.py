@@ -152,7 +152,8 @@ def test_endpoints_in_either_spelling() -> None:
     assert zenoh_endpoint("10.0.0.1:7447") == "tcp/10.0.0.1:7447"
     assert zenoh_endpoint("udp/[::1]:7447") == "udp/[::1]:7447"
     assert zenoh_endpoint("tls/router.lab:7447") == "tls/router.lab:7447"
-    for bad in ("foo", "tcp/127.0.0.1", "tcp/127.0.0.1:0", "tcp/127.0.0.1:70000", "http://x:1"):
+    assert zenoh_endpoint("tcp/127.0.0.1:0") == "tcp/127.0.0.1:0"  # listen on any free port
+    for bad in ("foo", "tcp/127.0.0.1", "tcp/127.0.0.1:70000", "http://x:1"):
         with pytest.raises(ValueError, match=r"e\.g\. tcp/127\.0\.0\.1:7447"):
             zenoh_endpoint(bad)
     assert mavlink_endpoint("tcp:127.0.0.1:5760") == "tcp:127.0.0.1:5760"
@@ -186,3 +187,44 @@ def test_every_command_has_an_example_in_its_help(capsys: pytest.CaptureFixture[
 def test_shell_completion_is_offered(capsys: pytest.CaptureFixture[str]) -> None:
     assert run(["--show-completion", "bash"]) == 0
     assert "complete" in capsys.readouterr().out
+
+
+def test_status_fits_100_columns_with_positions() -> None:
+    """Issue 15: `gcs status` needed ~150 columns and showed no position. Worst-case rows
+    (long mode names, every alert, a 3-digit fleet, negative coordinates) fit 100
+    columns with every cell whole; the alerts wrap within their column."""
+    import time as _time
+
+    from rich.console import Console
+
+    from gcs_cli.ground import FleetView
+    from gcs_cli.render import fleet_table
+    from swarm_proto import (
+        AlertFlag,
+        FsmState,
+        GpsFix,
+        MissionState,
+        VehicleInfo,
+        VehicleStatus,
+        VehicleType,
+    )
+
+    view = FleetView()
+    now = _time.time()
+    for vid, vt, mode in ((65534, VehicleType.VTOL, 25), (7, VehicleType.COPTER, 21)):
+        view.status[vid] = VehicleStatus(
+            vid, now - 31.0, -37.4123456, -125.9876543, 7999.0, 4321.0, 29.9, -29.9,
+            heading_deg=359.4, battery_pct=100, gps_fix=GpsFix.RTK_FIXED, gps_sats=31,
+            ap_mode=mode, armed=True, fsm_state=FsmState.EMERGENCY,
+            mission_state=MissionState.REPLAN, mission_progress_pct=100, fleet_id=255,
+            alerts=AlertFlag(0x7FF),
+        )  # fmt: skip
+        view.info[vid] = VehicleInfo(vid, vt, "Albatross 250 VTOL", "U", mav_type=2)
+        view.heard_at[vid] = _time.monotonic() - 123.4
+    console = Console(width=100, record=True)
+    console.print(fleet_table(view, title="swarm default"))
+    text = console.export_text()
+    assert max(len(line.rstrip()) for line in text.splitlines()) <= 100, text
+    assert "-37.41235,-125.98765" in text and "LOITERALTQLAND"[:9] in text, text
+    assert "…" not in text, text  # no cell cut
+    assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠type" in text, text
