@@ -106,3 +106,42 @@ def test_watch_on_a_terminal(zenoh_router: str) -> None:
     assert "battery critical: the vehicle returns or lands: battery 12% 13.1 V" in shot, shot
     assert float(line.split()[-3]) < 1.0  # link age: heard just now
     assert proc.returncode == 0
+
+
+def test_a_command_shows_its_progress_on_a_terminal(zenoh_router: str) -> None:
+    """While a command waits, the terminal shows who is awaited (stderr, a status line)."""
+    screen = pyte.Screen(COLS, ROWS)
+    stream = pyte.ByteStream(screen)
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm", "prog",
+         "cmd", "set-base", "--point", "37.41,-5.98", "--id", "99", "--timeout", "4"],
+        stdin=slave, stdout=slave, stderr=slave, close_fds=True,
+        env={**os.environ, "COLUMNS": str(COLS), "TERM": "xterm-256color"},
+    )  # fmt: skip
+    os.close(slave)
+    seen = ""
+    end = time.monotonic() + 30
+    while time.monotonic() < end and proc.poll() is None:
+        r, _, _ = select.select([master], [], [], 0.2)
+        if r:
+            try:
+                stream.feed(os.read(master, 65536))
+            except OSError:
+                break
+            text = "\n".join(screen.display)
+            if "waiting for 99" in text:
+                seen = text
+    try:
+        while True:  # the rest, once it exited
+            r, _, _ = select.select([master], [], [], 0.2)
+            if not r:
+                break
+            stream.feed(os.read(master, 65536))
+    except OSError:
+        pass
+    proc.wait(10)
+    os.close(master)
+    final = "\n".join(screen.display)
+    assert "set-base: 0 answered, waiting for 99" in seen, seen
+    assert proc.returncode == 1 and "no answer in" in final, final
