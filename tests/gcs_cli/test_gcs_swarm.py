@@ -174,6 +174,9 @@ def test_six_vehicles_every_command_and_answer(
     assert zone["zone_id"] == 5 and zone["held_by"] == [1, 2, 3, 7, 8, 9]
     code, out, _ = s.gcs(capsys, "zone", "export", str(tmp_path / "zones.geojson"))
     assert code == 0 and json.loads((tmp_path / "zones.geojson").read_text())["features"]
+    # the exported file declared again (its ids kept): each vehicle acknowledges it
+    code, out, _ = s.gcs(capsys, "zone", "import", str(tmp_path / "zones.geojson"), "--json")
+    assert code == 0 and json.loads(out)["what"] == "zone 5", out
     code, out, _ = s.gcs(capsys, "zone", "remove", "77", "--json")
     answers = rows(out)
     assert code == 1 and {r["reason"] for r in answers.values()} == {"NOT_FOUND"}, out

@@ -145,3 +145,44 @@ def test_a_command_shows_its_progress_on_a_terminal(zenoh_router: str) -> None:
     final = "\n".join(screen.display)
     assert "set-base: 0 answered, waiting for 99" in seen, seen
     assert proc.returncode == 1 and "no answer in" in final, final
+
+
+def test_record_writes_the_flight_csv(zenoh_router: str, tmp_path: object) -> None:
+    """`gcs record`: one row per status heard (a repeated sample once), in the flight
+    recorder's format, readable by `gcs plot --track` and `gcs analyze separation`."""
+    from pathlib import Path
+
+    from gcs_cli.cli import run
+    from swarm_proto.trajectory import read_trajectory
+
+    out = Path(str(tmp_path)) / "flight.csv"
+    stop = threading.Event()
+    bus = SwarmBus.open(ZenohSettings(mode="client", connect=(zenoh_router,)), "rec")
+
+    def vehicles() -> None:
+        k = 0
+        bus.declare_alive(5)
+        while not stop.wait(0.2):
+            k += 1
+            t = 1.8e9 + k * 0.2
+            for vid in (5, 6):
+                bus.publish(VehicleStatus(vid, t, 37.41 + 1e-5 * k, -5.98, 100.0 + vid, 90.0,
+                                          battery_pct=80, fleet_id=vid - 4))  # fmt: skip
+            bus.publish(VehicleStatus(5, t, 37.41 + 1e-5 * k, -5.98, 105.0, 90.0, fleet_id=1))  # again
+
+    t = threading.Thread(target=vehicles, daemon=True)
+    t.start()
+    try:
+        code = run(["--connect", zenoh_router, "--swarm", "rec", "record", str(out),
+                    "--duration", "3", "--fleet", "1"])  # fmt: skip
+    finally:
+        stop.set()
+        t.join(2)
+        bus.close()
+    assert code == 0
+    traj = read_trajectory(out)
+    assert traj.vehicles == [5]  # --fleet 1 only
+    assert len(set(traj.time_s.tolist())) == len(traj.time_s) >= 5  # each sample once
+    header = out.read_text().splitlines()[0]
+    assert header == ("time_s,vehicle,lat,lon,alt_m,alt_rel_m,groundspeed_m_s,heading_deg,"
+                      "battery_pct,fsm,mission,progress_pct")  # fmt: skip
