@@ -20,6 +20,7 @@ import typer
 from rich.console import Console
 
 from swarm_proto import (
+    Command,
     CommandArgs,
     CommandKind,
     Geometry,
@@ -411,8 +412,6 @@ def cmd(
         )
     sel = selector_from(ids, fleet, 0, "", all_, required=k in MOVING)
     args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id)
-    from swarm_proto import Command
-
     checked(Command(ctx.obj.gcs_id, 1, k, sel, args))  # everything checked before sending
     name = k.name.lower().replace("_", "-")
     with ctx.obj.open() as gs:

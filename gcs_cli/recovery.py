@@ -20,7 +20,6 @@ from swarm_proto import (
     GeoPoint,
     Mission,
     NoFlyZone,
-    Selector,
     VehicleType,
 )
 
@@ -218,7 +217,3 @@ def _step(out: object, as_json: bool) -> bool:
     except typer.Exit:
         return True
     return False
-
-
-def _selection_of(m: Mission) -> Selector:
-    return m.selection
