@@ -469,11 +469,26 @@ class GroundStation:
 
     def _held(self, key: str, topic: Any, id_name: str, kind: type[T], timeout_s: float
               ) -> dict[int, dict[int, T]]:  # fmt: skip
+        """Every vehicle's replies on a queryable. A fresh session learns the peers'
+        queryables within a moment: asked again (every 0.2 s) until every vehicle alive
+        has answered, or `timeout_s`."""
         held: dict[int, dict[int, T]] = {}
+        answered: set[int] = set()
+        end = time.monotonic() + timeout_s
+        while True:
+            left = end - time.monotonic()
+            alive = {k.vehicle_id for k in self.known() if k.alive}
+            self._held_once(key, topic, id_name, kind, max(0.2, min(left, 1.0)), held, answered)
+            if (alive and alive <= answered) or time.monotonic() >= end:
+                return held
+            time.sleep(0.2)
+
+    def _held_once(self, key: str, topic: Any, id_name: str, kind: type[T], timeout_s: float,
+                   held: dict[int, dict[int, T]], answered: set[int]) -> None:  # fmt: skip
         try:
             replies = list(self.bus.session.get(key, timeout=timeout_s))
         except Exception:  # a closed session
-            return held
+            return
         for reply in replies:
             if reply.ok is None:
                 continue
@@ -485,7 +500,7 @@ class GroundStation:
             except DecodeError:
                 continue
             held.setdefault(int(params["vehicle_id"]), {})[int(getattr(item, id_name))] = item
-        return held
+            answered.add(int(params["vehicle_id"]))
 
     def peers_of(self, node_id: int, timeout_s: float = 2.0) -> SwarmView | None:
         for reply in self.bus.session.get(

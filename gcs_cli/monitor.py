@@ -226,8 +226,8 @@ def fleets(
     """
     wait_option(wait)
     with ctx.obj.open() as gs:
-        gs.discover(min(wait, 2.0))
-        time.sleep(max(0.0, wait - 2.0))
+        alive = gs.discover(min(wait, 2.0))
+        gs.wait_for(lambda v: all(i in v.status and i in v.info for i in alive), wait)
         rows = fleet_rows(gs.snapshot())
     by: dict[int, list[dict[str, Any]]] = {}
     for r in rows:

@@ -45,6 +45,7 @@ def fleet_rows(view: FleetView) -> list[dict[str, Any]]:
             "age_s": round(now - view.heard_at[vid], 1) if vid in view.heard_at else None,
             "fsm": view.fsm_state(vid).name,
             "mission_id": info.mission_id if info else 0,
+            "fleet": info.fleet_id if info else None,  # the status's, once heard
         }
         mismatch = autopilot_mismatch(vt, info.mav_type) if info is not None else None
         if mismatch:

@@ -165,6 +165,15 @@ def test_six_vehicles_every_command_and_answer(
     for r in answers.values():  # accepted, or refused with the full reason
         assert r["answer"] == "accepted" or (r["reason"] and r["why"]), out
 
+    # the monitoring commands' JSON
+    code, out, _ = s.gcs(capsys, "fleets", "--json", "--wait", "1")
+    fleets = {f["fleet"]: f for f in json.loads(out)}
+    assert fleets[2]["vehicles"] == [1, 7] and fleets[0]["vehicles"] == [2, 3, 8, 9]
+    code, out, _ = s.gcs(capsys, "vehicle", "1", "--json")
+    pfd = json.loads(out)
+    assert code == 0 and pfd["type"] == "VTOL" and pfd["base"] and pfd["sensors"]["gyro"] == "ok"
+    assert pfd["autopilot_mav_type"] == 1 and pfd["autopilot_mismatch"] is None
+
     # zones: every vehicle acknowledges; listed with who holds it; exported; an unknown
     # id withdrawn is NOT_FOUND from each
     code, out, _ = s.gcs(capsys, "zone", "add", "5", "--circle", "37.4,-5.95,60", "--json")
@@ -188,15 +197,6 @@ def test_six_vehicles_every_command_and_answer(
     data = json.loads(out)
     assert {r["id"] for r in data["vehicles"]} == {1, 7}, out
     assert set(data["not_addressed"]) <= {2, 3, 8, 9}, out  # those heard before it was over
-
-    # the monitoring commands' JSON
-    code, out, _ = s.gcs(capsys, "fleets", "--json", "--wait", "1")
-    fleets = {f["fleet"]: f for f in json.loads(out)}
-    assert fleets[2]["vehicles"] == [1, 7] and fleets[0]["vehicles"] == [2, 3, 8, 9]
-    code, out, _ = s.gcs(capsys, "vehicle", "1", "--json")
-    pfd = json.loads(out)
-    assert code == 0 and pfd["type"] == "VTOL" and pfd["base"] and pfd["sensors"]["gyro"] == "ok"
-    assert pfd["autopilot_mav_type"] == 1 and pfd["autopilot_mismatch"] is None
 
     # save and load: the base and the zone come back from the vehicles
     state = tmp_path / "state.json"
