@@ -95,8 +95,9 @@ class Link:
     gcs_id: int
 
     def open(self, *, check: bool = True) -> GroundStation:
-        """A ground station session; exit 1 (one line) when Zenoh cannot be opened
-        (a taken --listen port) or, with `check`, when nothing at --connect answers
+        """A ground station session; exit 2 (one line) when Zenoh cannot be opened
+        (a taken --listen port, a certificate), exit 1 when, with `check`, nothing at
+        --connect answers
         (issue 15: an unreachable router looked like an empty swarm, exit 0)."""
         try:
             gs = GroundStation(self.settings, self.swarm, self.gcs_id,
@@ -104,7 +105,9 @@ class Link:
         except Exception as exc:
             from .db import _zenoh_reason
 
-            raise _clickx.ClickException(f"cannot open Zenoh: {_zenoh_reason(exc)}") from None
+            err = _clickx.ClickException(f"cannot open Zenoh: {_zenoh_reason(exc)}")
+            err.exit_code = 2  # type: ignore[attr-defined]  # a taken port, a bad certificate: the setup
+            raise err from None
         if check and self.settings.connect and not gs.reachable(REACH_S):
             gs.close()
             where = ", ".join(self.settings.connect)

@@ -119,7 +119,7 @@ def test_an_unreachable_router_exits_1(capsys: pytest.CaptureFixture[str]) -> No
 def test_a_taken_router_port_is_one_line(
     zenoh_router: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert run(["--mode", "router", "--listen", zenoh_router, "status", "--wait", "0"]) == 1
+    assert run(["--mode", "router", "--listen", zenoh_router, "status", "--wait", "0"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("gcs: cannot open Zenoh") and "Address already in use" in err
     assert len(err.strip().splitlines()) == 1 and ".rs:" not in err
