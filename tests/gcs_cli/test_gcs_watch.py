@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import pty
 import select
+import signal
 import subprocess
 import sys
 import threading
@@ -44,7 +45,7 @@ def test_watch_on_a_terminal(zenoh_router: str) -> None:
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", ROWS, COLS, 0, 0))
     proc = subprocess.Popen(
         [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm", "watch",
-         "watch", "--duration", "10", "--period", "0.3"],
+         "watch", "--duration", "60", "--period", "0.3"],
         stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True,
     )  # fmt: skip
     os.close(slave)
@@ -93,6 +94,7 @@ def test_watch_on_a_terminal(zenoh_router: str) -> None:
         stop.set()
         t.join(2)
         bus.close()
+        proc.send_signal(signal.SIGINT)  # Ctrl-C quits
         read_until(lambda: proc.poll() is not None, 30.0)  # keep reading: it must not block
         if proc.poll() is None:
             proc.kill()
