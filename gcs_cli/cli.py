@@ -236,9 +236,9 @@ def timeout_option(timeout: float) -> float:
 # --------------------------------------------------------------------------- status
 
 
-def _shown(ids: list[int], fleet: int | None) -> Selector:
-    """A read command's filter: --id / --fleet, else every vehicle."""
-    return selection(ids, fleet, False, required=False)
+def _shown(ids: list[int], fleet: int | None, all_: bool = False) -> Selector:
+    """A read command's filter: --id / --fleet, else (or --all) every vehicle."""
+    return selection(ids, fleet, all_, required=False)
 
 
 @app.command()
@@ -249,6 +249,7 @@ def status(
     as_json: JsonOption = False,
     ids: IdsOption = [],  # noqa: B006 (typer reads the default)
     fleet: FleetOption = None,
+    all_: AllOption = False,
 ) -> None:
     """The fleet in 100 columns: state, mode, mission progress, battery, GPS, position,
     altitude, speed, alerts, how long since each vehicle was heard.
@@ -256,7 +257,7 @@ def status(
     Example: gcs status --fleet 2 --json
     """
     wait_option(wait)
-    shown = _shown(ids, fleet)
+    shown = _shown(ids, fleet, all_)
     with ctx.obj.open() as gs:
         time.sleep(wait)
         if as_json:
@@ -290,6 +291,7 @@ def alerts(
     as_json: JsonOption = False,
     ids: IdsOption = [],  # noqa: B006
     fleet: FleetOption = None,
+    all_: AllOption = False,
 ) -> None:
     """Alerts raised by the vehicles while listening, each with its full meaning (the
     vehicle's own text after the colon); the conditions active now are in `gcs status`.
@@ -297,7 +299,7 @@ def alerts(
     Example: gcs alerts --wait 30 --id 7
     """
     wait_option(wait)
-    shown = _shown(ids, fleet)
+    shown = _shown(ids, fleet, all_)
     with ctx.obj.open() as gs:
         time.sleep(wait)
         view = gs.snapshot()

@@ -21,7 +21,7 @@ from swarm_proto.ardupilot import autopilot_mismatch, mode_name
 from .cli import _shown, app, console, wait_option
 from .core.reasons import alert_text
 from .ground import FleetView, GroundStation
-from .options import FleetOption, IdsOption, JsonOption
+from .options import AllOption, FleetOption, IdsOption, JsonOption
 from .render import fleet_rows, fleet_table
 
 ALERT_LINES = 8  # the latest alerts under the live table
@@ -67,6 +67,7 @@ def watch(
     ctx: typer.Context,
     ids: IdsOption = [],  # noqa: B006
     fleet: FleetOption = None,
+    all_: AllOption = False,
     period: float = typer.Option(0.5, help="seconds between refreshes"),
     duration: float | None = typer.Option(None, help="stop after this many seconds"),
     as_json: JsonOption = False,
@@ -82,7 +83,7 @@ def watch(
         wait_option(duration)
     if period <= 0:
         raise typer.BadParameter("must be > 0", param_hint="--period")
-    shown = _shown(ids, fleet)
+    shown = _shown(ids, fleet, all_)
     with ctx.obj.open() as gs:
         if not as_json:
             live_watch(gs, console, shown, period_s=period, duration_s=duration)

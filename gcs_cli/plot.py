@@ -25,7 +25,7 @@ from swarm_proto import GeometryKind, Mission, NoFlyZone, VehicleStatus
 from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter, read_trajectory
 
 from .cli import _shown, app, console, wait_option
-from .options import FleetOption, IdsOption
+from .options import AllOption, FleetOption, IdsOption
 from .recovery import StateFileError, SwarmState, collect, read_state
 
 R_EARTH_M = 6_371_008.8
@@ -246,6 +246,7 @@ def record(
     duration: float | None = typer.Option(None, help="stop after this many seconds (default: Ctrl-C)"),
     ids: IdsOption = [],  # noqa: B006
     fleet: FleetOption = None,
+    all_: AllOption = False,
 ) -> None:
     """Record the flight from the live telemetry: one CSV row per VehicleStatus heard
     (time_s = the sample's GPS UNIX time, vehicle, lat, lon, alt_m above mean sea
@@ -257,7 +258,7 @@ def record(
     """
     if duration is not None:
         wait_option(duration)
-    shown = _shown(ids, fleet)
+    shown = _shown(ids, fleet, all_)
     rows = 0
     last: dict[int, float] = {}
     try:
