@@ -5,7 +5,7 @@ text (`swarm_proto.text`): on a 900 MHz radio every byte is air time. The code i
 meaning and is rendered here, in full, at the ground station; the text is what is
 particular to that vehicle at that time ("EKF estimate not good yet", "autopilot is
 PLANE (MAV_TYPE 1), identity COPTER"), written by the node to fit, and cut visibly
-with "…" when it does not (the node logs it whole). A new code is one entry here;
+with "…" when it does not. A new code is one entry here;
 `tests/gcs_cli/test_exchange.py` checks every code has one.
 """
 
