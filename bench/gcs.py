@@ -86,7 +86,7 @@ def _start_real(endpoint: str, tmp: str) -> list[subprocess.Popen[bytes]]:
             [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(i), "--swarm", SWARM,
              "--connect", endpoint, "--listen", "tcp/127.0.0.1:0"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
-        )  # fmt: skip
+        )
         for i in range(1, REAL + 1)
     ]
 
