@@ -52,7 +52,10 @@ def separation(
     max_gap: float = typer.Option(2.0, help="interpolate over sample gaps up to this, s"),
 ) -> None:
     """Pairwise 3-D separation, minimum and risk / danger / near-collision counts
-    (the paper's tables 2 and 3)."""
+    (the paper's tables 2 and 3).
+
+    Example: gcs analyze separation flight.csv --png separation.png
+    """
     try:
         for name, v in (("risk", risk), ("danger", danger), ("near", near), ("max-gap", max_gap)):
             if not math.isfinite(v):

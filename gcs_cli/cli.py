@@ -3,11 +3,14 @@ operator command. Sub-command groups live in their own modules and are registere
 
 Every command that talks to the swarm takes --connect (Zenoh endpoints, default the lab
 router on tcp/127.0.0.1:7447) or --zenoh-config (a Zenoh JSON5 file), --swarm and --gcs-id.
+Bad input is one line on stderr and exit 2, before anything is sent (`main`).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,14 +20,11 @@ import typer
 from rich.console import Console
 
 from swarm_proto import (
-    Ack,
-    AckReason,
+    Command,
     CommandArgs,
     CommandKind,
     Geometry,
-    GeometryKind,
     GeoPoint,
-    LatLon,
     Mission,
     MissionParams,
     MissionType,
@@ -32,26 +32,66 @@ from swarm_proto import (
     Selector,
     SelectorKind,
 )
+from swarm_proto.endpoints import zenoh_endpoint
 from swarm_proto.session import ZenohSettings
 from swarm_proto.session import zenoh_config as zenoh_config_of
 
+from . import _clickx
 from .analyze import app as analyze_app
+from .answers import progress, report
+from .core.exchange import Verdict
+from .core.reasons import alert_text
 from .db import DbOption
 from .db import app as db_app
 from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
-from .render import ack_table, fleet_rows, fleet_table
+from .options import (
+    AllOption,
+    FleetOption,
+    IdsOption,
+    JsonOption,
+    YesOption,
+    checked,
+    confirm,
+    describe,
+    finite,
+    parse_geopoint,
+    selection,
+)
+from .options import geometry_from as _geometry_from
+from .options import parse_latlon as _parse_latlon
+from .options import parse_points as _parse_points
+from .render import fleet_rows, fleet_table
 from .tasking import VoteWatch, show_vote
 from .tasking import app as target_app
 from .tasking import vote as show_a_vote
 
-app = typer.Typer(help="bandada ground station.", no_args_is_help=True)
+app = typer.Typer(
+    help="bandada ground station: fleet status, commands, missions, zones, files and plots.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
 app.add_typer(db_app, name="db")
 zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
 app.add_typer(zone_app, name="zone")
 app.add_typer(analyze_app, name="analyze")
 app.add_typer(target_app, name="target")  # issue 13: re-tasking, and the vote shown
 app.command("vote")(show_a_vote)
-console = Console()
+
+
+def _width() -> int | None:
+    """A terminal's own width; 100 columns (or $COLUMNS if wider) for a file or a pipe,
+    where rich would take 80 and squeeze the tables."""
+    if sys.stdout.isatty():
+        return None
+    try:
+        return max(100, int(os.environ.get("COLUMNS", "100")))
+    except ValueError:
+        return 100
+
+
+console = Console(width=_width())
+REACH_S = 3.0  # how long a fresh session may take to reach the router or a peer
 
 
 @dataclass
@@ -60,19 +100,61 @@ class Link:
     swarm: str
     gcs_id: int
 
-    def open(self) -> GroundStation:
+    def open(self, *, check: bool = True) -> GroundStation:
+        """A ground station session; exit 2 (one line) when Zenoh cannot be opened
+        (a taken --listen port, a certificate), exit 1 when, with `check`, nothing at
+        --connect answers
+        (issue 15: an unreachable router looked like an empty swarm, exit 0)."""
         try:
-            return GroundStation(self.settings, self.swarm, self.gcs_id)
+            gs = GroundStation(self.settings, self.swarm, self.gcs_id,
+                               database_ids=database_ids())  # fmt: skip
         except Exception as exc:
-            console.print(f"[red]gcs: cannot open Zenoh: {exc}[/]")
-            raise typer.Exit(2) from exc
+            from .db import _zenoh_reason
+
+            err = _clickx.ClickException(f"cannot open Zenoh: {_zenoh_reason(exc)}")
+            err.exit_code = 2  # type: ignore[attr-defined]  # a taken port, a bad certificate: the setup
+            raise err from None
+        if check and self.settings.connect and not gs.reachable(REACH_S):
+            gs.close()
+            where = ", ".join(self.settings.connect)
+            raise _clickx.ClickException(
+                f"nothing answers at {where} within {REACH_S:g} s: is the router running "
+                "(`swarm-node router`), and is the endpoint right?"
+            )
+        return gs
+
+
+def database_ids() -> list[int] | None:
+    """The vehicles of the swarm database ($BANDADA_DB, else the per-user file), or
+    None when it cannot be read: whom `--all` may miss, and ids it does not know."""
+    from swarm_node.database import SwarmDatabase
+    from swarm_node.database.errors import SwarmDbError
+    from swarm_node.database.paths import resolve_db_path
+    from swarm_proto import VehicleType
+
+    try:
+        with SwarmDatabase.open(resolve_db_path(None)) as db:
+            return [p.vehicle_id for p in db.profiles() if p.vehicle_type != VehicleType.GCS]
+    except (SwarmDbError, OSError):
+        return None
+
+
+def _endpoints(values: list[str], name: str) -> list[str]:
+    out = []
+    for v in values:
+        try:
+            out.append(zenoh_endpoint(v))
+        except ValueError as exc:
+            raise typer.BadParameter(str(exc), param_hint=name) from None
+    return out
 
 
 @app.callback()
 def _group(
     ctx: typer.Context,
     connect: list[str] = typer.Option(
-        [], help="Zenoh endpoints to connect to (default tcp/127.0.0.1:7447, or the file's)"
+        [], help="Zenoh endpoints to connect to, e.g. tcp/10.0.0.1:7447 (tcp:HOST:PORT and "
+        "HOST:PORT are read the same); default tcp/127.0.0.1:7447, or the file's"
     ),
     listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
     mode: str = typer.Option("peer", help="Zenoh mode: peer or client"),
@@ -83,12 +165,18 @@ def _group(
         "`swarm-node certs make`); --connect/--listen/--mode override it",
     ),
     swarm: str = typer.Option("default", help="swarm name"),
-    gcs_id: int = typer.Option(DEFAULT_GCS_ID, help="this ground station's node id"),
+    gcs_id: int = typer.Option(DEFAULT_GCS_ID, min=1, max=65534,
+                               help="this ground station's node id"),
 ) -> None:
-    """bandada ground station."""
+    """bandada ground station.
+
+    Example: gcs --connect tcp/10.0.0.1:7447 status
+    """
     if mode not in ("peer", "client", "router"):
         raise typer.BadParameter("mode is peer, client or router", param_hint="--mode")
-    if not connect and not zenoh_config:
+    connect = _endpoints(connect, "--connect")
+    listen = _endpoints(listen, "--listen")
+    if not connect and not zenoh_config and mode != "router":
         connect = ["tcp/127.0.0.1:7447"]
     settings = msgspec.convert(
         {"mode": mode, "connect": connect, "listen": listen, "config_file": zenoh_config},
@@ -103,118 +191,157 @@ def _group(
 
 
 # --------------------------------------------------------------------------- parsing
+# (kept here for the modules and tests that import them from gcs_cli.cli)
 
 
 def parse_point(text: str) -> tuple[float, float]:
-    try:
-        lat, lon = (float(x) for x in text.split(","))
-    except ValueError as exc:
-        raise typer.BadParameter(f"expected LAT,LON, got {text!r}") from exc
-    return lat, lon
+    return _parse_latlon(text)
 
 
 def parse_points(text: str) -> list[tuple[float, float]]:
-    return [parse_point(p) for p in text.replace(";", " ").split()]
+    return _parse_points(text, "--points")
 
 
 def geometry_from(
     polygon: str | None, point: str | None, circle: str | None, line: str | None, points: str | None
 ) -> Geometry:
-    given = [x for x in (polygon, point, circle, line, points) if x]
-    if len(given) != 1:
-        raise typer.BadParameter(
-            "give exactly one of --polygon, --point, --circle, --line, --points"
-        )
-    try:
-        if polygon:
-            return Geometry.polygon(parse_points(polygon))
-        if point:
-            return Geometry.point(*parse_point(point))
-        if circle:
-            lat, lon, r = (float(x) for x in circle.split(","))
-            return Geometry.circle(lat, lon, r)
-        if line:
-            return Geometry(
-                GeometryKind.POLYLINE, tuple(LatLon(a, b) for a, b in parse_points(line))
-            )
-        return Geometry(
-            GeometryKind.POINTS, tuple(LatLon(a, b) for a, b in parse_points(points or ""))
-        )
-    except ValueError as exc:  # invalid polygon, NaN, out of range ...
-        raise typer.BadParameter(str(exc)) from exc
+    return _geometry_from(polygon, point, circle, line, points)
 
 
-def selector_from(ids: list[int], fleet: int, quantity: int, payload: str) -> Selector:
+def selector_from(
+    ids: list[int], fleet: int | None, quantity: int, payload: str, all_: bool = False,
+    *, required: bool = False,
+) -> Selector:  # fmt: skip
     if not 0 <= quantity <= 255:
         raise typer.BadParameter(f"--count must be 1..255, got {quantity}")
     if payload and not quantity:
         raise typer.BadParameter("--payload needs --count: voting picks a payload's vehicles")
     if quantity and ids:
         raise typer.BadParameter("--count and --id exclude each other: voting picks the ids")
+    if quantity and all_:
+        raise typer.BadParameter("--count and --all exclude each other")
     try:
         if quantity:
-            return Selector(
-                SelectorKind.QUANTITY, fleet_id=fleet, quantity=quantity, payload_model=payload
-            )
-        if ids:
-            return Selector.ids(*ids)
-        if fleet:
-            return Selector.fleet(fleet)
-        return Selector()
+            return Selector(SelectorKind.QUANTITY, fleet_id=fleet or 0, quantity=quantity,
+                            payload_model=payload)  # fmt: skip
+        return selection(ids, fleet, all_, required=required)
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
 
 
+def wait_option(wait: float) -> float:
+    finite(wait, "--wait", 0.0, 3600.0)
+    return wait
+
+
+def timeout_option(timeout: float) -> float:
+    finite(timeout, "--timeout", 0.0, 3600.0)
+    return timeout
+
+
 # --------------------------------------------------------------------------- status
+
+
+def _shown(ids: list[int], fleet: int | None, all_: bool = False) -> Selector:
+    """A read command's filter: --id / --fleet, else (or --all) every vehicle."""
+    return selection(ids, fleet, all_, required=False)
 
 
 @app.command()
 def status(
     ctx: typer.Context,
     wait: float = typer.Option(2.0, help="seconds to listen before printing"),
-    watch: bool = typer.Option(False, help="keep the table live until Ctrl-C"),
-    as_json: bool = typer.Option(False, "--json", help="print JSON rows"),
+    watch: bool = typer.Option(False, help="keep the table live until Ctrl-C (see `gcs watch`)"),
+    as_json: JsonOption = False,
+    ids: IdsOption = [],  # noqa: B006 (typer reads the default)
+    fleet: FleetOption = None,
+    all_: AllOption = False,
 ) -> None:
-    """The fleet: state, mode, mission progress, battery, GPS, position, alerts."""
+    """The fleet in 100 columns: state, mode, mission progress, battery, GPS, position,
+    altitude, speed, alerts, how long since each vehicle was heard.
+
+    Example: gcs status --fleet 2 --json
+    """
+    wait_option(wait)
+    shown = _shown(ids, fleet, all_)
     with ctx.obj.open() as gs:
         time.sleep(wait)
         if as_json:
-            typer.echo(json.dumps(fleet_rows(gs.snapshot()), indent=2))
+            rows = [r for r in fleet_rows(gs.snapshot()) if _in(shown, r)]
+            typer.echo(json.dumps(rows, indent=2))
             return
         if not watch:
-            console.print(fleet_table(gs.snapshot(), title=f"swarm {gs.swarm}"))
+            view = gs.snapshot()
+            if not view.vehicle_ids():
+                console.print(f"no vehicle heard in {wait:g} s", style="yellow")
+                return
+            show(fleet_table(view, title=f"swarm {gs.swarm}", shown=shown))
             return
-        from rich.live import Live
+        from .monitor import live_watch
 
-        with Live(fleet_table(gs.snapshot()), console=console, refresh_per_second=4) as live:
-            try:
-                while True:
-                    time.sleep(0.25)
-                    live.update(fleet_table(gs.snapshot(), title=f"swarm {gs.swarm}"))
-            except KeyboardInterrupt:
-                pass
+        live_watch(gs, console, shown)
+
+
+def show(renderable: object) -> None:
+    console.print(renderable)
+
+
+def _in(shown: Selector, row: dict) -> bool:
+    return shown.addresses(row["id"], row.get("fleet") or 0)
 
 
 @app.command()
 def alerts(
     ctx: typer.Context,
     wait: float = typer.Option(5.0, help="seconds to listen"),
+    as_json: JsonOption = False,
+    ids: IdsOption = [],  # noqa: B006
+    fleet: FleetOption = None,
+    all_: AllOption = False,
 ) -> None:
-    """Alerts raised by the vehicles while listening."""
+    """Alerts raised by the vehicles while listening, each with its full meaning (the
+    vehicle's own text after the colon); the conditions active now are in `gcs status`.
+
+    Example: gcs alerts --wait 30 --id 7
+    """
+    wait_option(wait)
+    shown = _shown(ids, fleet, all_)
     with ctx.obj.open() as gs:
         time.sleep(wait)
-        for a in gs.snapshot().alerts:
-            console.print(f"{a.vehicle_id:>5} {a.severity.name:<9} {a.code.name:<20} {a.text}")
+        view = gs.snapshot()
+    fleets = {v: st.fleet_id for v, st in view.status.items()}
+    got = [a for a in view.alerts if shown.addresses(a.vehicle_id, fleets.get(a.vehicle_id, 0))]
+    if as_json:
+        typer.echo(json.dumps([{**msgspec.to_builtins(a), "severity": a.severity.name,
+                                "code": a.code.name, "meaning": alert_text(a.code, a.text)}
+                               for a in got], indent=2))  # fmt: skip
+        return
+    for a in got:
+        style = "red" if a.severity >= 2 else ("yellow" if a.severity == 1 else None)
+        console.print(f"{a.vehicle_id:>5} {a.severity.name:<9} {a.code.name:<20} "
+                      f"{alert_text(a.code, a.text)}", style=style, highlight=False)  # fmt: skip
+    if not got:
+        console.print(f"no alert in {wait:g} s", style="dim")
 
 
 @app.command()
-def peers(ctx: typer.Context, node: int = typer.Argument(..., help="node id")) -> None:
-    """A node's own view of the swarm."""
+def peers(
+    ctx: typer.Context,
+    node: int = typer.Argument(..., min=1, max=65534, help="node id"),
+    as_json: JsonOption = False,
+) -> None:
+    """A node's own view of the swarm (its live peers), as its peers queryable answers.
+
+    Example: gcs peers 7
+    """
     with ctx.obj.open() as gs:
         view = gs.peers_of(node, timeout_s=3.0)
         if view is None:
             console.print(f"[red]node {node} did not answer[/]")
             raise typer.Exit(1)
+        if as_json:
+            typer.echo(json.dumps(msgspec.to_builtins(view), indent=2))
+            return
         for p in view.peers:
             console.print(
                 f"{p.node_id:>5} {p.vehicle_type.name:<7} fleet {p.fleet_id:<3} {p.fsm_state.name:<10} heard {p.heard_age_s:.1f} s ago"
@@ -223,85 +350,115 @@ def peers(ctx: typer.Context, node: int = typer.Argument(..., help="node id")) -
 
 # --------------------------------------------------------------------------- commands
 
+#: commands that move or arm vehicles: a selector is required and they are confirmed
+MOVING = frozenset({
+    CommandKind.ARM, CommandKind.DISARM, CommandKind.TAKEOFF, CommandKind.SET_MODE,
+    CommandKind.GOTO, CommandKind.SET_SPEED, CommandKind.SET_ALTITUDE, CommandKind.RTL,
+    CommandKind.LAND, CommandKind.EMERGENCY_LAND, CommandKind.ABORT_LANDING,
+    CommandKind.PARACHUTE, CommandKind.CANCEL_MISSION, CommandKind.JOIN_MISSION,
+    CommandKind.SWAP_MISSION,
+})  # fmt: skip
+COMMAND_NAMES = [k.name.lower().replace("_", "-") for k in CommandKind]
 
-def _print_acks(acks: list[Ack], what: str) -> None:
-    """The addressed vehicles' answers as a table (exit 1 if any refused); vehicles that
-    answered NOT_ADDRESSED (every vehicle answers a mission) on one line."""
-    answers = [a for a in acks if a.reason != AckReason.NOT_ADDRESSED]
-    others = ", ".join(
-        str(v) for v in sorted(a.vehicle_id for a in acks if a.reason == AckReason.NOT_ADDRESSED)
-    )
-    if not answers:
-        if others:
-            console.print(f"[yellow]{what}: addresses none of the vehicles ({others} answered)[/]")
-        else:
-            console.print(f"[yellow]{what}: no answer[/]")
-        raise typer.Exit(1)
-    console.print(ack_table(answers, what))
-    if others:
-        console.print(f"not addressed: {others}", style="dim")
-    if not all(a.accepted for a in answers):
-        raise typer.Exit(1)
+
+def _complete_kind(incomplete: str) -> list[str]:
+    return [k for k in COMMAND_NAMES if k.startswith(incomplete)]
+
+
+def ask(gs: GroundStation, what: str, sel: Selector, yes: bool) -> None:
+    """Confirm a request that moves or arms vehicles, naming whom it reaches now."""
+    if yes:
+        return
+    alive = None
+    if sel.kind != SelectorKind.IDS:
+        gs.discover()
+        alive = sorted(k.vehicle_id for k in gs.known()
+                       if k.alive and sel.addresses(k.vehicle_id, k.fleet_id or 0))  # fmt: skip
+    confirm(f"{what} to {describe(sel, alive)}?", yes)
 
 
 @app.command()
 def cmd(
     ctx: typer.Context,
-    kind: str = typer.Argument(..., help="; ".join(k.name.lower() for k in CommandKind)),
-    ids: list[int] = typer.Option([], "--id", help="vehicle ids (repeat)"),
-    fleet: int = typer.Option(0, help="address a fleet"),
+    kind: str = typer.Argument(..., help="; ".join(COMMAND_NAMES), autocompletion=_complete_kind),
+    ids: IdsOption = [],  # noqa: B006
+    fleet: FleetOption = None,
+    all_: AllOption = False,
     value: float | None = typer.Option(None, help="altitude (m above home) or speed (m/s)"),
     text: str = typer.Option("", help="mode name, or what to calibrate"),
     point: str | None = typer.Option(
         None, help="LAT,LON[,ALT_MSL] for goto, set-base and emergency-land (where to land)"
     ),
-    fleet_id: int = typer.Option(0, help="set-fleet: the new fleet id"),
-    mission_id: int = typer.Option(0, help="cancel-mission / join-mission: the mission"),
-    other_mission_id: int = typer.Option(0, help="swap-mission: the other fleet's mission"),
-    timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
+    fleet_id: int = typer.Option(0, min=0, max=255, help="set-fleet: the new fleet id"),
+    mission_id: int = typer.Option(0, min=0, max=2**32 - 1,
+                                   help="cancel-mission / join-mission: the mission"),
+    other_mission_id: int = typer.Option(0, min=0, max=2**32 - 1,
+                                         help="swap-mission: the other fleet's mission"),
+    timeout: float = typer.Option(5.0, help="seconds to wait for every answer"),
+    yes: YesOption = False,
+    as_json: JsonOption = False,
 ) -> None:
-    """Send an operator command (rtl, land, emergency-land, abort-landing, parachute,
-    set-base, calibrate, arm, disarm, takeoff, set-mode, goto, set-speed, set-altitude,
-    set-fleet, cancel-mission, join-mission, swap-mission, activate, shutdown) and show
-    every vehicle's ack."""
+    """Send an operator command and show every addressed vehicle's answer: accepted,
+    rejected with its full reason, or silent. Exit 1 unless all accepted.
+
+    Commands that move or arm vehicles (arm, disarm, takeoff, set-mode, goto, set-speed,
+    set-altitude, rtl, land, emergency-land, abort-landing, parachute, cancel-mission,
+    join-mission, swap-mission) need --id, --fleet or --all and are confirmed unless
+    --yes; the others (set-base, calibrate, set-fleet, activate, shutdown) go to every
+    vehicle when no selector is given.
+
+    Example: gcs cmd rtl --fleet 2 --yes
+    """
     try:
         k = CommandKind[kind.upper().replace("-", "_")]
     except KeyError as exc:
-        raise typer.BadParameter(f"unknown command {kind!r}", param_hint="KIND") from exc
-    geo = None
-    if point:
-        parts = [float(x) for x in point.split(",")]
-        if len(parts) not in (2, 3):
-            raise typer.BadParameter("LAT,LON[,ALT_MSL]", param_hint="--point")
-        geo = GeoPoint(parts[0], parts[1], parts[2] if len(parts) == 3 else 0.0)
+        raise typer.BadParameter(
+            f"unknown command {kind!r}; one of {', '.join(COMMAND_NAMES)}", param_hint="KIND"
+        ) from exc
+    timeout_option(timeout)
+    finite(value, "--value", -1.0e6, 1.0e6)
+    geo = GeoPoint(*parse_geopoint(point)) if point else None
     if k == CommandKind.EMERGENCY_LAND and geo is None:  # paper 3.5.1: ask for the route
         raise typer.BadParameter(
             "emergency-land needs --point LAT,LON: where the landing route ends",
             param_hint="--point",
         )
+    sel = selector_from(ids, fleet, 0, "", all_, required=k in MOVING)
     args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id,
                        other_mission_id=other_mission_id)  # fmt: skip
+    checked(Command(ctx.obj.gcs_id, 1, k, sel, args))  # everything checked before sending
+    name = k.name.lower().replace("_", "-")
     with ctx.obj.open() as gs:
-        # every vehicle named with --id (a fresh session hears a LAN's vehicles one by
-        # one; the acks awaited are those of the vehicles known to be addressed)
-        gs.wait_for(lambda v: set(ids) <= set(v.vehicle_ids()) and bool(v.vehicle_ids()), 3.0)
-        acks = gs.command(k, selector_from(ids, fleet, 0, ""), args, timeout_s=timeout)
-    _print_acks(acks, f"{k.name.lower()}")
+        if k in MOVING:
+            ask(gs, name, sel, yes)
+        with progress(not as_json) as show:
+            out = gs.send_command(k, sel, args, timeout_s=timeout, progress=show)
+    report(out, console, as_json=as_json)
 
 
 @app.command()
 def mission(
     ctx: typer.Context,
     mission_type: str = typer.Argument(
-        ..., metavar="TYPE", help="area, target, perimeter, route, objective, autoland, mumt"
+        ..., metavar="TYPE", help="area, target, perimeter, route, objective, autoland, mumt",
+        autocompletion=lambda incomplete: [t.name.lower() for t in MissionType
+                                           if t.name.lower().startswith(incomplete)],
     ),
     polygon: str | None = typer.Option(None, help="'LAT,LON LAT,LON ...' (area, perimeter)"),
     point: str | None = typer.Option(None, help="LAT,LON (target, objective, autoland)"),
     circle: str | None = typer.Option(None, help="LAT,LON,RADIUS_M (target, perimeter)"),
     line: str | None = typer.Option(None, help="'LAT,LON LAT,LON ...' (route)"),
     points: str | None = typer.Option(None, help="'LAT,LON ...' (multi-objective)"),
-    ids: list[int] = typer.Option([], "--id", help="vehicle ids (repeat)"),
-    fleet: int = typer.Option(0, help="the fleet flies it"),
+    file: Path | None = typer.Option(
+        None, "--file", help="the geometry from a file: GeoJSON, KML, QGroundControl .plan or "
+        "MAVLink waypoints (docs/ground-station.md, 'Files')", dir_okay=False,
+    ),
+    feature: str | None = typer.Option(
+        None, help="with --file: which feature (its name, or its number from 1)"
+    ),
+    ids: IdsOption = [],  # noqa: B006
+    fleet: FleetOption = None,
+    all_: AllOption = False,
     quantity: int = typer.Option(
         0, "--count", "--quantity", help="this many vehicles, chosen by voting (with --fleet: of it)"
     ),
@@ -316,20 +473,48 @@ def mission(
     alt_step: float | None = typer.Option(None, help="vertical separation between vehicles, m"),
     duration: float | None = typer.Option(None, help="target/objective: how long to hold, s"),
     name: str = typer.Option("", help="a name for people"),
-    mission_id: int = typer.Option(0, help="default: a fresh id"),
-    timeout: float = typer.Option(5.0, help="seconds to wait for acks"),
+    mission_id: int = typer.Option(0, min=0, max=2**32 - 1, help="default: a fresh id"),
+    timeout: float = typer.Option(5.0, help="seconds to wait for every answer"),
+    save: Path | None = typer.Option(
+        None, "--save", help="also write the mission to this file (.geojson, .kml, .plan, "
+        ".waypoints or .json: the format by its extension)", dir_okay=False,
+    ),
+    dry_run: bool = typer.Option(False, "--dry-run", help="check and --save, send nothing"),
+    yes: YesOption = False,
+    as_json: JsonOption = False,
     db_path: DbOption = None,
 ) -> None:
-    """Send a mission and show every addressed vehicle's ack. Parameters not given come
+    """Send a mission and show every addressed vehicle's answer (every vehicle answers a
+    mission; those it does not address are listed apart). Parameters not given come
     from the swarm database's defaults for the kind of mission (`gcs db list swarm
-    mission-params`); the vehicles fill what is still unset from theirs."""
+    mission-params`); the vehicles fill what is still unset from theirs. Needs --id,
+    --fleet, --all or --count; confirmed unless --yes.
+
+    Example: gcs mission area --file field.kml --fleet 1 --alt 60 --save field.plan --yes
+    """
     try:
         mtype = MissionType[mission_type.upper()]
     except KeyError as exc:
         raise typer.BadParameter(
             f"unknown mission type {mission_type!r}", param_hint="TYPE"
         ) from exc
-    geometry = geometry_from(polygon, point, circle, line, points)
+    timeout_option(timeout)
+    if file is not None:
+        if any((polygon, point, circle, line, points)):
+            raise typer.BadParameter("--file and --polygon/--point/... exclude each other")
+        from .geofiles import GeoFileError, mission_geometry
+
+        try:
+            geometry = mission_geometry(file, mtype, feature)
+        except GeoFileError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--file") from None
+    else:
+        geometry = geometry_from(polygon, point, circle, line, points)
+    for opt, v, lo, hi in (("--alt", alt, 0.0, 8000.0), ("--speed", speed, 0.0, 300.0),
+                           ("--overlap", overlap, 0.0, 0.95), ("--radius", radius, 0.0, 1.0e6),
+                           ("--alt-step", alt_step, 0.0, 8000.0),
+                           ("--duration", duration, 0.0, 1.0e7)):  # fmt: skip
+        finite(v, opt, lo, hi)
     if not 0.0 <= vote_wait < 3600.0:
         raise typer.BadParameter("must be in [0, 3600) s", param_hint="--vote-wait")
     given = {
@@ -342,21 +527,39 @@ def mission(
     }
     if payload:
         check_payload_model(payload, db_path)
-    values = {**mission_defaults(mtype, db_path, circle=circle is not None)}
+    values = {**mission_defaults(mtype, db_path, circle=geometry.radius_m is not None)}
     values.update({k: v for k, v in given.items() if v is not None})
+    sel = selector_from(ids, fleet, quantity, payload, all_, required=not dry_run)
     try:
         params = msgspec.convert(values, MissionParams, strict=False)
         m = Mission(mission_id or new_seq() or 1, ctx.obj.gcs_id, mtype, geometry, params,
-                    selector_from(ids, fleet, quantity, payload), name, time.time())  # fmt: skip
+                    sel, name, time.time())  # fmt: skip
     except (ValueError, msgspec.ValidationError) as exc:
         raise typer.BadParameter(str(exc)) from exc
+    checked(m)
+    if save is not None:
+        from .geofiles import GeoFileError, save_mission
+
+        try:
+            save_mission(save, m)
+        except GeoFileError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--save") from None
+        console.print(f"mission {m.mission_id} written to {save}", style="dim")
+    if dry_run:
+        return
     with ctx.obj.open() as gs:
-        watch = VoteWatch(gs) if quantity else None  # the vote follows the mission at once
-        acks = gs.mission(m, timeout_s=timeout)
-        if watch is not None and any(a.accepted for a in acks):  # every score, who goes
-            voters = {a.vehicle_id for a in acks if a.accepted}
-            show_vote(gs, watch, m.mission_id, voters, quantity, vote_wait)
-    _print_acks(acks, f"mission {m.mission_id} ({mtype.name.lower()})")
+        ask(gs, f"mission {m.mission_id} ({mtype.name.lower()})", sel, yes)
+        watch = VoteWatch(gs) if quantity else None  # subscribed before the mission goes out
+        with progress(not as_json) as show:
+            out = gs.send_mission(m, timeout_s=timeout, progress=show)
+        voters = {r.vehicle_id for r in out.rows if r.verdict == Verdict.ACCEPTED}
+        if watch is not None and voters and not as_json:  # then every score, who goes
+            try:
+                report(out, console)
+            finally:
+                show_vote(gs, watch, m.mission_id, voters, quantity, vote_wait)
+            return
+    report(out, console, as_json=as_json)
 
 
 def mission_defaults(mtype: MissionType, db_path: Path | None, *, circle: bool) -> dict[str, float]:
@@ -398,92 +601,129 @@ def check_payload_model(model: str, db_path: Path | None) -> None:
 @zone_app.command("add")
 def zone_add(
     ctx: typer.Context,
-    zone_id: int = typer.Argument(..., help="zone id"),
+    zone_id: int = typer.Argument(..., min=1, max=2**32 - 1, help="zone id"),
     polygon: str | None = typer.Option(None, help="'LAT,LON LAT,LON ...'"),
     circle: str | None = typer.Option(None, help="LAT,LON,RADIUS_M"),
     floor: float = typer.Option(-1000.0, help="floor, m above mean sea level"),
     ceiling: float = typer.Option(8000.0, help="ceiling, m above mean sea level"),
     minutes: float | None = typer.Option(None, help="valid for this long (default: until removed)"),
-    name: str = typer.Option(""),
+    name: str = typer.Option("", help="a name for people"),
     operating_area: bool = typer.Option(
         False,
         "--operating-area",
         help="an operating area the vehicles must stay inside (2-D: no floor or ceiling)",
     ),
-    ids: list[int] = typer.Option(
-        [], "--id", help="vehicles that must hold it (default: all alive)"
-    ),
+    ids: IdsOption = [],  # noqa: B006
+    fleet: FleetOption = None,
+    all_: AllOption = False,
     timeout: float = typer.Option(10.0, help="seconds to wait for the vehicles to hold it"),
+    as_json: JsonOption = False,
 ) -> None:
     """Declare a no-fly zone, or with --operating-area the area the vehicles must not
-    leave. Both also become the autopilots' fences (docs/node.md, "Fences"). It is sent
-    again until every vehicle alive (or each --id) holds it, and says which do; a node
-    started later learns it from the others."""
+    leave. Both also become the autopilots' fences (docs/node.md, "Fences"). Every
+    vehicle holds every zone and acknowledges it; the command waits for every vehicle
+    alive (or each --id, or --fleet's) and exits 1 unless all hold it. A node started
+    later learns it from the others. Zones from a file: `gcs zone import`.
+
+    Example: gcs zone add 3 --circle 37.412,-5.988,50 --floor 0 --ceiling 300
+    """
     geometry = geometry_from(polygon, None, circle, None, None)
+    for opt, v in (("--floor", floor), ("--ceiling", ceiling)):
+        finite(v, opt, -1000.0, 8000.0)
+    finite(minutes, "--minutes", 0.0, 1.0e6)
+    timeout_option(timeout)
     now = time.time()
     try:
-        zone = NoFlyZone(
-            zone_id,
-            geometry,
-            floor,
-            ceiling,
-            now,
-            now + minutes * 60 if minutes else None,
-            True,
-            name,
-            operating_area,
-        )
+        zone = NoFlyZone(zone_id, geometry, floor, ceiling, now,
+                         now + minutes * 60 if minutes else None, True, name, operating_area,
+                         ctx.obj.gcs_id)  # fmt: skip
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
-    what = f"{'operating area' if operating_area else 'zone'} {zone_id}"
-    _declare(ctx.obj, zone, what, "declared", ids, timeout)
+    sel = selector_from(ids, fleet, 0, "", all_)
+    _declare(ctx.obj, checked(zone), sel, timeout, as_json)
 
 
-def _declare(
-    link: Link, zone: NoFlyZone, what: str, done: str, ids: list[int], timeout: float
-) -> None:
+def _declare(link: Link, zone: NoFlyZone, sel: Selector, timeout: float, as_json: bool) -> None:
     """Send a zone until the vehicles hold it; exit 1 unless every one expected does."""
-    with link.open() as gs:  # default: the vehicles discovered alive, or heard meanwhile
-        confirmed = gs.declare_zone(zone, expect=set(ids) if ids else None, timeout_s=timeout)
-        expected = set(ids) if ids else set(gs.snapshot().vehicle_ids()) | confirmed
-    held = ", ".join(str(v) for v in sorted(confirmed)) or "none"
-    console.print(f"{what} {done}; held by vehicles: {held}")
-    missing = sorted(expected - confirmed)
-    if missing:
-        console.print(f"[yellow]{what}: not confirmed by {', '.join(map(str, missing))}[/]")
-    if not expected:
-        console.print(f"[yellow]{what}: no vehicle is alive to hold it[/]")
-    if missing or not expected:
-        raise typer.Exit(1)
+    with link.open() as gs, progress(not as_json) as show:
+        out = gs.send_zone(zone, sel, timeout_s=timeout, progress=show)
+    report(out, console, as_json=as_json)
 
 
 @zone_app.command("remove")
 def zone_remove(
     ctx: typer.Context,
-    zone_id: int = typer.Argument(..., help="zone id"),
-    ids: list[int] = typer.Option(
-        [], "--id", help="vehicles that must drop it (default: all alive)"
-    ),
+    zone_id: int = typer.Argument(..., min=1, max=2**32 - 1, help="zone id"),
+    ids: IdsOption = [],  # noqa: B006
+    fleet: FleetOption = None,
+    all_: AllOption = False,
     timeout: float = typer.Option(10.0, help="seconds to wait for the vehicles to drop it"),
+    as_json: JsonOption = False,
 ) -> None:
     """Withdraw a no-fly zone or operating area (republished inactive: the vehicles
-    drop it by id; the geometry sent is a placeholder), and say which vehicles did."""
+    drop it by id; the geometry sent is a placeholder) and show each vehicle's answer;
+    a vehicle that never held it answers NOT_FOUND (exit 1).
+
+    Example: gcs zone remove 3
+    """
+    timeout_option(timeout)
     placeholder = Geometry.circle(0.0, 0.0, 1.0)
-    zone = NoFlyZone(zone_id, placeholder, active=False)
-    _declare(ctx.obj, zone, f"zone {zone_id}", "withdrawn", ids, timeout)
+    zone = NoFlyZone(zone_id, placeholder, active=False, issuer_id=ctx.obj.gcs_id)
+    _declare(ctx.obj, zone, selector_from(ids, fleet, 0, "", all_), timeout, as_json)
 
 
 @app.command()
 def version() -> None:
-    """Print the bandada version."""
+    """Print the bandada version.
+
+    Example: gcs version
+    """
     from importlib.metadata import version as v
 
     typer.echo(v("bandada"))
 
 
-def main() -> None:
-    app()
+def _register() -> None:
+    """The command groups that live in their own modules."""
+    from . import files, monitor, plot, recovery  # noqa: F401 (they register themselves)
 
 
-if __name__ == "__main__":
-    main()
+def main(argv: list[str] | None = None) -> None:
+    """The `gcs` entry point (exits with `run`'s code)."""
+    sys.exit(run(argv))
+
+
+def run(argv: list[str] | None = None) -> int:
+    """`gcs` with these arguments, its exit code returned: a usage error or a bad value is one line on stderr and
+    exit 2 (nothing sent); a failure the operator can act on (no router) one line and
+    exit 1; anything else one line and exit 1 (GCS_DEBUG=1 shows the traceback)."""
+    try:
+        rv = app(args=argv, prog_name="gcs", standalone_mode=False)
+    except _clickx.UsageError as exc:
+        ctx = getattr(exc, "ctx", None)
+        where = ctx.command_path if ctx is not None else "gcs"
+        print(f"{where}: {' '.join(exc.format_message().split())}", file=sys.stderr)  # type: ignore[attr-defined]
+        return 2
+    except _clickx.ClickException as exc:
+        print(f"gcs: {' '.join(exc.format_message().split())}", file=sys.stderr)  # type: ignore[attr-defined]
+        return int(getattr(exc, "exit_code", 1))
+    except SystemExit as exc:  # --show-completion and friends exit on their own
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except (typer.Abort, KeyboardInterrupt, BrokenPipeError):
+        print("gcs: aborted", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        if os.environ.get("GCS_DEBUG"):
+            raise
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"gcs: error: {text} (GCS_DEBUG=1 shows where)", file=sys.stderr)
+        return 1
+    return rv if isinstance(rv, int) else 0
+
+
+_register()
+
+if __name__ == "__main__":  # python -m gcs_cli.cli: the package's module, commands registered
+    from gcs_cli.cli import main as _main
+
+    _main()

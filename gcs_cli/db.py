@@ -159,7 +159,10 @@ def list_(
     as_json: JsonOption = False,
     db_path: DbOption = None,
 ) -> None:
-    """Groups and tables with their record counts; a group's records; a table's records."""
+    """Groups and tables with their record counts; a group's records; a table's records.
+
+    Example: gcs db list systems systems --json
+    """
     with _open(db_path) as db:
         if group is None:
             counts = db.counts()
@@ -205,7 +208,10 @@ def show(
     as_json: JsonOption = False,
     db_path: DbOption = None,
 ) -> None:
-    """One record."""
+    """One record.
+
+    Example: gcs db show systems models "Generic Quadcopter"
+    """
     t = _table(group, table_name)
     with _open(db_path) as db:
         record = db.get(t, *key, text=True)
@@ -249,7 +255,10 @@ def add(
     as_json: JsonOption = False,
     db_path: DbOption = None,
 ) -> None:
-    """Add one record; references are by name (or id for systems and payloads)."""
+    """Add one record; references are by name (or id for systems and payloads).
+
+    Example: gcs db add payload payload-types name=Lidar
+    """
     t = _table(group, table_name)
     with _open(db_path) as db:
         record = db.add(t, _parse_fields(t, fields or [], record_json))
@@ -271,7 +280,10 @@ def remove(
     as_json: JsonOption = False,
     db_path: DbOption = None,
 ) -> None:
-    """Remove one record (and its own parameters); refused while others use it."""
+    """Remove one record (and its own parameters); refused while others use it.
+
+    Example: gcs db remove systems systems 13
+    """
     t = _table(group, table_name)
     with _open(db_path) as db:
         record = db.remove(t, *key, text=True)
@@ -289,7 +301,10 @@ def export(
     ] = None,
     db_path: DbOption = None,
 ) -> None:
-    """Write the database (or some groups) as JSON."""
+    """Write the database (or some groups) as JSON.
+
+    Example: gcs db export swarm.json --group systems
+    """
     for g in group or ():
         if g not in GROUPS:
             raise _fail(f"unknown group {g!r}; groups: {', '.join(GROUPS)}", 2)
@@ -321,7 +336,10 @@ def import_(
     ] = False,
     db_path: DbOption = None,
 ) -> None:
-    """Import a JSON export: every record is checked; on any error nothing is written."""
+    """Import a JSON export: every record is checked; on any error nothing is written.
+
+    Example: gcs db import swarm.json
+    """
     try:
         data = sys.stdin.buffer.read() if file == "-" else Path(file).read_bytes()
     except OSError as exc:
@@ -345,7 +363,10 @@ def profile(
     as_json: JsonOption = False,
     db_path: DbOption = None,
 ) -> None:
-    """What a node resolves from the database: its VehicleProfile."""
+    """What a node resolves from the database: its VehicleProfile.
+
+    Example: gcs db profile 7 --json
+    """
     with _open(db_path) as db:
         if vehicle.isascii() and vehicle.isdigit():
             p = db.vehicle_profile(int(vehicle))
@@ -369,6 +390,7 @@ def profile(
 
 @app.command()
 def query(
+    ctx: typer.Context,
     node: Annotated[str, typer.Argument(help="node id, or '*' for every node")],
     resource: Annotated[
         str,
@@ -377,10 +399,14 @@ def query(
     connect: Annotated[
         list[str] | None, typer.Option(help="Zenoh endpoint to connect to (repeatable)")
     ] = None,
-    swarm: Annotated[str, typer.Option(help="swarm name")] = "default",
+    swarm: Annotated[str | None, typer.Option(help="swarm name (default: gcs --swarm)")] = None,
     timeout: Annotated[float, typer.Option(help="seconds to wait for replies")] = 5.0,
 ) -> None:
-    """Query a peer's swarm database over Zenoh; prints every reply as JSON."""
+    """Query a peer's swarm database over Zenoh; prints every reply as JSON. Without
+    its own --connect/--swarm it uses gcs's (`gcs --connect R db query 7`).
+
+    Example: gcs --connect tcp/10.0.0.1:7447 db query 7 profile
+    """
     import zenoh
 
     from swarm_node.database.queryable import query as zquery
@@ -391,12 +417,25 @@ def query(
         raise _fail(f"node must be a node id (1..65534) or '*', got {node!r}", 2)
     if not math.isfinite(timeout) or timeout <= 0:
         raise _fail(f"--timeout must be a positive number of seconds, got {timeout:g}", 2)
+    link = ctx.find_root().obj  # gcs's --connect, --zenoh-config and --swarm (issue 15)
+    settings = getattr(link, "settings", None)
+    swarm = swarm or str(getattr(link, "swarm", "default"))
+    if connect:
+        try:
+            from swarm_proto.endpoints import zenoh_endpoint
+
+            connect = [zenoh_endpoint(c) for c in connect]
+        except ValueError as exc:
+            raise _fail(str(exc), 2) from None
+        settings = ZenohSettings(connect=tuple(connect))
+    elif settings is None:
+        settings = ZenohSettings()
     try:
         sel = selector(swarm, node, resource)
     except ValueError as exc:
         raise _fail(str(exc), 2) from None
     try:
-        session = open_session(ZenohSettings(connect=tuple(connect or ())))
+        session = open_session(settings)
     except zenoh.ZError as exc:
         raise _fail(f"cannot open a Zenoh session: {_zenoh_reason(exc)}", 2) from None
     deadline = time.monotonic() + timeout
@@ -428,5 +467,8 @@ def _zenoh_reason(exc: Exception) -> str:
 
 @app.command()
 def path(db_path: DbOption = None) -> None:
-    """Print the database file this command line uses."""
+    """Print the database file this command line uses.
+
+    Example: gcs db path
+    """
     typer.echo(str(resolve_db_path(db_path)))

@@ -8,11 +8,13 @@ token and publishes a VehicleInfo of type GCS, so vehicles list it among their p
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import msgspec
 
@@ -37,13 +39,29 @@ from swarm_proto import (
 )
 from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus, ZenohSettings
-from swarm_proto.topics import ACK, ALERT, ALIVE, INFO, PEERS, STATUS, ZONES
+from swarm_proto.topics import ACK, ALERT, ALIVE, INFO, MISSIONS, PEERS, STATUS, ZONES
+
+from .core.exchange import (
+    Exchange,
+    Finished,
+    Heard,
+    Known,
+    Outcome,
+    Request,
+    Seen,
+    Send,
+    Verdict,
+    known_from,
+)
 
 DEFAULT_GCS_ID = 900
+T = TypeVar("T", bound=msgspec.Struct)
 
 
 REPEAT_S = 1.0  # commands and missions are sent again this often until answered
 DISCOVER_S = 2.0  # a fresh ground station's window to hear the vehicles that are alive
+HEARD_ALIVE_S = 5.0  # a vehicle heard this recently counts as alive (behind the radio)
+RATE_WINDOW_S = 2.0  # packets per second are counted over this window
 
 
 def new_seq() -> int:
@@ -62,6 +80,13 @@ class FleetView:
     alive: set[int] = field(default_factory=set)
     alerts: deque[Alert] = field(default_factory=lambda: deque(maxlen=200))
     acks: list[Ack] = field(default_factory=list)
+    arrivals: dict[int, deque[float]] = field(default_factory=dict)  # monotonic, per vehicle
+
+    def packets_per_s(self, vid: int, now: float) -> float:
+        """Messages heard from a vehicle per second over the last RATE_WINDOW_S (the
+        paper's "packets received in the preceding second")."""
+        times = self.arrivals.get(vid, ())
+        return sum(now - t <= RATE_WINDOW_S for t in times) / RATE_WINDOW_S
 
     def vehicle_ids(self) -> list[int]:
         ids = set(self.status) | set(self.info) | self.alive
@@ -86,13 +111,17 @@ class GroundStation:
         gcs_id: int = DEFAULT_GCS_ID,
         *,
         announce: bool = True,
+        database_ids: Iterable[int] | None = None,
     ) -> None:
         self.gcs_id = gcs_id
+        # the systems of the swarm database (None: no database read): whom --all may miss
+        self.database_ids = frozenset(database_ids) if database_ids is not None else None
         self.repeat_s = REPEAT_S
         self.swarm = swarm
         self.view = FleetView()
         self._lock = threading.Lock()
         self._changed = threading.Condition(self._lock)
+        self._feeds: list[queue.SimpleQueue[VehicleStatus]] = []
         self.bus = SwarmBus.open(settings, swarm)
         self.bus.subscribe(STATUS, self._on_status)
         self.bus.subscribe(INFO, self._on_info)
@@ -108,13 +137,25 @@ class GroundStation:
 
     # ------------------------------------------------------------------ inputs
     def _touch(self, vid: int) -> None:
-        self.view.heard_at[vid] = time.monotonic()
+        now = time.monotonic()
+        self.view.heard_at[vid] = now
+        times = self.view.arrivals.setdefault(vid, deque(maxlen=200))
+        times.append(now)
         self._changed.notify_all()
 
     def _on_status(self, msg: VehicleStatus, key: str) -> None:
         with self._lock:
             self.view.status[msg.vehicle_id] = msg
             self._touch(msg.vehicle_id)
+            for feed in self._feeds:
+                feed.put(msg)
+
+    def status_feed(self) -> queue.SimpleQueue[VehicleStatus]:
+        """Every VehicleStatus heard from now on, in order (a flight recorder)."""
+        feed: queue.SimpleQueue[VehicleStatus] = queue.SimpleQueue()
+        with self._lock:
+            self._feeds.append(feed)
+        return feed
 
     def _on_info(self, msg: VehicleInfo, key: str) -> None:
         with self._lock:
@@ -168,35 +209,131 @@ class GroundStation:
                 set(self.view.alive),
                 deque(self.view.alerts, maxlen=200),
                 list(self.view.acks),
+                {v: deque(t, maxlen=200) for v, t in self.view.arrivals.items()},
             )
 
+    # ------------------------------------------------------------------ the fleet known
+    def known(self) -> list[Known]:
+        """Every vehicle the ground station knows of (exchange.py): alive by its
+        liveliness token or heard in the last `HEARD_ALIVE_S` (a vehicle behind the
+        radio is heard, its token may not cross), its fleet from its telemetry, and
+        every system of the swarm database (`database_ids`)."""
+        now = time.monotonic()
+        with self._lock:
+            v = self.view
+            heard = {i for i, t in v.heard_at.items() if now - t <= HEARD_ALIVE_S}
+            alive = {i for i in (v.alive | heard) if v.type_of(i) != VehicleType.GCS}
+            fleets = {i: s.fleet_id for i, s in v.status.items()}
+            fleets.update({i: info.fleet_id for i, info in v.info.items() if i not in fleets})
+            ground = {i for i in v.info if v.type_of(i) == VehicleType.GCS}
+        db = set(self.database_ids or ()) - ground
+        return [k for k in known_from(alive, fleets, db) if k.vehicle_id not in ground
+                and k.vehicle_id != self.gcs_id]  # fmt: skip
+
     # ------------------------------------------------------------------ sending
-    def _send_and_wait(
+    def exchange(
         self,
         msg: msgspec.Struct,
-        ref: AckRef,
-        ref_id: int,
-        expect: Iterable[int] | None,
+        request: Request,
         timeout_s: float,
-    ) -> list[Ack]:
+        progress: Callable[[Exchange, float], None] | None = None,
+    ) -> Outcome:
+        """Send `msg` and account for every answer (the pure `Exchange` decides whom it
+        addresses, when to send again and when it is over; this shell publishes,
+        feeds it the acks and the membership news, and waits)."""
         validate(msg)
-        expected = set(expect) if expect is not None else None
-
-        def answered(view: FleetView) -> bool:
-            got = {a.vehicle_id for a in view.acks if a.ref == ref and a.ref_id == ref_id}
-            return expected is not None and expected <= got
-
-        # Repeated, unchanged, until every addressed vehicle answers: a frame lost on the
-        # radio (or published before a fresh session's routes are up) is sent again, and a
-        # vehicle answers a repeat with its first answer instead of acting twice.
-        end = time.monotonic() + timeout_s
-        while True:
-            self.bus.publish(msg)
-            left = end - time.monotonic()
-            if self.wait_for(answered, min(self.repeat_s, max(left, 0.0))) or left <= self.repeat_s:
-                break
         with self._lock:
-            first: dict[int, Ack] = {}  # a repeat may be answered twice: one row per vehicle
+            cursor = len(self.view.acks)
+        now = time.monotonic()
+        known = {k.vehicle_id: k for k in self.known()}
+        ex = Exchange(request, known.values(), now, timeout_s=timeout_s, repeat_s=self.repeat_s,
+                      database_known=self.database_ids is not None)  # fmt: skip
+        while True:
+            now = time.monotonic()
+            outs = ex.on_timer(now)
+            with self._lock:
+                fresh = self.view.acks[cursor:]
+                cursor = len(self.view.acks)
+            for a in fresh:
+                outs += ex.handle(Heard(a), now)
+            for k in self.known():  # membership news: joined, lost, a fleet now known
+                if known.get(k.vehicle_id) != k:
+                    known[k.vehicle_id] = k
+                    outs += ex.handle(Seen(k), now)
+            for o in outs:
+                if isinstance(o, Send):
+                    self.bus.publish(msg)
+                elif isinstance(o, Finished):
+                    if progress is not None:
+                        progress(ex, now)
+                    return o.outcome
+            if progress is not None:
+                progress(ex, now)
+            deadline = ex.next_deadline()
+            wait = 0.25 if deadline is None else min(max(deadline - now, 0.0), 0.25)
+            with self._lock:
+                if len(self.view.acks) == cursor:
+                    self._changed.wait(wait)
+
+    def send_command(
+        self,
+        kind: CommandKind,
+        target: Selector | None = None,
+        args: CommandArgs | None = None,
+        *,
+        timeout_s: float = 5.0,
+        progress: Callable[[Exchange, float], None] | None = None,
+    ) -> Outcome:
+        cmd = Command(self.gcs_id, new_seq(), kind, target or Selector(), args or CommandArgs(),
+                      max(0.0, time.time()))  # fmt: skip
+        validate(cmd)
+        if cmd.target.kind != SelectorKind.IDS:
+            self.discover()
+        request = Request(AckRef.COMMAND, cmd.seq, self.gcs_id, cmd.target,
+                          what=kind.name.lower().replace("_", "-"))  # fmt: skip
+        return self.exchange(cmd, request, timeout_s, progress)
+
+    def send_mission(
+        self,
+        mission: Mission,
+        *,
+        timeout_s: float = 5.0,
+        progress: Callable[[Exchange, float], None] | None = None,
+    ) -> Outcome:
+        """Every vehicle answers a mission (NOT_ADDRESSED when it is not for it)."""
+        validate(mission)
+        if mission.selection.kind != SelectorKind.IDS:
+            self.discover()
+        what = f"mission {mission.mission_id} ({mission.mission_type.name.lower()})"
+        request = Request(AckRef.MISSION, mission.mission_id, mission.issuer_id,
+                          mission.selection, everyone_answers=True, what=what)  # fmt: skip
+        return self.exchange(mission, request, timeout_s, progress)
+
+    def send_zone(
+        self,
+        zone: NoFlyZone,
+        target: Selector | None = None,
+        *,
+        timeout_s: float = 10.0,
+        progress: Callable[[Exchange, float], None] | None = None,
+    ) -> Outcome:
+        """Every vehicle holds every zone and acknowledges it to its issuer; `target`
+        says whose answers must come (default: every vehicle alive)."""
+        if zone.issuer_id != self.gcs_id:
+            zone = msgspec.structs.replace(zone, issuer_id=self.gcs_id)
+        validate(zone)
+        target = target or Selector()
+        if target.kind != SelectorKind.IDS:
+            self.discover()
+        kind = "operating area" if zone.operating_area else "zone"
+        request = Request(AckRef.ZONE, zone.zone_id, self.gcs_id, target, everyone_answers=True,
+                          what=f"{kind} {zone.zone_id}")  # fmt: skip
+        return self.exchange(zone, request, timeout_s, progress)
+
+    # the library's older calls (the demo, sitl-check): the acks, first one per vehicle
+    def _acks(self, ref: AckRef, ref_id: int) -> list[Ack]:
+        with self._lock:
+            first: dict[int, Ack] = {}
             for a in self.view.acks:
                 if a.ref == ref and a.ref_id == ref_id:
                     first.setdefault(a.vehicle_id, a)
@@ -210,31 +347,15 @@ class GroundStation:
         *,
         timeout_s: float = 5.0,
     ) -> list[Ack]:
-        """Publish a command and collect the acks of the vehicles it addresses (the
-        listed ids, or the vehicles discovered alive that it addresses; or whatever
-        arrives within the timeout when none is known)."""
-        cmd = Command(
-            self.gcs_id,
-            new_seq(),
-            kind,
-            target or Selector(),
-            args or CommandArgs(),
-            max(0.0, time.time()),
-        )
-        return self._send_and_wait(
-            cmd, AckRef.COMMAND, cmd.seq, self.expected(cmd.target), timeout_s
-        )
+        """Publish a command and return the answers of the vehicles it addresses
+        (`send_command` for the whole outcome, silences included)."""
+        out = self.send_command(kind, target, args, timeout_s=timeout_s)
+        return [r.ack for r in out.rows if r.ack is not None]
 
     def mission(self, mission: Mission, *, timeout_s: float = 5.0) -> list[Ack]:
-        """Publish a mission and collect the answers: every vehicle answers a mission,
-        those it does not address with NOT_ADDRESSED. Waits for the addressed vehicles:
-        the listed ids, or (fleet, all) the vehicles discovered alive that it addresses
-        (if none is known, for every vehicle discovered)."""
-        expect = self.expected(mission.selection)
-        if expect is None:
-            with self._lock:
-                expect = set(self.view.vehicle_ids()) or None
-        return self._send_and_wait(mission, AckRef.MISSION, mission.mission_id, expect, timeout_s)
+        """Publish a mission and return every answer (NOT_ADDRESSED ones too)."""
+        self.send_mission(mission, timeout_s=timeout_s)
+        return self._acks(AckRef.MISSION, mission.mission_id)
 
     def expected(self, target: Selector) -> set[int] | None:
         """Who must answer: a list of ids is taken as given (a fresh ground station
@@ -272,42 +393,29 @@ class GroundStation:
             return {i for i in found if self.view.type_of(i) != VehicleType.GCS}
 
     def zone(self, zone: NoFlyZone) -> None:
-        """Publish a zone once (see `declare_zone` to know who holds it)."""
+        """Publish a zone once (see `send_zone` for every vehicle's answer)."""
+        if zone.issuer_id != self.gcs_id:
+            zone = msgspec.structs.replace(zone, issuer_id=self.gcs_id)
         validate(zone)
         self.bus.publish(zone)
 
     def declare_zone(
         self, zone: NoFlyZone, *, expect: Iterable[int] | None = None, timeout_s: float = 10.0
     ) -> set[int]:
-        """Publish a zone, again every `repeat_s`, until every expected vehicle (default:
-        the vehicles discovered alive) holds it, as each one's zones queryable shows;
-        returns the ids of the vehicles that confirmed holding it (this very zone, or
-        its withdrawal)."""
-        validate(zone)
-        given = expect is not None
-        expected = set(expect) if expect is not None else self.discover()
-        end = time.monotonic() + timeout_s
-        confirmed: set[int] = set()
-        while True:
-            if not given:  # vehicles heard since (a slow discovery on a loaded host)
-                with self._lock:
-                    expected |= set(self.view.vehicle_ids())
-            self.bus.publish(zone)
-            left = end - time.monotonic()
-            wait_end = time.monotonic() + min(self.repeat_s, max(left, 0.0))
-            while True:
-                confirmed |= self.holders(zone, timeout_s=1.0)
-                if expected and expected <= confirmed:
-                    return confirmed
-                if time.monotonic() >= wait_end:
-                    break
-                time.sleep(0.1)
-            if time.monotonic() >= end:
-                return confirmed
+        """Publish a zone until every expected vehicle (default: every vehicle alive)
+        acknowledged it; returns the ids of the vehicles that hold it."""
+        target = Selector.ids(*sorted(set(expect))) if expect else None
+        out = self.send_zone(zone, target, timeout_s=timeout_s)
+        return {r.vehicle_id for r in out.rows if r.verdict == Verdict.ACCEPTED}
 
     def holders(self, zone: NoFlyZone, timeout_s: float = 1.0) -> set[int]:
-        """The vehicles whose zones queryable answers with exactly this zone."""
-        return {vid for vid, z in self.zones_held(zone.zone_id, timeout_s).items() if z == zone}
+        """The vehicles whose zones queryable answers with this zone (issuer aside)."""
+        want = msgspec.structs.replace(zone, issuer_id=0)
+        return {
+            vid
+            for vid, z in self.zones_held(zone.zone_id, timeout_s).items()
+            if msgspec.structs.replace(z, issuer_id=0) == want
+        }
 
     def zones_held(self, zone_id: int, timeout_s: float = 1.0) -> dict[int, NoFlyZone]:
         """Each vehicle's copy of one zone, as its zones queryable answers."""
@@ -336,6 +444,63 @@ class GroundStation:
             fleets = {v: self.view.status[v].fleet_id for v in self.view.status}
         found = {v for v in ids if target.addresses(v, fleets.get(v, 0))}
         return found or None
+
+    def reachable(self, timeout_s: float = 3.0) -> bool:
+        """Whether this session reached any other Zenoh node (a router or a peer)
+        within `timeout_s`: an unreachable --connect must not look like an empty
+        swarm (issue 15)."""
+        end = time.monotonic() + timeout_s
+        while True:
+            info = self.bus.session.info
+            if list(info.routers_zid()) or list(info.peers_zid()):
+                return True
+            if time.monotonic() >= end:
+                return False
+            time.sleep(0.05)
+
+    def all_zones(self, timeout_s: float = 2.0) -> dict[int, dict[int, NoFlyZone]]:
+        """Every vehicle's zones (withdrawn ones too), as their zones queryables answer:
+        {vehicle id: {zone id: zone}}."""
+        return self._held(ZONES.key(self.swarm), ZONES, "zone_id", NoFlyZone, timeout_s)
+
+    def missions_held(self, timeout_s: float = 2.0) -> dict[int, dict[int, Mission]]:
+        """Every vehicle's accepted missions, as their missions queryables answer."""
+        return self._held(MISSIONS.key(self.swarm), MISSIONS, "mission_id", Mission, timeout_s)
+
+    def _held(self, key: str, topic: Any, id_name: str, kind: type[T], timeout_s: float
+              ) -> dict[int, dict[int, T]]:  # fmt: skip
+        """Every vehicle's replies on a queryable. A fresh session learns the peers'
+        queryables within a moment: asked again (every 0.2 s) until every vehicle alive
+        has answered, or `timeout_s`."""
+        held: dict[int, dict[int, T]] = {}
+        answered: set[int] = set()
+        end = time.monotonic() + timeout_s
+        while True:
+            left = end - time.monotonic()
+            alive = {k.vehicle_id for k in self.known() if k.alive}
+            self._held_once(key, topic, id_name, kind, max(0.2, min(left, 1.0)), held, answered)
+            if (alive and alive <= answered) or time.monotonic() >= end:
+                return held
+            time.sleep(0.2)
+
+    def _held_once(self, key: str, topic: Any, id_name: str, kind: type[T], timeout_s: float,
+                   held: dict[int, dict[int, T]], answered: set[int]) -> None:  # fmt: skip
+        try:
+            replies = list(self.bus.session.get(key, timeout=timeout_s))
+        except Exception:  # a closed session
+            return
+        for reply in replies:
+            if reply.ok is None:
+                continue
+            params = topic.parse(self.swarm, str(reply.ok.key_expr))
+            if params is None or not params["vehicle_id"].isdigit():
+                continue
+            try:
+                item = lan.decode(reply.ok.payload.to_bytes(), kind)
+            except DecodeError:
+                continue
+            held.setdefault(int(params["vehicle_id"]), {})[int(getattr(item, id_name))] = item
+            answered.add(int(params["vehicle_id"]))
 
     def peers_of(self, node_id: int, timeout_s: float = 2.0) -> SwarmView | None:
         for reply in self.bus.session.get(

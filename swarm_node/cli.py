@@ -63,7 +63,13 @@ def run(
     logging.basicConfig(
         level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
-    try:
+    try:  # one endpoint syntax: Zenoh's and MAVLink's spellings both read (issue 15)
+        from swarm_proto.endpoints import mavlink_endpoint, zenoh_endpoint
+
+        connect = [zenoh_endpoint(e) for e in connect]
+        listen = [zenoh_endpoint(e) for e in listen]
+        if autopilot and autopilot.startswith("tcp/"):
+            autopilot = mavlink_endpoint(autopilot)
         cfg = load_config(
             config,
             node_id=node_id,

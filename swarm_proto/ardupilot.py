@@ -65,6 +65,28 @@ def vehicle_type_from_mav_type(mav_type: int) -> VehicleType:
     return _MAV_TYPE_TO_VEHICLE.get(mav_type, VehicleType.OTHER)
 
 
+#: HEARTBEAT vehicle types an autopilot paired with a node of each identity may report
+#: (a QuadPlane reports FIXED_WING, so a VTOL node takes a PLANE or a VTOL autopilot)
+FITS: dict[VehicleType, frozenset[VehicleType]] = {
+    VehicleType.PLANE: frozenset({VehicleType.PLANE}),
+    VehicleType.VTOL: frozenset({VehicleType.PLANE, VehicleType.VTOL}),
+    VehicleType.COPTER: frozenset({VehicleType.COPTER}),
+    VehicleType.ROVER: frozenset({VehicleType.ROVER}),
+    VehicleType.BOAT: frozenset({VehicleType.BOAT}),
+}
+
+
+def autopilot_mismatch(identity: VehicleType, mav_type: int) -> str | None:
+    """Why an autopilot whose HEARTBEAT says `mav_type` does not fit a node whose
+    identity (swarm database) is `identity`, or None when it fits or cannot be told
+    (no HEARTBEAT yet, a MAV_TYPE this table does not know, a GCS or manned identity)."""
+    seen = vehicle_type_from_mav_type(mav_type)
+    allowed = FITS.get(identity)
+    if mav_type == 0 or seen == VehicleType.OTHER or allowed is None or seen in allowed:
+        return None
+    return f"autopilot is {seen.name} (MAV_TYPE {mav_type}), identity {identity.name}"
+
+
 def mode_name(vehicle_type: VehicleType, number: int) -> str:
     """The mode's name, or "MODE(n)" when this vehicle type has no such mode."""
     return MODES.get(vehicle_type, {}).get(number, f"MODE({number})")

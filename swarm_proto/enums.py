@@ -68,6 +68,7 @@ class AlertFlag(IntFlag):
     COLLISION_RISK = 1 << 7
     SWARM_LINK_LOSS = 1 << 8
     NO_FLY_ZONE = 1 << 9
+    AUTOPILOT_MISMATCH = 1 << 10  # the autopilot is not the vehicle type the node is
 
 
 class Severity(IntEnum):
@@ -101,6 +102,7 @@ class AlertCode(IntEnum):
     MALFORMED_INPUT = 16  # a peer sent something we could not decode
     CONDITION_CLEARED = 17
     MISSION_CANCELLED = 18  # the operator cancelled the mission (not a failure)
+    AUTOPILOT_MISMATCH = 19  # the autopilot's HEARTBEAT type is not the node's vehicle type
 
 
 class CommandKind(IntEnum):

@@ -35,6 +35,7 @@ from .enums import (
 )
 from .units import (
     AltitudeM,
+    AngleDeg,
     DistanceM,
     DurationS,
     Fixed,
@@ -253,6 +254,13 @@ class VehicleInfo(Struct, frozen=True):
     members_hash: Annotated[int, Meta(ge=0, le=0xFFFF, description="roster hash, 0 = none")] = 0
     mission_progress_m: DistanceM = 0.0  # metres of this vehicle's share flown
     mission_path_m: DistanceM = 0.0  # length of this vehicle's share
+    # appended (issue 15): the ground station's flight display (`gcs vehicle ID`, the
+    # paper's PFD) and the autopilot the node is paired with, as its HEARTBEAT says
+    roll_deg: AngleDeg = 0.0
+    pitch_deg: AngleDeg = 0.0
+    sensors_present: Annotated[int, Meta(ge=0, le=2**32 - 1, description="SYS_STATUS bits")] = 0
+    sensors_health: Annotated[int, Meta(ge=0, le=2**32 - 1, description="SYS_STATUS bits")] = 0
+    mav_type: Uint8 = 0  # the autopilot's HEARTBEAT type (MAV_TYPE), 0 = not heard
 
 
 # --------------------------------------------------------------------------- control
@@ -430,6 +438,9 @@ class NoFlyZone(Struct, frozen=True):
     active: bool = True
     name: Name = ""
     operating_area: bool = False  # True: keep in (an operating area), not keep out
+    # appended (issue 15): who declared it; each vehicle acknowledges the zone to it
+    # (Ack ref ZONE, ref_id the zone id); 0 = nobody to answer (e.g. an older sender)
+    issuer_id: OptVehicleId = 0
 
     def __post_init__(self) -> None:
         if self.geometry.kind not in (GeometryKind.POLYGON, GeometryKind.CIRCLE):

@@ -239,6 +239,14 @@ ZONES = Topic(
     "too), one NoFlyZone reply per zone on its own key; a (re)started node and the "
     "ground station ask it (`vehicle/*/zones/*`). LAN only.",
 )
+MISSIONS = Topic(
+    "missions",
+    "vehicle/{vehicle_id}/missions/{mission_id}",
+    None,
+    "Queryable: the missions the node accepted (the one in force is VehicleInfo's "
+    "`mission_id`), one Mission reply per mission on its own key; the ground station's "
+    "`gcs save` asks it (`vehicle/*/missions/*`). LAN only.",
+)
 DATABASE = Topic(
     "database",
     "db/{node_id}",
@@ -269,6 +277,7 @@ TOPICS: tuple[Topic, ...] = (
     ALIVE,
     PEERS,
     ZONES,
+    MISSIONS,
     DATABASE,
     RADIO_STATS,
 )

@@ -85,6 +85,7 @@ NAMED: dict[str, tuple[str, ...]] = {
         "core_cpu_pct_at_peers/peers_1000",
         "real_processes_cpu_pct/nodes_10",
     ),
+    "gcs": ("rtl_all_ms/10", "rtl_all_ms/25", "rtl_all_ms/50", "raw_zenoh_ms/10", "nodes/50"),
     "separation": (
         "avoid_cpu_us_per_tick/peers_10",
         "avoid_cpu_us_per_tick/peers_50",

@@ -71,7 +71,7 @@ def _set_fleet(
     wait = ["--timeout", str(timeout_s)]
     return s.lab.run(
         s.gcs,
-        s.gcs_argv("cmd", "set-fleet", "--fleet-id", "4", *ids, *wait, who=who),
+        s.gcs_argv("cmd", "set-fleet", "--fleet-id", "4", *ids, *wait, "--json", who=who),
         s.env,
     )
 
@@ -101,8 +101,8 @@ def test_discovery_and_a_command_with_its_acks(lab: SwarmLab) -> None:
     assert sorted(r["id"] for r in rows if r["alive"]) == list(VEHICLES), _logs(lab)
     r = _set_fleet(lab)
     assert r.returncode == 0, r.stdout + r.stderr + _logs(lab)
-    answered = [line.split() for line in r.stdout.splitlines() if " OK " in line]
-    assert sorted(int(cols[1]) for cols in answered) == list(VEHICLES), r.stdout
+    answered = [v["id"] for v in json.loads(r.stdout)["vehicles"] if v["reason"] == "OK"]
+    assert sorted(answered) == list(VEHICLES), r.stdout
     router_log = (lab.lab.logdir / "router.log").read_text()
     # the router keeps the multicast scouting router.json5 enables
     assert "multicast scouting on" in router_log
@@ -123,7 +123,8 @@ def test_tls_only_the_ground_station_commands(tls_lab: SwarmLab) -> None:
     # a vehicle's certificate (used from the ground station's host): it connects, but
     # its command is not delivered: no vehicle answers (waited for 2 s, not the default 5)
     r = _set_fleet(s, who="vehicle-2", timeout_s=2.0)
-    assert r.returncode == 1 and "no answer" in r.stdout, r.stdout + r.stderr
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert {v["answer"] for v in json.loads(r.stdout)["vehicles"]} == {"no answer"}, r.stdout
     # certificates of another CA (even one named gcs-900): no connection at all
     from swarm_node.certs import make_swarm_certs
 
@@ -134,7 +135,7 @@ def test_tls_only_the_ground_station_commands(tls_lab: SwarmLab) -> None:
         "--connect", "tls/10.77.1.1:7447", "cmd", "set-fleet", "--fleet-id", "5", "--id", "1",
     ]  # fmt: skip
     r = s.lab.run(s.gcs, argv, s.env)
-    assert r.returncode == 2 and "cannot open Zenoh" in r.stdout, r.stdout + r.stderr
+    assert r.returncode == 2 and "cannot open Zenoh" in r.stderr, r.stdout + r.stderr
     time.sleep(0.5)
     log = (s.lab.logdir / "router.log").read_text()
     assert "CertCommonName(vehicle-2)" in log

@@ -7,8 +7,9 @@ duplicate-free.
 - Only topics whose radio policy is on air cross, with that policy's class, rate,
   latest-only and acknowledgement settings.
 - Only messages originated locally go on air: their originator field (vehicle_id,
-  issuer_id, voter_id, source_id) is one of `local_ids`; a message type without one
-  (NoFlyZone) goes on air if `forward_unattributed`.
+  issuer_id, voter_id, source_id) is one of `local_ids`; a message without one (a
+  NoFlyZone from a sender older than its issuer_id: 0) goes on air if
+  `forward_unattributed`.
 - A gateway marks what it republishes with an attachment (`RADIO_ATTACHMENT`); no gateway
   forwards a marked sample, so nothing loops between radio and LAN.
 - Every message seen on the LAN or heard on air is remembered by the hash of its radio
@@ -44,9 +45,11 @@ ORIGINATOR_FIELDS = ("vehicle_id", "issuer_id", "voter_id", "source_id")
 
 
 def originator(msg: msgspec.Struct) -> int | None:
+    """Who sent it; None when it does not say (0 is no node: a NoFlyZone from a sender
+    older than its `issuer_id`)."""
     for name in ORIGINATOR_FIELDS:
         value = getattr(msg, name, None)
-        if isinstance(value, int):
+        if isinstance(value, int) and value:
             return value
     return None
 

@@ -39,6 +39,7 @@ from swarm_proto import (
     SelectorKind,
     VehicleType,
 )
+from swarm_proto.text import short_text
 
 from .autopilot.plans import CALIBRATIONS
 from .autopilot.requests import (
@@ -146,7 +147,7 @@ class CommandPlan:
 def _ack(
     cmd: Command, view: NodeView, ok: bool, reason: AckReason = AckReason.OK, text: str = ""
 ) -> Ack:
-    return Ack(view.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, text[:64])
+    return Ack(view.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, short_text(text))
 
 
 def _land_request(profile: VehicleProfile) -> tuple[ApRequest, ...]:
@@ -458,4 +459,4 @@ class CommandTracker:
         return min(r.deadline for r in self._running.values())
 
     def _ack(self, cmd: Command, ok: bool, reason: AckReason, text: str) -> Ack:
-        return Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, text[:64])
+        return Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, short_text(text))

@@ -33,6 +33,7 @@ from swarm_proto import (
     NoFlyZone,
     VehicleType,
 )
+from swarm_proto.text import short_text
 
 from . import state_machine as fsm
 from .autopilot.items import ItemKind, Waypoint
@@ -356,7 +357,7 @@ class MissionManager:
 
     def _failed(self, mid: int, reason: str) -> list[Out]:
         self.sortie.go(Trigger.FAILED)
-        return [Post(fsm.PlanFailed(mid, reason[:64]))]
+        return [Post(fsm.PlanFailed(mid, short_text(reason)))]
 
     def _timed_hold(self, waypoints: Sequence[Waypoint], duration_s: float | None) -> None:
         """A mission with a duration that holds on an unlimited loiter (a fixed-wing's
@@ -576,7 +577,7 @@ class MissionManager:
                 return self._next()
             if phase == Phase.STARTING:
                 self.stop(Trigger.FAILED)
-                return [Post(fsm.PlanFailed(mid, f"autopilot: {result.reason}"[:64]))]
+                return [Post(fsm.PlanFailed(mid, short_text(f"autopilot: {result.reason}")))]
             self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
         if self.phase == Phase.STARTING and not self._steps:

@@ -28,7 +28,10 @@ from swarm_proto import (
     GpsFix,
     NoFlyZone,
     Severity,
+    VehicleType,
 )
+from swarm_proto.ardupilot import autopilot_mismatch
+from swarm_proto.text import short_text
 
 from .autopilot.state import AutopilotState
 from .profile import VehicleProfile
@@ -85,6 +88,15 @@ SPECS: dict[AlertCode, ConditionSpec] = {
             AlertFlag.AUTOPILOT_LINK_LOSS,
             Severity.EMERGENCY,
             Severity.CRITICAL,
+            immediate=True,
+        ),
+        # the autopilot is not the vehicle the swarm database says (a quadcopter's node
+        # on a QuadPlane): not ready, so every mission is refused with the reason
+        ConditionSpec(
+            AlertCode.AUTOPILOT_MISMATCH,
+            AlertFlag.AUTOPILOT_MISMATCH,
+            Severity.WARNING,
+            Severity.WARNING,
             immediate=True,
         ),
         ConditionSpec(
@@ -147,6 +159,8 @@ class VehicleMonitor:
     _started: float | None = None
     _breach_text: str | None = None
     ready: bool = False
+    vehicle_type: VehicleType | None = None  # the node's identity (None: not checked)
+    _mismatch_text: str | None = None
 
     # ------------------------------------------------------------------ conditions
     def _observe(self, s: AutopilotState, now: float) -> set[AlertCode]:
@@ -160,6 +174,11 @@ class VehicleMonitor:
             if self._had_link or now - self._started >= t.link_grace_s:
                 seen.add(AlertCode.AUTOPILOT_LINK_LOSS)
             return seen  # everything else is stale while the link is down
+        self._mismatch_text = (
+            autopilot_mismatch(self.vehicle_type, s.mav_type) if self.vehicle_type else None
+        )
+        if self._mismatch_text:
+            seen.add(AlertCode.AUTOPILOT_MISMATCH)
         if 0 <= s.battery_pct <= t.battery_critical_pct:
             seen.add(AlertCode.BATTERY_CRITICAL)
         elif 0 <= s.battery_pct <= t.battery_low_pct:
@@ -221,6 +240,8 @@ class VehicleMonitor:
                 if due and (not tr.active or severity > tr.severity):
                     tr.active, tr.severity = True, severity
                     text = _describe(code, s)
+                    if code == AlertCode.AUTOPILOT_MISMATCH and self._mismatch_text:
+                        text = self._mismatch_text
                     if code == AlertCode.GEOFENCE_BREACH and self._breach_text:
                         text = f"{self._breach_text} at {s.lat_deg:.6f},{s.lon_deg:.6f} {s.alt_msl_m or 0:.0f} m"
                     out.append(self._alert(now, severity, code, text))
@@ -244,12 +265,30 @@ class VehicleMonitor:
             and s.gps_fix >= GpsFix.FIX_3D
             and s.ekf_ok
             and s.home is not None
+            and AlertCode.AUTOPILOT_MISMATCH not in seen
             and all(tr.severity < Severity.CRITICAL for tr in self._tracked.values() if tr.active)
         )
         return out
 
+    def not_ready_text(self, s: AutopilotState) -> str:
+        """Why the vehicle is not ready (the first reason, for people: the text of a
+        NOT_READY answer), or "" when it is."""
+        if not s.link_ok:
+            return "autopilot link down"
+        if self._mismatch_text:
+            return self._mismatch_text
+        if s.gps_fix < GpsFix.FIX_3D:
+            return f"no 3-D GPS fix ({s.gps_fix.name}, {s.gps_sats} sats)"
+        if not s.ekf_ok:
+            return "EKF estimate not good yet"
+        if s.home is None:
+            return "autopilot has no home yet"
+        critical = [c.name for c, tr in self._tracked.items()
+                    if tr.active and tr.severity >= Severity.CRITICAL]  # fmt: skip
+        return f"critical: {', '.join(critical)}" if critical else ""
+
     def _alert(self, now: float, severity: Severity, code: AlertCode, text: str) -> Alert:
-        return Alert(self.vehicle_id, max(0.0, now), severity, code, text[:64])
+        return Alert(self.vehicle_id, max(0.0, now), severity, code, short_text(text))
 
     # ------------------------------------------------------------------ views
     @property

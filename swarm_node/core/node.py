@@ -74,6 +74,7 @@ from swarm_proto import (
     VehicleStatus,
     Vote,
 )
+from swarm_proto.text import short_text
 
 from . import state_machine as fsm
 from .arbiter import AutopilotArbiter, Routed
@@ -198,8 +199,9 @@ class NodeCore:
         self.self_id = vid
         self.autopilot = AutopilotState()
         self.monitor = VehicleMonitor(
-            vid, self.settings.thresholds or Thresholds.from_profile(self.profile)
-        )
+            vid, self.settings.thresholds or Thresholds.from_profile(self.profile),
+            vehicle_type=self.profile.vehicle_type,  # an autopilot of another type is flagged
+        )  # fmt: skip
         self.members = SwarmMembership(
             vid,
             stale_after_s=self.settings.stale_after_s,
@@ -287,6 +289,11 @@ class NodeCore:
             members_hash=self.roster.members_hash,
             mission_progress_m=_clamp(self.manager.sortie.progress_m, 0.0, 1.0e6),
             mission_path_m=_clamp(self.manager.sortie.path_m, 0.0, 1.0e6),
+            roll_deg=_clamp(self.autopilot.roll_deg, -180.0, 180.0),
+            pitch_deg=_clamp(self.autopilot.pitch_deg, -180.0, 180.0),
+            sensors_present=self.autopilot.sensors_present & 0xFFFFFFFF,
+            sensors_health=self.autopilot.sensors_health & 0xFFFFFFFF,
+            mav_type=self.autopilot.mav_type & 0xFF,
         )
 
     # ------------------------------------------------------------------ inputs
@@ -356,7 +363,7 @@ class NodeCore:
                 return [
                     Note(logging.ERROR, text),
                     Publish(Alert(self.self_id, max(0.0, now), Severity.CRITICAL,
-                                  AlertCode.GENERIC, text[:64])),
+                                  AlertCode.GENERIC, short_text(text))),
                 ]  # fmt: skip
             case Owner.AVOIDANCE:
                 return self._unhandled("avoidance", "avoidance result (no avoidance yet)")
@@ -394,9 +401,10 @@ class NodeCore:
                     return self.changes.on_quantity(msg, now)
                 return self._on_mission(msg)
             case NoFlyZone():
+                held = self.monitor.zones.get(msg.zone_id)
                 self.monitor.zones[msg.zone_id] = msg
                 self._zones_version += 1
-                return self._keep_fence(now)
+                return self._zone_ack(msg, held) + self._keep_fence(now)
             case FleetAssignment():
                 return self._on_fleet(msg)
             case Vote() | TargetReport():  # the vote, re-tasking (mission/tasking.py)
@@ -409,6 +417,21 @@ class NodeCore:
                 return []
             case _:
                 return self._unhandled(type(msg).__name__, f"message {type(msg).__name__}")
+
+    def _zone_ack(self, zone: NoFlyZone, held: NoFlyZone | None) -> list[ModuleOutput]:
+        """Answer the zone's issuer (a repeat too): held, or for a withdrawal of a zone
+        this vehicle never held, NOT_FOUND (the withdrawal is kept all the same)."""
+        if not zone.issuer_id:
+            return []
+        if zone.active:
+            ok, text = True, "operating area held" if zone.operating_area else "held"
+        elif held is None:
+            ok, text = False, f"zone {zone.zone_id} was not held"
+        else:
+            ok, text = True, "withdrawn" if held.active else "already withdrawn"
+        reason = AckReason.OK if ok else AckReason.NOT_FOUND
+        ack = Ack(self.self_id, zone.issuer_id, AckRef.ZONE, zone.zone_id, ok, reason, text)
+        return [Publish(ack)]
 
     def _answer(self, acks: list[Ack]) -> list[ModuleOutput]:
         for a in acks:
@@ -443,7 +466,7 @@ class NodeCore:
                     )
                 except (PlanningError, ValueError) as exc:
                     ack = Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, False,
-                              AckReason.INVALID, f"no landing route: {exc}"[:64])  # fmt: skip
+                              AckReason.INVALID, short_text(f"no landing route: {exc}"))  # fmt: skip
                     return self._answer([ack])
         for effect in plan.effects:
             self._apply(effect)
@@ -482,7 +505,9 @@ class NodeCore:
             return repeat
         reason = check_mission(mission, self.view())
         ok = reason == AckReason.OK
-        ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason)
+        why = self._not_ready_text() if reason == AckReason.NOT_READY else ""
+        ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason,
+                  short_text(why))  # fmt: skip
         # only an acceptance is remembered: a rejected mission sent again is checked again
         # (the operator may have fixed what was wrong, e.g. set the base; a vehicle may
         # have joined the fleet the mission addresses)
@@ -492,6 +517,12 @@ class NodeCore:
             self.missions[mission.mission_id] = mission
             self.fsm.post(fsm.NewMission(mission.mission_id))
         return out
+
+    def _not_ready_text(self) -> str:
+        why = self.monitor.not_ready_text(self.autopilot)
+        if why or self.fsm.state != FsmState.INACTIVE:
+            return why
+        return "shut down: send activate" if not self.active else "state machine not started"
 
     def _on_fleet(self, msg: FleetAssignment) -> list[ModuleOutput]:
         if self.self_id in msg.vehicle_ids:
@@ -538,7 +569,7 @@ class NodeCore:
             out += [
                 Note(logging.WARNING, text),
                 Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
-                              AlertCode.NO_FLY_ZONE, text[:64])),
+                              AlertCode.NO_FLY_ZONE, short_text(text))),
             ]  # fmt: skip
         return out + [Submit(r, Owner.FENCE) for r in self.fence.update(plan.request, now)]
 
@@ -549,7 +580,7 @@ class NodeCore:
             out += [
                 Note(logging.WARNING, f"{problem}; retrying every {self.fence.retry_s:g} s"),
                 Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
-                              AlertCode.NO_FLY_ZONE, problem[:64])),
+                              AlertCode.NO_FLY_ZONE, short_text(problem))),
             ]  # fmt: skip
         return out
 
@@ -687,7 +718,7 @@ class NodeCore:
 
     def _carry_out(self, o: fsm.Output, now: float) -> list[ModuleOutput]:
         if isinstance(o, fsm.RaiseAlert):
-            return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, o.text[:64]))]
+            return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, short_text(o.text)))]
         if isinstance(o, fsm.StartEmergency):
             self.manager.stop()
             alert = Alert(
@@ -783,7 +814,7 @@ class NodeCore:
         members, unknown = self._members()
         if unknown:
             self.fsm.post(
-                fsm.PlanFailed(mission_id, f"no profile for fleet members {unknown}"[:64])
+                fsm.PlanFailed(mission_id, short_text(f"no profile for fleet members {unknown}"))
             )
             return [
                 Note(logging.ERROR, f"cannot plan mission {mission_id}: no profile for {unknown}")

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 from swarm_proto import AlertCode, FsmState, Severity
+from swarm_proto.text import short_text
 
 TICK_S = 0.2  # 5 Hz
 
@@ -390,7 +391,7 @@ RULES: tuple[Rule, ...] = (
             RaiseAlert(
                 AlertCode.MISSION_FAILED,
                 Severity.WARNING,
-                f"left the mission: {getattr(c.event, 'reason', '')}"[:64],
+                short_text(f"left the mission: {getattr(c.event, 'reason', '')}"),
             ),
             FollowOperator(c.mission_id, getattr(c.event, "reason", "")),
         ),
@@ -430,7 +431,7 @@ RULES: tuple[Rule, ...] = (
         guard=_is_current,
         outputs=lambda c: (
             RaiseAlert(
-                AlertCode.PLAN_FAILED, Severity.WARNING, getattr(c.event, "reason", "")[:64]
+                AlertCode.PLAN_FAILED, Severity.WARNING, short_text(getattr(c.event, "reason", ""))
             ),
             LeaveFleet("planning failed"),
             ReturnHome("planning failed"),

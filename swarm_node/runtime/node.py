@@ -36,6 +36,7 @@ from swarm_proto.topics import (
     INFO,
     LINEAGE,
     MISSION,
+    MISSIONS,
     PEERS,
     STATUS,
     TARGET,
@@ -216,6 +217,7 @@ class NodeRuntime:
             bus.on_bad_input = self._bad_input
         self._queryable: zenoh.Queryable | None = None
         self._zones_queryable: zenoh.Queryable | None = None
+        self._missions_queryable: zenoh.Queryable | None = None
         self._ask_zones: queue.SimpleQueue[int | None] = queue.SimpleQueue()
         self._zone_asker: threading.Thread | None = None
         self.database = database
@@ -259,6 +261,16 @@ class NodeRuntime:
             key = ZONES.key(self.config.swarm, vehicle_id=self.core.self_id, zone_id=z.zone_id)
             if zenoh.KeyExpr(key).intersects(query.key_expr):
                 query.reply(key, lan.encode(z))
+
+    def _answer_missions(self, query: zenoh.Query) -> None:
+        """Every mission this node accepted, one reply per mission key (gcs save)."""
+        with self._lock:
+            missions = list(self.core.missions.values())
+        for m in missions:
+            key = MISSIONS.key(self.config.swarm, vehicle_id=self.core.self_id,
+                               mission_id=m.mission_id)  # fmt: skip
+            if zenoh.KeyExpr(key).intersects(query.key_expr):
+                query.reply(key, lan.encode(m))
 
     def _zone_asking(self) -> None:
         """Ask each peer that comes alive which zones it holds: a node started after a
@@ -323,6 +335,9 @@ class NodeRuntime:
         self._zone_asker.start()
         self._zones_queryable = self.bus.session.declare_queryable(
             ZONES.key(self.config.swarm, vehicle_id=self.core.self_id), self._answer_zones
+        )
+        self._missions_queryable = self.bus.session.declare_queryable(
+            MISSIONS.key(self.config.swarm, vehicle_id=self.core.self_id), self._answer_missions
         )
         self.bus.watch_alive(self._alive)
         self.bus.declare_alive(self.core.self_id)
@@ -415,13 +430,13 @@ class NodeRuntime:
             self._ask_zones.put(None)
             self._zone_asker.join(3.0)
             self._zone_asker = None
-        for q in (self._queryable, self._zones_queryable):
+        for q in (self._queryable, self._zones_queryable, self._missions_queryable):
             if q is not None:
                 try:
                     q.undeclare()
                 except Exception:
                     log.debug("queryable undeclare failed", exc_info=True)
-        self._queryable = self._zones_queryable = None
+        self._queryable = self._zones_queryable = self._missions_queryable = None
         self.bus.close()
         self.autopilot.close()
         if self.database is not None:

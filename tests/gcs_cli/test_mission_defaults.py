@@ -41,7 +41,8 @@ def send_mission(router: str, swarm: str, *args: str) -> tuple[Mission, str]:
         t = threading.Thread(target=announce, daemon=True)
         t.start()
         try:
-            r = runner.invoke(app, ["--connect", router, "--swarm", swarm, "mission", *args])
+            r = runner.invoke(app, ["--connect", router, "--swarm", swarm, "mission", *args,
+                                   "--yes"])  # fmt: skip
         finally:
             stop.set()
             t.join()

@@ -171,7 +171,10 @@ def test_only_locally_originated_on_air_topics_go_on_air() -> None:
     stats = RadioStats(node_id=1, time_unix_s=T)
     assert b.from_lan(*_lan(stats), T) is None  # LAN-only topic
     zone = NoFlyZone(zone_id=4, geometry=Geometry.circle(37.4, -5.9, 100.0))
-    assert b.from_lan(*_lan(zone), T) is not None  # no originator field: forwarded
+    assert b.from_lan(*_lan(zone), T) is not None  # no originator (issuer 0): forwarded
+    gcs_zone = NoFlyZone(zone_id=5, geometry=Geometry.circle(37.4, -5.9, 100.0), issuer_id=900)
+    assert b.from_lan(*_lan(gcs_zone), T) is None  # a ground station's: its own gateway sends it
+    assert Bridge("default", 900, frozenset({900})).from_lan(*_lan(gcs_zone), T) is not None
     assert (
         Bridge("default", 1, frozenset({1}), forward_unattributed=False).from_lan(*_lan(zone), T)
         is None

@@ -1,0 +1,291 @@
+"""Pictures and flight records: `gcs plot` draws a plan (each vehicle's share as the
+nodes plan it, the zones, the base, the homes) and, from a flight recorder CSV, the
+tracks flown, to a PNG (matplotlib); `gcs record` writes that CSV from the live
+telemetry (swarm_proto/trajectory.py's format, so `gcs analyze separation` reads it
+too).
+
+The plan is recomputed here with the nodes' own planner (`plan_fleet`: the mission,
+the members' database profiles sorted by id, their homes, the zones in force), which
+is what every member computes and keeps its share of (docs/node.md); the ground
+station uses the first member's home altitude for the zones' heights, as a node uses
+its own."""
+
+from __future__ import annotations
+
+import math
+import queue
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import typer
+
+from swarm_proto import GeometryKind, Mission, NoFlyZone, VehicleStatus
+from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter, read_trajectory
+
+from .cli import _shown, app, console, wait_option
+from .options import AllOption, FleetOption, IdsOption
+from .recovery import StateFileError, SwarmState, collect, read_state
+
+R_EARTH_M = 6_371_008.8
+
+
+@dataclass
+class Frame:
+    """A local east/north frame in metres around a centre (plenty for a field)."""
+
+    lat0: float
+    lon0: float
+
+    def xy(self, lat: float, lon: float) -> tuple[float, float]:
+        x = math.radians(lon - self.lon0) * R_EARTH_M * math.cos(math.radians(self.lat0))
+        return x, math.radians(lat - self.lat0) * R_EARTH_M
+
+
+def vehicle_colors(ids: Sequence[int]) -> dict[int, tuple[float, float, float]]:
+    """One tab10 color per vehicle id (sorted), the same in every picture of a run."""
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10"]
+    return {vid: tuple(cmap(i % 10)[:3]) for i, vid in enumerate(sorted(ids))}  # type: ignore[misc]
+
+
+def plan_shares(state: SwarmState, mission: Mission) -> dict[int, list[tuple[float, float]]]:
+    """Each member's planned share (lat, lon points) of a mission in force, planned as
+    the nodes plan it; {} when the members' profiles or homes are unknown."""
+    from swarm_node.core.mission.share import Member, plan_fleet
+    from swarm_node.database import SwarmDatabase
+    from swarm_node.database.paths import resolve_db_path
+
+    ids = state.members(mission.mission_id)
+    homes = {v.vehicle_id: v.home for v in state.vehicles}
+    with SwarmDatabase.open(resolve_db_path(None)) as db:
+        members = [Member(db.vehicle_profile(vid), homes.get(vid)) for vid in ids]
+    first_home = next((h for h in (homes.get(v) for v in ids) if h is not None), None)
+    zones = [z for z in state.zones if z.active and not z.operating_area]
+    plan = plan_fleet(mission, members, zones, state.saved_unix_s or time.time(),
+                      first_home.alt_msl_m if first_home else 0.0)  # fmt: skip
+    return {vid: [(w.lat_deg, w.lon_deg) for w in share.waypoints if w.lat_deg or w.lon_deg]
+            for vid, share in plan.shares.items()}  # fmt: skip
+
+
+def draw(
+    out: Path,
+    state: SwarmState | None,
+    track: Trajectory | None,
+    *,
+    shares: dict[int, list[tuple[float, float]]] | None = None,
+    title: str = "",
+) -> dict[str, int]:
+    """Draw and save the picture; returns what was drawn (for the command's summary)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle, Polygon
+
+    pts: list[tuple[float, float]] = []
+    zones: list[NoFlyZone] = list(state.zones) if state else []
+    missions = list(state.missions) if state else []
+    shares = shares or {}
+    for z in zones:
+        pts += [(p.lat_deg, p.lon_deg) for p in z.geometry.points]
+    for m in missions:
+        pts += [(p.lat_deg, p.lon_deg) for p in m.geometry.points]
+    for s in shares.values():
+        pts += s
+    if track is not None:
+        pts += list(zip(track.lat.tolist(), track.lon.tolist(), strict=True))
+    if state is not None:
+        pts += [(v.home.lat_deg, v.home.lon_deg) for v in state.vehicles if v.home]
+        if state.base:
+            pts.append((state.base.lat_deg, state.base.lon_deg))
+    if not pts:
+        raise ValueError("nothing to draw")
+    frame = Frame(sum(p[0] for p in pts) / len(pts), sum(p[1] for p in pts) / len(pts))
+    ids = sorted(set(shares) | set(track.vehicles if track is not None else [])
+                 | {v.vehicle_id for v in (state.vehicles if state else [])})  # fmt: skip
+    colors = vehicle_colors(ids)
+    fig, ax = plt.subplots(figsize=(8, 8), dpi=100)
+    drawn = {"zones": 0, "missions": 0, "shares": 0, "tracks": 0}
+    for m in missions:
+        g = m.geometry
+        xy = [frame.xy(p.lat_deg, p.lon_deg) for p in g.points]
+        if g.kind == GeometryKind.POLYGON:
+            ax.add_patch(Polygon(xy, closed=True, facecolor=(0.85, 0.85, 0.85), edgecolor="black",
+                                 linestyle="--", linewidth=1.0, zorder=1,
+                                 label=f"mission {m.mission_id} ({m.mission_type.name.lower()})"))  # fmt: skip
+        elif g.kind == GeometryKind.CIRCLE:
+            ax.add_patch(Circle(xy[0], g.radius_m or 0.0, fill=False, edgecolor="black",
+                                linestyle="--", zorder=1, label=f"mission {m.mission_id}"))  # fmt: skip
+        else:
+            ax.plot(*zip(*xy, strict=True), "k--", marker="x", zorder=1, label=f"mission {m.mission_id}")
+        drawn["missions"] += 1
+    for z in zones:
+        if not z.active:
+            continue
+        g = z.geometry
+        area = z.operating_area
+        style = dict(facecolor="none" if area else (0.9, 0.1, 0.1, 0.35),
+                     edgecolor=(0.1, 0.6, 0.1) if area else (0.8, 0.0, 0.0),
+                     linestyle="--" if area else "-", linewidth=2.0, zorder=2,
+                     label=f"{'operating area' if area else 'no-fly zone'} {z.zone_id}")  # fmt: skip
+        if g.kind == GeometryKind.CIRCLE:
+            ax.add_patch(Circle(frame.xy(g.points[0].lat_deg, g.points[0].lon_deg), g.radius_m or 0.0, **style))
+        else:
+            ax.add_patch(Polygon([frame.xy(p.lat_deg, p.lon_deg) for p in g.points], closed=True, **style))
+        drawn["zones"] += 1
+    for vid, s in sorted(shares.items()):
+        if len(s) < 1:
+            continue
+        xs, ys = zip(*(frame.xy(a, b) for a, b in s), strict=True)
+        ax.plot(xs, ys, color=colors[vid], linestyle=(0, (4, 2)), linewidth=1.5, zorder=3,
+                label=f"vehicle {vid} plan")  # fmt: skip
+        drawn["shares"] += 1
+    if track is not None:
+        for vid in track.vehicles:
+            sel = track.vehicle == vid
+            xs, ys = zip(*(frame.xy(a, b) for a, b in zip(track.lat[sel], track.lon[sel], strict=True)),
+                         strict=True)  # fmt: skip
+            ax.plot(xs, ys, color=colors[vid], linewidth=2.5, zorder=4, label=f"vehicle {vid} flown")
+            drawn["tracks"] += 1
+    if state is not None:
+        for v in state.vehicles:
+            if v.home:
+                ax.plot(*frame.xy(v.home.lat_deg, v.home.lon_deg), marker="^", markersize=9,
+                        color=colors.get(v.vehicle_id, "black"), markeredgecolor="black", zorder=5)  # fmt: skip
+        if state.base:
+            ax.plot(*frame.xy(state.base.lat_deg, state.base.lon_deg), marker="*", markersize=18,
+                    color="gold", markeredgecolor="black", zorder=6, label="base")  # fmt: skip
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.set_xlabel(f"east of {frame.lat0:.5f}, {frame.lon0:.5f} (m)")
+    ax.set_ylabel("north (m)")
+    ax.grid(True, linewidth=0.3)
+    ax.set_title(title or "bandada plan" + (" and flight" if track is not None else ""))
+    ax.legend(loc="best", fontsize=7, framealpha=0.8)
+    fig.tight_layout()
+    try:
+        fig.savefig(out, format="png")
+    finally:
+        plt.close(fig)
+    return drawn
+
+
+@app.command()
+def plot(
+    ctx: typer.Context,
+    out: Path = typer.Option(..., "--out", "-o", dir_okay=False, help="the PNG to write"),
+    state_file: Path | None = typer.Option(
+        None, "--state", dir_okay=False, help="a `gcs save` file (default: ask the swarm now)"
+    ),
+    track: Path | None = typer.Option(
+        None, "--track", dir_okay=False, help="a flight recorder CSV (gcs record, swarm-node "
+        "run --record, the simulator) to draw the flown tracks",
+    ),
+    no_plan: bool = typer.Option(False, "--no-plan", help="do not compute the shares"),
+    offline: bool = typer.Option(False, "--offline", help="only the files: ask no vehicle"),
+) -> None:
+    """Draw the plan (each vehicle's share of every mission in force, the zones, the
+    base and the homes) and the flown tracks to a PNG. The plan comes from a `gcs save`
+    file or from the swarm now; the tracks from a flight recorder CSV.
+
+    Example: gcs plot --state saved.json --track flight.csv --out flight.png
+    """
+    if out.suffix.lower() != ".png":
+        raise typer.BadParameter(f"{out}: the picture is a .png", param_hint="--out")
+    state: SwarmState | None = None
+    if state_file is not None:
+        try:
+            state = read_state(state_file)
+        except StateFileError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--state") from None
+    trajectory = None
+    if track is not None:
+        try:
+            trajectory = read_trajectory(track)
+        except TrajectoryError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--track") from None
+    if state is None and not offline:
+        with ctx.obj.open() as gs:
+            state, warnings = collect(gs)
+        for w in warnings:
+            console.print(f"[yellow]{w}[/]")
+    if state is None and trajectory is None:
+        raise typer.BadParameter("nothing to draw: give --state or --track (or drop --offline)")
+    shares: dict[int, list[tuple[float, float]]] = {}
+    if state is not None and not no_plan:
+        for m in state.missions:
+            try:
+                shares.update(plan_shares(state, m))
+            except Exception as exc:  # planning or database: the picture goes on without it
+                console.print(f"[yellow]mission {m.mission_id}: no shares drawn: {exc}[/]")
+    try:
+        drawn = draw(out, state, trajectory, shares=shares)
+    except (ValueError, OSError) as exc:
+        raise typer.BadParameter(f"{out}: {exc}", param_hint="--out") from None
+    console.print(f"{out}: {drawn['missions']} mission(s), {drawn['shares']} share(s), "
+                  f"{drawn['zones']} zone(s), {drawn['tracks']} track(s)")  # fmt: skip
+
+
+EXTRA = ("alt_rel_m", "groundspeed_m_s", "heading_deg", "battery_pct", "fsm", "mission",
+         "progress_pct")  # fmt: skip
+
+
+def write_status(w: TrajectoryWriter, s: VehicleStatus) -> None:
+    w.write(s.time_unix_s, s.vehicle_id, s.lat_deg, s.lon_deg, s.alt_msl_m,
+            f"{s.alt_rel_m:.2f}", f"{s.groundspeed_m_s:.2f}", f"{s.heading_deg:.1f}",
+            s.battery_pct, s.fsm_state.name, s.mission_state.name, s.mission_progress_pct)  # fmt: skip
+
+
+@app.command()
+def record(
+    ctx: typer.Context,
+    out: Path = typer.Argument(..., dir_okay=False, help="the flight CSV to write"),
+    duration: float | None = typer.Option(None, help="stop after this many seconds (default: Ctrl-C)"),
+    ids: IdsOption = [],  # noqa: B006
+    fleet: FleetOption = None,
+    all_: AllOption = False,
+) -> None:
+    """Record the flight from the live telemetry: one CSV row per VehicleStatus heard
+    (time_s = the sample's GPS UNIX time, vehicle, lat, lon, alt_m above mean sea
+    level, then alt_rel_m, groundspeed_m_s, heading_deg, battery_pct, fsm, mission,
+    progress_pct). `gcs plot --track` and `gcs analyze separation` read it. Exit 1 if
+    nothing was heard.
+
+    Example: gcs record flight.csv --duration 600
+    """
+    if duration is not None:
+        wait_option(duration)
+    shown = _shown(ids, fleet, all_)
+    rows = 0
+    last: dict[int, float] = {}
+    try:
+        writer = TrajectoryWriter(out, EXTRA, flush_every=25)
+    except OSError as exc:
+        raise typer.BadParameter(f"{out}: cannot write: {exc.strerror or exc}") from None
+    with writer, ctx.obj.open() as gs:
+        statuses = gs.status_feed()
+        end = None if duration is None else time.monotonic() + duration
+        console.print(f"recording to {out} ({'Ctrl-C stops' if end is None else f'{duration:g} s'})",
+                      style="dim")  # fmt: skip
+        try:
+            while end is None or time.monotonic() < end:
+                left = 0.5 if end is None else max(0.0, min(0.5, end - time.monotonic()))
+                try:
+                    s = statuses.get(timeout=left)
+                except queue.Empty:
+                    continue
+                if not shown.addresses(s.vehicle_id, s.fleet_id):
+                    continue
+                if last.get(s.vehicle_id) == s.time_unix_s:
+                    continue  # the same sample again (an autopilot link loss repeats it)
+                last[s.vehicle_id] = s.time_unix_s
+                write_status(writer, s)
+                rows += 1
+        except KeyboardInterrupt:
+            pass
+    console.print(f"{out}: {rows} row(s) from vehicle(s) {', '.join(map(str, sorted(last))) or 'none'}")
+    if not rows:
+        raise typer.Exit(1)

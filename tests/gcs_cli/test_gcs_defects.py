@@ -1,0 +1,230 @@
+"""Issue 15's defects, each with its regression test: bad input is one line on stderr
+and exit 2 with nothing sent (a subscriber on the router counts what arrives), `cmd
+arm` with no selector refuses, a command that moves vehicles is not sent unconfirmed,
+an unreachable --connect exits 1, `db query` uses the global --connect, endpoints in
+either spelling."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import pytest
+
+from gcs_cli.cli import run
+from swarm_proto.endpoints import mavlink_endpoint, zenoh_endpoint
+from swarm_proto.session import SwarmBus, ZenohSettings
+from swarm_proto.topics import COMMAND, MISSION, ZONE
+from tests.conftest import free_tcp_port
+
+BAD = [
+    # (arguments, what the one line must say)
+    (["cmd", "goto", "--point", "95,0", "--all"], "latitude 95 is out of range"),
+    (["cmd", "goto", "--point", "nan,0", "--all"], "latitude is nan"),
+    (["cmd", "goto", "--point", "37,200", "--all"], "longitude 200 is out of range"),
+    (["cmd", "goto", "--point", "37,-5,nan", "--all"], "altitude is nan"),
+    (["cmd", "goto", "--point", "abc", "--all"], "expected LAT,LON"),
+    (["cmd", "set-speed", "--value", "nan", "--all"], "nan is not a number"),
+    (["cmd", "set-speed", "--value", "inf", "--all"], "inf is not a number"),
+    (["cmd", "set-fleet", "--fleet-id", "-1"], "--fleet-id"),
+    (["cmd", "set-fleet", "--fleet-id", "256"], "--fleet-id"),
+    (["cmd", "rtl", "--id", "0"], "--id"),
+    (["cmd", "rtl", "--fleet", "0"], "--fleet"),
+    (["cmd", "rtl", "--id", "3", "--all"], "exclude each other"),
+    (["cmd", "arm"], "say which vehicles"),  # issue 15: it armed the whole swarm
+    (["cmd", "warp-drive", "--all"], "unknown command 'warp-drive'"),
+    (["cmd", "rtl", "--all", "--timeout", "nan"], "--timeout"),
+    (["cmd", "rtl", "--all", "--timeout", "-1"], "--timeout"),
+    (["zone", "add", "3", "--circle", "nan,0,50"], "latitude is nan"),
+    (["zone", "add", "3", "--circle", "37,-5,0"], "radius 0 m must be > 0"),
+    (["zone", "add", "3", "--circle", "37,-5,-5"], "radius -5 m must be > 0"),
+    (["zone", "add", "3", "--polygon", "37,-5 37.1,-5"], "at least 3 vertices"),
+    (["zone", "add", "3", "--circle", "37,-5,50", "--floor", "nan"], "--floor"),
+    (["zone", "add", "3", "--circle", "37,-5,50", "--floor", "300", "--ceiling", "100"],
+     "floor must be below its ceiling"),
+    (["zone", "add", "0", "--circle", "37,-5,50"], "zone_id"),
+    (["zone", "remove", "0"], "zone_id"),
+    (["mission", "area", "--polygon", "nan,0 1,1 1,0", "--all"], "latitude is nan"),  # GEOS
+    (["mission", "area", "--polygon", "37.41,-5.99 37.42,-5.98 37.41,-5.98 37.42,-5.99",
+      "--all"], "Self-intersection"),
+    (["mission", "target", "--circle", "37,-5,nan", "--all"], "radius is nan"),
+    (["mission", "target", "--point", "37,-5", "--alt", "nan", "--all"], "--alt"),
+    (["mission", "target", "--point", "37,-5", "--overlap", "2", "--all"], "--overlap"),
+    (["mission", "target", "--point", "37,-5"], "say which vehicles"),
+    (["mission", "warp", "--point", "37,-5", "--all"], "unknown mission type"),
+    (["mission", "area", "--file", "/nonexistent/field.kml", "--all"], "cannot read"),
+    (["status", "--wait", "-1"], "--wait"),
+    (["status", "--wait", "nan"], "--wait"),
+    (["alerts", "--wait", "inf"], "--wait"),
+    (["vehicle", "0"], "'ID'"),
+    (["watch", "--period", "0"], "--period"),
+    (["status", "--bogus"], "No such option"),
+    (["plot", "--out", "x.jpg", "--offline"], "the picture is a .png"),
+    (["plot", "--out", "x.png", "--offline"], "nothing to draw"),
+    (["load", "/nonexistent/state.json", "--yes"], "cannot read"),
+]  # fmt: skip
+
+
+@pytest.fixture
+def listener(zenoh_router: str) -> object:
+    """What reaches the router's swarm while the test runs (nothing, it should be)."""
+    got: list[object] = []
+    lock = threading.Lock()
+    bus = SwarmBus.open(ZenohSettings(mode="client", connect=(zenoh_router,)), "bad")
+
+    def keep(msg: object, key: str) -> None:
+        with lock:
+            got.append(msg)
+
+    for topic in (COMMAND, MISSION, ZONE):
+        bus.subscribe(topic, keep)
+    try:
+        yield got
+    finally:
+        bus.close()
+
+
+def test_bad_input_is_one_line_exit_2_and_nothing_sent(
+    zenoh_router: str, listener: list[object], capsys: pytest.CaptureFixture[str]
+) -> None:
+    for args, says in BAD:
+        code = run(["--connect", zenoh_router, "--swarm", "bad", *args])
+        out, err = capsys.readouterr()
+        lines = err.strip().splitlines()
+        assert code == 2, (args, out, err)
+        assert len(lines) == 1 and says in lines[0], (args, err)
+        assert "Traceback" not in out + err
+    assert listener == []  # nothing was sent, whatever the mistake
+
+
+def test_a_command_that_moves_vehicles_is_not_sent_unconfirmed(
+    zenoh_router: str, listener: list[object], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 15: `gcs cmd arm` armed the whole swarm without asking. With no terminal
+    to ask on and no --yes it refuses (exit 2) and sends nothing."""
+    code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "arm", "--all"])
+    err = capsys.readouterr().err
+    assert code == 2 and "add --yes to confirm" in err and "every vehicle alive" in err, err
+    assert listener == []
+
+
+def test_an_unreachable_router_exits_1(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 15: an unreachable --connect printed an empty table and exited 0."""
+    port = free_tcp_port()
+    assert run(["--connect", f"tcp/127.0.0.1:{port}", "status", "--wait", "0"]) == 1
+    err = capsys.readouterr().err
+    assert f"nothing answers at tcp/127.0.0.1:{port}" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_taken_router_port_is_one_line(
+    zenoh_router: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert run(["--mode", "router", "--listen", zenoh_router, "status", "--wait", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("gcs: cannot open Zenoh") and "Address already in use" in err
+    assert len(err.strip().splitlines()) == 1 and ".rs:" not in err
+
+
+def test_db_query_takes_the_global_connect(
+    zenoh_router: str, swarm_db: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 15: `gcs --connect R db query ...` ignored R (and found no node)."""
+    from swarm_node.database import SwarmDatabase
+    from swarm_node.database.queryable import DatabaseQueryable
+    from swarm_proto.session import open_session
+
+    session = open_session(ZenohSettings(mode="client", connect=(zenoh_router,)))
+    db = SwarmDatabase.open(swarm_db)
+    try:
+        with DatabaseQueryable(session, db, 7, "dbq"):
+            code = run(["--connect", zenoh_router, "--swarm", "dbq", "db", "query", "7",
+                        "--timeout", "5"])  # fmt: skip
+            out = capsys.readouterr().out
+    finally:
+        db.close()
+        session.close()
+    assert (code == 0 and "Generic Quadcopter" in out) or '"node_id": 7' in out, out
+
+
+def test_endpoints_in_either_spelling() -> None:
+    assert zenoh_endpoint("tcp/127.0.0.1:7447") == "tcp/127.0.0.1:7447"
+    assert zenoh_endpoint("tcp:127.0.0.1:7447") == "tcp/127.0.0.1:7447"  # MAVLink's spelling
+    assert zenoh_endpoint("10.0.0.1:7447") == "tcp/10.0.0.1:7447"
+    assert zenoh_endpoint("udp/[::1]:7447") == "udp/[::1]:7447"
+    assert zenoh_endpoint("tls/router.lab:7447") == "tls/router.lab:7447"
+    assert zenoh_endpoint("tcp/127.0.0.1:0") == "tcp/127.0.0.1:0"  # listen on any free port
+    for bad in ("foo", "tcp/127.0.0.1", "tcp/127.0.0.1:70000", "http://x:1"):
+        with pytest.raises(ValueError, match=r"e\.g\. tcp/127\.0\.0\.1:7447"):
+            zenoh_endpoint(bad)
+    assert mavlink_endpoint("tcp:127.0.0.1:5760") == "tcp:127.0.0.1:5760"
+    assert mavlink_endpoint("tcp/127.0.0.1:5760") == "tcp:127.0.0.1:5760"  # Zenoh's spelling
+    assert mavlink_endpoint("/dev/ttyACM0,115200") == "/dev/ttyACM0,115200"
+    with pytest.raises(ValueError, match="tcp:HOST:PORT"):
+        mavlink_endpoint("127.0.0.1:5760")
+
+
+def test_the_connect_option_takes_either_spelling(
+    zenoh_router: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    host_port = zenoh_router.split("/", 1)[1]
+    for spelling in (f"tcp:{host_port}", host_port):
+        assert run(["--connect", spelling, "status", "--wait", "0"]) == 0
+        assert "no vehicle heard" in capsys.readouterr().out
+
+
+def test_every_command_has_an_example_in_its_help(capsys: pytest.CaptureFixture[str]) -> None:
+    from gcs_cli.cli import app
+    from tests.gcs_cli.cli_walk import commands
+
+    paths = commands(app)
+    assert len(paths) >= 25
+    for path in paths:
+        assert run([*path, "--help"]) == 0, path
+        out = capsys.readouterr().out
+        assert "Example: gcs" in out, (path, out)
+
+
+def test_shell_completion_is_offered(capsys: pytest.CaptureFixture[str]) -> None:
+    assert run(["--show-completion", "bash"]) == 0
+    assert "complete" in capsys.readouterr().out
+
+
+def test_status_fits_100_columns_with_positions() -> None:
+    """Issue 15: `gcs status` needed ~150 columns and showed no position. Worst-case rows
+    (long mode names, every alert, a 3-digit fleet, negative coordinates) fit 100
+    columns with every cell whole; the alerts wrap within their column."""
+    import time as _time
+
+    from rich.console import Console
+
+    from gcs_cli.ground import FleetView
+    from gcs_cli.render import fleet_table
+    from swarm_proto import (
+        AlertFlag,
+        FsmState,
+        GpsFix,
+        MissionState,
+        VehicleInfo,
+        VehicleStatus,
+        VehicleType,
+    )
+
+    view = FleetView()
+    now = _time.time()
+    for vid, vt, mode in ((65534, VehicleType.VTOL, 25), (7, VehicleType.COPTER, 21)):
+        view.status[vid] = VehicleStatus(
+            vid, now - 31.0, -37.4123456, -125.9876543, 7999.0, 4321.0, 29.9, -29.9,
+            heading_deg=359.4, battery_pct=100, gps_fix=GpsFix.RTK_FIXED, gps_sats=31,
+            ap_mode=mode, armed=True, fsm_state=FsmState.EMERGENCY,
+            mission_state=MissionState.REPLAN, mission_progress_pct=100, fleet_id=255,
+            alerts=AlertFlag(0x7FF),
+        )  # fmt: skip
+        view.info[vid] = VehicleInfo(vid, vt, "Albatross 250 VTOL", "U", mav_type=2)
+        view.heard_at[vid] = _time.monotonic() - 123.4
+    console = Console(width=100, record=True)
+    console.print(fleet_table(view, title="swarm default"))
+    text = console.export_text()
+    assert max(len(line.rstrip()) for line in text.splitlines()) <= 100, text
+    assert "-37.41235,-125.98765" in text and "LOITERALTQLAND"[:9] in text, text
+    assert "…" not in text, text  # no cell cut
+    assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠type" in text, text
