@@ -159,7 +159,10 @@ def vote(
     wait: float = typer.Option(5.0, help="seconds to listen for the votes"),
 ) -> None:
     """Show a vote: every vehicle's score and who goes (from the votes the vehicles
-    re-send for a few seconds after deciding, and the winners' status)."""
+    re-send for a few seconds after deciding, and the winners' status).
+
+    Example: gcs vote 4242 --count 2 --wait 5
+    """
     if not (wait >= 0.0 and wait < 3600.0):
         raise typer.BadParameter("--wait must be in [0, 3600) s", param_hint="--wait")
     if count is not None and not 1 <= count <= 255:
@@ -191,7 +194,10 @@ def report(
     """Report a target. The vehicles apply the swarm's re-tasking rules (the database's
     `target re-tasking` module: vehicles per class, minimum confidence) and vote who
     flies the target mission; its id is derived from the report. Prints every
-    vehicle's answer and the vote."""
+    vehicle's answer and the vote.
+
+    Example: gcs target report --point 37.4125,-5.9889 --class person --confidence 0.9
+    """
     from .cli import parse_point
 
     lat, lon = parse_point(point)

@@ -50,7 +50,7 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
             gcs = [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm",
                    swarm, "mission", "target", "--point", target, "--count", "2", "--payload",
                    PAYLOAD, "--alt", "30", "--duration", "30", "--mission-id", "77",
-                   "--timeout", "15", "--vote-wait", "20"]  # fmt: skip
+                   "--timeout", "15", "--vote-wait", "20", "--yes"]  # fmt: skip
             t0 = time.monotonic()
             done = subprocess.run(gcs, capture_output=True, text=True, timeout=90,
                                   env={**os.environ, "COLUMNS": "120"})  # fmt: skip
@@ -75,7 +75,7 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
             # add: vehicle 1 (stood down) joins the winners' fleet; they replan with it
             # and send it their plan's lineage (over Zenoh), it flies its share of it
             join = [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm",
-                    swarm, "cmd", "join-mission", "--id", "1", "--mission-id", "77"]  # fmt: skip
+                    swarm, "cmd", "join-mission", "--id", "1", "--mission-id", "77", "--yes"]  # fmt: skip
             done = subprocess.run(join, capture_output=True, text=True, timeout=60)
             assert done.returncode == 0, done.stdout + done.stderr
             joined = wait_until(
