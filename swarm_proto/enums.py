@@ -101,6 +101,7 @@ class AlertCode(IntEnum):
     MALFORMED_INPUT = 16  # a peer sent something we could not decode
     CONDITION_CLEARED = 17
     MISSION_CANCELLED = 18  # the operator cancelled the mission (not a failure)
+    ROSTER_MISMATCH = 19  # a member flies the mission with another roster (members hash)
 
 
 class CommandKind(IntEnum):

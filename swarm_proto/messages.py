@@ -253,6 +253,9 @@ class VehicleInfo(Struct, frozen=True):
     members_hash: Annotated[int, Meta(ge=0, le=0xFFFF, description="roster hash, 0 = none")] = 0
     mission_progress_m: DistanceM = 0.0  # metres of this vehicle's share flown
     mission_path_m: DistanceM = 0.0  # length of this vehicle's share
+    # appended (issue 12, PREMISSION): the earliest time this vehicle can be at its
+    # share's entry point (swarm_node mission/fleet_sync.py; 0 = not flying a PREMISSION)
+    entry_unix_s: UnixTimeS = 0.0
 
 
 # --------------------------------------------------------------------------- control

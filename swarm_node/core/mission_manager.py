@@ -40,6 +40,7 @@ from .autopilot.requests import (
     ApRequest,
     ApResult,
     Arm,
+    ChangeSpeed,
     Disarm,
     Land,
     ReturnToLaunch,
@@ -49,6 +50,7 @@ from .autopilot.requests import (
     UploadMission,
 )
 from .autopilot.state import AutopilotState
+from .mission.fleet_sync import FleetSync
 from .mission.share import (
     FleetPlan,
     Member,
@@ -62,6 +64,7 @@ from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Submit
 from .planning import (
     PlanningError,
 )
+from .planning.endurance import CLIMB_FRACTION, launch_s
 from .planning.flight import FIXED_WING_ACCEPT_M
 from .planning.transit import (
     TRANSIT_MARGIN_M,
@@ -72,6 +75,7 @@ from .planning.transit import (
 )
 from .planning.transit import flyable as flyable  # re-exported (was defined here)
 from .profile import VehicleProfile
+from .swarm.roster import Roster
 
 #: parameters a planner reads as "not given" when 0 (besides None), per mission type
 UNSET_WHEN_ZERO: dict[MissionType, frozenset[str]] = {
@@ -106,7 +110,8 @@ def with_defaults(mission: Mission, defaults: Mapping[str, float]) -> Mission:
     return msgspec.structs.replace(mission, params=params)
 
 
-CLIMB_FRACTION = 0.8  # start the mission once this much of the take-off altitude is reached
+# CLIMB_FRACTION (planning.endurance): start the mission once this much of the take-off
+# altitude is reached
 LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close to home
 # Fixed-wing waypoint acceptance (planning.flight.FIXED_WING_ACCEPT_M, 15 m): every
 # plain waypoint asks for it (ArduPlane's 90 m default would count the closely spaced
@@ -119,6 +124,7 @@ class Phase(Enum):
     IDLE = "idle"
     STARTING = "starting"  # upload, arm, take off
     CLIMBING = "climbing"  # waiting for the take-off altitude
+    MEETING = "meeting"  # PREMISSION: climbed, waiting for the fleet's meet time
     FLYING = "flying"  # the mission is running on the autopilot
     RETURNING = "returning"  # RTL
     LANDING = "landing"
@@ -173,6 +179,12 @@ class MissionManager:
     _steps: list[ApRequest] = field(default_factory=list)
     _in_flight: ApRequest | None = None  # the request we wait for
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
+    mission: Mission | None = None  # the mission being flown (its parameters)
+    sync: FleetSync = field(init=False)  # PREMISSION and the MISSION speed rule
+    _confirmed: bool = False  # PlanSucceeded posted for this plan
+
+    def __post_init__(self) -> None:
+        self.sync = FleetSync(self.profile.vehicle_id, self.profile)
 
     @property
     def mission_state(self) -> MissionState:
@@ -254,16 +266,52 @@ class MissionManager:
             return [Post(fsm.PlanSucceeded(mid)), Post(fsm.MissionComplete(mid))]
         if not waypoints:
             return self._failed(mid, "nothing to fly for this vehicle")
-        try:
-            waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
-        except (PlanningError, ValueError) as exc:
-            return self._failed(mid, f"approach: {exc}")
+        launch = 0.0 if ap.armed else launch_s(self.profile, mission.params.altitude_rel_m)
+        sync = not replan and self.sync.begin(outcome.plan, ap, zones, now, home_alt, launch)
+        if not sync:
+            try:
+                waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
+            except (PlanningError, ValueError) as exc:
+                return self._failed(mid, f"approach: {exc}")
         self.zones = tuple(zones)
         self.mission_id = mid
+        self.mission = mission
+        self._confirmed = False
         fleet_ids = list(outcome.plan.roster)
+        self.takeoff_alt_m = mission.params.altitude_rel_m
+        self.share = share
+        self._offset = self.sortie.progress_m if replan else 0.0  # flown before the replan
+        self.sortie.path_m = self._offset + share.length_m
+        self.sortie.progress_m = self._offset
+        self.sortie.go(Trigger.RELEASED)
+        if sync:  # PREMISSION: launch, climb, then our leg to the fleet's meet time
+            group = list(self.sync.group)
+            note = Log(f"mission {mid}: planned for fleet {fleet_ids}; PREMISSION with {group}, "
+                       f"at our entry by {self.sync.eta_unix_s:.1f} at the earliest")  # fmt: skip
+            if ap.armed:
+                self.phase = Phase.MEETING
+                return [note, *self._confirm(mid)]
+            self._steps = self._launch_steps()
+            self.phase = Phase.STARTING
+            return [note, *self._next()]
         note = Log(
             f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
         )
+        waypoints = self._load(waypoints, ap)
+        steps: list[ApRequest] = [UploadMission(items=waypoints)]
+        if not ap.armed:
+            steps += self._launch_steps()
+        else:
+            steps.append(StartMission())
+        self._steps = steps
+        self.phase = Phase.STARTING
+        return [note, *self._next()]
+
+    def _load(self, waypoints: tuple[Waypoint, ...], ap: AutopilotState) -> tuple[Waypoint, ...]:
+        """The items to upload for `waypoints` (our share, with its approach), and what
+        following them needs: the item that completes the share, a timed hold, metres
+        along each item, the share's index of each item, and what the autopilot reported
+        before (an earlier mission's items do not count)."""
         # end on an unlimited loiter over the last waypoint: the autopilot holds there
         # (ArduPlane would otherwise RTL by itself, straight through any zone) until the
         # node flies the zone-safe way home
@@ -275,23 +323,50 @@ class MissionManager:
             )
         self.items = len(waypoints) + 1
         self.last_item = self.items - (2 if last is not None else 1)  # the item that completes it
-        self.takeoff_alt_m = mission.params.altitude_rel_m
-        self._timed_hold(waypoints, mission.params.duration_s)
+        self._timed_hold(waypoints, self.mission.params.duration_s if self.mission else None)
         self.along_m = along_path(ap, waypoints)
-        self.share = share
-        self._share_index = share_index_of_items(waypoints, share.waypoints)
-        self._offset = self.sortie.progress_m if replan else 0.0  # flown before the replan
-        self.sortie.path_m = self._offset + share.length_m
-        self.sortie.progress_m = self._offset
+        assert self.share is not None
+        self._share_index = share_index_of_items(waypoints, self.share.waypoints)
         self._stale = (ap.mission_reached, ap.mission_current)
         self._fresh_reached = self._fresh_current = False
-        self.sortie.go(Trigger.RELEASED)
-        steps: list[ApRequest] = [UploadMission(items=waypoints)]
-        if not ap.armed:
-            steps += self._launch_steps()
-        else:
-            steps.append(StartMission())
-        self._steps = steps
+        return waypoints
+
+    def _confirm(self, mid: int) -> list[Out]:
+        """The plan is flown: PlanSucceeded, once per plan."""
+        if self._confirmed:
+            return []
+        self._confirmed = True
+        return [Post(fsm.PlanSucceeded(mid))]
+
+    def info_due(self) -> bool:
+        """Our PREMISSION ETA changed since asked: publish VehicleInfo now."""
+        due, self.sync.info_due = self.sync.info_due, False
+        return due
+
+    def _meet(self, ap: AutopilotState, fleet: Roster | None, now: float) -> list[Out]:
+        """PREMISSION, climbed: once the meet time is known, plan our leg to our entry
+        from where we are, upload it with our share from the entry on, and start."""
+        etas = fleet.entry_at if fleet is not None else {}
+        gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
+        t = self.sync.ready(etas, gone, now)
+        if t is None:
+            return []
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        assert self.share is not None and self.mission_id is not None
+        try:
+            waypoints = self.sync.plan_leg(ap, self.zones, now, home_alt, t)
+            note = Log(f"mission {self.mission_id}: PREMISSION leg "
+                       f"{self.sync.leg.flown_m if self.sync.leg else 0:.0f} m, at our entry at "
+                       f"{self.sync.meet_unix_s:.1f} ({self.sync.meet_unix_s - now:.1f} s)")  # fmt: skip
+        except (PlanningError, ValueError) as exc:  # fly the share as planned
+            self.sync.stop()
+            try:
+                waypoints = self._with_approach(self.share.waypoints, ap, self.zones, now, home_alt)
+            except (PlanningError, ValueError) as exc2:
+                self.stop(Trigger.FAILED)
+                return [Post(fsm.PlanFailed(self.mission_id, f"approach: {exc2}"[:64]))]
+            note = Log(f"mission {self.mission_id}: no PREMISSION leg ({exc}); flying the share")
+        self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
         self.phase = Phase.STARTING
         return [note, *self._next()]
 
@@ -302,6 +377,7 @@ class MissionManager:
             self.sortie.go(Trigger.REPLAN)
         self.owner = Owner.MISSION
         self._planning = None
+        self.sync.stop()  # a replanned share is flown from where we are, without a meet
 
     def replan(
         self,
@@ -516,6 +592,7 @@ class MissionManager:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
         self._planning = None  # a plan job still running is abandoned
         self.share, self._share_index, self._offset = None, (), 0.0
+        self.sync.stop()
         self.sortie.go(trigger)
 
     def take_over(self, phase: Phase) -> None:
@@ -567,14 +644,21 @@ class MissionManager:
         if self.phase == Phase.STARTING and not self._steps:
             if isinstance(done, Takeoff):
                 self.phase = Phase.CLIMBING  # the mission starts once it has climbed
-                return []
+                # PREMISSION: the plan is flown from the take-off (the climb and the
+                # meet would otherwise count against the state machine's plan timeout)
+                return self._confirm(mid) if self.sync.active else []
             if isinstance(done, StartMission):
                 self.phase = Phase.FLYING
-                self.sortie.go(Trigger.STARTED)
-                return [Post(fsm.PlanSucceeded(mid))]
+                if not self.sync.flying_leg:  # PREMISSION: MISSION from the entry on
+                    self.sortie.go(Trigger.STARTED)
+                return self._confirm(mid)
         return self._next()
 
-    def on_autopilot(self, ap: AutopilotState, now: float) -> list[Out]:
+    def on_autopilot(
+        self, ap: AutopilotState, now: float, fleet: Roster | None = None
+    ) -> list[Out]:
+        """`fleet`: the mission's roster (the members' published ETAs and progress, for
+        PREMISSION and the MISSION speed rule)."""
         if (
             self.phase in (Phase.RETURNING, Phase.LANDING, Phase.PARACHUTE)
             and not ap.armed
@@ -584,11 +668,16 @@ class MissionManager:
             return [Post(fsm.LandingComplete())]
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
+                if self.sync.active:
+                    self.phase = Phase.MEETING
+                    return self._meet(ap, fleet, now)
                 self.phase = Phase.STARTING
                 self._steps = [StartMission()]
                 return self._next()
+        elif self.phase == Phase.MEETING:
+            return self._meet(ap, fleet, now)
         elif self.phase == Phase.FLYING and self.items > 1 and self.mission_id is not None:
-            return self._flying(ap, now)
+            return self._flying(ap, now, fleet)
         elif self.phase == Phase.RETURNING and self._in_flight is None and self.profile.can_hover:
             home = ap.home
             if (
@@ -604,7 +693,7 @@ class MissionManager:
                 return self._next()
         return []
 
-    def _flying(self, ap: AutopilotState, now: float) -> list[Out]:
+    def _flying(self, ap: AutopilotState, now: float, fleet: Roster | None = None) -> list[Out]:
         """Progress along the share and its end: the last item reached, or the timed
         hold over. Only items this mission's autopilot run reported count: the last
         MISSION_ITEM_REACHED of an earlier mission is still in the state."""
@@ -612,6 +701,7 @@ class MissionManager:
         self._fresh_reached |= ap.mission_reached != stale_reached
         self._fresh_current |= ap.mission_current != stale_current
         reached = max(0, min(ap.mission_reached, self.last_item)) if self._fresh_reached else 0
+        out = self._keep_pace(ap, now, reached, fleet)
         if self.share is not None and self._share_index:
             k = self._share_index[min(reached, len(self._share_index) - 1)] if reached else -1
             self.sortie.advance(
@@ -623,12 +713,36 @@ class MissionManager:
                 self.hold_since = now
             done = self.hold_since is not None and now - self.hold_since >= self.hold_s
         if not done or self.sortie.state != MissionState.MISSION:
-            return []
+            return out
         mid = self.mission_id
         assert mid is not None
         self.sortie.finish()
         self.stop(Trigger.COMPLETE)
-        return [Post(fsm.MissionComplete(mid))]
+        return [*out, Post(fsm.MissionComplete(mid))]
+
+    def _keep_pace(
+        self, ap: AutopilotState, now: float, reached: int, fleet: Roster | None
+    ) -> list[Out]:
+        """PREMISSION and the MISSION speed rule (mission/fleet_sync.py): the airspeed
+        to command; at the entry the sortie enters MISSION."""
+        sync = self.sync
+        if sync.leg is None:
+            return []
+        etas = fleet.entry_at if fleet is not None else {}
+        gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
+        meet = sync.meet_time(etas, gone) or sync.meet_unix_s
+        speed = sync.control(
+            ap, now, reached, self.share_progress_m(), meet,
+            fleet.progress if fleet is not None else {}, gone,
+        )  # fmt: skip
+        out: list[Out] = []
+        if sync.arrived_at is not None and self.sortie.state == MissionState.PREMISSION:
+            self.sortie.go(Trigger.STARTED)
+            out.append(Log(f"mission {self.mission_id}: at our entry, {now - meet:+.1f} s from the meet time"))
+        if speed is not None:
+            req = ChangeSpeed(request_id=next(self._ids), speed_m_s=speed)
+            out.append(Submit(req, self.owner, Owner.MISSION))
+        return out
 
     def _on_station(self, ap: AutopilotState) -> bool:
         """Within the hold's loiter circle (its radius plus a turn radius)."""

@@ -270,6 +270,7 @@ class NodeCore:
             members_hash=self.roster.members_hash,
             mission_progress_m=_clamp(self.manager.sortie.progress_m, 0.0, 1.0e6),
             mission_path_m=_clamp(self.manager.sortie.path_m, 0.0, 1.0e6),
+            entry_unix_s=_clamp(self.manager.sync.eta_unix_s, 0.0, 4.0e9),
         )
 
     # ------------------------------------------------------------------ inputs
@@ -296,6 +297,8 @@ class NodeCore:
                 out = self.manager.on_plan(outcome, self.autopilot, now)
             case _:
                 assert_never(event)
+        if self.manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s
+            out.append(Publish(self.info()))
         return self._route(out, now)
 
     def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
@@ -355,7 +358,7 @@ class NodeCore:
     def _on_autopilot(self, state: AutopilotState, now: float) -> list[ModuleOutput]:
         self.autopilot = state
         out: list[ModuleOutput] = [Publish(a) for a in self.monitor.update(state, now)]
-        out += self.manager.on_autopilot(state, now)
+        out += self.manager.on_autopilot(state, now, self.roster)
         return out + self._keep_fence(now)
 
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:

@@ -49,6 +49,32 @@ LAND_FINAL_M = 10.0
 LAND_FINAL_M_S = 0.5
 
 
+#: the mission manager starts a share once this much of the take-off altitude is reached
+CLIMB_FRACTION = 0.8
+#: a plane's climb-out in TAKEOFF mode when its profile has no climb rate (TECS_CLMB_MAX)
+PLANE_CLIMB_M_S = 5.0
+#: arming, the take-off command and the start of the mission, each a MAVLink round trip
+#: with its ack (measured in fast time: 0.3 s from release to the climb)
+LAUNCH_COMMANDS_S = 0.5
+
+
+def launch_s(profile: VehicleProfile, altitude_m: float) -> float:
+    """Seconds from the plan to the start of a share for a vehicle on the ground at its
+    home: arm, take off and climb to CLIMB_FRACTION of `altitude_m` (a VTOL on its lift
+    motors at VTOL_CLIMB_M_S, a multirotor at its climb rate, a plane in TAKEOFF mode
+    at its climb rate), then start; a ground vehicle only arms and starts."""
+    vt = profile.vehicle_type
+    if vt in (VehicleType.ROVER, VehicleType.BOAT) or not math.isfinite(altitude_m):
+        return LAUNCH_COMMANDS_S
+    if vt == VehicleType.VTOL:
+        up = VTOL_CLIMB_M_S
+    elif vt == VehicleType.PLANE:
+        up = profile.climb_rate_m_s or PLANE_CLIMB_M_S
+    else:
+        up = profile.climb_rate_m_s or VTOL_CLIMB_M_S
+    return LAUNCH_COMMANDS_S + CLIMB_FRACTION * max(altitude_m, 0.0) / up
+
+
 def stops_on_waypoints(profile: VehicleProfile) -> bool:
     """Whether the vehicle brakes to a stop on every waypoint (not fixed-wing)."""
     return not profile.is_fixed_wing

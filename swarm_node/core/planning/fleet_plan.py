@@ -48,7 +48,7 @@ from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Mission, MissionType, NoFlyZone
 
 from .area import AreaPlan, plan_area, replan_area
-from .endurance import transition_s
+from .endurance import launch_s, transition_s
 from .errors import InvalidParameterError, NoVehiclesError, PlanningError
 from .flight import FIXED_WING_ACCEPT_M, flyable_plan, predict_flight
 from .geo import LocalFrame, VehiclePose
@@ -130,13 +130,22 @@ class Share:
     along_m: tuple[float, ...]  # planned metres from the share's start to each item
     length_m: float  # along_m of the last item
     time_s: float  # the planner's time for the share (speed, waits, turns)
+    #: before the share: arming, take-off and climb from the ground at home
+    #: (`endurance.launch_s`; 0 in a replan, flown from the air)
+    launch_s: float = 0.0
 
     @classmethod
-    def of(cls, vp: VehiclePlan) -> Share:
+    def of(cls, vp: VehiclePlan, launch_s: float = 0.0) -> Share:
         along = along_metres(vp.waypoints)
         return cls(
-            vp.vehicle_id, tuple(vp.waypoints), along, along[-1] if along else 0.0, vp.time_s
-        )
+            vp.vehicle_id, tuple(vp.waypoints), along, along[-1] if along else 0.0, vp.time_s,
+            launch_s,
+        )  # fmt: skip
+
+    @property
+    def sortie_s(self) -> float:
+        """The planned time from the plan to the end of the share: launch and share."""
+        return self.launch_s + self.time_s
 
     def at(self, progress_m: float) -> tuple[int, float, float]:
         """Where a vehicle `progress_m` along this share is: (index of the last item
@@ -420,10 +429,14 @@ def _with_params(mission: Mission, **changes: object) -> Mission:
 
 
 def _makespan(detail: object, shares: Mapping[int, Share]) -> float:
+    """From the plan to the last share flown: launch (from the ground, in a first plan)
+    and the share's time, the latest of the fleet."""
     span = getattr(detail, "makespan_s", None)
+    flown = max((s.sortie_s for s in shares.values()), default=0.0)
     if isinstance(span, float) and math.isfinite(span):
-        return max(span, max((s.time_s for s in shares.values()), default=0.0))
-    return max((s.time_s for s in shares.values()), default=0.0)
+        launch = min((s.launch_s for s in shares.values()), default=0.0)
+        return max(span + launch, flown)
+    return flown
 
 
 def _fleet_plan(
@@ -433,7 +446,12 @@ def _fleet_plan(
     homes: Mapping[int, VehiclePose] | None = None,
 ) -> FleetPlan:
     plans: tuple[VehiclePlan, ...] = detail.vehicles  # type: ignore[attr-defined]
-    by_id = {vp.vehicle_id: Share.of(vp) for vp in plans}
+    # a first plan: every vehicle starts from the ground at its home (a replan: in the air)
+    launch = {
+        v.vehicle_id: launch_s(v.profile, mission.params.altitude_rel_m) if homes is None else 0.0
+        for v in vehicles
+    }
+    by_id = {vp.vehicle_id: Share.of(vp, launch.get(vp.vehicle_id, 0.0)) for vp in plans}
     roster = tuple(v.vehicle_id for v in vehicles)
     missing = [vid for vid in roster if vid not in by_id]
     if missing:

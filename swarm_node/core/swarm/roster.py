@@ -89,6 +89,8 @@ class Roster:
     #: each member's last published (progress_m, path_m) in this mission: a survivor's
     #: progress is held while it replans, so every survivor replans from the same values
     progress: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: each member's last published PREMISSION entry time (VehicleInfo.entry_unix_s)
+    entry_at: dict[int, float] = field(default_factory=dict)
     mismatches: int = 0
     _previous_hash: int = 0
     _answers: OrderedDict[int, dict[int, bool]] = field(default_factory=OrderedDict)
@@ -108,6 +110,7 @@ class Roster:
         self.members, self.lost, self.finished, self.planned = (), {}, set(), ()
         self.generation = 0
         self.progress = {}
+        self.entry_at = {}
 
     @property
     def frozen(self) -> bool:
@@ -148,6 +151,8 @@ class Roster:
         if in_mission:
             mark = (info.mission_progress_m, info.mission_path_m)
             self.progress[vid] = mark
+            if info.entry_unix_s > 0.0:
+                self.entry_at[vid] = info.entry_unix_s
         out: list[RosterEvent] = []
         if self.frozen and vid in self.members and vid not in self.lost and vid not in self.finished:
             if info.fsm_state == FsmState.EMERGENCY:
