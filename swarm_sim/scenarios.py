@@ -26,7 +26,9 @@ from swarm_proto import (
     CommandKind,
     FsmState,
     Geometry,
+    GeometryKind,
     GeoPoint,
+    LatLon,
     Mission,
     MissionParams,
     MissionState,
@@ -207,4 +209,145 @@ def inheritance(
         replan_seen=replan_seen,
         same_plan=len(plans) == 1,
         hashes=hashes,
+    )
+
+
+# --------------------------------------------------------------------------- PREMISSION
+
+
+def route_line() -> Geometry:
+    """A three-point route 900-1800 m north of the vehicles' homes."""
+    la, lo = SITL_HOME.lat_deg, SITL_HOME.lon_deg
+    pts = [(la + 0.008, lo - 0.004), (la + 0.012, lo + 0.002), (la + 0.016, lo + 0.002)]
+    return Geometry(GeometryKind.POLYLINE, tuple(LatLon(a, b) for a, b in pts))
+
+
+@dataclass
+class Meet:
+    """A fleet flying its PREMISSION: each member's arrival at its share's entry (the
+    closest pass by the entry point, seconds after the mission was sent), their spread,
+    and the sortie as flown."""
+
+    arrivals: dict[int, float]
+    spread_s: float
+    meet_s: float | None  # the meet time the members agreed (None: no PREMISSION)
+    entry_miss_m: dict[int, float]  # how close each passed its entry point
+    premission_seen: bool  # PREMISSION in the members' statuses while flying the legs
+    speed_commands: dict[int, int]  # airspeed commands each node sent
+    lateness_spread_s: float  # the widest spread of the members' lateness in MISSION
+    completed: frozenset[int] = frozenset()
+    makespan_planned_s: float = 0.0
+    makespan_flown_s: float | None = None  # from the plan to the last MISSION_COMPLETE
+
+
+def premission_meet(
+    profiles: Mapping[int, VehicleProfile],
+    members: Sequence[int] = (1, 2, 3),
+    kind: MissionType = MissionType.ROUTE,
+    *,
+    to_the_end: bool = False,
+    alt_m: float = 80.0,
+    timeout_s: float = 900.0,
+) -> Meet:
+    """`members` (fixed-wing) on the ground at their homes 60 m apart get a mission to
+    ALL (a route, `route_line()`, or an area north of them) and fly it in fast time;
+    measured from the autopilots' positions: when each passes its share's entry point
+    (`planning.premission.entry_index` of the fleet plan), and, with `to_the_end`, the
+    whole mission (completion, makespan, the lateness spread under the speed rule)."""
+    from swarm_node.core.planning.premission import entry_index
+
+    fleet = FastFleet.build(list(members), profiles, spacing_m=60.0)
+    fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
+    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+    fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
+    assert fleet.run_until(
+        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
+    )
+    if kind == MissionType.ROUTE:
+        geometry = route_line()
+        params = MissionParams(altitude_rel_m=alt_m, altitude_step_m=10.0)
+    else:
+        geometry = square(SITL_HOME.lat_deg + 0.006, SITL_HOME.lon_deg, 250.0)
+        params = MissionParams(altitude_rel_m=alt_m, side_overlap=0.2)
+    mid = 60 + int(kind)
+    t0 = fleet.now
+    fleet.broadcast(Mission(mid, GCS, kind, geometry, params))
+    first = fleet.vehicles[members[0]].node
+    assert fleet.run_until(lambda: first.manager.fleet_plan is not None, 30), fleet.notes[-10:]
+    plan = first.manager.fleet_plan
+    assert plan is not None
+    frame = LocalFrame.at(list(geometry.points))
+    entries = {}
+    for vid in members:
+        w = plan.share(vid).waypoints[entry_index(plan, vid)]
+        entries[vid] = frame.to_local(w.lat_deg, w.lon_deg)
+    closest: dict[int, tuple[float, float]] = {}
+    started: dict[int, float] = {}
+    premission_seen = False
+    late_spread = 0.0
+
+    def sample() -> None:
+        nonlocal premission_seen, late_spread
+        late: list[float] = []
+        for vid, v in fleet.vehicles.items():
+            s = v.link.state
+            m = v.node.manager
+            if m.phase.value in ("starting", "climbing", "meeting", "flying"):
+                started.setdefault(vid, fleet.now)
+            if m.phase.value == "flying" and m.mission_state == MissionState.PREMISSION:
+                premission_seen = True
+            if m.phase.value != "flying" or s.lat_deg is None or s.lon_deg is None:
+                continue
+            d = math.dist(frame.to_local(s.lat_deg, s.lon_deg), entries[vid])
+            # the closest pass by the entry: within 60 m of it and 60 s of the first pass
+            if vid not in closest or (
+                d < closest[vid][0] and d < 60.0 and fleet.now - closest[vid][1] - t0 < 60.0
+            ):
+                closest[vid] = (d, fleet.now - t0)
+            sync = m.sync
+            if sync.arrived_at is not None and m.mission_state == MissionState.MISSION:
+                meet = sync.meet_unix_s
+                late.append(sync.lateness_s(vid, m.share_progress_m(), fleet.now - meet))
+        if len(late) == len(members):
+            late_spread = max(late_spread, max(late) - min(late))
+
+    def arrived() -> bool:
+        sample()
+        return all(
+            vid in closest and closest[vid][0] < 60.0 and fleet.now - t0 - closest[vid][1] > 20.0
+            for vid in members
+        )
+
+    assert fleet.run_until(arrived, timeout_s), (closest, fleet.notes[-20:])
+    meet = first.manager.sync.meet_unix_s or None
+    commands = {vid: fleet.vehicles[vid].node.manager.sync.commands for vid in members}
+    flown: float | None = None
+    completed: frozenset[int] = frozenset()
+    if to_the_end:
+
+        def done() -> bool:
+            sample()
+            return all(fleet.vehicles[m].node.fsm.mission_id != mid for m in members)
+
+        assert fleet.run_until(done, timeout_s), fleet.notes[-20:]
+        ends = {
+            a.vehicle_id: a.time_unix_s
+            for a in fleet.messages(Alert)
+            if a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {mid}"
+        }
+        completed = frozenset(ends)
+        if ends and started:
+            flown = max(ends.values()) - min(started.values())
+    times = {vid: t for vid, (_d, t) in closest.items()}
+    return Meet(
+        arrivals=times,
+        spread_s=max(times.values()) - min(times.values()),
+        meet_s=meet - t0 if meet else None,
+        entry_miss_m={vid: d for vid, (d, _t) in closest.items()},
+        premission_seen=premission_seen,
+        speed_commands=commands,
+        lateness_spread_s=late_spread,
+        completed=completed,
+        makespan_planned_s=plan.makespan_s,
+        makespan_flown_s=flown,
     )

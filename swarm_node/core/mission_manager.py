@@ -118,6 +118,7 @@ LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close 
 # waypoints of a planned turn as reached at once and loop wide); the flyable stage
 # plans every corner for it.
 FIRST_REQUEST_ID = 1_000_000  # the command manager uses small ids
+AP_POLL_S = 0.2  # the node reads the autopilot's state this often
 
 
 class Phase(Enum):
@@ -345,30 +346,52 @@ class MissionManager:
 
     def _meet(self, ap: AutopilotState, fleet: Roster | None, now: float) -> list[Out]:
         """PREMISSION, climbed: once the meet time is known, plan our leg to our entry
-        from where we are, upload it with our share from the entry on, and start."""
+        from where we are and upload it with our share from the entry on; start it at
+        its departure time (a VTOL in hover waits there)."""
+        sync = self.sync
+        assert self.share is not None and self.mission_id is not None
+        if self._in_flight is not None or self._steps:
+            return []  # uploading
+        if sync.leg is not None:
+            if now < sync.depart_unix_s - AP_POLL_S / 2:
+                return []
+            self._steps = [StartMission()]
+            self.phase = Phase.STARTING
+            return self._next()
         etas = fleet.entry_at if fleet is not None else {}
         gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
-        t = self.sync.ready(etas, gone, now)
+        t = sync.ready(etas, gone, now)
         if t is None:
             return []
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
-        assert self.share is not None and self.mission_id is not None
         try:
-            waypoints = self.sync.plan_leg(ap, self.zones, now, home_alt, t)
-            note = Log(f"mission {self.mission_id}: PREMISSION leg "
-                       f"{self.sync.leg.flown_m if self.sync.leg else 0:.0f} m, at our entry at "
-                       f"{self.sync.meet_unix_s:.1f} ({self.sync.meet_unix_s - now:.1f} s)")  # fmt: skip
+            waypoints = sync.plan_leg(ap, self.zones, now, home_alt, t)
+            leg = sync.leg
+            assert leg is not None
+            note = Log(f"mission {self.mission_id}: PREMISSION leg {leg.flown_m:.0f} m at "
+                       f"{leg.speed_m_s:.1f} m/s, leaving in {sync.depart_unix_s - now:.1f} s, "
+                       f"at our entry at {sync.meet_unix_s:.1f} ({sync.meet_unix_s - now:.1f} s)")  # fmt: skip
+            self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap))]
         except (PlanningError, ValueError) as exc:  # fly the share as planned
-            self.sync.stop()
+            sync.stop()
             try:
                 waypoints = self._with_approach(self.share.waypoints, ap, self.zones, now, home_alt)
             except (PlanningError, ValueError) as exc2:
-                self.stop(Trigger.FAILED)
-                return [Post(fsm.PlanFailed(self.mission_id, f"approach: {exc2}"[:64]))]
+                return self._abandon(f"approach: {exc2}")
             note = Log(f"mission {self.mission_id}: no PREMISSION leg ({exc}); flying the share")
-        self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
-        self.phase = Phase.STARTING
+            self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
+            self.phase = Phase.STARTING
         return [note, *self._next()]
+
+    def _abandon(self, reason: str) -> list[Out]:
+        """The share cannot be flown after all: a plan the state machine has not taken
+        yet failed; one it has (PREMISSION confirms at the take-off) is left."""
+        mid = self.mission_id if self.mission_id is not None else 0
+        confirmed = self._confirmed
+        self.stop(Trigger.FAILED)
+        if confirmed:
+            return [Post(fsm.LeftFleet(reason[:64]))]
+        return [Post(fsm.PlanFailed(mid, reason[:64]))]
 
     def begin_replan(self) -> None:
         """A member was lost: the fleet replans what is left. We keep flying our share
@@ -636,9 +659,8 @@ class MissionManager:
             if phase == Phase.RETURNING and not isinstance(done, ReturnToLaunch):
                 self._steps = [ReturnToLaunch()]  # the zone-safe way home failed: plain RTL
                 return self._next()
-            if phase == Phase.STARTING:
-                self.stop(Trigger.FAILED)
-                return [Post(fsm.PlanFailed(mid, f"autopilot: {result.reason}"[:64]))]
+            if phase in (Phase.STARTING, Phase.MEETING):
+                return self._abandon(f"autopilot: {result.reason}")
             self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
         if self.phase == Phase.STARTING and not self._steps:

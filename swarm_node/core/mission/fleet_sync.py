@@ -35,10 +35,11 @@ clocks are GPS time).
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
-from swarm_proto import MissionType, NoFlyZone
+from swarm_proto import MissionType, NoFlyZone, VehicleType
 
 from ..autopilot.items import ItemKind, Waypoint
 from ..autopilot.state import AutopilotState
@@ -66,16 +67,22 @@ SYNC_TYPES = frozenset(
 )
 CONTROL_PERIOD_S = 1.0  # airspeed set this often (the bench's closed loop)
 SPEED_STEP_M_S = 0.2  # smaller speed changes are not sent
-START_DELAY_S = 3.0  # from planning the leg to flying it: upload and start
-ETA_MARGIN = 0.05  # of the predicted time, for what the model misses ...
-ETA_MARGIN_S = 5.0  # ... and a fixed part (arming retries, a slow upload)
+START_DELAY_S = 1.0  # from the start command to flying the leg (mode change, ack)
+UPLOAD_S = 2.0  # the leg's upload (counted in the first ETA)
+RESEND_S = 5.0  # an airspeed the autopilot does not fly is commanded again after this
+ETA_MARGIN = 0.02  # of the predicted time, for what the model misses ...
+ETA_MARGIN_S = 2.0  # ... and a fixed part (an arming retry, a slow upload)
 META_WAIT_S = 15.0  # climbed: wait at most this long for the others' ETAs
+#: switches for the benchmark's baselines: the fleet without a meet, and without the
+#: MISSION speed rule (bench/mission.py)
+PREMISSION = True
+SPEED_RULE = True
 
 
 def sync_group(plan: FleetPlan) -> tuple[int, ...]:
     """The members that meet at their entries together: the plan's fixed-wing members
     when there are at least two, for SYNC_TYPES; () otherwise."""
-    if plan.mission.mission_type not in SYNC_TYPES:
+    if not PREMISSION or plan.mission.mission_type not in SYNC_TYPES:
         return ()
     ids = tuple(
         sorted(
@@ -110,6 +117,7 @@ class FleetSync:
     entry_seq: int = 0  # the uploaded item (seq, 0 = home) of our entry
     arrived_at: float | None = None  # when we reached the entry
     ready_at: float | None = None  # climbed, waiting for the meet time since
+    depart_unix_s: float = 0.0  # when to start the leg
     entry_along_m: dict[int, float] = field(default_factory=dict)  # share metres at entries
     commands: int = 0  # airspeed commands sent (tests, logs)
     info_due: bool = False  # our ETA changed: publish VehicleInfo now
@@ -117,6 +125,7 @@ class FleetSync:
     _nominal_m_s: float = 0.0
     _commanded_m_s: float = 0.0
     _next_control: float = 0.0
+    _sent_at: float = -math.inf
 
     @property
     def active(self) -> bool:
@@ -134,6 +143,7 @@ class FleetSync:
         self.group, self.plan, self.leg = (), None, None
         self.eta_unix_s = self.meet_unix_s = 0.0
         self.entry_seq, self.arrived_at, self.ready_at = 0, None, None
+        self.depart_unix_s = 0.0
         self.entry_along_m = {}
 
     # ------------------------------------------------------------------ PREMISSION
@@ -164,7 +174,8 @@ class FleetSync:
         except (PlanningError, ValueError):
             return False
         leg = pm.legs[self.self_id]
-        t = launch_s + START_DELAY_S + self._transition_s(ap, leg.speed_m_s) + pm.arrival_s
+        t = launch_s + UPLOAD_S + START_DELAY_S + self._transition_s(ap, leg.speed_m_s)
+        t += pm.arrival_s
         self.group, self.plan, self.entry_along_m = group, plan, along
         self.eta_unix_s = now + t * (1.0 + ETA_MARGIN) + ETA_MARGIN_S
         self.info_due = True
@@ -172,9 +183,7 @@ class FleetSync:
 
     def _transition_s(self, ap: AutopilotState, speed_m_s: float) -> float:
         """A VTOL in hover first transitions to forward flight."""
-        if ap.armed and ap.groundspeed_m_s >= self.profile.min_speed_m_s:
-            return 0.0
-        return transition_s(self.profile, speed_m_s)
+        return transition_s(self.profile, speed_m_s) if self._hovering(ap) else 0.0
 
     def meet_time(self, etas: Mapping[int, float], gone: Collection[int]) -> float | None:
         """T: the latest ETA of the group's members still in the mission, once every one
@@ -212,34 +221,59 @@ class FleetSync:
         meet_unix_s: float,
     ) -> tuple[Waypoint, ...]:
         """Our leg from where we are (position, heading, speed) to our entry, arriving
-        at `meet_unix_s`; the items to upload: the leg, then our share from the entry on.
-        If the leg cannot make it, our ETA moves (publish it). Raises PlanningError."""
+        at `meet_unix_s`; the items to upload: the leg, then our share from the entry on;
+        `depart_unix_s`: when to start them. A VTOL in hover waits there and leaves in
+        time to fly the leg at its mission speed (faster if it must); a vehicle in
+        forward flight leaves at once and loses time in whole waiting orbits. If the
+        leg cannot make it, our ETA moves (publish it). Raises PlanningError."""
         assert self.plan is not None
         if ap.lat_deg is None or ap.lon_deg is None:
             raise PlanningError("no position")
         share = self.plan.share(self.self_id)
         speed = share_speed(share, self.profile)
-        delay = START_DELAY_S + self._transition_s(ap, speed)
-        pm = premission(
-            self.plan, [PlanVehicle(self.profile, _pose(ap))], zones=zones, now_unix_s=now,
-            home_alt_msl_m=home_alt_msl_m, not_before_s=max(meet_unix_s - now - delay, 0.0),
-        )  # fmt: skip
-        leg = pm.legs[self.self_id]
-        arrive = now + delay + leg.arrival_s
+        me = [PlanVehicle(self.profile, _pose(ap))]
+        kw: dict[str, Any] = {"zones": zones, "now_unix_s": now, "home_alt_msl_m": home_alt_msl_m}
+        fv = PlanVehicle(flyable(self.profile))
+        if self._hovering(ap):
+            path = premission(self.plan, me, **kw).legs[self.self_id].path_m
+            lo, hi = fv.speed_range_on(fv.profile.turn_radius_m())
+            v = _leg_speed(
+                lambda v: START_DELAY_S + transition_s(self.profile, v) + path / v,
+                meet_unix_s - now,
+                min(max(speed, lo), hi),
+                hi,
+            )
+            pm = premission(self.plan, me, not_before_s=path / v, **kw)
+            leg = pm.legs[self.self_id]
+            need = START_DELAY_S + transition_s(self.profile, leg.speed_m_s) + leg.arrival_s
+            depart = max(now, meet_unix_s - need)
+        else:
+            pm = premission(
+                self.plan, me, not_before_s=max(meet_unix_s - now - START_DELAY_S, 0.0), **kw
+            )
+            leg = pm.legs[self.self_id]
+            need, depart = START_DELAY_S + leg.arrival_s, now
+        arrive = depart + need
         if arrive > meet_unix_s + 0.5:  # cannot make it: the fleet waits for us
             self.eta_unix_s, self.info_due = arrive, True
         self.meet_unix_s = max(meet_unix_s, arrive)
+        self.depart_unix_s = depart
         self.leg = leg
         self.entry_seq = 1 + max(
             k for k, w in enumerate(leg.waypoints) if w.kind == ItemKind.WAYPOINT
         )
-        fv = PlanVehicle(flyable(self.profile))
         r = max(leg.orbit_m / (2.0 * math.pi), fv.profile.turn_radius_m())
         self._range = fv.speed_range_on(r)
         self._nominal_m_s = speed
         self._commanded_m_s = leg.speed_m_s
-        self._next_control = now + CONTROL_PERIOD_S
+        self._next_control = depart + CONTROL_PERIOD_S
         return pm.mission_waypoints(share)
+
+    def _hovering(self, ap: AutopilotState) -> bool:
+        """A VTOL not (yet) in forward flight: it can wait on the spot."""
+        return self.profile.vehicle_type == VehicleType.VTOL and (
+            not ap.armed or ap.groundspeed_m_s < self.profile.min_speed_m_s
+        )
 
     # ------------------------------------------------------------------ in flight
     def control(
@@ -266,7 +300,9 @@ class FleetSync:
             left = self.leg.remaining_m(reached_seq - 1, ap.lat_deg, ap.lon_deg)
             if left is None:  # a waiting orbit still to fly: its progress is not measured
                 return None
-            return self._command(premission_speed(left, meet_unix_s - now, self._range))
+            return self._command(premission_speed(left, meet_unix_s - now, self._range), ap, now)
+        if not SPEED_RULE:
+            return None
         own = self.lateness_s(self.self_id, progress_m, now - meet_unix_s)
         others: dict[int, float] = {}
         for vid in self.group:
@@ -276,7 +312,7 @@ class FleetSync:
             if done >= self.entry_along_m.get(vid, math.inf) - 1.0:  # past its entry
                 others[vid] = self.lateness_s(vid, done, now - meet_unix_s)
         cmd = sync_speed(own, others, self._nominal_m_s, self._range)
-        return self._command(cmd.speed_m_s)
+        return self._command(cmd.speed_m_s, ap, now)
 
     def lateness_s(self, vid: int, progress_m: float, elapsed_s: float) -> float:
         """How late member `vid` is, `progress_m` along its share, `elapsed_s` after the
@@ -290,12 +326,38 @@ class FleetSync:
         speed = share_speed(share, profile)
         return elapsed_s - max(progress_m - entry, 0.0) / speed
 
-    def _command(self, v: float) -> float | None:
-        if not math.isfinite(v) or abs(v - self._commanded_m_s) < SPEED_STEP_M_S:
+    def _command(self, v: float, ap: AutopilotState, now: float) -> float | None:
+        """`v` if it differs from what was commanded, or if the autopilot does not fly
+        what was commanded RESEND_S after it was sent (a mission's CHANGE_SPEED item or
+        a VTOL's transition took over); else None."""
+        if not math.isfinite(v):
             return None
-        self._commanded_m_s = v
+        changed = abs(v - self._commanded_m_s) >= SPEED_STEP_M_S
+        ignored = (
+            abs(ap.airspeed_m_s - v) > 1.0
+            and ap.airspeed_m_s >= self._range[0] - 1.0
+            and now - self._sent_at >= RESEND_S
+        )
+        if not (changed or ignored):
+            return None
+        self._commanded_m_s, self._sent_at = v, now
         self.commands += 1
         return v
+
+
+def _leg_speed(need_s: Callable[[float], float], have_s: float, cruise: float, top: float) -> float:
+    """The speed in [cruise, top] whose time `need_s(v)` fits in `have_s`: cruise if it
+    does, else the slowest that does (bisection: the time falls with the speed), else
+    `top`."""
+    if need_s(cruise) <= have_s or top <= cruise:
+        return cruise
+    if need_s(top) > have_s:
+        return top
+    a, b = cruise, top
+    for _ in range(40):
+        m = 0.5 * (a + b)
+        a, b = (m, b) if need_s(m) > have_s else (a, m)
+    return b
 
 
 def share_speed(share: Share, profile: VehicleProfile) -> float:
