@@ -13,10 +13,12 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
 from shapely.geometry import LineString, Polygon
 from shapely.ops import unary_union
 
-from swarm_node.core.planning import LocalFrame
+from swarm_node.core.planning import LocalFrame, heading_to_yaw
+from swarm_node.core.planning.area import AreaPlan
 from swarm_node.core.profile import VehicleProfile
 from swarm_proto import (
     Alert,
@@ -34,12 +36,14 @@ from swarm_proto import (
     MissionState,
     MissionType,
     VehicleStatus,
+    VehicleType,
 )
 
 from .core import SITL_HOME
 from .fast_fleet import FastFleet
 
 GCS = 900
+LANE_NEAR_M = 10.0  # a vehicle this close to one of its lanes, heading along it, flies it
 
 
 def square(center_lat: float, center_lon: float, half_m: float) -> Geometry:
@@ -54,42 +58,78 @@ def square(center_lat: float, center_lon: float, half_m: float) -> Geometry:
 @dataclass
 class Tracks:
     """Each vehicle's positions while it flies its share (sortie MISSION, autopilot in
-    its mission, near the mission altitude), in a local frame."""
+    its mission, near the mission altitude), in a local frame: (x, y, heading, on a
+    lane of its share), the last from the vehicle's own plan at the time (within
+    LANE_NEAR_M of one of its lanes, heading along it): a transit that happens to run
+    along another vehicle's lane is not flying that lane."""
 
     frame: LocalFrame
     alt_m: float
-    points: dict[int, list[tuple[float, float, float]]] = field(default_factory=dict)
+    points: dict[int, list[tuple[float, float, float, bool]]] = field(default_factory=dict)
+    _lanes: dict[int, tuple[object, LocalFrame, np.ndarray]] = field(default_factory=dict)
+
+    def _on_lane(self, vid: int, fleet: FastFleet, lat: float, lon: float, heading: float) -> bool:
+        plan = fleet.vehicles[vid].node.manager.fleet_plan
+        if plan is None or not isinstance(plan.detail, AreaPlan):
+            return False
+        cached = self._lanes.get(vid)
+        if cached is None or cached[0] is not plan:
+            lanes = [ln for a in plan.detail.split.assignments if a.vehicle_id == vid
+                     for ln in a.path.lanes]  # fmt: skip
+            arr = np.array([(*ln.a, *ln.b) for ln in lanes], dtype=float).reshape(-1, 4)
+            cached = (plan, plan.detail.frame, arr)
+            self._lanes[vid] = cached
+        _plan, frame, arr = cached
+        if not len(arr):
+            return False
+        px, py = frame.to_local(lat, lon)
+        a, d = arr[:, :2], arr[:, 2:] - arr[:, :2]
+        n2 = np.maximum((d * d).sum(axis=1), 1e-9)
+        t = np.clip(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / n2, 0.0, 1.0)
+        dist = np.hypot(a[:, 0] + t * d[:, 0] - px, a[:, 1] + t * d[:, 1] - py)
+        k = int(np.argmin(dist))
+        if dist[k] > LANE_NEAR_M:
+            return False
+        lane_yaw = math.atan2(d[k, 1], d[k, 0])
+        yaw = heading_to_yaw(heading)
+        return abs(math.cos(yaw - lane_yaw)) > math.cos(math.radians(30.0))
 
     def sample(self, fleet: FastFleet) -> None:
         for vid, v in fleet.vehicles.items():
             s = v.link.state
+            ground = v.node.profile.vehicle_type in (VehicleType.ROVER, VehicleType.BOAT)
             if (
                 v.node.manager.mission_state == MissionState.MISSION
                 and v.node.manager.phase.value == "flying"
                 and s.lat_deg is not None
                 and s.lon_deg is not None
-                and abs((s.alt_rel_m or 0.0) - self.alt_m) < 15.0
+                and (ground or abs((s.alt_rel_m or 0.0) - self.alt_m) < 15.0)
             ):
                 x, y = self.frame.to_local(s.lat_deg, s.lon_deg)
-                self.points.setdefault(vid, []).append((x, y, s.heading_deg))
+                lane = self._on_lane(vid, fleet, s.lat_deg, s.lon_deg, s.heading_deg)
+                self.points.setdefault(vid, []).append((x, y, s.heading_deg, lane))
 
 
 def lane_runs(
-    pts: Sequence[tuple[float, float, float]], axis_deg: float, min_len_m: float = 100.0,
+    pts: Sequence[tuple[float, float, float, bool]], axis_deg: float, min_len_m: float = 30.0,
     width_m: float = 6.0,
 ) -> list[LineString]:  # fmt: skip
-    """Straight runs along the lane axis: consecutive samples whose cross-track
-    coordinate stays within `width_m` over at least `min_len_m`."""
+    """Straight runs along the lane axis on the vehicle's own lanes: consecutive
+    samples on a lane of its share whose cross-track coordinate stays within `width_m`
+    over at least `min_len_m`."""
     ux, uy = math.sin(math.radians(axis_deg)), math.cos(math.radians(axis_deg))
     out: list[LineString] = []
     cur: list[tuple[float, float, float]] = []
-    for x, y, _h in pts:
+    for x, y, _h, on_lane in pts:
         c = x * uy - y * ux
-        if cur and (abs(c - cur[0][2]) > width_m / 2 or math.dist(cur[-1][:2], (x, y)) > 50):
+        if cur and (
+            not on_lane or abs(c - cur[0][2]) > width_m / 2 or math.dist(cur[-1][:2], (x, y)) > 50
+        ):
             if math.dist(cur[0][:2], cur[-1][:2]) >= min_len_m:
                 out.append(LineString([q[:2] for q in cur]))
             cur = []
-        cur.append((x, y, c))
+        if on_lane:
+            cur.append((x, y, c))
     if len(cur) > 1 and math.dist(cur[0][:2], cur[-1][:2]) >= min_len_m:
         out.append(LineString([q[:2] for q in cur]))
     return out
@@ -122,6 +162,9 @@ class Inheritance:
     replan_seen: bool
     same_plan: bool
     hashes: int  # distinct members hashes among the survivors (1: they agree)
+    pairs: dict[tuple[int, int], float] = field(default_factory=dict)  # double flown by pair
+    battery_critical: tuple[int, ...] = ()  # members that raised BATTERY_CRITICAL
+    tracks: Tracks | None = field(default=None, repr=False)  # what was flown (plots, debugging)
 
 
 def inheritance(
@@ -132,16 +175,25 @@ def inheritance(
     *,
     half_m: float = 350.0,
     alt_m: float = 60.0,
+    north_m: float = 0.006 * 111_320.0,
+    side_overlap: float = MissionParams().side_overlap,
+    spacing_m: float = 60.0,
 ) -> Inheritance:
-    fleet = FastFleet.build(list(members), profiles, spacing_m=60.0)
+    """`members` fly an area mission sent to ALL: a square of `half_m` half side
+    `north_m` north of their homes (`spacing_m` apart), at `alt_m`; `victim` is killed
+    at `at_fraction` of its share. Coverage: the flown tracks under the camera swath
+    (the narrowest camera of the fleet at `alt_m`, what the planner spaced the lanes
+    for; a ground vehicle's track counts with the same swath)."""
+    fleet = FastFleet.build(list(members), profiles, spacing_m=spacing_m)
     fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
     assert fleet.run_until(
         lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
     )
-    area = square(SITL_HOME.lat_deg + 0.006, SITL_HOME.lon_deg, half_m)
-    fleet.broadcast(Mission(70, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=alt_m)))
+    area = square(SITL_HOME.lat_deg + north_m / 111_320.0, SITL_HOME.lon_deg, half_m)
+    params = MissionParams(altitude_rel_m=alt_m, side_overlap=side_overlap)
+    fleet.broadcast(Mission(70, GCS, MissionType.AREA, area, params))
     frame = LocalFrame.at(list(area.points))
     tracks = Tracks(frame, alt_m)
     lost = fleet.vehicles[victim]
@@ -181,21 +233,28 @@ def inheritance(
         return all(fleet.vehicles[m].node.fsm.mission_id != 70 for m in survivors)
 
     assert fleet.run_until(done, 3000), fleet.notes[-20:]
-    camera = profiles[members[0]].camera
-    assert camera is not None
-    swath = 2.0 * alt_m * math.tan(math.radians(camera.hfov_deg) / 2.0)
+    hfov = min(c.hfov_deg for m in members if (c := profiles[m].camera) is not None)
+    swath = 2.0 * alt_m * math.tan(math.radians(hfov) / 2.0)
     poly = Polygon([frame.to_local(p.lat_deg, p.lon_deg) for p in area.points])
     flown = unary_union(
-        [LineString([(x, y) for x, y, _h in pts]).buffer(swath / 2.0)
+        [LineString([(x, y) for x, y, _h, _lane in pts]).buffer(swath / 2.0)
          for pts in tracks.points.values() if len(pts) > 1]
     )  # fmt: skip
-    spacing = swath * (1.0 - MissionParams().side_overlap)
+    spacing = swath * (1.0 - side_overlap)
     along = {
-        vid: unary_union(lane_runs(pts, axis)).buffer(spacing / 2.0 * 0.9).intersection(poly)
+        # flat ends: two runs meeting where a split cut a lane do not overlap
+        vid: unary_union(lane_runs(pts, axis))
+        .buffer(spacing / 2.0 * 0.9, cap_style="flat")
+        .intersection(poly)
         for vid, pts in tracks.points.items()
     }
     ids = sorted(along)
-    overlap = sum(along[a].intersection(along[b]).area for i, a in enumerate(ids) for b in ids[i + 1 :])
+    pairs = {
+        (a, b): along[a].intersection(along[b]).area / poly.area
+        for i, a in enumerate(ids)
+        for b in ids[i + 1 :]
+    }
+    overlap = sum(pairs.values()) * poly.area
     completed = frozenset(
         a.vehicle_id for a in fleet.messages(Alert) if a.code == AlertCode.MISSION_COMPLETE
     )
@@ -209,6 +268,11 @@ def inheritance(
         replan_seen=replan_seen,
         same_plan=len(plans) == 1,
         hashes=hashes,
+        pairs=pairs,
+        battery_critical=tuple(sorted({
+            a.vehicle_id for a in fleet.messages(Alert) if a.code == AlertCode.BATTERY_CRITICAL
+        })),
+        tracks=tracks,
     )
 
 

@@ -64,7 +64,7 @@ from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Submit
 from .planning import (
     PlanningError,
 )
-from .planning.endurance import CLIMB_FRACTION, launch_s
+from .planning.endurance import CLIMB_FRACTION, Endurance, launch_s
 from .planning.flight import FIXED_WING_ACCEPT_M
 from .planning.transit import (
     TRANSIT_MARGIN_M,
@@ -410,10 +410,12 @@ class MissionManager:
         zones: Sequence[NoFlyZone],
         ap: AutopilotState,
         now: float,
+        battery_pct: Mapping[int, float] | None = None,
     ) -> list[Out]:
         """What is left of the fleet plan (every old member's `progress_m` along its
-        share) shared among `survivors`, posed where their progress puts them: a
-        `PlanJob` whose outcome comes back to `on_plan`."""
+        share) shared among `survivors`, posed where their progress puts them (and, for
+        an area, none given more than `battery_pct` flies home): a `PlanJob` whose
+        outcome comes back to `on_plan`."""
         base = self.fleet_plan
         if base is None or self.sortie.state != MissionState.REPLAN:
             return self.release(mission, survivors, zones, ap, now)
@@ -422,7 +424,8 @@ class MissionManager:
         self._planning = (mission, tuple(zones))
         self.replanned_from = dict(progress_m)
         req = PlanRequest(self._job, mission, tuple(survivors), tuple(zones), now, home_alt,
-                          base=base, progress_m=dict(progress_m))  # fmt: skip
+                          base=base, progress_m=dict(progress_m),
+                          battery_pct=dict(battery_pct or {}))  # fmt: skip
         ids = sorted(m.profile.vehicle_id for m in survivors)
         done = {v: round(p) for v, p in sorted(progress_m.items())}
         return [Log(f"mission {mission.mission_id}: replanning for {ids} from {done} m"),
@@ -775,6 +778,31 @@ class MissionManager:
             return True
         r = abs(w.loiter_radius_m or 0.0) + max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
         return distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= r
+
+
+def replan_battery(
+    base: FleetPlan,
+    survivors: Sequence[Member],
+    progress_m: Mapping[int, float],
+    flown_before_m: Mapping[int, float],
+    altitude_m: float,
+) -> dict[int, float]:
+    """Each survivor's battery left by the model (`Endurance.left_pct`): climbed to
+    `altitude_m`, then flown its share's planned time to `progress_m` and the metres it
+    flew before the last replan at its mission speed. Every survivor computes the same
+    from the progress all published (the measured batteries differ by when each node
+    last heard them: two nodes would split differently)."""
+    out: dict[int, float] = {}
+    for m in survivors:
+        vid, p = m.profile.vehicle_id, m.profile
+        share = base.shares.get(vid)
+        if share is None or p.battery_capacity_mah <= 0.0:
+            continue
+        speed = next((v.speed_m_s for v in share.waypoints if v.speed_m_s), p.cruise_speed_m_s)
+        flown_s = share.planned_s_at(progress_m.get(vid, 0.0))
+        flown_s += flown_before_m.get(vid, 0.0) / max(speed or 1.0, 0.1)
+        out[vid] = Endurance.of(p, altitude_m).left_pct(flown_s, p.battery_capacity_mah)
+    return out
 
 
 def share_index_of_items(

@@ -99,7 +99,7 @@ from .fences import (
 )
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission.share import PlanOutcome
-from .mission_manager import Member, MissionManager, with_defaults
+from .mission_manager import Member, MissionManager, replan_battery, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
@@ -738,17 +738,21 @@ class NodeCore:
         peers = self.members.peers
         survivors = self.roster.survivors(peers)
         progress: dict[int, float] = {}
+        flown: dict[int, float] = {}  # metres flown before the last replan
         if base is not None:
             for vid in base.roster:
                 if vid not in base.shares:
                     continue
                 if vid == self.self_id:
                     done = self.manager.share_progress_m()
+                    before = self.manager.sortie.progress_m - done
                 else:
                     p, path = self.roster.progress_of(vid)
                     # less what it flew before the last replan; nothing heard: nothing flown
-                    done = p - (path - base.shares[vid].length_m) if path > 0.0 else 0.0
+                    before = path - base.shares[vid].length_m if path > 0.0 else 0.0
+                    done = p - before if path > 0.0 else 0.0
                 progress[vid] = min(max(done, 0.0), base.shares[vid].length_m)
+                flown[vid] = max(before, 0.0)
         members: list[Member] = []
         for vid in survivors:
             profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
@@ -763,8 +767,13 @@ class NodeCore:
                     pose = None
             members.append(Member(profile, pose))
         self.roster.replanned(survivors)
+        battery = (
+            replan_battery(base, members, progress, flown, mission.params.altitude_rel_m)
+            if base is not None
+            else {}
+        )
         return self.manager.replan(
-            mission, members, progress, self.planning_zones(now), self.autopilot, now
+            mission, members, progress, self.planning_zones(now), self.autopilot, now, battery
         )
 
     def _start_return(self, now: float) -> list[ModuleOutput]:

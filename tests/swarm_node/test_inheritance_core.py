@@ -49,3 +49,32 @@ def test_survivors_replan_the_lost_members_share_and_agree() -> None:
     for i in (1, 2):
         up = uploads(f, i)[-1]
         assert isinstance(up, UploadMission) and up.items
+
+
+def test_a_replan_gives_the_survivors_the_battery_the_model_says_they_have_left(
+    fleet_profiles: dict,
+) -> None:
+    """Every survivor estimates every survivor's battery alike from the published
+    progress (the model: climb, then the share's planned time to its progress and what
+    it flew before at its speed); it falls with the metres flown and is what
+    `Endurance.left_pct` says."""
+    from swarm_node.core.mission.share import Member, plan_fleet
+    from swarm_node.core.mission_manager import replan_battery
+    from swarm_node.core.planning.endurance import Endurance
+    from swarm_proto import GeoPoint, Mission, MissionParams, MissionType
+    from tests.swarm_node.test_mission_defects import square
+
+    members = [Member(fleet_profiles[v], GeoPoint(37.4120, -5.9889 + 0.0005 * i, 0.0))
+               for i, v in enumerate((7, 8))]  # fmt: skip
+    mission = Mission(9, 900, MissionType.AREA, square(60.0), MissionParams(altitude_rel_m=40.0))
+    base = plan_fleet(mission, members, [], 0.0, 0.0)
+    s7 = base.share(7)
+    early = replan_battery(base, members, {7: 0.1 * s7.length_m}, {}, 40.0)
+    late = replan_battery(base, members, {7: 0.9 * s7.length_m}, {}, 40.0)
+    later = replan_battery(base, members, {7: 0.9 * s7.length_m}, {7: 500.0}, 40.0)
+    assert 0.0 < later[7] < late[7] < early[7] < 100.0
+    expect = Endurance.of(fleet_profiles[7], 40.0).left_pct(
+        s7.planned_s_at(0.9 * s7.length_m), fleet_profiles[7].battery_capacity_mah
+    )
+    assert late[7] == expect
+    assert early[8] == late[8]  # 8 flew nothing in both

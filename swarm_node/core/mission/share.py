@@ -60,6 +60,9 @@ class PlanRequest:
     home_alt_msl_m: float
     base: FleetPlan | None = None
     progress_m: Mapping[int, float] = field(default_factory=dict)
+    #: a replan's survivors' battery left by the model (`Endurance.left_pct`): an area
+    #: replan gives none more than its charge flies home
+    battery_pct: Mapping[int, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -92,6 +95,7 @@ def run_plan(req: PlanRequest) -> PlanOutcome:
             plan = req.base.replan(
                 req.progress_m, _vehicles(req.members), zones=req.zones,
                 now_unix_s=req.now, home_alt_msl_m=req.home_alt_msl_m,
+                battery_pct=dict(req.battery_pct) or None,
             )  # fmt: skip
     except (PlanningError, ValueError) as exc:
         return PlanOutcome(req.job_id, None, f"planning: {exc}")

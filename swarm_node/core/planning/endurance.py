@@ -178,6 +178,16 @@ class Endurance:
         left -= self.hover_a * self.land_s / 3.6
         return max(left, 0.0) * 3.6 / self.cruise_a
 
+    def left_pct(self, flown_s: float, capacity_mah: float) -> float:
+        """Battery left (% of capacity) after the climb and `flown_s` at cruise, by the
+        model: what every node can compute alike for a member (its published progress
+        says how long it has flown), where the members' measured batteries differ by
+        when each node last heard them. 100 without battery figures."""
+        if math.isinf(self.usable_mah) or capacity_mah <= 0.0 or not math.isfinite(flown_s):
+            return 100.0
+        mah = (self.cruise_a * max(flown_s, 0.0) + self.hover_a * self.climb_s) / 3.6
+        return min(max(100.0 - 100.0 * mah / capacity_mah, 0.0), 100.0)
+
     def used_pct(self, cruise_s: float, capacity_mah: float) -> float:
         """Battery used (% of capacity) by a sortie with `cruise_s` at cruise."""
         if math.isinf(self.usable_mah) or capacity_mah <= 0.0:
