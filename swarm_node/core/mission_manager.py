@@ -24,6 +24,8 @@ from enum import Enum
 import msgspec
 
 from swarm_proto import (
+    Alert,
+    AlertCode,
     GeometryKind,
     GeoPoint,
     Mission,
@@ -31,6 +33,7 @@ from swarm_proto import (
     MissionState,
     MissionType,
     NoFlyZone,
+    Severity,
     VehicleType,
 )
 
@@ -50,6 +53,7 @@ from .autopilot.requests import (
     UploadMission,
 )
 from .autopilot.state import AutopilotState
+from .mission.agreement import ReplanAgreement, Verdict
 from .mission.fleet_sync import FleetSync
 from .mission.share import (
     FleetPlan,
@@ -60,7 +64,7 @@ from .mission.share import (
     plan_fleet,
 )
 from .mission.sortie import Sortie, Trigger
-from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Submit
+from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import (
     PlanningError,
 )
@@ -182,6 +186,8 @@ class MissionManager:
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
     mission: Mission | None = None  # the mission being flown (its parameters)
     sync: FleetSync = field(init=False)  # PREMISSION and the MISSION speed rule
+    agreement: ReplanAgreement = field(default_factory=ReplanAgreement)
+    _held: PlanOutcome | None = None  # a replan made, flown once the survivors agree
     _confirmed: bool = False  # PlanSucceeded posted for this plan
 
     def __post_init__(self) -> None:
@@ -234,11 +240,60 @@ class MissionManager:
         fleet_ids = sorted(m.profile.vehicle_id for m in members)
         return [Log(f"mission {mission.mission_id}: planning for fleet {fleet_ids}"), PlanJob(req)]
 
-    def on_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[Out]:
-        """The fleet's plan is made: fly our share from where the vehicle is now. An
-        outcome of an abandoned job (stopped, a newer mission) is ignored."""
+    def on_plan(
+        self, outcome: PlanOutcome, ap: AutopilotState, now: float, fleet: Roster | None = None
+    ) -> list[Out]:
+        """The fleet's plan is made: fly our share from where the vehicle is now (a
+        replan once the survivors agree on it: `_agree`). An outcome of an abandoned job
+        (stopped, a newer mission) is ignored."""
         if outcome.job_id != self._job or self._planning is None:
             return []
+        if self.sortie.state == MissionState.REPLAN:
+            if outcome.plan is not None and fleet is not None:
+                self._held = outcome
+                return [Log(f"mission {self._planning[0].mission_id}: replanned for "
+                            f"{list(outcome.plan.roster)}; flown once they all agree")]  # fmt: skip
+            if fleet is not None:  # no replan: fly on, with the roster every member flies
+                fleet.rollback()
+            self.agreement.end()
+        return self._take_plan(outcome, ap, now)
+
+    def _agree(self, ap: AutopilotState, now: float, fleet: Roster) -> list[Out]:
+        """REPLAN: fly the held replan once every survivor planned it with our roster;
+        re-synchronise on a mismatch; fly on without it when no agreement comes
+        (mission/agreement.py)."""
+        self.agreement.begin(now)
+        verdict = self.agreement.verdict(fleet, now, held=self._held is not None)
+        if verdict == Verdict.WAIT:
+            return []
+        if verdict == Verdict.AGREED:
+            held, self._held = self._held, None
+            assert held is not None
+            fleet.adopt()
+            return self._take_plan(held, ap, now)
+        mid = self.mission_id if self.mission_id is not None else 0
+        others = ", ".join(f"{v} with {h:#06x}" for v, h in self.agreement.others)
+        fleet.rollback()
+        self._held, self._planning = None, None
+        if verdict == Verdict.MISMATCH:
+            text = f"mission {mid}: replan roster {others}, ours {fleet.members_hash:#06x}"
+            note = f"{text}; planning again from the roster all flew"
+            return [Note(logging.WARNING, note), self._alert(Severity.WARNING, text, now),
+                    Post(fsm.Replan(mid))]  # fmt: skip
+        self.agreement.end()
+        why = f"different rosters ({others})" if others else "no answer in time"
+        text = f"mission {mid}: no replan agreed, {why}; flying on"
+        return [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now),
+                *self._resume(mid)]  # fmt: skip
+
+    def _alert(self, severity: Severity, text: str, now: float) -> Publish:
+        return Publish(
+            Alert(self.profile.vehicle_id, max(now, 0.0), severity, AlertCode.ROSTER_MISMATCH,
+                  text[:64])
+        )  # fmt: skip
+
+    def _take_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[Out]:
+        assert self._planning is not None
         mission, zones = self._planning
         self._planning = None
         mid = mission.mission_id
@@ -393,13 +448,15 @@ class MissionManager:
             return [Post(fsm.LeftFleet(reason[:64]))]
         return [Post(fsm.PlanFailed(mid, reason[:64]))]
 
-    def begin_replan(self) -> None:
+    def begin_replan(self, now: float | None = None) -> None:
         """A member was lost: the fleet replans what is left. We keep flying our share
         meanwhile; the progress we published is what the others replan from."""
         if self.sortie.state in (MissionState.MISSION, MissionState.PREMISSION):
             self.sortie.go(Trigger.REPLAN)
+        if now is not None:
+            self.agreement.begin(now)
         self.owner = Owner.MISSION
-        self._planning = None
+        self._planning, self._held = None, None
         self.sync.stop()  # a replanned share is flown from where we are, without a meet
 
     def replan(
@@ -616,9 +673,10 @@ class MissionManager:
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
-        self._planning = None  # a plan job still running is abandoned
+        self._planning, self._held = None, None  # a plan job still running is abandoned
         self.share, self._share_index, self._offset = None, (), 0.0
         self.sync.stop()
+        self.agreement.end()
         self.sortie.go(trigger)
 
     def take_over(self, phase: Phase) -> None:
@@ -682,8 +740,12 @@ class MissionManager:
     def on_autopilot(
         self, ap: AutopilotState, now: float, fleet: Roster | None = None
     ) -> list[Out]:
-        """`fleet`: the mission's roster (the members' published ETAs and progress, for
-        PREMISSION and the MISSION speed rule)."""
+        """`fleet`: the mission's roster (the members' published ETAs, progress and
+        hashes: PREMISSION, the MISSION speed rule, the agreement on a replan)."""
+        if fleet is not None and self.sortie.state == MissionState.REPLAN:
+            agreed = self._agree(ap, now, fleet)
+            if agreed:
+                return agreed
         if (
             self.phase in (Phase.RETURNING, Phase.LANDING, Phase.PARACHUTE)
             and not ap.armed

@@ -294,7 +294,7 @@ class NodeCore:
             case Received(msg):
                 out = self._on_message(msg, now)
             case PlanDone(outcome):
-                out = self.manager.on_plan(outcome, self.autopilot, now)
+                out = self.manager.on_plan(outcome, self.autopilot, now, self.roster)
             case _:
                 assert_never(event)
         if self.manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s
@@ -560,11 +560,14 @@ class NodeCore:
                     in (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
                 ):
                     out.append(Post(fsm.Replan(ev.mission_id)))  # inherit its share
-            elif isinstance(ev, RosterMismatch):
-                out.append(
-                    Note(logging.ERROR, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} planned "
-                         f"with roster {ev.theirs:#06x}, ours is {ev.ours:#06x}")
-                )  # fmt: skip
+            elif isinstance(ev, RosterMismatch):  # an alert, once per member and hash
+                text = (f"mission {ev.mission_id}: vehicle {ev.vehicle_id} flies roster "
+                        f"{ev.theirs:#06x}, ours {ev.ours:#06x}")  # fmt: skip
+                out += [
+                    Note(logging.ERROR, text),
+                    Publish(Alert(self.self_id, max(0.0, self.now), Severity.WARNING,
+                                  AlertCode.ROSTER_MISMATCH, text[:64])),
+                ]  # fmt: skip
         return out
 
     # ------------------------------------------------------------------ time
@@ -674,7 +677,8 @@ class NodeCore:
                 self.roster.open(o.mission_id, mission.selection)
             self._replanning = o.replan and mission is not None and self.roster.frozen
             if self._replanning:
-                self.manager.begin_replan()
+                self.roster.rollback()  # a replan not agreed yet is made again from there
+                self.manager.begin_replan(now)
             else:
                 self.manager.plan(o.mission_id)
             self.arbiter.release(Owner.OPERATOR)  # the state machine decides the next flight
@@ -717,7 +721,8 @@ class NodeCore:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
             return []
         if self._replanning and self.roster.frozen:
-            return self._replan(mission, now)
+            # the peers hold their replans until ours carries the same roster hash
+            return [*self._replan(mission, now), Publish(self.info())]
         self.roster.freeze(self.members.peers)
         members, unknown = self._members()
         if unknown:
