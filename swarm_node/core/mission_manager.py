@@ -34,6 +34,7 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
     Severity,
+    VehicleStatus,
     VehicleType,
 )
 
@@ -55,6 +56,8 @@ from .autopilot.requests import (
 from .autopilot.state import AutopilotState
 from .mission.agreement import ReplanAgreement, Verdict
 from .mission.fleet_sync import FleetSync
+from .mission.follow import Follow
+from .mission.landing import LandingTurn
 from .mission.share import (
     FleetPlan,
     Member,
@@ -130,6 +133,7 @@ class Phase(Enum):
     STARTING = "starting"  # upload, arm, take off
     CLIMBING = "climbing"  # waiting for the take-off altitude
     MEETING = "meeting"  # PREMISSION: climbed, waiting for the fleet's meet time
+    FOLLOWING = "following"  # MUM-T: holding our slot around the lead
     FLYING = "flying"  # the mission is running on the autopilot
     RETURNING = "returning"  # RTL
     LANDING = "landing"
@@ -188,6 +192,9 @@ class MissionManager:
     sync: FleetSync = field(init=False)  # PREMISSION and the MISSION speed rule
     agreement: ReplanAgreement = field(default_factory=ReplanAgreement)
     _held: PlanOutcome | None = None  # a replan made, flown once the survivors agree
+    turn: LandingTurn | None = None  # AUTOLAND: our turn to leave the hold and land
+    lands: bool = False  # the share ends with a landing (AUTOLAND): landed completes it
+    follow: Follow | None = None  # MUM-T: our slot around the lead
     _confirmed: bool = False  # PlanSucceeded posted for this plan
 
     def __post_init__(self) -> None:
@@ -251,8 +258,9 @@ class MissionManager:
         if self.sortie.state == MissionState.REPLAN:
             if outcome.plan is not None and fleet is not None:
                 self._held = outcome
-                return [Log(f"mission {self._planning[0].mission_id}: replanned for "
-                            f"{list(outcome.plan.roster)}; flown once they all agree")]  # fmt: skip
+                note = Log(f"mission {self._planning[0].mission_id}: replanned for "
+                           f"{list(outcome.plan.roster)}; flown once they all agree")  # fmt: skip
+                return [note, *self._agree(ap, now, fleet)]  # maybe at once
             if fleet is not None:  # no replan: fly on, with the roster every member flies
                 fleet.rollback()
             self.agreement.end()
@@ -322,6 +330,10 @@ class MissionManager:
             return [Post(fsm.PlanSucceeded(mid)), Post(fsm.MissionComplete(mid))]
         if not waypoints:
             return self._failed(mid, "nothing to fly for this vehicle")
+        follow = Follow.of(outcome.plan, self.profile) if not replan else self.follow
+        if follow is not None:
+            return self._begin_follow(mission, outcome.plan, follow, zones, ap, now)
+        self.follow, self.turn = None, None
         launch = 0.0 if ap.armed else launch_s(self.profile, mission.params.altitude_rel_m)
         sync = not replan and self.sync.begin(outcome.plan, ap, zones, now, home_alt, launch)
         if not sync:
@@ -354,6 +366,7 @@ class MissionManager:
             f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
         )
         waypoints = self._load(waypoints, ap)
+        self.turn = LandingTurn.of(outcome.plan, self.profile.vehicle_id, waypoints)
         steps: list[ApRequest] = [UploadMission(items=waypoints)]
         if not ap.armed:
             steps += self._launch_steps()
@@ -363,6 +376,58 @@ class MissionManager:
         self.phase = Phase.STARTING
         return [note, *self._next()]
 
+    def _begin_follow(
+        self,
+        mission: Mission,
+        plan: FleetPlan,
+        follow: Follow,
+        zones: Sequence[NoFlyZone],
+        ap: AutopilotState,
+        now: float,
+    ) -> list[Out]:
+        """MUM-T: launch and climb (on the ground), then follow the lead in our slot
+        (mission/follow.py); no path: progress is 0 of 1 m until the follow ends."""
+        mid = mission.mission_id
+        self.zones, self.mission_id, self.mission = tuple(zones), mid, mission
+        self.takeoff_alt_m = mission.params.altitude_rel_m
+        self.follow, self._confirmed = follow, False
+        self.share = plan.share(self.profile.vehicle_id)
+        self.items, self.last_item = 0, 0
+        self.sortie.path_m, self.sortie.progress_m = 1.0, 0.0
+        self.sortie.go(Trigger.RELEASED)
+        note = Log(f"mission {mid}: following lead {follow.lead_id} in slot {follow.slot} "
+                   f"of {len(follow.offsets)}")  # fmt: skip
+        if ap.armed:
+            self.phase = Phase.FOLLOWING
+            self.sortie.go(Trigger.STARTED)
+            follow.begin(now)
+            return [note, *self._confirm(mid)]
+        self._steps = self._launch_steps()
+        self.phase = Phase.STARTING
+        return [note, *self._next()]
+
+    def _following(self, ap: AutopilotState, now: float) -> list[Out]:
+        """MUM-T: our slot where the lead will be, every second; the end after the
+        duration, or when the lead is no longer heard."""
+        follow = self.follow
+        assert follow is not None and self.mission_id is not None
+        why = follow.over(now)
+        if why is not None:
+            mid = self.mission_id
+            self.sortie.finish()
+            self.stop(Trigger.COMPLETE)
+            return [Log(f"mission {mid}: {why}"), Post(fsm.MissionComplete(mid))]
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        return [
+            Submit(msgspec.structs.replace(r, request_id=next(self._ids)), self.owner, Owner.MISSION)
+            for r in follow.step(ap, now, self.zones, home_alt)
+        ]
+
+    def on_peer_status(self, status: VehicleStatus, now: float) -> None:
+        """A peer's telemetry: MUM-T's lead."""
+        if self.follow is not None:
+            self.follow.on_status(status, now)
+
     def _load(self, waypoints: tuple[Waypoint, ...], ap: AutopilotState) -> tuple[Waypoint, ...]:
         """The items to upload for `waypoints` (our share, with its approach), and what
         following them needs: the item that completes the share, a timed hold, metres
@@ -370,8 +435,11 @@ class MissionManager:
         before (an earlier mission's items do not count)."""
         # end on an unlimited loiter over the last waypoint: the autopilot holds there
         # (ArduPlane would otherwise RTL by itself, straight through any zone) until the
-        # node flies the zone-safe way home
+        # node flies the zone-safe way home; a share that lands (AUTOLAND) ends landed
+        self.lands = bool(waypoints) and waypoints[-1].kind == ItemKind.LAND
         last = next((w for w in reversed(waypoints) if w.kind == ItemKind.WAYPOINT), None)
+        if self.lands:
+            last = None
         if last is not None:
             waypoints = (
                 *waypoints,
@@ -675,6 +743,7 @@ class MissionManager:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
         self._planning, self._held = None, None  # a plan job still running is abandoned
         self.share, self._share_index, self._offset = None, (), 0.0
+        self.turn, self.lands, self.follow = None, False, None
         self.sync.stop()
         self.agreement.end()
         self.sortie.go(trigger)
@@ -755,6 +824,11 @@ class MissionManager:
             return [Post(fsm.LandingComplete())]
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
+                if self.follow is not None and self.mission_id is not None:
+                    self.phase = Phase.FOLLOWING
+                    self.sortie.go(Trigger.STARTED)
+                    self.follow.begin(now)
+                    return self._confirm(self.mission_id)
                 if self.sync.active:
                     self.phase = Phase.MEETING
                     return self._meet(ap, fleet, now)
@@ -763,6 +837,8 @@ class MissionManager:
                 return self._next()
         elif self.phase == Phase.MEETING:
             return self._meet(ap, fleet, now)
+        elif self.phase == Phase.FOLLOWING:
+            return self._following(ap, now)
         elif self.phase == Phase.FLYING and self.items > 1 and self.mission_id is not None:
             return self._flying(ap, now, fleet)
         elif self.phase == Phase.RETURNING and self._in_flight is None and self.profile.can_hover:
@@ -794,6 +870,8 @@ class MissionManager:
             self.sortie.advance(
                 self._offset + self.share.progress_m(k, ap.lat_deg, ap.lon_deg)
             )
+        if self.lands:
+            return out + self._landing(ap, now, fleet)
         done = reached >= self.last_item and self.hold_seq == 0
         if self.hold_seq and self._fresh_current and ap.mission_current >= self.hold_seq:
             if self.hold_since is None and self._on_station(ap):
@@ -806,6 +884,20 @@ class MissionManager:
         self.sortie.finish()
         self.stop(Trigger.COMPLETE)
         return [*out, Post(fsm.MissionComplete(mid))]
+
+    def _landing(self, ap: AutopilotState, now: float, fleet: Roster | None) -> list[Out]:
+        """AUTOLAND: leave the hold in our turn (mission/landing.py); landed (disarmed
+        on the ground), the share is flown and the sortie over."""
+        turn = self.turn
+        current = ap.mission_current if self._fresh_current else 0
+        if turn is not None and self._in_flight is None and turn.release(current, fleet, now):
+            self._steps = [StartMission(first_item=turn.hold_seq + 1)]
+            return [Log(f"mission {self.mission_id}: our turn to land"), *self._next()]
+        if not self._fresh_current or ap.armed or (ap.alt_rel_m or 0.0) >= 2.0:
+            return []
+        self.sortie.finish()  # peers see it in our VehicleInfo: the next may land
+        self.stop(Trigger.LANDED)
+        return [Post(fsm.LandingComplete())]
 
     def _keep_pace(
         self, ap: AutopilotState, now: float, reached: int, fleet: Roster | None

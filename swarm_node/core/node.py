@@ -364,6 +364,7 @@ class NodeCore:
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
         match msg:
             case VehicleStatus():
+                self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
                 return self._peer_events(self.members.on_status(msg, now))
             case VehicleInfo():
                 out = self._peer_events(self.members.on_info(msg, now))

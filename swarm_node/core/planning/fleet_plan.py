@@ -48,10 +48,12 @@ from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Mission, MissionType, NoFlyZone
 
 from .area import AreaPlan, plan_area, replan_area
+from .autoland import plan_autoland
 from .endurance import launch_s, transition_s
 from .errors import InvalidParameterError, NoVehiclesError, PlanningError
 from .flight import FIXED_WING_ACCEPT_M, flyable_plan, predict_flight
 from .geo import LocalFrame, VehiclePose
+from .mumt import LeadState, plan_mumt
 from .objective import plan_objective
 from .perimeter import PerimeterPlan, plan_perimeter
 from .route import plan_route
@@ -64,7 +66,11 @@ PLANNERS: dict[MissionType, Callable[..., object]] = {
     MissionType.PERIMETER: plan_perimeter,
     MissionType.ROUTE: plan_route,
     MissionType.OBJECTIVE: plan_objective,
+    MissionType.AUTOLAND: plan_autoland,
 }
+#: AUTOLAND as the mission manager flies it: each vehicle holds over the fix until its
+#: turn (mission/landing.py) and lands on its own pad, this far from the next
+LANDING_PAD_SPACING_M = 15.0
 
 #: a fixed-wing's turns are planned at this times its minimum radius (see `flyable`)
 TURN_RADIUS_MARGIN = 1.3
@@ -474,6 +480,8 @@ def _plan(
     homes: Mapping[int, VehiclePose] | None = None,
 ) -> FleetPlan:
     """`vehicles` already sorted and flyable."""
+    if mission.mission_type == MissionType.MUMT:
+        return _plan_mumt(mission, vehicles, zones=zones, home_alt_msl_m=home_alt_msl_m)
     planner = PLANNERS.get(mission.mission_type)
     if planner is None:
         raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
@@ -481,6 +489,9 @@ def _plan(
         return _plan_area(
             mission, vehicles, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
         )
+    extra: dict[str, object] = {}
+    if mission.mission_type == MissionType.AUTOLAND:
+        extra = {"hold_until_released": True, "pad_spacing_m": LANDING_PAD_SPACING_M}
     detail = planner(
         mission.geometry,
         vehicles,
@@ -489,12 +500,39 @@ def _plan(
         now_unix_s=now_unix_s,
         home_alt_msl_m=home_alt_msl_m,
         zone_margin_m=zone_margin_m(vehicles),
+        **extra,
     )
     # every fixed-wing share flyable as planned (the plan's tracks follow)
     detail = flyable_plan(
         detail, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
     )
     return _fleet_plan(mission, vehicles, detail, homes)
+
+
+def _plan_mumt(
+    mission: Mission,
+    vehicles: Sequence[PlanVehicle],
+    *,
+    zones: Sequence[NoFlyZone],
+    home_alt_msl_m: float,
+) -> FleetPlan:
+    """MUM-T: the followers' slots around the lead, assigned once from what every
+    member has (the followers at their homes, the lead at the mission's point, its
+    course `heading_deg` or north, standing still); in flight each follower follows
+    the lead's telemetry in its slot (mission/follow.py). The lead is no follower."""
+    lead_id = mission.params.lead_vehicle_id
+    if not lead_id:
+        raise InvalidParameterError("a MUM-T mission needs its lead (lead_vehicle_id)")
+    followers = [v for v in vehicles if v.vehicle_id != lead_id]
+    if not followers or not mission.geometry.points:
+        raise NoVehiclesError("a MUM-T mission needs followers and the lead's position")
+    p = mission.geometry.points[0]
+    lead = LeadState(p.lat_deg, p.lon_deg, 0.0, mission.params.heading_deg or 0.0, 0.0)
+    detail = plan_mumt(
+        lead, followers, mission.params, zones=zones, home_alt_msl_m=home_alt_msl_m,
+        zone_margin_m=zone_margin_m(followers),
+    )  # fmt: skip
+    return _fleet_plan(mission, followers, detail)
 
 
 def zone_margin_m(vehicles: Sequence[PlanVehicle]) -> float:
