@@ -35,6 +35,7 @@ from swarm_proto import (
     MissionParams,
     MissionState,
     MissionType,
+    Selector,
     VehicleStatus,
     VehicleType,
 )
@@ -157,6 +158,7 @@ class Inheritance:
     double_flown: float  # fraction of the area whose lanes two vehicles flew
     lanes_cover: float  # fraction of the area the lane runs found cover (sanity)
     agree_s: float  # loss -> every survivor flying its new share (simulated)
+    noticed_s: float  # loss -> the first survivor noticed it (silence: the stale timeout)
     survivors: tuple[int, ...]
     completed: frozenset[int]
     replan_seen: bool
@@ -201,7 +203,10 @@ def inheritance(
     def at_fraction_of_share() -> bool:
         tracks.sample(fleet)
         share = lost.node.manager.share
-        return share is not None and lost.node.manager.share_progress_m() >= at_fraction * share.length_m
+        return (
+            share is not None
+            and lost.node.manager.share_progress_m() >= at_fraction * share.length_m
+        )
 
     assert fleet.run_until(at_fraction_of_share, 900), fleet.notes[-10:]
     axis = lane_axis_deg(fleet)  # from the first plan
@@ -219,10 +224,17 @@ def inheritance(
 
     assert fleet.run_until(replanned, 120), fleet.notes[-20:]
     agree_s = fleet.now - killed_at
+    noticed_s = min(
+        (t for t, _v, text in fleet.notes
+         if t >= killed_at and text.startswith(f"mission 70: member {victim} lost")),
+        default=fleet.now,
+    ) - killed_at  # fmt: skip
     hashes = len({fleet.vehicles[m].node.roster.members_hash for m in survivors})
+    survivor_plans = [fleet.vehicles[m].node.manager.fleet_plan for m in survivors]
     plans = {
-        tuple(sorted((v, s.waypoints) for v, s in fleet.vehicles[m].node.manager.fleet_plan.shares.items()))  # type: ignore[union-attr]
-        for m in survivors
+        tuple(sorted((v, s.waypoints) for v, s in p.shares.items()))
+        for p in survivor_plans
+        if p is not None
     }
     replan_seen = MissionState.REPLAN in {
         s.mission_state for s in fleet.messages(VehicleStatus) if s.vehicle_id in survivors
@@ -263,15 +275,22 @@ def inheritance(
         double_flown=overlap / poly.area,
         lanes_cover=unary_union(list(along.values())).area / poly.area,
         agree_s=agree_s,
+        noticed_s=noticed_s,
         survivors=survivors,
         completed=completed,
         replan_seen=replan_seen,
         same_plan=len(plans) == 1,
         hashes=hashes,
         pairs=pairs,
-        battery_critical=tuple(sorted({
-            a.vehicle_id for a in fleet.messages(Alert) if a.code == AlertCode.BATTERY_CRITICAL
-        })),
+        battery_critical=tuple(
+            sorted(
+                {
+                    a.vehicle_id
+                    for a in fleet.messages(Alert)
+                    if a.code == AlertCode.BATTERY_CRITICAL
+                }
+            )
+        ),
         tracks=tracks,
     )
 
@@ -414,4 +433,168 @@ def premission_meet(
         completed=completed,
         makespan_planned_s=plan.makespan_s,
         makespan_flown_s=flown,
+    )
+
+
+# --------------------------------------------------------------------------- AUTOLAND, MUM-T
+
+
+def _ready(members: Sequence[int], profiles: Mapping[int, VehicleProfile]) -> FastFleet:
+    fleet = FastFleet.build(list(members), profiles, spacing_m=60.0)
+    fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
+    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+    fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
+    assert fleet.run_until(
+        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
+    )
+    return fleet
+
+
+def _completed(fleet: FastFleet, mid: int) -> set[int]:
+    return {
+        a.vehicle_id
+        for a in fleet.messages(Alert)
+        if a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {mid}"
+    }
+
+
+@dataclass
+class Landings:
+    """An AUTOLAND mission flown by a fleet in the air: when and where each touched
+    down (seconds after the mission, metres from the base), in touchdown order, and the
+    order in which the nodes released their holds."""
+
+    touchdowns: dict[int, float]
+    spots: dict[int, tuple[float, float]]
+    order: list[int]  # by touchdown
+    turns: list[int]  # by the nodes' "our turn to land"
+    completed: set[int]
+    inactive: bool  # every state machine deactivated (landed)
+
+    @property
+    def gaps_s(self) -> list[float]:
+        times = [self.touchdowns[v] for v in self.order]
+        return [b - a for a, b in itertools.pairwise(times)]
+
+
+def autoland_flight(
+    profiles: Mapping[int, VehicleProfile],
+    members: Sequence[int] = (1, 2, 3),
+    *,
+    separation_s: float = 40.0,
+    timeout_s: float = 1200.0,
+) -> Landings:
+    """`members` orbit a target 900 m north of their homes, then get an AUTOLAND
+    mission to a base 110 m south of the first home."""
+    fleet = _ready(members, profiles)
+    target = Geometry.point(SITL_HOME.lat_deg + 0.008, SITL_HOME.lon_deg + 0.004)
+    fleet.broadcast(Mission(20, GCS, MissionType.TARGET, target,
+                            MissionParams(altitude_rel_m=70.0, altitude_step_m=10.0)))  # fmt: skip
+    assert fleet.run_until(
+        lambda: all(v.node.manager.phase.value == "flying" for v in fleet.vehicles.values()), 200
+    )
+    fleet.run_for(20.0)  # in the air, away from the base
+    pad = Geometry.point(SITL_HOME.lat_deg - 0.001, SITL_HOME.lon_deg)
+    params = MissionParams(altitude_rel_m=60.0, separation_s=separation_s)
+    fleet.broadcast(Mission(21, GCS, MissionType.AUTOLAND, pad, params))
+    t0 = fleet.now
+    landed: dict[int, tuple[float, tuple[float, float]]] = {}
+    frame = LocalFrame(pad.points[0].lat_deg, pad.points[0].lon_deg)
+
+    def all_landed() -> bool:
+        for vid, v in fleet.vehicles.items():
+            s = v.link.state
+            if vid not in landed and not s.armed and (s.alt_rel_m or 0.0) < 1.0 and s.lat_deg:
+                landed[vid] = (fleet.now - t0, frame.to_local(s.lat_deg, s.lon_deg or 0.0))
+        return len(landed) == len(members) and _completed(fleet, 21) == set(members)
+
+    assert fleet.run_until(all_landed, timeout_s), (landed, fleet.notes[-10:])
+    return Landings(
+        touchdowns={v: t for v, (t, _p) in landed.items()},
+        spots={v: p for v, (_t, p) in landed.items()},
+        order=sorted(landed, key=lambda v: landed[v][0]),
+        turns=[vid for _t, vid, text in fleet.notes if text == "mission 21: our turn to land"],
+        completed=_completed(fleet, 21),
+        inactive=all(v.node.fsm.state == FsmState.INACTIVE for v in fleet.vehicles.values()),
+    )
+
+
+@dataclass
+class Following:
+    """A MUM-T mission: each follower's largest distance from its slot (behind the
+    lead where it is now, in its vee) once converged, the answers, and the end."""
+
+    slot_error_m: dict[int, float]
+    converged_after_s: dict[int, float]  # first time within 10 m of its slot
+    answers: dict[int, object]
+    slots: dict[int, int]
+    lead_on_route: bool  # the lead kept flying its own mission
+    completed: set[int]
+
+
+def mumt_flight(
+    profiles: Mapping[int, VehicleProfile],
+    lead: int = 4,
+    followers: Sequence[int] = (1, 2),
+    *,
+    settle_s: float = 120.0,
+    duration_s: float = 150.0,
+) -> Following:
+    """`lead` flies a 4 km route north; a MUM-T mission sent to every vehicle makes the
+    others its followers; errors are measured after `settle_s`."""
+    from swarm_proto import Ack
+
+    fleet = _ready([*followers, lead], profiles)
+    la, lo = SITL_HOME.lat_deg, SITL_HOME.lon_deg
+    line = Geometry(GeometryKind.POLYLINE, (LatLon(la + 0.003, lo), LatLon(la + 0.04, lo + 0.01)))
+    fleet.broadcast(Mission(30, GCS, MissionType.ROUTE, line, MissionParams(altitude_rel_m=60.0),
+                            Selector.ids(lead)))  # fmt: skip
+    fleet.run_for(1.0)
+    params = MissionParams(altitude_rel_m=60.0, lead_vehicle_id=lead, duration_s=duration_s)
+    fleet.broadcast(Mission(31, GCS, MissionType.MUMT, Geometry.point(la, lo), params))
+    t0 = fleet.now
+    fleet.run_for(2.0)
+    answers = {a.vehicle_id: a.reason for a in fleet.messages(Ack) if a.ref_id == 31}
+    slots = {
+        vid: f.slot
+        for vid in followers
+        if (f := fleet.vehicles[vid].node.manager.follow) is not None
+    }
+    frame = LocalFrame(la, lo)
+    errors: dict[int, list[float]] = {vid: [] for vid in followers}
+    converged: dict[int, float] = {}
+    lead_ok = True
+
+    def sample() -> bool:
+        nonlocal lead_ok
+        ls = fleet.vehicles[lead].link.state
+        if ls.lat_deg is None or ls.lon_deg is None or ls.groundspeed_m_s < 1.0:
+            return False
+        lead_ok &= fleet.vehicles[lead].node.fsm.mission_id == 30
+        lx, ly = frame.to_local(ls.lat_deg, ls.lon_deg)
+        yaw = heading_to_yaw(math.degrees(math.atan2(ls.vel_east_m_s, ls.vel_north_m_s)))
+        c, sn = math.cos(yaw), math.sin(yaw)
+        for vid in followers:
+            follow = fleet.vehicles[vid].node.manager.follow
+            s = fleet.vehicles[vid].link.state
+            if follow is None or follow.started_at is None or s.lat_deg is None:
+                continue
+            o = follow.offsets[follow.slot]
+            slot = (lx + o.ahead_m * c + o.right_m * sn, ly + o.ahead_m * sn - o.right_m * c)
+            d = math.dist(frame.to_local(s.lat_deg, s.lon_deg or 0.0), slot)
+            if d < 10.0:
+                converged.setdefault(vid, fleet.now - t0)
+            if fleet.now - t0 >= settle_s:
+                errors[vid].append(d)
+        return fleet.now - t0 >= duration_s
+
+    assert fleet.run_until(sample, duration_s + 60.0)
+    fleet.run_until(lambda: _completed(fleet, 31) == set(followers), 60.0)
+    return Following(
+        slot_error_m={vid: max(e) if e else math.inf for vid, e in errors.items()},
+        converged_after_s=converged,
+        answers=answers,
+        slots=slots,
+        lead_on_route=lead_ok,
+        completed=_completed(fleet, 31),
     )
