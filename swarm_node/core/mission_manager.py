@@ -278,7 +278,14 @@ class MissionManager:
             held, self._held = self._held, None
             assert held is not None
             fleet.adopt()
-            return self._take_plan(held, ap, now)
+            out = self._take_plan(held, ap, now)
+            unflown = held.plan.unflown_fraction if held.plan is not None else 0.0
+            if unflown > 0.0:  # the batteries fly only part of the lost members' rest
+                mid = self.mission_id if self.mission_id is not None else 0
+                text = f"mission {mid}: {unflown:.0%} of the lost member's rest left (battery)"
+                out += [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now,
+                                                                 AlertCode.MISSION_FAILED)]  # fmt: skip
+            return out
         mid = self.mission_id if self.mission_id is not None else 0
         others = ", ".join(f"{v} with {h:#06x}" for v, h in self.agreement.others)
         fleet.rollback()
@@ -294,11 +301,10 @@ class MissionManager:
         return [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now),
                 *self._resume(mid)]  # fmt: skip
 
-    def _alert(self, severity: Severity, text: str, now: float) -> Publish:
-        return Publish(
-            Alert(self.profile.vehicle_id, max(now, 0.0), severity, AlertCode.ROSTER_MISMATCH,
-                  text[:64])
-        )  # fmt: skip
+    def _alert(
+        self, severity: Severity, text: str, now: float, code: AlertCode = AlertCode.ROSTER_MISMATCH
+    ) -> Publish:
+        return Publish(Alert(self.profile.vehicle_id, max(now, 0.0), severity, code, text[:64]))
 
     def _take_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[Out]:
         assert self._planning is not None

@@ -98,7 +98,7 @@ def test_fleet_missions_split_fly_again_and_inherit_quickly(tmp_path: Path, swar
         log = (tmp_path / "node-7.log").read_text()
         assert re.search(r"mission 92: member 8 lost", log), log[-2000:]
         assert "mission 92: replanning for [7]" in log
-        assert gs.snapshot().status[7].mission_state == MissionState.MISSION
+        assert gs.wait_for(lambda v: v.status[7].mission_state == MissionState.MISSION, 30)
     finally:
         gs.close()
         stop(fleet)

@@ -78,3 +78,35 @@ def test_a_replan_gives_the_survivors_the_battery_the_model_says_they_have_left(
     )
     assert late[7] == expect
     assert early[8] == late[8]  # 8 flew nothing in both
+
+
+def test_a_survivor_inherits_what_its_battery_flies_and_the_rest_is_reported(
+    fleet_profiles: dict,
+) -> None:
+    """Two quadcopters on a field one alone cannot finish: when 8 is lost early, 7 is
+    given as much of 8's rest as its battery flies home (not nothing, not all), and the
+    plan says how much is left unflown; with a battery to spare it inherits all."""
+    from swarm_node.core.mission.share import Member, plan_fleet
+    from swarm_node.core.planning import InfeasibleTimingError, PlanVehicle, VehiclePose
+    from swarm_proto import GeoPoint, Mission, MissionParams, MissionType
+    from tests.swarm_node.test_mission_defects import square
+
+    members = [Member(fleet_profiles[v], GeoPoint(37.4120, -5.9889 + 0.0005 * i, 0.0))
+               for i, v in enumerate((7, 8))]  # fmt: skip
+    mission = Mission(9, 900, MissionType.AREA, square(35.0), MissionParams(altitude_rel_m=20.0))
+    base = plan_fleet(mission, members, [], 0.0, 0.0)
+    progress = {7: 0.1 * base.share(7).length_m, 8: 0.1 * base.share(8).length_m}
+    _k, lat, lon = base.share(7).at(progress[7])
+    posed = [PlanVehicle(base.vehicles[0].profile, VehiclePose(lat, lon, 20.0))]
+    kw = {"zones": [], "now_unix_s": 0.0, "home_alt_msl_m": 0.0}
+    full = base.replan(progress, posed, battery_pct={7: 90.0}, **kw)  # type: ignore[arg-type]
+    assert full.unflown_fraction == 0.0
+    part = base.replan(progress, posed, battery_pct={7: 70.0}, **kw)  # type: ignore[arg-type]
+    assert 0.0 < part.unflown_fraction < 1.0
+    assert part.share(7).length_m < full.share(7).length_m
+    try:
+        none = base.replan(progress, posed, battery_pct={7: 40.0}, **kw)  # type: ignore[arg-type]
+    except InfeasibleTimingError:
+        pass  # not even its own rest: no replan (it flies on with its share)
+    else:
+        assert none.unflown_fraction == 1.0

@@ -50,7 +50,7 @@ from swarm_proto import Mission, MissionType, NoFlyZone
 from .area import AreaPlan, plan_area, replan_area
 from .autoland import plan_autoland
 from .endurance import launch_s, transition_s
-from .errors import InvalidParameterError, NoVehiclesError, PlanningError
+from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError, PlanningError
 from .flight import FIXED_WING_ACCEPT_M, flyable_plan, predict_flight
 from .geo import LocalFrame, VehiclePose
 from .mumt import LeadState, plan_mumt
@@ -72,6 +72,9 @@ PLANNERS: dict[MissionType, Callable[..., object]] = {
 #: turn (mission/landing.py) and lands on its own pad, this far from the next
 LANDING_PAD_SPACING_M = 15.0
 
+#: a replan the batteries cannot fly keeps the largest part of the lost members' rest
+#: they can, to 1/2**BATTERY_BISECTIONS of it
+BATTERY_BISECTIONS = 6
 #: a fixed-wing's turns are planned at this times its minimum radius (see `flyable`)
 TURN_RADIUS_MARGIN = 1.3
 
@@ -236,6 +239,9 @@ class FleetPlan:
     makespan_s: float
     vehicles: tuple[PlanVehicle, ...] = field(default=(), repr=False)  # as planned (flyable)
     homes: Mapping[int, VehiclePose] = field(default_factory=dict, repr=False)  # first plan's poses
+    #: a replan: the part of the lost members' rest that no survivor's battery flies
+    #: (left unflown, `_replan_within_battery`)
+    unflown_fraction: float = 0.0
 
     def share(self, vehicle_id: int) -> Share:
         try:
@@ -272,13 +278,12 @@ class FleetPlan:
             homes = {
                 vid: frame.to_local(h.lat_deg, h.lon_deg) for vid, h in sorted(self.homes.items())
             }
-            detail: object = replan_area(
-                self.detail, pct, vs, self.mission.params, battery_pct=battery_pct, homes=homes
-            )
+            detail, dropped = self._replan_within_battery(pct, vs, battery_pct, homes)
             detail = flyable_plan(
                 detail, vs, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
             )
-            return _fleet_plan(self.mission, vs, detail, self.homes)
+            plan = _fleet_plan(self.mission, vs, detail, self.homes)
+            return dataclasses.replace(plan, unflown_fraction=dropped)
         if kind == MissionType.PERIMETER:
             assert isinstance(self.detail, PerimeterPlan)
             mission = _with_params(self.mission, loops=self._laps_left(progress_m, vs))
@@ -306,6 +311,46 @@ class FleetPlan:
         raise PlanningError(f"{kind.name} missions are not replanned")
 
     # -- area
+
+    def _replan_within_battery(
+        self,
+        pct: Mapping[int, float],
+        vehicles: Sequence[PlanVehicle],
+        battery_pct: Mapping[int, float] | None,
+        homes: Mapping[int, tuple[float, float]],
+    ) -> tuple[AreaPlan, float]:
+        """`replan_area`; when the survivors' batteries cannot fly all that is left, as
+        much of the lost members' rest as they can (the survivors' own rest always: it
+        was planned within their batteries): each lost member counts as having flown
+        more of its share, the largest part left found by bisection (the lanes right
+        after where it was lost stay unflown). `InfeasibleTimingError` when even the
+        survivors' own rest does not fit."""
+        assert isinstance(self.detail, AreaPlan)
+        params = self.mission.params
+
+        def attempt(extra: float) -> AreaPlan:
+            p = {
+                vid: x if vid in alive else x + extra * (100.0 - x)
+                for vid, x in sorted(pct.items())
+            }
+            return replan_area(self.detail, p, vehicles, params,  # type: ignore[arg-type]
+                               battery_pct=battery_pct, homes=homes)  # fmt: skip
+
+        alive = {v.vehicle_id for v in vehicles}
+        try:
+            return attempt(0.0), 0.0
+        except InfeasibleTimingError:
+            if not battery_pct or not set(pct) - alive:
+                raise
+        best = attempt(1.0)  # the survivors' own rest only (raises if that does not fit)
+        lo, hi = 0.0, 1.0  # lo: infeasible share of the lost rest dropped, hi: feasible
+        for _ in range(BATTERY_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            try:
+                best, hi = attempt(mid), mid
+            except InfeasibleTimingError:
+                lo = mid
+        return best, hi
 
     def area_percent(self, vehicle_id: int, progress_m: float) -> float:
         """`progress_m` along `vehicle_id`'s share as the percentage of its coverage
