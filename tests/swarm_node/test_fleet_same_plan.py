@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 from swarm_node.core.mission.share import Member, PlanRequest, plan_fleet, run_plan
 from swarm_node.core.swarm.roster import Roster
 from swarm_proto import (
-    GeoPoint,
     Geometry,
     GeometryKind,
+    GeoPoint,
     LatLon,
     Mission,
     MissionParams,
@@ -31,7 +31,7 @@ GEOMETRY = {
     MissionType.AREA: Geometry.polygon(
         [(LA + 0.002, LO - 0.002), (LA + 0.002, LO + 0.002), (LA + 0.004, LO + 0.002),
          (LA + 0.004, LO - 0.002)]
-    ),  # fmt: skip
+    ),
     MissionType.TARGET: Geometry.point(LA + 0.004, LO),
     MissionType.PERIMETER: Geometry.circle(LA + 0.004, LO, 150.0),
     MissionType.OBJECTIVE: Geometry(
