@@ -256,6 +256,9 @@ class VehicleInfo(Struct, frozen=True):
     # appended (issue 12, PREMISSION): the earliest time this vehicle can be at its
     # share's entry point (swarm_node mission/fleet_sync.py; 0 = not flying a PREMISSION)
     entry_unix_s: UnixTimeS = 0.0
+    # appended (issue 12): the battery now; what a member published on entering PLAN for
+    # a mission is what every node plans its share with (swarm_node roster.py)
+    battery_pct: Annotated[int, Meta(ge=-1, le=100, description="remaining %, -1 unknown")] = -1
 
 
 # --------------------------------------------------------------------------- control

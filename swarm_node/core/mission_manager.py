@@ -961,7 +961,8 @@ def replan_battery(
         speed = next((v.speed_m_s for v in share.waypoints if v.speed_m_s), p.cruise_speed_m_s)
         flown_s = share.planned_s_at(progress_m.get(vid, 0.0))
         flown_s += flown_before_m.get(vid, 0.0) / max(speed or 1.0, 0.1)
-        out[vid] = Endurance.of(p, altitude_m).left_pct(flown_s, p.battery_capacity_mah)
+        start = base.launch_battery_pct.get(vid, 100.0)  # what it had at the first plan
+        out[vid] = Endurance.of(p, altitude_m).left_pct(flown_s, p.battery_capacity_mah, start)
     return out
 
 

@@ -271,7 +271,21 @@ class NodeCore:
             mission_progress_m=_clamp(self.manager.sortie.progress_m, 0.0, 1.0e6),
             mission_path_m=_clamp(self.manager.sortie.path_m, 0.0, 1.0e6),
             entry_unix_s=_clamp(self.manager.sync.eta_unix_s, 0.0, 4.0e9),
+            battery_pct=self._plan_battery(),
         )
+
+    def _plan_battery(self) -> int:
+        """The battery for VehicleInfo; the first published in PLAN for the roster's
+        mission is what every node (this one too) plans this vehicle's share with."""
+        pct = min(max(self.autopilot.battery_pct, -1), 100)
+        if (
+            pct >= 0
+            and self.fsm.state == FsmState.PLAN
+            and self.roster.mission_id is not None
+            and self.roster.mission_id == self.fsm.mission_id
+        ):
+            self.roster.plan_battery.setdefault(self.self_id, pct)
+        return pct
 
     # ------------------------------------------------------------------ inputs
     def handle(self, event: Input, now: float) -> list[Output]:
@@ -790,7 +804,8 @@ class NodeCore:
         members' VehicleInfo (the same on every node). Lost members are left out;
         members whose profile is unknown are returned apart (planning without them
         would send two vehicles over the same ground)."""
-        out = [Member(self.profile, self.autopilot.home)]
+        battery = self.roster.plan_battery
+        out = [Member(self.profile, self.autopilot.home, battery.get(self.self_id))]
         unknown = []
         for vid in self.roster.flying:
             if vid == self.self_id:
@@ -802,7 +817,7 @@ class NodeCore:
             if profile is None:
                 unknown.append(vid)
                 continue
-            out.append(Member(profile, peer.info.home if peer.info else None))
+            out.append(Member(profile, peer.info.home if peer.info else None, battery.get(vid)))
         return out, unknown
 
 

@@ -11,6 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from swarm_node.core.mission.share import Member, PlanRequest, plan_fleet, run_plan
+from swarm_node.core.planning import PlanningError
 from swarm_node.core.swarm.roster import Roster
 from swarm_proto import (
     Geometry,
@@ -89,8 +90,11 @@ def test_every_node_computes_the_same_roster_plan_and_replan(
         rnd.shuffle(survivors)
         posed = []
         for v in survivors:
-            _k, lat, lon = plan.shares[v].at(progress[v])
-            posed.append(Member(fleet_profiles[v], GeoPoint(lat, lon, 0.0)))
+            try:
+                _k, lat, lon = plan.shares[v].at(progress[v])
+                posed.append(Member(fleet_profiles[v], GeoPoint(lat, lon, 0.0)))
+            except PlanningError:  # nothing to fly (a rover given no lanes): at home
+                posed.append(Member(fleet_profiles[v], homes[v]))
         progress_in_order = dict(rnd.sample(sorted(progress.items()), len(progress)))
         out = run_plan(PlanRequest(2, mission, tuple(posed), (), 0.0, 0.0, base=plan,
                                    progress_m=progress_in_order))  # fmt: skip

@@ -110,3 +110,45 @@ def test_a_survivor_inherits_what_its_battery_flies_and_the_rest_is_reported(
         pass  # not even its own rest: no replan (it flies on with its share)
     else:
         assert none.unflown_fraction == 1.0
+
+
+def test_a_vehicle_that_flew_before_is_planned_with_the_battery_it_has(
+    fleet_profiles: dict,
+) -> None:
+    """A second mission on the same vehicles without fresh batteries: the split gives
+    the one at 55 % less than its full-battery twin and no more than its charge flies
+    home, and replans count down from it (before, every plan assumed a full battery:
+    a quadcopter that inherited lanes on its second mission reached BATTERY_CRITICAL)."""
+    from swarm_node.core.mission.share import Member, plan_fleet
+    from swarm_node.core.mission_manager import replan_battery
+    from swarm_proto import GeoPoint, Mission, MissionParams, MissionType
+    from tests.swarm_node.test_mission_defects import square
+
+    homes = [GeoPoint(37.4120, -5.9889 + 0.0005 * i, 0.0) for i in range(2)]
+    mission = Mission(9, 900, MissionType.AREA, square(40.0), MissionParams(altitude_rel_m=25.0))
+    full = plan_fleet(mission, [Member(fleet_profiles[v], h) for v, h in zip((7, 8), homes, strict=True)],
+                      [], 0.0, 0.0)  # fmt: skip
+    used = [Member(fleet_profiles[7], homes[0], 55.0), Member(fleet_profiles[8], homes[1], 100.0)]
+    part = plan_fleet(mission, used, [], 0.0, 0.0)
+    assert part.launch_battery_pct == {7: 55.0, 8: 100.0}
+    assert part.share(7).length_m < full.share(7).length_m
+    assert part.share(8).length_m > full.share(8).length_m
+    left = replan_battery(part, used, {7: 0.0, 8: 0.0}, {}, 25.0)
+    assert left[7] < 55.0 < left[8]
+
+
+def test_the_roster_keeps_the_battery_each_member_published_entering_plan() -> None:
+    from swarm_node.core.swarm.roster import Roster
+    from swarm_proto import FsmState, Selector, VehicleInfo, VehicleType
+
+    r = Roster(1)
+    r.open(5, Selector())
+
+    def info(pct: int, state: FsmState) -> VehicleInfo:
+        return VehicleInfo(2, VehicleType.COPTER, "q", "U2", mission_id=5, fsm_state=state,
+                           battery_pct=pct)  # fmt: skip
+
+    r.on_info(info(80, FsmState.PLAN))
+    r.on_info(info(79, FsmState.PLAN))  # a later one: the first is what everyone planned with
+    r.on_info(info(60, FsmState.GO_MISSION))
+    assert r.plan_battery == {2: 80}

@@ -37,6 +37,8 @@ class Member:
 
     profile: VehicleProfile
     home: GeoPoint | None
+    #: the battery it published on entering PLAN (None: unknown, planned as full)
+    battery_pct: float | None = None
 
 
 def _vehicles(members: Sequence[Member]) -> list[PlanVehicle]:
@@ -81,9 +83,11 @@ def plan_fleet(
 ) -> FleetPlan:
     """The whole fleet's plan (`planning.fleet_plan.plan_fleet`: members sorted by id,
     posed at their homes, inputs every member sees the same)."""
+    battery = {m.profile.vehicle_id: m.battery_pct for m in members if m.battery_pct is not None}
     return plan_whole_fleet(
-        mission, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m
-    )
+        mission, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m,
+        battery_pct=battery or None,
+    )  # fmt: skip
 
 
 def run_plan(req: PlanRequest) -> PlanOutcome:

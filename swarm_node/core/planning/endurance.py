@@ -167,6 +167,18 @@ class Endurance:
         left = self.usable_mah - self.hover_a * (self.climb_s + self.land_s) / 3.6
         return max(left, 0.0) * 3.6 / self.cruise_a
 
+    def ground_budget_s(self, battery_pct: float, profile: VehicleProfile) -> float:
+        """`cruise_budget_s` for a sortie from the ground with `battery_pct` (a vehicle
+        that flew before and was not given a fresh battery): inf without battery figures."""
+        if math.isinf(self.usable_mah):
+            return math.inf
+        frac = min(max(battery_pct, 0.0), 100.0) / 100.0
+        usable = profile.battery_capacity_mah * max(
+            frac - profile.battery_critical_pct / 100.0 - RESERVE_FRACTION, 0.0
+        )
+        left = usable - self.hover_a * (self.climb_s + self.land_s) / 3.6
+        return max(left, 0.0) * 3.6 / self.cruise_a
+
     def airborne_budget_s(self, battery_pct: float, profile: VehicleProfile) -> float:
         """Seconds at cruise left to a vehicle in the air with `battery_pct`, keeping
         its critical level, the reserve and its landing: inf without battery figures."""
@@ -178,15 +190,16 @@ class Endurance:
         left -= self.hover_a * self.land_s / 3.6
         return max(left, 0.0) * 3.6 / self.cruise_a
 
-    def left_pct(self, flown_s: float, capacity_mah: float) -> float:
-        """Battery left (% of capacity) after the climb and `flown_s` at cruise, by the
-        model: what every node can compute alike for a member (its published progress
-        says how long it has flown), where the members' measured batteries differ by
-        when each node last heard them. 100 without battery figures."""
+    def left_pct(self, flown_s: float, capacity_mah: float, start_pct: float = 100.0) -> float:
+        """Battery left (% of capacity) after the climb and `flown_s` at cruise from
+        `start_pct`, by the model: what every node can compute alike for a member (its
+        published progress says how long it has flown), where the members' measured
+        batteries differ by when each node last heard them. `start_pct` without battery
+        figures."""
         if math.isinf(self.usable_mah) or capacity_mah <= 0.0 or not math.isfinite(flown_s):
-            return 100.0
+            return start_pct
         mah = (self.cruise_a * max(flown_s, 0.0) + self.hover_a * self.climb_s) / 3.6
-        return min(max(100.0 - 100.0 * mah / capacity_mah, 0.0), 100.0)
+        return min(max(start_pct - 100.0 * mah / capacity_mah, 0.0), 100.0)
 
     def used_pct(self, cruise_s: float, capacity_mah: float) -> float:
         """Battery used (% of capacity) by a sortie with `cruise_s` at cruise."""

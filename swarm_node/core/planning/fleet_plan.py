@@ -242,6 +242,9 @@ class FleetPlan:
     #: a replan: the part of the lost members' rest that no survivor's battery flies
     #: (left unflown, `_replan_within_battery`)
     unflown_fraction: float = 0.0
+    #: the battery each member had at the first plan (missing: full), what it was given
+    #: work for; a replan counts down from it
+    launch_battery_pct: Mapping[int, float] = field(default_factory=dict)
 
     def share(self, vehicle_id: int) -> Share:
         try:
@@ -269,6 +272,22 @@ class FleetPlan:
         for vid, m in progress_m.items():
             if not math.isfinite(m):
                 raise InvalidParameterError(f"vehicle {vid}: progress {m} m is not finite")
+        new = self._replan(
+            progress_m, vehicles, zones=zones, now_unix_s=now_unix_s,
+            home_alt_msl_m=home_alt_msl_m, battery_pct=battery_pct,
+        )  # fmt: skip
+        return dataclasses.replace(new, launch_battery_pct=self.launch_battery_pct)
+
+    def _replan(
+        self,
+        progress_m: Mapping[int, float],
+        vehicles: Sequence[PlanVehicle],
+        *,
+        zones: Sequence[NoFlyZone],
+        now_unix_s: float,
+        home_alt_msl_m: float,
+        battery_pct: Mapping[int, float] | None,
+    ) -> FleetPlan:
         vs = _sorted_flyable(vehicles)
         kind = self.mission.mission_type
         if kind == MissionType.AREA:
@@ -523,6 +542,7 @@ def _plan(
     now_unix_s: float,
     home_alt_msl_m: float,
     homes: Mapping[int, VehiclePose] | None = None,
+    battery_pct: Mapping[int, float] | None = None,
 ) -> FleetPlan:
     """`vehicles` already sorted and flyable."""
     if mission.mission_type == MissionType.MUMT:
@@ -532,8 +552,9 @@ def _plan(
         raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
     if mission.mission_type == MissionType.AREA:
         return _plan_area(
-            mission, vehicles, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
-        )
+            mission, vehicles, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m,
+            battery_pct=battery_pct,
+        )  # fmt: skip
     extra: dict[str, object] = {}
     if mission.mission_type == MissionType.AUTOLAND:
         extra = {"hold_until_released": True, "pad_spacing_m": LANDING_PAD_SPACING_M}
@@ -605,6 +626,7 @@ def _plan_area(
     zones: Sequence[NoFlyZone],
     now_unix_s: float,
     home_alt_msl_m: float,
+    battery_pct: Mapping[int, float] | None = None,
 ) -> FleetPlan:
     """An area plan whose split knows each vehicle's endurance (`plan_area(endurance=
     True)`: the vehicles are at their homes) and the time the flyable stage adds to a
@@ -625,7 +647,7 @@ def _plan_area(
         raw = plan_area(
             mission.geometry, vehicles, mission.params, zones=zones, now_unix_s=now_unix_s,
             home_alt_msl_m=home_alt_msl_m, zone_margin_m=margin, endurance=aware, extra_s=extra,
-            legacy_split=not aware,
+            legacy_split=not aware, battery_pct=battery_pct if aware else None,
         )  # fmt: skip
         detail = flyable_plan(
             raw, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
@@ -654,7 +676,8 @@ def _plan_area(
             break
         extra = new
     assert best is not None
-    return _fleet_plan(mission, vehicles, best[1])
+    plan = _fleet_plan(mission, vehicles, best[1])
+    return dataclasses.replace(plan, launch_battery_pct=dict(sorted((battery_pct or {}).items())))
 
 
 def _flown_s(vp: VehiclePlan, v: PlanVehicle, frame: LocalFrame) -> float | None:
@@ -689,18 +712,25 @@ def plan_fleet(
     zones: Sequence[NoFlyZone],
     now_unix_s: float,
     home_alt_msl_m: float,
+    battery_pct: Mapping[int, float] | None = None,
 ) -> FleetPlan:
     """The whole fleet's plan: `vehicles` (profiles as in the swarm database, poses
     every member sees the same, e.g. their homes) sorted by id, fixed-wing profiles
     made `flyable`, the mission type's planner with a zone margin of the widest turn
-    radius, every fixed-wing share made flyable (`flyable_plan`)."""
-    return _plan(
+    radius, every fixed-wing share made flyable (`flyable_plan`). `battery_pct`: the
+    members' batteries as every member sees them (missing: full): an area gives none
+    more than its battery flies."""
+    plan = _plan(
         mission,
         _sorted_flyable(vehicles),
         zones=zones,
         now_unix_s=now_unix_s,
         home_alt_msl_m=home_alt_msl_m,
+        battery_pct=battery_pct,
     )
+    if battery_pct and not plan.launch_battery_pct:
+        plan = dataclasses.replace(plan, launch_battery_pct=dict(sorted(battery_pct.items())))
+    return plan
 
 
 def flown_lanes(plan: FleetPlan, progress_m: Mapping[int, float]) -> list[object]:

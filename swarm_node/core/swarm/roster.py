@@ -93,6 +93,9 @@ class Roster:
     entry_at: dict[int, float] = field(default_factory=dict)
     #: each member's last published members hash in this mission (VehicleInfo)
     hashes: dict[int, int] = field(default_factory=dict)
+    #: the battery each member published on entering PLAN for the mission (the one
+    #: VehicleInfo every node hears alike): what the plan gives it work for
+    plan_battery: dict[int, int] = field(default_factory=dict)
     mismatches: int = 0
     _previous_hash: int = 0
     #: the last roster every member flew (planned, generation, previous hash): a replan
@@ -118,6 +121,7 @@ class Roster:
         self.progress = {}
         self.entry_at = {}
         self.hashes = {}
+        self.plan_battery = {}
         self._previous_hash = 0
         self._agreed = ((), 0, 0)
         self._reported = set()
@@ -164,6 +168,8 @@ class Roster:
             if info.entry_unix_s > 0.0:
                 self.entry_at[vid] = info.entry_unix_s
             self.hashes[vid] = info.members_hash
+            if info.fsm_state == FsmState.PLAN and info.battery_pct >= 0:
+                self.plan_battery.setdefault(vid, info.battery_pct)
         out: list[RosterEvent] = []
         if self.frozen and vid in self.members and vid not in self.lost and vid not in self.finished:
             if info.fsm_state == FsmState.EMERGENCY:
