@@ -314,8 +314,10 @@ class MissionManager:
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         replan = self.sortie.state == MissionState.REPLAN
         if outcome.plan is None:
-            if replan:  # keep flying the share we have; the loss is logged
-                return [Log(f"mission {mid}: no replan ({outcome.error}); flying on"),
+            if replan:  # keep flying the share we have: the lost rest stays unflown
+                text = f"mission {mid}: no replan ({outcome.error}); flying on"
+                return [Note(logging.WARNING, text),
+                        self._alert(Severity.WARNING, text, now, AlertCode.MISSION_FAILED),
                         *self._resume(mid)]  # fmt: skip
             return self._failed(mid, outcome.error)
         old = self.share
