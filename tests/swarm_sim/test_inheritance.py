@@ -24,7 +24,7 @@ def test_six_vtols_inherit_the_share_of_one_killed_at_40_percent(fleet_profiles:
     assert r.double_flown < 0.02  # the lost member's last second (1 Hz VehicleInfo) again
 
 
-@pytest.mark.parametrize("victim", [8, 10])
+@pytest.mark.parametrize("victim", [8, pytest.param(10, marks=pytest.mark.soak)])
 def test_two_quadcopters_and_a_rover_inherit_the_share_of_one_killed_at_40_percent(
     fleet_profiles: dict, victim: int
 ) -> None:
