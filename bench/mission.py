@@ -1,26 +1,40 @@
 """Mission layer figures (issue 12) that the planning library and FastFleet measure,
 each beside its baseline measured in the same run.
 
-- `battery_min_pct_at_landing`, `makespan_planned_vs_flown`: the demo's survey (its
-  300 x 260 m field, 35 m no-fly zone, 60 m, 60 % side overlap) flown in FastFleet by
-  the fleet 1, 7, 8 (an Albatross VTOL, two quadcopters): the lowest battery any of
-  them lands with, and the makespan flown (from each vehicle's AUTO start to its
-  MISSION_COMPLETE) over the makespan planned (`FleetPlan.makespan_s`). Baseline: the
-  split before issue 12 (`fleet_plan.BASELINE_SPLIT`: no endurance, every vehicle
-  timed at constant speed, one split before the flyable stage).
+- `battery_min_pct_at_landing`: the demo's survey (its 300 x 260 m field, 35 m no-fly
+  zone, 60 m, 60 % side overlap) flown in FastFleet by the fleet 1, 7, 8 (an Albatross
+  VTOL, two quadcopters): the lowest battery any of them lands with. Baseline: the
+  split before issue 12 (`fleet_plan.BASELINE_SPLIT`: no endurance, every vehicle timed
+  at constant speed, one split before the flyable stage).
+- `makespan_planned_vs_flown`: from the plan to the last MISSION_COMPLETE (arming,
+  take-off, climb, the approach or the PREMISSION the node flies, the share) over the
+  plan's makespan (`FleetPlan.makespan_s`, launch included), the worst of the bench's
+  fleets: the survey 1, 7, 8 and three VTOLs flying a route and an area with their
+  PREMISSION (`makespan_planned_vs_flown_by_fleet`; the shares alone, from the
+  mission's start in AUTO, in `survey_1_7_8/makespan_share_planned_vs_flown`).
 - `inherit_coverage`, `double_flown_fraction`, `replan_agree_ms`: the node's mission
   inheritance flown end to end in FastFleet (`swarm_sim.scenarios.inheritance`): six
   VTOLs fly an area mission sent to ALL, one is killed at 40 % of its share; coverage
-  from the flown tracks (swath: camera footprint), double flying from the lane runs,
-  loss -> every survivor flying its new share, in simulated milliseconds.
+  from the flown tracks (swath: camera footprint), double flying from the runs each
+  vehicle flew on its own lanes, loss noticed -> every survivor flying its new share,
+  in simulated milliseconds (`replan_loss_to_flying_ms` from the kill, the stale
+  timeout included). The same for two quadcopters and a rover (`inherit_quads_rover`,
+  a quadcopter or the rover killed).
 - `inherit.planning_coverage` (planning only, under `inherit`): six Albatross VTOLs plan
   an area; one is lost at 40 % of its share (the others at 40 % of theirs); the flown-before lanes
   plus the replanned split (`FleetPlan.replan`) cover this fraction of the area, and
   this fraction of it is seen twice (swaths at the lane spacing, counted with
   multiplicity). Baseline: no inheritance (the survivors finish their own shares).
-- `premission_arrival_spread_s`: three VTOLs scattered in the air fly their
-  PREMISSION legs to their entries in FastFleet (`premission_flight`): the spread of
-  their arrival times. Baseline: the same legs at cruise without synchronization.
+- `premission_arrival_spread_s`: three VTOLs on the ground get a route mission to ALL
+  and fly it with the nodes' PREMISSION (`swarm_sim.scenarios.premission_meet`): the
+  spread of their arrivals at their entries, from the autopilots' positions; the same
+  for an area mission (`premission_area_arrival_spread_s`), the MISSION speed rule's
+  lateness spread, and the baselines without the meet and without the rule.
+  `premission_planner`: the planner's legs flown by a driver from scattered poses
+  (before the node flew them).
+- `autoland`: three VTOLs in the air land at one base in turns (touchdown gaps, the
+  order); `mumt`: two VTOLs follow a lead flying its own route (largest distance from
+  their slots once converged).
 
 `survey(...)`, `inherit(...)` and `premission_flight(...)` are what the tests run.
 """
@@ -103,6 +117,7 @@ def survey(
         mission = Mission(7, GCS, MissionType.AREA, area, params, Selector.ids(*members))
         fleet.broadcast(mission)
         t_fly: dict[int, float] = {}
+        t_start: dict[int, float] = {}  # the plan is released: arming, take-off, climb
         t_done: dict[int, float] = {}
         lowest = {vid: 100 for vid in members}
         landed: dict[int, int] = {}
@@ -111,6 +126,8 @@ def survey(
         def step() -> bool:
             nonlocal seen
             for vid, v in fleet.vehicles.items():
+                if v.node.manager.phase.value != "idle":
+                    t_start.setdefault(vid, fleet.now)
                 if v.node.manager.phase.value == "flying":
                     t_fly.setdefault(vid, fleet.now)
                 s = v.link.state
@@ -139,12 +156,18 @@ def survey(
     alerts = fleet.messages(Alert)
     critical = sorted({a.vehicle_id for a in alerts if a.code == AlertCode.BATTERY_CRITICAL})
     flown = {vid: t_done[vid] - t_fly[vid] for vid in members if vid in t_done and vid in t_fly}
+    sortie = {
+        vid: t_done[vid] - t_start[vid] for vid in members if vid in t_done and vid in t_start
+    }
+    share_span = max(plan.share(vid).time_s for vid in members)
     return {
         "finished": finished,
         "vehicles": {
             str(vid): {
-                "planned_s": round(plan.share(vid).time_s, 1),
-                "flown_s": round(flown[vid], 1) if vid in flown else None,
+                "planned_s": round(plan.share(vid).sortie_s, 1),
+                "flown_s": round(sortie[vid], 1) if vid in sortie else None,
+                "share_planned_s": round(plan.share(vid).time_s, 1),
+                "share_flown_s": round(flown[vid], 1) if vid in flown else None,
                 "battery_at_landing_pct": landed.get(vid),
                 "battery_lowest_pct": lowest[vid],
                 "critical_pct": profiles[vid].battery_critical_pct,
@@ -152,10 +175,16 @@ def survey(
             for vid in members
         },
         "battery_critical_alerts": critical,
+        # from the plan (arming, take-off, climb, the approach, the share) to the last
+        # MISSION_COMPLETE, against the plan's makespan (launch included)
         "makespan_planned_s": round(plan.makespan_s, 1),
-        "makespan_flown_s": round(max(flown.values()), 1) if flown else None,
+        "makespan_flown_s": round(max(sortie.values()), 1) if sortie else None,
         "makespan_planned_vs_flown": (
-            round(max(flown.values()) / plan.makespan_s, 3) if flown else None
+            round(max(sortie.values()) / plan.makespan_s, 3) if sortie else None
+        ),
+        # the shares alone (from the mission start in AUTO), as before issue 12's end
+        "makespan_share_planned_vs_flown": (
+            round(max(flown.values()) / share_span, 3) if flown else None
         ),
         "battery_min_pct_at_landing": min(landed.values()) if landed else None,
     }
@@ -421,35 +450,146 @@ def premission_flight(
 # --------------------------------------------------------------------------- run
 
 
+def _meet(profiles: Mapping[int, VehicleProfile], kind: MissionType) -> dict[str, Any]:
+    """The nodes' PREMISSION (three VTOLs on the ground, a mission to ALL) flown to the
+    end, and the same flight without the meet (the baseline)."""
+    from swarm_node.core.mission import fleet_sync
+    from swarm_sim.scenarios import premission_meet
+
+    got = premission_meet(profiles, PREMISSION_FLEET, kind, to_the_end=True)
+    fleet_sync.PREMISSION = False
+    try:
+        old = premission_meet(profiles, PREMISSION_FLEET, kind, to_the_end=True)
+    finally:
+        fleet_sync.PREMISSION = True
+    fleet_sync.SPEED_RULE = False
+    try:
+        no_rule = premission_meet(profiles, PREMISSION_FLEET, kind, to_the_end=True)
+    finally:
+        fleet_sync.SPEED_RULE = True
+
+    def ratio(m: Any) -> float | None:
+        return round(m.makespan_flown_s / m.makespan_planned_s, 3) if m.makespan_flown_s else None
+
+    return {
+        "arrival_spread_s": round(got.spread_s, 2),
+        "arrivals_s": {str(v): round(t, 1) for v, t in sorted(got.arrivals.items())},
+        "meet_s": round(got.meet_s, 1) if got.meet_s is not None else None,
+        "entry_miss_m": {str(v): round(d, 1) for v, d in sorted(got.entry_miss_m.items())},
+        "speed_commands": {str(v): n for v, n in sorted(got.speed_commands.items())},
+        "lateness_spread_s": round(got.lateness_spread_s, 2),
+        "completed": sorted(got.completed),
+        "makespan_planned_s": round(got.makespan_planned_s, 1),
+        "makespan_flown_s": round(got.makespan_flown_s, 1) if got.makespan_flown_s else None,
+        "makespan_planned_vs_flown": ratio(got),
+        "baseline_no_meet": {
+            "arrival_spread_s": round(old.spread_s, 2),
+            "makespan_planned_vs_flown": ratio(old),
+        },
+        "baseline_no_speed_rule": {
+            "lateness_spread_s": round(no_rule.lateness_spread_s, 2),
+            "makespan_planned_vs_flown": ratio(no_rule),
+        },
+    }
+
+
+def _inherited(r: Any) -> dict[str, Any]:
+    return {
+        "coverage": round(r.coverage, 4),
+        "double_flown_fraction": round(r.double_flown, 4),
+        "double_flown_by_pair": {f"{a}-{b}": round(x, 4) for (a, b), x in r.pairs.items() if x},
+        "lanes_cover": round(r.lanes_cover, 3),
+        "loss_to_flying_ms": round(r.agree_s * 1000.0),
+        "noticed_ms": round(r.noticed_s * 1000.0),
+        "agree_ms": round((r.agree_s - r.noticed_s) * 1000.0),
+        "survivors_completed": sorted(r.completed),
+        "same_plan": r.same_plan,
+        "battery_critical": list(r.battery_critical),
+    }
+
+
 def run() -> dict[str, Any]:
     from swarm_node.database import seed_fleet
+    from swarm_sim.scenarios import autoland_flight, inheritance, mumt_flight
 
     profiles = {p.vehicle_id: p for p in seed_fleet()}
     new = survey(profiles)
     old = survey(profiles, baseline=True)
     inh = inherit(profiles)
-    from swarm_sim.scenarios import inheritance
-
     flown = inheritance(profiles, INHERIT_FLEET, victim=3, at_fraction=0.4)
+    quads_rover = {
+        f"victim_{v}": _inherited(
+            inheritance(
+                profiles,
+                (7, 8, 10),
+                victim=v,
+                at_fraction=0.4,
+                half_m=80.0,
+                alt_m=40.0,
+                north_m=150.0,
+            )
+        )
+        for v in (8, 10)
+    }
+    route = _meet(profiles, MissionType.ROUTE)
+    area = _meet(profiles, MissionType.AREA)
     pre = premission_flight(profiles)
     open_loop = premission_flight(profiles, closed_loop=False)
+    landings = autoland_flight(profiles, (1, 2, 3), separation_s=40.0)
+    follow = mumt_flight(profiles, 4, (1, 2))
+    spans = {
+        "survey_1_7_8": new["makespan_planned_vs_flown"],
+        "premission_route_1_2_3": route["makespan_planned_vs_flown"],
+        "premission_area_1_2_3": area["makespan_planned_vs_flown"],
+    }
     out: dict[str, Any] = {
-        "premission_arrival_spread_s": pre["premission_arrival_spread_s"],
-        "premission_open_loop_spread_s": open_loop["premission_arrival_spread_s"],
+        # PREMISSION flown by the nodes: the spread of the three VTOLs' arrivals at their
+        # entries (route mission; the area mission's under "premission_area")
+        "premission_arrival_spread_s": route["arrival_spread_s"],
+        "premission_area_arrival_spread_s": area["arrival_spread_s"],
         "battery_min_pct_at_landing": new["battery_min_pct_at_landing"],
-        "makespan_planned_vs_flown": new["makespan_planned_vs_flown"],
+        # plan -> last MISSION_COMPLETE (take-off, climb, approach or PREMISSION, share)
+        # over the plan's makespan; the worst of the bench's fleets, each below
+        "makespan_planned_vs_flown": max(v for v in spans.values() if v is not None),
+        "makespan_planned_vs_flown_by_fleet": spans,
         "inherit_coverage": round(flown.coverage, 4),
         "double_flown_fraction": round(flown.double_flown, 4),
-        "replan_agree_ms": round(flown.agree_s * 1000.0),
+        # loss noticed (the stale timeout) -> every survivor flying its new share
+        "replan_agree_ms": round((flown.agree_s - flown.noticed_s) * 1000.0),
+        "replan_loss_to_flying_ms": round(flown.agree_s * 1000.0),
         "survivors_completed": sorted(flown.completed),
+        "inherit_quads_rover": quads_rover,
+        "autoland": {
+            "touchdowns_s": {str(v): round(t, 1) for v, t in sorted(landings.touchdowns.items())},
+            "touchdown_gaps_s": [round(g, 1) for g in landings.gaps_s],
+            "separation_s": 40.0,
+            "order_as_planned": landings.turns == landings.order,
+            "completed": sorted(landings.completed),
+        },
+        "mumt": {
+            "slot_error_max_m": {
+                str(v): round(e, 2) for v, e in sorted(follow.slot_error_m.items())
+            },
+            "converged_after_s": {
+                str(v): round(t, 1) for v, t in sorted(follow.converged_after_s.items())
+            },
+            "completed": sorted(follow.completed),
+        },
         "baseline": {
             "battery_min_pct_at_landing": old["battery_min_pct_at_landing"],
             "makespan_planned_vs_flown": old["makespan_planned_vs_flown"],
             "battery_critical_alerts": old["battery_critical_alerts"],
             "inherit_coverage": inh["baseline_no_inherit_coverage"],
-            "premission_arrival_spread_s": pre["baseline_unsynchronized_spread_s"],
+            "premission_arrival_spread_s": route["baseline_no_meet"]["arrival_spread_s"],
+            "premission_area_arrival_spread_s": area["baseline_no_meet"]["arrival_spread_s"],
         },
-        "premission": pre,
+        "premission_route": route,
+        "premission_area": area,
+        # the planner's legs flown by a driver (not the node), from scattered poses
+        "premission_planner": {
+            **pre,
+            "open_loop_spread_s": open_loop["premission_arrival_spread_s"],
+        },
         "survey_1_7_8": new,
         "survey_1_7_8_baseline": old,
         "inherit": inh,

@@ -48,6 +48,8 @@ class Fleet:
     autopilot: AutopilotFn = always_ok
     plan_delay_s: float = 0.0  # how long a plan job takes (it runs inline, in no time)
     plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
+    #: (sender, receiver, message) -> lost: a link that fails one way, or for one message
+    drop: Callable[[int, int, msgspec.Struct], bool] | None = None
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
@@ -72,6 +74,8 @@ class Fleet:
                 self.published.append((self.now, node_id, o.msg))
                 for other in self.nodes:
                     if other == node_id or self.rng.random() < self.loss:
+                        continue
+                    if self.drop is not None and self.drop(node_id, other, o.msg):
                         continue
                     delay = self.rng.uniform(*self.delay_s)
                     self.deliver(other, Received(o.msg), self.now + delay)

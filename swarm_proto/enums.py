@@ -103,6 +103,7 @@ class AlertCode(IntEnum):
     CONDITION_CLEARED = 17
     MISSION_CANCELLED = 18  # the operator cancelled the mission (not a failure)
     AUTOPILOT_MISMATCH = 19  # the autopilot's HEARTBEAT type is not the node's vehicle type
+    ROSTER_MISMATCH = 20  # a member flies the mission with another roster (members hash)
 
 
 class CommandKind(IntEnum):

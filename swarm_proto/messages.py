@@ -261,6 +261,12 @@ class VehicleInfo(Struct, frozen=True):
     sensors_present: Annotated[int, Meta(ge=0, le=2**32 - 1, description="SYS_STATUS bits")] = 0
     sensors_health: Annotated[int, Meta(ge=0, le=2**32 - 1, description="SYS_STATUS bits")] = 0
     mav_type: Uint8 = 0  # the autopilot's HEARTBEAT type (MAV_TYPE), 0 = not heard
+    # appended (issue 12, PREMISSION): the earliest time this vehicle can be at its
+    # share's entry point (swarm_node mission/fleet_sync.py; 0 = not flying a PREMISSION)
+    entry_unix_s: UnixTimeS = 0.0
+    # appended (issue 12): the battery now; what a member published on entering PLAN for
+    # a mission is what every node plans its share with (swarm_node roster.py)
+    battery_pct: Annotated[int, Meta(ge=-1, le=100, description="remaining %, -1 unknown")] = -1
 
 
 # --------------------------------------------------------------------------- control
@@ -551,6 +557,18 @@ class LineageHome(Struct, frozen=True, array_like=True):
 
     vehicle_id: VehicleId
     home: GeoPoint | None = None
+    # the battery the first plan gave it (what it published on entering PLAN), -1 unknown
+    battery_pct: Annotated[int, Meta(ge=-1, le=100, description="remaining %, -1 unknown")] = -1
+
+
+class LineageBattery(Struct, frozen=True, array_like=True):
+    """A survivor's battery left by the model when the fleet replanned (what the replan
+    gave it no more work than)."""
+
+    vehicle_id: VehicleId
+    battery_pct: Annotated[
+        float, Meta(ge=0.0, le=100.0, description="remaining %"), Fixed(0.01)
+    ]
 
 
 class LineageProgress(Struct, frozen=True, array_like=True):
@@ -566,6 +584,7 @@ class LineageStep(Struct, frozen=True, array_like=True):
 
     members: tuple[VehicleId, ...]
     progress: tuple[LineageProgress, ...] = ()
+    battery: tuple[LineageBattery, ...] = ()  # the survivors' modelled battery (area replans)
 
 
 class PlanLineage(Struct, frozen=True):

@@ -56,7 +56,7 @@ def coverage(tracks: Tracks, area: Geometry, profile: VehicleProfile, alt_m: flo
     swath = 2.0 * alt_m * math.tan(math.radians(camera.hfov_deg) / 2.0)
     poly = Polygon([tracks.frame.to_local(p.lat_deg, p.lon_deg) for p in area.points])
     flown = unary_union(
-        [LineString([(x, y) for x, y, _h in pts]).buffer(swath / 2.0)
+        [LineString([(p[0], p[1]) for p in pts]).buffer(swath / 2.0)
          for pts in tracks.points.values() if len(pts) > 1]
     )  # fmt: skip
     return float(flown.intersection(poly).area / poly.area)

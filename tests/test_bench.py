@@ -113,6 +113,15 @@ NAMED: dict[str, tuple[str, ...]] = {
         "baseline/inherit_coverage",
         "premission_arrival_spread_s",
         "baseline/premission_arrival_spread_s",
+        "premission_area_arrival_spread_s",
+        "baseline/premission_area_arrival_spread_s",
+        "makespan_planned_vs_flown_by_fleet/survey_1_7_8",
+        "makespan_planned_vs_flown_by_fleet/premission_route_1_2_3",
+        "makespan_planned_vs_flown_by_fleet/premission_area_1_2_3",
+        "inherit_quads_rover/victim_8/coverage",
+        "inherit_quads_rover/victim_8/double_flown_fraction",
+        "autoland/touchdown_gaps_s",
+        "mumt/slot_error_max_m",
     ),
 }
 RADIO_ROW = (

@@ -54,6 +54,8 @@ ALERT_CODES: dict[AlertCode, str] = {
     AlertCode.MISSION_CANCELLED: "the operator cancelled the mission",
     AlertCode.AUTOPILOT_MISMATCH: "the autopilot is not the vehicle type the swarm "
     "database says: missions are refused until they match",
+    AlertCode.ROSTER_MISMATCH: "a fleet member flies the mission with another roster "
+    "(members hash): the fleet re-synchronises before it flies a replan",
 }
 
 WHAT: dict[AckRef, str] = {

@@ -36,6 +36,7 @@ from swarm_proto import (
     FsmState,
     GeoPoint,
     Mission,
+    MissionType,
     SelectorKind,
     VehicleType,
 )
@@ -344,6 +345,10 @@ def check_mission(mission: Mission, view: NodeView) -> AckReason:
     sel = mission.selection
     if not sel.addresses(view.self_id, view.fleet_id):
         return AckReason.NOT_ADDRESSED
+    if mission.mission_type == MissionType.MUMT and mission.params.lead_vehicle_id == view.self_id:
+        return AckReason.NOT_ADDRESSED  # the lead of a MUM-T mission is not one of its followers
+    if mission.mission_type == MissionType.MUMT and not mission.params.lead_vehicle_id:
+        return AckReason.INVALID  # followers of nobody
     if view.autopilot.home is None:
         return AckReason.HOME_NOT_SET
     if view.base is None:

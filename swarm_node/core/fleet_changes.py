@@ -236,7 +236,7 @@ class FleetChanges:
         if lineage is None:
             return [Note(logging.WARNING, f"mission {ours}: no plan to hand over")]
         last = Lineage(lineage.mission, lineage.first, list(lineage.steps))
-        self.node.regroup.replanned(ours, (), self.node._progress_now())  # the hand-over step
+        self.node.regroup.replanned(ours, (), self.node._progress_now()[0])  # the hand-over step
         msg = self.node.regroup.lineages[ours].message(self.node.self_id, self.node.roster.members_hash, theirs)
         self.node.regroup.lineages[ours] = last
         self.node.regroup.on_lineage(msg)  # we go to their fleet: we take it up with them

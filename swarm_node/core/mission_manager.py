@@ -24,6 +24,8 @@ from enum import Enum
 import msgspec
 
 from swarm_proto import (
+    Alert,
+    AlertCode,
     GeometryKind,
     GeoPoint,
     Mission,
@@ -31,6 +33,8 @@ from swarm_proto import (
     MissionState,
     MissionType,
     NoFlyZone,
+    Severity,
+    VehicleStatus,
     VehicleType,
 )
 from swarm_proto.text import short_text
@@ -41,6 +45,7 @@ from .autopilot.requests import (
     ApRequest,
     ApResult,
     Arm,
+    ChangeSpeed,
     Disarm,
     Land,
     ReturnToLaunch,
@@ -50,6 +55,10 @@ from .autopilot.requests import (
     UploadMission,
 )
 from .autopilot.state import AutopilotState
+from .mission.agreement import ReplanAgreement, Verdict
+from .mission.fleet_sync import FleetSync
+from .mission.follow import Follow
+from .mission.landing import LandingTurn
 from .mission.share import (
     FleetPlan,
     Member,
@@ -60,10 +69,11 @@ from .mission.share import (
     plan_fleet,
 )
 from .mission.sortie import Sortie, Trigger
-from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Submit
+from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import (
     PlanningError,
 )
+from .planning.endurance import CLIMB_FRACTION, Endurance, launch_s
 from .planning.flight import FIXED_WING_ACCEPT_M
 from .planning.transit import (
     TRANSIT_MARGIN_M,
@@ -74,6 +84,7 @@ from .planning.transit import (
 )
 from .planning.transit import flyable as flyable  # re-exported (was defined here)
 from .profile import VehicleProfile
+from .swarm.roster import Roster
 
 #: parameters a planner reads as "not given" when 0 (besides None), per mission type
 UNSET_WHEN_ZERO: dict[MissionType, frozenset[str]] = {
@@ -108,19 +119,23 @@ def with_defaults(mission: Mission, defaults: Mapping[str, float]) -> Mission:
     return msgspec.structs.replace(mission, params=params)
 
 
-CLIMB_FRACTION = 0.8  # start the mission once this much of the take-off altitude is reached
+# CLIMB_FRACTION (planning.endurance): start the mission once this much of the take-off
+# altitude is reached
 LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close to home
 # Fixed-wing waypoint acceptance (planning.flight.FIXED_WING_ACCEPT_M, 15 m): every
 # plain waypoint asks for it (ArduPlane's 90 m default would count the closely spaced
 # waypoints of a planned turn as reached at once and loop wide); the flyable stage
 # plans every corner for it.
 FIRST_REQUEST_ID = 1_000_000  # the command manager uses small ids
+AP_POLL_S = 0.2  # the node reads the autopilot's state this often
 
 
 class Phase(Enum):
     IDLE = "idle"
     STARTING = "starting"  # upload, arm, take off
     CLIMBING = "climbing"  # waiting for the take-off altitude
+    MEETING = "meeting"  # PREMISSION: climbed, waiting for the fleet's meet time
+    FOLLOWING = "following"  # MUM-T: holding our slot around the lead
     FLYING = "flying"  # the mission is running on the autopilot
     RETURNING = "returning"  # RTL
     LANDING = "landing"
@@ -176,6 +191,17 @@ class MissionManager:
     _steps: list[ApRequest] = field(default_factory=list)
     _in_flight: ApRequest | None = None  # the request we wait for
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
+    mission: Mission | None = None  # the mission being flown (its parameters)
+    sync: FleetSync = field(init=False)  # PREMISSION and the MISSION speed rule
+    agreement: ReplanAgreement = field(default_factory=ReplanAgreement)
+    _held: PlanOutcome | None = None  # a replan made, flown once the survivors agree
+    turn: LandingTurn | None = None  # AUTOLAND: our turn to leave the hold and land
+    lands: bool = False  # the share ends with a landing (AUTOLAND): landed completes it
+    follow: Follow | None = None  # MUM-T: our slot around the lead
+    _confirmed: bool = False  # PlanSucceeded posted for this plan
+
+    def __post_init__(self) -> None:
+        self.sync = FleetSync(self.profile.vehicle_id, self.profile)
 
     @property
     def mission_state(self) -> MissionState:
@@ -229,19 +255,77 @@ class MissionManager:
         fleet_ids = sorted(m.profile.vehicle_id for m in members)
         return [Log(f"mission {mission.mission_id}: planning for fleet {fleet_ids}"), PlanJob(req)]
 
-    def on_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[Out]:
-        """The fleet's plan is made: fly our share from where the vehicle is now. An
-        outcome of an abandoned job (stopped, a newer mission) is ignored."""
+    def on_plan(
+        self, outcome: PlanOutcome, ap: AutopilotState, now: float, fleet: Roster | None = None
+    ) -> list[Out]:
+        """The fleet's plan is made: fly our share from where the vehicle is now (a
+        replan once the survivors agree on it: `_agree`). An outcome of an abandoned job
+        (stopped, a newer mission) is ignored."""
         if outcome.job_id != self._job or self._planning is None:
             return []
+        if self.sortie.state == MissionState.REPLAN:
+            if outcome.plan is not None and fleet is not None:
+                self._held = outcome
+                note = Log(f"mission {self._planning[0].mission_id}: replanned for "
+                           f"{list(outcome.plan.roster)}; flown once they all agree")  # fmt: skip
+                return [note, *self._agree(ap, now, fleet)]  # maybe at once
+            if fleet is not None:  # no replan: fly on, with the roster every member flies
+                fleet.rollback()
+            self.agreement.end()
+        return self._take_plan(outcome, ap, now)
+
+    def _agree(self, ap: AutopilotState, now: float, fleet: Roster) -> list[Out]:
+        """REPLAN: fly the held replan once every survivor planned it with our roster;
+        re-synchronise on a mismatch; fly on without it when no agreement comes
+        (mission/agreement.py)."""
+        self.agreement.begin(now)
+        verdict = self.agreement.verdict(fleet, now, held=self._held is not None)
+        if verdict == Verdict.WAIT:
+            return []
+        if verdict == Verdict.AGREED:
+            held, self._held = self._held, None
+            assert held is not None
+            fleet.settle()
+            out = self._take_plan(held, ap, now)
+            unflown = held.plan.unflown_fraction if held.plan is not None else 0.0
+            if unflown > 0.0:  # the batteries fly only part of the lost members' rest
+                mid = self.mission_id if self.mission_id is not None else 0
+                text = f"mission {mid}: {unflown:.0%} of the lost member's rest left (battery)"
+                out += [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now,
+                                                                 AlertCode.MISSION_FAILED)]  # fmt: skip
+            return out
+        mid = self.mission_id if self.mission_id is not None else 0
+        others = ", ".join(f"{v} with {h:#06x}" for v, h in self.agreement.others)
+        fleet.rollback()
+        self._held, self._planning = None, None
+        if verdict == Verdict.MISMATCH:
+            text = f"mission {mid}: replan roster {others}, ours {fleet.members_hash:#06x}"
+            note = f"{text}; planning again from the roster all flew"
+            return [Note(logging.WARNING, note), self._alert(Severity.WARNING, text, now),
+                    Post(fsm.Replan(mid))]  # fmt: skip
+        self.agreement.end()
+        why = f"different rosters ({others})" if others else "no answer in time"
+        text = f"mission {mid}: no replan agreed, {why}; flying on"
+        return [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now),
+                *self._resume(mid)]  # fmt: skip
+
+    def _alert(
+        self, severity: Severity, text: str, now: float, code: AlertCode = AlertCode.ROSTER_MISMATCH
+    ) -> Publish:
+        return Publish(Alert(self.profile.vehicle_id, max(now, 0.0), severity, code, text[:64]))
+
+    def _take_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[Out]:
+        assert self._planning is not None
         mission, zones = self._planning
         self._planning = None
         mid = mission.mission_id
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         replan = self.sortie.state == MissionState.REPLAN
         if outcome.plan is None:
-            if replan:  # keep flying the share we have; the loss is logged
-                return [Log(f"mission {mid}: no replan ({outcome.error}); flying on"),
+            if replan:  # keep flying the share we have: the lost rest stays unflown
+                text = f"mission {mid}: no replan ({outcome.error}); flying on"
+                return [Note(logging.WARNING, text),
+                        self._alert(Severity.WARNING, text, now, AlertCode.MISSION_FAILED),
                         *self._resume(mid)]  # fmt: skip
             return self._failed(mid, outcome.error)
         old = self.share
@@ -262,38 +346,43 @@ class MissionManager:
             return [Post(fsm.PlanSucceeded(mid)), Post(fsm.MissionComplete(mid))]
         if not waypoints:
             return self._failed(mid, "nothing to fly for this vehicle")
-        try:
-            waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
-        except (PlanningError, ValueError) as exc:
-            return self._failed(mid, f"approach: {exc}")
+        follow = Follow.of(outcome.plan, self.profile) if not replan else self.follow
+        if follow is not None:
+            return self._begin_follow(mission, outcome.plan, follow, zones, ap, now)
+        self.follow, self.turn = None, None
+        launch = 0.0 if ap.armed else launch_s(self.profile, mission.params.altitude_rel_m)
+        sync = not replan and self.sync.begin(outcome.plan, ap, zones, now, home_alt, launch)
+        if not sync:
+            try:
+                waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
+            except (PlanningError, ValueError) as exc:
+                return self._failed(mid, f"approach: {exc}")
         self.zones = tuple(zones)
         self.mission_id = mid
+        self.mission = mission
+        self._confirmed = False
         fleet_ids = list(outcome.plan.roster)
-        note = Log(
-            f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
-        )
-        # end on an unlimited loiter over the last waypoint: the autopilot holds there
-        # (ArduPlane would otherwise RTL by itself, straight through any zone) until the
-        # node flies the zone-safe way home
-        last = next((w for w in reversed(waypoints) if w.kind == ItemKind.WAYPOINT), None)
-        if last is not None:
-            waypoints = (
-                *waypoints,
-                Waypoint(ItemKind.LOITER_UNLIMITED, last.lat_deg, last.lon_deg, last.alt_rel_m),
-            )
-        self.items = len(waypoints) + 1
-        self.last_item = self.items - (2 if last is not None else 1)  # the item that completes it
         self.takeoff_alt_m = mission.params.altitude_rel_m
-        self._timed_hold(waypoints, mission.params.duration_s)
-        self.along_m = along_path(ap, waypoints)
         self.share = share
-        self._share_index = share_index_of_items(waypoints, share.waypoints)
         self._offset = self.sortie.progress_m if replan else 0.0  # flown before the replan
         self.sortie.path_m = self._offset + share.length_m
         self.sortie.progress_m = self._offset
-        self._stale = (ap.mission_reached, ap.mission_current)
-        self._fresh_reached = self._fresh_current = False
         self.sortie.go(Trigger.RELEASED)
+        if sync:  # PREMISSION: launch, climb, then our leg to the fleet's meet time
+            group = list(self.sync.group)
+            note = Log(f"mission {mid}: planned for fleet {fleet_ids}; PREMISSION with {group}, "
+                       f"at our entry by {self.sync.eta_unix_s:.1f} at the earliest")  # fmt: skip
+            if ap.armed:
+                self.phase = Phase.MEETING
+                return [note, *self._confirm(mid)]
+            self._steps = self._launch_steps()
+            self.phase = Phase.STARTING
+            return [note, *self._next()]
+        note = Log(
+            f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
+        )
+        waypoints = self._load(waypoints, ap)
+        self.turn = LandingTurn.of(outcome.plan, self.profile.vehicle_id, waypoints)
         steps: list[ApRequest] = [UploadMission(items=waypoints)]
         if not ap.armed:
             steps += self._launch_steps()
@@ -311,13 +400,156 @@ class MissionManager:
         """Chosen by the vote: the mission is planned for the winners (`release`)."""
         self.sortie.go(Trigger.ELECTED)
 
-    def begin_replan(self) -> None:
+    def _begin_follow(
+        self,
+        mission: Mission,
+        plan: FleetPlan,
+        follow: Follow,
+        zones: Sequence[NoFlyZone],
+        ap: AutopilotState,
+        now: float,
+    ) -> list[Out]:
+        """MUM-T: launch and climb (on the ground), then follow the lead in our slot
+        (mission/follow.py); no path: progress is 0 of 1 m until the follow ends."""
+        mid = mission.mission_id
+        self.zones, self.mission_id, self.mission = tuple(zones), mid, mission
+        self.takeoff_alt_m = mission.params.altitude_rel_m
+        self.follow, self._confirmed = follow, False
+        self.share = plan.share(self.profile.vehicle_id)
+        self.items, self.last_item = 0, 0
+        self.sortie.path_m, self.sortie.progress_m = 1.0, 0.0
+        self.sortie.go(Trigger.RELEASED)
+        note = Log(f"mission {mid}: following lead {follow.lead_id} in slot {follow.slot} "
+                   f"of {len(follow.offsets)}")  # fmt: skip
+        if ap.armed:
+            self.phase = Phase.FOLLOWING
+            self.sortie.go(Trigger.STARTED)
+            follow.begin(now)
+            return [note, *self._confirm(mid)]
+        self._steps = self._launch_steps()
+        self.phase = Phase.STARTING
+        return [note, *self._next()]
+
+    def _following(self, ap: AutopilotState, now: float) -> list[Out]:
+        """MUM-T: our slot where the lead will be, every second; the end after the
+        duration, or when the lead is no longer heard."""
+        follow = self.follow
+        assert follow is not None and self.mission_id is not None
+        why = follow.over(now)
+        if why is not None:
+            mid = self.mission_id
+            self.sortie.finish()
+            self.stop(Trigger.COMPLETE)
+            return [Log(f"mission {mid}: {why}"), Post(fsm.MissionComplete(mid))]
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        return [
+            Submit(msgspec.structs.replace(r, request_id=next(self._ids)), self.owner, Owner.MISSION)
+            for r in follow.step(ap, now, self.zones, home_alt)
+        ]
+
+    def on_peer_status(self, status: VehicleStatus, now: float) -> None:
+        """A peer's telemetry: MUM-T's lead."""
+        if self.follow is not None:
+            self.follow.on_status(status, now)
+
+    def _load(self, waypoints: tuple[Waypoint, ...], ap: AutopilotState) -> tuple[Waypoint, ...]:
+        """The items to upload for `waypoints` (our share, with its approach), and what
+        following them needs: the item that completes the share, a timed hold, metres
+        along each item, the share's index of each item, and what the autopilot reported
+        before (an earlier mission's items do not count)."""
+        # end on an unlimited loiter over the last waypoint: the autopilot holds there
+        # (ArduPlane would otherwise RTL by itself, straight through any zone) until the
+        # node flies the zone-safe way home; a share that lands (AUTOLAND) ends landed
+        self.lands = bool(waypoints) and waypoints[-1].kind == ItemKind.LAND
+        last = next((w for w in reversed(waypoints) if w.kind == ItemKind.WAYPOINT), None)
+        if self.lands:
+            last = None
+        if last is not None:
+            waypoints = (
+                *waypoints,
+                Waypoint(ItemKind.LOITER_UNLIMITED, last.lat_deg, last.lon_deg, last.alt_rel_m),
+            )
+        self.items = len(waypoints) + 1
+        self.last_item = self.items - (2 if last is not None else 1)  # the item that completes it
+        self._timed_hold(waypoints, self.mission.params.duration_s if self.mission else None)
+        self.along_m = along_path(ap, waypoints)
+        assert self.share is not None
+        self._share_index = share_index_of_items(waypoints, self.share.waypoints)
+        self._stale = (ap.mission_reached, ap.mission_current)
+        self._fresh_reached = self._fresh_current = False
+        return waypoints
+
+    def _confirm(self, mid: int) -> list[Out]:
+        """The plan is flown: PlanSucceeded, once per plan."""
+        if self._confirmed:
+            return []
+        self._confirmed = True
+        return [Post(fsm.PlanSucceeded(mid))]
+
+    def info_due(self) -> bool:
+        """Our PREMISSION ETA changed since asked: publish VehicleInfo now."""
+        due, self.sync.info_due = self.sync.info_due, False
+        return due
+
+    def _meet(self, ap: AutopilotState, fleet: Roster | None, now: float) -> list[Out]:
+        """PREMISSION, climbed: once the meet time is known, plan our leg to our entry
+        from where we are and upload it with our share from the entry on; start it at
+        its departure time (a VTOL in hover waits there)."""
+        sync = self.sync
+        assert self.share is not None and self.mission_id is not None
+        if self._in_flight is not None or self._steps:
+            return []  # uploading
+        if sync.leg is not None:
+            if now < sync.depart_unix_s - AP_POLL_S / 2:
+                return []
+            self._steps = [StartMission()]
+            self.phase = Phase.STARTING
+            return self._next()
+        etas = fleet.entry_at if fleet is not None else {}
+        gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
+        t = sync.ready(etas, gone, now)
+        if t is None:
+            return []
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        try:
+            waypoints = sync.plan_leg(ap, self.zones, now, home_alt, t)
+            leg = sync.leg
+            assert leg is not None
+            note = Log(f"mission {self.mission_id}: PREMISSION leg {leg.flown_m:.0f} m at "
+                       f"{leg.speed_m_s:.1f} m/s, leaving in {sync.depart_unix_s - now:.1f} s, "
+                       f"at our entry at {sync.meet_unix_s:.1f} ({sync.meet_unix_s - now:.1f} s)")  # fmt: skip
+            self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap))]
+        except (PlanningError, ValueError) as exc:  # fly the share as planned
+            sync.stop()
+            try:
+                waypoints = self._with_approach(self.share.waypoints, ap, self.zones, now, home_alt)
+            except (PlanningError, ValueError) as exc2:
+                return self._abandon(f"approach: {exc2}")
+            note = Log(f"mission {self.mission_id}: no PREMISSION leg ({exc}); flying the share")
+            self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
+            self.phase = Phase.STARTING
+        return [note, *self._next()]
+
+    def _abandon(self, reason: str) -> list[Out]:
+        """The share cannot be flown after all: a plan the state machine has not taken
+        yet failed; one it has (PREMISSION confirms at the take-off) is left."""
+        mid = self.mission_id if self.mission_id is not None else 0
+        confirmed = self._confirmed
+        self.stop(Trigger.FAILED)
+        if confirmed:
+            return [Post(fsm.LeftFleet(reason[:64]))]
+        return [Post(fsm.PlanFailed(mid, reason[:64]))]
+
+    def begin_replan(self, now: float | None = None) -> None:
         """A member was lost: the fleet replans what is left. We keep flying our share
         meanwhile; the progress we published is what the others replan from."""
         if self.sortie.state in (MissionState.MISSION, MissionState.PREMISSION):
             self.sortie.go(Trigger.REPLAN)
+        if now is not None:
+            self.agreement.begin(now)
         self.owner = Owner.MISSION
-        self._planning = None
+        self._planning, self._held = None, None
+        self.sync.stop()  # a replanned share is flown from where we are, without a meet
 
     def replan(
         self,
@@ -327,10 +559,12 @@ class MissionManager:
         zones: Sequence[NoFlyZone],
         ap: AutopilotState,
         now: float,
+        battery_pct: Mapping[int, float] | None = None,
     ) -> list[Out]:
         """What is left of the fleet plan (every old member's `progress_m` along its
-        share) shared among `survivors`, posed where their progress puts them: a
-        `PlanJob` whose outcome comes back to `on_plan`."""
+        share) shared among `survivors`, posed where their progress puts them (and, for
+        an area, none given more than `battery_pct` flies home): a `PlanJob` whose
+        outcome comes back to `on_plan`."""
         base = self.fleet_plan
         if base is None or self.sortie.state != MissionState.REPLAN:
             return self.release(mission, survivors, zones, ap, now)
@@ -339,7 +573,8 @@ class MissionManager:
         self._planning = (mission, tuple(zones))
         self.replanned_from = dict(progress_m)
         req = PlanRequest(self._job, mission, tuple(survivors), tuple(zones), now, home_alt,
-                          base=base, progress_m=dict(progress_m))  # fmt: skip
+                          base=base, progress_m=dict(progress_m),
+                          battery_pct=dict(battery_pct or {}))  # fmt: skip
         ids = sorted(m.profile.vehicle_id for m in survivors)
         done = {v: round(p) for v, p in sorted(progress_m.items())}
         return [Log(f"mission {mission.mission_id}: replanning for {ids} from {done} m"),
@@ -530,8 +765,11 @@ class MissionManager:
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
-        self._planning = None  # a plan job still running is abandoned
+        self._planning, self._held = None, None  # a plan job still running is abandoned
         self.share, self._share_index, self._offset = None, (), 0.0
+        self.turn, self.lands, self.follow = None, False, None
+        self.sync.stop()
+        self.agreement.end()
         self.sortie.go(trigger)
 
     def take_over(self, phase: Phase) -> None:
@@ -575,22 +813,32 @@ class MissionManager:
             if phase == Phase.RETURNING and not isinstance(done, ReturnToLaunch):
                 self._steps = [ReturnToLaunch()]  # the zone-safe way home failed: plain RTL
                 return self._next()
-            if phase == Phase.STARTING:
-                self.stop(Trigger.FAILED)
-                return [Post(fsm.PlanFailed(mid, short_text(f"autopilot: {result.reason}")))]
+            if phase in (Phase.STARTING, Phase.MEETING):
+                return self._abandon(f"autopilot: {result.reason}")
             self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
         if self.phase == Phase.STARTING and not self._steps:
             if isinstance(done, Takeoff):
                 self.phase = Phase.CLIMBING  # the mission starts once it has climbed
-                return []
+                # PREMISSION: the plan is flown from the take-off (the climb and the
+                # meet would otherwise count against the state machine's plan timeout)
+                return self._confirm(mid) if self.sync.active else []
             if isinstance(done, StartMission):
                 self.phase = Phase.FLYING
-                self.sortie.go(Trigger.STARTED)
-                return [Post(fsm.PlanSucceeded(mid))]
+                if not self.sync.flying_leg:  # PREMISSION: MISSION from the entry on
+                    self.sortie.go(Trigger.STARTED)
+                return self._confirm(mid)
         return self._next()
 
-    def on_autopilot(self, ap: AutopilotState, now: float) -> list[Out]:
+    def on_autopilot(
+        self, ap: AutopilotState, now: float, fleet: Roster | None = None
+    ) -> list[Out]:
+        """`fleet`: the mission's roster (the members' published ETAs, progress and
+        hashes: PREMISSION, the MISSION speed rule, the agreement on a replan)."""
+        if fleet is not None and self.sortie.state == MissionState.REPLAN:
+            agreed = self._agree(ap, now, fleet)
+            if agreed:
+                return agreed
         if (
             self.phase in (Phase.RETURNING, Phase.LANDING, Phase.PARACHUTE)
             and not ap.armed
@@ -600,11 +848,23 @@ class MissionManager:
             return [Post(fsm.LandingComplete())]
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
+                if self.follow is not None and self.mission_id is not None:
+                    self.phase = Phase.FOLLOWING
+                    self.sortie.go(Trigger.STARTED)
+                    self.follow.begin(now)
+                    return self._confirm(self.mission_id)
+                if self.sync.active:
+                    self.phase = Phase.MEETING
+                    return self._meet(ap, fleet, now)
                 self.phase = Phase.STARTING
                 self._steps = [StartMission()]
                 return self._next()
+        elif self.phase == Phase.MEETING:
+            return self._meet(ap, fleet, now)
+        elif self.phase == Phase.FOLLOWING:
+            return self._following(ap, now)
         elif self.phase == Phase.FLYING and self.items > 1 and self.mission_id is not None:
-            return self._flying(ap, now)
+            return self._flying(ap, now, fleet)
         elif self.phase == Phase.RETURNING and self._in_flight is None and self.profile.can_hover:
             # RTL flies to the nearer of home and the rally point (the base: ArduPilot's
             # RALLY_INCL_HOME): land near either (a VTOL whose home is far from the base
@@ -623,7 +883,7 @@ class MissionManager:
                 return self._next()
         return []
 
-    def _flying(self, ap: AutopilotState, now: float) -> list[Out]:
+    def _flying(self, ap: AutopilotState, now: float, fleet: Roster | None = None) -> list[Out]:
         """Progress along the share and its end: the last item reached, or the timed
         hold over. Only items this mission's autopilot run reported count: the last
         MISSION_ITEM_REACHED of an earlier mission is still in the state."""
@@ -631,23 +891,64 @@ class MissionManager:
         self._fresh_reached |= ap.mission_reached != stale_reached
         self._fresh_current |= ap.mission_current != stale_current
         reached = max(0, min(ap.mission_reached, self.last_item)) if self._fresh_reached else 0
+        out = self._keep_pace(ap, now, reached, fleet)
         if self.share is not None and self._share_index:
             k = self._share_index[min(reached, len(self._share_index) - 1)] if reached else -1
             self.sortie.advance(
                 self._offset + self.share.progress_m(k, ap.lat_deg, ap.lon_deg)
             )
+        if self.lands:
+            return out + self._landing(ap, now, fleet)
         done = reached >= self.last_item and self.hold_seq == 0
         if self.hold_seq and self._fresh_current and ap.mission_current >= self.hold_seq:
             if self.hold_since is None and self._on_station(ap):
                 self.hold_since = now
             done = self.hold_since is not None and now - self.hold_since >= self.hold_s
         if not done or self.sortie.state != MissionState.MISSION:
-            return []
+            return out
         mid = self.mission_id
         assert mid is not None
         self.sortie.finish()
         self.stop(Trigger.COMPLETE)
-        return [Post(fsm.MissionComplete(mid))]
+        return [*out, Post(fsm.MissionComplete(mid))]
+
+    def _landing(self, ap: AutopilotState, now: float, fleet: Roster | None) -> list[Out]:
+        """AUTOLAND: leave the hold in our turn (mission/landing.py); landed (disarmed
+        on the ground), the share is flown and the sortie over."""
+        turn = self.turn
+        current = ap.mission_current if self._fresh_current else 0
+        if turn is not None and self._in_flight is None and turn.release(current, fleet, now):
+            self._steps = [StartMission(first_item=turn.hold_seq + 1)]
+            return [Log(f"mission {self.mission_id}: our turn to land"), *self._next()]
+        if not self._fresh_current or ap.armed or (ap.alt_rel_m or 0.0) >= 2.0:
+            return []
+        self.sortie.finish()  # peers see it in our VehicleInfo: the next may land
+        self.stop(Trigger.LANDED)
+        return [Post(fsm.LandingComplete())]
+
+    def _keep_pace(
+        self, ap: AutopilotState, now: float, reached: int, fleet: Roster | None
+    ) -> list[Out]:
+        """PREMISSION and the MISSION speed rule (mission/fleet_sync.py): the airspeed
+        to command; at the entry the sortie enters MISSION."""
+        sync = self.sync
+        if sync.leg is None:
+            return []
+        etas = fleet.entry_at if fleet is not None else {}
+        gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
+        meet = sync.meet_time(etas, gone) or sync.meet_unix_s
+        speed = sync.control(
+            ap, now, reached, self.share_progress_m(), meet,
+            fleet.progress if fleet is not None else {}, gone,
+        )  # fmt: skip
+        out: list[Out] = []
+        if sync.arrived_at is not None and self.sortie.state == MissionState.PREMISSION:
+            self.sortie.go(Trigger.STARTED)
+            out.append(Log(f"mission {self.mission_id}: at our entry, {now - meet:+.1f} s from the meet time"))
+        if speed is not None:
+            req = ChangeSpeed(request_id=next(self._ids), speed_m_s=speed)
+            out.append(Submit(req, self.owner, Owner.MISSION))
+        return out
 
     def _on_station(self, ap: AutopilotState) -> bool:
         """Within the hold's loiter circle (its radius plus a turn radius)."""
@@ -658,6 +959,32 @@ class MissionManager:
             return True
         r = abs(w.loiter_radius_m or 0.0) + max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
         return distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= r
+
+
+def replan_battery(
+    base: FleetPlan,
+    survivors: Sequence[Member],
+    progress_m: Mapping[int, float],
+    flown_before_m: Mapping[int, float],
+    altitude_m: float,
+) -> dict[int, float]:
+    """Each survivor's battery left by the model (`Endurance.left_pct`): climbed to
+    `altitude_m`, then flown its share's planned time to `progress_m` and the metres it
+    flew before the last replan at its mission speed. Every survivor computes the same
+    from the progress all published (the measured batteries differ by when each node
+    last heard them: two nodes would split differently)."""
+    out: dict[int, float] = {}
+    for m in survivors:
+        vid, p = m.profile.vehicle_id, m.profile
+        share = base.shares.get(vid)
+        if share is None or p.battery_capacity_mah <= 0.0:
+            continue
+        speed = next((v.speed_m_s for v in share.waypoints if v.speed_m_s), p.cruise_speed_m_s)
+        flown_s = share.planned_s_at(progress_m.get(vid, 0.0))
+        flown_s += flown_before_m.get(vid, 0.0) / max(speed or 1.0, 0.1)
+        start = base.launch_battery_pct.get(vid, 100.0)  # what it had at the first plan
+        out[vid] = Endurance.of(p, altitude_m).left_pct(flown_s, p.battery_capacity_mah, start)
+    return out
 
 
 def share_index_of_items(

@@ -111,7 +111,7 @@ from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission.share import PlanOutcome, pose_on
 from .mission.tasking import Tasking, TaskingSettings
 from .mission.voting import VoterLost
-from .mission_manager import Member, MissionManager, with_defaults
+from .mission_manager import Member, MissionManager, replan_battery, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
@@ -294,7 +294,22 @@ class NodeCore:
             sensors_present=self.autopilot.sensors_present & 0xFFFFFFFF,
             sensors_health=self.autopilot.sensors_health & 0xFFFFFFFF,
             mav_type=self.autopilot.mav_type & 0xFF,
+            entry_unix_s=_clamp(self.manager.sync.eta_unix_s, 0.0, 4.0e9),
+            battery_pct=self._plan_battery(),
         )
+
+    def _plan_battery(self) -> int:
+        """The battery for VehicleInfo; the first published in PLAN for the roster's
+        mission is what every node (this one too) plans this vehicle's share with."""
+        pct = min(max(self.autopilot.battery_pct, -1), 100)
+        if (
+            pct >= 0
+            and self.fsm.state == FsmState.PLAN
+            and self.roster.mission_id is not None
+            and self.roster.mission_id == self.fsm.mission_id
+        ):
+            self.roster.plan_battery.setdefault(self.self_id, pct)
+        return pct
 
     # ------------------------------------------------------------------ inputs
     def handle(self, event: Input, now: float) -> list[Output]:
@@ -317,9 +332,11 @@ class NodeCore:
                 self.bad_input[key] += 1
                 out = [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
             case PlanDone(outcome):
-                out = self.manager.on_plan(outcome, self.autopilot, now)
+                out = self.manager.on_plan(outcome, self.autopilot, now, self.roster)
             case _:
                 assert_never(event)
+        if self.manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s
+            out.append(Publish(self.info()))
         return self._route(out, now) if out else []
 
     def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
@@ -379,12 +396,13 @@ class NodeCore:
     def _on_autopilot(self, state: AutopilotState, now: float) -> list[ModuleOutput]:
         self.autopilot = state
         out: list[ModuleOutput] = [Publish(a) for a in self.monitor.update(state, now)]
-        out += self.manager.on_autopilot(state, now)
+        out += self.manager.on_autopilot(state, now, self.roster)
         return out + self._keep_fence(now)
 
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
         match msg:
             case VehicleStatus():
+                self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
                 events = self.members.on_status(msg, now)  # usually none: a known peer
                 return self._peer_events(events) if events else []
             case VehicleInfo():
@@ -629,11 +647,14 @@ class NodeCore:
                         Note(logging.INFO, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} joins"),
                         Post(fsm.Replan(ev.mission_id)),  # share what is left with it
                     ]
-            elif isinstance(ev, RosterMismatch):
-                out.append(
-                    Note(logging.ERROR, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} planned "
-                         f"with roster {ev.theirs:#06x}, ours is {ev.ours:#06x}")
-                )  # fmt: skip
+            elif isinstance(ev, RosterMismatch):  # an alert, once per member and hash
+                text = (f"mission {ev.mission_id}: vehicle {ev.vehicle_id} flies roster "
+                        f"{ev.theirs:#06x}, ours {ev.ours:#06x}")  # fmt: skip
+                out += [
+                    Note(logging.ERROR, text),
+                    Publish(Alert(self.self_id, max(0.0, self.now), Severity.WARNING,
+                                  AlertCode.ROSTER_MISMATCH, text[:64])),
+                ]  # fmt: skip
         return out
 
     # ------------------------------------------------------------------ time
@@ -752,7 +773,8 @@ class NodeCore:
                 self.roster.open(o.mission_id, mission.selection)
             self._replanning = o.replan and mission is not None and self.roster.frozen
             if self._replanning:
-                self.manager.begin_replan()
+                self.roster.rollback()  # a replan not agreed yet is made again from there
+                self.manager.begin_replan(now)
             else:
                 self.manager.plan(o.mission_id)
             self.arbiter.release(Owner.OPERATOR)  # the state machine decides the next flight
@@ -801,7 +823,8 @@ class NodeCore:
             self.fsm.post(fsm.PlanFailed(mission_id, "unknown mission"))
             return []
         if self._replanning and self.roster.frozen:
-            return self._replan(mission, now)
+            # the peers hold their replans until ours carries the same roster hash
+            return [*self._replan(mission, now), Publish(self.info())]
         if self.regroup.joining == mission_id or mission_id in self.regroup.adopting:
             return self.changes.join(mission_id, now)
         if mission.selection.kind == SelectorKind.QUANTITY:  # idle candidates: vote first
@@ -830,7 +853,7 @@ class NodeCore:
         base = self.manager.fleet_plan
         peers = self.members.peers
         survivors = self.roster.survivors(peers)
-        progress = self._progress_now()
+        progress, flown = self._progress_now()
         members: list[Member] = []
         for vid in survivors:
             profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
@@ -838,34 +861,44 @@ class NodeCore:
                 continue
             members.append(Member(profile, pose_on(base, vid, progress) if base else None))
         self.roster.replanned(survivors)
+        battery = (
+            replan_battery(base, members, progress, flown, mission.params.altitude_rel_m)
+            if base is not None
+            else {}
+        )
         took_in = self.regroup.replanned(
-            mission.mission_id, [m.profile.vehicle_id for m in members], progress
+            mission.mission_id, [m.profile.vehicle_id for m in members], progress, battery
         )
         out = self.manager.replan(
-            mission, members, progress, self.planning_zones(now), self.autopilot, now
+            mission, members, progress, self.planning_zones(now), self.autopilot, now, battery
         )
         lineage = self.regroup.lineages.get(mission.mission_id)
         if took_in and lineage is not None:  # a vehicle joins: it needs how the plan came to be
             out.append(Publish(lineage.message(self.self_id, self.roster.members_hash)))
         return out
 
-    def _progress_now(self) -> dict[int, float]:
+    def _progress_now(self) -> tuple[dict[int, float], dict[int, float]]:
         """Every member's metres along its share of the fleet plan: ours as flown, the
-        others' as they last published it (held while replanning: the same everywhere)."""
+        others' as they last published it (held while replanning: the same everywhere);
+        and the metres each flew before the last replan."""
         base = self.manager.fleet_plan
         progress: dict[int, float] = {}
+        flown: dict[int, float] = {}  # metres flown before the last replan
         if base is not None:
             for vid in base.roster:
                 if vid not in base.shares:
                     continue
                 if vid == self.self_id:
                     done = self.manager.share_progress_m()
+                    before = self.manager.sortie.progress_m - done
                 else:
                     p, path = self.roster.progress_of(vid)
                     # less what it flew before the last replan; nothing heard: nothing flown
-                    done = p - (path - base.shares[vid].length_m) if path > 0.0 else 0.0
+                    before = path - base.shares[vid].length_m if path > 0.0 else 0.0
+                    done = p - before if path > 0.0 else 0.0
                 progress[vid] = min(max(done, 0.0), base.shares[vid].length_m)
-        return progress
+                flown[vid] = max(before, 0.0)
+        return progress, flown
 
     def _start_return(self, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(self.autopilot, self.planning_zones(now), now)
@@ -875,7 +908,8 @@ class NodeCore:
         members' VehicleInfo (the same on every node). Lost members are left out;
         members whose profile is unknown are returned apart (planning without them
         would send two vehicles over the same ground)."""
-        out = [Member(self.profile, self.autopilot.home)]
+        battery = self.roster.plan_battery
+        out = [Member(self.profile, self.autopilot.home, battery.get(self.self_id))]
         unknown = []
         for vid in self.roster.flying:
             if vid == self.self_id:
@@ -887,7 +921,7 @@ class NodeCore:
             if profile is None:
                 unknown.append(vid)
                 continue
-            out.append(Member(profile, peer.info.home if peer.info else None))
+            out.append(Member(profile, peer.info.home if peer.info else None, battery.get(vid)))
         return out, unknown
 
 

@@ -37,6 +37,8 @@ class Member:
 
     profile: VehicleProfile
     home: GeoPoint | None
+    #: the battery it published on entering PLAN (None: unknown, planned as full)
+    battery_pct: float | None = None
 
 
 def _vehicles(members: Sequence[Member]) -> list[PlanVehicle]:
@@ -66,7 +68,10 @@ class Replay:
     from; the last replan may be handed to `adopters` (an emptied fleet's mission)."""
 
     first: tuple[Member, ...]
-    steps: tuple[tuple[tuple[VehicleProfile, ...], Mapping[int, float]], ...] = ()
+    #: (members, progress, battery) of each replan
+    steps: tuple[
+        tuple[tuple[VehicleProfile, ...], Mapping[int, float], Mapping[int, float]], ...
+    ] = ()
 
 
 def replay(
@@ -76,11 +81,12 @@ def replay(
     inputs, every member made (`plan_fleet`, then `FleetPlan.replan` per step, survivors
     posed by `pose_on`)."""
     plan = plan_fleet(mission, lineage.first, zones, now, home_alt_msl_m)
-    for profiles, progress in lineage.steps:
+    for profiles, progress, battery in lineage.steps:
         members = [Member(p, pose_on(plan, p.vehicle_id, progress)) for p in profiles]
         plan = plan.replan(
-            progress, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m
-        )
+            progress, _vehicles(members), zones=zones, now_unix_s=now,
+            home_alt_msl_m=home_alt_msl_m, battery_pct=dict(battery) or None,
+        )  # fmt: skip
     return plan
 
 
@@ -99,6 +105,9 @@ class PlanRequest:
     base: FleetPlan | None = None
     progress_m: Mapping[int, float] = field(default_factory=dict)
     lineage: Replay | None = None  # a joiner: the fleet's plan made again (`replay`)
+    #: a replan's survivors' battery left by the model (`Endurance.left_pct`): an area
+    #: replan gives none more than its charge flies home
+    battery_pct: Mapping[int, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -117,9 +126,11 @@ def plan_fleet(
 ) -> FleetPlan:
     """The whole fleet's plan (`planning.fleet_plan.plan_fleet`: members sorted by id,
     posed at their homes, inputs every member sees the same)."""
+    battery = {m.profile.vehicle_id: m.battery_pct for m in members if m.battery_pct is not None}
     return plan_whole_fleet(
-        mission, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m
-    )
+        mission, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m,
+        battery_pct=battery or None,
+    )  # fmt: skip
 
 
 def run_plan(req: PlanRequest) -> PlanOutcome:
@@ -133,6 +144,7 @@ def run_plan(req: PlanRequest) -> PlanOutcome:
             plan = req.base.replan(
                 req.progress_m, _vehicles(req.members), zones=req.zones,
                 now_unix_s=req.now, home_alt_msl_m=req.home_alt_msl_m,
+                battery_pct=dict(req.battery_pct) or None,
             )  # fmt: skip
     except (PlanningError, ValueError) as exc:
         return PlanOutcome(req.job_id, None, f"planning: {exc}")

@@ -60,6 +60,7 @@ def _workers(
     stops: bool = True,
     battery_pct: Mapping[int, float] | None = None,
     homes: Mapping[int, tuple[float, float]] | None = None,
+    launch_pct: Mapping[int, float] | None = None,
 ) -> list[Worker]:
     """Each vehicle as a split worker: its mission speed and turns, the time it loses
     stopping on waypoints, and with `altitudes` the time at cruise its battery allows
@@ -74,7 +75,8 @@ def _workers(
         if altitudes is not None:
             e = Endurance.of(v.profile, altitudes[v.vehicle_id])
             if battery_pct is None:
-                budget = e.cruise_budget_s
+                launch = (launch_pct or {}).get(v.vehicle_id)
+                budget = e.cruise_budget_s if launch is None else e.ground_budget_s(launch, v.profile)
             elif v.vehicle_id in battery_pct:
                 budget = e.airborne_budget_s(battery_pct[v.vehicle_id], v.profile)
         out.append(
@@ -149,14 +151,16 @@ def plan_area(
     extra_s: Mapping[int, float] | None = None,
     legacy_split: bool = False,
     max_flight_s: float = MAX_FLIGHT_S,
+    battery_pct: Mapping[int, float] | None = None,
 ) -> AreaPlan:
     """Cover a POLYGON (holes are not covered, zones are cut out and never entered) with
     `vehicles`: lane spacing from the altitude, the narrowest camera HFOV and the side
     overlap; sweep direction searched; lanes split to minimize the makespan (a vehicle
     that stops on its waypoints charged for each stop); each vehicle at
     `altitude_rel_m + i * altitude_step_m`. With `endurance` the vehicles are at their
-    homes with a full battery, and no block and its way home take more than the
-    battery allows (`endurance.Endurance`; `InfeasibleTimingError` if the fleet cannot
+    homes with a full battery (or, in `battery_pct`, what it has: one that flew before
+    without a fresh battery), and no block and its way home take more than the battery
+    allows (`endurance.Endurance`; `InfeasibleTimingError` if the fleet cannot
     cover the area). `extra_s`: seconds a vehicle's block is known to take beyond its
     path (the turns the flyable stage adds, see `fleet_plan`). `legacy_split`: the
     split before issue 12 (every vehicle timed at constant speed, one turn allowance
@@ -186,6 +190,7 @@ def plan_area(
         altitudes=alts if endurance else None,
         extra_s=extra_s,
         stops=not legacy_split,
+        launch_pct=battery_pct,
     )
     turns = _reference_turns(workers)
     check_flyable(region, spacing, turns, sum(w.speed_m_s for w in workers), max_flight_s)

@@ -19,8 +19,9 @@ from shapely.geometry import Point
 from shapely.ops import nearest_points
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
-from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
+from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone, VehicleType
 
+from .endurance import LAND_FINAL_M, LAND_FINAL_M_S, VTOL_SINK_M_S
 from .errors import InvalidGeometryError, InvalidParameterError, TargetInZoneError
 from .geo import LocalFrame, heading_to_yaw
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
@@ -31,6 +32,7 @@ DEFAULT_STACK_STEP_M = 15.0
 FINAL_APPROACH_M = 600.0  # holding fix / final approach start, from the base
 FINAL_ALT_M = 40.0  # altitude at the start of the final approach
 DEFAULT_SINK_M_S = 2.0
+VTOL_BACK_TRANSITION_S = 13.0  # cruise to hover over the pad (Q_TRANS_DECEL 2 m/s/s from 26 m/s)
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,8 +104,16 @@ def plan_autoland(
     zone_margin_m: float = 0.0,
     max_alt_rel_m: float = 120.0,
     frame: LocalFrame | None = None,
+    hold_until_released: bool = False,
+    pad_spacing_m: float = 0.0,
 ) -> AutolandPlan:
     """`priority`: higher lands first (e.g. 100 - battery %); ties by earliest arrival.
+
+    `hold_until_released`: every vehicle's hold over the fix is a LOITER_UNLIMITED (the
+    mission manager releases it in turn: mission/landing.py) instead of a LOITER_TIME
+    of the planned length. `pad_spacing_m`: each vehicle lands on its own pad, the pads
+    in a row across the final approach through the base, this far apart in landing
+    order (0: all at the base).
 
     Zones: the final approach course is `heading_deg`, or by default the first of north,
     15, -15, 30, ... degrees whose holding fix, holding stack (each fixed-wing orbit at
@@ -150,8 +160,7 @@ def plan_autoland(
         )
 
     def final_s(v: PlanVehicle) -> float:
-        sink = v.profile.sink_rate_m_s or DEFAULT_SINK_M_S
-        return FINAL_APPROACH_M / speeds[v.vehicle_id] + FINAL_ALT_M / sink
+        return final_approach_s(v, speeds[v.vehicle_id])
 
     seq = sorted(
         vehicles,
@@ -164,6 +173,10 @@ def plan_autoland(
     lat_b, lon_b = frame.to_geodetic(*base)
     lat_f, lon_f = frame.to_geodetic(*fix)
     for i, v in enumerate(seq):
+        if pad_spacing_m > 0.0:  # its own pad across the final approach
+            off = (i - (len(seq) - 1) / 2.0) * pad_spacing_m
+            pad = (base[0] - off * math.sin(yaw), base[1] + off * math.cos(yaw))
+            lat_b, lon_b = frame.to_geodetic(*pad)
         earliest = reach_s(v) + final_s(v)
         land = max(earliest, last + sep)
         last = land
@@ -184,7 +197,13 @@ def plan_autoland(
             la, lo = frame.to_geodetic(x, y)
             wps.append(Waypoint(ItemKind.WAYPOINT, la, lo, z))
         wps.append(Waypoint(ItemKind.WAYPOINT, lat_f, lon_f, alt))
-        if hold > 0.0:
+        if hold_until_released:
+            wps.append(
+                Waypoint(
+                    ItemKind.LOITER_UNLIMITED, lat_f, lon_f, alt, loiter_radius_m=-r if r > 0 else None
+                )
+            )
+        elif hold > 0.0:
             wps.append(
                 Waypoint(
                     ItemKind.LOITER_TIME,
@@ -204,6 +223,23 @@ def plan_autoland(
         length = sum(math.dist(a[:2], b[:2]) for a, b in itertools.pairwise(transit))
         plans.append(VehiclePlan(v.vehicle_id, tuple(wps), length + FINAL_APPROACH_M, land))
     return AutolandPlan(frame, base, yaw, tuple(slots), tuple(plans), tuple(tracks))
+
+
+def final_approach_s(v: PlanVehicle, speed_m_s: float, from_alt_m: float = FINAL_ALT_M) -> float:
+    """From leaving the holding fix at `from_alt_m` to touching down: the final leg at
+    `speed_m_s`, then a plane glides down from FINAL_ALT_M at its sink rate; a VTOL
+    slows down over the pad (VTOL_BACK_TRANSITION_S) and, like a multirotor, comes down
+    vertically from its holding level at its sink rate and the last LAND_FINAL_M at
+    LAND_FINAL_M_S (ArduPilot's LAND_SPEED)."""
+    p = v.profile
+    leg = FINAL_APPROACH_M / speed_m_s
+    if p.vehicle_type not in (VehicleType.VTOL, VehicleType.COPTER):
+        return leg + FINAL_ALT_M / (p.sink_rate_m_s or DEFAULT_SINK_M_S)
+    vtol = p.vehicle_type == VehicleType.VTOL
+    sink = VTOL_SINK_M_S if vtol else (p.sink_rate_m_s or VTOL_SINK_M_S)
+    alt = max(from_alt_m, LAND_FINAL_M)
+    down = (alt - LAND_FINAL_M) / sink + LAND_FINAL_M / LAND_FINAL_M_S
+    return leg + (VTOL_BACK_TRANSITION_S if vtol else 0.0) + down
 
 
 def _transit(

@@ -49,6 +49,32 @@ LAND_FINAL_M = 10.0
 LAND_FINAL_M_S = 0.5
 
 
+#: the mission manager starts a share once this much of the take-off altitude is reached
+CLIMB_FRACTION = 0.8
+#: a plane's climb-out in TAKEOFF mode when its profile has no climb rate (TECS_CLMB_MAX)
+PLANE_CLIMB_M_S = 5.0
+#: arming, the take-off command and the start of the mission, each a MAVLink round trip
+#: with its ack (measured in fast time: 0.3 s from release to the climb)
+LAUNCH_COMMANDS_S = 0.5
+
+
+def launch_s(profile: VehicleProfile, altitude_m: float) -> float:
+    """Seconds from the plan to the start of a share for a vehicle on the ground at its
+    home: arm, take off and climb to CLIMB_FRACTION of `altitude_m` (a VTOL on its lift
+    motors at VTOL_CLIMB_M_S, a multirotor at its climb rate, a plane in TAKEOFF mode
+    at its climb rate), then start; a ground vehicle only arms and starts."""
+    vt = profile.vehicle_type
+    if vt in (VehicleType.ROVER, VehicleType.BOAT) or not math.isfinite(altitude_m):
+        return LAUNCH_COMMANDS_S
+    if vt == VehicleType.VTOL:
+        up = VTOL_CLIMB_M_S
+    elif vt == VehicleType.PLANE:
+        up = profile.climb_rate_m_s or PLANE_CLIMB_M_S
+    else:
+        up = profile.climb_rate_m_s or VTOL_CLIMB_M_S
+    return LAUNCH_COMMANDS_S + CLIMB_FRACTION * max(altitude_m, 0.0) / up
+
+
 def stops_on_waypoints(profile: VehicleProfile) -> bool:
     """Whether the vehicle brakes to a stop on every waypoint (not fixed-wing)."""
     return not profile.is_fixed_wing
@@ -141,6 +167,18 @@ class Endurance:
         left = self.usable_mah - self.hover_a * (self.climb_s + self.land_s) / 3.6
         return max(left, 0.0) * 3.6 / self.cruise_a
 
+    def ground_budget_s(self, battery_pct: float, profile: VehicleProfile) -> float:
+        """`cruise_budget_s` for a sortie from the ground with `battery_pct` (a vehicle
+        that flew before and was not given a fresh battery): inf without battery figures."""
+        if math.isinf(self.usable_mah):
+            return math.inf
+        frac = min(max(battery_pct, 0.0), 100.0) / 100.0
+        usable = profile.battery_capacity_mah * max(
+            frac - profile.battery_critical_pct / 100.0 - RESERVE_FRACTION, 0.0
+        )
+        left = usable - self.hover_a * (self.climb_s + self.land_s) / 3.6
+        return max(left, 0.0) * 3.6 / self.cruise_a
+
     def airborne_budget_s(self, battery_pct: float, profile: VehicleProfile) -> float:
         """Seconds at cruise left to a vehicle in the air with `battery_pct`, keeping
         its critical level, the reserve and its landing: inf without battery figures."""
@@ -151,6 +189,17 @@ class Endurance:
         left = cap * max(frac - profile.battery_critical_pct / 100.0 - RESERVE_FRACTION, 0.0)
         left -= self.hover_a * self.land_s / 3.6
         return max(left, 0.0) * 3.6 / self.cruise_a
+
+    def left_pct(self, flown_s: float, capacity_mah: float, start_pct: float = 100.0) -> float:
+        """Battery left (% of capacity) after the climb and `flown_s` at cruise from
+        `start_pct`, by the model: what every node can compute alike for a member (its
+        published progress says how long it has flown), where the members' measured
+        batteries differ by when each node last heard them. `start_pct` without battery
+        figures."""
+        if math.isinf(self.usable_mah) or capacity_mah <= 0.0 or not math.isfinite(flown_s):
+            return start_pct
+        mah = (self.cruise_a * max(flown_s, 0.0) + self.hover_a * self.climb_s) / 3.6
+        return min(max(start_pct - 100.0 * mah / capacity_mah, 0.0), 100.0)
 
     def used_pct(self, cruise_s: float, capacity_mah: float) -> float:
         """Battery used (% of capacity) by a sortie with `cruise_s` at cruise."""

@@ -48,10 +48,12 @@ from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Mission, MissionType, NoFlyZone
 
 from .area import AreaPlan, plan_area, replan_area
-from .endurance import transition_s
-from .errors import InvalidParameterError, NoVehiclesError, PlanningError
+from .autoland import plan_autoland
+from .endurance import launch_s, transition_s
+from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError, PlanningError
 from .flight import FIXED_WING_ACCEPT_M, flyable_plan, predict_flight
 from .geo import LocalFrame, VehiclePose
+from .mumt import LeadState, plan_mumt
 from .objective import plan_objective
 from .perimeter import PerimeterPlan, plan_perimeter
 from .route import plan_route
@@ -64,8 +66,15 @@ PLANNERS: dict[MissionType, Callable[..., object]] = {
     MissionType.PERIMETER: plan_perimeter,
     MissionType.ROUTE: plan_route,
     MissionType.OBJECTIVE: plan_objective,
+    MissionType.AUTOLAND: plan_autoland,
 }
+#: AUTOLAND as the mission manager flies it: each vehicle holds over the fix until its
+#: turn (mission/landing.py) and lands on its own pad, this far from the next
+LANDING_PAD_SPACING_M = 15.0
 
+#: a replan the batteries cannot fly keeps the largest part of the lost members' rest
+#: they can, to 1/2**BATTERY_BISECTIONS of it
+BATTERY_BISECTIONS = 6
 #: a fixed-wing's turns are planned at this times its minimum radius (see `flyable`)
 TURN_RADIUS_MARGIN = 1.3
 
@@ -130,13 +139,22 @@ class Share:
     along_m: tuple[float, ...]  # planned metres from the share's start to each item
     length_m: float  # along_m of the last item
     time_s: float  # the planner's time for the share (speed, waits, turns)
+    #: before the share: arming, take-off and climb from the ground at home
+    #: (`endurance.launch_s`; 0 in a replan, flown from the air)
+    launch_s: float = 0.0
 
     @classmethod
-    def of(cls, vp: VehiclePlan) -> Share:
+    def of(cls, vp: VehiclePlan, launch_s: float = 0.0) -> Share:
         along = along_metres(vp.waypoints)
         return cls(
-            vp.vehicle_id, tuple(vp.waypoints), along, along[-1] if along else 0.0, vp.time_s
-        )
+            vp.vehicle_id, tuple(vp.waypoints), along, along[-1] if along else 0.0, vp.time_s,
+            launch_s,
+        )  # fmt: skip
+
+    @property
+    def sortie_s(self) -> float:
+        """The planned time from the plan to the end of the share: launch and share."""
+        return self.launch_s + self.time_s
 
     def at(self, progress_m: float) -> tuple[int, float, float]:
         """Where a vehicle `progress_m` along this share is: (index of the last item
@@ -221,6 +239,12 @@ class FleetPlan:
     makespan_s: float
     vehicles: tuple[PlanVehicle, ...] = field(default=(), repr=False)  # as planned (flyable)
     homes: Mapping[int, VehiclePose] = field(default_factory=dict, repr=False)  # first plan's poses
+    #: a replan: the part of the lost members' rest that no survivor's battery flies
+    #: (left unflown, `_replan_within_battery`)
+    unflown_fraction: float = 0.0
+    #: the battery each member had at the first plan (missing: full), what it was given
+    #: work for; a replan counts down from it
+    launch_battery_pct: Mapping[int, float] = field(default_factory=dict)
 
     def share(self, vehicle_id: int) -> Share:
         try:
@@ -248,6 +272,22 @@ class FleetPlan:
         for vid, m in progress_m.items():
             if not math.isfinite(m):
                 raise InvalidParameterError(f"vehicle {vid}: progress {m} m is not finite")
+        new = self._replan(
+            progress_m, vehicles, zones=zones, now_unix_s=now_unix_s,
+            home_alt_msl_m=home_alt_msl_m, battery_pct=battery_pct,
+        )  # fmt: skip
+        return dataclasses.replace(new, launch_battery_pct=self.launch_battery_pct)
+
+    def _replan(
+        self,
+        progress_m: Mapping[int, float],
+        vehicles: Sequence[PlanVehicle],
+        *,
+        zones: Sequence[NoFlyZone],
+        now_unix_s: float,
+        home_alt_msl_m: float,
+        battery_pct: Mapping[int, float] | None,
+    ) -> FleetPlan:
         vs = _sorted_flyable(vehicles)
         kind = self.mission.mission_type
         if kind == MissionType.AREA:
@@ -257,13 +297,12 @@ class FleetPlan:
             homes = {
                 vid: frame.to_local(h.lat_deg, h.lon_deg) for vid, h in sorted(self.homes.items())
             }
-            detail: object = replan_area(
-                self.detail, pct, vs, self.mission.params, battery_pct=battery_pct, homes=homes
-            )
+            detail, dropped = self._replan_within_battery(pct, vs, battery_pct, homes)
             detail = flyable_plan(
                 detail, vs, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
             )
-            return _fleet_plan(self.mission, vs, detail, self.homes)
+            plan = _fleet_plan(self.mission, vs, detail, self.homes)
+            return dataclasses.replace(plan, unflown_fraction=dropped)
         if kind == MissionType.PERIMETER:
             assert isinstance(self.detail, PerimeterPlan)
             mission = _with_params(self.mission, loops=self._laps_left(progress_m, vs))
@@ -291,6 +330,46 @@ class FleetPlan:
         raise PlanningError(f"{kind.name} missions are not replanned")
 
     # -- area
+
+    def _replan_within_battery(
+        self,
+        pct: Mapping[int, float],
+        vehicles: Sequence[PlanVehicle],
+        battery_pct: Mapping[int, float] | None,
+        homes: Mapping[int, tuple[float, float]],
+    ) -> tuple[AreaPlan, float]:
+        """`replan_area`; when the survivors' batteries cannot fly all that is left, as
+        much of the lost members' rest as they can (the survivors' own rest always: it
+        was planned within their batteries): each lost member counts as having flown
+        more of its share, the largest part left found by bisection (the lanes right
+        after where it was lost stay unflown). `InfeasibleTimingError` when even the
+        survivors' own rest does not fit."""
+        assert isinstance(self.detail, AreaPlan)
+        params = self.mission.params
+
+        def attempt(extra: float) -> AreaPlan:
+            p = {
+                vid: x if vid in alive else x + extra * (100.0 - x)
+                for vid, x in sorted(pct.items())
+            }
+            return replan_area(self.detail, p, vehicles, params,  # type: ignore[arg-type]
+                               battery_pct=battery_pct, homes=homes)  # fmt: skip
+
+        alive = {v.vehicle_id for v in vehicles}
+        try:
+            return attempt(0.0), 0.0
+        except InfeasibleTimingError:
+            if not battery_pct or not set(pct) - alive:
+                raise
+        best = attempt(1.0)  # the survivors' own rest only (raises if that does not fit)
+        lo, hi = 0.0, 1.0  # lo: infeasible share of the lost rest dropped, hi: feasible
+        for _ in range(BATTERY_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            try:
+                best, hi = attempt(mid), mid
+            except InfeasibleTimingError:
+                lo = mid
+        return best, hi
 
     def area_percent(self, vehicle_id: int, progress_m: float) -> float:
         """`progress_m` along `vehicle_id`'s share as the percentage of its coverage
@@ -420,10 +499,14 @@ def _with_params(mission: Mission, **changes: object) -> Mission:
 
 
 def _makespan(detail: object, shares: Mapping[int, Share]) -> float:
+    """From the plan to the last share flown: launch (from the ground, in a first plan)
+    and the share's time, the latest of the fleet."""
     span = getattr(detail, "makespan_s", None)
+    flown = max((s.sortie_s for s in shares.values()), default=0.0)
     if isinstance(span, float) and math.isfinite(span):
-        return max(span, max((s.time_s for s in shares.values()), default=0.0))
-    return max((s.time_s for s in shares.values()), default=0.0)
+        launch = min((s.launch_s for s in shares.values()), default=0.0)
+        return max(span + launch, flown)
+    return flown
 
 
 def _fleet_plan(
@@ -433,7 +516,12 @@ def _fleet_plan(
     homes: Mapping[int, VehiclePose] | None = None,
 ) -> FleetPlan:
     plans: tuple[VehiclePlan, ...] = detail.vehicles  # type: ignore[attr-defined]
-    by_id = {vp.vehicle_id: Share.of(vp) for vp in plans}
+    # a first plan: every vehicle starts from the ground at its home (a replan: in the air)
+    launch = {
+        v.vehicle_id: launch_s(v.profile, mission.params.altitude_rel_m) if homes is None else 0.0
+        for v in vehicles
+    }
+    by_id = {vp.vehicle_id: Share.of(vp, launch.get(vp.vehicle_id, 0.0)) for vp in plans}
     roster = tuple(v.vehicle_id for v in vehicles)
     missing = [vid for vid in roster if vid not in by_id]
     if missing:
@@ -454,15 +542,22 @@ def _plan(
     now_unix_s: float,
     home_alt_msl_m: float,
     homes: Mapping[int, VehiclePose] | None = None,
+    battery_pct: Mapping[int, float] | None = None,
 ) -> FleetPlan:
     """`vehicles` already sorted and flyable."""
+    if mission.mission_type == MissionType.MUMT:
+        return _plan_mumt(mission, vehicles, zones=zones, home_alt_msl_m=home_alt_msl_m)
     planner = PLANNERS.get(mission.mission_type)
     if planner is None:
         raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
     if mission.mission_type == MissionType.AREA:
         return _plan_area(
-            mission, vehicles, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
-        )
+            mission, vehicles, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m,
+            battery_pct=battery_pct,
+        )  # fmt: skip
+    extra: dict[str, object] = {}
+    if mission.mission_type == MissionType.AUTOLAND:
+        extra = {"hold_until_released": True, "pad_spacing_m": LANDING_PAD_SPACING_M}
     detail = planner(
         mission.geometry,
         vehicles,
@@ -471,12 +566,39 @@ def _plan(
         now_unix_s=now_unix_s,
         home_alt_msl_m=home_alt_msl_m,
         zone_margin_m=zone_margin_m(vehicles),
+        **extra,
     )
     # every fixed-wing share flyable as planned (the plan's tracks follow)
     detail = flyable_plan(
         detail, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
     )
     return _fleet_plan(mission, vehicles, detail, homes)
+
+
+def _plan_mumt(
+    mission: Mission,
+    vehicles: Sequence[PlanVehicle],
+    *,
+    zones: Sequence[NoFlyZone],
+    home_alt_msl_m: float,
+) -> FleetPlan:
+    """MUM-T: the followers' slots around the lead, assigned once from what every
+    member has (the followers at their homes, the lead at the mission's point, its
+    course `heading_deg` or north, standing still); in flight each follower follows
+    the lead's telemetry in its slot (mission/follow.py). The lead is no follower."""
+    lead_id = mission.params.lead_vehicle_id
+    if not lead_id:
+        raise InvalidParameterError("a MUM-T mission needs its lead (lead_vehicle_id)")
+    followers = [v for v in vehicles if v.vehicle_id != lead_id]
+    if not followers or not mission.geometry.points:
+        raise NoVehiclesError("a MUM-T mission needs followers and the lead's position")
+    p = mission.geometry.points[0]
+    lead = LeadState(p.lat_deg, p.lon_deg, 0.0, mission.params.heading_deg or 0.0, 0.0)
+    detail = plan_mumt(
+        lead, followers, mission.params, zones=zones, home_alt_msl_m=home_alt_msl_m,
+        zone_margin_m=zone_margin_m(followers),
+    )  # fmt: skip
+    return _fleet_plan(mission, followers, detail)
 
 
 def zone_margin_m(vehicles: Sequence[PlanVehicle]) -> float:
@@ -504,6 +626,7 @@ def _plan_area(
     zones: Sequence[NoFlyZone],
     now_unix_s: float,
     home_alt_msl_m: float,
+    battery_pct: Mapping[int, float] | None = None,
 ) -> FleetPlan:
     """An area plan whose split knows each vehicle's endurance (`plan_area(endurance=
     True)`: the vehicles are at their homes) and the time the flyable stage adds to a
@@ -524,7 +647,7 @@ def _plan_area(
         raw = plan_area(
             mission.geometry, vehicles, mission.params, zones=zones, now_unix_s=now_unix_s,
             home_alt_msl_m=home_alt_msl_m, zone_margin_m=margin, endurance=aware, extra_s=extra,
-            legacy_split=not aware,
+            legacy_split=not aware, battery_pct=battery_pct if aware else None,
         )  # fmt: skip
         detail = flyable_plan(
             raw, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
@@ -553,7 +676,8 @@ def _plan_area(
             break
         extra = new
     assert best is not None
-    return _fleet_plan(mission, vehicles, best[1])
+    plan = _fleet_plan(mission, vehicles, best[1])
+    return dataclasses.replace(plan, launch_battery_pct=dict(sorted((battery_pct or {}).items())))
 
 
 def _flown_s(vp: VehiclePlan, v: PlanVehicle, frame: LocalFrame) -> float | None:
@@ -588,18 +712,25 @@ def plan_fleet(
     zones: Sequence[NoFlyZone],
     now_unix_s: float,
     home_alt_msl_m: float,
+    battery_pct: Mapping[int, float] | None = None,
 ) -> FleetPlan:
     """The whole fleet's plan: `vehicles` (profiles as in the swarm database, poses
     every member sees the same, e.g. their homes) sorted by id, fixed-wing profiles
     made `flyable`, the mission type's planner with a zone margin of the widest turn
-    radius, every fixed-wing share made flyable (`flyable_plan`)."""
-    return _plan(
+    radius, every fixed-wing share made flyable (`flyable_plan`). `battery_pct`: the
+    members' batteries as every member sees them (missing: full): an area gives none
+    more than its battery flies."""
+    plan = _plan(
         mission,
         _sorted_flyable(vehicles),
         zones=zones,
         now_unix_s=now_unix_s,
         home_alt_msl_m=home_alt_msl_m,
+        battery_pct=battery_pct,
     )
+    if battery_pct and not plan.launch_battery_pct:
+        plan = dataclasses.replace(plan, launch_battery_pct=dict(sorted(battery_pct.items())))
+    return plan
 
 
 def flown_lanes(plan: FleetPlan, progress_m: Mapping[int, float]) -> list[object]:

@@ -381,10 +381,10 @@ def plan_route(
             ll = frame.to_geodetic_many([(p[0], p[1]) for p in safe[1:]]).tolist()
             for (la, lo), p in zip(ll, safe[1:], strict=True):
                 wps.append(Waypoint(ItemKind.WAYPOINT, la, lo, p[2]))
-        length = a.flown_m(ap.leg) + sum(
-            math.hypot(b[0] - c[0], b[1] - c[1]) for c, b in itertools.pairwise(safe)
-        )
-        plans.append(VehiclePlan(v.vehicle_id, tuple(wps), length, a.arrival_s))
+        route_m = sum(math.hypot(b[0] - c[0], b[1] - c[1]) for c, b in itertools.pairwise(safe))
+        length = a.flown_m(ap.leg) + route_m
+        # the share's time: the synchronized arrival, then the route at the mission speed
+        plans.append(VehiclePlan(v.vehicle_id, tuple(wps), length, a.arrival_s + route_m / cruise))
     t = next(iter(arr.values())).arrival_s
     return RoutePlan(
         frame,

@@ -39,6 +39,7 @@ from swarm_proto import (
     AckReason,
     Command,
     CommandKind,
+    LineageBattery,
     LineageHome,
     LineageProgress,
     LineageStep,
@@ -86,12 +87,16 @@ class Lineage:
         """The planning inputs (`mission.share.replay`); a handed-over lineage (its last
         step has no members) is taken up by `adopters`. KeyError: a member whose
         profile is unknown here."""
-        first = tuple(Member(profiles[h.vehicle_id], h.home) for h in self.first)
+        first = tuple(
+            Member(profiles[h.vehicle_id], h.home, None if h.battery_pct < 0 else h.battery_pct)
+            for h in self.first
+        )
         steps = []
         for s in self.steps:
             ids = s.members or tuple(adopters)
             steps.append((tuple(profiles[v] for v in ids),
-                          {p.vehicle_id: p.progress_m for p in s.progress}))  # fmt: skip
+                          {p.vehicle_id: p.progress_m for p in s.progress},
+                          {b.vehicle_id: b.battery_pct for b in s.battery}))  # fmt: skip
         return Replay(first, tuple(steps))
 
 
@@ -131,14 +136,22 @@ class Regroup:
     # ------------------------------------------------------------------ a fleet's record
     def founded(self, mission: Mission, members: Sequence[Member]) -> None:
         """The first plan of a fleet this vehicle flies in."""
-        first = tuple(LineageHome(m.profile.vehicle_id, m.home) for m in members)
+        first = tuple(
+            LineageHome(m.profile.vehicle_id, m.home,
+                        -1 if m.battery_pct is None else round(m.battery_pct))
+            for m in members
+        )  # fmt: skip
         self.lineages[mission.mission_id] = Lineage(mission, first)
         self.lineages.move_to_end(mission.mission_id)
         while len(self.lineages) > KEEP:
             self.lineages.popitem(last=False)
 
     def replanned(
-        self, mission_id: int, members: Sequence[int], progress: Mapping[int, float]
+        self,
+        mission_id: int,
+        members: Sequence[int],
+        progress: Mapping[int, float],
+        battery: Mapping[int, float] | None = None,
     ) -> bool:
         """A replan of our fleet; True when it takes a vehicle in (publish the lineage)."""
         lin = self.lineages.get(mission_id)
@@ -148,6 +161,8 @@ class Regroup:
         lin.steps.append(LineageStep(
             tuple(members),
             tuple(LineageProgress(v, max(0.0, p)) for v, p in sorted(progress.items())),
+            tuple(LineageBattery(v, min(100.0, max(0.0, b)))
+                  for v, b in sorted((battery or {}).items())),
         ))  # fmt: skip
         return bool(set(members) - before)
 

@@ -98,8 +98,19 @@ class Roster:
     #: each member's last published (progress_m, path_m) in this mission: a survivor's
     #: progress is held while it replans, so every survivor replans from the same values
     progress: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: each member's last published PREMISSION entry time (VehicleInfo.entry_unix_s)
+    entry_at: dict[int, float] = field(default_factory=dict)
+    #: each member's last published members hash in this mission (VehicleInfo)
+    hashes: dict[int, int] = field(default_factory=dict)
+    #: the battery each member published on entering PLAN for the mission (the one
+    #: VehicleInfo every node hears alike): what the plan gives it work for
+    plan_battery: dict[int, int] = field(default_factory=dict)
     mismatches: int = 0
     _previous_hash: int = 0
+    #: the last roster every member flew (planned, generation, previous hash): a replan
+    #: is made from it and, without agreement, rolled back to it (`rollback`)
+    _agreed: tuple[tuple[int, ...], int, int] = ((), 0, 0)
+    _reported: set[tuple[int, int]] = field(default_factory=set)  # (vehicle, hash) alerted
     _answers: OrderedDict[int, dict[int, bool]] = field(default_factory=OrderedDict)
 
     # ------------------------------------------------------------------ lifecycle
@@ -117,6 +128,12 @@ class Roster:
         self.members, self.lost, self.finished, self.planned = (), {}, set(), ()
         self.generation = 0
         self.progress = {}
+        self.entry_at = {}
+        self.hashes = {}
+        self.plan_battery = {}
+        self._previous_hash = 0
+        self._agreed = ((), 0, 0)
+        self._reported = set()
 
     @property
     def frozen(self) -> bool:
@@ -157,6 +174,11 @@ class Roster:
         if in_mission:
             mark = (info.mission_progress_m, info.mission_path_m)
             self.progress[vid] = mark
+            if info.entry_unix_s > 0.0:
+                self.entry_at[vid] = info.entry_unix_s
+            self.hashes[vid] = info.members_hash
+            if info.fsm_state == FsmState.PLAN and info.battery_pct >= 0:
+                self.plan_battery.setdefault(vid, info.battery_pct)
         out: list[RosterEvent] = []
         if self.frozen and in_mission and info.fsm_state == FsmState.PLAN and vid not in self.flying:
             return [MemberJoined(mid, vid)]  # a vehicle joining (or a lost one back)
@@ -183,7 +205,9 @@ class Roster:
                     and theirs not in (self.members_hash, self._previous_hash)
                 ):
                     self.mismatches += 1
-                    out.append(RosterMismatch(mid, vid, theirs, self.members_hash))
+                    if (vid, theirs) not in self._reported:  # an event once, not every second
+                        self._reported.add((vid, theirs))
+                        out.append(RosterMismatch(mid, vid, theirs, self.members_hash))
         return out
 
     def on_peer_left(self, vid: int, why: str) -> list[RosterEvent]:
@@ -259,6 +283,7 @@ class Roster:
     def freeze(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
         self.members = self.planned = self.accepted(peers)
         self.lost = {v: why for v, why in self.lost.items() if v in self.members}
+        self._agreed = (self.planned, self.generation, self._previous_hash)
         return self.members
 
     # ------------------------------------------------------------------ replan
@@ -285,6 +310,37 @@ class Roster:
             v for v in self.flying if v == self.self_id or (v in peers and peers[v].present)
         )
 
+    def agreement(self) -> tuple[bool, tuple[tuple[int, int], ...]]:
+        """Whether every member the current plan was made for (but this vehicle) has
+        published its hash, and the members that published another one: neither it,
+        nor the hash of the last roster every member flew (a member that has not
+        replanned yet), nor 0."""
+        ours = self.members_hash
+        agreed_hash = (
+            members_hash(self.mission_id, self._agreed[0], self._agreed[1])
+            if self.mission_id is not None and self._agreed[0]
+            else 0
+        )
+        all_in, other = True, []
+        for vid in self.planned:
+            if vid == self.self_id or vid in self.lost:
+                continue
+            h = self.hashes.get(vid, 0)
+            if h != ours:
+                all_in = False
+                if h not in (0, agreed_hash, self._previous_hash):
+                    other.append((vid, h))
+        return all_in, tuple(other)
+
+    def settle(self) -> None:
+        """Every member flies the current roster: the next replan starts from it."""
+        self._agreed = (self.planned, self.generation, self._previous_hash)
+
+    def rollback(self) -> None:
+        """Back to the last roster every member flew (a replan not agreed is dropped:
+        the next one is made from there, as every other member makes it)."""
+        self.planned, self.generation, self._previous_hash = self._agreed
+
     def replanned(self, survivors: tuple[int, ...]) -> None:
         """The replan is made for `survivors` (the next generation)."""
         for v in set(self.flying) - set(survivors):
@@ -309,6 +365,7 @@ class Roster:
         self.members = self.planned = tuple(sorted(set(winners)))
         self.lost = {v: why for v, why in self.lost.items() if v in self.members}
         self.finished &= set(self.members)
+        self._agreed = (self.planned, self.generation, self._previous_hash)
 
     # ------------------------------------------------------------------ add / swap
     def join(self, vid: int) -> None:
@@ -329,6 +386,7 @@ class Roster:
         self.members = tuple(sorted(set(members) | set(self.planned)))
         self.lost = {v: "left before" for v in self.members if v not in self.planned}
         self.generation = generation
+        self._agreed = (self.planned, self.generation, 0)  # what the fleet flies now
 
     def progress_of(self, vid: int) -> tuple[float, float]:
         """A member's last published (progress_m, path_m); (0, 0): nothing heard."""

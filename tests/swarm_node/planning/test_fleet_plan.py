@@ -204,7 +204,7 @@ def test_plan_fleet_is_the_same_whatever_the_order_of_the_vehicles(fleet: Fleet)
 def test_unplanned_mission_types_and_bad_input_raise(fleet: Fleet) -> None:
     vs = fleet(["fixed_wing"], _homes(1))
     with pytest.raises(PlanningError):
-        _plan(_mission(MissionType.AUTOLAND, Geometry.point(LA, LO)), vs)
+        _plan(_mission(MissionType.MUMT, Geometry.point(LA, LO)), vs)
     with pytest.raises(InvalidParameterError):
         _plan(_mission(MissionType.AREA, SMALL), vs + vs)
     fp = _plan(_mission(MissionType.AREA, SMALL, altitude_rel_m=80.0), vs)

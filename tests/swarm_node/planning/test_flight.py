@@ -18,6 +18,7 @@ from shapely.geometry import LineString, Point, Polygon
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.autopilot.state import AutopilotState
+from swarm_node.core.mission.fleet_sync import META_WAIT_S
 from swarm_node.core.mission.share import plan_fleet
 from swarm_node.core.mission_manager import Member, MissionManager, Submit, flyable
 from swarm_node.core.outputs import PlanJob
@@ -345,6 +346,9 @@ def test_the_demo_surveys_fixed_wing_uploads_are_flown_clear_of_the_zone(
         outs = manager.release(mission, members, [zone], ap, 0.0)
         job = next(o for o in outs if isinstance(o, PlanJob))  # planning runs off the loop
         outs = manager.on_plan(plans.run(job.request), ap, 0.0)
+        if manager.sync.active:  # PREMISSION (three Albatrosses): the leg after the meet time
+            manager.on_autopilot(ap, 1.0)  # climbed: waits for the fleet's ETAs ...
+            outs = manager.on_autopilot(ap, 1.0 + META_WAIT_S)  # ... none heard: alone
         upload = next(o.request for o in outs if isinstance(o, Submit))
         items: tuple[Waypoint, ...] = upload.items  # type: ignore[attr-defined]
         frame = LocalFrame.at([LatLon(m.home.lat_deg, m.home.lon_deg)])
