@@ -410,6 +410,7 @@ RULES: tuple[Rule, ...] = (
         "replan of the current mission",
         Action.REPLAN,
         event=Replan,
+        guard=_is_current,  # a replan of a mission a newer one replaced is stale
         outputs=lambda c: (BeginPlan(c.event.mission_id, replan=True),),  # type: ignore[union-attr]
     ),
     # ---- STATE_PLAN (paper Figure 6)

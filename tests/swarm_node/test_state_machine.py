@@ -302,3 +302,19 @@ def test_a_vehicle_a_vote_did_not_choose_stands_down_with_no_mission() -> None:
     t = fsm.tick(0.4, OK)
     assert t is not None and t.outputs == [StandDown(7, "not chosen")]
     assert fsm.state == G and fsm.mission_id is None and not fsm.released
+
+
+def test_a_replan_of_a_mission_a_newer_one_replaced_is_dropped() -> None:
+    """A second mission arrives while the fleet flies the first; a member moving to the
+    new mission reads as lost to the old one, whose Replan arrives after NewMission: the
+    vehicle plans the new mission, not the old one again (found over real processes:
+    mission 92 was never flown, 91 was replanned)."""
+    fsm = machine(G, mission=91, released=True)
+    fsm.post(NewMission(92))
+    fsm.post(Replan(91))
+    tr = fsm.tick(0.0, OK)
+    assert tr is not None and tr.outputs == [BeginPlan(92)] and fsm.mission_id == 92
+    assert fsm.tick(1.0, OK) is None  # the stale replan is dropped, not fired
+    fsm.post(Replan(92))
+    tr = fsm.tick(2.0, OK)
+    assert tr is not None and tr.outputs == [BeginPlan(92, replan=True)]
