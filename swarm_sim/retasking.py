@@ -142,9 +142,10 @@ def retasking(
     first = next(iter(outcome.values()))
     winners, stayers = first.winners, tuple(m for m in members if m not in first.winners)
 
-    def flying(vid: int, mission_id: int) -> bool:
+    def flying(vid: int, mission_id: int) -> bool:  # PREMISSION: on its way to the meet
         n = fleet.vehicles[vid].node
-        return n.fsm.mission_id == mission_id and n.manager.mission_state == MissionState.MISSION
+        return n.fsm.mission_id == mission_id and n.manager.mission_state in (
+            MissionState.PREMISSION, MissionState.MISSION)
 
     flying_s = replanned_s = None
     while flying_s is None or replanned_s is None:

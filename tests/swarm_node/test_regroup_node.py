@@ -18,9 +18,15 @@ from swarm_proto import (
 )
 from tests.swarm_node.test_mission_defects import square, uploads
 from tests.swarm_node.test_node_core import GCS, acks, activate, command, send
-from tests.swarm_node.test_tasking_node import poll, tasking_fleet
+from tests.swarm_node.test_tasking_node import poll as poll_with
+from tests.swarm_node.test_tasking_node import tasking_fleet
 
 UNDER_WAY = dict(mission_reached=4, mission_current=5)
+FULL = {v: 99 for v in range(1, 7)}  # no share cut short by its battery (issue 12's replan)
+
+
+def poll(f: Fleet, seconds: float, **kw: object) -> None:
+    poll_with(f, seconds, FULL, **kw)
 
 
 def area(mid: int, ids: tuple[int, ...], north_m: float = 0.0, half_m: float = 100.0) -> Mission:

@@ -41,7 +41,9 @@ from swarm_proto import (
 from tests.swarm_node.test_mission_defects import area, uploads
 from tests.swarm_node.test_node_core import GCS, acks, activate, flying, profile, send
 
-BATTERY = {1: 95, 2: 60, 3: 88, 4: 75, 5: 50, 6: 99}
+# distinct batteries (distinct scores), each enough for a share of the area: the split
+# gives a vehicle only what its battery flies (a 3.3 Ah quadcopter at 60 % gets nothing)
+BATTERY = {1: 95, 2: 80, 3: 88, 4: 84, 5: 78, 6: 99}
 UNDER_WAY = dict(mission_reached=4, mission_current=5)
 
 
@@ -68,12 +70,12 @@ def tasking_fleet(n: int, **kw: object) -> Fleet:
     return f
 
 
-def poll(f: Fleet, seconds: float, **kw: object) -> None:
+def poll(f: Fleet, seconds: float, battery: dict[int, int] = BATTERY, **kw: object) -> None:
     """Feed every node its autopilot at 5 Hz: each its own battery (distinct scores)."""
     end = f.now + seconds
     while True:
         for i in f.nodes:
-            f.set_autopilot(i, flying(battery_pct=BATTERY[i], **kw))
+            f.set_autopilot(i, flying(battery_pct=battery[i], **kw))
         if f.now >= end:
             return
         f.run_until(min(end, f.now + 0.2))
