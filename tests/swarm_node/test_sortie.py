@@ -58,3 +58,33 @@ def test_the_way_home_keeps_the_progress() -> None:
 
 def test_the_documented_diagram_is_the_table() -> None:
     assert mermaid() in (REPO / "docs" / "state-machine.md").read_text(), "run make docs"
+
+
+def test_a_mission_started_while_a_replan_runs_stays_in_replan() -> None:
+    """A member is lost while this vehicle's StartMission is still on its way: the sortie
+    is in REPLAN when the autopilot's answer comes back. The share is flown meanwhile and
+    the sortie stays in REPLAN until the replan's outcome (seen in a demo on a loaded
+    machine: `IllegalMove: no sortie transition from REPLAN on started` stopped a node)."""
+    from swarm_node.core.autopilot.requests import ApResult, StartMission
+    from swarm_node.core.mission.share import Member, run_plan
+    from swarm_node.core.mission_manager import MissionManager, Phase
+    from swarm_node.core.outputs import PlanJob, Submit
+    from tests.swarm_node.test_mission_defects import area
+    from tests.swarm_node.test_node_core import HOME, flying, profile
+
+    manager = MissionManager(profile(7))
+    ap = flying(home=HOME)  # armed and in the air: upload, then StartMission
+    mission = area(41, half_m=40.0)  # what one 3.3 Ah quadcopter flies
+    outs = manager.release(mission, [Member(profile(7), HOME)], [], ap, 0.0)
+    job = next(o for o in outs if isinstance(o, PlanJob))
+    outs = manager.on_plan(run_plan(job.request), ap, 0.0)
+    for _ in range(5):
+        sub = next(o for o in outs if isinstance(o, Submit))
+        if isinstance(sub.request, StartMission):
+            break
+        outs = manager.on_result(ApResult(sub.request.request_id, True), 0.0)
+    assert isinstance(sub.request, StartMission)
+    manager.begin_replan(0.5)
+    assert manager.mission_state == MissionState.REPLAN
+    manager.on_result(ApResult(sub.request.request_id, True), 1.0)
+    assert manager.phase == Phase.FLYING and manager.mission_state == MissionState.REPLAN

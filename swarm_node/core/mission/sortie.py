@@ -72,6 +72,9 @@ _add((PM, M, R), Trigger.REPLAN, R)
 _add((R,), Trigger.RESUMED, M)
 _add((PL, R), Trigger.RELEASED, PM)
 _add((PM,), Trigger.STARTED, M)
+# the autopilot started the share while a replan runs (a member was lost between the
+# StartMission and its answer): fly it meanwhile, stay in REPLAN until the outcome
+_add((R,), Trigger.STARTED, R)
 _add((ID, PL, PM, M, R, V), Trigger.RETURN, M)
 _add((ID, PL, PM, M, R, V), Trigger.TAKE_OVER, M)
 _add((ID, PL, PM, M, R, V), Trigger.PARACHUTE, PC)
