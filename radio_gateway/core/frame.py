@@ -4,7 +4,7 @@ Before COBS (all integers little-endian):
 
 | offset | bytes | field |
 |---|---|---|
-| 0 | 1 | bits 7-5 protocol version (1); bit 0 JOIN request; bits 1-2 time stratum |
+| 0 | 1 | bits 7-5 protocol version (1); bit 0 JOIN request; bits 1-2 time stratum; bits 3-4 the sender's need level (adaptive schedule) |
 | 1 | 2 | source node id |
 | 3 | 2 | cycle counter, low 16 bits (cycle = floor(GPS time / cycle length)) |
 | 5 | 2 | slot-table version: 16-bit hash of the sender's membership |
@@ -23,6 +23,7 @@ then COBS-encoded and followed by one 0x00 delimiter. Records (unknown types ski
 | 4 ACK | source (2), seq (2), bitmap of chunks held (empty: complete) |
 | 5 JOIN, 6 LEAVE | node (2), activation cycle low 16 bits (2) |
 | 7 RELAY | a peer's latest telemetry, repeated for nodes that missed it |
+| 8 LEVEL | node (2), activation cycle low 16 bits (2), need level (1): a scheduled change of a member's slot share |
 
 Decoding never raises anything but `FrameError`, whose `reason` says which check failed.
 """
@@ -49,6 +50,7 @@ MAX_MESSAGE_BYTES = CHUNK_BYTES * MAX_CHUNKS
 FRAG_FIXED = 4  # seq, total, first
 ACK_FIXED = 4  # src, seq
 CHANGE_VALUE = 4
+LEVEL_VALUE = 5
 
 
 class RecordType(IntEnum):
@@ -59,6 +61,7 @@ class RecordType(IntEnum):
     JOIN = 5
     LEAVE = 6
     RELAY = 7
+    LEVEL = 8
 
 
 class FrameError(ValueError):
@@ -107,7 +110,16 @@ class Change:
     at_cycle: int
 
 
-Record = Msg | Relay | Frag | Ack | Change
+@dataclass(frozen=True)
+class LevelChange:
+    """A member's need level (slot share) from `at_cycle` on (the adaptive schedule)."""
+
+    node: int
+    level: int
+    at_cycle: int
+
+
+Record = Msg | Relay | Frag | Ack | Change | LevelChange
 
 
 @dataclass(frozen=True)
@@ -120,6 +132,7 @@ class Frame:
     join: bool = False
     stratum: int = 3
     records: tuple[Record, ...] = ()
+    level: int = 0  # the sender's need level in force (adaptive schedule)
     unknown_records: int = field(default=0, compare=False)
 
 
@@ -139,6 +152,8 @@ def record_size(r: Record) -> int:
         return RECORD_HEADER_BYTES + FRAG_FIXED + len(r.data)
     if isinstance(r, Ack):
         return RECORD_HEADER_BYTES + ACK_FIXED + len(r.mask)
+    if isinstance(r, LevelChange):
+        return RECORD_HEADER_BYTES + LEVEL_VALUE
     return RECORD_HEADER_BYTES + CHANGE_VALUE
 
 
@@ -152,6 +167,8 @@ def _encode_record(r: Record) -> bytes:
         v = struct.pack("<HBB", r.seq, r.total, r.first) + r.data
     elif isinstance(r, Ack):
         t, v = RecordType.ACK, struct.pack("<HH", r.src, r.seq) + r.mask
+    elif isinstance(r, LevelChange):
+        t, v = RecordType.LEVEL, struct.pack("<HHB", r.node, r.at_cycle & 0xFFFF, r.level)
     else:
         t = RecordType.JOIN if r.join else RecordType.LEAVE
         v = struct.pack("<HH", r.node, r.at_cycle & 0xFFFF)
@@ -164,9 +181,16 @@ def encode_body(frame: Frame) -> bytes:
     """The frame before its tag, CRC and COBS (what the tag covers)."""
     if not 0 <= frame.stratum <= 3:
         raise ValueError("stratum is 0..3")
+    if not 0 <= frame.level <= 3:
+        raise ValueError("level is 0..3")
     if len(frame.heard) != heard_bytes(frame.n_members):
         raise ValueError("heard bitmap length does not match n_members")
-    flags = (PROTOCOL_VERSION << 5) | (frame.stratum << 1) | (1 if frame.join else 0)
+    flags = (
+        (PROTOCOL_VERSION << 5)
+        | (frame.level << 3)
+        | (frame.stratum << 1)
+        | (1 if frame.join else 0)
+    )
     out = bytearray(
         HEADER.pack(flags, frame.src, frame.cycle & 0xFFFF, frame.table_hash, frame.n_members)
     )
@@ -269,6 +293,13 @@ def parse_body(body: bytes, cycle: int) -> Frame:
                 raise FrameError("malformed", "short membership change")
             node, at_lo = struct.unpack_from("<HH", value)
             records.append(Change(t == RecordType.JOIN, node, auth.unwrap16(at_lo, cycle)))
+        elif t == RecordType.LEVEL:
+            if length < LEVEL_VALUE:
+                raise FrameError("malformed", "short level change")
+            node, at_lo, lvl = struct.unpack_from("<HHB", value)
+            if lvl > 3:
+                raise FrameError("malformed", f"need level {lvl}")
+            records.append(LevelChange(node, lvl, auth.unwrap16(at_lo, cycle)))
         else:
             unknown += 1
     return Frame(
@@ -280,6 +311,7 @@ def parse_body(body: bytes, cycle: int) -> Frame:
         join=bool(flags & 1),
         stratum=(flags >> 1) & 3,
         records=tuple(records),
+        level=(flags >> 3) & 3,
         unknown_records=unknown,
     )
 

@@ -138,6 +138,15 @@ class Outbox:
         older = sum(len(v) for v in self.older.values())
         return len(self.latest) + older + len(self.fifo) + len(self.chunked)
 
+    def control_backlog(self, klass: int = 0) -> int:
+        """Bytes of class `klass` (CONTROL: commands, acks, votes, missions) still to go
+        on air: queued messages, unsent chunks and chunks some receiver still misses."""
+        total = sum(len(q.msg.data) for q in self.fifo if q.msg.klass <= klass)
+        for c in self.chunked:
+            if c.msg.klass <= klass:
+                total += len(c.unsent | c.missing()) * CHUNK_BYTES
+        return total
+
     def on_ack(self, from_node: int, ack: Ack) -> None:
         for c in self.chunked:
             if c.seq == ack.seq and c.msg.acked:

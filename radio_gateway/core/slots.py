@@ -15,12 +15,24 @@ instead of slots colliding; `over_limit` says so. When no join slot fits, every
 
 A lone member (n = 1) sends at a pseudo-random offset within its slot, so that two nodes
 that bootstrapped alone at the same time do not collide forever and can find each other.
+
+**Shares by need (the adaptive schedule, issue 19).** Each member has a need *level*
+(0 calm, 1 manoeuvring, 2 avoiding or control traffic, 3 spare), agreed like the members
+themselves (scheduled changes, `membership.py`) and carried in every frame's header. A
+member of level l gets 2^(l - lowest level) slots per period, spread evenly over the
+period (a stride order: its j-th slot at (j + 1/2) / w of the period, ties by rank), at
+most one per cycle (a frame's cycle counter is its replay identity): a slot that would
+be a member's second in one cycle is dropped, deterministically. The period is as many
+cycles as the slots need, so past the physical limit every member's rate falls in
+proportion, never into collisions. When every member has the same level the table is
+the unweighted one, with the same hash.
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from .airtime import LinkTiming
@@ -46,12 +58,29 @@ class TdmConfig:
             raise ValueError("silent_periods, activation_periods and join_every must be >= 1")
 
 
-def table_hash(members: tuple[int, ...]) -> int:
-    """The slot-table version carried in frames: 16 bits of BLAKE2s of the members."""
-    data = b"".join(m.to_bytes(2, "little") for m in sorted(members))
-    return int.from_bytes(
-        hashlib.blake2s(data, digest_size=2, person=b"bdslots1").digest(), "little"
-    )
+MAX_LEVEL = 3  # need levels 0..3 (two header bits)
+
+
+def normalised_levels(
+    members: tuple[int, ...], levels: Mapping[int, int] | None
+) -> tuple[int, ...]:
+    """Each member's level (sorted members) less the lowest: only differences count."""
+    lv = [min(MAX_LEVEL, max(0, (levels or {}).get(m, 0))) for m in sorted(set(members))]
+    low = min(lv, default=0)
+    return tuple(x - low for x in lv)
+
+
+def table_hash(members: tuple[int, ...], levels: Mapping[int, int] | None = None) -> int:
+    """The slot-table version carried in frames: 16 bits of BLAKE2s of the members (and
+    of their need levels, when they differ)."""
+    ms = sorted(set(members))
+    data = b"".join(m.to_bytes(2, "little") for m in ms)
+    norm = normalised_levels(tuple(ms), levels)
+    person = b"bdslots1"
+    if any(norm):
+        data += bytes(norm)
+        person = b"bdslots2"
+    return int.from_bytes(hashlib.blake2s(data, digest_size=2, person=person).digest(), "little")
 
 
 def min_slot_s(n: int, timing: LinkTiming, config: TdmConfig) -> float:
@@ -79,16 +108,30 @@ class SlotLayout:
     budget: int  # record bytes a slot carries
     min_slot_s: float
     table_hash: int
+    levels: tuple[int, ...] = ()  # need level of each member (normalised); () = all 0
+    order: tuple[int, ...] = ()  # member rank of each slot; () = one slot each, by rank
 
     @classmethod
-    def build(cls, members: tuple[int, ...], timing: LinkTiming, config: TdmConfig) -> SlotLayout:
+    def build(
+        cls,
+        members: tuple[int, ...],
+        timing: LinkTiming,
+        config: TdmConfig,
+        levels: Mapping[int, int] | None = None,
+    ) -> SlotLayout:
         members = tuple(sorted(set(members)))
         n = len(members)
+        norm = normalised_levels(members, levels)
         lmin = min_slot_s(n, timing, config)
         c = config.cycle_s
+        weights = [1 << x for x in norm]
+        order: tuple[int, ...] = ()
         k = max(1, math.ceil(n * lmin / c - 1e-9))
-        join = (n + 1) * lmin <= k * c + 1e-9
-        slots = n + (1 if join else 0)
+        if any(norm):
+            weights, order, k = _weighted(weights, lmin, c)
+        total = sum(weights) if order else n
+        join = (total + 1) * lmin <= k * c + 1e-9
+        slots = total + (1 if join else 0)
         slot_s = k * c / max(1, slots)
         air = min(timing.bytes_in(slot_s - config.guard_s), timing.max_packet)
         budget = 0
@@ -105,7 +148,9 @@ class SlotLayout:
             join_every=config.join_every,
             budget=budget,
             min_slot_s=lmin,
-            table_hash=table_hash(members),
+            table_hash=table_hash(members, dict(zip(members, norm, strict=True))),
+            levels=norm if any(norm) else (),
+            order=order,
         )
 
     @property
@@ -130,6 +175,11 @@ class SlotLayout:
         except ValueError:
             return None
 
+    @property
+    def member_slots_total(self) -> int:
+        """Member slots per period (the join slot not counted)."""
+        return len(self.order) if self.order else self.n
+
     def slot_start(self, period: int, index: int) -> float:
         return period * self.k * self.cycle_s + index * self.slot_s
 
@@ -141,17 +191,35 @@ class SlotLayout:
         """Which slot of `period` is the join window, if any."""
         if self.join_slot:
             return self.slots - 1
-        if self.n and period % self.join_every == 0:
-            return (period // self.join_every) % self.n
+        total = self.member_slots_total
+        if total and period % self.join_every == 0:
+            return (period // self.join_every) % total
         return None
 
-    def member_slot(self, node: int, period: int) -> int | None:
-        """The slot index `node` sends in during `period` (None: not a member, or its
-        slot is this period's join window)."""
+    def slots_of(self, node: int, period: int) -> tuple[int, ...]:
+        """The slot indices `node` sends in during `period`, in time order (none: not a
+        member; a slot that is this period's join window is left out)."""
         r = self.rank(node)
-        if r is None or (not self.join_slot and self.join_index(period) == r):
-            return None
-        return r
+        if r is None:
+            return ()
+        own = tuple(i for i, x in enumerate(self.order) if x == r) if self.order else (r,)
+        if not self.join_slot:
+            j = self.join_index(period)
+            own = tuple(i for i in own if i != j)
+        return own
+
+    def member_slot(self, node: int, period: int) -> int | None:
+        """The first slot index `node` sends in during `period` (None: not a member, or
+        its only slot is this period's join window)."""
+        own = self.slots_of(node, period)
+        return own[0] if own else None
+
+    def share(self, node: int) -> int:
+        """Slots per period of `node` (0: not a member)."""
+        r = self.rank(node)
+        if r is None:
+            return 0
+        return sum(1 for x in self.order if x == r) if self.order else 1
 
     def lone_offset(self, node: int, cycle: int, timing: LinkTiming) -> float:
         """A lone member's pseudo-random start offset inside its slot."""
@@ -160,3 +228,35 @@ class SlotLayout:
             return 0.0
         h = hashlib.blake2s(f"{node}:{cycle}".encode(), digest_size=4).digest()
         return room * int.from_bytes(h, "little") / 2**32
+
+
+def _weighted(
+    weights: list[int], lmin: float, cycle_s: float
+) -> tuple[list[int], tuple[int, ...], int]:
+    """Weighted slots: each member's weight capped at the period's cycles, its slots in a
+    stride order, a slot that would be a member's second in one cycle dropped. Returns
+    the weights kept, the order (member rank per slot) and k."""
+    w = list(weights)
+    for _ in range(64):
+        total = sum(w)
+        k = max(1, math.ceil(total * lmin / cycle_s - 1e-9))
+        capped = [min(x, k) for x in w]
+        if capped != w:
+            w = capped
+            continue
+        marks = sorted(((j + 0.5) / x, r) for r, x in enumerate(w) for j in range(x))
+        order = [r for _, r in marks]
+        join = (total + 1) * lmin <= k * cycle_s + 1e-9
+        slots = total + (1 if join else 0)
+        seen: set[tuple[int, int]] = set()
+        keep: list[int] = []
+        for i, r in enumerate(order):
+            cyc = (i * k) // slots
+            if (r, cyc) in seen:
+                continue
+            seen.add((r, cyc))
+            keep.append(r)
+        if len(keep) == len(order):
+            return w, tuple(order), k
+        w = [sum(1 for x in keep if x == r) for r in range(len(w))]
+    raise AssertionError("weighted slot table did not settle")
