@@ -41,7 +41,7 @@ from typing import Any
 
 import msgspec
 
-from swarm_proto import VehicleStatus, lan, radio
+from swarm_proto import Ack, VehicleStatus, lan, radio
 from swarm_proto.errors import DecodeError, EncodeError
 from swarm_proto.messages import RadioStats
 from swarm_proto.topics import RADIO_STATS, STATUS, Topic, key_of, match, topic_of
@@ -158,6 +158,8 @@ class Bridge:
             return None
         if status is not None and not from_gateway and status.vehicle_id not in self.local_ids:
             self._lan_peers[status.vehicle_id] = now  # on our LAN itself: not predicted
+            if self.predictor is not None:
+                self.predictor.forget(status.vehicle_id)
         h = _digest(data)
         ttl = self._ttl(topic)
         self._lan.add(h, now + ttl)
@@ -191,6 +193,10 @@ class Bridge:
             latest_only=p.latest_only,
             acked=p.acked,
             max_rate_hz=p.max_rate_hz,
+            # an answer is for its issuer: only the issuer acknowledges it on air (with
+            # every member acknowledging every vehicle's Ack, n vehicles answering a
+            # command cost n^2 acknowledgements)
+            ack_by=msg.issuer_id if isinstance(msg, Ack) else 0,
         )
 
     def _note_gateway(self, payload: bytes, now: float) -> None:
@@ -257,8 +263,6 @@ class Bridge:
         p = self.predictor
         if p is None:
             return []
-        for vid in [v for v in p.peers if self._on_lan(v, now)]:
-            p.forget(vid)
         statuses = p.due(now, alive)
         if not statuses or not self.designated(now):
             return []

@@ -24,6 +24,7 @@ then COBS-encoded and followed by one 0x00 delimiter. Records (unknown types ski
 | 5 JOIN, 6 LEAVE | node (2), activation cycle low 16 bits (2) |
 | 7 RELAY | a peer's latest telemetry, repeated for nodes that missed it |
 | 8 LEVEL | node (2), activation cycle low 16 bits (2), need level (1): a scheduled change of a member's slot share |
+| 9 FRAG_ACKED_BY | seq (2), total chunks (1), first chunk (1), node (2), data: chunks of a message only `node` acknowledges (an Ack answers its issuer) |
 
 Decoding never raises anything but `FrameError`, whose `reason` says which check failed.
 """
@@ -62,6 +63,7 @@ class RecordType(IntEnum):
     LEAVE = 6
     RELAY = 7
     LEVEL = 8
+    FRAG_ACKED_BY = 9
 
 
 class FrameError(ValueError):
@@ -90,6 +92,11 @@ class Frag:
     first: int  # index of the first chunk carried
     data: bytes
     acked: bool
+    ack_by: int = 0  # acked: only this node acknowledges (0: every member)
+
+    @property
+    def fixed(self) -> int:
+        return FRAG_FIXED + (2 if self.ack_by else 0)
 
     @property
     def chunks(self) -> range:
@@ -149,7 +156,7 @@ def record_size(r: Record) -> int:
     if isinstance(r, Msg | Relay):
         return RECORD_HEADER_BYTES + len(r.data)
     if isinstance(r, Frag):
-        return RECORD_HEADER_BYTES + FRAG_FIXED + len(r.data)
+        return RECORD_HEADER_BYTES + r.fixed + len(r.data)
     if isinstance(r, Ack):
         return RECORD_HEADER_BYTES + ACK_FIXED + len(r.mask)
     if isinstance(r, LevelChange):
@@ -163,8 +170,12 @@ def _encode_record(r: Record) -> bytes:
     elif isinstance(r, Relay):
         t, v = RecordType.RELAY, r.data
     elif isinstance(r, Frag):
-        t = RecordType.FRAG_ACKED if r.acked else RecordType.FRAG
-        v = struct.pack("<HBB", r.seq, r.total, r.first) + r.data
+        if r.ack_by and r.acked:
+            t = RecordType.FRAG_ACKED_BY
+            v = struct.pack("<HBBH", r.seq, r.total, r.first, r.ack_by) + r.data
+        else:
+            t = RecordType.FRAG_ACKED if r.acked else RecordType.FRAG
+            v = struct.pack("<HBB", r.seq, r.total, r.first) + r.data
     elif isinstance(r, Ack):
         t, v = RecordType.ACK, struct.pack("<HH", r.src, r.seq) + r.mask
     elif isinstance(r, LevelChange):
@@ -273,11 +284,16 @@ def parse_body(body: bytes, cycle: int) -> Frame:
             if not value:
                 raise FrameError("malformed", "empty MSG")
             records.append(Msg(value) if t == RecordType.MSG else Relay(value))
-        elif t in (RecordType.FRAG, RecordType.FRAG_ACKED):
-            if length <= FRAG_FIXED:
+        elif t in (RecordType.FRAG, RecordType.FRAG_ACKED, RecordType.FRAG_ACKED_BY):
+            by = t == RecordType.FRAG_ACKED_BY
+            fixed = FRAG_FIXED + (2 if by else 0)
+            if length <= fixed:
                 raise FrameError("malformed", "FRAG without data")
             seq, total, first = struct.unpack_from("<HBB", value)
-            frag = Frag(seq, total, first, value[FRAG_FIXED:], t == RecordType.FRAG_ACKED)
+            ack_by = struct.unpack_from("<H", value, FRAG_FIXED)[0] if by else 0
+            if by and not ack_by:
+                raise FrameError("malformed", "FRAG_ACKED_BY node 0")
+            frag = Frag(seq, total, first, value[fixed:], t != RecordType.FRAG, ack_by)
             if total == 0 or frag.chunks.stop > total:
                 raise FrameError("malformed", "FRAG chunks outside the message")
             if frag.chunks.stop < total and len(frag.data) % CHUNK_BYTES:

@@ -101,12 +101,14 @@ class Membership:
     config: TdmConfig
     initial_members: tuple[int, ...] = ()
     seed: int = 0
+    max_pending_levels: int = 4  # level changes in flight at once (frame room)
     phase: Phase = Phase.LISTENING
     layout: SlotLayout = field(init=False)
     pending: dict[tuple[bool, int], int] = field(default_factory=dict)  # (join, node) -> at
     # the adaptive schedule: each member's need level in force, and scheduled changes
     levels: dict[int, int] = field(default_factory=dict)  # member -> level (absent: 0)
     pending_levels: dict[int, tuple[int, int]] = field(default_factory=dict)  # node -> (at, lvl)
+    level_request: tuple[int, int] | None = None  # ours (at, level), until a member echoes it
     evidence: dict[int, int] = field(default_factory=dict)  # member -> last cycle alive
     direct: dict[int, int] = field(default_factory=dict)  # node -> last cycle heard directly
     heard: dict[int, _Heard] = field(default_factory=dict)  # src -> its latest frame
@@ -165,18 +167,26 @@ class Membership:
 
     def request_level(self, level: int, cycle: int) -> bool:
         """Ask for our slot share to follow our need (adaptive schedule): a LEVEL change
-        of ourselves, scheduled like a JOIN (`activation_periods` later, repeated in every
-        member's frames until then). One at a time; True if scheduled."""
+        of ourselves, carried in our frames; like a JOIN, every member that hears it
+        schedules it (`activation_periods` later, on a period boundary) and repeats it
+        until then, and we adopt it only once a member's frame echoes it (a change only
+        we knew would put us in someone else's slot). One at a time, none while the
+        membership changes or `max_pending_levels` changes are in flight; True if
+        asked."""
         level = min(MAX_LEVEL, max(0, level))
         me = self.my_id
+        if self.level_request is not None and self.level_request[0] <= cycle + 1:
+            self.level_request = None  # not echoed in time: ask again later
         if (
             self.phase is not Phase.MEMBER
+            or self.level_request is not None
             or me in self.pending_levels
             or self.pending
+            or len(self.pending_levels) >= self.max_pending_levels
             or self.level_of(me) == level
         ):
             return False
-        self.pending_levels[me] = (self._activation(cycle), level)
+        self.level_request = (self._activation(cycle), level)
         return True
 
     def heard_bitmap(self, cycle: int) -> bytes:
@@ -189,10 +199,17 @@ class Membership:
         return bytes(out)
 
     def change_records(self) -> list[Change | LevelChange]:
+        """Membership changes, then our own level request, then level changes, soonest
+        first (what does not fit a frame goes in the next: every member repeats them)."""
         out: list[Change | LevelChange] = [
             Change(join, node, at) for (join, node), at in sorted(self.pending.items())
         ]
-        out += [LevelChange(n, lv, at) for n, (at, lv) in sorted(self.pending_levels.items())]
+        if self.level_request is not None:
+            out.append(LevelChange(self.my_id, self.level_request[1], self.level_request[0]))
+        out += [
+            LevelChange(n, lv, at)
+            for at, n, lv in sorted((at, n, lv) for n, (at, lv) in self.pending_levels.items())
+        ]
         return out
 
     # ------------------------------------------------------------------ transitions
@@ -208,6 +225,7 @@ class Membership:
             self._last_heard_any = None
             self.pending.clear()
             self.pending_levels.clear()
+            self.level_request = None
             self.levels.clear()
             self.evidence.clear()
             self.layout = SlotLayout.build((), self.timing, self.config)
@@ -290,6 +308,11 @@ class Membership:
         a copy applies the same share on the same cycle."""
         if self.phase is Phase.LISTENING or c.node not in self.projected_members():
             return
+        if c.node == self.my_id:  # our request, echoed: now it is agreed
+            req = self.level_request
+            if req is None or (c.at_cycle, c.level) != req:
+                return  # not what we asked (an old echo): ours stands
+            self.level_request = None
         old = self.pending_levels.get(c.node)
         if old is None:
             if c.level != self.level_of(c.node):
@@ -464,11 +487,17 @@ class Membership:
             return None
         half = lay.guard_s / 2
         p = max(int(now // lay.period_s) - 1, 0)
+        change = min(
+            (*self.pending.values(), *(at for at, _ in self.pending_levels.values())),
+            default=None,
+        )
         for period in range(p, p + 3 + lay.join_every):
-            pstart, pend = period * lay.k, (period + 1) * lay.k
-            ats = [*self.pending.values(), *(at for at, _ in self.pending_levels.values())]
-            if any(pstart < at <= pend - 1 for at in ats):
-                continue  # the table changes inside this period: stay quiet
+            pend = (period + 1) * lay.k
+            if change is not None and change < pend:
+                # the table changes inside this period, or before it (a frame is built
+                # `prep_s` before its slot, still under the old table; the first slots
+                # of a new table may belong to someone else): stay quiet
+                continue
             if self.phase is Phase.MEMBER:
                 for idx in lay.slots_of(self.my_id, period):
                     start = lay.slot_start(period, idx)

@@ -138,6 +138,7 @@ class RadioNode:
             c.node_id, c.source_stratum, lock_tolerance_s=max(c.tdm.guard_s / 4, 0.0005)
         )
         self.replay = ReplayGuard(c.replay_window_cycles)
+        self.reassembly.node_id = c.node_id
         first = int(self.start_s // c.tdm.cycle_s)
         self.outbox = Outbox(
             ack_timeout_s=1.5 * c.tdm.cycle_s, seq=first & 0xFFFF, latest_keep=c.latest_keep

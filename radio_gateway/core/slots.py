@@ -19,17 +19,18 @@ that bootstrapped alone at the same time do not collide forever and can find eac
 **Shares by need (the adaptive schedule, issue 19).** Each member has a need *level*
 (0 calm, 1 manoeuvring, 2 avoiding or control traffic, 3 spare), agreed like the members
 themselves (scheduled changes, `membership.py`) and carried in every frame's header. A
-member of level l gets 2^(l - lowest level) slots per period, spread evenly over the
-period (a stride order: its j-th slot at (j + 1/2) / w of the period, ties by rank), at
-most one per cycle (a frame's cycle counter is its replay identity): a slot that would
-be a member's second in one cycle is dropped, deterministically. The period is as many
-cycles as the slots need, so past the physical limit every member's rate falls in
-proportion, never into collisions. When every member has the same level the table is
-the unweighted one, with the same hash.
+member of level l gets w = 2^(l - lowest level) slots per period, evenly spaced: the
+period is W (the largest w) sub-periods, and a member sits in every (W / w)-th one
+(`_weighted`), at most once per cycle (a frame's cycle counter is its replay identity).
+The period is as many cycles as the slots need, so past the physical limit every
+member's rate falls in proportion, never into collisions; when the whole table fits one
+cycle everyone has every cycle and levels change nothing. When every member has the same
+level the table is the unweighted one, with the same hash.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 from collections.abc import Mapping
@@ -124,13 +125,13 @@ class SlotLayout:
         norm = normalised_levels(members, levels)
         lmin = min_slot_s(n, timing, config)
         c = config.cycle_s
-        weights = [1 << x for x in norm]
         order: tuple[int, ...] = ()
         k = max(1, math.ceil(n * lmin / c - 1e-9))
+        join = (n + 1) * lmin <= k * c + 1e-9
+        total = n
         if any(norm):
-            weights, order, k = _weighted(weights, lmin, c)
-        total = sum(weights) if order else n
-        join = (total + 1) * lmin <= k * c + 1e-9
+            _, order, k, join = _weighted([1 << x for x in norm], lmin, c)
+            total = len(order)
         slots = total + (1 if join else 0)
         slot_s = k * c / max(1, slots)
         air = min(timing.bytes_in(slot_s - config.guard_s), timing.max_packet)
@@ -170,14 +171,11 @@ class SlotLayout:
         return 1.0 / self.period_s
 
     def rank(self, node: int) -> int | None:
-        try:
-            return self.members.index(node)
-        except ValueError:
-            return None
+        return self._ranks.get(node)
 
     @property
     def member_slots_total(self) -> int:
-        """Member slots per period (the join slot not counted)."""
+        """Slots per period but the join slot (a weighted table's idle ones included)."""
         return len(self.order) if self.order else self.n
 
     def slot_start(self, period: int, index: int) -> float:
@@ -188,21 +186,36 @@ class SlotLayout:
         return period * self.k + (index * self.k) // self.slots
 
     def join_index(self, period: int) -> int | None:
-        """Which slot of `period` is the join window, if any."""
+        """Which slot of `period` is the join window, if any: the join slot, else a
+        weighted table's first idle slot, else every `join_every` periods one member
+        slot in rotation."""
         if self.join_slot:
             return self.slots - 1
+        if -1 in self.order:
+            return self.order.index(-1)
         total = self.member_slots_total
         if total and period % self.join_every == 0:
             return (period // self.join_every) % total
         return None
 
+    @functools.cached_property
+    def _by_rank(self) -> dict[int, tuple[int, ...]]:
+        out: dict[int, list[int]] = {}
+        for i, r in enumerate(self.order):
+            out.setdefault(r, []).append(i)
+        return {r: tuple(v) for r, v in out.items()}
+
+    @functools.cached_property
+    def _ranks(self) -> dict[int, int]:
+        return {m: i for i, m in enumerate(self.members)}
+
     def slots_of(self, node: int, period: int) -> tuple[int, ...]:
         """The slot indices `node` sends in during `period`, in time order (none: not a
         member; a slot that is this period's join window is left out)."""
-        r = self.rank(node)
+        r = self._ranks.get(node)
         if r is None:
             return ()
-        own = tuple(i for i, x in enumerate(self.order) if x == r) if self.order else (r,)
+        own = self._by_rank.get(r, ()) if self.order else (r,)
         if not self.join_slot:
             j = self.join_index(period)
             own = tuple(i for i in own if i != j)
@@ -219,7 +232,7 @@ class SlotLayout:
         r = self.rank(node)
         if r is None:
             return 0
-        return sum(1 for x in self.order if x == r) if self.order else 1
+        return len(self._by_rank.get(r, ())) if self.order else 1
 
     def lone_offset(self, node: int, cycle: int, timing: LinkTiming) -> float:
         """A lone member's pseudo-random start offset inside its slot."""
@@ -232,31 +245,55 @@ class SlotLayout:
 
 def _weighted(
     weights: list[int], lmin: float, cycle_s: float
-) -> tuple[list[int], tuple[int, ...], int]:
-    """Weighted slots: each member's weight capped at the period's cycles, its slots in a
-    stride order, a slot that would be a member's second in one cycle dropped. Returns
-    the weights kept, the order (member rank per slot) and k."""
+) -> tuple[list[int], tuple[int, ...], int, bool]:
+    """The weighted table: returns the weights kept, the order (member rank of each slot,
+    -1 for an idle one), k and whether a join slot closes the period.
+
+    Weights are powers of two; W is the largest. The period is W sub-periods of L slots
+    each: a member of weight w sits in every (W / w)-th sub-period, in a group chosen to
+    balance the sub-periods' loads (members by weight, then rank; the least loaded group,
+    then the lowest), at the same position in each when w = W; L is the largest load
+    (a sub-period with fewer members has idle slots, which serve as join windows). A
+    member's slots are then at least a sub-period apart: k is the smallest number of
+    cycles that fits every slot and gives each sub-period at least one cycle (a frame's
+    cycle counter is its replay identity: one frame per member per cycle). Weights are
+    capped so that W <= k: a table that fits one cycle gives everyone every cycle."""
     w = list(weights)
-    for _ in range(64):
-        total = sum(w)
+    n = len(w)
+    while True:
+        big = max(w)
+        subs: list[list[int]] = [[] for _ in range(big)]
+        for r in sorted(range(n), key=lambda i: (-w[i], i)):
+            step = big // w[r]
+            group = min(
+                range(step), key=lambda g: (max(len(subs[s]) for s in range(g, big, step)), g)
+            )
+            for s in range(group, big, step):
+                subs[s].append(r)
+        per = max(len(x) for x in subs)
+        total = big * per
         k = max(1, math.ceil(total * lmin / cycle_s - 1e-9))
-        capped = [min(x, k) for x in w]
-        if capped != w:
-            w = capped
-            continue
-        marks = sorted(((j + 0.5) / x, r) for r, x in enumerate(w) for j in range(x))
-        order = [r for _, r in marks]
+        if big <= k or big == 1:
+            break
+        cap = 1 << (k.bit_length() - 1)  # the largest power of two <= k
+        w = [min(x, cap) for x in w]
+    order = [-1] * total
+    for sub, ranks in enumerate(subs):
+        for pos, r in enumerate(ranks):
+            order[sub * per + pos] = r
+    while True:
         join = (total + 1) * lmin <= k * cycle_s + 1e-9
         slots = total + (1 if join else 0)
-        seen: set[tuple[int, int]] = set()
-        keep: list[int] = []
+        cycles: set[tuple[int, int]] = set()
+        ok = True
         for i, r in enumerate(order):
-            cyc = (i * k) // slots
-            if (r, cyc) in seen:
+            if r < 0:
                 continue
-            seen.add((r, cyc))
-            keep.append(r)
-        if len(keep) == len(order):
-            return w, tuple(order), k
-        w = [sum(1 for x in keep if x == r) for r in range(len(w))]
-    raise AssertionError("weighted slot table did not settle")
+            key = (r, (i * k) // slots)
+            if key in cycles:
+                ok = False
+                break
+            cycles.add(key)
+        if ok:
+            return w, tuple(order), k, join
+        k += 1

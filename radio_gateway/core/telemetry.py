@@ -315,6 +315,8 @@ class PeerPredictor:
     config: PredictConfig = field(default_factory=PredictConfig)
     peers: dict[int, _Peer] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
+    _next: float | None = None  # cached next_deadline (None: to recompute)
+    _stale_next: bool = True
 
     def on_status(self, s: VehicleStatus, turn_rate: float, now: float) -> bool:
         """A status heard on air; False (ignored) if not newer than the one held."""
@@ -326,10 +328,12 @@ class PeerPredictor:
         nxt = now + 1.0 / self.config.republish_hz
         w = turn_rate if math.isfinite(turn_rate) else 0.0
         self.peers[s.vehicle_id] = _Peer(s, w, nxt, now)
+        self._stale_next = True
         return True
 
     def forget(self, vehicle_id: int) -> None:
-        self.peers.pop(vehicle_id, None)
+        if self.peers.pop(vehicle_id, None) is not None:
+            self._stale_next = True
 
     def predicted(self, vehicle_id: int, now: float) -> VehicleStatus | None:
         """The peer's status carried forward to `now`, with `position_error_m` and
@@ -344,12 +348,33 @@ class PeerPredictor:
             out, position_error_m=min(bound, 1.0e6), predicted_s=min(age, 1.0e7)
         )
 
+    def position(self, vehicle_id: int, now: float) -> tuple[float, float, float, float] | None:
+        """The peer's predicted (lat, lon, alt_msl, error bound) at `now`: what
+        `predicted` says, without building a status (None: never heard)."""
+        p = self.peers.get(vehicle_id)
+        if p is None:
+            return None
+        s = p.status
+        k0 = kinematics(s, p.turn_rate, (s.lat_deg, s.lon_deg))
+        k = predict(k0, max(now, s.time_unix_s))
+        mn, me = metres_per_rad(s.lat_deg, s.alt_msl_m)
+        bound = error_bound(now - s.time_unix_s, s.groundspeed_m_s, self.config)
+        return (
+            s.lat_deg + math.degrees(k.y / mn),
+            s.lon_deg + math.degrees(k.x / me),
+            k.z,
+            bound,
+        )
+
     def due(self, now: float, alive: Callable[[int], bool] | None = None) -> list[VehicleStatus]:
         """Predictions to publish now (each peer every 1 / republish_hz); a peer whose
         last status is older than `predict_max_s`, or that `alive` says the radio no
         longer hears, is dropped."""
         out: list[VehicleStatus] = []
         period = 1.0 / self.config.republish_hz
+        if self.next_deadline() is None or now < (self._next or math.inf):
+            return out
+        self._stale_next = True
         for vid in list(self.peers):
             p = self.peers[vid]
             if now < p.next_pub:
@@ -370,4 +395,7 @@ class PeerPredictor:
         return out
 
     def next_deadline(self) -> float | None:
-        return min((p.next_pub for p in self.peers.values()), default=None)
+        if self._stale_next:
+            self._next = min((p.next_pub for p in self.peers.values()), default=None)
+            self._stale_next = False
+        return self._next
