@@ -13,18 +13,22 @@ a schedule that is wrong shows as collisions. With loss, the channel also flips 
 (BER 1e-5: about one 60-byte frame in 200 arrives corrupt and is dropped by the CRC) and
 a receiver keeps the earlier of two overlapping packets half of the time (capture).
 
-Vehicles fly the demo's survey (`radio_tracks.demo_flight`: FastFleet, the real node
+Vehicles fly the demo's survey (`_radio_tracks.demo_flight`: FastFleet, the real node
 cores on simulated ArduPilot VTOLs and quadcopters, take-off to landing): vehicle i flies
 demo vehicle i mod 5's track from its own moment of the flight, so the swarm has
 vehicles climbing out, on lanes, turning, returning and landing at once. Each node
 publishes its VehicleStatus at 5 Hz on its LAN. A ground station publishes a command
-to every vehicle each second; every vehicle answers with an Ack.
+to every vehicle every 5 s; every vehicle answers with an Ack (at 50 vehicles a command
+each second would be 50 answers a second for the ground station to acknowledge, more
+than its share of the air carries).
 
 Per n and loss, for `tdm5` (the gateway with `status_mode = "every"`, fixed slots: each
 status queued, latest only, one per slot: 5 Hz up to the limit, slower past it; a node
 believes the last status heard, as nodes do without prediction) and `gateway` (as
-shipped: send on error at 5 m / 1 s heartbeat, adaptive slot shares, the ground station
-at need level 2; a node believes its gateway's prediction at `now`):
+shipped: send on error at 5 m / 1 s heartbeat, slots of 88 record bytes, adaptive slot
+shares: parked vehicles level 0, flying 1, control backlog 2; a node believes its
+gateway's prediction at `now`); at n = 50 also `gateway_fixed` (the same without the
+adaptive schedule: what the shares cost or buy):
 
 - `position_error_p99_m`, `position_error_max_m`: every receiver's belief of every other
   vehicle against the truth, every 100 ms of the window;
@@ -37,7 +41,7 @@ at need level 2; a node believes its gateway's prediction at `now`):
   vehicle's LAN; `ack_latency_p99_ms`: a vehicle's Ack to the ground station's LAN;
 - `status_packets_per_s` (statuses put on air), `slot_rate_hz` (the fixed table's).
 
-`tdm5_dr_*` is the same tdm5 run with each status heard dead-reckoned the way the
+`dr_position_error_*` (tdm5) is the same run with each status heard dead-reckoned the way the
 gateway predicts (what prediction alone buys).
 
 Limits (the issue's "bare-message limit"): `bare_limit` vehicles a 200 ms cycle carries
@@ -72,7 +76,7 @@ from swarm_proto import Ack, AckRef, Command, CommandKind, VehicleStatus
 from swarm_sim.radio_channel.harness import Fleet
 from swarm_sim.radio_channel.model import XTEND_DATASHEET, ChannelParams
 
-from .radio_tracks import Swarm, Track, demo_flight, position_error_m
+from ._radio_tracks import Swarm, Track, demo_flight, position_error_m
 
 KEY = bytes(range(32))
 DESIGN = LinkTiming(sync_s=XTEND_DATASHEET.sync_s)
@@ -80,13 +84,15 @@ STATUS_BYTES = 40
 GUARD_S = 0.005
 CYCLE_S = 0.2
 GCS = 900
-WINDOW_S = 60.0
+WINDOW_S = 40.0
 WARMUP_S = 3.0
 LIMIT_SIM_S = 10.0
 NS = (14, 25, 50)
 LOSSES = (0.0, 0.1)
 BER = 1e-5
 CAPTURE = 0.5
+CMD_EVERY_S = 5.0  # a command to every vehicle, each answering with an Ack
+DEBUG: dict[str, Any] = {}
 
 
 def _pctl(values: list[float], q: float) -> float:
@@ -148,11 +154,14 @@ def _achieved(tdm: TdmConfig, batched: bool, track: Track) -> tuple[int, int]:
 
 # ---------------------------------------------------------------------------- scale
 def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[str, Any]:
-    gateway = scheme == "gateway"
-    min_payload = STATUS_BYTES + (4 if gateway else 2)  # + the turn rate, + record header
+    gateway = scheme in ("gateway", "gateway_fixed")
+    adaptive = scheme == "gateway"
+    # a slot carries a status (+ its turn rate and record header) and as much again for
+    # acks, answers and schedule changes (the gateway's on_error default)
+    min_payload = 2 * (STATUS_BYTES + 4) if gateway else STATUS_BYTES + 2
     tdm = TdmConfig(cycle_s=CYCLE_S, guard_s=GUARD_S, min_payload=min_payload)
     f = Fleet(_channel(n, loss), DESIGN, tdm, KEY, max_nodes=n + 1, seed=n,
-              write_jitter_s=5e-4, read_jitter_s=5e-4)  # fmt: skip
+              write_jitter_s=5e-4, read_jitter_s=5e-4, keep_predictions=False)  # fmt: skip
     t0 = f.t
     vehicles = tuple(range(1, n + 1))
     members = (*vehicles, GCS)
@@ -190,13 +199,14 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
             predictor=PeerPredictor(predict_cfg) if gateway else None,
         )  # fmt: skip
         f.add(v, lan=vehicle_lan(v), produce_every_s=0.2, initial_members=members,
-              send_on_error=soe, adaptive=gateway, bridge=bridges[v])  # fmt: skip
+              send_on_error=soe, adaptive=adaptive, bridge=bridges[v])  # fmt: skip
     bridges[GCS] = Bridge("default", GCS, frozenset({GCS}))
-    f.add(GCS, lan=gcs_lan, produce_every_s=1.0, initial_members=members,
-          adaptive=gateway, min_level=2 if gateway else 0, bridge=bridges[GCS])  # fmt: skip
+    f.add(GCS, lan=gcs_lan, produce_every_s=CMD_EVERY_S, initial_members=members,
+          adaptive=adaptive, bridge=bridges[GCS])  # fmt: skip
 
     # run in 100 ms steps; sample every receiver's belief of every other vehicle
     err: list[float] = []
+    by_src: defaultdict[int, list[float]] = defaultdict(list)
     err_dr: list[float] = []
     exceeded = 0
     unheard = 0
@@ -247,6 +257,7 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
                         ),
                     )
                     err.append(e)
+                    by_src[src].append(e)
                     if e > pos[3] + 0.5:  # + the radio's quantization (cm) and the chord
                         exceeded += 1
                     continue
@@ -294,6 +305,7 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
         "corrupted": c["corrupted"],
         "captured": sum(pm["captured"] for pm in f.model.per_module),
     }
+    DEBUG["by_src"] = by_src
     if gateway:
         row["bound_exceeded"] = round(exceeded / max(1, len(err)), 5)
         row["levels_at_end"] = dict(sorted(defaultdict(int, {
@@ -328,7 +340,7 @@ def run() -> dict[str, Any]:
     scale: dict[str, Any] = {}
     for n in NS:
         for loss in LOSSES:
-            for scheme in ("tdm5", "gateway"):
+            for scheme in ("tdm5", "gateway", *(("gateway_fixed",) if n == max(NS) else ())):
                 t1 = time.perf_counter()
                 row = _scale(n, loss, scheme, tracks)
                 row["wall_s"] = round(time.perf_counter() - t1, 1)
@@ -347,6 +359,7 @@ def run() -> dict[str, Any]:
         "lossy_channel_extra": {"ber": BER, "capture": CAPTURE},
         "design_sync_ms": DESIGN.sync_s * 1000,
         "window_s": WINDOW_S,
+        "command_every_s": CMD_EVERY_S,
         "demo_flight_s": flight_s,
         "sweep_wall_s": round(time.perf_counter() - t_start, 1),
     }

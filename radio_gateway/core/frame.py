@@ -139,7 +139,7 @@ class Frame:
     join: bool = False
     stratum: int = 3
     records: tuple[Record, ...] = ()
-    level: int = 0  # the sender's need level in force (adaptive schedule)
+    level: int = 1  # the sender's need level in force (adaptive schedule; 1 the default)
     unknown_records: int = field(default=0, compare=False)
 
 

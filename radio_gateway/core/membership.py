@@ -33,7 +33,7 @@ from enum import Enum
 
 from .airtime import LinkTiming
 from .frame import Change, Frame, LevelChange, frame_overhead
-from .slots import MAX_LEVEL, SlotLayout, TdmConfig, table_hash
+from .slots import DEFAULT_LEVEL, MAX_LEVEL, SlotLayout, TdmConfig, table_hash
 
 
 class Phase(Enum):
@@ -106,7 +106,7 @@ class Membership:
     layout: SlotLayout = field(init=False)
     pending: dict[tuple[bool, int], int] = field(default_factory=dict)  # (join, node) -> at
     # the adaptive schedule: each member's need level in force, and scheduled changes
-    levels: dict[int, int] = field(default_factory=dict)  # member -> level (absent: 0)
+    levels: dict[int, int] = field(default_factory=dict)  # member -> level (absent: default)
     pending_levels: dict[int, tuple[int, int]] = field(default_factory=dict)  # node -> (at, lvl)
     level_request: tuple[int, int] | None = None  # ours (at, level), until a member echoes it
     evidence: dict[int, int] = field(default_factory=dict)  # member -> last cycle alive
@@ -153,7 +153,7 @@ class Membership:
     def projected_levels(self) -> dict[int, int]:
         """The need levels once every pending change has taken effect."""
         members = self.projected_members()
-        lv = {m: self.levels.get(m, 0) for m in members}
+        lv = {m: self.levels.get(m, DEFAULT_LEVEL) for m in members}
         for node, (_, level) in self.pending_levels.items():
             if node in lv:
                 lv[node] = level
@@ -163,16 +163,15 @@ class Membership:
         return table_hash(self.projected_members(), self.projected_levels())
 
     def level_of(self, node: int) -> int:
-        return self.levels.get(node, 0)
+        return self.levels.get(node, DEFAULT_LEVEL)
 
     def request_level(self, level: int, cycle: int) -> bool:
         """Ask for our slot share to follow our need (adaptive schedule): a LEVEL change
-        of ourselves, carried in our frames; like a JOIN, every member that hears it
-        schedules it (`activation_periods` later, on a period boundary) and repeats it
-        until then, and we adopt it only once a member's frame echoes it (a change only
-        we knew would put us in someone else's slot). One at a time, none while the
-        membership changes or `max_pending_levels` changes are in flight; True if
-        asked."""
+        of ourselves, carried in our next frame (`request_sent` schedules it for us once
+        it went out); like a JOIN, every member that hears it, or a member's repeat of
+        it, schedules it (`activation_periods` later, on a period boundary) and repeats
+        it until then. One at a time, none while the membership changes or
+        `max_pending_levels` changes are in flight; True if asked."""
         level = min(MAX_LEVEL, max(0, level))
         me = self.my_id
         if self.level_request is not None and self.level_request[0] <= cycle + 1:
@@ -198,19 +197,30 @@ class Membership:
                 out[i // 8] |= 1 << (i % 8)
         return bytes(out)
 
-    def change_records(self) -> list[Change | LevelChange]:
-        """Membership changes, then our own level request, then level changes, soonest
-        first (what does not fit a frame goes in the next: every member repeats them)."""
+    def change_records(self, rotate: int = 0) -> list[Change | LevelChange]:
+        """Membership changes, then our own level request, then the level changes in
+        flight, their order rotated by `rotate` (a frame has room for a few: every
+        member repeats them, each starting elsewhere, so each is repeated)."""
         out: list[Change | LevelChange] = [
             Change(join, node, at) for (join, node), at in sorted(self.pending.items())
         ]
         if self.level_request is not None:
             out.append(LevelChange(self.my_id, self.level_request[1], self.level_request[0]))
-        out += [
-            LevelChange(n, lv, at)
-            for at, n, lv in sorted((at, n, lv) for n, (at, lv) in self.pending_levels.items())
-        ]
+        lv = [LevelChange(n, x, at) for n, (at, x) in sorted(self.pending_levels.items())]
+        if lv:
+            r = rotate % len(lv)
+            out += lv[r:] + lv[:r]
         return out
+
+    def request_sent(self, cycle: int) -> None:
+        """Our level request went out in a frame: it is in flight (we apply it when
+        every member that heard it, or a repeat of it, does)."""
+        req = self.level_request
+        if req is None:
+            return
+        self.level_request = None
+        if req[0] > cycle:
+            self.pending_levels[self.my_id] = req
 
     # ------------------------------------------------------------------ transitions
     def _go(self, trigger: Trigger, cycle: int) -> None:
@@ -242,7 +252,9 @@ class Membership:
         self, members: tuple[int, ...], cycle: int, levels: dict[int, int] | None = None
     ) -> None:
         if levels is not None:
-            self.levels = {m: lv for m, lv in levels.items() if lv and m in members}
+            self.levels = {
+                m: lv for m, lv in levels.items() if lv != DEFAULT_LEVEL and m in members
+            }
         else:
             self.levels = {m: lv for m, lv in self.levels.items() if m in members}
         self.layout = SlotLayout.build(members, self.timing, self.config, self.levels)
@@ -308,10 +320,9 @@ class Membership:
         a copy applies the same share on the same cycle."""
         if self.phase is Phase.LISTENING or c.node not in self.projected_members():
             return
-        if c.node == self.my_id:  # our request, echoed: now it is agreed
-            req = self.level_request
-            if req is None or (c.at_cycle, c.level) != req:
-                return  # not what we asked (an old echo): ours stands
+        if c.node == self.my_id and self.level_request is not None:
+            if (c.at_cycle, c.level) != self.level_request:
+                return  # an old echo: ours stands
             self.level_request = None
         old = self.pending_levels.get(c.node)
         if old is None:
@@ -353,6 +364,12 @@ class Membership:
 
     # ------------------------------------------------------------------ internals
     def _apply_due(self, cycle: int) -> None:
+        """Apply the changes due, on a period boundary of the table in force (every node
+        has that table, so all apply on the same cycle; a change scheduled under an
+        earlier table's periods waits for the next boundary of this one: a table never
+        changes inside a period)."""
+        if cycle % self.layout.k:
+            return
         due = sorted((at, key) for key, at in self.pending.items() if at <= cycle)
         due_lv = sorted((at, n, lv) for n, (at, lv) in self.pending_levels.items() if at <= cycle)
         if (not due and not due_lv) or self.phase is Phase.LISTENING:
@@ -362,14 +379,14 @@ class Membership:
             del self.pending[(join, node)]
             (ms.add if join else ms.discard)(node)
         new = tuple(sorted(ms))
-        levels = {m: self.levels.get(m, 0) for m in new}
+        levels = {m: self.levels.get(m, DEFAULT_LEVEL) for m in new}
         for _, node, lv in due_lv:
             del self.pending_levels[node]
             if node in levels:
                 levels[node] = lv
         for node in [n for n in self.pending_levels if n not in new]:
             del self.pending_levels[node]
-        if new == self.members and all(self.levels.get(m, 0) == levels[m] for m in new):
+        if new == self.members and all(self.level_of(m) == levels[m] for m in new):
             return
         self.changes_applied += 1
         was_member = self.my_id in self.members
@@ -491,6 +508,8 @@ class Membership:
             (*self.pending.values(), *(at for at, _ in self.pending_levels.values())),
             default=None,
         )
+        if change is not None:  # it takes effect on the next boundary of this table
+            change = -(-change // lay.k) * lay.k
         for period in range(p, p + 3 + lay.join_every):
             pend = (period + 1) * lay.k
             if change is not None and change < pend:

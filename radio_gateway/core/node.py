@@ -27,12 +27,11 @@ from .cobs import Deframer
 from .membership import Membership, Phase, TxSlot
 from .outbox import Outbox, OutMessage
 from .reassembly import Reassembly
-from .slots import MAX_LEVEL, TdmConfig
+from .slots import DEFAULT_LEVEL, MAX_LEVEL, TdmConfig
 from .telemetry import Candidate, OwnTelemetry, SendOnErrorConfig
 from .timesync import TimeSync
 
 _EPS = 1e-6  # seconds; UNIX times near 1.7e9 carry ~2e-7 s of float rounding
-OWN_STATUS_KEY = "radio:own-status"  # the outbox key of our own status (send on error)
 
 
 @dataclass(frozen=True)
@@ -56,7 +55,7 @@ class NodeConfig:
     send_on_error: SendOnErrorConfig | None = None
     # the adaptive schedule: ask for a slot share that follows our need level
     adaptive: bool = False
-    min_level: int = 0  # a ground station: 2 (its traffic is commands, missions, zones)
+    min_level: int = 0  # never ask for less (a ground station that wants a double share: 2)
     level_hold_s: float = 5.0  # a need level is kept this long after the need
     delivery_s: float = 0.05  # from a frame's slot until its peers republish what it held
 
@@ -278,6 +277,7 @@ class RadioNode:
     def _advance(self, cycle: int, t: float) -> list[Action]:
         m = self.membership
         before_members, before_phase, before_k = m.members, m.phase, m.layout.k
+        before_hash = m.layout.table_hash
         m.advance(cycle)
         self.timesync.update(cycle)
         self.reassembly.expire(t)
@@ -286,6 +286,11 @@ class RadioNode:
             tr = m.transitions[-1]
             out.append(
                 Notice("info", f"radio: {tr.old.value} -> {tr.new.value} ({tr.trigger.value})")
+            )
+        if m.layout.table_hash != before_hash:
+            # resend missing chunks only once every receiver has had a slot to ack them
+            self.outbox.ack_timeout_s = max(
+                1.5 * self.cycle_s, m.layout.period_s + 0.5 * self.cycle_s
             )
         if m.members != before_members:
             for gone in set(before_members) - set(m.members):
@@ -321,13 +326,14 @@ class RadioNode:
 
     # ------------------------------------------------------------------ adaptive schedule
     def desired_level(self, t: float) -> int:
-        """Our need now: the own vehicle's (manoeuvring 1, avoiding 2), 2 while a backlog
-        of control traffic (commands, acks, votes, missions) waits for more than a slot
-        carries, never below `min_level`."""
+        """Our need now: the own vehicle's (parked 0, flying 1, avoiding 2; no vehicle of
+        our own: 1), 2 while a backlog of control traffic (commands, acks, votes,
+        missions) waits for more than a slot carries, never below `min_level`."""
         c = self.config
         need = c.min_level
-        if self.own is not None:
-            need = max(need, self.own.need_level(t))
+        # a vehicle: its own need; a node without one (a ground station): the default
+        own = self.own.need_level(t) if self.own is not None and self.own.latest else DEFAULT_LEVEL
+        need = max(need, own)
         if self.outbox.control_backlog() > self.membership.layout.budget:
             need = max(need, 2)
         return need
@@ -365,26 +371,35 @@ class RadioNode:
         records: list[fr.Record] = []
         if not slot.join:
             room = slot.budget
-            for ch in m.change_records():
+            for ch in m.change_records(rotate=slot.cycle + self.config.node_id):
                 if fr.record_size(ch) <= room:
                     records.append(ch)
                     room -= fr.record_size(ch)
+                    if isinstance(ch, fr.LevelChange) and ch.node == self.config.node_id:
+                        m.request_sent(slot.cycle)
+            # send on error: our own status, when due, goes first (a peer's belief of us
+            # is about to be off by the threshold: a safety matter, and rare by design)
+            cand = self._own_candidate(slot, t)
+            if cand is not None and self.own is not None:
+                rec = fr.Msg(cand.data)
+                if fr.record_size(rec) <= room:
+                    records.append(rec)
+                    room -= fr.record_size(rec)
+                    self.own.sent(cand, t)
+                    self.counts[f"own_status_{cand.reason}"] += 1
+            # acknowledgements we owe, at most half the room while messages wait (a
+            # ground station owing fifty of them must still get its commands out)
+            ack_room = room // 2 if self.outbox.pending() else room
             acks = self.reassembly.take_acks()
             for i, a in enumerate(acks):
-                if fr.record_size(a) > room:
+                if fr.record_size(a) > ack_room:
                     self.reassembly.give_back(acks[i:])
                     break
                 records.append(a)
                 room -= fr.record_size(a)
+                ack_room -= fr.record_size(a)
             receivers = frozenset(lay.members) - {self.config.node_id}
-            cand = self._own_candidate(slot, t)
             own = self.outbox.fill(room, t, receivers)
-            went = cand is not None and any(
-                isinstance(r, fr.Msg) and r.data == cand.data for r in own
-            )
-            if went and cand is not None and self.own is not None:
-                self.own.sent(cand, t)
-                self.counts[f"own_status_{cand.reason}"] += 1
             records += own
             room -= sum(fr.record_size(r) for r in own)
             records += self._relays(room, slot.cycle - lay.k)
@@ -415,19 +430,14 @@ class RadioNode:
         return [Transmit(data, self._raw(at), slot.cycle, slot.join, self._raw(max(latest, at)))]
 
     def _own_candidate(self, slot: TxSlot, t: float) -> Candidate | None:
-        """Send on error: our own status for this frame, if due (queued as the latest
-        STATUS, so control and alerts still go first)."""
+        """Send on error: our own status for this frame, if due; the horizon is until a
+        status sent at our next opportunity would reach the peers."""
         if self.own is None:
             return None
         nxt = self.membership.next_tx(slot.air_start + 1e-3, slot.cycle + 1)
-        gap = nxt.air_start if nxt is not None else slot.air_start + self.membership.layout.period_s
-        horizon = gap - t + self.config.delivery_s
-        cand = self.own.candidate(t, horizon)
-        if cand is None:
-            self.outbox.latest.pop(OWN_STATUS_KEY, None)
-            return None
-        self.outbox.submit(OutMessage(OWN_STATUS_KEY, cand.data, 2, latest_only=True), t)
-        return cand
+        lay = self.membership.layout
+        gap = nxt.air_start if nxt is not None else slot.air_start + lay.period_s
+        return self.own.candidate(t, gap - t + self.config.delivery_s)
 
     def _relays(self, room: int, since_cycle: int) -> list[fr.Record]:
         out: list[fr.Record] = []

@@ -17,7 +17,7 @@ A lone member (n = 1) sends at a pseudo-random offset within its slot, so that t
 that bootstrapped alone at the same time do not collide forever and can find each other.
 
 **Shares by need (the adaptive schedule, issue 19).** Each member has a need *level*
-(0 calm, 1 manoeuvring, 2 avoiding or control traffic, 3 spare), agreed like the members
+(0 parked, 1 flying: the default, 2 avoiding or control traffic, 3 spare), agreed like the members
 themselves (scheduled changes, `membership.py`) and carried in every frame's header. A
 member of level l gets w = 2^(l - lowest level) slots per period, evenly spaced: the
 period is W (the largest w) sub-periods, and a member sits in every (W / w)-th one
@@ -60,13 +60,16 @@ class TdmConfig:
 
 
 MAX_LEVEL = 3  # need levels 0..3 (two header bits)
+DEFAULT_LEVEL = 1  # a member's level until it asks for another (a vehicle in flight)
 
 
 def normalised_levels(
     members: tuple[int, ...], levels: Mapping[int, int] | None
 ) -> tuple[int, ...]:
     """Each member's level (sorted members) less the lowest: only differences count."""
-    lv = [min(MAX_LEVEL, max(0, (levels or {}).get(m, 0))) for m in sorted(set(members))]
+    lv = [
+        min(MAX_LEVEL, max(0, (levels or {}).get(m, DEFAULT_LEVEL))) for m in sorted(set(members))
+    ]
     low = min(lv, default=0)
     return tuple(x - low for x in lv)
 

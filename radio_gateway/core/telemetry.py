@@ -146,7 +146,10 @@ class SendOnErrorConfig:
     repeat: int = 1  # error-triggered sends repeated at the next opportunity
     turn_window_s: float = 0.4  # the turn rate is the velocity's rotation over this
     min_turn_speed_m_s: float = 2.0  # below this the course is noise: no turn rate
-    calm_s: float = 10.0  # no error-triggered send for this long: need level 0
+    calm_s: float = 10.0  # (manoeuvre_share) level 2 this long after an error outran our slots
+    # raise our share when a manoeuvre outran our slots (measured: at the demo's mix the
+    # share arrives too late to pay for what it takes from the others; off by default)
+    manoeuvre_share: bool = False
 
     def __post_init__(self) -> None:
         if not (self.threshold_m > 0 and self.heartbeat_s > 0 and self.repeat >= 0):
@@ -172,6 +175,7 @@ class OwnTelemetry:
     last_sent: Candidate | None = None
     last_sent_at: float = -math.inf
     last_error_send: float = -math.inf
+    last_late: float = -math.inf  # the peers' error was past the threshold when we could send
     repeats_left: int = 0
     counts: dict[str, int] = field(default_factory=dict)
     _history: deque[VehicleStatus] = field(default_factory=lambda: deque(maxlen=32))
@@ -229,6 +233,8 @@ class OwnTelemetry:
             reason = "changed"
         elif self._off(now, horizon_s):
             reason = "error"
+            if self.error_m(now) > c.threshold_m:
+                self.last_late = now  # our slots come too seldom for this manoeuvre
         elif self.repeats_left > 0:
             reason = "repeat"
         elif now - self.last_sent_at >= c.heartbeat_s - 1e-9:
@@ -269,12 +275,19 @@ class OwnTelemetry:
 
     def need_level(self, now: float) -> int:
         """How much air this vehicle needs (the adaptive schedule's level): 2 while it
-        avoids a conflict (COLLISION_RISK), 1 while it manoeuvres (an error-triggered
-        send in the last `calm_s`), else 0 (a straight leg, an orbit, parked)."""
+        avoids a conflict (COLLISION_RISK; with `manoeuvre_share`, also for `calm_s`
+        after a manoeuvre outran its slots: when it could send, its peers' prediction
+        was already past the threshold); 0 parked (disarmed, or on the ground and still:
+        nothing to predict); 1 flying."""
         s = self.latest
-        if s is not None and AVOIDING in s.alerts:
+        if s is None:
+            return 1
+        if AVOIDING in s.alerts or (
+            self.config.manoeuvre_share and now - self.last_late < self.config.calm_s
+        ):
             return 2
-        return 1 if now - self.last_error_send < self.config.calm_s else 0
+        parked = not s.armed or (s.alt_rel_m < 2.0 and s.groundspeed_m_s < 1.0)
+        return 0 if parked else 1
 
 
 # ---------------------------------------------------------------------------- receiver

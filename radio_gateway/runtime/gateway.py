@@ -51,7 +51,7 @@ class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     cycle_s: float = 0.2
     guard_s: float = 0.005
     sync_s: float = 0.006  # the module's per-packet preamble
-    min_payload: int = 42  # with send on error at least 44: a status and its turn rate
+    min_payload: int = 42  # with send on error at least 88: a status (+ turn rate) and room
     latest_keep: int = 1  # 2 with cycle_s 0.4, min_payload 84: 5 Hz statuses, two a frame
     # issue 19: "on_error" (send on error, peers predicted on the LAN) or "every" (each
     # status queued, latest only, at most 5 Hz)
@@ -102,8 +102,8 @@ class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
         radio = msgspec.structs.replace(self.radio, address=self.node_id)
         timing: LinkTiming = radio.timing(sync_s=self.sync_s)
         min_payload = self.min_payload
-        if self.on_error:
-            min_payload = max(min_payload, STATUS_BYTES + TURN_TRAILER.size + 2)
+        if self.on_error:  # a status with its turn rate, and as much again for the rest
+            min_payload = max(min_payload, 2 * (STATUS_BYTES + TURN_TRAILER.size + 2))
         tdm = TdmConfig(
             cycle_s=self.cycle_s,
             guard_s=self.guard_s,

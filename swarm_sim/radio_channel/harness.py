@@ -77,6 +77,7 @@ class Fleet:
     transmits: list[tuple[float, int, Transmit]] = field(default_factory=list)
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     swarm: str = "default"
+    keep_predictions: bool = True  # record gateways' predicted statuses in `published`
     _events: list[tuple[float, int, str, int, bytes, bool]] = field(default_factory=list)
     _seq: itertools.count[int] = field(default_factory=itertools.count)
     _rng: random.Random = field(init=False)
@@ -272,5 +273,8 @@ class Fleet:
         def alive(vid: int) -> bool:
             return vid not in node.peers or node.silent_s(vid, now) <= m.silent_s
 
-        for pub in m.bridge.due(now) + m.bridge.predictions(now, alive):
+        for pub in m.bridge.due(now):
             self.published.append((self.t, nid, pub.message))
+        for pub in m.bridge.predictions(now, alive):
+            if self.keep_predictions:
+                self.published.append((self.t, nid, pub.message))

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from radio_gateway.core.frame import Frame, heard_bytes
+from radio_gateway.core.frame import Frame, LevelChange, heard_bytes
 from radio_gateway.core.membership import Membership, Phase
 from radio_gateway.core.slots import MAX_LEVEL, SlotLayout, TdmConfig, table_hash
 from swarm_sim.radio_channel.harness import Fleet
@@ -86,11 +86,11 @@ def test_a_manoeuvring_vehicle_gets_twice_a_calm_ones_share_and_past_capacity_al
     None
 ):
     """50 vehicles and a ground station on the 115.2 kbps channel (5 ms guard): ten
-    manoeuvring (level 1) get two slots a period, the ground station (level 2) four, the
-    calm ones one; the period grows so that everything fits; with everyone at level 1 the
-    rate is the unweighted table's."""
+    avoiding (level 2) get two slots a period, the ground station (level 3) four, the
+    others (the default, 1) one; the period grows so that everything fits; with everyone
+    at one level the rate is the unweighted table's."""
     ms = (*range(1, 51), 900)
-    lv = {**{m: 1 for m in range(1, 11)}, 900: 2}
+    lv = {**{m: 2 for m in range(1, 11)}, 900: 3}
     lay = SlotLayout.build(ms, TIMING, TDM, lv)
     plain = SlotLayout.build(ms, TIMING, TDM)
     assert lay.share(1) == 2 and lay.share(20) == 1 and lay.share(900) == 4
@@ -123,34 +123,39 @@ def test_a_level_change_spreads_like_a_join_and_takes_effect_on_one_cycle() -> N
     ms = tuple(range(1, 21))  # 20 members: a period of several cycles, shares matter
     a, b, c = _member(1, ms), _member(2, ms), _member(3, ms)
     cycle = C0 + TDM.listen_cycles + 1
-    assert a.request_level(1, cycle)
-    assert not a.request_level(2, cycle)  # one change of ours at a time
-    assert not a.pending_levels  # asked, not agreed: a has not changed its table
-    b.on_frame(_frame_of(a, cycle))
-    # c missed a's frame; b repeats the change in its frames until it takes effect,
-    # and a adopts it once it hears it echoed
+    assert a.request_level(2, cycle)
+    assert not a.request_level(3, cycle)  # one change of ours at a time
+    assert not a.pending_levels  # asked, not yet sent: a has not changed its table
+    frame = _frame_of(a, cycle)
+    a.request_sent(cycle)  # it went out in that frame
+    b.on_frame(frame)
+    # c missed a's frame; b repeats the change in its frames until it takes effect
     c.on_frame(_frame_of(b, cycle))
-    a.on_frame(_frame_of(b, cycle))
     at = b.pending_levels[1][0]
     for x in (a, b, c):
-        assert x.pending_levels == {1: (at, 1)} and x.projected_hash() == table_hash(ms, {1: 1})
+        assert x.pending_levels == {1: (at, 2)} and x.projected_hash() == table_hash(ms, {1: 2})
     for cyc in range(cycle, at + 1):
         for x in (a, b, c):
             x.advance(cyc)
     assert a.layout == b.layout == c.layout and a.layout.share(1) == 2 * a.layout.share(2)
-    assert a.level_of(1) == 1 and not a.pending_levels and a.level_request is None
+    assert a.level_of(1) == 2 and not a.pending_levels and a.level_request is None
 
 
-def test_a_level_request_nobody_echoed_is_not_adopted() -> None:
+def test_a_level_request_that_never_went_out_is_not_adopted_and_changes_rotate() -> None:
     ms = tuple(range(1, 21))
     a = _member(1, ms)
     cycle = C0 + TDM.listen_cycles + 1
-    assert a.request_level(1, cycle)
+    assert a.request_level(2, cycle)
     at = a.level_request[0] if a.level_request else 0
     for cyc in range(cycle, at + 2):
         a.advance(cyc)
-    assert a.level_of(1) == 0 and a.layout == SlotLayout.build(ms, TIMING, TDM)
-    assert a.request_level(1, at + 2)  # it asks again
+    assert a.level_of(1) == 1 and a.layout == SlotLayout.build(ms, TIMING, TDM)
+    assert a.request_level(2, at + 2)  # it asks again
+    # many changes in flight: each member repeats them starting elsewhere
+    for n in range(2, 10):
+        a.on_level_change(LevelChange(n, 2, at + 40))
+    firsts = {a.change_records(rotate=r)[1].node for r in range(8)}
+    assert firsts == set(range(2, 10))
 
 
 def test_a_frame_builds_its_slot_under_the_table_that_governs_it() -> None:
@@ -160,7 +165,8 @@ def test_a_frame_builds_its_slot_under_the_table_that_governs_it() -> None:
     ms = tuple(range(1, 21))
     a, b = _member(1, ms), _member(2, ms)
     cycle = C0 + TDM.listen_cycles + 1
-    b.request_level(1, cycle)
+    b.request_level(2, cycle)
+    b.request_sent(cycle)
     a.on_frame(_frame_of(b, cycle))
     at = a.pending_levels[2][0]
     for cyc in range(cycle, at):
@@ -188,7 +194,7 @@ def test_a_fleet_changing_shares_agrees_and_never_collides(loss: float) -> None:
         t = f.t
         for v in ms:
             node = f.node(v)
-            want = 2 if v in (1, 2) else (1 if (v + step) % 4 == 0 else 0)
+            want = 3 if v in (1, 2) else (2 if (v + step) % 4 == 0 else 1)
             node.membership.request_level(want, node._cycle)
         f.run(t + 1.5)
     f.run(f.t + 3.0)  # settle

@@ -61,7 +61,7 @@ def test_the_gateway_keeps_every_peer_within_5_m_with_few_statuses_and_no_collis
     5 Hz TDM, whose last-heard belief is off by more; commands and acks all get through,
     and no two packets ever overlap."""
     import bench.radio_scale as rs
-    from bench.radio_tracks import synthetic_tracks
+    from bench._radio_tracks import synthetic_tracks
 
     window, rs.WINDOW_S = rs.WINDOW_S, 10.0
     try:

@@ -105,8 +105,22 @@ def test_a_straight_leg_sends_only_heartbeats_a_new_manoeuvre_sends_at_once_twic
     i = next(i for i, (_, r) in enumerate(turn) if r == "error")
     assert turn[i][0] <= 11.2  # before the peers are 5 m off (the estimate lags 0.4 s)
     assert turn[i + 1][1] == "repeat"  # a lost frame does not leave a peer on the old leg
-    assert own.need_level(T0 + 20.0) == 1  # manoeuvring
-    assert own.need_level(T0 + 40.0) == 0  # calm again (no error-triggered send for 10 s)
+    assert own.need_level(T0 + 20.0) == 1  # flying: the default share
+    own.update(msgspec.structs.replace(own.latest, armed=False), T0 + 20.0)  # type: ignore[arg-type]
+    assert own.need_level(T0 + 20.0) == 0  # parked: the least
+
+
+def test_with_manoeuvre_share_a_manoeuvre_that_outran_the_slots_asks_for_more() -> None:
+    own = OwnTelemetry(SendOnErrorConfig(manoeuvre_share=True, calm_s=10.0), encode=radio.encode)
+    own.update(_at(0, 0, 18, 0, T0), T0)
+    c = own.candidate(T0, 0.5)
+    assert c is not None
+    own.sent(c, T0)
+    own.update(_at(18, 0, 0, 18, T0 + 1.0), T0 + 1.0)  # it turned; we could not send
+    own.update(_at(18, 18, 0, 18, T0 + 2.0), T0 + 2.0)
+    c = own.candidate(T0 + 2.0, 0.5)
+    assert c is not None and c.reason == "error"
+    assert own.need_level(T0 + 2.0) == 2 and own.need_level(T0 + 12.5) == 1
 
 
 def test_a_discrete_change_goes_out_at_the_next_opportunity_and_avoiding_needs_most() -> None:
