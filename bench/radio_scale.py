@@ -154,8 +154,8 @@ def _achieved(tdm: TdmConfig, batched: bool, track: Track) -> tuple[int, int]:
 
 # ---------------------------------------------------------------------------- scale
 def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[str, Any]:
-    gateway = scheme in ("gateway", "gateway_fixed")
-    adaptive = scheme == "gateway"
+    gateway = scheme in ("gateway", "gateway_fixed", "gateway_manoeuvre")
+    adaptive = scheme in ("gateway", "gateway_manoeuvre")
     # a slot carries a status (+ its turn rate and record header) and as much again for
     # acks, answers and schedule changes (the gateway's on_error default)
     min_payload = 2 * (STATUS_BYTES + 4) if gateway else STATUS_BYTES + 2
@@ -168,7 +168,7 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
     layout = SlotLayout.build(members, DESIGN, tdm)
     swarm = Swarm(tracks, n, t0, WINDOW_S)
     predict_cfg = PredictConfig()
-    soe = SendOnErrorConfig() if gateway else None
+    soe = SendOnErrorConfig(manoeuvre_share=scheme == "gateway_manoeuvre") if gateway else None
     commands: dict[int, float] = {}  # seq -> published
     acks: dict[tuple[int, int], float] = {}  # (vehicle, seq) -> published
     answered: dict[int, int] = dict.fromkeys(vehicles, 0)  # commands a vehicle answered

@@ -220,8 +220,8 @@ class VehicleStatus(Struct, frozen=True):
     # far it was carried forward (the autopilot data is `predicted_s` older than
     # `time_unix_s`). Both 0: the vehicle's own measurement. LAN only (the 40-byte radio
     # layout carries measured statuses).
-    position_error_m: DistanceM = 0.0
-    predicted_s: DurationS = 0.0
+    position_error_m: DistanceM = 0.0  # a radio gateway's prediction: the truth is within this
+    predicted_s: DurationS = 0.0  # a radio gateway's prediction: carried forward this long
 
     def __post_init__(self) -> None:
         if not 0 <= int(self.alerts) <= 0xFFFF:
