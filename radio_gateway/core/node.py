@@ -341,7 +341,9 @@ class RadioNode:
     def _ask_share(self, cycle: int, t: float) -> None:
         """Once a period: the level to ask for. Up at once, down only after the need has
         stayed lower for `level_hold_s` (a share does not flap)."""
-        want = self.desired_level(t)
+        # a table that fits one cycle gives everyone every cycle whatever the levels:
+        # changing them there would only change the table's version
+        want = self.desired_level(t) if self.membership.layout.k > 1 else DEFAULT_LEVEL
         if want >= self._need or t - self._need_since >= self.config.level_hold_s:
             self._need, self._need_since = want, t
         if self.membership.request_level(self._need, cycle):
