@@ -154,18 +154,22 @@ class PtyRadioChannel:
         faults)."""
         stop = stop or self._stop
         index = {fd: i for i, fd in enumerate(self._masters)}
+        last = time.monotonic()  # when we last looked (the previous select returned)
         while not stop.is_set() and not self._stop.is_set():
             now = self.clock.now()
             with self._lock:
                 deadline = self.model.next_deadline()
             wait = self.poll_s if deadline is None else self.clock.to_wall(deadline - now)
             wait = min(max(wait, 0.0), self.poll_s)
-            before = time.monotonic()
             try:
                 ready, _, _ = select.select(list(index), [], [], wait)
             except (OSError, ValueError):
                 return  # closed underneath us
-            late = time.monotonic() - before > wait + self.late_tolerance_s
+            # since we last looked: the wait asked and the tolerance (a host's write may
+            # have sat unread as long; descheduled anywhere in the loop shows here)
+            looked = time.monotonic()
+            late = looked - last > wait + self.late_tolerance_s
+            last = looked
             if late and ready:
                 self.late_reads += 1
             now = self.clock.now()
