@@ -34,9 +34,7 @@ def request(n: int = 4000) -> PlanRequest:
         r = 150 + 20 * math.sin(7 * a)
         pts.append((lat0 + r * math.sin(a) / 111_320,
                     lon0 + r * math.cos(a) / (111_320 * math.cos(math.radians(lat0)))))  # fmt: skip
-    mission = Mission(
-        1, 900, MissionType.AREA, Geometry.polygon(pts), MissionParams(altitude_rel_m=50.0)
-    )
+    mission = Mission(1, 900, MissionType.AREA, Geometry.polygon(pts), MissionParams(altitude_rel_m=50.0))
     members = (Member(profiles[7], GeoPoint(37.4112, -5.9889, 10.0)),
                Member(profiles[8], GeoPoint(37.4112, -5.9885, 10.0)))  # fmt: skip
     return PlanRequest(1, mission, members, (), 0.0, 10.0)

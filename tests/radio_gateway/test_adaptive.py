@@ -26,7 +26,7 @@ members_and_levels = st.dictionaries(
 )
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=50, deadline=None)
 @given(members_and_levels, st.randoms(), st.sampled_from([0.002, 0.005, 0.010]))
 def test_every_node_derives_the_same_schedule_from_the_same_inputs(
     levels: dict[int, int], rnd: object, guard: float
@@ -45,7 +45,7 @@ def test_every_node_derives_the_same_schedule_from_the_same_inputs(
     ]
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=50, deadline=None)
 @given(members_and_levels)
 def test_the_weighted_table_never_gives_a_slot_twice_and_follows_need(
     levels: dict[int, int],
