@@ -92,7 +92,6 @@ LOSSES = (0.0, 0.1)
 BER = 1e-5
 CAPTURE = 0.5
 CMD_EVERY_S = 5.0  # a command to every vehicle, each answering with an Ack
-DEBUG: dict[str, Any] = {}
 
 
 def _pctl(values: list[float], q: float) -> float:
@@ -206,7 +205,6 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
 
     # run in 100 ms steps; sample every receiver's belief of every other vehicle
     err: list[float] = []
-    by_src: defaultdict[int, list[float]] = defaultdict(list)
     err_dr: list[float] = []
     exceeded = 0
     unheard = 0
@@ -257,7 +255,6 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
                         ),
                     )
                     err.append(e)
-                    by_src[src].append(e)
                     if e > pos[3] + 0.5:  # + the radio's quantization (cm) and the chord
                         exceeded += 1
                     continue
@@ -305,7 +302,6 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
         "corrupted": c["corrupted"],
         "captured": sum(pm["captured"] for pm in f.model.per_module),
     }
-    DEBUG["by_src"] = by_src
     if gateway:
         row["bound_exceeded"] = round(exceeded / max(1, len(err)), 5)
         row["levels_at_end"] = dict(sorted(defaultdict(int, {
