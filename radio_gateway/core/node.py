@@ -123,7 +123,7 @@ class RadioNode:
     _slot_key: tuple[object, ...] = ()
     _relay: dict[int, tuple[bytes, int]] = field(default_factory=dict)  # src -> (data, cycle)
     own: OwnTelemetry | None = None  # send on error: our own vehicle's state
-    _need: int = 0  # need level asked for
+    _need: int = DEFAULT_LEVEL  # need level asked for
     _need_since: float = -math.inf  # when a need at least that high was last seen
 
     def __post_init__(self) -> None:
@@ -341,6 +341,8 @@ class RadioNode:
     def _ask_share(self, cycle: int, t: float) -> None:
         """Once a period: the level to ask for. Up at once, down only after the need has
         stayed lower for `level_hold_s` (a share does not flap)."""
+        if self.own is not None and self.own.latest is None:
+            return  # no status from our vehicle yet: nothing to base a need on
         # a table that fits one cycle gives everyone every cycle whatever the levels:
         # changing them there would only change the table's version
         want = self.desired_level(t) if self.membership.layout.k > 1 else DEFAULT_LEVEL

@@ -203,3 +203,40 @@ def test_a_fleet_changing_shares_agrees_and_never_collides(loss: float) -> None:
     assert f.model.counts["collisions"] == 0
     sent = {v: f.node(v).counts["tx_frames"] - tx_before[v] for v in ms}
     assert min(sent[1], sent[2]) > max(sent[v] for v in ms if v > 2)
+
+
+def test_a_node_asks_its_share_from_its_vehicle_up_at_once_down_after_5_s() -> None:
+    """In a fleet of 20 (a period of several cycles): vehicle 1 parked gets half a share;
+    flying again, the default, asked at once; parked again, only after `level_hold_s`
+    (5 s) at the lower need. Every node holds the same table throughout, no collision."""
+    from radio_gateway.core.bridge import Bridge
+    from radio_gateway.core.telemetry import PeerPredictor, SendOnErrorConfig
+    from swarm_proto import VehicleStatus
+
+    f = Fleet(ChannelParams(), TIMING, TDM, KEY, max_nodes=20, seed=2)
+    ms = tuple(range(1, 21))
+    armed = [False]
+
+    def vehicle(t: float) -> list[VehicleStatus]:
+        a = armed[0]
+        return [VehicleStatus(vehicle_id=1, time_unix_s=t, lat_deg=37.4, lon_deg=-5.9,
+                              alt_msl_m=150.0, alt_rel_m=100.0 if a else 0.0,
+                              vel_north_m_s=18.0 if a else 0.0, armed=a)]  # fmt: skip
+
+    f.add(1, lan=vehicle, initial_members=ms, adaptive=True, send_on_error=SendOnErrorConfig(),
+          bridge=Bridge("default", 1, frozenset({1}), predictor=PeerPredictor()))  # fmt: skip
+    for v in ms[1:]:
+        f.add(v, producer=status_producer(v), initial_members=ms, adaptive=True)
+
+    def level(after_s: float) -> int:
+        f.run(f.t + after_s)
+        assert len({f.node(v).membership.table_hash for v in ms}) == 1
+        return f.node(2).membership.level_of(1)
+
+    assert level(4.0) == 0 and f.node(1).membership.layout.k > 1  # parked: half a share
+    armed[0] = True
+    assert level(3.0) == 1  # flying: asked at once
+    armed[0] = False
+    assert level(3.0) == 1  # not yet: the lower need must last 5 s
+    assert level(4.0) == 0
+    assert f.model.counts["collisions"] == 0

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 
 from radio_gateway.core import frame as fr
 from radio_gateway.core.bridge import Bridge, OwnStatus
-from radio_gateway.core.telemetry import PeerPredictor, encode_turn
 from radio_gateway.core.outbox import Outbox, OutMessage, ack_mask
 from radio_gateway.core.reassembly import Reassembly
+from radio_gateway.core.telemetry import PeerPredictor, encode_turn
 from swarm_proto import (
     Ack,
     AckRef,
