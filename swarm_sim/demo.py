@@ -474,8 +474,9 @@ def _radio_report(
     """What the ground station's gateway heard, and what the channel saw since the
     slot table was up (the TDM's promise: no collisions)."""
     assert fleet.channel is not None
-    channel = fleet.channel.stats()["channel"]
-    collisions = int(channel.get("collisions", 0))
+    every = fleet.channel.stats()
+    channel = every["channel"]
+    collisions = int(channel.get("collisions_tdm", 0))  # between packets written on time
     if stats is None:
         console.print("[red]radio: no statistics from the ground station's gateway[/]")
         return False
@@ -487,5 +488,11 @@ def _radio_report(
         f"heard {peers}; {stats.dropped_forged} forged, {stats.dropped_corrupt} corrupt; "
         f"{channel.get('packets', 0)} packets and {collisions} collisions on the channel "
         "since the table was up"
+        + (
+            f" ({channel['collisions_late']} more with a packet the emulator, descheduled "
+            f"by this machine's load, read late: {every.get('late_reads', 0)} late reads)"
+            if channel.get("collisions_late")
+            else ""
+        )
     )
     return collisions == 0

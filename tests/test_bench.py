@@ -59,7 +59,7 @@ NAMED: dict[str, tuple[str, ...]] = {
             f"scale/n_{n}/loss_{loss}/{scheme}/{k}"
             for n in (14, 25, 50)
             for loss in ("0", "0.1")
-            for scheme in ("tdm5", "send_on_error")
+            for scheme in ("tdm5", "gateway")
             for k in (
                 "position_error_p99_m",
                 "position_error_max_m",

@@ -13,6 +13,8 @@ the few kilometres avoidance looks at, so the relative geometry is exact to that
 Stale telemetry is never trusted as fresh: a report `age` seconds old is first
 extrapolated to `now` with its velocity, and the vehicle may have done anything since,
 so its protection volume widens by `age * max_speed` (the distance it could have moved).
+A report that is itself a prediction (a radio peer's status republished by its gateway,
+issue 19: `VehicleStatus.position_error_m`) widens it by that error bound as well.
 Callers compare `miss_m - margin_m` with their thresholds.
 
     rel_p = p_other - p_own, rel_v = v_other - v_own
@@ -46,7 +48,9 @@ class Track:
     """Where a vehicle was at `time_s` and how it moved (NED velocity, m/s).
 
     `time_s` is on the caller's clock (the one `now` is on); `max_speed_m_s` is how fast
-    it could go, used to widen its protection volume by what it could have moved since."""
+    it could go, used to widen its protection volume by what it could have moved since;
+    `error_m` is how far the reported position may be from the truth at `time_s` (a
+    radio gateway's prediction: `VehicleStatus.position_error_m`; 0 when measured)."""
 
     vehicle_id: int
     lat_deg: float
@@ -57,6 +61,7 @@ class Track:
     vel_down_m_s: float = 0.0
     time_s: float = 0.0
     max_speed_m_s: float = 0.0
+    error_m: float = 0.0
 
     def __post_init__(self) -> None:
         values = (
@@ -68,6 +73,7 @@ class Track:
             self.vel_down_m_s,
             self.time_s,
             self.max_speed_m_s,
+            self.error_m,
         )
         if not all(math.isfinite(v) for v in values):
             raise BadTrackError(f"vehicle {self.vehicle_id}: non-finite track value {values}")
@@ -75,14 +81,15 @@ class Track:
             raise BadTrackError(
                 f"vehicle {self.vehicle_id}: position ({self.lat_deg}, {self.lon_deg}) out of range"
             )
-        if self.max_speed_m_s < 0.0:
-            raise BadTrackError(f"vehicle {self.vehicle_id}: negative max speed")
+        if self.max_speed_m_s < 0.0 or self.error_m < 0.0:
+            raise BadTrackError(f"vehicle {self.vehicle_id}: negative max speed or error")
 
     @classmethod
     def from_status(
         cls, s: VehicleStatus, *, time_s: float | None = None, max_speed_m_s: float = 0.0
     ) -> Track:
-        """From a VehicleStatus; `time_s` defaults to the sample's own time."""
+        """From a VehicleStatus; `time_s` defaults to the sample's own time; a predicted
+        status's error bound (`position_error_m`) becomes the track's `error_m`."""
         return cls(
             s.vehicle_id,
             s.lat_deg,
@@ -93,6 +100,7 @@ class Track:
             s.vel_down_m_s,
             s.time_unix_s if time_s is None else time_s,
             max_speed_m_s,
+            s.position_error_m,
         )
 
     @property
@@ -132,7 +140,7 @@ class Kinematic:
     pos: FloatArray  # (N, 3) ENU m at `now`
     vel: FloatArray  # (N, 3) ENU m/s
     age_s: FloatArray  # (N,) how old each report is at `now` (>= 0)
-    margin_m: FloatArray  # (N,) age * max speed
+    margin_m: FloatArray  # (N,) age * max speed + error bound
 
 
 def kinematic(tracks: Sequence[Track], now: float, frame: Frame | None = None) -> Kinematic:
@@ -152,6 +160,7 @@ def kinematic(tracks: Sequence[Track], now: float, frame: Frame | None = None) -
     vel = frame.velocities(lat, lon, vn, ve, vd)
     pos = frame.positions(lat, lon, h) + vel * age[:, None]
     margin = age * np.array([t.max_speed_m_s for t in tracks])
+    margin += np.array([t.error_m for t in tracks])
     return Kinematic(tuple(t.vehicle_id for t in tracks), pos, vel, age, margin)
 
 
