@@ -19,7 +19,6 @@ zone, sends the mission, and watches the fleet plan, fly, return and land.
 
 from __future__ import annotations
 
-import math
 import multiprocessing
 import multiprocessing.process
 import os
@@ -53,6 +52,7 @@ from swarm_proto import (
     NoFlyZone,
     ScaledClock,
     Selector,
+    geodesy,
 )
 from swarm_proto.clock import ENV_VAR as CLOCK_ENV
 from swarm_proto.clock import clock_from_spec
@@ -95,7 +95,7 @@ def free_tcp_port() -> int:
 
 
 def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float, float]:
-    return lat + north_m / 111_320.0, lon + east_m / (111_320.0 * math.cos(math.radians(lat)))
+    return geodesy.offset(lat, lon, north_m, east_m)  # the one geodesy (swarm_proto.geodesy)
 
 
 def demo_area() -> tuple[Geometry, NoFlyZone]:

@@ -1,8 +1,8 @@
 """Closest point of approach (CPA) between vehicles that keep their velocity: pure numpy.
 
-Every position is put in one local East-North-Up frame tangent at an origin (pymap3d,
-WGS84: geodetic -> ECEF -> ENU, exact on the ellipsoid, no flat-earth scale), and every
-NED velocity is rotated from its own vehicle's tangent plane into that frame (ENU ->
+Every position is put in one local East-North-Up frame tangent at an origin
+(`swarm_proto.geodesy`: pymap3d, WGS84, geodetic -> ECEF -> ENU, exact on the
+ellipsoid, no flat-earth scale), and every NED velocity is rotated from its own vehicle's tangent plane into that frame (ENU ->
 ECEF -> ENU), so the geometry stays exact for vehicles kilometres apart.
 
 Altitudes are above mean sea level (`VehicleStatus.alt_msl_m`, ADS-B altitude): the one
@@ -28,9 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-import pymap3d
 
-from swarm_proto import VehicleStatus
+from swarm_proto import VehicleStatus, geodesy
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -111,16 +110,13 @@ class Frame:
 
     def positions(self, lat: FloatArray, lon: FloatArray, h: FloatArray) -> FloatArray:
         """(N, 3) east, north, up metres."""
-        e, n, u = pymap3d.geodetic2enu(lat, lon, h, self.lat0_deg, self.lon0_deg, self.h0_m)
-        return np.stack([np.asarray(e, float), np.asarray(n, float), np.asarray(u, float)], -1)
+        return geodesy.enu(lat, lon, h, self.lat0_deg, self.lon0_deg, self.h0_m)
 
     def velocities(
         self, lat: FloatArray, lon: FloatArray, vn: FloatArray, ve: FloatArray, vd: FloatArray
     ) -> FloatArray:
         """(N, 3) ENU velocities in this frame, from NED velocities at (lat, lon)."""
-        x, y, z = pymap3d.enu2uvw(ve, vn, -vd, lat, lon)  # own tangent plane -> ECEF axes
-        e, n, u = pymap3d.uvw2enu(x, y, z, self.lat0_deg, self.lon0_deg)
-        return np.stack([np.asarray(e, float), np.asarray(n, float), np.asarray(u, float)], -1)
+        return geodesy.ned_to_enu_velocity(lat, lon, vn, ve, vd, self.lat0_deg, self.lon0_deg)
 
 
 @dataclass(frozen=True, slots=True)
