@@ -58,6 +58,8 @@ import numpy as np
 from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, VehicleType
 
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
+from ..autopilot.state import AdsbReport
+from ..autopilot.tracker import parse_adsb
 from .ttc import BadTrackError, Track, kinematic, pairwise
 
 GROUND = frozenset({VehicleType.ROVER, VehicleType.BOAT})
@@ -113,37 +115,17 @@ class Traffic:
 
     @classmethod
     def from_adsb(cls, report: Mapping[str, Any], *, received_s: float) -> Traffic:
-        """From a decoded ADSB_VEHICLE (pymavlink `to_dict()`): `lat`/`lon` degE7,
-        `altitude` mm MSL, `heading` cdeg, `hor_velocity` and `ver_velocity` cm/s (up
-        positive), `flags`, `ICAO_address`, `tslc` s. Position and altitude must be
-        flagged valid; a velocity not flagged valid counts as zero (the staleness
-        widening still applies). Raises ValueError naming what is wrong."""
+        """From a decoded ADSB_VEHICLE (pymavlink `to_dict()`; the autopilot link's
+        parser, `parse_adsb`). Raises ValueError naming what is wrong."""
+        return cls.from_report(parse_adsb(report, received_s=received_s))
 
-        def num(name: str, lo: float, hi: float) -> float:
-            v = report.get(name)
-            if isinstance(v, bool) or not isinstance(v, int | float):
-                raise ValueError(f"ADS-B {name} must be a number, got {v!r}")
-            if not (math.isfinite(v) and lo <= v <= hi):
-                raise ValueError(f"ADS-B {name} = {v!r} is not in [{lo}, {hi}]")
-            return float(v)
-
-        flags = int(num("flags", 0, 0xFFFF))
-        if flags & 3 != 3:
-            raise ValueError(f"ADS-B report without a valid position and altitude ({flags:#06x})")
-        lat = num("lat", -90e7, 90e7) / 1e7
-        lon = num("lon", -180e7, 180e7) / 1e7
-        alt = num("altitude", -1_000_000, 50_000_000) / 1000.0
-        vn = ve = vd = 0.0
-        if flags & 12 == 12:  # heading and velocity valid
-            course = math.radians(num("heading", 0, 35_999) / 100.0)
-            speed = num("hor_velocity", 0, 65_534) / 100.0
-            vn, ve = speed * math.cos(course), speed * math.sin(course)
-            vd = -num("ver_velocity", -32_767, 32_767) / 100.0
-        icao = int(num("ICAO_address", 0, 0xFFFFFF))
-        age = num("tslc", 0, 255)
-        if not math.isfinite(received_s):
-            raise ValueError("received_s must be finite")
-        return cls(icao, lat, lon, alt, vn, ve, vd, received_s - age)
+    @classmethod
+    def from_report(cls, r: AdsbReport) -> Traffic:
+        """From the autopilot link's `AutopilotState.traffic`."""
+        return cls(
+            r.icao_address, r.lat_deg, r.lon_deg, r.alt_msl_m,
+            r.vel_north_m_s, r.vel_east_m_s, r.vel_down_m_s, r.time_s,
+        )  # fmt: skip
 
 
 @dataclass(frozen=True, slots=True)
