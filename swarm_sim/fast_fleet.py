@@ -86,11 +86,14 @@ class FastFleet:
         spacing_m: float = 40.0,
         start_unix_s: float = 1.8e9,
         settings: NodeSettings | None = None,
+        homes: Sequence[Home] | None = None,
     ) -> FastFleet:
         """Vehicles `members` (database ids), each simulated as its profile's model,
-        homes `spacing_m` apart going east."""
+        homes `spacing_m` apart going east (or the `homes` given, one per member)."""
         vehicles: dict[int, SimVehicle] = {}
-        homes = spread_homes(home, len(members), spacing_m)
+        if homes is not None and len(homes) != len(members):
+            raise ValueError(f"{len(homes)} homes for {len(members)} vehicles")
+        homes = list(homes) if homes is not None else spread_homes(home, len(members), spacing_m)
         for i, vid in enumerate(members):
             profile = profiles[vid]
             model = MODEL_OF_TYPE[profile.vehicle_type]

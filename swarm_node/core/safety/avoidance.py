@@ -78,6 +78,7 @@ MAX_SPEED_M_S: dict[VehicleType, float] = {
     VehicleType.MANNED: 60.0,
 }
 TRAFFIC_MAX_SPEED_M_S = 60.0
+PARKED_ALT_M = 2.0  # a disarmed aircraft lower than this above its home is on the ground
 
 
 class ManoeuvreKind(StrEnum):
@@ -248,6 +249,16 @@ class CollisionAvoider:
         vtype = self._types.get(s.vehicle_id)
         if vtype in NOT_TRAFFIC:
             return
+        if (
+            not s.armed
+            and s.alt_rel_m < PARKED_ALT_M
+            and self.config.own_type not in GROUND
+            and vtype not in GROUND
+        ):
+            # parked on its pad, motors off: not traffic for an aircraft flying above
+            # `min_active_alt_rel_m` (take-off and landing next to it: pads.py)
+            self._contacts.pop(s.vehicle_id, None)
+            return
         # the sample's own time unless it is in the future (a skewed clock): then when heard
         t = s.time_unix_s if 0.0 < s.time_unix_s <= now else now
         speed = MAX_SPEED_M_S.get(vtype or VehicleType.OTHER, 35.0)
@@ -304,6 +315,11 @@ class CollisionAvoider:
         if self._active is None:
             return self._start(own, decision, now)
         return self._continue(own, decision, now)
+
+    def abandon(self) -> None:
+        """The manoeuvre was taken from us (a higher owner flies the vehicle): forget it
+        without a RESUME; a conflict still there starts a new one at the next tick."""
+        self._active = None
 
     @property
     def manoeuvring(self) -> ManoeuvreKind | None:

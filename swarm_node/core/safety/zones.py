@@ -4,7 +4,7 @@ geometry monitoring, the fence keeper, the planners and collision avoidance ask 
     book[zone.zone_id] = zone                 (a dict of NoFlyZone by id; `version` counts changes)
     book.in_force(now) / no_fly(now) / operating_areas(now)
     book.breach(lat, lon, alt_msl, now)       what is breached (monitoring), or None
-    breach(zones, lat, lon, alt_msl, now)     the same for any collection of zones
+    breach(zones, ...), ceiling_msl(zones, ...) the same for any collection of zones
     book.ceiling_msl(lat, lon, alt_msl, now)  the lowest floor of a no-fly zone above
                                               (avoidance never climbs into it)
     inside(geometry, lat, lon)                point in a POLYGON or CIRCLE
@@ -78,6 +78,28 @@ def breach(
     return None
 
 
+def ceiling_msl(
+    zones: Iterable[NoFlyZone],
+    lat_deg: float,
+    lon_deg: float,
+    alt_msl_m: float,
+    now: float,
+    radius_m: float = 0.0,
+) -> float | None:
+    """The lowest floor (MSL) of the no-fly zones in force whose floor is above
+    `alt_msl_m` and that lie within `radius_m` horizontally: how high a vehicle there
+    may climb. None: nothing above."""
+    best: float | None = None
+    for z in zones:
+        if z.operating_area or not z.in_force(now) or z.floor_alt_msl_m <= alt_msl_m:
+            continue
+        if distance_outside_m(z.geometry, lat_deg, lon_deg) > radius_m:
+            continue
+        if best is None or z.floor_alt_msl_m < best:
+            best = z.floor_alt_msl_m
+    return best
+
+
 class ZoneBook(MutableMapping[int, NoFlyZone]):
     """The zones a node holds, by id (operating areas too). A dict to its callers, so
     `book[zone_id] = zone` replaces a zone; `version` grows with every change."""
@@ -126,15 +148,5 @@ class ZoneBook(MutableMapping[int, NoFlyZone]):
     def ceiling_msl(
         self, lat_deg: float, lon_deg: float, alt_msl_m: float, now: float, radius_m: float = 0.0
     ) -> float | None:
-        """The lowest floor (MSL) of the no-fly zones in force whose floor is above
-        `alt_msl_m` and that lie within `radius_m` horizontally: how high a vehicle there
-        may climb. None: nothing above."""
-        best: float | None = None
-        for z in self.no_fly(now):
-            if z.floor_alt_msl_m <= alt_msl_m:
-                continue
-            if distance_outside_m(z.geometry, lat_deg, lon_deg) > radius_m:
-                continue
-            if best is None or z.floor_alt_msl_m < best:
-                best = z.floor_alt_msl_m
-        return best
+        """How high a vehicle there may climb (`ceiling_msl`)."""
+        return ceiling_msl(self._zones.values(), lat_deg, lon_deg, alt_msl_m, now, radius_m)
