@@ -212,7 +212,7 @@ def _analysed(rows: list[Row], record: Path | None, stem: str) -> SeparationRepo
 def _settings(avoid: bool) -> NodeSettings:
     # the take-off sequence of close pads is part of the launch, which the state machine
     # bounds with the plan timeout: 120 s covers a few neighbours (docs/avoidance.md)
-    return NodeSettings(avoidance=avoid, plan_timeout_s=120.0)
+    return NodeSettings(avoidance=avoid, plan_timeout_s=180.0)
 
 
 def _all_flying(ids: Sequence[int]) -> Callable[[FastFleet], bool]:
@@ -313,13 +313,14 @@ def stress_eight_headon(
     radius_m: float = 500.0,
     alt_m: float = 100.0,
     record: Path | None = None,
+    count: int = 8,
 ) -> SeparationRun:
     """Eight fixed-wing aircraft take off from runways 1.5 km out on a circle, each
     facing its centre, and are sent, all in the same instant, on a route from the 1 km
     circle (radius `radius_m`) through its centre to the opposite side, at one altitude:
     they meet head-on at the centre."""
     like = next(p for p in profiles.values() if p.vehicle_type == VehicleType.VTOL)
-    members = list(range(21, 29))
+    members = list(range(21, 21 + count))
     planes = {vid: plane_profile(vid, like) for vid in members}
     center = _at(0.0, 0.0)
     homes = circle_homes(len(members), radius_m + 1000.0, center)

@@ -23,17 +23,21 @@ its predicted 3-D miss distance, less the staleness widening, is below `protect_
 within `horizon_s`. Manoeuvres are upward only:
 
 - Who climbs (the same rule in every vehicle, on the same reported numbers): of two
-  cooperative aircraft, the higher one; within `tie_band_m` of each other, the higher
-  id. Against traffic that will not manoeuvre (ADS-B, a MANNED vehicle, anything
-  disarmed or below `min_active_alt_rel_m`, rovers and boats), an aircraft climbs if
+  cooperative aircraft, the higher one; within `tie_band_m` of each other, a fixed-wing
+  (plane, VTOL) before a multirotor (it climbs faster, keeps its path and cannot stop),
+  when both types are known from VehicleInfo (sent at 1 Hz from start-up, long before
+  either flies), else the higher id. Against traffic that will not manoeuvre (ADS-B, a MANNED vehicle, anything
+  below `min_active_alt_rel_m`, rovers and boats), an aircraft climbs if
   that traffic is not well above it. So the lower of a pair never climbs into the
-  upper one.
+  upper one. A disarmed aircraft on the ground (under 2 m) is not traffic for an
+  aircraft (take-off and landing beside it are sequenced: pads.py).
 - How high (three or more): targets stack in rank order, each `vertical_sep_m` above
   the target of every vehicle it gives way to (a fixed point over the conflict graph),
   capped by the ceiling. A climb target only rises until the conflict clears.
 - The vehicle that keeps its altitude but is climbing into a conflict above it levels
   off (LEVEL); a fixed-wing keeps its path (DO_CHANGE_ALTITUDE), a multirotor holds
-  position while it climbs (a GUIDED reposition over itself); rovers and boats STOP
+  position while it climbs (a GUIDED reposition over itself; the node's module flies
+  either to the mission item it was flying to, higher, while in a mission); rovers and boats STOP
   (HOLD mode) when they give way (ground pairs: the higher id) or when something
   stands in their way.
 - Hysteresis: the manoeuvre ends only when, from the planned altitude (ground
@@ -66,6 +70,7 @@ GROUND = frozenset({VehicleType.ROVER, VehicleType.BOAT})
 MULTIROTOR = frozenset({VehicleType.COPTER})
 NEVER_MANOEUVRES = frozenset({VehicleType.MANNED})
 NOT_TRAFFIC = frozenset({VehicleType.GCS})
+FIXED_WING = frozenset({VehicleType.PLANE, VehicleType.VTOL})
 
 # how fast each kind could be going: the staleness widening is age * this
 MAX_SPEED_M_S: dict[VehicleType, float] = {
@@ -155,7 +160,8 @@ class AvoidanceConfig:
     protect_m: float = 20.0  # predicted miss (3-D) below which a pair is in conflict
     release_m: float = 30.0  # clear only when every miss from the planned altitude is above
     vertical_sep_m: float = 15.0  # a climb targets this much above who it gives way to
-    tie_band_m: float = 5.0  # within this altitude difference the higher id climbs
+    tie_band_m: float = 5.0  # within this altitude difference: fixed-wing, then higher id climbs
+    others_slack_m: float = 10.0  # the others' pairs count as in conflict with this much more
     horizon_s: float = 30.0  # how far ahead conflicts are looked for
     climb_rate_m_s: float = 5.0  # to tell whether a climb can be done in time
     ceiling_rel_m: float = 400.0  # never climb above this (above home)
@@ -379,7 +385,12 @@ class CollisionAvoider:
                 None,
                 tuple(c.track.vehicle_id for c, ok in zip(contacts, clear, strict=True) if not ok),
             )
-        conflict = (miss < cfg.protect_m) & ~np.eye(n, dtype=bool)
+        # pairs of others count as in conflict with `others_slack_m` more: each vehicle
+        # sees the others' pairs from its own (slightly different) reports, and a climb
+        # it stacks over must not be one it failed to expect
+        threshold = np.full((n, n), cfg.protect_m + cfg.others_slack_m)
+        threshold[0, :] = threshold[:, 0] = cfg.protect_m
+        conflict = (miss < threshold) & ~np.eye(n, dtype=bool)
         if not conflict[0].any():
             return _Decision(None, None, ())
         against_idx = np.flatnonzero(conflict[0])
@@ -416,11 +427,15 @@ class CollisionAvoider:
             return _Decision(None, None, against, soonest, closest)
 
         # i gives way to j (i climbs above j): j is not a cooperative aircraft and not
-        # well above i, or both are, and i is higher (within the band: higher id)
+        # well above i, or both are, and i is higher; within the band a fixed-wing before
+        # a multirotor (it climbs faster, keeps its path and cannot stop) when both types
+        # are known (VehicleInfo), else the higher id
         dz = alt[:, None] - alt[None, :]
-        by_rank = (dz > cfg.tie_band_m) | (
-            (np.abs(dz) <= cfg.tie_band_m) & (ids[:, None] > ids[None, :])
-        )
+        known = np.array([cfg.own_type is not None] + [c.vehicle_type is not None for c in contacts])
+        fw = np.array([t in FIXED_WING for t in types])
+        by_type = known[:, None] & known[None, :] & (fw[:, None] != fw[None, :])
+        in_band = np.where(by_type, fw[:, None], ids[:, None] > ids[None, :])
+        by_rank = (dz > cfg.tie_band_m) | ((np.abs(dz) <= cfg.tie_band_m) & in_band)
         # what each stands at: its altitude or where it is going, whichever is higher
         alt_cpa = alt[None, :] + k.vel[None, :, 2] * a.t_cpa_s
         level = np.maximum(alt[None, :], alt_cpa) + k.margin_m[None, :]

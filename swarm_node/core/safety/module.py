@@ -22,20 +22,30 @@ takes the autopilot (owner AVOIDANCE: EMERGENCY still pre-empts; OPERATOR and MI
 requests are refused meanwhile, except the mission's own, which are held here, not
 refused, so the sortie never fails for it). The manoeuvre is flown as:
 
-    vehicle                   doing                 manoeuvre (to the avoider's target altitude)
-    fixed-wing, VTOL flying   AUTO mission          Goto the item it was flying to (GUIDED):
-                                                    keeps its path, the mission is suspended
-    fixed-wing, VTOL flying   anything else         ChangeAltitude (keeps RTL, LOITER, GUIDED)
-    multirotor, VTOL hovering anything              Goto over itself (GUIDED: holds, climbs)
-    rover, boat               anything              HOLD mode (stops)
+    vehicle                   doing            manoeuvre (to the avoider's target altitude)
+    fixed-wing, VTOL flying   AUTO mission     Goto the item it was flying to, higher
+                                               (GUIDED; it circles the item if it gets
+                                               there): the mission is suspended. Near a
+                                               no-fly zone (within two turn radii and a
+                                               loiter radius of that leg) that could cut
+                                               the flyable turns into it: ChangeAltitude
+                                               instead, the mission flown on at the new
+                                               altitude (asked again at each new item)
+    fixed-wing, VTOL flying   anything else    ChangeAltitude (keeps RTL, LOITER, GUIDED)
+    multirotor, VTOL hovering AUTO mission     Goto the item it was flying to, higher
+                                               (GUIDED): on its zone-safe leg, stopping
+                                               there; the mission is suspended
+    multirotor, VTOL hovering anything else    Goto over itself (GUIDED: holds, climbs)
+    rover, boat               anything         HOLD mode (stops)
 
 When the avoider says clear (RESUME), the vehicle goes back to what it was doing: the
-mission's held requests if it had any (they are its newest intent), else by the mode
-it was in: AUTO -> StartMission(first_item = the item it was flying to), RTL ->
-ReturnToLaunch, QRTL, LOITER and the like -> that mode again, LAND/QLAND -> Land,
-GUIDED (a take-off climb, an operator's Goto) -> Goto over itself at the planned
-altitude, ChangeAltitude manoeuvres -> ChangeAltitude(planned). Once those requests
-are answered, control goes back to whoever held it before (`release_due`).
+mission's held requests if it had any (they are its newest intent); else a fixed-wing
+changes altitude back to its mission item's (or the planned one), and the others go
+back by the mode they were in: AUTO -> StartMission(first_item = the item they were
+flying to), RTL -> ReturnToLaunch, QRTL, LOITER and the like -> that mode again,
+LAND/QLAND -> Land, GUIDED (a take-off climb, an operator's Goto) -> Goto over itself
+at the planned altitude. Once those requests are answered, control goes back to
+whoever held it before (`release_due`).
 
 The wire MissionState has no SUSPENDED (adding one would change every node's radio
 decoder): a suspended vehicle keeps publishing MISSION (or PREMISSION), its progress
@@ -52,6 +62,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
 import msgspec
+from shapely.geometry import LineString
 
 from swarm_proto import (
     Alert,
@@ -63,6 +74,7 @@ from swarm_proto import (
     VehicleStatus,
     VehicleType,
 )
+from swarm_proto.geodesy import distance_m
 
 from ..arbiter import Routed, flies
 from ..autopilot.items import ItemKind, Waypoint
@@ -80,6 +92,8 @@ from ..autopilot.requests import (
 )
 from ..autopilot.state import AutopilotState
 from ..outputs import ModuleOutput, Note, Owner, Publish, Submit
+from ..planning.errors import PlanningError
+from ..planning.geo import LocalFrame
 from ..profile import VehicleProfile
 from .avoidance import (
     GROUND,
@@ -95,6 +109,8 @@ from .avoidance import (
 from .pads import PadConfig, hold_layer, may_move
 from .zones import ceiling_msl
 
+LOWERED_M = 5.0  # a fixed-wing circling down to its lowest layer is there within this
+GOTO_ZONE_MARGIN_M = 20.0  # a fixed-wing's Goto leg and circle keep this far from zones
 HOVER_SPEED_M_S = 8.0  # a VTOL slower than this is hovering (it manoeuvres as a multirotor)
 REASSERT_S = 2.0  # a Goto manoeuvre's mode lost (another request won the race): asked again
 RESUME_TRIES = 3
@@ -118,6 +134,7 @@ class Suspension:
     last_sent_s: float = 0.0
     resuming: bool = False
     resume_tries: int = 0
+    item_seen: int = 0  # a ChangeAltitude is asked again when the mission item moves on
 
 
 @dataclass(slots=True)
@@ -131,6 +148,7 @@ class PadLanding:
     hold_alt_rel_m: float
     owner: Owner
     descending: bool = False
+    lowering: bool = False  # a fixed-wing circles down to the lowest layer first
     waited_since: float | None = None
 
 
@@ -152,6 +170,8 @@ class AvoidanceModule:
     launch: Submit | None = None  # the mission's Arm, held until the pad is clear
     landing: PadLanding | None = None
     _pads: dict[int, GeoPoint] = field(default_factory=dict)  # every known vehicle's home
+    _types: dict[int, VehicleType] = field(default_factory=dict)  # from VehicleInfo
+    _zones: list[NoFlyZone] = field(default_factory=list)  # the no-fly zones in force
     _peers: list[tuple[VehicleStatus, GeoPoint | None]] = field(default_factory=list)
     _launch_waited: float | None = None
     _next_tick: float = 0.0  # the first tick at once
@@ -186,6 +206,8 @@ class AvoidanceModule:
     def on_peer(self, msg: VehicleStatus | VehicleInfo, now: float) -> None:
         if self.enabled and msg.vehicle_id != self.profile.vehicle_id:
             self.avoider.handle(msg, now)
+            if isinstance(msg, VehicleInfo):
+                self._types[msg.vehicle_id] = msg.vehicle_type
 
     def forget(self, vehicle_id: int, now: float) -> None:
         if self.enabled:
@@ -253,7 +275,9 @@ class AvoidanceModule:
     def _hold_alt(self, pad: GeoPoint) -> float:
         pads = dict(self._pads)
         pads[self.profile.vehicle_id] = pad
-        return hold_layer(self.profile.vehicle_id, pad, pads, self.pad_config)
+        types = {**self._types, self.profile.vehicle_id: self.profile.vehicle_type}
+        wings = {v for v, t in types.items() if t in (VehicleType.PLANE, VehicleType.VTOL)}
+        return hold_layer(self.profile.vehicle_id, pad, pads, self.pad_config, wings)
 
     def _pad_items(self, pad: GeoPoint, hold: float) -> tuple[Waypoint, Waypoint]:
         return (
@@ -304,6 +328,11 @@ class AvoidanceModule:
         if not ap.armed and (ap.alt_rel_m or 0.0) < self.pad_config.airborne_m:
             self.landing = None  # down
             return out
+        low = self.pad_config.hold_alt_rel_m + LOWERED_M
+        if ld.lowering and self.suspension is None and (ap.alt_rel_m or 0.0) <= low:
+            ld.lowering = False
+            out.append(Note(logging.INFO, "landing: down to the lowest layer, on to the pad"))
+            return out + self._submit((StartMission(first_item=ld.land_seq),), now, owner=ld.owner)
         if (
             ld.descending
             or self.suspension is not None
@@ -314,8 +343,9 @@ class AvoidanceModule:
         ):
             return out
         blockers = may_move(
-            self.profile.vehicle_id, ld.pad, self._peers, taking_off=False, config=self.pad_config
-        )
+            self.profile.vehicle_id, ld.pad, self._peers, taking_off=False,
+            config=self.pad_config, own_alt_msl_m=ap.alt_msl_m,
+        )  # fmt: skip
         if blockers:
             if ld.waited_since is None:
                 ld.waited_since = now
@@ -327,6 +357,12 @@ class AvoidanceModule:
         ld.descending = True
         waited = now - ld.waited_since if ld.waited_since is not None else 0.0
         out.append(Note(logging.INFO, f"landing: on its pad (waited {waited:.1f} s)"))
+        if not self._hovering(ap) and (ap.alt_rel_m or 0.0) > low:
+            # a fixed-wing circles down in its hold first (a landing leg started high
+            # would dive at it)
+            ld.lowering = True
+            step = ChangeAltitude(alt_rel_m=self.pad_config.hold_alt_rel_m)
+            return out + self._submit((step,), now, owner=ld.owner)
         return out + self._submit((StartMission(first_item=ld.land_seq),), now, owner=ld.owner)
 
     def take_held(self) -> list[ModuleOutput]:
@@ -357,6 +393,7 @@ class AvoidanceModule:
         self._next_tick = nxt if nxt > now else now + period  # late: no catch-up burst
         self._pads = dict(pads or {})
         self._peers = list(peers)
+        self._zones = [z for z in (zones or {}).values() if z.in_force(now) and not z.operating_area]
         pad_out = self._pads_tick(ap, now) if self.pads_on else []
         av = self.avoider
         if own is not None:
@@ -384,6 +421,18 @@ class AvoidanceModule:
         s = self.suspension
         if s is not None and not s.resuming and av.manoeuvring is None:
             out += self._end("not flying any more")  # landed or disarmed: nothing to resume
+        elif (
+            s is not None
+            and not s.resuming
+            and not s.via_goto
+            and not self._pending
+            and ap.mode_name == "AUTO"
+            and ap.mission_current != s.item_seen
+        ):
+            # the next mission item brings its own altitude: the manoeuvre's again
+            s.item_seen = ap.mission_current
+            out += self._submit(s.last, now)
+            self._count("reasserted")
         elif (
             s is not None
             and not s.resuming
@@ -468,16 +517,62 @@ class AvoidanceModule:
         if m.kind is ManoeuvreKind.STOP or m.target_alt_rel_m is None:
             return m.requests
         target = m.target_alt_rel_m
-        if ap.lat_deg is not None and ap.lon_deg is not None and self._hovering(ap):
-            s.via_goto = True
-            return (Goto(lat_deg=ap.lat_deg, lon_deg=ap.lon_deg, alt_rel_m=target),)
-        if s.mode == "AUTO":
-            w = self._item(s.item)
-            if w is not None:
+        if not self._hovering(ap) or ap.lat_deg is None or ap.lon_deg is None:
+            w = self._item(s.item) if s.mode == "AUTO" else None
+            if w is not None and w.kind != ItemKind.LAND and self._goto_clear(ap, w):
+                # on to the item it flew to, higher (GUIDED: the mission is suspended;
+                # it circles the item if it gets there first): nothing near to cut into
                 s.via_goto = True
                 return (Goto(lat_deg=w.lat_deg, lon_deg=w.lon_deg, alt_rel_m=target),)
-        s.via_goto = False
-        return (ChangeAltitude(alt_rel_m=target),)
+            # near a zone a Goto could cut the flyable turns and circle the item into it:
+            # it keeps flying what it flies (its mission's zone-safe path in AUTO, the
+            # altitude asked again at each new item)
+            s.via_goto = False
+            s.item_seen = ap.mission_current
+            return (ChangeAltitude(alt_rel_m=target),)
+        s.via_goto = True
+        if s.mode == "AUTO":
+            w = self._item(s.item)
+            if w is not None and w.kind != ItemKind.LAND:
+                # on to the item it flew to (its zone-safe leg), higher, and it stops
+                # there: braking where it is could overshoot a lane's end towards a zone
+                return (Goto(lat_deg=w.lat_deg, lon_deg=w.lon_deg, alt_rel_m=target),)
+        return (Goto(lat_deg=ap.lat_deg, lon_deg=ap.lon_deg, alt_rel_m=target),)
+
+    def _resume_item(self, ap: AutopilotState, s: Suspension) -> int:
+        """The item to resume the mission at: the one it was flying to, or, for a
+        fixed-wing that got there and circled it (inside its turning circle it could
+        never come within the acceptance radius again), the next one."""
+        item = max(1, s.item)
+        w = self._item(item)
+        if (
+            w is None
+            or self._hovering(ap)
+            or item >= len(self.items)
+            or ap.lat_deg is None
+            or ap.lon_deg is None
+        ):
+            return item
+        r = self.profile.turn_radius_m()
+        near = max(self.profile.loiter_radius_m, r) + r
+        if distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= near:
+            return item + 1
+        return item
+
+    def _goto_clear(self, ap: AutopilotState, w: Waypoint) -> bool:
+        """Whether a fixed-wing may fly straight to mission item `w` and circle it: no
+        no-fly zone within two turn radii and its loiter radius of that leg."""
+        if not self._zones:
+            return True
+        assert ap.lat_deg is not None and ap.lon_deg is not None
+        r = self.profile.turn_radius_m()
+        clear = 2.0 * r + max(self.profile.loiter_radius_m, r) + GOTO_ZONE_MARGIN_M
+        frame = LocalFrame(ap.lat_deg, ap.lon_deg)
+        leg = LineString([(0.0, 0.0), frame.to_local(w.lat_deg, w.lon_deg)])
+        try:
+            return all(frame.shape(z.geometry).distance(leg) > clear for z in self._zones)
+        except PlanningError:
+            return False
 
     def _resume(self, m: Manoeuvre, ap: AutopilotState, now: float) -> list[ModuleOutput]:
         s = self.suspension
@@ -497,12 +592,15 @@ class AvoidanceModule:
         if self.held:
             return ()  # the mission asked for something meanwhile: that goes next
         planned = m.target_alt_rel_m
+        if not s.via_goto and self.profile.vehicle_type not in GROUND:
+            w = self._item(ap.mission_current) if ap.mode_name == "AUTO" else None
+            if w is not None and w.kind != ItemKind.LAND:
+                return (ChangeAltitude(alt_rel_m=w.alt_rel_m),)  # the item it flies to now
+            return m.requests  # ChangeAltitude(planned): it never left what it was doing
         if s.mode == "AUTO":
-            return (StartMission(first_item=max(1, s.item)),)
+            return (StartMission(first_item=self._resume_item(ap, s)),)
         if self.profile.vehicle_type in GROUND:
             return (SetMode(mode=s.mode),) if s.mode else ()
-        if not s.via_goto:
-            return m.requests  # ChangeAltitude(planned): it never left what it was doing
         if s.mode in ("RTL", "SMART_RTL"):
             return (ReturnToLaunch(),)
         if s.mode in ("LAND", "QLAND"):

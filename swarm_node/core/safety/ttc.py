@@ -11,9 +11,11 @@ heights over the ellipsoid; the geoid separation is the same to a few centimetre
 the few kilometres avoidance looks at, so the relative geometry is exact to that.
 
 Stale telemetry is never trusted as fresh: a report `age` seconds old is first
-extrapolated to `now` with its velocity, and the vehicle may have done anything since,
-so its protection volume widens by `age * max_speed` (the distance it could have moved).
-Callers compare `miss_m - margin_m` with their thresholds.
+extrapolated to `now` with its velocity, and the vehicle may have manoeuvred since, so
+its protection volume widens by how far it could be from the extrapolation: at most
+`0.5 * max_accel * age^2` (it changes velocity no faster than that) and never more than
+`age * (max_speed + speed)` (the distance it could have moved, plus where the
+extrapolation put it). Callers compare `miss_m - margin_m` with their thresholds.
 
     rel_p = p_other - p_own, rel_v = v_other - v_own
     t_cpa = clip(-(rel_p . rel_v) / |rel_v|^2, 0, horizon)     (0 when diverging)
@@ -34,6 +36,7 @@ from swarm_proto import VehicleStatus, geodesy
 FloatArray = npt.NDArray[np.float64]
 
 EPS_SPEED2 = 1e-9  # |relative velocity|^2 below this: no relative motion, CPA is now
+DEFAULT_MAX_ACCEL_M_S2 = 10.0  # a fixed-wing at 45 degrees of bank (g tan 45)
 
 
 class BadTrackError(ValueError):
@@ -56,6 +59,7 @@ class Track:
     vel_down_m_s: float = 0.0
     time_s: float = 0.0
     max_speed_m_s: float = 0.0
+    max_accel_m_s2: float = DEFAULT_MAX_ACCEL_M_S2
 
     def __post_init__(self) -> None:
         values = (
@@ -74,8 +78,8 @@ class Track:
             raise BadTrackError(
                 f"vehicle {self.vehicle_id}: position ({self.lat_deg}, {self.lon_deg}) out of range"
             )
-        if self.max_speed_m_s < 0.0:
-            raise BadTrackError(f"vehicle {self.vehicle_id}: negative max speed")
+        if self.max_speed_m_s < 0.0 or not self.max_accel_m_s2 >= 0.0:
+            raise BadTrackError(f"vehicle {self.vehicle_id}: negative max speed or acceleration")
 
     @classmethod
     def from_status(
@@ -128,7 +132,7 @@ class Kinematic:
     pos: FloatArray  # (N, 3) ENU m at `now`
     vel: FloatArray  # (N, 3) ENU m/s
     age_s: FloatArray  # (N,) how old each report is at `now` (>= 0)
-    margin_m: FloatArray  # (N,) age * max speed
+    margin_m: FloatArray  # (N,) how far from its extrapolation it could be
 
 
 def kinematic(tracks: Sequence[Track], now: float, frame: Frame | None = None) -> Kinematic:
@@ -147,7 +151,10 @@ def kinematic(tracks: Sequence[Track], now: float, frame: Frame | None = None) -
     age = np.maximum(0.0, now - np.array([t.time_s for t in tracks]))
     vel = frame.velocities(lat, lon, vn, ve, vd)
     pos = frame.positions(lat, lon, h) + vel * age[:, None]
-    margin = age * np.array([t.max_speed_m_s for t in tracks])
+    speed = np.hypot(vn, ve)
+    by_speed = age * (np.array([t.max_speed_m_s for t in tracks]) + speed)
+    by_accel = 0.5 * np.array([t.max_accel_m_s2 for t in tracks]) * age * age
+    margin = np.minimum(by_speed, by_accel)
     return Kinematic(tuple(t.vehicle_id for t in tracks), pos, vel, age, margin)
 
 

@@ -102,13 +102,12 @@ def flying_vtol() -> tuple[AvoidanceModule, AutopilotState]:
     return m, state
 
 
-def test_a_fixed_wing_in_its_mission_keeps_its_path_upwards_and_resumes_at_its_item() -> None:
+def test_a_fixed_wing_in_its_mission_flies_on_to_its_item_higher_and_resumes_there() -> None:
     m, state = flying_vtol()
     m.on_peer(head_on_peer(T), T)
     out = tick(m, state, T)
     (goto,) = requests(out)
-    # suspended: the mission's item 3 (the third waypoint) flown to, higher (GUIDED)
-    w = MISSION_ITEMS[2]
+    w = MISSION_ITEMS[2]  # the mission's item 3 (the third waypoint), higher (GUIDED)
     assert isinstance(goto, Goto) and (goto.lat_deg, goto.lon_deg) == (w.lat_deg, w.lon_deg)
     assert goto.alt_rel_m > state.alt_rel_m
     assert [o.owner for o in out if isinstance(o, Submit)] == [Owner.AVOIDANCE]
@@ -117,7 +116,6 @@ def test_a_fixed_wing_in_its_mission_keeps_its_path_upwards_and_resumes_at_its_i
     assert isinstance(alert, Alert) and alert.code == AlertCode.COLLISION_RISK
     assert m.on_result(ApResult(goto.request_id, True), T) == []
     state = msgspec.structs.replace(state, mode_name="GUIDED")
-    # the peer is gone: clear for the hold time, then back to the mission at item 3
     m.forget(1, T + 0.2)
     now, resume = T, None
     while resume is None and now < T + 10:
@@ -129,6 +127,51 @@ def test_a_fixed_wing_in_its_mission_keeps_its_path_upwards_and_resumes_at_its_i
     assert not m.release_due
     m.on_result(ApResult(resume.request_id, True), now)
     assert m.release_due and not m.active
+
+
+def test_near_a_zone_a_fixed_wing_flies_its_mission_on_at_the_new_altitude() -> None:
+    """A Goto could cut the flyable turns and circle the item into the zone: the
+    fixed-wing keeps flying its mission in AUTO at the avoidance altitude, asked again
+    at each new item (each brings its own altitude), and back to its item's when clear."""
+    from swarm_proto import Geometry
+
+    m, state = flying_vtol()
+    zone = NoFlyZone(1, Geometry.circle(*at(120.0, 450.0), 35.0))  # beside the leg to item 3
+    m.on_peer(head_on_peer(T), T)
+    out = tick(m, state, T, zones={1: zone})
+    (climb,) = requests(out)
+    assert isinstance(climb, ChangeAltitude) and climb.alt_rel_m > state.alt_rel_m
+    m.on_result(ApResult(climb.request_id, True), T)
+    state = msgspec.structs.replace(state, mission_current=4)  # the next item: asked again
+    (again,) = requests(tick(m, state, T + 0.2, zones={1: zone}))
+    assert isinstance(again, ChangeAltitude) and again.alt_rel_m == climb.alt_rel_m
+    m.on_result(ApResult(again.request_id, True), T + 0.2)
+    m.forget(1, T + 0.2)
+    now, resume = T + 0.2, None
+    while resume is None and now < T + 10:
+        now += 0.2
+        reqs = requests(tick(m, state, now, zones={1: zone}))
+        resume = reqs[0] if reqs else None
+    assert isinstance(resume, ChangeAltitude) and resume.alt_rel_m == MISSION_ITEMS[3].alt_rel_m
+
+
+def test_a_multirotor_in_its_mission_stops_at_its_item_and_resumes_there() -> None:
+    m = AvoidanceModule(COPTER)
+    state = ap(groundspeed_m_s=10.0, vel_east_m_s=10.0)
+    m.on_submit(Submit(UploadMission(items=MISSION_ITEMS), Owner.MISSION), state, T)
+    m.on_peer(head_on_peer(T, east_m=300.0, vid=7), T)
+    (goto,) = requests(m.tick(T, status(8, state, T), state))
+    w = MISSION_ITEMS[2]  # on its leg to item 3 (zone-safe), higher, stopping there
+    assert isinstance(goto, Goto) and (goto.lat_deg, goto.lon_deg) == (w.lat_deg, w.lon_deg)
+    m.on_result(ApResult(goto.request_id, True), T)
+    state = msgspec.structs.replace(state, mode_name="GUIDED")
+    m.forget(7, T)
+    now, resume = T, None
+    while resume is None and now < T + 10:
+        now += 0.2
+        reqs = requests(m.tick(now, status(8, state, now), state))
+        resume = reqs[0] if reqs else None
+    assert isinstance(resume, StartMission) and resume.first_item == 3
 
 
 def test_the_missions_requests_wait_and_go_on_after_the_manoeuvre() -> None:
@@ -317,5 +360,9 @@ def test_the_return_lands_on_the_own_pad_at_its_holding_layer() -> None:
     out = m.tick(T + 1, status(2, over, T + 1), over, peers=[(low, GeoPoint(lat, lon, HOME_MSL))])
     assert requests(out) == []
     out = m.tick(T + 2, status(2, over, T + 2), over, peers=[])
-    (go,) = requests(out)
+    (down,) = requests(out)  # a fixed-wing circles down to the lowest layer first
+    assert isinstance(down, ChangeAltitude) and down.alt_rel_m == 30.0
+    m.on_result(ApResult(down.request_id, True), T + 2)
+    low = msgspec.structs.replace(over, alt_rel_m=33.0, alt_msl_m=HOME_MSL + 33.0)
+    (go,) = requests(m.tick(T + 9, status(2, low, T + 9), low, peers=[]))
     assert isinstance(go, StartMission) and go.first_item == 3

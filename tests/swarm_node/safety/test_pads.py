@@ -56,7 +56,7 @@ def test_the_next_goes_once_the_one_before_is_high_or_gone() -> None:
     assert ids(may_move(2, mine, [(climbing, pad(0.0))], taking_off=True)) == [1]
     high = status(1, 0.0, alt_rel_m=31.0, armed=True, state=MissionState.PREMISSION)
     assert may_move(2, mine, [(high, pad(0.0))], taking_off=True) == []
-    gone = status(1, 40.0, alt_rel_m=12.0, armed=True, state=MissionState.MISSION)
+    gone = status(1, 60.0, alt_rel_m=12.0, armed=True, state=MissionState.MISSION)
     assert may_move(2, mine, [(gone, pad(0.0))], taking_off=True) == []
 
 
@@ -71,35 +71,43 @@ def test_who_does_not_block_a_take_off() -> None:
         assert may_move(2, mine, [(peer, p)], taking_off=True) == [], peer
 
 
-def test_landing_waits_for_a_low_neighbour_and_for_priority() -> None:
+def test_landing_waits_for_a_low_neighbour_and_for_the_layers_below() -> None:
     mine = pad(8.0)
+
+    def blockers(peer: VehicleStatus, at: GeoPoint, own_rel: float) -> list[int]:
+        return ids(may_move(2, mine, [(peer, at)], taking_off=False, own_alt_msl_m=10.0 + own_rel))
+
     taking_off = status(3, 16.0, alt_rel_m=5.0, armed=True)  # higher id, but low
-    assert ids(may_move(2, mine, [(taking_off, pad(16.0))], taking_off=False)) == [3]
-    holding_high = status(1, 0.0, alt_rel_m=60.0, armed=True)  # lower id over its pad
-    assert ids(may_move(2, mine, [(holding_high, pad(0.0))], taking_off=False)) == [1]
-    # the same vehicle does not hold a take-off: it is 60 m up
-    assert may_move(2, mine, [(holding_high, pad(0.0))], taking_off=True) == []
-    higher_high = status(3, 16.0, alt_rel_m=90.0, armed=True)
-    assert may_move(2, mine, [(higher_high, pad(16.0))], taking_off=False) == []
+    assert blockers(taking_off, pad(16.0), 60.0) == [3]
+    holding = status(1, 0.0, alt_rel_m=60.0, armed=True)  # a neighbour holding at 60 m
+    assert blockers(holding, pad(0.0), 90.0) == [1]  # we would descend through it
+    assert blockers(holding, pad(0.0), 30.0) == []  # it is above us
+    level_lower = status(1, 0.0, alt_rel_m=62.0, armed=True)
+    level_higher = status(3, 16.0, alt_rel_m=62.0, armed=True)
+    assert blockers(level_lower, pad(0.0), 60.0) == [1]  # level: the lower id first
+    assert blockers(level_higher, pad(16.0), 60.0) == []
+    # a take-off is not held by a neighbour 60 m up
+    assert may_move(2, mine, [(holding, pad(0.0))], taking_off=True) == []
     landed = status(1, 0.0, alt_rel_m=0.2, armed=False)
-    assert may_move(2, mine, [(landed, pad(0.0))], taking_off=False) == []
+    assert blockers(landed, pad(0.0), 60.0) == []
 
 
 @given(st.lists(st.tuples(st.floats(-60, 60), st.floats(0, 120)), min_size=2, max_size=7))
 def test_landings_never_deadlock(spots: list[tuple[float, float]]) -> None:
-    """Any number of vehicles waiting over neighbouring pads at any heights: at least
-    one of them may land (the lowest id among the high ones, or a low one)."""
+    """Any number of vehicles waiting over neighbouring pads at any heights: unless one
+    is low (taking off or landing: moving), one of them may land."""
     peers = {
         v + 1: status(v + 1, e, alt_rel_m=max(2.0, h), armed=True) for v, (e, h) in enumerate(spots)
     }
     pads = {v: pad(spots[v - 1][0]) for v in peers}
     free = [
         v
-        for v in peers
-        if not may_move(v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=False)
-    ]
-    # a low vehicle is moving (taking off or landing), not waiting: only if none is low
-    # must one of the waiting ones be free
+        for v, me in peers.items()
+        if not may_move(
+            v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=False,
+            own_alt_msl_m=me.alt_msl_m,
+        )
+    ]  # fmt: skip
     if all(s.alt_rel_m >= PadConfig().stagger_m for s in peers.values()):
         assert free
 

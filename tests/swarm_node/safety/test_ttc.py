@@ -57,12 +57,15 @@ def test_the_horizon_clips_the_look_ahead() -> None:
     assert a.miss_m[0] == pytest.approx(1400.0, abs=0.1)
 
 
-def test_stale_report_is_extrapolated_and_widened_by_age_times_max_speed() -> None:
+def test_stale_report_is_extrapolated_and_widened_by_what_it_could_have_done() -> None:
     own = at(1, 0, 0, time_s=100.0)
     other = at(2, 500, 0, vel_east_m_s=-10.0, time_s=97.0, max_speed_m_s=35.0)
     a = approaches(own, [other], now=100.0, horizon_s=10.0)
     assert a.range_m[0] == pytest.approx(470.0, abs=0.01)  # 3 s at 10 m/s since
-    assert a.margin_m[0] == pytest.approx(105.0)
+    assert a.margin_m[0] == pytest.approx(0.5 * 10.0 * 3.0**2)  # accelerating at 10 m/s^2
+    slow = at(2, 500, 0, vel_east_m_s=-10.0, time_s=97.0, max_speed_m_s=35.0, max_accel_m_s2=100.0)
+    a = approaches(own, [slow], now=100.0, horizon_s=10.0)
+    assert a.margin_m[0] == pytest.approx(3.0 * (35.0 + 10.0))  # no faster than its top speed
     fresh = approaches(
         own, [at(2, 470, 0, vel_east_m_s=-10.0, time_s=100.0, max_speed_m_s=35.0)], 100.0, 10.0
     )
