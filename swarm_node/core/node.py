@@ -13,14 +13,17 @@ with an in-memory bus and jump time from deadline to deadline.
 Routes (every input is matched; an unknown one is counted in `unhandled`, never
 dropped silently):
 
-    AutopilotUpdate        -> monitoring, mission manager, fence keeper
+    AutopilotUpdate        -> monitoring, mission manager, fence keeper (and, at the
+                              5 Hz tick, avoidance: own state, ADS-B traffic)
     AutopilotResult        -> AutopilotArbiter -> its owner: command manager (OPERATOR),
                               mission manager (MISSION), fence keeper (FENCE),
-                              emergency procedure (EMERGENCY: a refusal is alerted)
-    PeerAlive              -> membership -> roster (MemberLost)
+                              emergency procedure (EMERGENCY: a refusal is alerted),
+                              avoidance (AVOIDANCE, and its pad landing steps)
+    PeerAlive              -> membership -> roster (MemberLost), avoidance (forget)
     BadInput               -> counted, logged
-    Received(VehicleStatus)-> membership
-    Received(VehicleInfo)  -> membership, roster (answers, MemberLost, hash mismatch)
+    Received(VehicleStatus)-> membership, avoidance (a contact)
+    Received(VehicleInfo)  -> membership, roster (answers, MemberLost, hash mismatch),
+                              avoidance (the contact's type)
     Received(Ack)          -> roster (the peers' answers to missions)
     Received(Command)      -> command manager -> effects, autopilot requests (OPERATOR)
     Received(Mission)      -> acceptance checks -> state machine (NewMission)
@@ -32,7 +35,10 @@ dropped silently):
 Modules answer in one vocabulary (outputs.py): Publish, Submit(owner, request),
 Post(fsm event), Note; the router posts events to the state machine, passes requests
 through the arbiter (precedence EMERGENCY > AVOIDANCE > OPERATOR > MISSION > FENCE) and
-hands the rest to the shell.
+hands the rest to the shell. Every Submit is shown to the avoidance module first
+(safety/module.py): it holds the mission's requests while it flies a manoeuvre, holds
+the mission's launch until the pad is clear, and turns its return into a landing on
+the vehicle's own pad.
 """
 
 from __future__ import annotations

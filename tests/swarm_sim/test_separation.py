@@ -121,11 +121,13 @@ def analyze_min(rows: list) -> float:
         return analyze(read_trajectory(Path(tmp) / "w.csv")).min_sep_m
 
 
-def test_six_vtols_on_30_m_pads_take_off_together_and_keep_clear(fleet_profiles: dict) -> None:
-    """Experiment 1's start, short: six VTOLs on the paper's pads 30 m apart take off
-    at once for one route (no pad is a neighbour: nobody waits) and fly off with no two
-    airborne within 10 m (the whole experiment, area and re-tasking: the soak test)."""
-    fleet = FastFleet.build([1, 2, 3, 4, 5, 6], fleet_profiles, spacing_m=30.0)
+def test_six_vtols_on_30_m_pads_take_off_in_turn_and_keep_clear(fleet_profiles: dict) -> None:
+    """Experiment 1's start, short: six VTOLs on the paper's pads 30 m apart (inside the
+    40 m risk band: neighbours) released for one route at once take off in id order,
+    and no two airborne come within 10 m until all fly it (the whole experiment, area
+    and re-tasking: the soak test)."""
+    fleet = FastFleet.build([1, 2, 3, 4, 5, 6], fleet_profiles, spacing_m=30.0,
+                            settings=NodeSettings(plan_timeout_s=180.0))  # fmt: skip
     fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
@@ -136,11 +138,20 @@ def test_six_vtols_on_30_m_pads_take_off_together_and_keep_clear(fleet_profiles:
     route = Mission(101, GCS, MissionType.ROUTE, _polyline(_at(500, -200), _at(1000, 400)),
                     MissionParams(altitude_rel_m=60.0))  # fmt: skip
     fleet.broadcast(route)
-    assert fleet.run_until(
-        lambda: all(v.node.manager.phase.value == "flying" for v in fleet.vehicles.values()), 120
-    )
-    fleet.run_for(30.0)
-    assert not [n for _t, _v, n in fleet.notes if n.startswith("take-off: waiting")]
+    flown: set[int] = set()
+
+    def all_have_flown() -> bool:
+        flown.update(i for i, v in fleet.vehicles.items() if v.node.manager.phase.value == "flying")
+        return len(flown) == 6
+
+    assert fleet.run_until(all_have_flown, 240), fleet.notes[-10:]
+    fleet.run_for(20.0)
+    armed_at: dict[int, float] = {}
+    for t, vid, msg in fleet.published:
+        if isinstance(msg, VehicleStatus) and msg.armed and vid not in armed_at and t >= t0:
+            armed_at[vid] = t
+    assert sorted(armed_at, key=armed_at.__getitem__) == [1, 2, 3, 4, 5, 6]
+    assert len([n for _t, _v, n in fleet.notes if n.startswith("take-off: waiting")]) == 5
     rows = status_rows([p for p in fleet.published if p[0] >= t0], t0=t0, airborne_only=True)
     assert analyze_min(rows) >= 10.0
 
@@ -187,15 +198,19 @@ def test_an_adsb_intruder_heard_by_the_autopilot_is_climbed_over(fleet_profiles:
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
     fleet.run_until(lambda: v.node.fsm.state == FsmState.GO_MISSION, 30)
-    fleet.broadcast(Mission(7, GCS, MissionType.ROUTE, _polyline(_at(300, 0), _at(2300, 0)),
+    fleet.broadcast(Mission(7, GCS, MissionType.ROUTE, _polyline(_at(300, 0), _at(3300, 0)),
                             MissionParams(altitude_rel_m=60.0)))  # fmt: skip
     assert fleet.run_until(lambda: v.node.manager.phase.value == "flying", 120)
-    lat0, lon0 = v.link.state.lat_deg, v.link.state.lon_deg
-    assert lat0 is not None and lon0 is not None
+    assert fleet.run_until(lambda: (v.link.state.alt_rel_m or 0.0) > 59.0, 60)
+    s0 = v.link.state
+    assert s0.lat_deg is not None and s0.lon_deg is not None and s0.alt_msl_m is not None
     start = fleet.now
-    # the intruder: from 1.5 km ahead (north), flying south at 30 m/s at our altitude
-    la, lo = geodesy.offset(lat0, lon0, 1500.0, 0.0)
-    alt = SITL_HOME.alt_m + 60.0
+    # the intruder: 1.5 km ahead on the VTOL's track, flying at it at 30 m/s, same level
+    course = math.atan2(s0.vel_east_m_s, s0.vel_north_m_s)
+    un, ue = math.cos(course), math.sin(course)
+    la, lo = geodesy.offset(s0.lat_deg, s0.lon_deg, 1500.0 * un, 1500.0 * ue)
+    alt = s0.alt_msl_m
+    heading = (math.degrees(course) + 180.0) % 360.0
     holders, flags, nearest = set(), AlertFlag.NONE, math.inf
     next_report = [fleet.now]
 
@@ -203,8 +218,8 @@ def test_an_adsb_intruder_heard_by_the_autopilot_is_climbed_over(fleet_profiles:
         nonlocal flags, nearest
         if fleet.now >= next_report[0]:
             dt = fleet.now - start
-            lat, lon = geodesy.offset(la, lo, -30.0 * dt, 0.0)
-            data = adsb_bytes(1, 0x4B1D5E, lat, lon, alt, 180.0, 30.0)
+            lat, lon = geodesy.offset(la, lo, -30.0 * dt * un, -30.0 * dt * ue)
+            data = adsb_bytes(1, 0x4B1D5E, lat, lon, alt, heading, 30.0)
             fleet._link_out(1, v.link.receive(data, fleet.now))
             next_report[0] += 1.0  # ADS-B at 1 Hz
             s = v.link.state

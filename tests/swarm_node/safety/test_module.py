@@ -129,14 +129,15 @@ def test_a_fixed_wing_in_its_mission_flies_on_to_its_item_higher_and_resumes_the
     assert m.release_due and not m.active
 
 
-def test_near_a_zone_a_fixed_wing_flies_its_mission_on_at_the_new_altitude() -> None:
-    """A Goto could cut the flyable turns and circle the item into the zone: the
-    fixed-wing keeps flying its mission in AUTO at the avoidance altitude, asked again
-    at each new item (each brings its own altitude), and back to its item's when clear."""
+def test_with_a_zone_a_fixed_wing_flies_its_mission_on_at_the_new_altitude() -> None:
+    """With a zone in force a Goto could cut the flyable turns and circle the item into
+    it: the fixed-wing keeps flying its mission in AUTO at the avoidance altitude, asked
+    again at each new item (each brings its own altitude), and back to its item's when
+    clear."""
     from swarm_proto import Geometry
 
     m, state = flying_vtol()
-    zone = NoFlyZone(1, Geometry.circle(*at(120.0, 450.0), 35.0))  # beside the leg to item 3
+    zone = NoFlyZone(1, Geometry.circle(*at(2000.0, 2000.0), 35.0))  # any zone in force
     m.on_peer(head_on_peer(T), T)
     out = tick(m, state, T, zones={1: zone})
     (climb,) = requests(out)
