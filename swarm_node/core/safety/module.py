@@ -681,6 +681,12 @@ class AvoidanceModule:
 
     def _end(self, why: str) -> list[ModuleOutput]:
         s = self.suspension
+        ld = self.landing
+        if s is not None and ld is not None:
+            # a manoeuvre during the landing took it off its way down: the pad's gate
+            # starts the descent again (a fixed-wing would circle its hold layer for good)
+            ld.descending = ld.lowering = False
+            ld.waited_since = None
         self.release_due = s is not None
         self.restore = s.holder if s is not None else None
         self.suspension = None

@@ -367,3 +367,30 @@ def test_the_return_lands_on_the_own_pad_at_its_holding_layer() -> None:
     low = msgspec.structs.replace(over, alt_rel_m=33.0, alt_msl_m=HOME_MSL + 33.0)
     (go,) = requests(m.tick(T + 9, status(2, low, T + 9), low, peers=[]))
     assert isinstance(go, StartMission) and go.first_item == 3
+
+
+def test_a_manoeuvre_during_the_landing_starts_the_descent_again() -> None:
+    """A fixed-wing circling down to its pad's lowest layer climbs for a conflict; once
+    clear the pad's gate starts the descent again (it circled its layer for good)."""
+    m = AvoidanceModule(VTOL)
+    state = ap(mode_name="AUTO", north=800.0)
+    m.tick(T, status(2, state, T), state)
+    m.on_submit(Submit(ReturnToLaunch(request_id=9), Owner.MISSION), state, T)
+    over = ap(mode_name="AUTO", mission_current=2, alt_rel_m=30.0 + 30.0)
+    (down,) = requests(m.tick(T + 1, status(2, over, T + 1), over))
+    assert isinstance(down, ChangeAltitude) and down.alt_rel_m == 30.0
+    m.on_result(ApResult(down.request_id, True), T + 1)
+    m.on_peer(head_on_peer(T + 1.2, vid=1), T + 1.2)
+    (climb,) = requests(m.tick(T + 1.2, status(2, over, T + 1.2), over))
+    assert isinstance(climb, Goto | ChangeAltitude) and climb.alt_rel_m > 60.0
+    m.on_result(ApResult(climb.request_id, True), T + 1.2)
+    m.forget(1, T + 1.4)
+    now, again = T + 1.2, []
+    while not again and now < T + 12:
+        now += 0.2
+        out = requests(m.tick(now, status(2, over, now), over))
+        if any(isinstance(r, ChangeAltitude) and r.alt_rel_m == 30.0 for r in out):
+            again = out
+        for r in out:
+            m.on_result(ApResult(r.request_id, True), now)
+    assert again, "the descent was never asked again"
