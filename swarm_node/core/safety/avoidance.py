@@ -556,7 +556,11 @@ class CollisionAvoider:
         if capped:
             severity, why = Severity.CRITICAL, " (ceiling)"
         elif d.kind is ManoeuvreKind.CLIMB and climb_s > d.soonest_s:
-            severity, why = Severity.CRITICAL, f" (too slow: {climb_s:.0f} s to climb)"
+            # CRITICAL only when the miss it cannot climb out of in time is a danger
+            # (under half the protection distance: the paper's 10 m)
+            danger = d.closest_m < 0.5 * self.config.protect_m
+            severity = Severity.CRITICAL if danger else Severity.WARNING
+            why = f" (too slow: {climb_s:.0f} s to climb)"
         text = f"avoid: {verb} {target_rel:.0f} m{why} for {who} {when}"
         out.append(Manoeuvre(d.kind, reqs, target_rel, d.against, text))
         out.append(self._alert(own, now, severity, text))
