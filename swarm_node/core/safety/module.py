@@ -481,10 +481,16 @@ class AvoidanceModule:
 
     # ------------------------------------------------------------------ manoeuvres
     def _hovering(self, ap: AutopilotState) -> bool:
+        """A multirotor, or a VTOL hovering outside its mission (a take-off climb, QLOITER):
+        in AUTO a VTOL counts as the fixed-wing it flies as (slow only in a transition)."""
         vt = self.profile.vehicle_type
         if vt == VehicleType.COPTER:
             return True
-        return vt == VehicleType.VTOL and ap.groundspeed_m_s < HOVER_SPEED_M_S
+        return (
+            vt == VehicleType.VTOL
+            and ap.mode_name != "AUTO"
+            and ap.groundspeed_m_s < HOVER_SPEED_M_S
+        )
 
     def _manoeuvre(
         self, m: Manoeuvre, ap: AutopilotState, now: float, holder: Owner | None
@@ -542,7 +548,7 @@ class AvoidanceModule:
         w = self._item(item)
         if (
             w is None
-            or self._hovering(ap)
+            or self.profile.vehicle_type not in (VehicleType.PLANE, VehicleType.VTOL)
             or item >= len(self.items)
             or ap.lat_deg is None
             or ap.lon_deg is None
