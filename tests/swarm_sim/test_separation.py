@@ -264,3 +264,21 @@ def test_the_papers_experiments_and_the_stress_case(fleet_profiles: dict, run) -
     else:
         off = run(fleet_profiles, avoid=False)
         assert off.airborne.totals()["near"] > 0, off.figures()
+
+
+def test_the_demo_takes_avoidance_as_an_option() -> None:
+    """`swarm-sim demo --avoidance/--no-avoidance` parses (a bad --vehicles stops it
+    before anything starts) and reaches the nodes' command line."""
+    import inspect
+
+    from typer.testing import CliRunner
+
+    from swarm_sim import demo
+    from swarm_sim.cli import app
+
+    runner = CliRunner()
+    for flag in ("--avoidance", "--no-avoidance"):
+        result = runner.invoke(app, ["demo", flag, "--vehicles", "one,two"])
+        assert result.exit_code == 2 and "vehicles" in result.output, result.output
+    assert runner.invoke(app, ["demo", "--avoidance=maybe"]).exit_code == 2
+    assert '"--avoidance" if avoidance else "--no-avoidance"' in inspect.getsource(demo.start)
