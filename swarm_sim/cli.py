@@ -27,6 +27,12 @@ def demo(
     radio: bool = typer.Option(
         False, "--radio", help="vehicles and ground station talk only over the emulated radio"
     ),
+    avoidance: bool = typer.Option(
+        False,
+        "--avoidance/--no-avoidance",
+        help="the nodes' collision avoidance (off: the default fleet's 3.3 Ah quadcopters "
+        "have no reserve for its climbs and landing holds, docs/avoidance.md)",
+    ),
 ) -> None:
     """A simulated swarm flies an area-coverage mission around a no-fly zone, through
     the real stack (simulated MAVLink vehicles, one swarm-node process each, Zenoh on
@@ -47,7 +53,14 @@ def demo(
         # laptop cannot write the serial ports that precisely
         typer.echo(f"warning: --radio at {speedup:g}x leaves the slots little margin", err=True)
     raise typer.Exit(
-        run_demo(members, speedup=speedup, timeout_s=timeout, keep=keep, radio=radio)
+        run_demo(
+            members,
+            speedup=speedup,
+            timeout_s=timeout,
+            keep=keep,
+            radio=radio,
+            avoidance=avoidance,
+        )
     )
 
 

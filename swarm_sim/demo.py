@@ -19,7 +19,6 @@ zone, sends the mission, and watches the fleet plan, fly, return and land.
 
 from __future__ import annotations
 
-import math
 import multiprocessing
 import multiprocessing.process
 import os
@@ -53,6 +52,7 @@ from swarm_proto import (
     NoFlyZone,
     ScaledClock,
     Selector,
+    geodesy,
 )
 from swarm_proto.clock import ENV_VAR as CLOCK_ENV
 from swarm_proto.clock import clock_from_spec
@@ -95,7 +95,7 @@ def free_tcp_port() -> int:
 
 
 def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float, float]:
-    return lat + north_m / 111_320.0, lon + east_m / (111_320.0 * math.cos(math.radians(lat)))
+    return geodesy.offset(lat, lon, north_m, east_m)  # the one geodesy (swarm_proto.geodesy)
 
 
 def demo_area() -> tuple[Geometry, NoFlyZone]:
@@ -181,7 +181,13 @@ def serve_vehicles(
 
 
 def start(
-    members: tuple[int, ...], speedup: float, tmp: Path, console: Console, *, radio: bool = False
+    members: tuple[int, ...],
+    speedup: float,
+    tmp: Path,
+    console: Console,
+    *,
+    radio: bool = False,
+    avoidance: bool = False,
 ) -> Fleet:
     db_path = tmp / "swarm.db"
     with SwarmDatabase.open(db_path) as db:
@@ -232,7 +238,8 @@ def start(
             [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid),
              "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}", "--connect", lans[vid],
              "--listen", "tcp/127.0.0.1:0", "--link-timeout", str(link_timeout_s(speedup)),
-             "--plan-timeout", str(plan_timeout_s(speedup))],
+             "--plan-timeout", str(plan_timeout_s(speedup)),
+             "--avoidance" if avoidance else "--no-avoidance"],
             tmp / f"node-{vid}.log",
             env,
             nice=YIELD_TO_RADIO if radio else 0,
@@ -285,6 +292,7 @@ def run_demo(
     timeout_s: float = 600.0,
     keep: bool = False,
     radio: bool = False,
+    avoidance: bool = False,
 ) -> int:
     console = Console() if sys.stdout.isatty() else Console(width=160)
     tmp = Path(tempfile.mkdtemp(prefix="bandada-demo-"))
@@ -293,7 +301,7 @@ def run_demo(
     console.print(
         f"{len(members)} simulated vehicles, {speedup:g}x real time, {link}, logs in {tmp}"
     )
-    fleet = start(members, speedup, tmp, console, radio=radio)
+    fleet = start(members, speedup, tmp, console, radio=radio, avoidance=avoidance)
     gs = GroundStation(ZenohSettings(connect=(fleet.endpoint,)), gcs_id=GCS_ID)
     radio_stats: dict[int, RadioStats] = {}
     stats_bus = None
