@@ -27,7 +27,9 @@ def test_a_predicted_status_widens_the_margin_by_its_error_bound() -> None:
     track = Track.from_status(predicted, max_speed_m_s=35.0)
     assert track.error_m == 12.5
     k = kinematic([track], now=T + 0.2)
-    assert k.margin_m[0] == pytest.approx(12.5 + 0.2 * 35.0)  # the bound, then staleness
+    stale = kinematic([Track.from_status(measured, max_speed_m_s=35.0)], now=T + 0.2)
+    assert stale.margin_m[0] > 0.0  # 0.2 s old: widened by what it could have manoeuvred
+    assert k.margin_m[0] == pytest.approx(12.5 + stale.margin_m[0])  # and by the bound
     own = Track.from_status(_status(1, 37.4095, -5.98))
     a = approaches(own, [track], now=T, horizon_s=30.0)
     b = approaches(own, [Track.from_status(measured)], now=T, horizon_s=30.0)
