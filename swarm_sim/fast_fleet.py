@@ -61,6 +61,8 @@ class SimVehicle:
     endpoint: VehicleEndpoint
     next_poll: float = 0.0
     tokens: dict[int, int] = field(default_factory=dict)  # link token -> request id
+    stalled_until: float = float("-inf")  # the node's process is stopped until then
+    backlog: bytearray = field(default_factory=bytearray)  # MAVLink waiting in its socket
 
 
 @dataclass
@@ -155,20 +157,34 @@ class FastFleet:
     def _deadline(self) -> float:
         t = self._bus[0][0] if self._bus else float("inf")
         for v in self.vehicles.values():
-            t = min(t, v.link.next_deadline(), v.node.next_deadline(), v.next_poll)
             ep = v.endpoint.next_deadline()
             if ep is not None:
                 t = min(t, ep)
+            if v.stalled_until > self.now:
+                t = min(t, v.stalled_until)
+                continue
+            t = min(t, v.link.next_deadline(), v.node.next_deadline(), v.next_poll)
         return t
 
     def step(self) -> None:
         self.now = max(self.now, self._deadline())
         while self._bus and self._bus[0][0] <= self.now:
-            _, _, vid, event = heapq.heappop(self._bus)
-            if vid in self.vehicles:  # a killed vehicle hears nothing
-                self._node_out(vid, self.vehicles[vid].node.handle(event, self.now))
+            _, seq, vid, event = heapq.heappop(self._bus)
+            v = self.vehicles.get(vid)
+            if v is None:  # a killed vehicle hears nothing
+                continue
+            if v.stalled_until > self.now:  # a stopped process reads it when it resumes
+                heapq.heappush(self._bus, (v.stalled_until, seq, vid, event))
+                continue
+            self._node_out(vid, v.node.handle(event, self.now))
         for vid, v in self.vehicles.items():
             ep = v.endpoint.next_deadline()
+            if v.stalled_until > self.now:  # the autopilot flies on; its bytes wait
+                if ep is not None and ep <= self.now:
+                    v.backlog += v.endpoint.on_timer(self.now)
+                continue
+            if v.backlog:
+                self._resume(vid, v)
             if ep is not None and ep <= self.now:
                 back = v.endpoint.on_timer(self.now)
                 if back:
@@ -180,6 +196,21 @@ class FastFleet:
                 self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
             if v.node.next_deadline() <= self.now:
                 self._node_out(vid, v.node.on_timer(self.now))
+
+    def _resume(self, vid: int, v: SimVehicle) -> None:
+        """A stopped node process runs again, in the worst order for it: its timers
+        first (the link's silence timer and the node's tick run late), then what waited
+        in its socket meanwhile (issue 16)."""
+        self._link_out(vid, v.link.on_timer(self.now))
+        self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
+        self._node_out(vid, v.node.on_timer(self.now))
+        data, v.backlog = bytes(v.backlog), bytearray()
+        self._link_out(vid, v.link.receive(data, self.now))
+
+    def stall(self, vid: int, seconds: float) -> None:
+        """Stop vehicle `vid`'s node process (SIGSTOP) for `seconds`: its autopilot flies
+        on and what it sends waits in the socket; nothing of the node runs meanwhile."""
+        self.vehicles[vid].stalled_until = self.now + seconds
 
     def kill(self, vid: int) -> SimVehicle:
         """The vehicle and its node vanish at once (a crash, a dead companion computer):

@@ -104,6 +104,7 @@ from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
+from .stalls import StallMeter
 from .swarm.roster import MemberLost, Roster, RosterEvent, RosterMismatch
 
 log = logging.getLogger(__name__)
@@ -211,6 +212,8 @@ class NodeCore:
         self._next_info = self.now
         self.lost_members: list[MemberLost] = []  # roster events (replanning picks them up)
         self._replanning = False  # in PLAN for a replan of the current mission
+        self.stalls = StallMeter()  # the node's own stalls, apart from link loss (stalls.py)
+        self._due: float | None = None  # the deadline this core last declared
 
     # ------------------------------------------------------------------ views
     @property
@@ -275,28 +278,49 @@ class NodeCore:
     # ------------------------------------------------------------------ inputs
     def handle(self, event: Input, now: float) -> list[Output]:
         self.now = now
-        out: list[ModuleOutput]
+        out: list[ModuleOutput] = self._stalled(now)
         match event:
             case AutopilotUpdate(state):
-                out = self._on_autopilot(state, now)
+                out += self._on_autopilot(state, now)
             case AutopilotResult(result):
                 routed = self.arbiter.on_result(result)
                 if routed is None:
-                    out = self._unhandled("result", f"autopilot result {result.request_id}")
+                    out += self._unhandled("result", f"autopilot result {result.request_id}")
                 else:
-                    out = self._on_result(routed, now)
+                    out += self._on_result(routed, now)
             case PeerAlive(node_id, alive):
-                out = self._peer_events(self.members.on_alive(node_id, alive, now))
+                out += self._peer_events(self.members.on_alive(node_id, alive, now))
             case BadInput(key, error):
                 self.bad_input[key] += 1
-                out = [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
+                out += [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
             case Received(msg):
-                out = self._on_message(msg, now)
+                out += self._on_message(msg, now)
             case PlanDone(outcome):
-                out = self.manager.on_plan(outcome, self.autopilot, now)
+                out += self.manager.on_plan(outcome, self.autopilot, now)
             case _:
                 assert_never(event)
-        return self._route(out, now)
+        return self._routed(out, now)
+
+    def _routed(self, out: list[ModuleOutput], now: float) -> list[Output]:
+        done = self._route(out, now)
+        self._due = self.next_deadline()
+        return done
+
+    def _stalled(self, now: float) -> list[ModuleOutput]:
+        """The node's own stall (served later than its declared deadline): not counted
+        as autopilot link loss, reported apart (stalls.py)."""
+        stall = self.stalls.observe(now, self._due)
+        if not stall:
+            return []
+        self.monitor.note_stall(stall)
+        if not self.stalls.should_report(now, stall):
+            return []
+        text = f"node stalled {stall:.1f} s (host busy), not a link loss"
+        return [
+            Note(logging.WARNING, text),
+            Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC,
+                          text[:64])),
+        ]  # fmt: skip
 
     def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
         """Posts to the state machine, requests through the arbiter (a refusal goes
@@ -578,7 +602,7 @@ class NodeCore:
 
     def on_timer(self, now: float) -> list[Output]:
         self.now = now
-        out: list[ModuleOutput] = []
+        out: list[ModuleOutput] = self._stalled(now)
         out += self._peer_events(self.members.on_timer(now))
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
@@ -595,7 +619,7 @@ class NodeCore:
         if now >= self._next_info:
             self._next_info = max(self._next_info + self.settings.info_period_s, now)
             out.append(Publish(self.info()))
-        return self._route(out, now)
+        return self._routed(out, now)
 
     def facts(self) -> fsm.Facts:
         return fsm.Facts(

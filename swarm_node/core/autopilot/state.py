@@ -61,6 +61,11 @@ class AutopilotState(msgspec.Struct, frozen=True):
     sensors_health: int = 0  # SYS_STATUS onboard_control_sensors_health
     autopilot_ready: bool = False  # booted: "ArduPilot Ready" or a HEARTBEAT in STANDBY or later
     position_trusted: bool = False  # a GPS fix (2-D or better) or an EKF absolute position was seen
+    # appended for issue 16 (link loss judged from the autopilot's own data)
+    reboots: int = 0  # autopilot reboots seen (its time since boot went back)
+    link_gap_s: float = 0.0  # the last link loss as the autopilot's own clock shows it
+    host_stalls: int = 0  # times the node read the link late (its own stall, not the link's)
+    host_stall_s: float = 0.0  # the last such stall, seconds
 
     @property
     def has_position(self) -> bool:
