@@ -38,6 +38,7 @@ from swarm_proto.session import zenoh_config as zenoh_config_of
 from .analyze import app as analyze_app
 from .db import DbOption
 from .db import app as db_app
+from .declared import declared as declared_command
 from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
 from .render import ack_table, fleet_rows, fleet_table
 
@@ -46,6 +47,7 @@ app.add_typer(db_app, name="db")
 zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
 app.add_typer(zone_app, name="zone")
 app.add_typer(analyze_app, name="analyze")
+app.command(name="declared")(declared_command)  # declared.py (issue 16)
 console = Console()
 
 

@@ -23,6 +23,7 @@ from swarm_proto import (
     Command,
     CommandArgs,
     CommandKind,
+    DeclaredState,
     FsmState,
     Mission,
     NoFlyZone,
@@ -37,13 +38,20 @@ from swarm_proto import (
 )
 from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus, ZenohSettings
-from swarm_proto.topics import ACK, ALERT, ALIVE, INFO, PEERS, STATUS, ZONES
+from swarm_proto.topics import ACK, ALERT, ALIVE, DECLARED, INFO, PEERS, STATUS, ZONES
 
 DEFAULT_GCS_ID = 900
 
 
 REPEAT_S = 1.0  # commands and missions are sent again this often until answered
 DISCOVER_S = 2.0  # a fresh ground station's window to hear the vehicles that are alive
+
+
+def stamp_zone(zone: NoFlyZone) -> NoFlyZone:
+    """The zone with its declaration time (the ground station's clock) if it has none."""
+    if zone.time_unix_s > 0.0:
+        return zone
+    return msgspec.structs.replace(zone, time_unix_s=max(0.0, time.time()))
 
 
 def new_seq() -> int:
@@ -271,10 +279,14 @@ class GroundStation:
         with self._lock:
             return {i for i in found if self.view.type_of(i) != VehicleType.GCS}
 
-    def zone(self, zone: NoFlyZone) -> None:
-        """Publish a zone once (see `declare_zone` to know who holds it)."""
+    def zone(self, zone: NoFlyZone) -> NoFlyZone:
+        """Publish a zone once, stamped with the declaration time if it has none (the
+        newest declaration of a zone id wins on every node); returns it as published
+        (see `declare_zone` to know who holds it)."""
+        zone = stamp_zone(zone)
         validate(zone)
         self.bus.publish(zone)
+        return zone
 
     def declare_zone(
         self, zone: NoFlyZone, *, expect: Iterable[int] | None = None, timeout_s: float = 10.0
@@ -283,6 +295,7 @@ class GroundStation:
         the vehicles discovered alive) holds it, as each one's zones queryable shows;
         returns the ids of the vehicles that confirmed holding it (this very zone, or
         its withdrawal)."""
+        zone = stamp_zone(zone)  # repeats carry the same stamp: one declaration
         validate(zone)
         given = expect is not None
         expected = set(expect) if expect is not None else self.discover()
@@ -336,6 +349,19 @@ class GroundStation:
             fleets = {v: self.view.status[v].fleet_id for v in self.view.status}
         found = {v for v in ids if target.addresses(v, fleets.get(v, 0))}
         return found or None
+
+    def declared_state(self, node_id: int, timeout_s: float = 3.0) -> DeclaredState | None:
+        """What the operator declared, as node `node_id` holds it (its DECLARED
+        queryable; issue 16). None: it did not answer."""
+        for reply in self.bus.session.get(
+            DECLARED.key(self.swarm, vehicle_id=node_id), timeout=timeout_s
+        ):
+            if reply.ok is not None:
+                try:
+                    return lan.decode(reply.ok.payload.to_bytes(), DeclaredState)
+                except Exception:
+                    return None
+        return None
 
     def peers_of(self, node_id: int, timeout_s: float = 2.0) -> SwarmView | None:
         for reply in self.bus.session.get(

@@ -21,6 +21,7 @@ from .messages import (
     Ack,
     Alert,
     Command,
+    DeclaredState,
     FleetAssignment,
     Mission,
     NoFlyZone,
@@ -229,6 +230,14 @@ ZONES = Topic(
     "too), one NoFlyZone reply per zone on its own key; a (re)started node and the "
     "ground station ask it (`vehicle/*/zones/*`). LAN only.",
 )
+DECLARED = Topic(
+    "declared",
+    "vehicle/{vehicle_id}/declared",
+    DeclaredState,
+    "Queryable: what the operator declared, as the node holds it (zones, bases, fleets, "
+    "missions, each with its stamp; the newest wins). A (re)started node asks each peer "
+    "that comes alive and merges; `gcs declared` asks any node. LAN only (issue 16).",
+)
 DATABASE = Topic(
     "database",
     "db/{node_id}",
@@ -258,6 +267,7 @@ TOPICS: tuple[Topic, ...] = (
     ALIVE,
     PEERS,
     ZONES,
+    DECLARED,
     DATABASE,
     RADIO_STATS,
 )

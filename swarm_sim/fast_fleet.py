@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -23,22 +24,27 @@ import msgspec
 
 from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
+from swarm_node.core.declared import SortieRecord
 from swarm_node.core.mission.share import run_plan
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
     Input,
+    Learned,
     NodeCore,
     NodeSettings,
     Note,
+    PeerAlive,
+    Persist,
     PlanDone,
     PlanJob,
     Publish,
     Received,
+    StoreResult,
     Submit,
 )
 from swarm_node.core.profile import VehicleProfile
-from swarm_proto import VehicleType, lan
+from swarm_proto import DeclaredState, VehicleType, lan
 
 from .core import SITL_HOME, Home, VehicleEndpoint
 from .runtime.server import spread_homes
@@ -55,6 +61,26 @@ MODEL_OF_TYPE = {
 
 
 @dataclass
+class MemoryStore:
+    """A node's database as FastFleet keeps it: the last state it stored (`full`: the
+    disk is full, every store fails)."""
+
+    state: DeclaredState | None = None
+    sortie: SortieRecord | None = None
+    full: bool = False
+    writes: int = 0
+    failures: int = 0
+
+    def save(self, p: Persist) -> StoreResult:
+        if self.full:
+            self.failures += 1
+            return StoreResult(False, "disk is full")
+        self.state, self.sortie = p.state, p.sortie
+        self.writes += 1
+        return StoreResult(True)
+
+
+@dataclass
 class SimVehicle:
     node: NodeCore
     link: LinkCore
@@ -63,6 +89,8 @@ class SimVehicle:
     tokens: dict[int, int] = field(default_factory=dict)  # link token -> request id
     stalled_until: float = float("-inf")  # the node's process is stopped until then
     backlog: bytearray = field(default_factory=bytearray)  # MAVLink waiting in its socket
+    down: bool = False  # the node's process is dead (kill -9); the vehicle flies on
+    store: MemoryStore = field(default_factory=MemoryStore)  # its database (issue 16)
 
 
 @dataclass
@@ -72,11 +100,18 @@ class FastFleet:
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
     plan_delay_s: float = 0.0  # simulated time a plan job takes
+    loss: float = 0.0  # fraction of swarm messages lost between nodes (seeded)
+    groups: dict[int, int] | None = None  # a partition: nodes hear only their own group
+    seed: int = 1
+    profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)
+    settings: NodeSettings | None = None
 
     def __post_init__(self) -> None:
         self._bus: list[tuple[float, int, int, Input]] = []
         self._seq = itertools.count()
         self._tokens = itertools.count(1)
+        self._rng = random.Random(self.seed)
+        self.lost_messages = 0
 
     @classmethod
     def build(
@@ -105,7 +140,7 @@ class FastFleet:
                 profile, settings or NodeSettings(), now=start_unix_s, fleet_profiles=profiles
             )
             vehicles[vid] = SimVehicle(node, link, endpoint, next_poll=start_unix_s)
-        return cls(vehicles, start_unix_s)
+        return cls(vehicles, start_unix_s, profiles=profiles, settings=settings)
 
     # ------------------------------------------------------------------ inputs
     def broadcast(self, msg: msgspec.Struct, to: Sequence[int] | None = None) -> None:
@@ -125,8 +160,10 @@ class FastFleet:
                 self.published.append((self.now, vid, o.msg))
                 wire = lan.decode(lan.encode(o.msg), type(o.msg))
                 for other in self.vehicles:
-                    if other != vid:
+                    if other != vid and self._carried(vid, other):
                         self._deliver(other, Received(wire), self.now)
+            elif isinstance(o, Persist):
+                self._deliver(vid, v.store.save(o), self.now)
             elif isinstance(o, Submit):
                 token = next(self._tokens)
                 v.tokens[token] = o.request.request_id
@@ -136,6 +173,15 @@ class FastFleet:
             elif isinstance(o, PlanJob):  # inline, after the simulated planning time
                 done = PlanDone(run_plan(o.request))
                 self._deliver(vid, done, self.now + self.plan_delay_s)
+
+    def _carried(self, src: int, dst: int) -> bool:
+        """Whether a message from `src` reaches `dst` (a partition, seeded loss)."""
+        if self.groups is not None and self.groups.get(src) != self.groups.get(dst):
+            return False
+        if self.loss > 0.0 and self._rng.random() < self.loss:
+            self.lost_messages += 1
+            return False
+        return True
 
     def _link_out(self, vid: int, outputs: list[LinkOutput]) -> None:
         """Carry out the link's outputs: results to the node, bytes to the vehicle, and
@@ -160,6 +206,8 @@ class FastFleet:
             ep = v.endpoint.next_deadline()
             if ep is not None:
                 t = min(t, ep)
+            if v.down:
+                continue
             if v.stalled_until > self.now:
                 t = min(t, v.stalled_until)
                 continue
@@ -171,7 +219,7 @@ class FastFleet:
         while self._bus and self._bus[0][0] <= self.now:
             _, seq, vid, event = heapq.heappop(self._bus)
             v = self.vehicles.get(vid)
-            if v is None:  # a killed vehicle hears nothing
+            if v is None or v.down:  # a killed vehicle or node hears nothing
                 continue
             if v.stalled_until > self.now:  # a stopped process reads it when it resumes
                 heapq.heappush(self._bus, (v.stalled_until, seq, vid, event))
@@ -179,6 +227,10 @@ class FastFleet:
             self._node_out(vid, v.node.handle(event, self.now))
         for vid, v in self.vehicles.items():
             ep = v.endpoint.next_deadline()
+            if v.down:  # the autopilot flies on; nobody reads it
+                if ep is not None and ep <= self.now:
+                    v.endpoint.on_timer(self.now)
+                continue
             if v.stalled_until > self.now:  # the autopilot flies on; its bytes wait
                 if ep is not None and ep <= self.now:
                     v.backlog += v.endpoint.on_timer(self.now)
@@ -211,6 +263,56 @@ class FastFleet:
         """Stop vehicle `vid`'s node process (SIGSTOP) for `seconds`: its autopilot flies
         on and what it sends waits in the socket; nothing of the node runs meanwhile."""
         self.vehicles[vid].stalled_until = self.now + seconds
+
+    def kill_node(self, vid: int) -> None:
+        """The node's process dies (kill -9) while its vehicle flies on: the others lose
+        its liveliness token at once (Zenoh notices a dead process in milliseconds)."""
+        v = self.vehicles[vid]
+        v.down = True
+        for other in self.vehicles:
+            if other != vid:
+                self._deliver(other, PeerAlive(vid, False), self.now)
+
+    def restart_node(self, vid: int, *, keep_database: bool = True) -> NodeCore:
+        """Start node `vid` again (a new process: new node core, new autopilot link) on
+        its database (`keep_database=False`: a new, empty one); it reattaches to its
+        vehicle as it is. It and its peers exchange their declared state as they meet
+        (each asks the other's DECLARED queryable)."""
+        v = self.vehicles[vid]
+        profile = v.node.profile
+        if not keep_database:
+            v.store = MemoryStore(full=v.store.full)
+        v.node = NodeCore(
+            profile, self.settings or NodeSettings(), now=self.now,
+            fleet_profiles=self.profiles or {profile.vehicle_id: profile},
+        )  # fmt: skip
+        v.link = LinkCore(
+            LinkSettings(vehicle_type=profile.vehicle_type, link_timeout_s=0.6), self.now
+        )
+        v.tokens, v.down, v.backlog = {}, False, bytearray()
+        v.stalled_until, v.next_poll = float("-inf"), self.now
+        if v.store.state is not None:
+            self._deliver(vid, Learned(v.store.state, v.store.sortie, "database"), self.now)
+        for other, o in self.vehicles.items():
+            if other == vid or o.down:
+                continue
+            self._deliver(other, PeerAlive(vid, True), self.now)
+            self._deliver(vid, PeerAlive(other, True), self.now)
+        self.exchange_declared(vid)
+        return v.node
+
+    def exchange_declared(self, vid: int, delay_s: float = 0.1) -> None:
+        """Node `vid` and every peer it reaches ask each other's DECLARED queryable."""
+        v = self.vehicles[vid]
+        for other, o in self.vehicles.items():
+            if other == vid or o.down or not self._reachable(vid, other):
+                continue
+            at = self.now + delay_s
+            self._deliver(vid, Learned(o.node.declared_state(self.now), None, f"peer {other}"), at)
+            self._deliver(other, Learned(v.node.declared_state(self.now), None, f"peer {vid}"), at)
+
+    def _reachable(self, a: int, b: int) -> bool:
+        return self.groups is None or self.groups.get(a) == self.groups.get(b)
 
     def kill(self, vid: int) -> SimVehicle:
         """The vehicle and its node vanish at once (a crash, a dead companion computer):

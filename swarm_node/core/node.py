@@ -27,6 +27,9 @@ dropped silently):
     Received(NoFlyZone)    -> monitoring's zones, fence keeper
     Received(FleetAssignment) -> fleet id
     PlanDone               -> mission manager (the plan job's outcome: fly the share)
+    Learned(DeclaredState) -> the declared book (declared.py): newer zones, base, fleet
+                              applied (from the node's database at start, or a peer)
+    StoreResult            -> a failed store of the declared state is alerted once
     Received(Alert | Vote | TargetReport | SwarmView) -> declared, not used yet (counted)
 
 Modules answer in one vocabulary (outputs.py): Publish, Submit(owner, request),
@@ -52,6 +55,8 @@ from swarm_proto import (
     Alert,
     AlertCode,
     Command,
+    CommandKind,
+    DeclaredState,
     FleetAssignment,
     FsmState,
     GeoPoint,
@@ -89,6 +94,7 @@ from .commands import (
     emergency_requests,
     plan_command,
 )
+from .declared import DeclaredBook, SortieRecord
 from .emergency_route import zone_safe_emergency
 from .fences import (
     FENCE_FULL_HEIGHT_REL_M,
@@ -101,7 +107,7 @@ from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission.share import PlanOutcome
 from .mission_manager import Member, MissionManager, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
-from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
+from .outputs import ModuleOutput, Note, Owner, Persist, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
 from .stalls import StallMeter
@@ -146,14 +152,36 @@ class PlanDone:
     outcome: PlanOutcome
 
 
-Input = AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput | PlanDone
+@dataclass(frozen=True)
+class Learned:
+    """Declared state from the node's own database at start (`sortie`: the share it
+    was flying) or from a peer (issue 16): merged, the newest stamp wins."""
+
+    state: DeclaredState
+    sortie: SortieRecord | None = None
+    source: str = "peer"
 
 
-Output = Publish | Submit | Note | PlanJob  # what the shell carries out (Post stays inside)
+@dataclass(frozen=True)
+class StoreResult:
+    """The shell stored (or failed to store) the last `Persist`."""
+
+    ok: bool
+    error: str = ""
+
+
+Input = (
+    AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput | PlanDone | Learned
+    | StoreResult
+)  # fmt: skip
+
+
+# what the shell carries out (Post stays inside)
+Output = Publish | Submit | Note | PlanJob | Persist
 __all__ = [  # noqa: RUF022 (inputs, outputs, the core)
-    "AutopilotResult", "AutopilotUpdate", "BadInput", "Input", "PeerAlive", "PlanDone",
-    "Received", "Note", "Output", "PlanJob", "Post", "Publish", "Submit",
-    "NodeCore", "NodeSettings",
+    "AutopilotResult", "AutopilotUpdate", "BadInput", "Input", "Learned", "PeerAlive",
+    "PlanDone", "Received", "StoreResult", "Note", "Output", "Persist", "PlanJob", "Post",
+    "Publish", "Submit", "NodeCore", "NodeSettings",
 ]  # fmt: skip
 
 
@@ -214,6 +242,12 @@ class NodeCore:
         self._replanning = False  # in PLAN for a replan of the current mission
         self.stalls = StallMeter()  # the node's own stalls, apart from link loss (stalls.py)
         self._due: float | None = None  # the deadline this core last declared
+        self.declared = DeclaredBook()  # what the operator declared (declared.py)
+        self._base_stamp = 0.0  # the stamp of the declaration our base came from
+        self._fleet_stamp = 0.0
+        self._dirty = False  # the declared state changed: store it
+        self._store_failing = False
+        self.sortie_record: SortieRecord | None = None  # restored or kept (reattach)
 
     # ------------------------------------------------------------------ views
     @property
@@ -297,14 +331,80 @@ class NodeCore:
                 out += self._on_message(msg, now)
             case PlanDone(outcome):
                 out += self.manager.on_plan(outcome, self.autopilot, now)
+            case Learned(state, sortie, source):
+                out += self._learn(state, sortie, source, now)
+            case StoreResult(ok, error):
+                out += self._stored(ok, error, now)
             case _:
                 assert_never(event)
         return self._routed(out, now)
 
     def _routed(self, out: list[ModuleOutput], now: float) -> list[Output]:
+        if self._dirty:
+            self._dirty = False
+            out.append(Persist(self.declared_state(now), self.sortie_record))
         done = self._route(out, now)
         self._due = self.next_deadline()
         return done
+
+    # ------------------------------------------------------------------ declared state
+    def declared_state(self, now: float) -> DeclaredState:
+        """What the operator declared, as this node holds it (the DECLARED queryable)."""
+        mid = self.fsm.mission_id
+        return self.declared.snapshot(
+            self.self_id, now, base=self.base, fleet_id=self.fleet_id,
+            mission_id=mid if mid is not None and mid > 0 else 0,
+        )  # fmt: skip
+
+    def _learn(
+        self, state: DeclaredState, sortie: SortieRecord | None, source: str, now: float
+    ) -> list[ModuleOutput]:
+        """Merge another book (ours from the database, a peer's): newer zones go to
+        monitoring and the fence, a newer base or fleet for this vehicle is taken."""
+        changed = self.declared.merge(state, now)
+        out: list[ModuleOutput] = []
+        for z in changed.zones:
+            self.monitor.zones[z.zone_id] = z
+            self._zones_version += 1
+        if changed.zones:
+            ids = ",".join(str(z.zone_id) for z in changed.zones)
+            out.append(Note(logging.INFO, f"zones {ids} learned from {source}"))
+            out += self._keep_fence(now)
+        out += self._take_declared(source)
+        if source == "database" and sortie is not None:
+            self.sortie_record = sortie
+        if changed:
+            self._dirty = True
+        return out
+
+    def _take_declared(self, source: str) -> list[ModuleOutput]:
+        """This vehicle's base and fleet as the book resolves them, when newer than what
+        set ours."""
+        base, base_at, fleet, fleet_at = self.declared.resolve(self.self_id)
+        out: list[ModuleOutput] = []
+        if base is not None and base_at > self._base_stamp:
+            self.base, self._base_stamp = base, base_at
+            out.append(Note(logging.INFO, f"base {base.lat_deg:.6f},{base.lon_deg:.6f} "
+                                          f"learned from {source}"))  # fmt: skip
+        if fleet_at > self._fleet_stamp:
+            if fleet != self.fleet_id:
+                out.append(Note(logging.INFO, f"fleet {fleet} learned from {source}"))
+            self.fleet_id, self._fleet_stamp = fleet, fleet_at
+        return out
+
+    def _stored(self, ok: bool, error: str, now: float) -> list[ModuleOutput]:
+        if ok:
+            was, self._store_failing = self._store_failing, False
+            return [Note(logging.INFO, "declared state stored again")] if was else []
+        if self._store_failing:
+            return []
+        self._store_failing = True
+        text = f"declared state not stored: {error}"
+        return [
+            Note(logging.WARNING, f"{text} (held in memory and by the peers; retried)"),
+            Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC,
+                          text[:64])),
+        ]  # fmt: skip
 
     def _stalled(self, now: float) -> list[ModuleOutput]:
         """The node's own stall (served later than its declared deadline): not counted
@@ -340,7 +440,7 @@ class NodeCore:
                         out.append(Submit(sent, owner, route))
                 case Publish():
                     out.append(o)
-                case Note() | PlanJob():
+                case Note() | PlanJob() | Persist():
                     out.append(o)
                 case _:
                     assert_never(o)
@@ -397,8 +497,12 @@ class NodeCore:
             case Mission():
                 return self._on_mission(msg)
             case NoFlyZone():
-                self.monitor.zones[msg.zone_id] = msg
+                zone = self.declared.offer_zone(msg, now)
+                if zone is None:  # older than the declaration held: a withdrawal stays
+                    return []
+                self.monitor.zones[zone.zone_id] = zone
                 self._zones_version += 1
+                self._dirty = True
                 return self._keep_fence(now)
             case FleetAssignment():
                 return self._on_fleet(msg)
@@ -426,6 +530,14 @@ class NodeCore:
         repeat = self._repeat(cmd)
         if repeat is not None:
             return repeat
+        declared = self.declared.offer_command(cmd, now)  # every node keeps every one
+        if declared is not None:
+            self._dirty = True
+            if cmd.target.addresses(self.self_id, self.fleet_id):
+                if cmd.kind == CommandKind.SET_BASE:
+                    self._base_stamp = declared.time_unix_s
+                elif cmd.kind == CommandKind.SET_FLEET:
+                    self._fleet_stamp = declared.time_unix_s
         plan = plan_command(cmd, self.view())
         if plan is None:
             return []
@@ -486,10 +598,17 @@ class NodeCore:
         if ok:
             mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
             self.missions[mission.mission_id] = mission
+            self._dirty |= self.declared.accept_mission(mission, self.now) is not None
             self.fsm.post(fsm.NewMission(mission.mission_id))
         return out
 
     def _on_fleet(self, msg: FleetAssignment) -> list[ModuleOutput]:
+        held = self.declared.offer_assignment(msg, self.now)
+        if held is None:
+            return []  # a repeat, or older than the assignment held
+        self._dirty = True
+        if self.self_id in msg.vehicle_ids or self.fleet_id == msg.fleet_id:
+            self._fleet_stamp = max(self._fleet_stamp, held.time_unix_s)
         if self.self_id in msg.vehicle_ids:
             self.fleet_id = msg.fleet_id
         elif self.fleet_id == msg.fleet_id:
@@ -686,6 +805,7 @@ class NodeCore:
         if isinstance(o, fsm.FollowOperator):
             if o.mission_id is not None:
                 self.missions.pop(o.mission_id, None)  # left, not completed
+                self._dirty |= self.declared.end_mission(o.mission_id, now) is not None
             return [Note(logging.WARNING, f"left mission {o.mission_id}: {o.reason}")]
         if isinstance(o, fsm.BeginPlan):
             mission = self.missions.get(o.mission_id)
@@ -706,6 +826,7 @@ class NodeCore:
             return []
         if isinstance(o, fsm.MissionFinished):
             mission = self.missions.pop(o.mission_id, None)
+            self._dirty |= self.declared.end_mission(o.mission_id, now) is not None
             if mission is not None:
                 return [
                     Publish(
