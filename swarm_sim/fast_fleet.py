@@ -314,6 +314,12 @@ class FastFleet:
     def _reachable(self, a: int, b: int) -> bool:
         return self.groups is None or self.groups.get(a) == self.groups.get(b)
 
+    def reboot_autopilot(self, vid: int, *, keep_stores: bool = False) -> None:
+        """Power-cycle vehicle `vid`'s autopilot where it stands: it boots again, by
+        default with empty mission, fence and rally stores (issue 16); the node's link
+        sees its time since boot go back."""
+        self.vehicles[vid].endpoint.reboot(self.now, keep_stores=keep_stores)
+
     def kill(self, vid: int) -> SimVehicle:
         """The vehicle and its node vanish at once (a crash, a dead companion computer):
         nothing more is heard from it; the others notice by its silence."""

@@ -74,9 +74,10 @@ from swarm_proto import (
 
 from . import state_machine as fsm
 from .arbiter import AutopilotArbiter, Routed
-from .autopilot.requests import ApResult
+from .autopilot.requests import ApResult, UploadRally
 from .autopilot.state import AutopilotState
 from .autopilot.status import to_vehicle_status
+from .backstop import BackstopKeeper
 from .commands import (
     AnswerCache,
     CancelMission,
@@ -93,6 +94,7 @@ from .commands import (
     check_mission,
     emergency_requests,
     plan_command,
+    rally_alt_rel_m,
 )
 from .declared import DeclaredBook, SortieRecord
 from .emergency_route import zone_safe_emergency
@@ -233,6 +235,8 @@ class NodeCore:
         self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
         self.arbiter = AutopilotArbiter()
         self.fence = FenceKeeper()  # zones -> the autopilot's fence (fences.py)
+        # the fence and rally point checked on the autopilot (backstop.py, issue 16)
+        self.backstop = BackstopKeeper(vid, self.fence)
         self.fence_plan: FencePlan | None = None
         self._zones_version = 0  # 0: no zone heard yet, the autopilot's fence is left alone
         self._fence_key: object = None
@@ -480,7 +484,16 @@ class NodeCore:
         self.autopilot = state
         out: list[ModuleOutput] = [Publish(a) for a in self.monitor.update(state, now)]
         out += self.manager.on_autopilot(state, now)
-        return out + self._keep_fence(now)
+        out += self._keep_fence(now)
+        return out + self.backstop.on_autopilot(state, self.rally_want(), now)
+
+    def rally_want(self) -> UploadRally | None:
+        """The rally point the autopilot should hold: the base (commands.rally_alt_rel_m)."""
+        base, home = self.base, self.autopilot.home
+        if base is None or home is None:
+            return None
+        alt = rally_alt_rel_m(self.profile.vehicle_type, base.alt_msl_m - home.alt_msl_m)
+        return UploadRally(points=((base.lat_deg, base.lon_deg, alt),))
 
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
         match msg:
@@ -658,6 +671,8 @@ class NodeCore:
         return out + [Submit(r, Owner.FENCE) for r in self.fence.update(plan.request, now)]
 
     def _fence_result(self, result: ApResult, now: float) -> list[ModuleOutput]:
+        if self.backstop.owns(result.request_id):
+            return self.backstop.on_result(result, self.autopilot, now)
         reqs, problem = self.fence.on_result(result, now)
         out: list[ModuleOutput] = [Submit(r, Owner.FENCE) for r in reqs]
         if problem is not None and self.fence.failures == 1:  # once per run of failures
@@ -714,6 +729,7 @@ class NodeCore:
             self.members.next_deadline(),
             self.commands.next_deadline(),
             self.fence.next_deadline(),
+            self.backstop.next_deadline(),
         ):
             if d is not None:
                 candidates.append(d)
@@ -725,6 +741,7 @@ class NodeCore:
         out += self._peer_events(self.members.on_timer(now))
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
+        out += self.backstop.on_timer(self.autopilot, now)
         if now >= self.fsm.next_deadline():
             # issue 11: alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state

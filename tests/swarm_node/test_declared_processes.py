@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 from gcs_cli.cli import app
 from gcs_cli.ground import GroundStation
-from swarm_proto import CommandKind, CommandArgs, Geometry, GeoPoint, NoFlyZone
+from swarm_proto import CommandArgs, CommandKind, Geometry, GeoPoint, NoFlyZone
 from swarm_proto.session import ZenohSettings
 from tests.swarm_node.processes import peers_of, plain_session, start_node, stop, wait_until
 

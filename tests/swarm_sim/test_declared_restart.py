@@ -105,7 +105,7 @@ def test_a_node_on_a_new_database_learns_it_all_from_its_peers(fleet_profiles: d
 
 
 def test_a_zone_withdrawn_while_a_node_was_down_stays_withdrawn(fleet_profiles: dict) -> None:
-    fleet, gs, zone, area = declared_fleet(fleet_profiles)
+    fleet, gs, zone, _area = declared_fleet(fleet_profiles)
     fleet.kill_node(7)
     fleet.run_for(2.0)
     withdrawn = gs(msgspec.structs.replace(zone, active=False))  # 7 does not hear it
@@ -120,7 +120,7 @@ def test_a_zone_withdrawn_while_a_node_was_down_stays_withdrawn(fleet_profiles: 
 
 
 def test_a_full_disk_is_alerted_once_and_loses_nothing(fleet_profiles: dict) -> None:
-    fleet, gs, zone, area = declared_fleet(fleet_profiles)
+    fleet, gs, _zone, _area = declared_fleet(fleet_profiles)
     v = fleet.vehicles[7]
     v.store.full = True
     zlat, zlon = north(-300.0)
