@@ -24,6 +24,7 @@ import msgspec
 
 from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
+from swarm_node.core.autopilot.requests import ApRequest
 from swarm_node.core.declared import SortieRecord
 from swarm_node.core.mission.share import run_plan
 from swarm_node.core.node import (
@@ -99,6 +100,7 @@ class FastFleet:
     now: float
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
+    submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     plan_delay_s: float = 0.0  # simulated time a plan job takes
     loss: float = 0.0  # fraction of swarm messages lost between nodes (seeded)
     groups: dict[int, int] | None = None  # a partition: nodes hear only their own group
@@ -165,6 +167,7 @@ class FastFleet:
             elif isinstance(o, Persist):
                 self._deliver(vid, v.store.save(o), self.now)
             elif isinstance(o, Submit):
+                self.submitted.append((self.now, vid, o.request))
                 token = next(self._tokens)
                 v.tokens[token] = o.request.request_id
                 self._link_out(vid, v.link.submit(token, o.request, self.now))
@@ -291,8 +294,8 @@ class FastFleet:
         )
         v.tokens, v.down, v.backlog = {}, False, bytearray()
         v.stalled_until, v.next_poll = float("-inf"), self.now
-        if v.store.state is not None:
-            self._deliver(vid, Learned(v.store.state, v.store.sortie, "database"), self.now)
+        stored = v.store.state or DeclaredState(vehicle_id=vid, time_unix_s=self.now)
+        self._deliver(vid, Learned(stored, v.store.sortie, "database"), self.now)
         for other, o in self.vehicles.items():
             if other == vid or o.down:
                 continue

@@ -112,10 +112,15 @@ from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, Persist, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
+from .reattach import Decision, Reattacher, dropped, same_share, sortie_record
 from .stalls import StallMeter
 from .swarm.roster import MemberLost, Roster, RosterEvent, RosterMismatch
 
 log = logging.getLogger(__name__)
+
+#: A stall of this node this long may have let its Zenoh session lapse (the 2 s lease)
+#: and its peers' news go stale: peers leaving right after it are suspects first.
+OWN_STALL_SUSPECT_S = 1.0
 
 # ----------------------------------------------------------------------------- I/O
 
@@ -252,6 +257,9 @@ class NodeCore:
         self._dirty = False  # the declared state changed: store it
         self._store_failing = False
         self.sortie_record: SortieRecord | None = None  # restored or kept (reattach)
+        self._own_stall_until = float("-inf")  # peers leaving before then are suspects
+        self._suspects: dict[int, str] = {}
+        self.reattach = Reattacher(vid)  # a start with the vehicle flying (reattach.py)
 
     # ------------------------------------------------------------------ views
     @property
@@ -344,6 +352,7 @@ class NodeCore:
         return self._routed(out, now)
 
     def _routed(self, out: list[ModuleOutput], now: float) -> list[Output]:
+        self._keep_sortie_record(now)
         if self._dirty:
             self._dirty = False
             out.append(Persist(self.declared_state(now), self.sortie_record))
@@ -375,11 +384,48 @@ class NodeCore:
             out.append(Note(logging.INFO, f"zones {ids} learned from {source}"))
             out += self._keep_fence(now)
         out += self._take_declared(source)
-        if source == "database" and sortie is not None:
+        if source == "database":  # the node starts: its vehicle may be flying
             self.sortie_record = sortie
+            self.reattach.start(sortie, now)
         if changed:
             self._dirty = True
         return out
+
+    def _keep_sortie_record(self, now: float) -> None:
+        """The share flown now, stored when it changes (not its progress): a node that
+        restarts in flight reattaches with it (reattach.py)."""
+        if self.reattach.active:
+            return  # the record restored at start is the one to decide with
+        m, r = self.manager, self.roster
+        rec = sortie_record(
+            mission_id=m.mission_id, flying=m.phase.value == "flying", members=r.members,
+            planned=r.planned, generation=r.generation, members_hash_=r.members_hash,
+            items=m.items, last_item=m.last_item, path_m=m.sortie.path_m,
+            progress_m=m.sortie.progress_m, now=now,
+        )  # fmt: skip
+        if not same_share(rec, self.sortie_record):
+            self.sortie_record = rec
+            self._dirty = True
+
+    def _reattached(self, decision: Decision, now: float) -> list[ModuleOutput]:
+        """Carry out the reattach decision (reattach.py)."""
+        rec = self.sortie_record
+        if decision == Decision.HAND_ON:
+            self.sortie_record = None
+            self._dirty = True
+            return [Post(fsm.LeftFleet("share handed on after a restart"))]
+        if decision != Decision.CONTINUE or rec is None:
+            return []
+        held = self.declared.missions.get(rec.mission_id)
+        if held is None:  # the mission itself was not stored: the vehicle goes home
+            return [Post(fsm.LeftFleet("restarted without the mission on record"))]
+        mission = held.mission
+        self.missions[mission.mission_id] = mission
+        r = self.roster
+        r.open(mission.mission_id, mission.selection)
+        r.members, r.planned, r.generation = rec.members, rec.planned, rec.generation
+        self.manager.reattach(rec.mission_id, rec.items, rec.last_item, rec.path_m, rec.progress_m)
+        return [Post(fsm.Reattached(rec.mission_id))]
 
     def _take_declared(self, source: str) -> list[ModuleOutput]:
         """This vehicle's base and fleet as the book resolves them, when newer than what
@@ -414,10 +460,13 @@ class NodeCore:
         """The node's own stall (served later than its declared deadline): not counted
         as autopilot link loss, reported apart (stalls.py)."""
         stall = self.stalls.observe(now, self._due)
+        if stall:
+            self.monitor.note_stall(stall)
+            self.stalls.note(now, stall)
+            if stall >= OWN_STALL_SUSPECT_S:  # our session and our news of the peers lapsed
+                self._own_stall_until = now + self.settings.stale_after_s
+        stall = self.stalls.due_report(now)
         if not stall:
-            return []
-        self.monitor.note_stall(stall)
-        if not self.stalls.should_report(now, stall):
             return []
         text = f"node stalled {stall:.1f} s (host busy), not a link loss"
         return [
@@ -485,6 +534,7 @@ class NodeCore:
         out: list[ModuleOutput] = [Publish(a) for a in self.monitor.update(state, now)]
         out += self.manager.on_autopilot(state, now)
         out += self._keep_fence(now)
+        out += self.reattach.on_autopilot(state, now)
         return out + self.backstop.on_autopilot(state, self.rally_want(), now)
 
     def rally_want(self) -> UploadRally | None:
@@ -671,6 +721,8 @@ class NodeCore:
         return out + [Submit(r, Owner.FENCE) for r in self.fence.update(plan.request, now)]
 
     def _fence_result(self, result: ApResult, now: float) -> list[ModuleOutput]:
+        if self.reattach.owns(result.request_id):
+            return self.reattach.on_result(result, now)
         if self.backstop.owns(result.request_id):
             return self.backstop.on_result(result, self.autopilot, now)
         reqs, problem = self.fence.on_result(result, now)
@@ -689,13 +741,33 @@ class NodeCore:
         return [z for z in self.monitor.zones.values() if z.in_force(now) and not z.operating_area]
 
     def _peer_events(self, events: list[PeerEvent]) -> list[ModuleOutput]:
+        """Peers joined and left. A peer that leaves just after this node's own long
+        stall (its Zenoh session dropped by the lease, its peers' news late) is only a
+        suspect until `own_stall_grace_s` has passed: it is lost then if it did not come
+        back (issue 16: a node stopped 3 s otherwise took every member for lost and
+        replanned their shares alone)."""
         out: list[ModuleOutput] = []
         for ev in events:
             if isinstance(ev, PeerJoined):
-                out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
+                if self._suspects.pop(ev.node_id, None) is None:
+                    out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
             elif isinstance(ev, PeerLeft):
+                if self.now < self._own_stall_until:
+                    self._suspects[ev.node_id] = ev.why
+                    continue
                 out.append(Note(logging.WARNING, f"peer {ev.node_id} lost ({ev.why})"))
                 out += self._roster_events(self.roster.on_peer_left(ev.node_id, ev.why))
+        return out
+
+    def _suspects_left(self, now: float) -> list[ModuleOutput]:
+        """Suspects that did not come back within the grace after our own stall."""
+        if not self._suspects or now < self._own_stall_until:
+            return []
+        gone, self._suspects = self._suspects, {}
+        out: list[ModuleOutput] = []
+        for vid, why in gone.items():
+            out.append(Note(logging.WARNING, f"peer {vid} lost ({why})"))
+            out += self._roster_events(self.roster.on_peer_left(vid, why))
         return out
 
     def _roster_events(self, events: list[RosterEvent]) -> list[ModuleOutput]:
@@ -716,6 +788,16 @@ class NodeCore:
                 ):
                     out.append(Post(fsm.Replan(ev.mission_id)))  # inherit its share
             elif isinstance(ev, RosterMismatch):
+                r = self.roster
+                if (
+                    dropped(self.self_id, ev.mission_id, r.planned, r.generation, ev.theirs)
+                    and self.fsm.state == FsmState.GO_MISSION
+                    and self.fsm.mission_id == ev.mission_id
+                ):  # the fleet replanned our share away while we were stopped
+                    out.append(Post(fsm.LeftFleet("the fleet replanned without this vehicle")))
+                    out.append(Note(logging.WARNING, f"mission {ev.mission_id}: the fleet "
+                                    "replanned without us; handing the share on"))  # fmt: skip
+                    continue
                 out.append(
                     Note(logging.ERROR, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} planned "
                          f"with roster {ev.theirs:#06x}, ours is {ev.ours:#06x}")
@@ -730,6 +812,9 @@ class NodeCore:
             self.commands.next_deadline(),
             self.fence.next_deadline(),
             self.backstop.next_deadline(),
+            self.stalls.next_deadline(),
+            self._own_stall_until if self._suspects else None,
+            self.reattach.next_deadline(),
         ):
             if d is not None:
                 candidates.append(d)
@@ -739,9 +824,16 @@ class NodeCore:
         self.now = now
         out: list[ModuleOutput] = self._stalled(now)
         out += self._peer_events(self.members.on_timer(now))
+        out += self._suspects_left(now)
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
         out += self.backstop.on_timer(self.autopilot, now)
+        if self.reattach.active:
+            infos = [p.info for p in self.members.live() if p.info is not None]
+            decision, said = self.reattach.on_timer(self.autopilot, infos, self.fsm.state, now)
+            out += said
+            if decision is not None:
+                out += self._reattached(decision, now)
         if now >= self.fsm.next_deadline():
             # issue 11: alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state
@@ -764,6 +856,7 @@ class NodeCore:
             vehicle_ready=self.monitor.ready,
             emergency=self.monitor.emergency,
             fleet_ready=self._fleet_ready(),
+            armed=self.autopilot.armed,
         )
 
     def _fleet_ready(self) -> bool:

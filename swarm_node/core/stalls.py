@@ -5,8 +5,8 @@ A core declares when it next needs to run (`next_deadline`); a shell that serves
 the core is called at `now` past the deadline it declared. That time was the node's,
 not the autopilot's: vehicle monitoring does not count it toward a link loss's
 escalation (`VehicleMonitor.note_stall`), and a stall long enough for an operator to
-care (`report_s`) is reported as what it is (a WARNING "node stalled", at most one per
-`every_s`), never as a link loss.
+care (`report_s`) is reported as what it is (a WARNING "node stalled", `delay_s` after
+it, the worst since the last report, at most one per `every_s`), never as a link loss.
 
 Pure: `observe(now, due)` with both times passed in.
 """
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 STALL_TOLERANCE_S = 0.25  # lateness below this is scheduling jitter
 STALL_REPORT_S = 1.0  # a stall this long is reported to the operator
 STALL_REPORT_EVERY_S = 10.0
+STALL_REPORT_DELAY_S = 1.0
 
 
 @dataclass
@@ -25,11 +26,14 @@ class StallMeter:
     tolerance_s: float = STALL_TOLERANCE_S
     report_s: float = STALL_REPORT_S
     every_s: float = STALL_REPORT_EVERY_S
+    delay_s: float = STALL_REPORT_DELAY_S
     count: int = 0  # stalls longer than the tolerance
     total_s: float = 0.0
     max_s: float = 0.0
     last_s: float = 0.0
     _reported_at: float | None = None
+    _report_at: float | None = None
+    _pending_s: float = 0.0
 
     def observe(self, now: float, due: float | None) -> float:
         """The stall (seconds) if the core is served at `now` later than `due` by more
@@ -45,11 +49,25 @@ class StallMeter:
         self.last_s = late
         return late
 
-    def should_report(self, now: float, stall_s: float) -> bool:
-        """Whether this stall is worth an alert now (long enough, not too often)."""
+    def note(self, now: float, stall_s: float) -> None:
+        """A stall to report, `delay_s` from now: a node stopped longer than the Zenoh
+        lease has lost its session, and what it publishes the moment it resumes is lost
+        while the session comes back (measured: reconnected within milliseconds)."""
         if stall_s < self.report_s:
-            return False
-        if self._reported_at is not None and now - self._reported_at < self.every_s:
-            return False
+            return
+        self._pending_s = max(self._pending_s, stall_s)
+        if self._report_at is None:
+            self._report_at = now + self.delay_s
+        if self._reported_at is not None:
+            self._report_at = max(self._report_at, self._reported_at + self.every_s)
+
+    def due_report(self, now: float) -> float:
+        """The worst stall not reported yet, if its report is due now (else 0.0)."""
+        if self._report_at is None or now < self._report_at:
+            return 0.0
+        stall, self._pending_s, self._report_at = self._pending_s, 0.0, None
         self._reported_at = now
-        return True
+        return stall
+
+    def next_deadline(self) -> float | None:
+        return self._report_at

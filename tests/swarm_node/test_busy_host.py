@@ -61,3 +61,21 @@ def test_three_seconds_of_autopilot_silence_is_a_warning_not_an_emergency(
     ]
     # the autopilot's own clock measured the gap the link saw (not our scheduling)
     assert v.link.state.link_gap_s == pytest.approx(3.0, abs=0.3)
+
+
+def test_a_link_loss_emergency_ends_when_the_link_is_back(fleet_profiles: dict) -> None:
+    """Issue 16 (the README's "not there yet"): a loss longer than the escalation put the
+    vehicle in STATE_EMERGENCY for good, though ArduPilot flew on and the link came
+    back. Now the emergency ends with the link: the vehicle leaves its fleet (the
+    others took its share) and flies home by itself."""
+    fleet = flying_fleet(fleet_profiles, 7)
+    v = fleet.vehicles[7]
+    alive = v.endpoint
+    v.endpoint = DeadAutopilot()  # type: ignore[assignment]
+    assert fleet.run_until(lambda: v.node.fsm.state == FsmState.EMERGENCY, 10)
+    fleet.run_for(2.0)
+    v.endpoint = alive
+    assert fleet.run_until(lambda: v.node.fsm.state != FsmState.EMERGENCY, 10)
+    assert fleet.run_until(lambda: not v.endpoint.autopilot.armed, 300)  # home and down
+    texts = [a.text for a in fleet.messages(Alert, sender=7)]
+    assert "autopilot link back: returning to base" in texts
