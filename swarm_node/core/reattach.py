@@ -16,8 +16,12 @@ without arming anything:
    - HAND_ON: a peer flies the mission with a newer roster without this vehicle (they
      noticed its loss and inherited its share, issue 12), or the vehicle left AUTO:
      it leaves the fleet and flies the zone-safe way home (`LeftFleet`);
-   - LEAVE: the vehicle is flying something that is not a share of ours (no record, a
-     different mission on the autopilot): nothing is commanded, the operator is told.
+   - with no share on record (a new database, a disk that was full), a share of ours
+     on the autopilot (it ends on the unlimited loiter every share ends on) in AUTO
+     while peers fly a mission: they took it over since the node vanished, HAND_ON;
+   - LEAVE: the vehicle is flying something that is not a share of ours (a different
+     mission on the autopilot, no peer on a mission): nothing is commanded, the
+     operator is told.
 
 The same hand-on applies to a node that was stopped (SIGSTOP, a frozen host) long
 enough for its fleet to replan without it: `dropped` tells it from a peer's members
@@ -39,7 +43,7 @@ import msgspec
 
 from swarm_proto import Alert, AlertCode, FsmState, Severity, VehicleInfo
 
-from .autopilot.mission_item import MissionItem
+from .autopilot.mission_item import MavCmd, MissionItem
 from .autopilot.requests import ApResult, DownloadMission, MissionKind
 from .autopilot.state import AutopilotState
 from .declared import SortieRecord
@@ -68,14 +72,32 @@ def dropped(
     return bool(rest) and theirs == members_hash(mission_id, rest, generation + 1)
 
 
+def ends_on_a_loiter(held: tuple[MissionItem, ...]) -> bool:
+    """The signature of a share a bandada node uploaded: it ends on an unlimited loiter
+    over its last waypoint (mission_manager.py)."""
+    return len(held) > 2 and held[-1].command == MavCmd.NAV_LOITER_UNLIM
+
+
 def decide(
     self_id: int,
-    record: SortieRecord,
+    record: SortieRecord | None,
     held: tuple[MissionItem, ...],
     ap: AutopilotState,
     peers: Iterable[VehicleInfo],
 ) -> tuple[Decision, str]:
     """What to do with a vehicle found flying, and why (pure)."""
+    peers = list(peers)
+    if record is None:
+        # no share on record (a new database, a full disk): a share of ours in AUTO
+        # while peers fly a mission means they have taken it over since we vanished
+        flying = [i.vehicle_id for i in peers if i.vehicle_id != self_id and i.mission_id
+                  and i.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)]  # fmt: skip
+        if ap.mode_name in AUTO_MODES and ends_on_a_loiter(held) and flying:
+            return Decision.HAND_ON, (
+                f"no share on record; its share's signature on the autopilot while "
+                f"{flying[0]} flies a mission"
+            )
+        return Decision.LEAVE, "flying, with no share of ours on record"
     if len(held) != record.items:
         return Decision.LEAVE, (
             f"the autopilot holds {len(held)} mission items, not the share of mission "
@@ -133,8 +155,6 @@ class Reattacher:
         if not ap.armed:  # on the ground: a normal start
             self.stage = Stage.DONE
             return []
-        if self.record is None:
-            return self._finish(Decision.LEAVE, "flying, with no share of ours on record", now)
         self.stage = Stage.READING
         return self._read(now)
 
@@ -171,7 +191,6 @@ class Reattacher:
                 why = f"not ready to fly ({fsm_state.name})"
                 return Decision.LEAVE, self._finish(Decision.LEAVE, why, now)
             return None, []
-        assert self.record is not None
         decision, why = decide(self.vehicle_id, self.record, self.held, ap, peers)
         return decision, self._finish(decision, why, now)
 
