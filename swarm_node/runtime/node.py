@@ -38,16 +38,19 @@ import zenoh
 
 from swarm_proto import (
     Alert,
+    AlertCode,
     Clock,
     DeclaredState,
     FsmState,
     MissionType,
     NoFlyZone,
     PeerEntry,
+    Severity,
     SwarmView,
     VehicleType,
     lan,
 )
+from swarm_proto.clock import SteadyClock
 from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus
 from swarm_proto.topics import (
@@ -143,6 +146,7 @@ class _Snapshot(msgspec.Struct, frozen=True):
 
 
 SNAPSHOT_PERIOD_S = 0.2  # wall seconds
+CLOCK_STEP_REPORT_S = 1.0  # a system clock step larger than this is reported
 
 
 class PlanWorker:
@@ -239,6 +243,8 @@ class NodeRuntime:
         )
         self._snap = _Snapshot()
         self._snap_at = 0.0
+        self._clock_step_s = 0.0  # the system clock's step last reported (SteadyClock)
+        self._clock_checked = 0.0
         self._ap_period_s = 0.2
 
     # ------------------------------------------------------------------ wiring
@@ -344,6 +350,23 @@ class NodeRuntime:
         )  # fmt: skip
         self.inbox.put(Learned(state, sortie, "database"))
 
+    def _check_clock(self, now: float) -> None:
+        """A step of the system clock (the node runs on a SteadyClock: it does not follow
+        it) is reported once per step (issue 16)."""
+        clock = self.clock
+        wall = time.monotonic()
+        if not isinstance(clock, SteadyClock) or wall - self._clock_checked < 1.0:
+            return
+        self._clock_checked = wall
+        step = clock.step_s()
+        if abs(step - self._clock_step_s) <= CLOCK_STEP_REPORT_S:
+            return
+        self._clock_step_s = step
+        text = f"system clock stepped {step:+.0f} s; node time kept steady"
+        log.warning("node %d: %s", self.core.self_id, text)
+        self._execute([Publish(Alert(self.core.self_id, max(0.0, now), Severity.WARNING,
+                                     AlertCode.GENERIC, text[:64]))])  # fmt: skip
+
     def _answer_peers(self, query: zenoh.Query) -> None:
         now = self.clock.now()
         view = SwarmView(
@@ -419,6 +442,7 @@ class NodeRuntime:
                 if now >= self.core.next_deadline():
                     self._execute(self.core.on_timer(now))
                 self._refresh_snapshot(now)
+                self._check_clock(now)
                 jobs, self._plan_jobs = self._plan_jobs, []
                 for job in jobs:  # after the step: starting the worker takes a while
                     self.planner.submit(job)
