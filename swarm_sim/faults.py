@@ -1,9 +1,9 @@
 """The fault campaign (issue 16): a table of faults x missions, each flown start to
 finish with one fault injected, measured the same way every time.
 
-    python -m swarm_sim.faults [--env fast|processes|all] [--only NAME ...] [--out FILE]
-    make faults                     # both, writes bench/results/faults.json
-    make bench BENCH=faults         # the same figures
+    make faults                     # both parts, writes bench/results/faults.json
+    make bench BENCH=faults         # the same (BANDADA_FAULTS=fast: FastFleet only)
+    python -m swarm_sim.faults --env fast --only "SIGSTOP a node 3 s"   # rows as JSON
 
 Faults (`FAULTS`): kill -9 a node (restarted 5 s later on its database), SIGSTOP a node
 for 3 s, an autopilot restart (on the ground, empty stores), 30 % of the swarm's
@@ -460,3 +460,53 @@ def campaign_fast(
     missions: Sequence[MissionSpec] = MISSIONS,
 ) -> list[FaultRow]:
     return [run_fast(f, m, profiles) for m in missions for f in (faults or list(FAST_FAULTS))]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    import argparse
+    import dataclasses
+    import json
+
+    from swarm_node.database import seed_fleet
+
+    from .fault_processes import PROCESS_FAULTS, run_process_fault
+
+    ap = argparse.ArgumentParser(prog="python -m swarm_sim.faults", description=__doc__.split("\n")[0])
+    ap.add_argument("--env", choices=("fast", "processes", "all"), default="fast")
+    ap.add_argument("--only", action="append", default=[], help="a fault's name (repeat)")
+    args = ap.parse_args(argv)
+    known = set(FAST_FAULTS) | set(PROCESS_FAULTS)
+    unknown = [f for f in args.only if f not in known]
+    if unknown:
+        ap.error(f"unknown fault(s) {unknown}; known: {sorted(known)}")
+    profiles = {p.vehicle_id: p for p in seed_fleet()}
+    if args.env in ("fast", "all"):
+        for spec in MISSIONS:
+            for name in [f for f in FAST_FAULTS if not args.only or f in args.only]:
+                print(json.dumps(dataclasses.asdict(run_fast(name, spec, profiles))), flush=True)
+    if args.env in ("processes", "all"):
+        for name in [f for f in PROCESS_FAULTS if not args.only or f in args.only]:
+            print(json.dumps(dataclasses.asdict(run_process_fault(name))), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+def markdown(rows: Sequence[dict[str, object]]) -> str:
+    """The fault table of docs/reliability.md from bench/results/faults.json's rows."""
+    head = ("| fault | mission | where | recovered | recover s | coverage | declared lost "
+            "| false emergencies | emergencies | alerts (WARNING+) |")  # fmt: skip
+    lines = [head, "|" + "---|" * 10]
+    for r in rows:
+        alerts = ", ".join(f"{k} x{v}" for k, v in dict(r["alerts"]).items()) or "-"  # type: ignore[call-overload]
+        emerg = ", ".join(f"{k} x{v}" for k, v in dict(r["emergencies"]).items()) or "-"  # type: ignore[call-overload]
+        rec = r["recover_s"]
+        lines.append(
+            f"| {r['fault']} | {r['mission']} | {'FastFleet' if r['env'] == 'fast' else 'processes'} "
+            f"| {'yes' if r['recovered'] else 'NO'} | {'-' if rec is None else rec} "
+            f"| {r['coverage']} | {r['declared_state_lost']} | {r['false_emergencies']} "
+            f"| {emerg} | {alerts} |"
+        )
+    return "\n".join(lines) + "\n"

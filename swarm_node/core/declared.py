@@ -18,7 +18,10 @@ What is kept:
                  the newest per (kind, selector); older ones a newer command to ALL of
                  the same kind supersedes are dropped
     assignments  fleet id -> the newest FleetAssignment
-    missions     mission id -> the Mission this node accepted, in force or not
+    missions     mission id -> the Mission this node accepted, in force or not (a peer's
+                 missions are taken only when unknown: a peer that finished its part
+                 does not end the mission for this node; the operator's CANCEL_MISSION,
+                 a declaration, does)
 
 Any vehicle's base and fleet follow from the commands and assignments in stamp order
 (`base_of`, `fleet_of`), so a node can tell a restarted peer its base.
@@ -224,10 +227,9 @@ class DeclaredBook:
             fa = self.offer_assignment(a, now)
             if fa is not None:
                 ch.assignments.append(fa)
-        for m in state.missions:
-            dm = self.offer_mission(m)
-            if dm is not None:
-                ch.missions.append(dm)
+        for m in state.missions:  # another node's missions: known ones are its own business
+            if m.mission.mission_id not in self.missions and self.offer_mission(m) is not None:
+                ch.missions.append(m)
         return ch
 
     # ------------------------------------------------------------------ views

@@ -419,6 +419,8 @@ class NodeCore:
         held = self.declared.missions.get(rec.mission_id)
         if held is None:  # the mission itself was not stored: the vehicle goes home
             return [Post(fsm.LeftFleet("restarted without the mission on record"))]
+        if self.declared.cancelled(rec.mission_id) or not held.in_force:
+            return [Post(fsm.LeftFleet(f"mission {rec.mission_id} no longer in force"))]
         mission = held.mission
         self.missions[mission.mission_id] = mission
         r = self.roster

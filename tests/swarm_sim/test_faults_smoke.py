@@ -1,0 +1,35 @@
+"""The fault campaign's smoke subset (issue 16; the whole campaign is `make faults`,
+docs/reliability.md): three faults on a short survey by two VTOLs in FastFleet, each
+flown to the landing: the swarm recovers, the area is covered, nothing declared is
+lost and no emergency is raised."""
+
+from __future__ import annotations
+
+import pytest
+
+from swarm_sim.faults import FAST_FAULTS, MISSIONS, MissionSpec, campaign_fast, run_fast
+
+SHORT = MissionSpec("survey, 2 VTOLs (smoke)", (1, 2), 150.0, 2)
+
+
+@pytest.mark.parametrize(
+    "fault",
+    ["kill -9 a node (restarted after 5 s)", "SIGSTOP a node 3 s",
+     "restart an autopilot (empty stores)"],
+)  # fmt: skip
+def test_smoke(fleet_profiles: dict, fault: str) -> None:
+    row = run_fast(fault, SHORT, fleet_profiles)
+    print(row)
+    assert row.recovered, row
+    assert row.mission_completed and row.coverage >= 0.95
+    assert row.declared_state_lost == 0 and row.false_emergencies == 0
+    assert row.recover_s is not None and row.recover_s >= 0.0
+
+
+@pytest.mark.soak
+def test_the_fastfleet_campaign(fleet_profiles: dict) -> None:
+    rows = campaign_fast(fleet_profiles)
+    assert len(rows) == len(FAST_FAULTS) * len(MISSIONS)
+    for row in rows:
+        assert row.declared_state_lost == 0 and row.false_emergencies == 0, row
+        assert row.mission_completed and row.coverage >= 0.95, row
