@@ -5,7 +5,8 @@ this process), Zenoh on 127.0.0.1 through a router, a ground station, in real ti
 Each row is one survey by two quadcopters with one fault injected into vehicle 8's node
 or autopilot: none, kill -9 (restarted 5 s later), SIGSTOP 3 s, an autopilot restart on
 the ground (empty stores), the system clock stepped +1 h (`stepping:` clock), the disk
-full under its database (RLIMIT_FSIZE at the file's size, then a kill and a restart),
+full under its database (a tmpfs mounted for the run with no byte free: root only; then
+a kill and a restart),
 and its database file corrupted while it was down (the node refuses it with a one-line
 error; started again on a new file). Partitions and message loss need a network
 namespace with netem and are measured in FastFleet only.
@@ -16,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import resource
 import shutil
 import signal
 import subprocess
@@ -87,21 +87,13 @@ class Node:
     env: dict[str, str]
     log: Path
     proc: subprocess.Popen[bytes] | None = None
-    limit_bytes: int | None = None  # RLIMIT_FSIZE (the disk full fault)
     _pump: threading.Thread | None = None
 
     def start(self) -> None:
-        limit = self.limit_bytes
-
-        def preexec() -> None:  # in the child, before exec
-            if limit is not None:
-                resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-
-        # output through a pipe, written here: a file size limit must not cut the log
+        # output through a pipe, written here (the node's own disk may be full)
         self.proc = subprocess.Popen(
-            self.args, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-            preexec_fn=preexec if limit is not None else None,
-        )  # fmt: skip
+            self.args, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT
+        )
         out = self.proc.stdout
         assert out is not None
 
@@ -228,6 +220,37 @@ class Rig:
         self.router.close()  # type: ignore[attr-defined]
 
 
+def fill_a_disk(where: Path, db: Path) -> Path:
+    """A filesystem with the database on it and no byte free (a tmpfs mounted for the
+    run: needs root; the disk full fault is skipped otherwise): every write the node
+    makes to its database then fails as on a full disk (ENOSPC, SQLITE_FULL)."""
+    where.mkdir(exist_ok=True)
+    size = db.stat().st_size + 256 * 1024
+    subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)],
+                   check=True, capture_output=True)  # fmt: skip
+    target = where / db.name
+    shutil.copyfile(db, target)
+    fd = os.open(where / "filler", os.O_WRONLY | os.O_CREAT)
+    try:
+        while os.write(fd, b"\0" * 4096) > 0:
+            pass
+    except OSError:
+        pass  # ENOSPC: full
+    finally:
+        os.close(fd)
+    return target
+
+
+def free_the_disk(where: Path) -> None:
+    with contextlib.suppress(OSError):
+        (where / "filler").unlink()
+
+
+def unmount(where: Path) -> None:
+    if where.is_dir():
+        subprocess.run(["umount", str(where)], check=False, capture_output=True)
+
+
 def _node(vid: int, rig_tmp: Path, swarm: str, endpoint: str, port: int, env: dict[str, str],
           db: Path | None = None) -> Node:  # fmt: skip
     args = [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid), "--swarm", swarm,
@@ -262,8 +285,9 @@ def start_rig(tmp: Path, *, victim_env: dict[str, str] | None = None,
             shutil.copyfile(shared, own_db)
         e = {**env, **(victim_env or {})} if vid == VICTIM else env
         nodes[vid] = _node(vid, tmp, swarm, endpoint, spec.tcp_port, e, own_db)
-        if vid == VICTIM and victim_limit:
-            nodes[vid].limit_bytes = own_db.stat().st_size if own_db else None
+        if vid == VICTIM and victim_limit and own_db is not None:
+            full = fill_a_disk(tmp / "full-disk", own_db)
+            nodes[vid].args[nodes[vid].args.index("--db") + 1] = str(full)
         nodes[vid].start()
     bus = SwarmBus.open(ZenohSettings(connect=(endpoint,)), swarm)
     gs = GroundStation(ZenohSettings(connect=(endpoint,)), swarm, GCS_ID)
@@ -362,30 +386,46 @@ def p_sigstop(rig: Rig) -> Outcome:
         ) and time.monotonic() - t0 > 3.5  # fmt: skip
 
     ok = rig.wait(agreed, 60)
-    stalled = [a.text for a in rig.alerts if a.vehicle_id == VICTIM and "stalled" in a.text]
-    return Outcome(time.monotonic() - t0 if ok else None,
+    recover = time.monotonic() - t0
+
+    def reported() -> list[str]:
+        with rig.lock:
+            return [a.text for a in rig.alerts if a.vehicle_id == VICTIM and "stalled" in a.text]
+
+    rig.wait(lambda: bool(reported()), 10)  # reported a second after the stall
+    stalled = reported()
+    return Outcome(recover if ok else None,
                    f"stopped 3 s: {stalled[0] if stalled else 'no stall report'}", ok)  # fmt: skip
 
 
 def p_autopilot(rig: Rig) -> Outcome:
+    sim_of = lambda: next(e.autopilot for e in rig.server.endpoints  # noqa: E731
+                          if e.autopilot.sysid == VICTIM)  # fmt: skip
+
+    def stores() -> tuple[list[tuple[int, int, int, float]], list[tuple[int, int, float]]]:
+        sim = sim_of()
+        return ([(i.command, i.x, i.y, i.param1) for i in sim.fence_items],
+                [(i.x, i.y, i.z) for i in sim.rally_items])  # fmt: skip
+
+    # the node's uploads done first (a reboot in the middle of one is another story)
+    if not rig.wait(lambda: all(stores()) and sim_of().fence_present(), 60):
+        return Outcome(None, "the fence and rally point never reached the autopilot", ok=False)
+    before = stores()
     t0 = time.monotonic()
     rig.server.reboot(VICTIM)
-    want = {"fence restored and verified (autopilot rebooted)",
-            "rally point restored and verified (autopilot rebooted)"}  # fmt: skip
-
-    def restored() -> bool:
-        with rig.lock:
-            got = {a.text for a in rig.alerts if a.vehicle_id == VICTIM}
-        return want <= got
-
-    ok = rig.wait(restored, 90)
+    rig.wait(lambda: not stores()[0], 10)
+    ok = rig.wait(lambda: stores() == before and sim_of().fence_present(), 90)
     dt = time.monotonic() - t0
-    sim = next(e.autopilot for e in rig.server.endpoints if e.autopilot.sysid == VICTIM)
+    rig.wait(lambda: any("restored and verified" in a.text for a in list(rig.alerts)
+                         if a.vehicle_id == VICTIM), 20)  # fmt: skip
+    with rig.lock:
+        said = sorted({a.text for a in rig.alerts if a.vehicle_id == VICTIM
+                       and "verified" in a.text})  # fmt: skip
     rig.gs.wait_for(lambda v: v.fsm_state(VICTIM) == FsmState.GO_MISSION, 60)  # type: ignore[attr-defined]
     send_mission(rig)
     return Outcome(dt if ok else None, f"before the mission, on the ground: fence "
-                   f"{len(sim.fence_items)} items, rally {len(sim.rally_items)} restored and "
-                   "verified by download", ok)  # fmt: skip
+                   f"{len(before[0])} items, rally {len(before[1])} back; {'; '.join(said)}",
+                   ok and bool(said))  # fmt: skip
 
 
 def p_clock(rig: Rig) -> Outcome:
@@ -418,7 +458,7 @@ def p_disk_full(rig: Rig) -> Outcome:
     t0 = time.monotonic()
     n.signal(signal.SIGKILL)
     n.proc.wait(10)  # type: ignore[union-attr]
-    n.limit_bytes = None  # the disk was cleaned up
+    free_the_disk(rig.tmp / "full-disk")  # the disk was cleaned up
     n.start()
 
     def has_mast() -> bool:
@@ -477,6 +517,9 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
         # steps an hour ahead about 60 s after start: during the mission
         kw["victim_env"] = {"BANDADA_CLOCK": f"stepping:{time.time() + 60.0!r}:3600.0"}
     if name.startswith("disk full"):
+        if os.geteuid() != 0:
+            return FaultRow(name, MISSION_NAME, "processes", False, None, 0.0, False, 0, 0,
+                            note="skipped: a full filesystem needs root to mount")  # fmt: skip
         kw["victim_limit"] = True
     if name.startswith("corrupted"):
         kw["victim_db"] = True
@@ -510,6 +553,7 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
         note, counts, finished = f"{outcome.note}; failed: {exc}", Counter(), False
     finally:
         rig.close()
+        unmount(tmp / "full-disk")
         if keep is not None:
             shutil.copytree(tmp, keep / name.replace(" ", "_").replace("/", "_"),
                             dirs_exist_ok=True)  # fmt: skip

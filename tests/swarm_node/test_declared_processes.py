@@ -52,35 +52,38 @@ def test_a_restarted_node_keeps_what_was_declared_and_gcs_reads_it(
         procs[2] = start_node(2, zenoh_router, swarm, log=logs[2])
         assert wait_until(lambda: sees(2, 1), 40) is not None
 
-        def holds() -> dict | None:
+        seen: list[dict] = []
+
+        def holds() -> bool:
             r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm,
                                     "declared", "2", "--json"])  # fmt: skip
             if r.exit_code != 0:
-                return None
+                return False
             doc = json.loads(r.stdout)
+            seen.append(doc)
             zones = {z["zone_id"]: z for z in doc["zones"]}
-            if 3 in zones and not zones[3]["active"]:
-                return doc
-            return None
+            return 3 in zones and not zones[3]["active"]
 
-        assert wait_until(lambda: holds() is not None, 15, period=0.5) is not None
-        doc = holds()
-        assert doc is not None
+        assert wait_until(holds, 15, period=0.5) is not None, seen[-1:]
+        doc = seen[-1]
         assert doc["base"] == {"lat_deg": BASE.lat_deg, "lon_deg": BASE.lon_deg,
-                               "alt_msl_m": BASE.alt_msl_m}  # fmt: skip
-        assert {z["zone_id"] for z in doc["zones"]} == {3, 4}
+                               "alt_msl_m": BASE.alt_msl_m}, doc  # fmt: skip
+        assert {z["zone_id"] for z in doc["zones"]} == {3, 4}, doc
         # node 1 holds the same declarations
         one = gs.declared_state(1)
-        assert one is not None and {(z.zone_id, z.active) for z in one.zones} == {(3, False), (4, True)}
+        assert one is not None, "node 1 did not answer"
+        assert {(z.zone_id, z.active) for z in one.zones} == {(3, False), (4, True)}, one
         # the table form, asking whichever vehicle answers first
-        r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm, "declared"])
-        assert r.exit_code == 0 and "withdrawn" in r.stdout and "operating area" in r.stdout
+        r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm, "declared"],
+                          env={"COLUMNS": "200"})  # fmt: skip
+        assert r.exit_code == 0, r.stdout
+        assert "withdrawn" in r.stdout and "operating" in r.stdout, r.stdout
         r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm, "declared", "77",
                                 "--timeout", "0.5"])  # fmt: skip
-        assert r.exit_code == 1 and "did not answer" in r.stdout
+        assert r.exit_code == 1 and "did not answer" in r.stdout, r.stdout
         r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm, "declared", "1",
                                 "--timeout", "0"])  # fmt: skip
-        assert r.exit_code == 2
+        assert r.exit_code == 2, r.stdout
     finally:
         gs.close()
         watcher.close()

@@ -1,7 +1,7 @@
 """Issue 16 over a real node process flying a simulated quadcopter (MAVLink on TCP,
 Zenoh on 127.0.0.1):
 
-- the node's process is stopped (SIGSTOP) for 2 s, then 3 s, while ArduPilot flies on:
+- the node's process is stopped (SIGSTOP) for 3 s while ArduPilot flies on:
   no link loss is judged, no emergency, the vehicle is not landed; the node reports
   its own stall apart;
 - the autopilot reboots (its stores empty, the TCP link dropped): the node reconnects,
@@ -120,11 +120,10 @@ def test_a_stopped_node_does_not_land_its_flying_vehicle(rig: Rig) -> None:
     rig.command(CommandKind.TAKEOFF, value=30.0)
     assert wait_until(lambda: rig.sim.rel_alt_m > 25.0, 60) is not None
     rig.drain()
-    for stall_s in (2.0, 3.0):
-        os.kill(rig.proc.pid, signal.SIGSTOP)
-        time.sleep(stall_s)
-        os.kill(rig.proc.pid, signal.SIGCONT)
-        time.sleep(4.0)
+    os.kill(rig.proc.pid, signal.SIGSTOP)  # 2 s and 3 s in fast time: test_busy_host.py
+    time.sleep(3.0)
+    os.kill(rig.proc.pid, signal.SIGCONT)
+    time.sleep(3.0)
     alerts = rig.drain()
     assert not [a for a in alerts if a.code == AlertCode.AUTOPILOT_LINK_LOSS], alerts
     assert [a for a in alerts if a.code == AlertCode.GENERIC and "stalled" in a.text], alerts
@@ -137,7 +136,9 @@ def test_after_an_autopilot_reboot_its_fence_and_rally_point_are_back(rig: Rig) 
     rig.command(CommandKind.SET_BASE, point=BASE)
     zone = NoFlyZone(3, Geometry.circle(SITL_HOME.lat_deg + 0.0015, SITL_HOME.lon_deg, 40.0))
     assert rig.gs.declare_zone(zone, timeout_s=15) == {7}
-    assert wait_until(lambda: rig.sim.fence_items and rig.sim.rally_items, 30) is not None
+    assert wait_until(lambda: rig.sim.fence_items and rig.sim.rally_items
+                      and rig.sim.params["FENCE_ENABLE"][0] == 1.0, 30) is not None  # fmt: skip
+    time.sleep(2.5)  # the backstop's own check of the new base's rally point done
     fence = [(i.command, i.x, i.y, i.param1) for i in rig.sim.fence_items]
     rally = [(i.x, i.y, i.z) for i in rig.sim.rally_items]
     rig.drain()

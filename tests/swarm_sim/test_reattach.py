@@ -6,6 +6,8 @@ hands it on and flies home."""
 
 from __future__ import annotations
 
+import pytest
+
 from swarm_node.core.autopilot.requests import DownloadMission
 from swarm_node.core.reattach import Decision
 from swarm_proto import (
@@ -83,6 +85,7 @@ def test_alone_on_its_mission_it_continues_its_share(fleet_profiles: dict) -> No
     assert "Arm" not in after(fleet, 1, t) and "Takeoff" not in after(fleet, 1, t)
 
 
+@pytest.mark.soak  # the fault campaign's smoke rows fly the same (test_faults_smoke.py)
 def test_in_a_fleet_that_took_its_share_it_hands_it_on(fleet_profiles: dict) -> None:
     fleet = on_mission(fleet_profiles, [1, 3], 150.0)
     v = fleet.vehicles[3]
