@@ -248,7 +248,9 @@ def free_the_disk(where: Path) -> None:
 
 def unmount(where: Path) -> None:
     if where.is_dir():
-        subprocess.run(["umount", str(where)], check=False, capture_output=True)
+        done = subprocess.run(["umount", str(where)], check=False, capture_output=True)
+        if done.returncode != 0:  # still busy: detach it now, freed when released
+            subprocess.run(["umount", "-l", str(where)], check=False, capture_output=True)
 
 
 def _node(vid: int, rig_tmp: Path, swarm: str, endpoint: str, port: int, env: dict[str, str],
@@ -407,17 +409,26 @@ def p_autopilot(rig: Rig) -> Outcome:
         return ([(i.command, i.x, i.y, i.param1) for i in sim.fence_items],
                 [(i.x, i.y, i.z) for i in sim.rally_items])  # fmt: skip
 
-    # the node's uploads done first (a reboot in the middle of one is another story)
-    if not rig.wait(lambda: all(stores()) and sim_of().fence_present(), 60):
+    # the node's uploads done first (a reboot in the middle of one is another story):
+    # both zones fenced (the tower, the field), the rally point, the fence enabled
+    def uploaded() -> bool:
+        fence, rally = stores()
+        sim = sim_of()
+        return len(fence) == len(rig.zones) and bool(rally) and sim.fence_present() and (
+            sim.params["FENCE_ENABLE"][0] == 1.0
+        )  # fmt: skip
+
+    if not rig.wait(uploaded, 60):
         return Outcome(None, "the fence and rally point never reached the autopilot", ok=False)
+    time.sleep(3.0)  # and the node's own check of the new base's rally point
     before = stores()
     t0 = time.monotonic()
     rig.server.reboot(VICTIM)
     rig.wait(lambda: not stores()[0], 10)
     ok = rig.wait(lambda: stores() == before and sim_of().fence_present(), 90)
     dt = time.monotonic() - t0
-    rig.wait(lambda: any("restored and verified" in a.text for a in list(rig.alerts)
-                         if a.vehicle_id == VICTIM), 20)  # fmt: skip
+    rig.wait(lambda: sum("restored and verified" in a.text for a in list(rig.alerts)
+                         if a.vehicle_id == VICTIM) >= 2, 20)  # fmt: skip
     with rig.lock:
         said = sorted({a.text for a in rig.alerts if a.vehicle_id == VICTIM
                        and "verified" in a.text})  # fmt: skip
