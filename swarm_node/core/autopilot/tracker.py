@@ -293,9 +293,11 @@ class StateTracker:
             self._ap_boot_ms = None
             self._boot_at_loss = None
         prev = self._ap_boot_ms
-        if prev is not None and boot_ms > prev:
+        if prev is not None and boot_ms > prev and self._state.link_ok:
             # read later than the autopilot's own clock says it was sent: a burst of what
-            # waited in the socket while this node was stalled (its stall, not the link's)
+            # waited in the socket while this node was stalled (its stall, not the link's;
+            # a link already judged lost on time was silent: an autopilot that paused,
+            # SITL stopped, has a paused clock too)
             late = (now - self._ap_rx_s) - (boot_ms - prev) / 1000.0
             if late > LATE_TOLERANCE_S:
                 changes.update(host_stalls=self._state.host_stalls + 1, host_stall_s=late)

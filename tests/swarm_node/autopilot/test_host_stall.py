@@ -90,3 +90,15 @@ def test_a_reboot_is_counted_and_is_no_stall() -> None:
     assert t.state.reboots == 1 and t.state.host_stalls == 0
     feed(t, T0 + 0.6, 1_100, 3)
     assert t.state.host_stalls == 0
+
+
+def test_an_autopilot_that_paused_is_a_loss_not_our_stall() -> None:
+    """SITL stopped (SIGSTOP) 3 s: its clock paused with it. The link was judged lost on
+    time; what comes after it is no late read of ours."""
+    t = tracker(link_timeout_s=0.6)
+    feed(t, T0, 10_000, 5)
+    (lost,) = t.on_timer(T0 + 1.0)
+    assert isinstance(lost, LinkLost)
+    _, events = t.handle(wire(gpi(boot_ms=10_500)), T0 + 3.4)  # its clock went on 0.1 s
+    assert isinstance(events[0], LinkRestored) and events[0].autopilot_gap_s == pytest.approx(0.1)
+    assert not any(isinstance(e, HostStalled) for e in events) and t.state.host_stalls == 0
