@@ -590,7 +590,11 @@ class MissionManager:
                 return []
             if isinstance(done, StartMission):
                 self.phase = Phase.FLYING
-                self.sortie.go(Trigger.STARTED)
+                if self.sortie.state == MissionState.PREMISSION:
+                    self.sortie.go(Trigger.STARTED)
+                # else a replan began while the mission was starting (a member lost
+                # meanwhile): the sortie stays REPLAN until the replan's outcome; this
+                # raised IllegalMove and killed the node (issue 16's loaded demo)
                 return [Post(fsm.PlanSucceeded(mid))]
         return self._next()
 

@@ -314,9 +314,10 @@ class AutopilotLink:
                 elif isinstance(ev, LinkRestored):
                     log.info("%s: link restored after %.2f s (the autopilot's own clock: "
                              "%.2f s)", self.name, ev.down_s, ev.autopilot_gap_s)  # fmt: skip
-                elif isinstance(ev, HostStalled):
-                    log.warning("%s: read %.2f s late (this host stalled, not the link)",
-                                self.name, ev.stall_s)  # fmt: skip
+                elif isinstance(ev, HostStalled):  # a second or more is worth a warning
+                    log.log(logging.WARNING if ev.stall_s >= 1.0 else logging.DEBUG,
+                            "%s: read %.2f s late (this host stalled, not the link)",
+                            self.name, ev.stall_s)  # fmt: skip
                 self._deliver(ev)
             elif isinstance(o, Complete):
                 self._resolve(o.token, o.result)
