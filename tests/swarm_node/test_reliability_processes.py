@@ -132,6 +132,7 @@ def test_a_stopped_node_does_not_land_its_flying_vehicle(rig: Rig) -> None:
     assert "(this host stalled, not the link)" in rig.log.read_text()
 
 
+@pytest.mark.soak  # fast time: tests/swarm_sim/test_backstop.py; the campaign's process row
 def test_after_an_autopilot_reboot_its_fence_and_rally_point_are_back(rig: Rig) -> None:
     rig.command(CommandKind.SET_BASE, point=BASE)
     zone = NoFlyZone(3, Geometry.circle(SITL_HOME.lat_deg + 0.0015, SITL_HOME.lon_deg, 40.0))
