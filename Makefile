@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.bandada-installed
 BENCH  ?=
 PYTEST_ARGS ?=
 
-.PHONY: all demo test lint typecheck unit bench soak scale docs clean install sitl-check
+.PHONY: all demo test lint typecheck unit bench soak scale docs clean install sitl-check faults
 
 all: test
 
@@ -38,6 +38,12 @@ unit: $(STAMP)
 ## bench: every benchmark, or one with BENCH=<topic>; writes bench/results/<topic>.json
 bench: $(STAMP)
 	$(BIN)/python -m bench $(BENCH)
+
+## faults: the fault campaign (issue 16; docs/reliability.md): faults x missions in
+## FastFleet and over real processes, writes bench/results/faults.json (about 20 min).
+## BANDADA_FAULTS=fast runs only the FastFleet part; the smoke subset is in `make test`.
+faults: $(STAMP)
+	$(BIN)/python -m bench faults
 
 ## soak / scale: the long suites, kept out of `make test`
 soak: $(STAMP)

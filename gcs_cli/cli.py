@@ -43,6 +43,7 @@ from .core.exchange import Verdict
 from .core.reasons import alert_text
 from .db import DbOption
 from .db import app as db_app
+from .declared import declared as declared_command
 from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
 from .options import (
     AllOption,
@@ -77,6 +78,7 @@ app.add_typer(zone_app, name="zone")
 app.add_typer(analyze_app, name="analyze")
 app.add_typer(target_app, name="target")  # issue 13: re-tasking, and the vote shown
 app.command("vote")(show_a_vote)
+app.command(name="declared")(declared_command)  # declared.py (issue 16)
 
 
 def _width() -> int | None:

@@ -25,6 +25,7 @@ from swarm_proto import (
     Command,
     CommandArgs,
     CommandKind,
+    DeclaredState,
     FsmState,
     Mission,
     NoFlyZone,
@@ -39,7 +40,7 @@ from swarm_proto import (
 )
 from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus, ZenohSettings
-from swarm_proto.topics import ACK, ALERT, ALIVE, INFO, MISSIONS, PEERS, STATUS, ZONES
+from swarm_proto.topics import ACK, ALERT, ALIVE, DECLARED, INFO, MISSIONS, PEERS, STATUS, ZONES
 
 from .core.exchange import (
     Exchange,
@@ -62,6 +63,13 @@ REPEAT_S = 1.0  # commands and missions are sent again this often until answered
 DISCOVER_S = 2.0  # a fresh ground station's window to hear the vehicles that are alive
 HEARD_ALIVE_S = 5.0  # a vehicle heard this recently counts as alive (behind the radio)
 RATE_WINDOW_S = 2.0  # packets per second are counted over this window
+
+
+def stamp_zone(zone: NoFlyZone) -> NoFlyZone:
+    """The zone with its declaration time (the ground station's clock) if it has none."""
+    if zone.time_unix_s > 0.0:
+        return zone
+    return msgspec.structs.replace(zone, time_unix_s=max(0.0, time.time()))
 
 
 def new_seq() -> int:
@@ -319,6 +327,7 @@ class GroundStation:
     ) -> Outcome:
         """Every vehicle holds every zone and acknowledges it to its issuer; `target`
         says whose answers must come (default: every vehicle alive)."""
+        zone = stamp_zone(zone)  # repeats carry the same stamp: one declaration
         if zone.issuer_id != self.gcs_id:
             zone = msgspec.structs.replace(zone, issuer_id=self.gcs_id)
         validate(zone)
@@ -392,12 +401,16 @@ class GroundStation:
         with self._lock:
             return {i for i in found if self.view.type_of(i) != VehicleType.GCS}
 
-    def zone(self, zone: NoFlyZone) -> None:
-        """Publish a zone once (see `send_zone` for every vehicle's answer)."""
+    def zone(self, zone: NoFlyZone) -> NoFlyZone:
+        """Publish a zone once, stamped with the declaration time if it has none (the
+        newest declaration of a zone id wins on every node); returns it as published
+        (see `send_zone` for every vehicle's answer)."""
+        zone = stamp_zone(zone)
         if zone.issuer_id != self.gcs_id:
             zone = msgspec.structs.replace(zone, issuer_id=self.gcs_id)
         validate(zone)
         self.bus.publish(zone)
+        return zone
 
     def declare_zone(
         self, zone: NoFlyZone, *, expect: Iterable[int] | None = None, timeout_s: float = 10.0
@@ -501,6 +514,19 @@ class GroundStation:
                 continue
             held.setdefault(int(params["vehicle_id"]), {})[int(getattr(item, id_name))] = item
             answered.add(int(params["vehicle_id"]))
+
+    def declared_state(self, node_id: int, timeout_s: float = 3.0) -> DeclaredState | None:
+        """What the operator declared, as node `node_id` holds it (its DECLARED
+        queryable; issue 16). None: it did not answer."""
+        for reply in self.bus.session.get(
+            DECLARED.key(self.swarm, vehicle_id=node_id), timeout=timeout_s
+        ):
+            if reply.ok is not None:
+                try:
+                    return lan.decode(reply.ok.payload.to_bytes(), DeclaredState)
+                except Exception:
+                    return None
+        return None
 
     def peers_of(self, node_id: int, timeout_s: float = 2.0) -> SwarmView | None:
         for reply in self.bus.session.get(

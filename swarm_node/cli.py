@@ -60,6 +60,7 @@ def run(
     import logging
 
     from swarm_proto import clock_from_env
+    from swarm_proto.clock import steady
     from swarm_proto.shutdown import stop_event
 
     from .runtime.config import load_config
@@ -106,7 +107,7 @@ def run(
             raise typer.Exit(2) from exc
     stop = stop_event()
     try:
-        node = build_node(cfg, clock_from_env())
+        node = build_node(cfg, steady(clock_from_env()))  # never steps (issue 16)
     except (ValueError, OSError) as exc:
         typer.echo(f"swarm-node: {exc}", err=True)
         raise typer.Exit(2) from exc

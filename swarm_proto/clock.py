@@ -7,6 +7,12 @@
   simulated time without talking to each other.
 - `ManualClock`: tests and single-process fast-time harnesses; time moves only when
   told (`advance`, `set`, or `sleep`, which jumps instead of waiting).
+- `SteadyClock`: what a node runs on (issue 16): UNIX time read once at start, then
+  advanced by the monotonic clock only, so a step of the system clock (NTP, a GPS time
+  set, an operator's `date`) never makes a node's timers fire early or hang; the step
+  is measured (`step_s`) and reported. `steady(clock)` wraps the system clock.
+- `SteppingClock`: the system clock that steps by `offset_s` at `at_unix_s` (the fault
+  campaign's clock jump, `stepping:AT:OFFSET`).
 """
 
 from __future__ import annotations
@@ -108,6 +114,54 @@ class ManualClock:
         return f"manual:{self._t!r}"
 
 
+class SteppingClock(SystemClock):
+    """The system clock, stepped by `offset_s` from wall time `at_unix_s` on."""
+
+    def __init__(self, at_unix_s: float, offset_s: float) -> None:
+        self.at_unix_s, self.offset_s = float(at_unix_s), float(offset_s)
+
+    def now(self) -> float:
+        t = time.time()
+        return t + self.offset_s if t >= self.at_unix_s else t
+
+    def spec(self) -> str:
+        return f"stepping:{self.at_unix_s!r}:{self.offset_s!r}"
+
+
+class SteadyClock:
+    """UNIX time at start, then the monotonic clock: never steps (see the module doc).
+    `step_s()` is how far the wrapped clock now is from it (a step of the system clock)."""
+
+    def __init__(self, inner: Clock) -> None:
+        self.inner = inner
+        self._anchor = inner.now()
+        self._mono = time.monotonic()
+
+    def now(self) -> float:
+        return self._anchor + (time.monotonic() - self._mono)
+
+    def step_s(self) -> float:
+        return self.inner.now() - self.now()
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds)
+
+    def to_wall(self, seconds: float) -> float:
+        return seconds
+
+    def spec(self) -> str:
+        return self.inner.spec()
+
+
+def steady(clock: Clock) -> Clock:
+    """The clock a node runs on: the system clock (stepped or not) made steady; a
+    simulation's scaled or manual clock as it is (they never step)."""
+    if isinstance(clock, SystemClock):
+        return SteadyClock(clock)
+    return clock
+
+
 def clock_from_spec(spec: str) -> Clock:
     """Build a clock from `Clock.spec()` output ("system", "scaled:K:START:ANCHOR",
     "scaled:K" for a fresh scaled clock starting now, "manual:START")."""
@@ -123,9 +177,15 @@ def clock_from_spec(spec: str) -> Clock:
                 return ScaledClock(parts[0], parts[1], parts[2])
         if kind == "manual":
             return ManualClock(float(rest)) if rest else ManualClock()
+        if kind == "stepping":
+            at, offset = (float(p) for p in rest.split(":"))
+            return SteppingClock(at, offset)
     except ValueError as exc:
         raise ValueError(f"bad clock spec {spec!r}: {exc}") from exc
-    raise ValueError(f"bad clock spec {spec!r}: expected system, scaled:K[:START:ANCHOR] or manual")
+    raise ValueError(
+        f"bad clock spec {spec!r}: expected system, scaled:K[:START:ANCHOR], manual or "
+        "stepping:AT:OFFSET"
+    )
 
 
 def clock_from_env(default: Clock | None = None) -> Clock:

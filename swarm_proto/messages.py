@@ -457,6 +457,10 @@ class NoFlyZone(Struct, frozen=True):
     # appended (issue 15): who declared it; each vehicle acknowledges the zone to it
     # (Ack ref ZONE, ref_id the zone id); 0 = nobody to answer (e.g. an older sender)
     issuer_id: OptVehicleId = 0
+    # appended (issue 16): when the operator declared it, the ground station's clock;
+    # the newest declaration of a zone id wins everywhere, so a withdrawal (active=False)
+    # stays withdrawn when a node that missed it rejoins (0: unknown, the receiver's time)
+    time_unix_s: UnixTimeS = 0.0
 
     def __post_init__(self) -> None:
         if self.geometry.kind not in (GeometryKind.POLYGON, GeometryKind.CIRCLE):
@@ -507,6 +511,33 @@ class SwarmView(Struct, frozen=True):
     vehicle_id: VehicleId
     time_unix_s: UnixTimeS
     peers: tuple[PeerEntry, ...] = ()
+
+
+class DeclaredMission(Struct, frozen=True):
+    """A mission the node heard and accepted, and whether it is still in force for it."""
+
+    mission: Mission
+    in_force: bool = True  # False: completed, cancelled or left by this node
+    changed_unix_s: UnixTimeS = 0.0  # when in_force last changed
+
+
+class DeclaredState(Struct, frozen=True):
+    """What the operator declared, as one node holds it (answer to a query on
+    vehicle/<id>/declared; LAN only; issue 16): every zone and operating area (withdrawn
+    ones too, each with the stamp that orders it), the SET_BASE, SET_FLEET and
+    CANCEL_MISSION commands in force (newest last) and fleet assignments, from which any
+    vehicle's base and fleet follow, the missions it holds, and this node's own base,
+    fleet and mission. Nodes exchange it when they meet; the newest stamp wins."""
+
+    vehicle_id: VehicleId
+    time_unix_s: UnixTimeS
+    zones: tuple[NoFlyZone, ...] = ()
+    commands: tuple[Command, ...] = ()
+    assignments: tuple[FleetAssignment, ...] = ()
+    missions: tuple[DeclaredMission, ...] = ()
+    base: GeoPoint | None = None  # this node's base now
+    fleet_id: FleetId = 0  # this node's fleet now
+    mission_id: MissionId = 0  # the mission this node flies now (0: none)
 
 
 # --------------------------------------------------------------------------- radio

@@ -21,6 +21,7 @@ from .messages import (
     Ack,
     Alert,
     Command,
+    DeclaredState,
     FleetAssignment,
     Mission,
     NoFlyZone,
@@ -247,6 +248,14 @@ MISSIONS = Topic(
     "`mission_id`), one Mission reply per mission on its own key; the ground station's "
     "`gcs save` asks it (`vehicle/*/missions/*`). LAN only.",
 )
+DECLARED = Topic(
+    "declared",
+    "vehicle/{vehicle_id}/declared",
+    DeclaredState,
+    "Queryable: what the operator declared, as the node holds it (zones, bases, fleets, "
+    "missions, each with its stamp; the newest wins). A (re)started node asks each peer "
+    "that comes alive and merges; `gcs declared` asks any node. LAN only (issue 16).",
+)
 DATABASE = Topic(
     "database",
     "db/{node_id}",
@@ -278,6 +287,7 @@ TOPICS: tuple[Topic, ...] = (
     PEERS,
     ZONES,
     MISSIONS,
+    DECLARED,
     DATABASE,
     RADIO_STATS,
 )

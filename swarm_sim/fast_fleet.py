@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 import heapq
 import itertools
+import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -24,23 +25,29 @@ import msgspec
 
 from swarm_node.core.autopilot.link import Complete, LinkCore, LinkSettings, Transmit
 from swarm_node.core.autopilot.link import Output as LinkOutput
+from swarm_node.core.autopilot.requests import ApRequest
+from swarm_node.core.declared import SortieRecord
 from swarm_node.core.mission.tasking import TaskingSettings
 from swarm_node.core.node import (
     AutopilotResult,
     AutopilotUpdate,
     Input,
+    Learned,
     NodeCore,
     NodeSettings,
     Note,
+    PeerAlive,
+    Persist,
     PlanDone,
     PlanJob,
     Publish,
     Received,
+    StoreResult,
     Submit,
 )
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.plan_memo import PlanMemo
-from swarm_proto import VehicleType, lan
+from swarm_proto import DeclaredState, VehicleType, lan
 
 from .core import SITL_HOME, Home, VehicleEndpoint
 from .runtime.server import spread_homes
@@ -67,12 +74,36 @@ def seed_tasking() -> TaskingSettings:
 
 
 @dataclass
+class MemoryStore:
+    """A node's database as FastFleet keeps it: the last state it stored (`full`: the
+    disk is full, every store fails)."""
+
+    state: DeclaredState | None = None
+    sortie: SortieRecord | None = None
+    full: bool = False
+    writes: int = 0
+    failures: int = 0
+
+    def save(self, p: Persist) -> StoreResult:
+        if self.full:
+            self.failures += 1
+            return StoreResult(False, "disk is full")
+        self.state, self.sortie = p.state, p.sortie
+        self.writes += 1
+        return StoreResult(True)
+
+
+@dataclass
 class SimVehicle:
     node: NodeCore
     link: LinkCore
     endpoint: VehicleEndpoint
     next_poll: float = 0.0
     tokens: dict[int, int] = field(default_factory=dict)  # link token -> request id
+    stalled_until: float = float("-inf")  # the node's process is stopped until then
+    backlog: bytearray = field(default_factory=bytearray)  # MAVLink waiting in its socket
+    down: bool = False  # the node's process is dead (kill -9); the vehicle flies on
+    store: MemoryStore = field(default_factory=MemoryStore)  # its database (issue 16)
 
 
 @dataclass
@@ -81,11 +112,19 @@ class FastFleet:
     now: float
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
+    submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     plan_delay_s: float = 0.0  # simulated time a plan job takes
     plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
     # with a list here, every swarm message published is also appended to it as (sender,
     # LAN bytes, type): the part of a fleet split over processes (parallel_fleet.py)
     export: list[tuple[int, bytes, type]] | None = None
+    loss: float = 0.0  # fraction of swarm messages lost between nodes (seeded)
+    groups: dict[int, int] | None = None  # a partition: nodes hear only their own group
+    seed: int = 1
+    # what a restarted node is built with (restart_node)
+    profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)
+    settings: NodeSettings | None = None
+    tasking: TaskingSettings | None = None
 
     def __post_init__(self) -> None:
         # swarm messages and results in time order; a broadcast is one entry for all its
@@ -93,6 +132,8 @@ class FastFleet:
         self._bus: list[tuple[float, int, tuple[int, ...], Input]] = []
         self._seq = itertools.count()
         self._tokens = itertools.count(1)
+        self._rng = random.Random(self.seed)
+        self.lost_messages = 0
         self._scans: dict[tuple[type, int | None], tuple[int, object, list]] = {}
         # one global deadline heap (issue 20): each vehicle's earliest deadline (its
         # endpoint, link, poll and node), pushed again whenever the vehicle was touched;
@@ -136,7 +177,7 @@ class FastFleet:
                 tasking_settings=tasking or seed_tasking(),
             )  # fmt: skip
             vehicles[vid] = SimVehicle(node, link, endpoint, next_poll=start_unix_s)
-        return cls(vehicles, start_unix_s)
+        return cls(vehicles, start_unix_s, profiles=profiles, settings=settings, tasking=tasking)
 
     # ------------------------------------------------------------------ inputs
     def broadcast(self, msg: msgspec.Struct, to: Sequence[int] | None = None) -> None:
@@ -157,11 +198,14 @@ class FastFleet:
                 self.published.append((self.now, vid, o.msg))
                 raw = lan.encode(o.msg)
                 wire = lan.decode(raw, type(o.msg))
-                others = tuple(other for other in self.vehicles if other != vid)
+                others = tuple(o for o in self.vehicles if o != vid and self._carried(vid, o))
                 heapq.heappush(self._bus, (self.now, next(self._seq), others, Received(wire)))
                 if self.export is not None:
                     self.export.append((vid, raw, type(o.msg)))
+            elif isinstance(o, Persist):
+                self._deliver(vid, v.store.save(o), self.now)
             elif isinstance(o, Submit):
+                self.submitted.append((self.now, vid, o.request))
                 token = next(self._tokens)
                 v.tokens[token] = o.request.request_id
                 self._link_out(vid, v.link.submit(token, o.request, self.now))
@@ -170,6 +214,15 @@ class FastFleet:
             elif isinstance(o, PlanJob):  # inline, after the simulated planning time
                 done = PlanDone(self.plans.run(o.request))
                 self._deliver(vid, done, self.now + self.plan_delay_s)
+
+    def _carried(self, src: int, dst: int) -> bool:
+        """Whether a message from `src` reaches `dst` (a partition, seeded loss)."""
+        if self.groups is not None and self.groups.get(src) != self.groups.get(dst):
+            return False
+        if self.loss > 0.0 and self._rng.random() < self.loss:
+            self.lost_messages += 1
+            return False
+        return True
 
     def _link_out(self, vid: int, outputs: list[LinkOutput]) -> None:
         """Carry out the link's outputs: results to the node, bytes to the vehicle, and
@@ -190,9 +243,13 @@ class FastFleet:
             outputs = v.link.receive(back, self.now) if back else []
 
     # ------------------------------------------------------------------ scheduling
-    @staticmethod
-    def _vehicle_deadline(v: SimVehicle) -> float:
-        t = min(v.link.next_deadline(), v.node.next_deadline(), v.next_poll)
+    def _vehicle_deadline(self, v: SimVehicle) -> float:
+        if v.down:  # the autopilot flies on; nobody reads it
+            t = float("inf")
+        elif v.stalled_until > self.now:  # nothing of the node runs until it resumes
+            t = v.stalled_until
+        else:
+            t = min(v.link.next_deadline(), v.node.next_deadline(), v.next_poll)
         ep = v.endpoint.next_deadline()
         return ep if ep is not None and ep < t else t
 
@@ -256,27 +313,43 @@ class FastFleet:
     def _step_at(self, t: float) -> None:
         self.now = max(self.now, t)
         while self._bus and self._bus[0][0] <= self.now:
-            _, _, targets, event = heapq.heappop(self._bus)
+            _, seq, targets, event = heapq.heappop(self._bus)
             vehicles, now = self.vehicles, self.now
             for vid in targets:
                 v = vehicles.get(vid)
-                if v is not None:  # a killed vehicle hears nothing
-                    out = v.node.handle(event, now)
-                    if out:
-                        self._node_out(vid, out)
+                if v is None or v.down:  # a killed vehicle or node hears nothing
+                    continue
+                if v.stalled_until > now:  # a stopped process reads it when it resumes
+                    heapq.heappush(self._bus, (v.stalled_until, seq, (vid,), event))
+                    continue
+                out = v.node.handle(event, now)
+                if out:
+                    self._node_out(vid, out)
             self._dirty.update(targets)  # their nodes had an input: deadlines may move
         for vid in self._dirty:
             self._schedule(vid)
         self._dirty.clear()
         due: set[int] = set()
         while self._next_timer() <= self.now:
-            due.add(heapq.heappop(self._timers)[2])
+            vid = heapq.heappop(self._timers)[2]
+            self._due.pop(vid, None)  # pushed again after its timers, even at the same time
+            due.add(vid)
         for vid in sorted(due, key=self._rank.__getitem__):
             self._timers_of(vid, self.vehicles[vid])
             self._schedule(vid)
 
     def _timers_of(self, vid: int, v: SimVehicle) -> None:
         ep = v.endpoint.next_deadline()
+        if v.down:  # the autopilot flies on; nobody reads it
+            if ep is not None and ep <= self.now:
+                v.endpoint.on_timer(self.now)
+            return
+        if v.stalled_until > self.now:  # the autopilot flies on; its bytes wait
+            if ep is not None and ep <= self.now:
+                v.backlog += v.endpoint.on_timer(self.now)
+            return
+        if v.backlog:
+            self._resume(vid, v)
         if ep is not None and ep <= self.now:
             back = v.endpoint.on_timer(self.now)
             if back:
@@ -288,6 +361,82 @@ class FastFleet:
             self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
         if v.node.next_deadline() <= self.now:
             self._node_out(vid, v.node.on_timer(self.now))
+
+    def _resume(self, vid: int, v: SimVehicle) -> None:
+        """A stopped node process runs again, in the worst order for it: its timers
+        first (the link's silence timer and the node's tick run late), then what waited
+        in its socket meanwhile (issue 16)."""
+        self._link_out(vid, v.link.on_timer(self.now))
+        self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
+        self._node_out(vid, v.node.on_timer(self.now))
+        data, v.backlog = bytes(v.backlog), bytearray()
+        self._link_out(vid, v.link.receive(data, self.now))
+
+    def stall(self, vid: int, seconds: float) -> None:
+        """Stop vehicle `vid`'s node process (SIGSTOP) for `seconds`: its autopilot flies
+        on and what it sends waits in the socket; nothing of the node runs meanwhile."""
+        self.vehicles[vid].stalled_until = self.now + seconds
+        self._dirty.add(vid)
+
+    def kill_node(self, vid: int) -> None:
+        """The node's process dies (kill -9) while its vehicle flies on: the others lose
+        its liveliness token at once (Zenoh notices a dead process in milliseconds)."""
+        v = self.vehicles[vid]
+        v.down = True
+        self._dirty.add(vid)
+        for other in self.vehicles:
+            if other != vid:
+                self._deliver(other, PeerAlive(vid, False), self.now)
+
+    def restart_node(self, vid: int, *, keep_database: bool = True) -> NodeCore:
+        """Start node `vid` again (a new process: new node core, new autopilot link) on
+        its database (`keep_database=False`: a new, empty one); it reattaches to its
+        vehicle as it is. It and its peers exchange their declared state as they meet
+        (each asks the other's DECLARED queryable)."""
+        v = self.vehicles[vid]
+        profile = v.node.profile
+        if not keep_database:
+            v.store = MemoryStore(full=v.store.full)
+        v.node = NodeCore(
+            profile, self.settings or NodeSettings(), now=self.now,
+            fleet_profiles=self.profiles or {profile.vehicle_id: profile},
+            tasking_settings=self.tasking or seed_tasking(),
+        )  # fmt: skip
+        v.link = LinkCore(
+            LinkSettings(vehicle_type=profile.vehicle_type, link_timeout_s=0.6), self.now
+        )
+        v.tokens, v.down, v.backlog = {}, False, bytearray()
+        v.stalled_until, v.next_poll = float("-inf"), self.now
+        self._dirty.add(vid)
+        stored = v.store.state or DeclaredState(vehicle_id=vid, time_unix_s=self.now)
+        self._deliver(vid, Learned(stored, v.store.sortie, "database"), self.now)
+        for other, o in self.vehicles.items():
+            if other == vid or o.down:
+                continue
+            self._deliver(other, PeerAlive(vid, True), self.now)
+            self._deliver(vid, PeerAlive(other, True), self.now)
+        self.exchange_declared(vid)
+        return v.node
+
+    def exchange_declared(self, vid: int, delay_s: float = 0.1) -> None:
+        """Node `vid` and every peer it reaches ask each other's DECLARED queryable."""
+        v = self.vehicles[vid]
+        for other, o in self.vehicles.items():
+            if other == vid or o.down or not self._reachable(vid, other):
+                continue
+            at = self.now + delay_s
+            self._deliver(vid, Learned(o.node.declared_state(self.now), None, f"peer {other}"), at)
+            self._deliver(other, Learned(v.node.declared_state(self.now), None, f"peer {vid}"), at)
+
+    def _reachable(self, a: int, b: int) -> bool:
+        return self.groups is None or self.groups.get(a) == self.groups.get(b)
+
+    def reboot_autopilot(self, vid: int, *, keep_stores: bool = False) -> None:
+        """Power-cycle vehicle `vid`'s autopilot where it stands: it boots again, by
+        default with empty mission, fence and rally stores (issue 16); the node's link
+        sees its time since boot go back."""
+        self.vehicles[vid].endpoint.reboot(self.now, keep_stores=keep_stores)
+        self._dirty.add(vid)
 
     def kill(self, vid: int) -> SimVehicle:
         """The vehicle and its node vanish at once (a crash, a dead companion computer):

@@ -103,6 +103,7 @@ NAMED: dict[str, tuple[str, ...]] = {
         "split_imbalance",
         "gis_4000/full_plan_ms",
     ),
+    "faults": ("faults", "recovered", "declared_state_lost", "false_emergencies", "coverage_min"),
     "mission": (
         "battery_min_pct_at_landing",
         "makespan_planned_vs_flown",
@@ -125,6 +126,7 @@ NAMED: dict[str, tuple[str, ...]] = {
         "mumt/slot_error_max_m",
     ),
 }
+FAULT_ROW = ("recovered", "recover_s", "coverage", "declared_state_lost", "false_emergencies")
 RADIO_ROW = (
     "rf_bps",
     "guard_ms",
@@ -236,3 +238,22 @@ def test_radio_scale_rows_have_no_collisions() -> None:
         for by_scheme in by_loss.values():
             for row in by_scheme.values():
                 assert row["collisions"] == 0, row
+
+
+def test_fault_campaign_rows() -> None:
+    """Issue 16: one row per fault (and mission) with the named figures; nothing declared
+    is lost and no emergency is false in any row."""
+    data = _load("faults")
+    rows = data["rows"]
+    assert {r["fault"] for r in rows} >= {
+        "none", "kill -9 a node (restarted after 5 s)", "SIGSTOP a node 3 s",
+        "restart an autopilot (empty stores)", "drop 30 % of swarm messages",
+        "partition the swarm in two for 20 s", "clock jump +1 h on one node",
+        "disk full on the database", "corrupted database at start (new one)",
+    }  # fmt: skip
+    assert {r["env"] for r in rows} == {"fast", "processes"}
+    for row in rows:
+        assert all(k in row for k in FAULT_ROW), row
+        assert isinstance(row["recovered"], bool)
+        assert row["declared_state_lost"] == 0 and row["false_emergencies"] == 0, row
+    assert data["baseline"] and all(r["fault"] == "none" for r in data["baseline"])

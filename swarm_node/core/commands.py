@@ -170,11 +170,12 @@ SAFE_RALLY_ALT_REL_M: dict[VehicleType, float] = {
 
 def rally_alt_rel_m(vehicle_type: VehicleType, base_alt_rel_m: float) -> float:
     """The rally point's altitude above home for the base: the operator's base altitude,
-    never below the vehicle type's safe floor (ground vehicles: the base's own)."""
+    never below home (issue 16: a base given without an altitude is 0 m above sea
+    level, `gcs cmd set-base --point LAT,LON`; with home 10 m above sea level a rover's
+    rally point went to -10 m) and never below the vehicle type's safe floor."""
+    rel = max(base_alt_rel_m, 0.0) if math.isfinite(base_alt_rel_m) else 0.0
     floor = SAFE_RALLY_ALT_REL_M.get(vehicle_type)
-    if floor is None or not math.isfinite(base_alt_rel_m):
-        return base_alt_rel_m if math.isfinite(base_alt_rel_m) else 0.0
-    return max(base_alt_rel_m, floor)
+    return rel if floor is None else max(rel, floor)
 
 
 def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:

@@ -230,6 +230,13 @@ class FenceKeeper:
             self.held = msgspec.structs.replace(done, request_id=0)
         return self._next(now), None
 
+    def forget(self) -> None:
+        """The autopilot may no longer hold what was uploaded (it rebooted, or its store
+        was found different: backstop.py, issue 16): upload it again, FENCE_TYPE first."""
+        self.held = None
+        self.type_set = False
+        self._retry_at = None
+
     def on_timer(self, now: float) -> list[ApRequest]:
         return self._next(now)
 

@@ -182,6 +182,7 @@ class MissionManager:
     _fresh_reached: bool = False  # the autopilot reported an item of this mission
     _fresh_current: bool = False
     fleet_plan: FleetPlan | None = None  # the whole fleet's plan (replanning starts from it)
+    reattached: bool = False  # flying a share uploaded before the node restarted
     share: Share | None = None  # our share of it, as flown
     _share_index: tuple[int, ...] = ()  # uploaded item seq -> index in share.waypoints
     _offset: float = 0.0  # metres flown before the last replan
@@ -540,6 +541,24 @@ class MissionManager:
             return [Post(fsm.LeftFleet(reason[:64]))]
         return [Post(fsm.PlanFailed(mid, reason[:64]))]
 
+    def reattach(
+        self, mission_id: int, items: int, last_item: int, path_m: float, progress_m: float
+    ) -> None:
+        """After the node restarted: the autopilot flies the share this node uploaded
+        before (`items`, completed at `last_item`); watch it again to its end, without
+        a request (issue 16, reattach.py). Progress in metres resumes from `progress_m`."""
+        self.stop()
+        self.sortie.begin(keep_progress=False)
+        self.sortie.go(Trigger.RELEASED)
+        self.sortie.go(Trigger.STARTED)
+        self.sortie.path_m, self.sortie.progress_m = path_m, min(progress_m, path_m)
+        self.mission_id, self.items, self.last_item = mission_id, items, last_item
+        self._stale = (-2, -2)  # everything the autopilot reports now is of this mission
+        self._fresh_reached = self._fresh_current = True
+        self.hold_s, self.hold_seq = 0.0, 0
+        self.phase = Phase.FLYING
+        self.reattached = True  # the autopilot past the last item: the share is flown
+
     def begin_replan(self, now: float | None = None) -> None:
         """A member was lost: the fleet replans what is left. We keep flying our share
         meanwhile; the progress we published is what the others replan from."""
@@ -765,6 +784,7 @@ class MissionManager:
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
+        self.reattached = False
         self._planning, self._held = None, None  # a plan job still running is abandoned
         self.share, self._share_index, self._offset = None, (), 0.0
         self.turn, self.lands, self.follow = None, False, None
@@ -902,6 +922,8 @@ class MissionManager:
         if self.lands:
             return out + self._landing(ap, now, fleet)
         done = reached >= self.last_item and self.hold_seq == 0
+        if self.reattached and ap.mission_current > self.last_item:  # passed while we were away
+            done = True
         if self.hold_seq and self._fresh_current and ap.mission_current >= self.hold_seq:
             if self.hold_since is None and self._on_station(ap):
                 self.hold_since = now

@@ -11,7 +11,13 @@ and cleared after being absent for `clear_after_s`, so a voltage sag or one late
 packet does not flap alerts. Autopilot link loss is raised at once (the link itself
 already waited its timeout), as a WARNING: it becomes an EMERGENCY (CRITICAL on the
 ground) only when the loss lasts `link_emergency_after_s` (issue 11: on a loaded host
-one 0.8 s gap, back 0.4 s later, ended a mission ArduPilot was flying fine).
+one 0.8 s gap, back 0.4 s later, ended a mission ArduPilot was flying fine). That is
+5 s, ArduPilot's own convention for a lost ground link (Copter FS_GCS_TIMEOUT, Plane
+FS_LONG_TIMEOUT: both 5 s by default; docs/reliability.md), and the node's own stalls
+(`note_stall`: its loop not served, a loaded host) do not count toward it (issue 16).
+A link that never came up is not a loss: "no autopilot yet" is a WARNING after
+`link_grace_s`, never an emergency (a slow start on a loaded host raised it CRITICAL
+91 ms after the link opened).
 """
 
 from __future__ import annotations
@@ -47,7 +53,9 @@ class Thresholds:
     raise_after_s: float = 1.0
     clear_after_s: float = 3.0
     link_grace_s: float = 10.0  # at start, the autopilot link may take this long to come up
-    link_emergency_after_s: float = 2.0  # a link loss lasting this long is an emergency
+    # a link loss lasting this long is an emergency: ArduPilot's FS_GCS_TIMEOUT (Copter)
+    # and FS_LONG_TIMEOUT (Plane) default, 5 s (issue 16; it was 2 s)
+    link_emergency_after_s: float = 5.0
 
     @classmethod
     def from_profile(cls, profile: VehicleProfile) -> Thresholds:
@@ -135,9 +143,21 @@ class VehicleMonitor:
     _had_link: bool = False
     _started: float | None = None
     _breach_text: str | None = None
+    _never_up: bool = False  # the link loss seen is "never came up" (a WARNING only)
+    stalled_s: float = 0.0  # the node's own stalls, seconds (not counted as link loss)
     ready: bool = False
     vehicle_type: VehicleType | None = None  # the node's identity (None: not checked)
     _mismatch_text: str | None = None
+
+    def note_stall(self, seconds: float) -> None:
+        """The node was not served for `seconds` (its own stall, a loaded host): a link
+        loss being timed does not count that time toward its escalation."""
+        if not seconds > 0.0:
+            return
+        self.stalled_s += seconds
+        tr = self._tracked.get(AlertCode.AUTOPILOT_LINK_LOSS)
+        if tr is not None and tr.since is not None:
+            tr.since += seconds
 
     # ------------------------------------------------------------------ conditions
     def _observe(self, s: AutopilotState, now: float) -> set[AlertCode]:
@@ -146,6 +166,7 @@ class VehicleMonitor:
         if self._started is None:
             self._started = now
         self._had_link |= s.link_ok
+        self._never_up = not self._had_link
         if not s.link_ok:
             # lost after it was up; or never up within the grace period after start
             if self._had_link or now - self._started >= t.link_grace_s:
@@ -194,9 +215,13 @@ class VehicleMonitor:
             if (
                 code == AlertCode.AUTOPILOT_LINK_LOSS
                 and code in seen
-                and (tr.since is None or now - tr.since < t.link_emergency_after_s)
+                and (
+                    self._never_up
+                    or tr.since is None
+                    or now - tr.since < t.link_emergency_after_s
+                )
             ):
-                severity = Severity.WARNING  # a short gap: the mission goes on
+                severity = Severity.WARNING  # a short gap (or none yet): the mission goes on
             if code in seen:
                 tr.clear_since = None
                 if tr.since is None:
@@ -289,7 +314,7 @@ def _describe(code: AlertCode, s: AutopilotState) -> str:
     if code == AlertCode.ATTITUDE_ABNORMAL:
         return f"roll {s.roll_deg:.0f} pitch {s.pitch_deg:.0f} deg"
     if code == AlertCode.AUTOPILOT_LINK_LOSS:
-        return "no HEARTBEAT from the autopilot"
+        return "no HEARTBEAT from the autopilot" if s.last_message_s else "no autopilot yet"
     if code == AlertCode.EKF_FAILURE:
         return "EKF position/velocity estimate bad"
     if code == AlertCode.GEOFENCE_BREACH:

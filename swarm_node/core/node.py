@@ -35,6 +35,9 @@ dropped silently):
                            -> regroup (swarm/regroup.py): add and swap; both carried
                               out by FleetChanges (fleet_changes.py)
     PlanDone               -> mission manager (the plan job's outcome: fly the share)
+    Learned(DeclaredState) -> the declared book (declared.py): newer zones, base, fleet
+                              applied (from the node's database at start, or a peer)
+    StoreResult            -> a failed store of the declared state is alerted once
     Received(Alert | SwarmView) -> declared, not used (counted)
 
 Modules answer in one vocabulary (outputs.py): Publish, Submit(owner, request),
@@ -65,6 +68,7 @@ from swarm_proto import (
     AlertFlag,
     Command,
     CommandKind,
+    DeclaredState,
     FleetAssignment,
     FsmState,
     GeoPoint,
@@ -85,9 +89,10 @@ from swarm_proto.text import short_text
 
 from . import state_machine as fsm
 from .arbiter import AutopilotArbiter, Routed
-from .autopilot.requests import ApResult
+from .autopilot.requests import ApResult, UploadRally
 from .autopilot.state import AutopilotState
 from .autopilot.status import to_vehicle_status
+from .backstop import BackstopKeeper
 from .commands import (
     AnswerCache,
     CancelMission,
@@ -104,7 +109,9 @@ from .commands import (
     check_mission,
     emergency_requests,
     plan_command,
+    rally_alt_rel_m,
 )
+from .declared import DeclaredBook, SortieRecord
 from .emergency_route import zone_safe_emergency
 from .fences import (
     FENCE_FULL_HEIGHT_REL_M,
@@ -120,14 +127,20 @@ from .mission.tasking import Tasking, TaskingSettings
 from .mission.voting import VoterLost
 from .mission_manager import Member, MissionManager, Phase, replan_battery, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
-from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
+from .outputs import ModuleOutput, Note, Owner, Persist, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
+from .reattach import Decision, Reattacher, dropped, same_share, sortie_record
 from .safety.module import AvoidanceModule
+from .stalls import StallMeter
 from .swarm.regroup import Regroup
 from .swarm.roster import MemberJoined, MemberLost, Roster, RosterEvent, RosterMismatch
 
 log = logging.getLogger(__name__)
+
+#: A stall of this node this long may have let its Zenoh session lapse (the 2 s lease)
+#: and its peers' news go stale: peers leaving right after it are suspects first.
+OWN_STALL_SUSPECT_S = 1.0
 
 # ----------------------------------------------------------------------------- I/O
 
@@ -166,14 +179,36 @@ class PlanDone:
     outcome: PlanOutcome
 
 
-Input = AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput | PlanDone
+@dataclass(frozen=True)
+class Learned:
+    """Declared state from the node's own database at start (`sortie`: the share it
+    was flying) or from a peer (issue 16): merged, the newest stamp wins."""
+
+    state: DeclaredState
+    sortie: SortieRecord | None = None
+    source: str = "peer"
 
 
-Output = Publish | Submit | Note | PlanJob  # what the shell carries out (Post stays inside)
+@dataclass(frozen=True)
+class StoreResult:
+    """The shell stored (or failed to store) the last `Persist`."""
+
+    ok: bool
+    error: str = ""
+
+
+Input = (
+    AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput | PlanDone | Learned
+    | StoreResult
+)  # fmt: skip
+
+
+# what the shell carries out (Post stays inside)
+Output = Publish | Submit | Note | PlanJob | Persist
 __all__ = [  # noqa: RUF022 (inputs, outputs, the core)
-    "AutopilotResult", "AutopilotUpdate", "BadInput", "Input", "PeerAlive", "PlanDone",
-    "Received", "Note", "Output", "PlanJob", "Post", "Publish", "Submit",
-    "NodeCore", "NodeSettings",
+    "AutopilotResult", "AutopilotUpdate", "BadInput", "Input", "Learned", "PeerAlive",
+    "PlanDone", "Received", "StoreResult", "Note", "Output", "Persist", "PlanJob", "Post",
+    "Publish", "Submit", "NodeCore", "NodeSettings",
 ]  # fmt: skip
 
 
@@ -232,14 +267,30 @@ class NodeCore:
         self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
         self.arbiter = AutopilotArbiter()
         self.fence = FenceKeeper()  # zones -> the autopilot's fence (fences.py)
+        # the fence and rally point checked on the autopilot (backstop.py, issue 16)
+        self.backstop = BackstopKeeper(vid, self.fence)
         self.fence_plan: FencePlan | None = None
-        self.avoid = AvoidanceModule(self.profile, enabled=self.settings.avoidance)
+        # its first tick at once: now, not at time 0 (a deadline of 0 reads as a stall)
+        self.avoid = AvoidanceModule(
+            self.profile, enabled=self.settings.avoidance, _next_tick=self.now
+        )
         self._zones_version = 0  # 0: no zone heard yet, the autopilot's fence is left alone
         self._fence_key: object = None
         self._next_status = self.now
         self._next_info = self.now
         self.lost_members: list[MemberLost] = []  # roster events (replanning picks them up)
         self._replanning = False  # in PLAN for a replan of the current mission
+        self.stalls = StallMeter()  # the node's own stalls, apart from link loss (stalls.py)
+        self._due: float | None = None  # the deadline this core last declared
+        self.declared = DeclaredBook()  # what the operator declared (declared.py)
+        self._base_stamp = 0.0  # the stamp of the declaration our base came from
+        self._fleet_stamp = 0.0
+        self._dirty = False  # the declared state changed: store it
+        self._store_failing = False
+        self.sortie_record: SortieRecord | None = None  # restored or kept (reattach)
+        self._own_stall_until = float("-inf")  # peers leaving before then are suspects
+        self._suspects: dict[int, str] = {}
+        self.reattach = Reattacher(vid)  # a start with the vehicle flying (reattach.py)
 
     # ------------------------------------------------------------------ views
     @property
@@ -324,30 +375,158 @@ class NodeCore:
     # ------------------------------------------------------------------ inputs
     def handle(self, event: Input, now: float) -> list[Output]:
         self.now = now
-        out: list[ModuleOutput]
+        out: list[ModuleOutput] = self._stalled(now)
         match event:
             case Received(msg):  # first: by far the most frequent input
-                out = self._on_message(msg, now)
+                out += self._on_message(msg, now)
             case AutopilotUpdate(state):
-                out = self._on_autopilot(state, now)
+                out += self._on_autopilot(state, now)
             case AutopilotResult(result):
                 routed = self.arbiter.on_result(result)
                 if routed is None:
-                    out = self._unhandled("result", f"autopilot result {result.request_id}")
+                    out += self._unhandled("result", f"autopilot result {result.request_id}")
                 else:
-                    out = self._on_result(routed, now)
+                    out += self._on_result(routed, now)
             case PeerAlive(node_id, alive):
-                out = self._peer_events(self.members.on_alive(node_id, alive, now))
+                out += self._peer_events(self.members.on_alive(node_id, alive, now))
             case BadInput(key, error):
                 self.bad_input[key] += 1
-                out = [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
+                out += [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
             case PlanDone(outcome):
-                out = self.manager.on_plan(outcome, self.autopilot, now, self.roster)
+                out += self.manager.on_plan(outcome, self.autopilot, now, self.roster)
+            case Learned(state, sortie, source):
+                out += self._learn(state, sortie, source, now)
+            case StoreResult(ok, error):
+                out += self._stored(ok, error, now)
             case _:
                 assert_never(event)
         if self.manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s
             out.append(Publish(self.info()))
+        return self._routed(out, now)
+
+    def _routed(self, out: list[ModuleOutput], now: float) -> list[Output]:
+        self._keep_sortie_record(now)
+        if self._dirty:
+            self._dirty = False
+            out.append(Persist(self.declared_state(now), self.sortie_record))
         return self._route(out, now) if out else []
+
+    # ------------------------------------------------------------------ declared state
+    def declared_state(self, now: float) -> DeclaredState:
+        """What the operator declared, as this node holds it (the DECLARED queryable)."""
+        mid = self.fsm.mission_id
+        return self.declared.snapshot(
+            self.self_id, now, base=self.base, fleet_id=self.fleet_id,
+            mission_id=mid if mid is not None and mid > 0 else 0,
+        )  # fmt: skip
+
+    def _learn(
+        self, state: DeclaredState, sortie: SortieRecord | None, source: str, now: float
+    ) -> list[ModuleOutput]:
+        """Merge another book (ours from the database, a peer's): newer zones go to
+        monitoring and the fence, a newer base or fleet for this vehicle is taken."""
+        changed = self.declared.merge(state, now)
+        out: list[ModuleOutput] = []
+        for z in changed.zones:
+            self.monitor.zones[z.zone_id] = z
+            self._zones_version += 1
+        if changed.zones:
+            ids = ",".join(str(z.zone_id) for z in changed.zones)
+            out.append(Note(logging.INFO, f"zones {ids} learned from {source}"))
+            out += self._keep_fence(now)
+        out += self._take_declared(source)
+        if source == "database":  # the node starts: its vehicle may be flying
+            self.sortie_record = sortie
+            self.reattach.start(sortie, now)
+        if changed:
+            self._dirty = True
+        return out
+
+    def _keep_sortie_record(self, now: float) -> None:
+        """The share flown now, stored when it changes (not its progress): a node that
+        restarts in flight reattaches with it (reattach.py)."""
+        if self.reattach.active:
+            return  # the record restored at start is the one to decide with
+        m, r = self.manager, self.roster
+        rec = sortie_record(
+            mission_id=m.mission_id, flying=m.phase.value == "flying", members=r.members,
+            planned=r.planned, generation=r.generation, members_hash_=r.members_hash,
+            items=m.items, last_item=m.last_item, path_m=m.sortie.path_m,
+            progress_m=m.sortie.progress_m, now=now,
+        )  # fmt: skip
+        if not same_share(rec, self.sortie_record):
+            self.sortie_record = rec
+            self._dirty = True
+
+    def _reattached(self, decision: Decision, now: float) -> list[ModuleOutput]:
+        """Carry out the reattach decision (reattach.py)."""
+        rec = self.sortie_record
+        if decision == Decision.HAND_ON:
+            self.sortie_record = None
+            self._dirty = True
+            return [Post(fsm.LeftFleet("share handed on after a restart"))]
+        if decision != Decision.CONTINUE or rec is None:
+            return []
+        held = self.declared.missions.get(rec.mission_id)
+        if held is None:  # the mission itself was not stored: the vehicle goes home
+            return [Post(fsm.LeftFleet("restarted without the mission on record"))]
+        if self.declared.cancelled(rec.mission_id) or not held.in_force:
+            return [Post(fsm.LeftFleet(f"mission {rec.mission_id} no longer in force"))]
+        mission = held.mission
+        self.missions[mission.mission_id] = mission
+        r = self.roster
+        r.open(mission.mission_id, mission.selection)
+        r.members, r.planned, r.generation = rec.members, rec.planned, rec.generation
+        self.manager.reattach(rec.mission_id, rec.items, rec.last_item, rec.path_m, rec.progress_m)
+        return [Post(fsm.Reattached(rec.mission_id))]
+
+    def _take_declared(self, source: str) -> list[ModuleOutput]:
+        """This vehicle's base and fleet as the book resolves them, when newer than what
+        set ours."""
+        base, base_at, fleet, fleet_at = self.declared.resolve(self.self_id)
+        out: list[ModuleOutput] = []
+        if base is not None and base_at > self._base_stamp:
+            self.base, self._base_stamp = base, base_at
+            out.append(Note(logging.INFO, f"base {base.lat_deg:.6f},{base.lon_deg:.6f} "
+                                          f"learned from {source}"))  # fmt: skip
+        if fleet_at > self._fleet_stamp:
+            if fleet != self.fleet_id:
+                out.append(Note(logging.INFO, f"fleet {fleet} learned from {source}"))
+            self.fleet_id, self._fleet_stamp = fleet, fleet_at
+        return out
+
+    def _stored(self, ok: bool, error: str, now: float) -> list[ModuleOutput]:
+        if ok:
+            was, self._store_failing = self._store_failing, False
+            return [Note(logging.INFO, "declared state stored again")] if was else []
+        if self._store_failing:
+            return []
+        self._store_failing = True
+        text = f"declared state not stored: {error}"
+        return [
+            Note(logging.WARNING, f"{text} (held in memory and by the peers; retried)"),
+            Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC,
+                          text[:64])),
+        ]  # fmt: skip
+
+    def _stalled(self, now: float) -> list[ModuleOutput]:
+        """The node's own stall (served later than its declared deadline): not counted
+        as autopilot link loss, reported apart (stalls.py)."""
+        stall = self.stalls.observe(now, self._due)
+        if stall:
+            self.monitor.note_stall(stall)
+            self.stalls.note(now, stall)
+            if stall >= OWN_STALL_SUSPECT_S:  # our session and our news of the peers lapsed
+                self._own_stall_until = now + self.settings.stale_after_s
+        stall = self.stalls.due_report(now)
+        if not stall:
+            return []
+        text = f"node stalled {stall:.1f} s (host busy), not a link loss"
+        return [
+            Note(logging.WARNING, text),
+            Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC,
+                          text[:64])),
+        ]  # fmt: skip
 
     def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
         """Posts to the state machine, requests through the arbiter (a refusal goes
@@ -372,7 +551,7 @@ class NodeCore:
                         out.append(Submit(sent, owner, route))
                 case Publish():
                     out.append(o)
-                case Note() | PlanJob():
+                case Note() | PlanJob() | Persist():
                     out.append(o)
                 case _:
                     assert_never(o)
@@ -412,7 +591,17 @@ class NodeCore:
         self.autopilot = state
         out: list[ModuleOutput] = [Publish(a) for a in self.monitor.update(state, now)]
         out += self.manager.on_autopilot(state, now, self.roster)
-        return out + self._keep_fence(now)
+        out += self._keep_fence(now)
+        out += self.reattach.on_autopilot(state, now)
+        return out + self.backstop.on_autopilot(state, self.rally_want(), now)
+
+    def rally_want(self) -> UploadRally | None:
+        """The rally point the autopilot should hold: the base (commands.rally_alt_rel_m)."""
+        base, home = self.base, self.autopilot.home
+        if base is None or home is None:
+            return None
+        alt = rally_alt_rel_m(self.profile.vehicle_type, base.alt_msl_m - home.alt_msl_m)
+        return UploadRally(points=((base.lat_deg, base.lon_deg, alt),))
 
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
         match msg:
@@ -437,8 +626,12 @@ class NodeCore:
                 return self._on_mission(msg)
             case NoFlyZone():
                 held = self.monitor.zones.get(msg.zone_id)
-                self.monitor.zones[msg.zone_id] = msg
+                zone = self.declared.offer_zone(msg, now)
+                if zone is None:  # older than the declaration held: a withdrawal stays
+                    return self._zone_ack(msg, held)
+                self.monitor.zones[zone.zone_id] = zone
                 self._zones_version += 1
+                self._dirty = True
                 return self._zone_ack(msg, held) + self._keep_fence(now)
             case FleetAssignment():
                 return self._on_fleet(msg)
@@ -486,6 +679,14 @@ class NodeCore:
         repeat = self._repeat(cmd)
         if repeat is not None:
             return repeat
+        declared = self.declared.offer_command(cmd, now)  # every node keeps every one
+        if declared is not None:
+            self._dirty = True
+            if cmd.target.addresses(self.self_id, self.fleet_id):
+                if cmd.kind == CommandKind.SET_BASE:
+                    self._base_stamp = declared.time_unix_s
+                elif cmd.kind == CommandKind.SET_FLEET:
+                    self._fleet_stamp = declared.time_unix_s
         if cmd.kind in (CommandKind.JOIN_MISSION, CommandKind.SWAP_MISSION):
             return self.changes.on_regroup(cmd, now)
         plan = plan_command(cmd, self.view())
@@ -550,6 +751,7 @@ class NodeCore:
         if ok:
             mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
             self.missions[mission.mission_id] = mission
+            self._dirty |= self.declared.accept_mission(mission, self.now) is not None
             self.fsm.post(fsm.NewMission(mission.mission_id))
         return out
 
@@ -560,6 +762,12 @@ class NodeCore:
         return "shut down: send activate" if not self.active else "state machine not started"
 
     def _on_fleet(self, msg: FleetAssignment) -> list[ModuleOutput]:
+        held = self.declared.offer_assignment(msg, self.now)
+        if held is None:
+            return []  # a repeat, or older than the assignment held
+        self._dirty = True
+        if self.self_id in msg.vehicle_ids or self.fleet_id == msg.fleet_id:
+            self._fleet_stamp = max(self._fleet_stamp, held.time_unix_s)
         if self.self_id in msg.vehicle_ids:
             self.fleet_id = msg.fleet_id
         elif self.fleet_id == msg.fleet_id:
@@ -609,6 +817,10 @@ class NodeCore:
         return out + [Submit(r, Owner.FENCE) for r in self.fence.update(plan.request, now)]
 
     def _fence_result(self, result: ApResult, now: float) -> list[ModuleOutput]:
+        if self.reattach.owns(result.request_id):
+            return self.reattach.on_result(result, now)
+        if self.backstop.owns(result.request_id):
+            return self.backstop.on_result(result, self.autopilot, now)
         reqs, problem = self.fence.on_result(result, now)
         out: list[ModuleOutput] = [Submit(r, Owner.FENCE) for r in reqs]
         if problem is not None and self.fence.failures == 1:  # once per run of failures
@@ -625,14 +837,34 @@ class NodeCore:
         return [z for z in self.monitor.zones.values() if z.in_force(now) and not z.operating_area]
 
     def _peer_events(self, events: list[PeerEvent]) -> list[ModuleOutput]:
+        """Peers joined and left. A peer that leaves just after this node's own long
+        stall (its Zenoh session dropped by the lease, its peers' news late) is only a
+        suspect until `own_stall_grace_s` has passed: it is lost then if it did not come
+        back (issue 16: a node stopped 3 s otherwise took every member for lost and
+        replanned their shares alone)."""
         out: list[ModuleOutput] = []
         for ev in events:
             if isinstance(ev, PeerJoined):
-                out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
+                if self._suspects.pop(ev.node_id, None) is None:
+                    out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
             elif isinstance(ev, PeerLeft):
+                if self.now < self._own_stall_until:
+                    self._suspects[ev.node_id] = ev.why
+                    continue
                 self.avoid.forget(ev.node_id, self.now)
                 out.append(Note(logging.WARNING, f"peer {ev.node_id} lost ({ev.why})"))
                 out += self._roster_events(self.roster.on_peer_left(ev.node_id, ev.why))
+        return out
+
+    def _suspects_left(self, now: float) -> list[ModuleOutput]:
+        """Suspects that did not come back within the grace after our own stall."""
+        if not self._suspects or now < self._own_stall_until:
+            return []
+        gone, self._suspects = self._suspects, {}
+        out: list[ModuleOutput] = []
+        for vid, why in gone.items():
+            out.append(Note(logging.WARNING, f"peer {vid} lost ({why})"))
+            out += self._roster_events(self.roster.on_peer_left(vid, why))
         return out
 
     def _roster_events(self, events: list[RosterEvent]) -> list[ModuleOutput]:
@@ -666,6 +898,16 @@ class NodeCore:
                         Post(fsm.Replan(ev.mission_id)),  # share what is left with it
                     ]
             elif isinstance(ev, RosterMismatch):  # an alert, once per member and hash
+                r = self.roster
+                if (
+                    dropped(self.self_id, ev.mission_id, r.planned, r.generation, ev.theirs)
+                    and self.fsm.state == FsmState.GO_MISSION
+                    and self.fsm.mission_id == ev.mission_id
+                ):  # the fleet replanned our share away while we were stopped
+                    out.append(Post(fsm.LeftFleet("the fleet replanned without this vehicle")))
+                    out.append(Note(logging.WARNING, f"mission {ev.mission_id}: the fleet "
+                                    "replanned without us; handing the share on"))  # fmt: skip
+                    continue
                 text = (f"mission {ev.mission_id}: vehicle {ev.vehicle_id} flies roster "
                         f"{ev.theirs:#06x}, ours {ev.ours:#06x}")  # fmt: skip
                 out += [
@@ -685,21 +927,34 @@ class NodeCore:
             self.fence.next_deadline(),
             self.tasking.next_deadline(),
             self.avoid.next_deadline(),
+            self.backstop.next_deadline(),
+            self.stalls.next_deadline(),
+            self._own_stall_until if self._suspects else None,
+            self.reattach.next_deadline(),
         ):
             if d is not None and d < t:
                 t = d
+        self._due = t  # the deadline declared: served later than it, the node stalled
         return t
 
     def on_timer(self, now: float) -> list[Output]:
         self.now = now
-        out: list[ModuleOutput] = []
+        out: list[ModuleOutput] = self._stalled(now)
         out += self._peer_events(self.members.on_timer(now))
+        out += self._suspects_left(now)
         out += self._answer(self.commands.on_timer(now))
         out += self._keep_fence(now)
         due = self.tasking.next_deadline()
         if due is not None and now >= due:
             out += self.changes.tasked(self.tasking.on_timer(now), now)
         out += self._avoidance_tick(now)
+        out += self.backstop.on_timer(self.autopilot, now)
+        if self.reattach.active:
+            infos = [p.info for p in self.members.live() if p.info is not None]
+            decision, said = self.reattach.on_timer(self.autopilot, infos, self.fsm.state, now)
+            out += said
+            if decision is not None:
+                out += self._reattached(decision, now)
         if now >= self.fsm.next_deadline():
             # issue 11: alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state
@@ -713,7 +968,7 @@ class NodeCore:
         if now >= self._next_info:
             self._next_info = max(self._next_info + self.settings.info_period_s, now)
             out.append(Publish(self.info()))
-        return self._route(out, now)
+        return self._routed(out, now)
 
     def _avoidance_tick(self, now: float) -> list[ModuleOutput]:
         """Collision avoidance at 5 Hz (safety/module.py): the own state, ADS-B traffic,
@@ -756,6 +1011,7 @@ class NodeCore:
             vehicle_ready=self.monitor.ready,
             emergency=self.monitor.emergency,
             fleet_ready=self._fleet_ready(),
+            armed=self.autopilot.armed,
         )
 
     def _fleet_ready(self) -> bool:
@@ -818,6 +1074,7 @@ class NodeCore:
         if isinstance(o, fsm.FollowOperator):
             if o.mission_id is not None:
                 self.missions.pop(o.mission_id, None)  # left, not completed
+                self._dirty |= self.declared.end_mission(o.mission_id, now) is not None
             return [Note(logging.WARNING, f"left mission {o.mission_id}: {o.reason}")]
         if isinstance(o, fsm.BeginPlan):
             mission = self.missions.get(o.mission_id)
@@ -845,6 +1102,7 @@ class NodeCore:
         if isinstance(o, fsm.MissionFinished):
             mission = self.missions.pop(o.mission_id, None)
             self.changes.take_over_handed(o.mission_id)
+            self._dirty |= self.declared.end_mission(o.mission_id, now) is not None
             if mission is not None:
                 return [
                     Publish(

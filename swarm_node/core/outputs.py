@@ -6,6 +6,7 @@
     Post(event)                an event for the swarm state machine
     Note(level, text)          a log line
     PlanJob(request)           planning to run off the control loop (mission/share.py)
+    Persist(state, sortie)     the declared state to store (it survives a restart)
 
 A module returns a list of these; NodeCore routes them: `Post` to the state machine,
 `Submit` through the `AutopilotArbiter`, the rest to the shell.
@@ -23,7 +24,10 @@ from .autopilot.requests import ApRequest
 from .mission.share import PlanRequest
 
 if TYPE_CHECKING:
+    from swarm_proto import DeclaredState
+
     from . import state_machine as fsm
+    from .declared import SortieRecord
 
 
 class Owner(IntEnum):
@@ -73,4 +77,14 @@ class PlanJob:
     request: PlanRequest
 
 
-ModuleOutput = Publish | Submit | Post | Note | PlanJob
+@dataclass(frozen=True)
+class Persist:
+    """What the operator declared as this node holds it, and the share it flies, for
+    the shell to store in the node's database (issue 16: restored at start; a store
+    that fails comes back as the node input `StoreResult`)."""
+
+    state: DeclaredState
+    sortie: SortieRecord | None = None
+
+
+ModuleOutput = Publish | Submit | Post | Note | PlanJob | Persist

@@ -67,6 +67,7 @@ class Facts:
     vehicle_ready: bool = False  # vehicle monitoring: started correctly
     emergency: Emergency | None = None  # most severe active emergency-level alert
     fleet_ready: bool = False  # every live member of the fleet is in PLAN for our mission
+    armed: bool = False  # the vehicle is armed (flying, or about to)
 
 
 @dataclass(frozen=True)
@@ -133,8 +134,17 @@ class Unassigned:
     reason: str = ""
 
 
+@dataclass(frozen=True)
+class Reattached:
+    """The node restarted while its vehicle flew its share of `mission_id`, and no peer
+    took it over: it continues it (reattach.py, issue 16)."""
+
+    mission_id: int
+
+
 Event = (
     NewMission
+    | Reattached
     | Replan
     | PlanSucceeded
     | PlanFailed
@@ -172,6 +182,13 @@ class MissionStarted:
 
 @dataclass(frozen=True)
 class MissionFinished:
+    mission_id: int
+
+
+@dataclass(frozen=True)
+class Resume:
+    """Take up `mission_id` as flying (released) without planning it: after a restart."""
+
     mission_id: int
 
 
@@ -238,6 +255,7 @@ Output = (
     | ReleaseMission
     | MissionStarted
     | MissionFinished
+    | Resume
     | ReturnHome
     | LeaveFleet
     | FollowOperator
@@ -290,6 +308,18 @@ def _is_current(c: Context) -> bool:
     return getattr(ev, "mission_id", None) == c.mission_id
 
 
+def _link_back(c: Context) -> bool:
+    """An autopilot link loss drove the emergency and it is over (issue 16: before, a
+    loss longer than 2 s ended the mission for good, though ArduPilot flew on)."""
+    e = c.emergency
+    return (
+        e is not None
+        and e.code == AlertCode.AUTOPILOT_LINK_LOSS
+        and c.facts.emergency is None
+        and c.facts.vehicle_ready
+    )
+
+
 def _emergency_escalates(c: Context) -> bool:
     new, old = c.facts.emergency, c.emergency
     return new is not None and (old is None or new.severity > old.severity)
@@ -334,6 +364,30 @@ RULES: tuple[Rule, ...] = (
         guard=_emergency_escalates,
         outputs=lambda c: (
             StartEmergency(c.facts.emergency.code, c.facts.emergency.severity),  # type: ignore[union-attr]
+        ),
+    ),
+    Rule(
+        "link back on the ground",
+        (E,),
+        "the autopilot link is back after a link-loss emergency, disarmed",
+        Action.READY,
+        guard=lambda c: _link_back(c) and not c.facts.armed,
+        outputs=lambda c: (
+            LeaveFleet("autopilot link back"),
+            RaiseAlert(AlertCode.AUTOPILOT_LINK_LOSS, Severity.INFO, "autopilot link back"),
+        ),
+    ),
+    Rule(
+        "link back",
+        (E,),
+        "the autopilot link is back after a link-loss emergency, flying",
+        Action.NEW,
+        guard=_link_back,
+        outputs=lambda c: (
+            LeaveFleet("autopilot link back: the others took the share"),
+            RaiseAlert(AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING,
+                       "autopilot link back: returning to base"),
+            BeginPlan(RETURN_MISSION),
         ),
     ),
     # ---- STATE_GO_MISSION (paper Figure 7)
@@ -394,6 +448,18 @@ RULES: tuple[Rule, ...] = (
                 short_text(f"left the mission: {getattr(c.event, 'reason', '')}"),
             ),
             FollowOperator(c.mission_id, getattr(c.event, "reason", "")),
+        ),
+    ),
+    Rule(
+        "reattached",
+        (G,),
+        "restarted while flying its share, nobody took it over",
+        Action.NONE,
+        event=Reattached,
+        guard=lambda c: c.mission_id is None,
+        outputs=lambda c: (
+            Resume(c.event.mission_id),  # type: ignore[union-attr]
+            MissionStarted(c.event.mission_id),  # type: ignore[union-attr]
         ),
     ),
     Rule(
@@ -563,6 +629,9 @@ class StateMachine:
             if isinstance(out, BeginPlan):
                 self.mission_id = out.mission_id
                 self.released = False
+            elif isinstance(out, Resume):
+                self.mission_id = out.mission_id
+                self.released = True
             elif isinstance(out, ReleaseMission):
                 self.released = True
             elif isinstance(out, StartEmergency):

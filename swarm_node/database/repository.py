@@ -495,6 +495,31 @@ class SwarmDatabase:
     def _name(self) -> str:
         return str(self.path) if self.path else "in-memory database"
 
+    # ------------------------------------------------------------------ node state
+    def node_state_rows(self, node_id: int) -> list[tuple[str, str, float, bytes]]:
+        """Node `node_id`'s stored declared state: (kind, key, stamp, payload) rows
+        (`state.py` decodes them; issue 16)."""
+        with self._reading():
+            rows = self._conn.execute(
+                "SELECT kind, key, stamp_unix_s, payload FROM node_declared WHERE node_id = ? "
+                "ORDER BY kind, key",
+                (node_id,),
+            ).fetchall()
+        return [(r["kind"], r["key"], float(r["stamp_unix_s"]), bytes(r["payload"])) for r in rows]
+
+    def write_node_state(
+        self, node_id: int, rows: Sequence[tuple[str, str, float, bytes]]
+    ) -> None:
+        """Replace node `node_id`'s stored declared state with `rows`, in one transaction
+        (all or nothing: a full disk leaves the previous state whole; StorageError)."""
+        with self._write() as conn:
+            conn.execute("DELETE FROM node_declared WHERE node_id = ?", (node_id,))
+            conn.executemany(
+                "INSERT INTO node_declared (node_id, kind, key, stamp_unix_s, payload) "
+                "VALUES (?, ?, ?, ?, ?)",
+                [(node_id, k, key, max(0.0, st), p) for k, key, st, p in rows],
+            )
+
     # ------------------------------------------------------------------ records
     def counts(self) -> dict[str, int]:
         """Number of records per table ("group.table")."""

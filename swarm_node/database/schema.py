@@ -376,6 +376,26 @@ ALTER TABLE system_model_params ADD COLUMN accel_m_s2 REAL NOT NULL DEFAULT 0
     CHECK (accel_m_s2 BETWEEN 0 AND 100);
 """
 
+_V4 = """
+-- What the operator declared, as this node holds it, and the share it flies (issue 16):
+-- restored at start, so a restarted node forgets nothing (swarm_node/database/state.py).
+-- One row per declaration and node (a simulation's nodes may share one file);
+-- payload is the message in swarm_proto's LAN encoding (MessagePack); stamp_unix_s is
+-- the declaration's stamp (the newest wins). Not one of the paper's records: never
+-- exported, imported or served as a table.
+CREATE TABLE node_declared (
+    node_id INTEGER NOT NULL CHECK (node_id BETWEEN 1 AND 65534),
+    kind TEXT NOT NULL CHECK (kind IN ('zone', 'command', 'assignment', 'mission', 'sortie')),
+    key TEXT NOT NULL CHECK (length(key) BETWEEN 1 AND 200),
+    stamp_unix_s REAL NOT NULL CHECK (stamp_unix_s >= 0),
+    payload BLOB NOT NULL,
+    PRIMARY KEY (node_id, kind, key)
+) STRICT;
+"""
+
+#: Tables that hold the node's own state, not the paper's records (not in tables.TABLES).
+NODE_STATE_TABLES: tuple[str, ...] = ("node_declared",)
+
 MIGRATIONS: tuple[Migration, ...] = (
     Migration(1, "the four groups: Systems, Swarm, Payload, Common", _V1),
     Migration(
@@ -384,6 +404,7 @@ MIGRATIONS: tuple[Migration, ...] = (
         _V2,
     ),
     Migration(3, "model battery capacity, cruise and hover current, acceleration", _V3),
+    Migration(4, "the node's declared state and sortie, restored at start (issue 16)", _V4),
 )
 LATEST_VERSION = MIGRATIONS[-1].version
 

@@ -624,7 +624,7 @@ def document() -> dict[str, Any]:
     """The seed data as an export document (a fresh copy each call)."""
     return {
         "format": "bandada-swarm-db",
-        "schema_version": 3,
+        "schema_version": 4,
         "groups": {
             "systems": _systems(),
             "swarm": _swarm(),

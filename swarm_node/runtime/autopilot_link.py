@@ -29,7 +29,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from typing import Any
 
-from swarm_node.core.autopilot.events import ApEvent, LinkLost
+from swarm_node.core.autopilot.events import ApEvent, HostStalled, LinkLost, LinkRestored
 from swarm_node.core.autopilot.framing import MAVLinkMessage
 from swarm_node.core.autopilot.link import Complete, Emit, LinkCore, LinkSettings, Output, Transmit
 from swarm_node.core.autopilot.plans import InvalidRequest
@@ -308,9 +308,17 @@ class AutopilotLink:
                 if self.on_send is not None:
                     self._call(self.on_send, o.message)
             elif isinstance(o, Emit):
-                if isinstance(o.event, LinkLost):
-                    log.warning("%s: link lost (%.2f s silent)", self.name, o.event.silent_s)
-                self._deliver(o.event)
+                ev = o.event
+                if isinstance(ev, LinkLost):
+                    log.warning("%s: link lost (%.2f s silent)", self.name, ev.silent_s)
+                elif isinstance(ev, LinkRestored):
+                    log.info("%s: link restored after %.2f s (the autopilot's own clock: "
+                             "%.2f s)", self.name, ev.down_s, ev.autopilot_gap_s)  # fmt: skip
+                elif isinstance(ev, HostStalled):  # a second or more is worth a warning
+                    log.log(logging.WARNING if ev.stall_s >= 1.0 else logging.DEBUG,
+                            "%s: read %.2f s late (this host stalled, not the link)",
+                            self.name, ev.stall_s)  # fmt: skip
+                self._deliver(ev)
             elif isinstance(o, Complete):
                 self._resolve(o.token, o.result)
 

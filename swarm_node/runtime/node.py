@@ -10,7 +10,16 @@ Planning never runs on that loop: a `PlanJob` goes to `PlanWorker`, a spawn-cont
 process pool of one (the planners are CPU-bound Python holding the GIL; in a thread
 they would slow the loop), whose outcome comes back through the inbox as `PlanDone`.
 `planner="thread"` runs them in a thread instead (no process start-up; measured in
-`python -m bench planning`).
+`python -m bench planning`). Plan jobs are handed to the worker after the loop's step
+(starting the worker process takes a while on a loaded host).
+
+Only the loop thread touches the core. The queryables (peers, zones, declared state)
+answer from a snapshot the loop refreshes at 5 Hz, so a Zenoh callback never waits for
+the loop (issue 16: a node starting its first plan job left `gcs peers` unanswered).
+
+Declared state (issue 16): restored from the node's database at start (`Learned` from
+"database"), asked of every peer that comes alive (its DECLARED queryable), stored on
+every change by `StateWriter` off the loop.
 """
 
 from __future__ import annotations
@@ -19,6 +28,7 @@ import logging
 import multiprocessing
 import queue
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Protocol
@@ -26,12 +36,28 @@ from typing import Protocol
 import msgspec
 import zenoh
 
-from swarm_proto import Alert, Clock, MissionType, NoFlyZone, PeerEntry, SwarmView, lan
+from swarm_proto import (
+    Alert,
+    AlertCode,
+    Clock,
+    DeclaredState,
+    FsmState,
+    Mission,
+    MissionType,
+    NoFlyZone,
+    PeerEntry,
+    Severity,
+    SwarmView,
+    VehicleType,
+    lan,
+)
+from swarm_proto.clock import SteadyClock
 from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus
 from swarm_proto.topics import (
     ACK,
     COMMAND,
+    DECLARED,
     FLEET,
     INFO,
     LINEAGE,
@@ -54,11 +80,13 @@ from ..core.node import (
     AutopilotUpdate,
     BadInput,
     Input,
+    Learned,
     NodeCore,
     NodeSettings,
     Note,
     Output,
     PeerAlive,
+    Persist,
     PlanDone,
     PlanJob,
     Publish,
@@ -68,7 +96,9 @@ from ..core.node import (
 from ..core.profile import VehicleProfile
 from ..database import ProfileError, SwarmDatabase
 from ..database.queryable import DatabaseQueryable
+from ..database.state import NodeStateStore
 from .config import NodeConfig
+from .persistence import StateWriter
 
 log = logging.getLogger("swarm_node")
 
@@ -130,11 +160,17 @@ class NoAutopilot:
         pass
 
 
-class _Learned(msgspec.Struct, frozen=True):
-    """A zone read from a peer's zones queryable: taken only if the node holds no zone
-    of that id yet (what is published live always wins over what is read back)."""
+class _Snapshot(msgspec.Struct, frozen=True):
+    """What the queryables answer, refreshed by the loop (no lock in Zenoh callbacks)."""
 
-    zone: NoFlyZone
+    peers: tuple[tuple[int, int, int, int, float], ...] = ()  # id, type, fleet, fsm, heard
+    zones: tuple[NoFlyZone, ...] = ()
+    declared: DeclaredState | None = None
+    missions: tuple[Mission, ...] = ()
+
+
+SNAPSHOT_PERIOD_S = 0.2  # wall seconds
+CLOCK_STEP_REPORT_S = 1.0  # a system clock step larger than this is reported
 
 
 class PlanWorker:
@@ -211,19 +247,32 @@ class NodeRuntime:
                 tasking_settings_of(database) if database is not None else TaskingSettings()
             ),
         )
-        self.inbox: queue.SimpleQueue[Input | _Learned] = queue.SimpleQueue()
+        self.inbox: queue.SimpleQueue[Input] = queue.SimpleQueue()
         self.planner = PlanWorker(self.inbox.put, planner)
+        self._plan_jobs: list[PlanRequest] = []  # handed to the worker after the loop step
         self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)
         if bus is not None:
             bus.on_bad_input = self._bad_input
         self._queryable: zenoh.Queryable | None = None
         self._zones_queryable: zenoh.Queryable | None = None
         self._missions_queryable: zenoh.Queryable | None = None
-        self._ask_zones: queue.SimpleQueue[int | None] = queue.SimpleQueue()
-        self._zone_asker: threading.Thread | None = None
+        self._declared_queryable: zenoh.Queryable | None = None
+        self._ask_peers: queue.SimpleQueue[int | None] = queue.SimpleQueue()
+        self._asker: threading.Thread | None = None
         self.database = database
         self._db_server: DatabaseQueryable | None = None
-        self._lock = threading.Lock()  # guards the core against the peers queryable
+        self.store = (
+            NodeStateStore(database, profile.vehicle_id) if database is not None else None
+        )
+        self.writer = (
+            StateWriter(self.store, self.inbox.put, name=f"state-{profile.vehicle_id}")
+            if self.store is not None
+            else None
+        )
+        self._snap = _Snapshot()
+        self._snap_at = 0.0
+        self._clock_step_s = 0.0  # the system clock's step last reported (SteadyClock)
+        self._clock_checked = 0.0
         self._ap_period_s = 0.2
 
     # ------------------------------------------------------------------ wiring
@@ -251,94 +300,148 @@ class NodeRuntime:
     def _alive(self, node_id: int, alive: bool) -> None:
         self.inbox.put(PeerAlive(node_id, alive))
         if alive and node_id != self.core.self_id:
-            self._ask_zones.put(node_id)  # learn the zones it holds (off Zenoh's thread)
+            self._ask_peers.put(node_id)  # learn what it holds (off Zenoh's thread)
 
-    # ------------------------------------------------------------------ durable zones
+    # ------------------------------------------------------------------ declared state
+    def _refresh_snapshot(self, now: float, *, force: bool = False) -> None:
+        """What the queryables answer (the loop thread; cheap, at most 5 Hz)."""
+        wall = time.monotonic()
+        if not force and wall - self._snap_at < SNAPSHOT_PERIOD_S:
+            return
+        self._snap_at = wall
+        core = self.core
+        self._snap = _Snapshot(
+            peers=tuple(
+                (p.node_id, int(p.vehicle_type), p.fleet_id, int(p.fsm_state), p.last_heard_s)
+                for p in core.members.live()
+            ),
+            zones=tuple(core.monitor.zones.values()),
+            declared=core.declared_state(now),
+            missions=tuple(core.missions.values()),
+        )
+
     def _answer_zones(self, query: zenoh.Query) -> None:
         """Every zone this node holds (withdrawn ones too), one reply per zone key."""
-        with self._lock:
-            zones = list(self.core.monitor.zones.values())
-        for z in zones:
+        for z in self._snap.zones:
             key = ZONES.key(self.config.swarm, vehicle_id=self.core.self_id, zone_id=z.zone_id)
             if zenoh.KeyExpr(key).intersects(query.key_expr):
                 query.reply(key, lan.encode(z))
 
     def _answer_missions(self, query: zenoh.Query) -> None:
         """Every mission this node accepted, one reply per mission key (gcs save)."""
-        with self._lock:
-            missions = list(self.core.missions.values())
-        for m in missions:
+        for m in self._snap.missions:
             key = MISSIONS.key(self.config.swarm, vehicle_id=self.core.self_id,
                                mission_id=m.mission_id)  # fmt: skip
             if zenoh.KeyExpr(key).intersects(query.key_expr):
                 query.reply(key, lan.encode(m))
 
-    def _zone_asking(self) -> None:
-        """Ask each peer that comes alive which zones it holds: a node started after a
-        zone was declared (or restarted) learns it from any peer that holds it."""
+    def _answer_declared(self, query: zenoh.Query) -> None:
+        state = self._snap.declared
+        if state is not None:
+            query.reply(query.key_expr, lan.encode(state))
+
+    def _asking(self) -> None:
+        """Ask each peer that comes alive what it holds (its DECLARED queryable): a node
+        started after a declaration (or restarted, or with a new database) learns it from
+        any peer that holds it; the newest stamp wins (core/declared.py)."""
         while True:
-            node_id = self._ask_zones.get()
+            node_id = self._ask_peers.get()
             if node_id is None:
                 return
             try:
                 replies = list(
                     self.bus.session.get(
-                        ZONES.key(self.config.swarm, vehicle_id=node_id), timeout=2.0
+                        DECLARED.key(self.config.swarm, vehicle_id=node_id), timeout=2.0
                     )
                 )
             except Exception:  # the session is closing
-                log.debug("zones query failed", exc_info=True)
+                log.debug("declared state query failed", exc_info=True)
                 continue
             for reply in replies:
                 if reply.ok is None:
                     continue
                 try:
-                    zone = lan.decode(reply.ok.payload.to_bytes(), NoFlyZone)
+                    state = lan.decode(reply.ok.payload.to_bytes(), DeclaredState)
                 except DecodeError as exc:
                     self._bad_input(str(reply.ok.key_expr), exc)
                     continue
-                self.inbox.put(_Learned(zone))
+                self.inbox.put(Learned(state, None, f"peer {state.vehicle_id}"))
 
-    def _handle(self, event: Input | _Learned, now: float) -> list[Output]:
-        if isinstance(event, _Learned):
-            if event.zone.zone_id in self.core.monitor.zones:
-                return []
-            log.info("node %d: zone %d learned from a peer", self.core.self_id, event.zone.zone_id)
-            return self.core.handle(Received(event.zone), now)
-        return self.core.handle(event, now)
+    def _restore(self) -> None:
+        """The declared state stored in the node's database, first thing in the inbox."""
+        if self.store is None:
+            return
+        try:
+            state, sortie, bad = self.store.load(self.clock.now())
+        except Exception as exc:  # an unreadable table: start empty, learn from peers
+            log.error("node %d: stored declared state unreadable (%s): starting from the "
+                      "peers'", self.core.self_id, exc)  # fmt: skip
+            return
+        if bad:
+            log.warning("node %d: %d stored declarations did not decode (skipped)",
+                        self.core.self_id, bad)  # fmt: skip
+        log.info(
+            "node %d: restored %d zones, %d commands, %d fleet assignments, %d missions%s",
+            self.core.self_id, len(state.zones), len(state.commands), len(state.assignments),
+            len(state.missions), " and the share it was flying" if sortie else "",
+        )  # fmt: skip
+        self.inbox.put(Learned(state, sortie, "database"))
+
+    def _check_clock(self, now: float) -> None:
+        """A step of the system clock (the node runs on a SteadyClock: it does not follow
+        it) is reported once per step (issue 16)."""
+        clock = self.clock
+        wall = time.monotonic()
+        if not isinstance(clock, SteadyClock) or wall - self._clock_checked < 1.0:
+            return
+        self._clock_checked = wall
+        step = clock.step_s()
+        if abs(step - self._clock_step_s) <= CLOCK_STEP_REPORT_S:
+            return
+        self._clock_step_s = step
+        text = f"system clock stepped {step:+.0f} s; node time kept steady"
+        log.warning("node %d: %s", self.core.self_id, text)
+        self._execute([Publish(Alert(self.core.self_id, max(0.0, now), Severity.WARNING,
+                                     AlertCode.GENERIC, text[:64]))])  # fmt: skip
 
     def _answer_peers(self, query: zenoh.Query) -> None:
-        with self._lock:
-            now = self.clock.now()
-            view = SwarmView(
-                vehicle_id=self.core.self_id,
-                time_unix_s=max(0.0, now),
-                peers=tuple(
-                    PeerEntry(
-                        node_id=p.node_id,
-                        vehicle_type=p.vehicle_type,
-                        fleet_id=p.fleet_id,
-                        fsm_state=p.fsm_state,
-                        heard_age_s=min(max(0.0, now - p.last_heard_s), 1e7),
-                    )
-                    for p in self.core.members.live()
-                ),
-            )
+        now = self.clock.now()
+        view = SwarmView(
+            vehicle_id=self.core.self_id,
+            time_unix_s=max(0.0, now),
+            peers=tuple(
+                PeerEntry(
+                    node_id=nid,
+                    vehicle_type=VehicleType(vt),
+                    fleet_id=fleet,
+                    fsm_state=FsmState(fsm),
+                    heard_age_s=min(max(0.0, now - heard), 1e7),
+                )
+                for nid, vt, fleet, fsm, heard in self._snap.peers
+            ),
+        )
         query.reply(query.key_expr, lan.encode(view))
 
     def start(self) -> None:
+        self._restore()
+        self._refresh_snapshot(self.clock.now(), force=True)
+        if self.writer is not None:
+            self.writer.start()
         # ACK: the peers' answers to missions make the roster (core/swarm/roster.py)
         for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET, LINEAGE):
             self.bus.subscribe(topic, self._received)
-        self._zone_asker = threading.Thread(
-            target=self._zone_asking, name=f"zones-{self.core.self_id}", daemon=True
+        self._asker = threading.Thread(
+            target=self._asking, name=f"declared-{self.core.self_id}", daemon=True
         )
-        self._zone_asker.start()
+        self._asker.start()
         self._zones_queryable = self.bus.session.declare_queryable(
             ZONES.key(self.config.swarm, vehicle_id=self.core.self_id), self._answer_zones
         )
         self._missions_queryable = self.bus.session.declare_queryable(
             MISSIONS.key(self.config.swarm, vehicle_id=self.core.self_id), self._answer_missions
+        )
+        self._declared_queryable = self.bus.session.declare_queryable(
+            DECLARED.key(self.config.swarm, vehicle_id=self.core.self_id), self._answer_declared
         )
         self.bus.watch_alive(self._alive)
         self.bus.declare_alive(self.core.self_id)
@@ -362,23 +465,27 @@ class NodeRuntime:
                 deadline = min(self.core.next_deadline(), next_ap)
                 wait = min(self.clock.to_wall(deadline - now), 0.25)
                 try:
-                    event: Input | _Learned | None = self.inbox.get(timeout=max(0.0, wait))
+                    event: Input | None = self.inbox.get(timeout=max(0.0, wait))
                 except queue.Empty:
                     event = None
                 now = self.clock.now()
-                with self._lock:
-                    if event is not None:
-                        self._execute(self._handle(event, now))
-                        while True:  # drain what arrived meanwhile
-                            try:
-                                self._execute(self._handle(self.inbox.get_nowait(), now))
-                            except queue.Empty:
-                                break
-                    if now >= next_ap:
-                        next_ap = max(next_ap + self._ap_period_s, now)
-                        self._execute(self.core.handle(AutopilotUpdate(self.autopilot.state), now))
-                    if now >= self.core.next_deadline():
-                        self._execute(self.core.on_timer(now))
+                if event is not None:
+                    self._execute(self.core.handle(event, now))
+                    while True:  # drain what arrived meanwhile
+                        try:
+                            self._execute(self.core.handle(self.inbox.get_nowait(), now))
+                        except queue.Empty:
+                            break
+                if now >= next_ap:
+                    next_ap = max(next_ap + self._ap_period_s, now)
+                    self._execute(self.core.handle(AutopilotUpdate(self.autopilot.state), now))
+                if now >= self.core.next_deadline():
+                    self._execute(self.core.on_timer(now))
+                self._refresh_snapshot(now)
+                self._check_clock(now)
+                jobs, self._plan_jobs = self._plan_jobs, []
+                for job in jobs:  # after the step: starting the worker takes a while
+                    self.planner.submit(job)
         finally:
             self.close()
 
@@ -402,7 +509,9 @@ class NodeRuntime:
             elif isinstance(o, Note):
                 log.log(o.level, "node %d: %s", self.core.self_id, o.text)
             elif isinstance(o, PlanJob):
-                self.planner.submit(o.request)
+                self._plan_jobs.append(o.request)
+            elif isinstance(o, Persist) and self.writer is not None:
+                self.writer.submit(o.state, o.sortie)
 
     def _submit(self, request: ApRequest) -> None:
         log.info("node %d: autopilot <- %s", self.core.self_id, type(request).__name__)
@@ -427,17 +536,21 @@ class NodeRuntime:
         if self._db_server is not None:
             self._db_server.close()
             self._db_server = None
-        if self._zone_asker is not None:
-            self._ask_zones.put(None)
-            self._zone_asker.join(3.0)
-            self._zone_asker = None
-        for q in (self._queryable, self._zones_queryable, self._missions_queryable):
+        if self._asker is not None:
+            self._ask_peers.put(None)
+            self._asker.join(3.0)
+            self._asker = None
+        for q in (self._queryable, self._zones_queryable, self._declared_queryable,
+                  self._missions_queryable):
             if q is not None:
                 try:
                     q.undeclare()
                 except Exception:
                     log.debug("queryable undeclare failed", exc_info=True)
-        self._queryable = self._zones_queryable = self._missions_queryable = None
+        self._queryable = self._zones_queryable = self._declared_queryable = None
+        self._missions_queryable = None
+        if self.writer is not None:
+            self.writer.close()
         self.bus.close()
         self.autopilot.close()
         if self.database is not None:

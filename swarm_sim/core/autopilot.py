@@ -22,7 +22,7 @@ import bisect
 import math
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -244,6 +244,7 @@ class SimAutopilot:
 
         self.boot_time = now
         self._t = now
+        self._evt_t = now  # the time of the timeline event being run
         self._now = now  # time of the message or timer being handled
         self._next_phys = now
         self.mode = BOOT_MODE[self.firmware]
@@ -336,6 +337,24 @@ class SimAutopilot:
         if self.ready and not self.armed and self._prearm_next < t:
             t = self._prearm_next
         return t
+
+    def rebooted(self, now: float, *, keep_stores: bool = False) -> SimAutopilot:
+        """The same vehicle after a power cycle at `now` (issue 16): it boots again where
+        it stands (on the ground: a reboot in flight is not modelled), with its time since
+        boot from 0, no fix yet, disarmed, its parameters kept (ArduPilot's EEPROM) but
+        the runtime fence enable lost, and by default empty mission, fence and rally
+        stores (what a wiped or replaced board comes back with)."""
+        lat, lon = self.latlon
+        home = Home(lat, lon, self.body.ground_alt, self.body.heading_deg)
+        options = replace(self.options, battery_pct=100.0 * self.battery.remaining_frac)
+        new = SimAutopilot(self.airframe, home, now, options)
+        new.params.update({k: v for k, v in self.params.items() if k != "FENCE_ENABLE"})
+        new.counters["reboots"] = self.counters["reboots"] + 1
+        if keep_stores:
+            new.mission_items[:] = self.mission_items
+            new.fence_items[:] = self.fence_items
+            new.rally_items[:] = self.rally_items
+        return new
 
     # state views used by telemetry, tests and the runtime
     @property
@@ -452,6 +471,7 @@ class SimAutopilot:
                 break
             if t_evt <= t_phys:
                 _, action = self._timeline.pop(0)
+                self._evt_t = t_evt  # an action that reschedules itself counts from here
                 action()
             else:
                 dt = self._phys_dt()
@@ -670,10 +690,8 @@ class SimAutopilot:
 
     def _load_fence(self) -> None:
         if not self.home_set:  # "fence load requires origin": try again later
-            bisect.insort(
-                self._timeline, (self._t + FENCE_LOAD_RETRY_S, self._load_fence),
-                key=lambda ev: ev[0],
-            )  # fmt: skip
+            at = max(self._t, self._evt_t) + FENCE_LOAD_RETRY_S
+            bisect.insort(self._timeline, (at, self._load_fence), key=lambda ev: ev[0])
             return
         self.fence_loaded = list(self.fence_items)
 

@@ -64,6 +64,13 @@ class VehicleEndpoint:
             opts = replace(opts, sysid=sysid)
         return cls(SimAutopilot(af, home, now, opts))
 
+    def reboot(self, now: float, *, keep_stores: bool = False) -> None:
+        """Power-cycle the autopilot (`SimAutopilot.rebooted`): partial frames of the
+        clients are forgotten, as by a real reboot that drops the link."""
+        self.autopilot = self.autopilot.rebooted(now, keep_stores=keep_stores)
+        self._parsers.clear()
+        self.counters["reboots"] += 1
+
     @staticmethod
     def _new_parser() -> Any:
         parser = mavlink.MAVLink(_NullFile(), srcSystem=0, srcComponent=0)

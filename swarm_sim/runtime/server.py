@@ -16,6 +16,7 @@ import selectors
 import socket
 import threading
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from swarm_proto.clock import Clock
@@ -99,6 +100,8 @@ class VehicleServer:
         self._sel = selectors.DefaultSelector()
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self._actions: list[Callable[[], None]] = []  # run by the serving thread
+        self._actions_lock = threading.Lock()
 
     # lifecycle -------------------------------------------------------------------
 
@@ -167,9 +170,29 @@ class VehicleServer:
     def endpoints(self) -> list[VehicleEndpoint]:
         return [v.endpoint for v in self.vehicles]
 
+    def reboot(self, sysid: int, *, keep_stores: bool = False) -> None:
+        """Power-cycle vehicle `sysid` (issue 16): its clients are disconnected, as a real
+        reboot drops the USB or TCP link, and it boots again where it stands, by default
+        with empty mission, fence and rally stores. Safe from any thread."""
+
+        def act() -> None:
+            for v in self.vehicles:
+                if v.spec.system_id == sysid:
+                    for client in list(v.clients):
+                        self._drop(client)
+                    v.endpoint.reboot(self.clock.now(), keep_stores=keep_stores)
+                    self.counters["reboots"] += 1
+
+        with self._actions_lock:
+            self._actions.append(act)
+
     # loop ------------------------------------------------------------------------
 
     def _run_timers(self) -> None:
+        with self._actions_lock:
+            actions, self._actions = self._actions, []
+        for act in actions:
+            act()
         now = self.clock.now()
         for vehicle in self.vehicles:
             deadline = vehicle.endpoint.next_deadline()

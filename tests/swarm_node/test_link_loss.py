@@ -1,5 +1,6 @@
-"""Autopilot link loss drives STATE_EMERGENCY within 3 s (issue 4; issue 11 made it a
-WARNING for its first 2 s), link detection included: the real autopilot link (LinkCore,
+"""Autopilot link loss drives STATE_EMERGENCY within 6 s (issue 4; issue 11 made it a
+WARNING for its first 2 s, issue 16 for its first 5 s, ArduPilot's FS_GCS_TIMEOUT),
+link detection included: the real autopilot link (LinkCore,
 link_timeout_s 0.6) and the node core in simulated time (FastFleet) with a simulated
 ArduPilot that dies mid-flight, or falls silent for 1.2 s and comes back."""
 
@@ -45,7 +46,7 @@ def flying_fleet(fleet_profiles: dict, vid: int) -> FastFleet:
 
 
 @pytest.mark.parametrize("vid", [7, 1])  # a seed quadcopter, a seed Albatross VTOL
-def test_link_loss_reaches_emergency_within_three_seconds(
+def test_link_loss_reaches_emergency_within_six_seconds(
     fleet_profiles: dict, vid: int
 ) -> None:
     fleet = flying_fleet(fleet_profiles, vid)
@@ -56,8 +57,8 @@ def test_link_loss_reaches_emergency_within_three_seconds(
     took = fleet.now - died
     lost = [a for a in fleet.messages(Alert, sender=vid) if a.code == AlertCode.AUTOPILOT_LINK_LOSS]
     print(f"link loss -> STATE_EMERGENCY after {took:.2f} s simulated")
-    # the link's 0.6 s, 2 s as a WARNING, then the node's 5 Hz poll and tick
-    assert 2.6 <= took <= 3.0
+    # the link's 0.6 s, 5 s as a WARNING, then the node's 5 Hz poll and tick
+    assert 5.6 <= took <= 6.0
     assert [a.severity for a in lost][:2] == [Severity.WARNING, Severity.EMERGENCY]
     assert lost[0].time_unix_s - died < 0.9
 

@@ -106,14 +106,15 @@ def test_link_loss_is_a_warning_at_once_and_an_emergency_when_it_lasts() -> None
     mon = VehicleMonitor(3)
     mon.update(healthy(), 0.0)
     lost = healthy(link_ok=False)
-    events = run(mon, [(0.2, lost), (1.2, lost), (2.1, lost)])
+    events = run(mon, [(0.2, lost), (1.2, lost), (2.1, lost), (5.1, lost)])
     assert events == [(0.2, AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING)]
     assert AlertFlag.AUTOPILOT_LINK_LOSS in mon.flags and mon.emergency is None
-    events = run(mon, [(2.2, lost)])  # lasted link_emergency_after_s (2 s)
-    assert events == [(2.2, AlertCode.AUTOPILOT_LINK_LOSS, Severity.EMERGENCY)]
+    # lasted link_emergency_after_s: 5 s, ArduPilot's FS_GCS_TIMEOUT / FS_LONG_TIMEOUT
+    events = run(mon, [(5.2, lost)])
+    assert events == [(5.2, AlertCode.AUTOPILOT_LINK_LOSS, Severity.EMERGENCY)]
     assert mon.emergency is not None and mon.emergency.severity == Severity.EMERGENCY
-    events = run(mon, [(2.4, healthy())])
-    assert events == [(2.4, AlertCode.CONDITION_CLEARED, Severity.INFO)]
+    events = run(mon, [(5.4, healthy())])
+    assert events == [(5.4, AlertCode.CONDITION_CLEARED, Severity.INFO)]
     assert mon.emergency is None
 
 
@@ -129,14 +130,36 @@ def test_a_short_link_gap_is_no_emergency() -> None:
 
 
 def test_no_link_at_start_is_not_a_loss_until_the_grace_period() -> None:
+    """Issue 16: a link that never came up is "no autopilot yet", a WARNING after the
+    grace period and never worse (a slow start on a loaded host raised a CRITICAL link
+    loss on the ground 91 ms after the link opened); a link lost after it was up is a
+    loss, CRITICAL on the ground once it lasts 5 s."""
     mon = VehicleMonitor(3, Thresholds(link_grace_s=10.0))
-    down = healthy(link_ok=False, armed=False)
+    down = healthy(link_ok=False, armed=False, last_message_s=None)
     assert run(mon, [(0.0, down), (5.0, down)]) == []
     assert run(mon, [(10.0, down)]) == [(10.0, AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING)]
-    assert run(mon, [(12.0, down)]) == [(12.0, AlertCode.AUTOPILOT_LINK_LOSS, Severity.CRITICAL)]
+    assert run(mon, [(16.0, down), (60.0, down)]) == []  # never CRITICAL: it never was up
+    assert mon.emergency is None
     mon2 = VehicleMonitor(3)
     assert run(mon2, [(0.0, down), (1.0, healthy(armed=False))]) == []
-    assert run(mon2, [(2.0, down)]) == [(2.0, AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING)]
+    lost = healthy(link_ok=False, armed=False)
+    assert run(mon2, [(2.0, lost)]) == [(2.0, AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING)]
+    assert run(mon2, [(7.0, lost)]) == [(7.0, AlertCode.AUTOPILOT_LINK_LOSS, Severity.CRITICAL)]
+
+
+def test_the_nodes_own_stall_does_not_count_toward_a_link_loss() -> None:
+    """Issue 16: 1 s of real link gap, then the node itself stalls 3 s (its loop not
+    served: a loaded host): the loss has lasted 1 s of the link's time, not 4 s."""
+    mon = VehicleMonitor(3)
+    mon.update(healthy(), 0.0)
+    lost = healthy(link_ok=False)
+    assert run(mon, [(0.2, lost), (1.2, lost)]) == [
+        (0.2, AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING)
+    ]
+    mon.note_stall(3.0)
+    assert run(mon, [(4.2, lost), (5.1, lost)]) == []  # 2.0 s and 1.9 s of loss: a WARNING
+    assert mon.emergency is None
+    assert run(mon, [(8.3, lost)]) == [(8.3, AlertCode.AUTOPILOT_LINK_LOSS, Severity.EMERGENCY)]
 
 
 def test_gps_loss_only_after_a_fix() -> None:

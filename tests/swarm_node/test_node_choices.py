@@ -92,6 +92,28 @@ def test_the_rally_point_is_never_below_a_safe_altitude(
     assert isinstance(rally, UploadRally) and rally.points[0][2] == pytest.approx(rally_m)
 
 
+@pytest.mark.parametrize(
+    ("model", "rally_m"),
+    [("Generic Rover", 0.0), ("Generic Boat", 0.0), ("Generic Quadcopter", 15.0),
+     ("Albatross 250 VTOL", 40.0)],
+)  # fmt: skip
+def test_set_base_without_an_altitude_never_puts_the_rally_point_below_home(
+    model: str, rally_m: float
+) -> None:
+    """Issue 16: `gcs cmd set-base --point LAT,LON` sends the base at 0 m above sea
+    level; with home 10 m above sea level the rally point went to -10 m relative."""
+    node = NodeCore(seed_profiles()[model], now=0.0)
+    home = GeoPoint(HOME.lat_deg, HOME.lon_deg, 10.0)
+    node.handle(AutopilotUpdate(flying(home=home)), 0.0)
+    base = GeoPoint(BASE.lat_deg, BASE.lon_deg, 0.0)  # what the CLI sends without ALT
+    out = node.handle(
+        Received(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base))), 0.0
+    )
+    (rally,) = [o.request for o in out if isinstance(o, Submit)]
+    assert isinstance(rally, UploadRally) and rally.points[0][2] == pytest.approx(rally_m)
+    assert rally.points[0][2] >= 0.0
+
+
 def test_a_mission_ends_on_an_unlimited_loiter_over_its_last_waypoint() -> None:
     from tests.swarm_node.test_commands import VTOL, fleet_of, on_mission, requests
 

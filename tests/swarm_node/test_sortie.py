@@ -88,3 +88,24 @@ def test_a_mission_started_while_a_replan_runs_stays_in_replan() -> None:
     assert manager.mission_state == MissionState.REPLAN
     manager.on_result(ApResult(sub.request.request_id, True), 1.0)
     assert manager.phase == Phase.FLYING and manager.mission_state == MissionState.REPLAN
+
+
+def test_a_mission_started_while_a_replan_began_does_not_crash_the_node() -> None:
+    """Issue 16 (found flying the demo on a loaded host): a member was lost while this
+    vehicle's StartMission was in flight; the sortie went REPLAN, then the StartMission
+    result raised IllegalMove (REPLAN on started) and the node process died."""
+    from swarm_node.core.autopilot.requests import ApResult, StartMission
+    from swarm_node.core.mission.sortie import Trigger
+    from swarm_node.core.mission_manager import MissionManager, Phase
+    from swarm_node.database import seed_profiles
+    from swarm_proto import MissionState
+
+    m = MissionManager(seed_profiles()["Generic Quadcopter"])
+    m.sortie.begin(keep_progress=False)
+    m.sortie.go(Trigger.RELEASED)
+    m.phase, m.mission_id, m._steps = Phase.STARTING, 5, [StartMission()]
+    (submit,) = m._next()
+    m.begin_replan()
+    assert m.sortie.state == MissionState.REPLAN
+    m.on_result(ApResult(submit.request.request_id, True), 1.0)  # type: ignore[attr-defined]
+    assert m.sortie.state == MissionState.REPLAN and m.phase == Phase.FLYING

@@ -30,9 +30,11 @@ from swarm_node.core.state_machine import (
     PlanFailed,
     PlanSucceeded,
     RaiseAlert,
+    Reattached,
     Recalled,
     ReleaseMission,
     Replan,
+    Resume,
     ReturnHome,
     Shutdown,
     StandDown,
@@ -46,6 +48,7 @@ from swarm_proto import AlertCode, FsmState, Severity
 P, G, E, INACT = FsmState.PLAN, FsmState.GO_MISSION, FsmState.EMERGENCY, FsmState.INACTIVE
 OK = Facts(active=True, base_set=True, vehicle_ready=True)
 BATT = Emergency(AlertCode.BATTERY_CRITICAL, Severity.CRITICAL)
+LINK = Emergency(AlertCode.AUTOPILOT_LINK_LOSS, Severity.EMERGENCY)
 
 
 def machine(state: FsmState, mission: int | None = 7, released: bool = False) -> StateMachine:
@@ -66,6 +69,8 @@ class Case:
     expect: FsmState = G
     outputs: tuple[type, ...] = ()
     released: bool = False
+    mission: int | None = 7
+    emergency: Emergency | None = None  # in EMERGENCY: the one it started with
 
 
 CASES = [
@@ -166,12 +171,36 @@ CASES = [
         expect=P,
         outputs=(ReleaseMission,),
     ),
-]
+    # issue 16: an autopilot link-loss emergency ends when the link is back
+    Case("link back", E, facts=Facts(True, True, True, armed=True), emergency=LINK, expect=P,
+         outputs=(LeaveFleet, RaiseAlert, BeginPlan)),
+    Case("link back on the ground", E, emergency=LINK, expect=G,
+         outputs=(LeaveFleet, RaiseAlert)),
+    Case("reattached", G, events=[Reattached(7)], mission=None, expect=G,
+         outputs=(Resume, MissionStarted)),
+]  # fmt: skip
+
+
+def test_an_emergency_other_than_link_loss_does_not_end_when_it_clears() -> None:
+    fsm = machine(E)  # a GPS loss
+    assert fsm.tick(1.0, Facts(True, True, True, armed=True)) is None and fsm.state == E
+    fsm = machine(E)
+    fsm.emergency = LINK
+    still = Facts(True, True, True, LINK, armed=True)  # the link still down
+    assert fsm.tick(1.0, still) is None and fsm.state == E
+
+
+def test_reattached_is_ignored_with_a_mission_already_in_hand() -> None:
+    fsm = machine(G, mission=7)
+    fsm.post(Reattached(9))
+    assert fsm.tick(1.0, OK) is None and fsm.mission_id == 7
 
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: f"{c.start.name}:{c.rule}")
 def test_every_transition(case: Case) -> None:
-    fsm = machine(case.start, released=case.released)
+    fsm = machine(case.start, mission=case.mission, released=case.released)
+    if case.emergency is not None:
+        fsm.emergency = case.emergency
     for ev in case.events:
         fsm.post(ev)
     t = fsm.tick(case.now, case.facts)

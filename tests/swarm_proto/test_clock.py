@@ -42,3 +42,31 @@ def test_clock_from_env(monkeypatch: pytest.MonkeyPatch) -> None:
     assert clock_from_env().now() == 3.0
     monkeypatch.delenv("BANDADA_CLOCK")
     assert abs(clock_from_env().now() - time.time()) < 1.0
+
+
+def test_a_steady_clock_does_not_follow_a_step_of_the_system_clock() -> None:
+    """Issue 16: a node runs on a SteadyClock; the system clock stepping an hour (NTP, a
+    GPS time set) neither fires its timers early nor hangs them, and is measured."""
+    import time as _time
+
+    from swarm_proto.clock import SteadyClock, SteppingClock, steady
+
+    stepping = clock_from_spec(f"stepping:{_time.time() + 0.05!r}:3600.0")
+    assert isinstance(stepping, SteppingClock)
+    node = steady(stepping)
+    assert isinstance(node, SteadyClock) and node.spec() == stepping.spec()
+    before = node.now()
+    _time.sleep(0.1)
+    after = node.now()
+    assert 0.05 <= after - before < 1.0  # no step
+    assert 3599.0 < node.step_s() < 3601.0  # the system clock's step, measured
+    back = steady(SteppingClock(_time.time() + 0.05, -3600.0))
+    _time.sleep(0.1)
+    assert -3601.0 < back.step_s() < -3599.0  # type: ignore[attr-defined]
+    scaled = ScaledClock(5.0)
+    assert steady(scaled) is scaled  # a simulation's clock never steps
+
+
+def test_a_bad_stepping_spec_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="bad clock spec 'stepping:now'"):
+        clock_from_spec("stepping:now")

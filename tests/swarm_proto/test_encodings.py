@@ -248,10 +248,15 @@ def test_an_operating_area_survives_both_encodings_and_older_senders() -> None:
     # a sender from before the field existed: its zones are no-fly zones
     raw = msgspec.msgpack.decode(radio.encode(area)[2:])
     header = bytes((radio.RADIO_SCHEMA_VERSION, radio.TAG_OF[NoFlyZone]))
-    # (operating_area was the last field until issue 15 appended issuer_id)
-    older = radio.decode(header + msgspec.msgpack.encode(raw[:-2]), now_unix_s=NOW)
+    # (operating_area was the last field until issue 15 appended issuer_id, and issue 16
+    # time_unix_s after it)
+    older = radio.decode(header + msgspec.msgpack.encode(raw[:-3]), now_unix_s=NOW)
     assert isinstance(older, NoFlyZone) and not older.operating_area and older.name == "field"
     assert older.issuer_id == 0  # and nobody to acknowledge it to
+    # a sender from before zones were stamped (issue 16): stamp 0, the receiver stamps it
+    unstamped = radio.decode(header + msgspec.msgpack.encode(raw[:-1]), now_unix_s=NOW)
+    assert isinstance(unstamped, NoFlyZone) and unstamped.operating_area
+    assert unstamped.time_unix_s == 0.0
     lan_older = msgspec.msgpack.encode(
         {k: v for k, v in msgspec.to_builtins(area).items() if k != "operating_area"}
     )

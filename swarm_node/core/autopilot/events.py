@@ -25,9 +25,13 @@ class LinkLost(ApEvent, frozen=True):
 
 
 class LinkRestored(ApEvent, frozen=True):
-    """Valid messages flow again after a LinkLost; `down_s` since the last message."""
+    """Valid messages flow again after a LinkLost; `down_s` since the last message (on
+    the node's clock), `autopilot_gap_s` as the autopilot's own time since boot shows
+    it (-1: no timed message yet): a short autopilot gap with a long `down_s` was the
+    node reading late, not the link."""
 
     down_s: float
+    autopilot_gap_s: float = -1.0
 
 
 class AutopilotFound(ApEvent, frozen=True):
@@ -43,6 +47,14 @@ class AutopilotRebooted(ApEvent, frozen=True):
     """Its time since boot went backwards: streams are requested again."""
 
     boot_time_ms: int
+
+
+class HostStalled(ApEvent, frozen=True):
+    """The node read the link `stall_s` late: the autopilot's messages carry times
+    since boot spread over a gap the node saw as silence (its own stall, not the
+    link's), or the link's timer ran that late."""
+
+    stall_s: float
 
 
 class ModeChanged(ApEvent, frozen=True):
@@ -92,6 +104,7 @@ EVENT_TYPES: tuple[type[ApEvent], ...] = (
     LinkRestored,
     AutopilotFound,
     AutopilotRebooted,
+    HostStalled,
     ModeChanged,
     ArmedChanged,
     StatusText,

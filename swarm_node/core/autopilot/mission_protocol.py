@@ -32,6 +32,7 @@ from .mission_item import GLOBAL_FRAMES, MissionItem
 from .requests import ApError, MissionKind
 
 MAV_MISSION_ACCEPTED = 0
+MAV_MISSION_INVALID_SEQUENCE = 13
 MAV_MISSION_OPERATION_CANCELLED = 15
 
 
@@ -123,6 +124,7 @@ class _Transfer:
         self.overall_timeout_s = overall_timeout_s
         self.result: TransferResult | None = None
         self.invalid = 0  # messages for this transfer we rejected
+        self.out_of_sequence = 0  # INVALID_SEQUENCE acks to a late item of ours (ignored)
         self.sent = 0
         self._last: MAVLinkMessage | None = None
         self._deadline: float | None = None
@@ -260,6 +262,13 @@ class MissionUpload(_Transfer):
                 if self.items and len(self._requested) < len(self.items):
                     return []  # a stale ACK from an earlier transfer: not ours yet
                 self._finish(TransferResult(True, items=self.items, attempts=self._attempts))
+                return []
+            if code == MAV_MISSION_INVALID_SEQUENCE:
+                # an item it did not ask for (our late answer to a request it sent again:
+                # a loaded host, a slow link): ArduPilot says so and keeps waiting for the
+                # one it asked for (MissionItemProtocol::handle_mission_item); the upload
+                # goes on, its timeouts still end one that never completes (issue 16)
+                self.out_of_sequence += 1
                 return []
             return self._fail(
                 f"MISSION_ACK {mission_result_name(code)}",

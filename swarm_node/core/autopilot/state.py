@@ -78,6 +78,11 @@ class AutopilotState(msgspec.Struct, frozen=True):
     position_trusted: bool = False  # a GPS fix (2-D or better) or an EKF absolute position was seen
     # appended for issue 14 (collision avoidance)
     traffic: tuple[AdsbReport, ...] = ()  # ADSB_VEHICLE: the latest report per aircraft
+    # appended for issue 16 (link loss judged from the autopilot's own data)
+    reboots: int = 0  # autopilot reboots seen (its time since boot went back)
+    link_gap_s: float = 0.0  # the last link loss as the autopilot's own clock shows it
+    host_stalls: int = 0  # times the node read the link late (its own stall, not the link's)
+    host_stall_s: float = 0.0  # the last such stall, seconds
 
     @property
     def has_position(self) -> bool:

@@ -32,6 +32,7 @@ from .events import (
     AutopilotRebooted,
     EkfChanged,
     HomeChanged,
+    HostStalled,
     LandedChanged,
     LinkLost,
     LinkRestored,
@@ -64,6 +65,11 @@ _REBOOT_BACKSTEP_MS = 5000
 MAV_STATE_STANDBY = 3  # HEARTBEAT system_status: BOOT (1) / CALIBRATING (2) until "ArduPilot Ready"
 GPS_FIX_2D = 2
 READY_TEXT = "ArduPilot Ready"
+#: A link timer served this late (or a message read this much later than the autopilot's
+#: own time since boot says it was sent) means the node stalled, not the link (issue 16).
+LATE_TOLERANCE_S = 0.25
+#: After a late timer, bytes may be waiting to be read: the loss is decided this later.
+DRAIN_S = 0.2
 
 
 class Verdict(Enum):
@@ -105,6 +111,12 @@ class StateTracker:
         self._locked = False
         self._gps_offset_s: float | None = None  # GPS UNIX time minus time since boot
         self._text_chunks: dict[int, tuple[int, list[str]]] = {}
+        # issue 16: link loss judged from the autopilot's own time, apart from our stalls
+        self._recheck_at: float | None = None  # a late timer: decide the loss then
+        self._ap_boot_ms: int | None = None  # the latest time since boot received ...
+        self._ap_rx_s = 0.0  # ... and when (our clock)
+        self._boot_at_loss: int | None = None  # time since boot when the link was lost
+        self._gap_pending = False  # restored by an untimed message: measure on the next
         self.unhandled = 0
         self.last_bad_reason = ""
         self.handlers: dict[str, Callable[[MAVLinkMessage, float], tuple[Changes, list[ApEvent]]]]
@@ -179,14 +191,38 @@ class StateTracker:
             if verdict is Verdict.UNHANDLED:
                 self.unhandled += 1
         changes["last_message_s"] = now
+        self._recheck_at = None
         if mtype != "HEARTBEAT":
             self._last_telemetry_s = now
         if was_locked and not self._state.link_ok:
             changes["link_ok"] = True
             last = self._state.last_message_s
-            events.insert(0, LinkRestored(time_s=now, down_s=now - last if last else 0.0))
+            gap = self._autopilot_gap()
+            self._gap_pending = gap < 0.0
+            if gap >= 0.0:
+                changes["link_gap_s"] = gap
+            events.insert(
+                0,
+                LinkRestored(
+                    time_s=now, down_s=now - last if last else 0.0, autopilot_gap_s=gap
+                ),
+            )
+        elif self._gap_pending and "boot_time_ms" in changes:
+            gap = self._autopilot_gap()
+            if gap >= 0.0:
+                self._gap_pending = False
+                changes["link_gap_s"] = gap
         self._state = msgspec.structs.replace(self._state, **changes)
         return verdict, events
+
+    def _autopilot_gap(self) -> float:
+        """The last link loss in the autopilot's own time: from its time since boot when
+        the link was lost to the latest one received (-1: not known yet)."""
+        if self._boot_at_loss is None or self._ap_boot_ms is None:
+            return -1.0
+        if self._ap_boot_ms == self._boot_at_loss:
+            return -1.0  # no timed message since the loss yet
+        return max(0.0, (self._ap_boot_ms - self._boot_at_loss) / 1000.0)
 
     def count_invalid(self, reason: str) -> None:
         """Another core rejected a message from our autopilot (e.g. a bad MISSION_ACK)."""
@@ -208,13 +244,27 @@ class StateTracker:
     def next_deadline(self) -> float | None:
         if not self._state.link_ok or self._state.last_message_s is None:
             return None
-        return self._state.last_message_s + self.link_timeout()
+        due = self._state.last_message_s + self.link_timeout()
+        return due if self._recheck_at is None else max(due, self._recheck_at)
 
     def on_timer(self, now: float) -> list[ApEvent]:
+        """Link loss: no valid message for the link timeout. A timer served late (the
+        node stalled: its loop did not run, a loaded host) does not decide it: what the
+        autopilot sent meanwhile may still be waiting to be read, so the loss is decided
+        `DRAIN_S` later, if nothing came (the stall is counted apart, `HostStalled`)."""
         deadline = self.next_deadline()
         if deadline is None or now < deadline:
             return []
+        if self._recheck_at is None and now - deadline > LATE_TOLERANCE_S:
+            stall = now - deadline
+            self._recheck_at = now + DRAIN_S
+            self._state = msgspec.structs.replace(
+                self._state, host_stalls=self._state.host_stalls + 1, host_stall_s=stall
+            )
+            return [HostStalled(time_s=now, stall_s=stall)]
+        self._recheck_at = None
         last = self._state.last_message_s or now
+        self._boot_at_loss = self._ap_boot_ms
         self._state = msgspec.structs.replace(
             self._state, link_ok=False, link_losses=self._state.link_losses + 1
         )
@@ -244,8 +294,24 @@ class StateTracker:
             self._gps_offset_s = None
             changes["position_time_unix_s"] = None
             # a rebooted autopilot boots again and has no fix yet (issue 11)
-            changes.update(autopilot_ready=False, position_trusted=False)
+            changes.update(
+                autopilot_ready=False, position_trusted=False, reboots=self._state.reboots + 1
+            )
             events.append(AutopilotRebooted(time_s=now, boot_time_ms=boot_ms))
+            self._ap_boot_ms = None
+            self._boot_at_loss = None
+        prev = self._ap_boot_ms
+        if prev is not None and boot_ms > prev and self._state.link_ok:
+            # read later than the autopilot's own clock says it was sent: a burst of what
+            # waited in the socket while this node was stalled (its stall, not the link's;
+            # a link already judged lost on time was silent: an autopilot that paused,
+            # SITL stopped, has a paused clock too)
+            late = (now - self._ap_rx_s) - (boot_ms - prev) / 1000.0
+            if late > LATE_TOLERANCE_S:
+                changes.update(host_stalls=self._state.host_stalls + 1, host_stall_s=late)
+                events.append(HostStalled(time_s=now, stall_s=late))
+        if prev is None or boot_ms > prev:
+            self._ap_boot_ms, self._ap_rx_s = boot_ms, now
         changes["boot_time_ms"] = boot_ms
         return events
 

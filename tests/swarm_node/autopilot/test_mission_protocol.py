@@ -57,6 +57,26 @@ def test_upload_answers_both_request_kinds(request_type: str) -> None:
     assert up.result is not None and up.result.ok and len(up.result.items) == 3
 
 
+def test_an_out_of_sequence_ack_does_not_end_an_upload() -> None:
+    """Issue 16: on a loaded host our answer to a request came late, ArduPilot asked
+    again after 1 s, we answered twice; it acked the late duplicate INVALID_SEQUENCE and
+    kept waiting for the next item (MissionItemProtocol). The upload used to fail
+    there ("MISSION_ACK MISSION_INVALID_SEQUENCE": PLAN_FAILED in a loaded demo)."""
+    up = MissionUpload(MissionKind.MISSION, items(3), T)
+    up.start(0.0)
+    req = mavlink.MAVLink_mission_request_int_message
+    up.handle(from_ap(req(255, 191, 0, 0)), 0.1)
+    up.handle(from_ap(req(255, 191, 0, 0)), 1.2)  # asked again; our first item was late
+    up.handle(from_ap(req(255, 191, 1, 0)), 1.3)  # the first arrived: it asks for 1
+    bad = mavlink.MAVLink_mission_ack_message(255, 191, 13, 0)  # the duplicate of 0
+    assert up.handle(from_ap(bad), 1.31) == [] and up.result is None
+    assert up.out_of_sequence == 1
+    (item,) = up.handle(from_ap(req(255, 191, 2, 0)), 1.4)
+    assert item.seq == 2
+    up.handle(from_ap(mavlink.MAVLink_mission_ack_message(255, 191, 0, 0)), 1.5)
+    assert up.result is not None and up.result.ok
+
+
 def test_upload_resends_on_silence_and_answers_duplicates() -> None:
     up = MissionUpload(MissionKind.FENCE, items(2, MissionKind.FENCE), T, timeout_s=1.0, retries=2)
     up.start(0.0)

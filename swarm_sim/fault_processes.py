@@ -1,0 +1,586 @@
+"""The fault campaign over real processes (issue 16; faults.py has the FastFleet part):
+`swarm-node` processes flying simulated quadcopters (MAVLink on TCP, the simulator in
+this process), Zenoh on 127.0.0.1 through a router, a ground station, in real time.
+
+Each row is one survey by two quadcopters with one fault injected into vehicle 8's node
+or autopilot: none, kill -9 (restarted 5 s later), SIGSTOP 3 s, an autopilot restart on
+the ground (empty stores), the system clock stepped +1 h (`stepping:` clock), the disk
+full under its database (a tmpfs mounted for the run with no byte free: root only; then
+a kill and a restart),
+and its database file corrupted while it was down (the node refuses it with a one-line
+error; started again on a new file). Partitions and message loss need a network
+namespace with netem and are measured in FastFleet only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from shapely.geometry import LineString, Polygon
+from shapely.ops import unary_union
+
+from swarm_node.core.declared import DeclaredBook
+from swarm_node.core.planning import LocalFrame
+from swarm_node.database import SwarmDatabase, seed_profiles
+from swarm_proto import (
+    Alert,
+    AlertCode,
+    CommandArgs,
+    CommandKind,
+    FsmState,
+    Geometry,
+    GeoPoint,
+    Mission,
+    MissionParams,
+    MissionState,
+    MissionType,
+    NoFlyZone,
+    Selector,
+    SelectorKind,
+    Severity,
+    SystemClock,
+    VehicleInfo,
+    VehicleStatus,
+)
+from swarm_proto.session import SwarmBus, ZenohSettings, open_session
+from swarm_proto.topics import ALERT, INFO, STATUS
+
+from .core import SITL_HOME
+from .faults import FaultRow
+from .runtime import VehicleServer, VehicleSpec, spread_homes
+from .scenarios import square
+
+MEMBERS = (7, 8)
+VICTIM = 8
+ALT_M = 25.0
+HALF_M = 40.0
+MISSION_ID = 170
+GCS_ID = 900
+MISSION_NAME = "survey, 2 quadcopters (real processes, 1x)"
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Node:
+    vid: int
+    args: list[str]
+    env: dict[str, str]
+    log: Path
+    proc: subprocess.Popen[bytes] | None = None
+    _pump: threading.Thread | None = None
+
+    def start(self) -> None:
+        # output through a pipe, written here (the node's own disk may be full)
+        self.proc = subprocess.Popen(
+            self.args, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT
+        )
+        out = self.proc.stdout
+        assert out is not None
+
+        def pump() -> None:
+            with self.log.open("ab") as f:
+                for line in out:
+                    f.write(line)
+                    f.flush()
+
+        self._pump = threading.Thread(target=pump, daemon=True)
+        self._pump.start()
+
+    def signal(self, sig: int) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            os.kill(self.proc.pid, sig)
+
+    def stop(self) -> int:
+        p = self.proc
+        if p is None:
+            return 0
+        if p.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(p.pid, signal.SIGCONT)
+                p.send_signal(signal.SIGINT)
+            try:
+                p.wait(15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        if self._pump is not None:
+            self._pump.join(5)
+        return p.returncode
+
+
+@dataclass
+class Rig:
+    tmp: Path
+    swarm: str
+    endpoint: str
+    router: object
+    server: VehicleServer
+    nodes: dict[int, Node]
+    bus: SwarmBus
+    gs: object  # GroundStation
+    area: Geometry
+    frame: LocalFrame
+    base: GeoPoint
+    zones: dict[int, NoFlyZone] = field(default_factory=dict)
+    fleets: dict[int, int] = field(default_factory=dict)
+    statuses: list[VehicleStatus] = field(default_factory=list)
+    infos: list[VehicleInfo] = field(default_factory=list)
+    alerts: list[Alert] = field(default_factory=list)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    # -------------------------------------------------------------- observation
+    def info(self, vid: int) -> VehicleInfo | None:
+        with self.lock:
+            return next((i for i in reversed(self.infos) if i.vehicle_id == vid), None)
+
+    def status(self, vid: int) -> VehicleStatus | None:
+        with self.lock:
+            return next((s for s in reversed(self.statuses) if s.vehicle_id == vid), None)
+
+    def wait(self, pred: Callable[[], bool], timeout_s: float, period_s: float = 0.2) -> bool:
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            if pred():
+                return True
+            time.sleep(period_s)
+        return pred()
+
+    def progress(self, vid: int) -> float:
+        i = self.info(vid)
+        if i is None or i.mission_id != MISSION_ID or i.mission_path_m <= 0:
+            return 0.0
+        return i.mission_progress_m / i.mission_path_m
+
+    def landed(self) -> bool:
+        return all(
+            (s := self.status(v)) is not None and not s.armed and s.alt_rel_m < 2.0
+            and s.mission_state == MissionState.IDLE
+            for v in MEMBERS
+        )  # fmt: skip
+
+    def coverage(self) -> float:
+        cam = seed_profiles()["Generic Quadcopter"].camera
+        hfov = cam.hfov_deg if cam is not None else 60.0
+        swath = 2.0 * ALT_M * math.tan(math.radians(hfov) / 2.0)
+        tracks: dict[int, list[tuple[float, float]]] = {}
+        with self.lock:
+            for s in self.statuses:
+                if s.mission_state == MissionState.MISSION and abs(s.alt_rel_m - ALT_M) < 6.0:
+                    tracks.setdefault(s.vehicle_id, []).append(
+                        self.frame.to_local(s.lat_deg, s.lon_deg)
+                    )
+        poly = Polygon([self.frame.to_local(p.lat_deg, p.lon_deg) for p in self.area.points])
+        lines = [LineString(p).buffer(swath / 2.0) for p in tracks.values() if len(p) > 1]
+        return float(unary_union(lines).intersection(poly).area / poly.area) if lines else 0.0
+
+    def declared_lost(self) -> int:
+        """Declarations a running node does not hold as the operator last made them
+        (asked of each node's DECLARED queryable)."""
+        lost = 0
+        for vid, n in self.nodes.items():
+            if n.proc is None or n.proc.poll() is not None:
+                continue
+            state = self.gs.declared_state(vid, timeout_s=3.0)  # type: ignore[attr-defined]
+            if state is None:
+                lost += 1 + len(self.zones)
+                continue
+            base, _, fleet, _ = DeclaredBook.of([state], time.time()).resolve(vid)
+            lost += state.base != self.base or base != self.base
+            lost += fleet != self.fleets.get(vid, 0)
+            held = {z.zone_id: z for z in state.zones}
+            lost += sum(held.get(zid) != z for zid, z in self.zones.items())
+        return lost
+
+    def close(self) -> None:
+        for n in self.nodes.values():
+            n.stop()
+        self.gs.close()  # type: ignore[attr-defined]
+        self.bus.close()
+        self.server.close()
+        self.router.close()  # type: ignore[attr-defined]
+
+
+def fill_a_disk(where: Path, db: Path) -> Path:
+    """A filesystem with the database on it and no byte free (a tmpfs mounted for the
+    run: needs root; the disk full fault is skipped otherwise): every write the node
+    makes to its database then fails as on a full disk (ENOSPC, SQLITE_FULL)."""
+    where.mkdir(exist_ok=True)
+    size = db.stat().st_size + 256 * 1024
+    subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)],
+                   check=True, capture_output=True)  # fmt: skip
+    target = where / db.name
+    shutil.copyfile(db, target)
+    fd = os.open(where / "filler", os.O_WRONLY | os.O_CREAT)
+    try:
+        while os.write(fd, b"\0" * 4096) > 0:
+            pass
+    except OSError:
+        pass  # ENOSPC: full
+    finally:
+        os.close(fd)
+    return target
+
+
+def free_the_disk(where: Path) -> None:
+    with contextlib.suppress(OSError):
+        (where / "filler").unlink()
+
+
+def unmount(where: Path) -> None:
+    if where.is_dir():
+        done = subprocess.run(["umount", str(where)], check=False, capture_output=True)
+        if done.returncode != 0:  # still busy: detach it now, freed when released
+            subprocess.run(["umount", "-l", str(where)], check=False, capture_output=True)
+
+
+def _node(vid: int, rig_tmp: Path, swarm: str, endpoint: str, port: int, env: dict[str, str],
+          db: Path | None = None) -> Node:  # fmt: skip
+    args = [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid), "--swarm", swarm,
+            "--autopilot", f"tcp:127.0.0.1:{port}", "--connect", endpoint,
+            "--listen", "tcp/127.0.0.1:0"]  # fmt: skip
+    if db is not None:
+        args += ["--db", str(db)]
+    return Node(vid, args, env, rig_tmp / f"node-{vid}.log")
+
+
+def start_rig(tmp: Path, *, victim_env: dict[str, str] | None = None,
+              victim_db: bool = False, victim_limit: bool = False) -> Rig:  # fmt: skip
+    from gcs_cli.ground import GroundStation
+
+    swarm = f"f{os.getpid()}{int(time.time()) % 10000}"
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+    homes = spread_homes(SITL_HOME, len(MEMBERS), 30.0)
+    specs = [VehicleSpec("copter", instance=i, port=_free_port(), home=homes[i], sysid=vid)
+             for i, vid in enumerate(MEMBERS)]  # fmt: skip
+    server = VehicleServer(specs, SystemClock())
+    server.start_thread()
+    shared = tmp / "swarm.db"
+    SwarmDatabase.open(shared).close()
+    env = {**os.environ, "BANDADA_DB": str(shared), "PYTHONUNBUFFERED": "1"}
+    env.pop("BANDADA_CLOCK", None)
+    nodes: dict[int, Node] = {}
+    for vid, spec in zip(MEMBERS, specs, strict=True):
+        own_db = None
+        if vid == VICTIM and (victim_db or victim_limit):
+            own_db = tmp / "victim.db"
+            shutil.copyfile(shared, own_db)
+        e = {**env, **(victim_env or {})} if vid == VICTIM else env
+        nodes[vid] = _node(vid, tmp, swarm, endpoint, spec.tcp_port, e, own_db)
+        if vid == VICTIM and victim_limit and own_db is not None:
+            full = fill_a_disk(tmp / "full-disk", own_db)
+            nodes[vid].args[nodes[vid].args.index("--db") + 1] = str(full)
+        nodes[vid].start()
+    bus = SwarmBus.open(ZenohSettings(connect=(endpoint,)), swarm)
+    gs = GroundStation(ZenohSettings(connect=(endpoint,)), swarm, GCS_ID)
+    area = square(SITL_HOME.lat_deg + 0.0012, SITL_HOME.lon_deg, HALF_M)
+    rig = Rig(tmp, swarm, endpoint, router, server, nodes, bus, gs, area,
+              LocalFrame.at(list(area.points)),
+              GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m))  # fmt: skip
+
+    def keep(into: list, msg: object, key: str) -> None:
+        with rig.lock:
+            into.append(msg)
+
+    bus.subscribe(STATUS, lambda m, k: keep(rig.statuses, m, k))
+    bus.subscribe(INFO, lambda m, k: keep(rig.infos, m, k))
+    bus.subscribe(ALERT, lambda m, k: keep(rig.alerts, m, k))
+    return rig
+
+
+def declare_all(rig: Rig) -> None:
+    gs = rig.gs
+    ok = gs.wait_for(lambda v: all(i in v.status and v.status[i].gps_fix >= 3 and i in v.info  # type: ignore[attr-defined]
+                                   and v.info[i].home is not None for i in MEMBERS), 120)  # fmt: skip
+    if not ok:
+        raise RuntimeError("vehicles never got a position")
+    gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=rig.base), timeout_s=15.0)  # type: ignore[attr-defined]
+    gs.command(CommandKind.SET_FLEET, Selector(SelectorKind.IDS, MEMBERS),  # type: ignore[attr-defined]
+               CommandArgs(fleet_id=4), timeout_s=15.0)  # fmt: skip
+    rig.fleets = dict.fromkeys(MEMBERS, 4)
+    tower = NoFlyZone(1, Geometry.circle(SITL_HOME.lat_deg - 0.002, SITL_HOME.lon_deg + 0.002,
+                                         30.0), name="tower")  # fmt: skip
+    field_ = NoFlyZone(2, Geometry.circle(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 2500.0),
+                       name="field", operating_area=True)  # fmt: skip
+    for z in (tower, field_):
+        gs.declare_zone(z, timeout_s=15.0)  # type: ignore[attr-defined]
+    # as the nodes hold them (the ground station stamped them)
+    for z in (tower, field_):
+        held = gs.zones_held(z.zone_id, timeout_s=2.0)  # type: ignore[attr-defined]
+        rig.zones[z.zone_id] = next(iter(held.values()))
+    if not gs.wait_for(lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in MEMBERS), 60):  # type: ignore[attr-defined]
+        raise RuntimeError("vehicles never became ready")
+
+
+def send_mission(rig: Rig) -> float:
+    m = Mission(MISSION_ID, GCS_ID, MissionType.AREA, rig.area,
+                MissionParams(altitude_rel_m=ALT_M), Selector.fleet(4), time_unix_s=time.time())  # fmt: skip
+    rig.gs.mission(m, timeout_s=15.0)  # type: ignore[attr-defined]
+    return time.monotonic()
+
+
+@dataclass
+class Outcome:
+    recover_s: float | None
+    note: str
+    ok: bool = True
+
+
+def _at(rig: Rig, fraction: float = 0.4) -> bool:
+    send_mission(rig)
+    return rig.wait(lambda: rig.progress(VICTIM) >= fraction, 600)
+
+
+def p_none(rig: Rig) -> Outcome:
+    send_mission(rig)
+    return Outcome(0.0, "no fault (the baseline)")
+
+
+def p_kill(rig: Rig) -> Outcome:
+    if not _at(rig):
+        return Outcome(None, "never reached 40 %", ok=False)
+    n = rig.nodes[VICTIM]
+    t0 = time.monotonic()
+    n.signal(signal.SIGKILL)
+    n.proc.wait(10)  # type: ignore[union-attr]
+    time.sleep(5.0)
+    n.start()
+    ok = rig.wait(lambda: "reattached:" in n.log.read_text(errors="replace"), 90)
+    line = next((ln for ln in n.log.read_text(errors="replace").splitlines()
+                 if "reattached:" in ln), "")  # fmt: skip
+    return Outcome(time.monotonic() - t0 if ok else None,
+                   "restarted 5 s later: " + line.split("node 8: ")[-1][:120], ok)  # fmt: skip
+
+
+def p_sigstop(rig: Rig) -> Outcome:
+    if not _at(rig):
+        return Outcome(None, "never reached 40 %", ok=False)
+    n = rig.nodes[VICTIM]
+    t0 = time.monotonic()
+    n.signal(signal.SIGSTOP)
+    time.sleep(3.0)
+    n.signal(signal.SIGCONT)
+
+    def agreed() -> bool:
+        a, b = rig.info(7), rig.info(8)
+        return a is not None and b is not None and (
+            a.members_hash == b.members_hash or b.mission_id != MISSION_ID
+        ) and time.monotonic() - t0 > 3.5  # fmt: skip
+
+    ok = rig.wait(agreed, 60)
+    recover = time.monotonic() - t0
+
+    def reported() -> list[str]:
+        with rig.lock:
+            return [a.text for a in rig.alerts if a.vehicle_id == VICTIM and "stalled" in a.text]
+
+    rig.wait(lambda: bool(reported()), 10)  # reported a second after the stall
+    stalled = reported()
+    return Outcome(recover if ok else None,
+                   f"stopped 3 s: {stalled[0] if stalled else 'no stall report'}", ok)  # fmt: skip
+
+
+def p_autopilot(rig: Rig) -> Outcome:
+    sim_of = lambda: next(e.autopilot for e in rig.server.endpoints  # noqa: E731
+                          if e.autopilot.sysid == VICTIM)  # fmt: skip
+
+    def stores() -> tuple[list[tuple[int, int, int, float]], list[tuple[int, int, float]]]:
+        sim = sim_of()
+        return ([(i.command, i.x, i.y, i.param1) for i in sim.fence_items],
+                [(i.x, i.y, i.z) for i in sim.rally_items])  # fmt: skip
+
+    # the node's uploads done first (a reboot in the middle of one is another story):
+    # both zones fenced (the tower, the field), the rally point, the fence enabled
+    def uploaded() -> bool:
+        fence, rally = stores()
+        sim = sim_of()
+        return len(fence) == len(rig.zones) and bool(rally) and sim.fence_present() and (
+            sim.params["FENCE_ENABLE"][0] == 1.0
+        )  # fmt: skip
+
+    if not rig.wait(uploaded, 60):
+        return Outcome(None, "the fence and rally point never reached the autopilot", ok=False)
+    time.sleep(3.0)  # and the node's own check of the new base's rally point
+    before = stores()
+    t0 = time.monotonic()
+    rig.server.reboot(VICTIM)
+    rig.wait(lambda: not stores()[0], 10)
+    ok = rig.wait(lambda: stores() == before and sim_of().fence_present(), 90)
+    dt = time.monotonic() - t0
+    rig.wait(lambda: sum("restored and verified" in a.text for a in list(rig.alerts)
+                         if a.vehicle_id == VICTIM) >= 2, 20)  # fmt: skip
+    with rig.lock:
+        said = sorted({a.text for a in rig.alerts if a.vehicle_id == VICTIM
+                       and "verified" in a.text})  # fmt: skip
+    rig.gs.wait_for(lambda v: v.fsm_state(VICTIM) == FsmState.GO_MISSION, 60)  # type: ignore[attr-defined]
+    send_mission(rig)
+    return Outcome(dt if ok else None, f"before the mission, on the ground: fence "
+                   f"{len(before[0])} items, rally {len(before[1])} back; {'; '.join(said)}",
+                   ok and bool(said))  # fmt: skip
+
+
+def p_clock(rig: Rig) -> Outcome:
+    # the victim was started on a clock that steps +3600 s at 40 % (see run_processes)
+    if not _at(rig):
+        return Outcome(None, "never reached 40 %", ok=False)
+    t0 = time.monotonic()
+
+    def reported() -> bool:
+        with rig.lock:
+            return any(a.vehicle_id == VICTIM and "clock stepped" in a.text for a in rig.alerts)
+
+    ok = rig.wait(reported, 120)
+    return Outcome(time.monotonic() - t0 if ok else None,
+                   "system clock +3600 s: the node kept steady time and reported it", ok)  # fmt: skip
+
+
+def p_disk_full(rig: Rig) -> Outcome:
+    if not _at(rig, 0.3):
+        return Outcome(None, "never reached 30 %", ok=False)
+    gs = rig.gs
+    mast = NoFlyZone(3, Geometry.circle(SITL_HOME.lat_deg - 0.003, SITL_HOME.lon_deg - 0.003,
+                                        25.0), name="mast")  # fmt: skip
+    gs.declare_zone(mast, timeout_s=10.0)  # type: ignore[attr-defined]
+    held = gs.zones_held(3, timeout_s=2.0)  # type: ignore[attr-defined]
+    rig.zones[3] = next(iter(held.values()))
+    time.sleep(2.0)
+    full = [a.text for a in rig.alerts if a.vehicle_id == VICTIM and "not stored" in a.text]
+    n = rig.nodes[VICTIM]
+    t0 = time.monotonic()
+    n.signal(signal.SIGKILL)
+    n.proc.wait(10)  # type: ignore[union-attr]
+    free_the_disk(rig.tmp / "full-disk")  # the disk was cleaned up
+    n.start()
+
+    def has_mast() -> bool:
+        st = gs.declared_state(VICTIM, timeout_s=1.0)  # type: ignore[attr-defined]
+        return st is not None and any(z.zone_id == 3 for z in st.zones)
+
+    ok = rig.wait(has_mast, 60, period_s=0.5)
+    return Outcome(time.monotonic() - t0 if ok else None,
+                   f"{full[0] if full else 'no store failure alerted'}; restarted, zone 3 "
+                   "back from its peers", ok and bool(full))  # fmt: skip
+
+
+def p_corrupt(rig: Rig) -> Outcome:
+    if not _at(rig):
+        return Outcome(None, "never reached 40 %", ok=False)
+    n = rig.nodes[VICTIM]
+    n.signal(signal.SIGKILL)
+    n.proc.wait(10)  # type: ignore[union-attr]
+    db = Path(n.args[n.args.index("--db") + 1])
+    with db.open("r+b") as f:  # the header and the first pages overwritten
+        f.write(os.urandom(4096))
+    n.start()
+    code = n.proc.wait(60)  # type: ignore[union-attr]
+    refused = n.log.read_text(errors="replace").strip().splitlines()[-1][:160]
+    t0 = time.monotonic()
+    fresh = rig.tmp / "victim-new.db"
+    n.args[n.args.index("--db") + 1] = str(fresh)
+    n.start()
+
+    def learned() -> bool:
+        st = rig.gs.declared_state(VICTIM, timeout_s=1.0)  # type: ignore[attr-defined]
+        return st is not None and st.base == rig.base and len(st.zones) == len(rig.zones)
+
+    ok = rig.wait(learned, 60, period_s=0.5)
+    return Outcome(time.monotonic() - t0 if ok else None,
+                   f"refused (exit {code}: {refused.split(': ', 1)[-1][:90]}); on a new file "
+                   "it learned base and zones from its peer", ok and code == 2)  # fmt: skip
+
+
+PROCESS_FAULTS: dict[str, Callable[[Rig], Outcome]] = {
+    "none": p_none,
+    "kill -9 a node (restarted after 5 s)": p_kill,
+    "SIGSTOP a node 3 s": p_sigstop,
+    "restart an autopilot (empty stores)": p_autopilot,
+    "clock jump +1 h on one node": p_clock,
+    "disk full on the database": p_disk_full,
+    "corrupted database at start (new one)": p_corrupt,
+}
+
+
+def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
+    t_wall = time.perf_counter()
+    tmp = Path(tempfile.mkdtemp(prefix="bandada-fault-"))
+    kw: dict[str, object] = {}
+    if name.startswith("clock jump"):
+        # steps an hour ahead about 60 s after start: during the mission
+        kw["victim_env"] = {"BANDADA_CLOCK": f"stepping:{time.time() + 60.0!r}:3600.0"}
+    if name.startswith("disk full"):
+        if os.geteuid() != 0:
+            return FaultRow(name, MISSION_NAME, "processes", False, None, 0.0, False, 0, 0,
+                            note="skipped: a full filesystem needs root to mount")  # fmt: skip
+        kw["victim_limit"] = True
+    if name.startswith("corrupted"):
+        kw["victim_db"] = True
+    rig = start_rig(tmp, **kw)  # type: ignore[arg-type]
+    note, completed, coverage, lost, false, emerg = "", False, 0.0, 0, 0, Counter[str]()
+    outcome = Outcome(None, "not run", ok=False)
+    try:
+        declare_all(rig)
+        outcome = PROCESS_FAULTS[name](rig)
+        def flown() -> bool:  # the survey was flown (or began), and everyone is down
+            with rig.lock:
+                began = any(st.mission_state == MissionState.MISSION for st in rig.statuses)
+            return began and rig.landed()
+
+        finished = rig.wait(flown, 900, period_s=0.5)
+        with rig.lock:
+            alerts = list(rig.alerts)
+            infos = list(rig.infos)
+        completed = any(a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {MISSION_ID}"
+                        for a in alerts)  # fmt: skip
+        coverage = rig.coverage()
+        lost = rig.declared_lost()
+        emerg = Counter(f"{i.fsm_state.name} (vehicle {i.vehicle_id})" for i in infos
+                        if i.fsm_state == FsmState.EMERGENCY)  # fmt: skip
+        false = sum(1 for a in alerts if a.code == AlertCode.AUTOPILOT_LINK_LOSS
+                    and a.severity >= Severity.CRITICAL)  # fmt: skip
+        note = outcome.note + ("" if finished else "; not all landed in time")
+        counts = Counter(f"{a.severity.name} {a.code.name}" for a in alerts
+                         if a.severity >= Severity.WARNING)  # fmt: skip
+    except Exception as exc:  # a row that breaks is reported, the campaign goes on
+        note, counts, finished = f"{outcome.note}; failed: {exc}", Counter(), False
+    finally:
+        rig.close()
+        unmount(tmp / "full-disk")
+        if keep is not None:
+            shutil.copytree(tmp, keep / name.replace(" ", "_").replace("/", "_"),
+                            dirs_exist_ok=True)  # fmt: skip
+        shutil.rmtree(tmp, ignore_errors=True)
+    recovered = (
+        outcome.ok and outcome.recover_s is not None and finished and completed
+        and coverage >= 0.95 and lost == 0 and false == 0
+    )  # fmt: skip
+    return FaultRow(
+        fault=name, mission=MISSION_NAME, env="processes", recovered=recovered,
+        recover_s=None if outcome.recover_s is None else round(outcome.recover_s, 2),
+        coverage=round(coverage, 4), mission_completed=completed, declared_state_lost=lost,
+        false_emergencies=false, emergencies=dict(emerg), alerts=dict(sorted(counts.items())),
+        note=note, wall_s=round(time.perf_counter() - t_wall, 2),
+    )  # fmt: skip
+
+
+def campaign_processes(faults: list[str] | None = None) -> list[FaultRow]:
+    return [run_process_fault(f) for f in (faults or list(PROCESS_FAULTS))]
