@@ -90,6 +90,9 @@ from .swarm.roster import Roster
 UNSET_WHEN_ZERO: dict[MissionType, frozenset[str]] = {
     MissionType.AUTOLAND: frozenset({"separation_s", "altitude_step_m"}),
     MissionType.MUMT: frozenset({"altitude_step_m", "radius_m"}),
+    # fixed-wing orbiting one point at one height rely on their phases alone, which an
+    # ArduPilot loiter does not hold: a target's step of 0 is the database's
+    MissionType.TARGET: frozenset({"altitude_step_m"}),
 }
 
 
