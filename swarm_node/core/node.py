@@ -108,7 +108,7 @@ from .fences import (
 )
 from .fleet_changes import FleetChanges
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
-from .mission.share import PlanOutcome, pose_on
+from .mission.share import PlanOutcome, heading_on, pose_on
 from .mission.tasking import Tasking, TaskingSettings
 from .mission.voting import VoterLost
 from .mission_manager import Member, MissionManager, replan_battery, with_defaults
@@ -859,7 +859,8 @@ class NodeCore:
             profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
             if profile is None:
                 continue
-            members.append(Member(profile, pose_on(base, vid, progress) if base else None))
+            members.append(Member(profile, pose_on(base, vid, progress) if base else None,
+                                  heading_deg=heading_on(base, vid, progress) if base else None))  # fmt: skip
         self.roster.replanned(survivors)
         battery = (
             replan_battery(base, members, progress, flown, mission.params.altitude_rel_m)

@@ -105,3 +105,33 @@ def test_a_vehicle_inside_the_zone_itself_is_not_led_through_it() -> None:
         Obstacles(zone.buffer(90.0), zone).path_from((0.0, 20.0), (0.0, -400.0))
     with pytest.raises(NoSafeRouteError):  # margins unknown: as `path`
         Obstacles(zone.buffer(90.0)).path_from((0.0, 110.0), (0.0, -400.0))
+
+
+def test_a_replan_heads_each_survivor_along_its_share(fleet: Fleet) -> None:
+    """The survivors of a replan are posed where their progress puts them on their
+    shares (the same on every node); they were all headed north. A VTOL flying west
+    past the demo's field zone was planned as if it flew north, into the zone: its new
+    share turned round next to the zone (8.6 m from it) and the next replan found no
+    flyable turn there. Each is now headed along the leg it is on."""
+    from swarm_node.core.mission.share import Member, _vehicles, heading_on, pose_on
+    from swarm_proto import GeoPoint
+
+    area = _poly((-300, -200), (300, -200), (300, 200), (-300, 200))
+    homes = [VehiclePose(*FRAME.to_geodetic(30.0 * i, -800.0)) for i in range(3)]
+    vs = fleet(["fixed_wing"] * 3, homes)
+    mission = Mission(101, 900, MissionType.AREA, area, MissionParams(altitude_rel_m=80.0))
+    fp = plan_fleet(mission, vs, zones=[], now_unix_s=0.0, home_alt_msl_m=0.0)
+    for v in vs:
+        share = fp.share(v.vehicle_id)
+        progress = {v.vehicle_id: 0.5 * share.length_m}
+        k, lat, lon = share.at(progress[v.vehicle_id])
+        ahead = next(w for w in share.waypoints[k + 1 :] if w.lat_deg)
+        x, y = LocalFrame(lat, lon).to_local(ahead.lat_deg, ahead.lon_deg)
+        want = math.degrees(math.atan2(x, y)) % 360.0
+        got = heading_on(fp, v.vehicle_id, progress)
+        assert got is not None and abs((got - want + 180.0) % 360.0 - 180.0) < 1e-6
+        at = pose_on(fp, v.vehicle_id, progress)
+        assert isinstance(at, GeoPoint)
+        (pv,) = _vehicles([Member(v.profile, at, heading_deg=got)])
+        assert pv.pose is not None and pv.pose.heading_deg == got
+    assert heading_on(fp, 99, {}) is None  # no share
