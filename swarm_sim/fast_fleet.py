@@ -40,7 +40,7 @@ from swarm_node.core.node import (
 )
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.plan_memo import PlanMemo
-from swarm_proto import VehicleType, lan
+from swarm_proto import MissionType, VehicleType, lan
 
 from .core import SITL_HOME, Home, VehicleEndpoint
 from .runtime.server import spread_homes
@@ -114,6 +114,7 @@ class FastFleet:
         start_unix_s: float = 1.8e9,
         settings: NodeSettings | None = None,
         tasking: TaskingSettings | None = None,
+        mission_defaults: Mapping[MissionType, Mapping[str, float]] | None = None,
         homes: Sequence[Home] | None = None,
     ) -> FastFleet:
         """Vehicles `members` (database ids), each simulated as its profile's model,
@@ -132,7 +133,7 @@ class FastFleet:
             )
             node = NodeCore(
                 profile, settings or NodeSettings(), now=start_unix_s, fleet_profiles=profiles,
-                tasking_settings=tasking or seed_tasking(),
+                tasking_settings=tasking or seed_tasking(), mission_defaults=mission_defaults or {},
             )  # fmt: skip
             vehicles[vid] = SimVehicle(node, link, endpoint, next_poll=start_unix_s)
         return cls(vehicles, start_unix_s)

@@ -790,6 +790,11 @@ class MissionManager:
         """On the way down or home (what ABORT_LANDING can cancel)."""
         return self.phase in (Phase.RETURNING, Phase.LANDING)
 
+    @property
+    def touching_down(self) -> bool:
+        """Landing now (the way home's last stage): a new mission waits for the landing."""
+        return self.phase == Phase.LANDING
+
     def landing_route(
         self, point: GeoPoint, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float
     ) -> tuple[ApRequest, ...]:

@@ -252,6 +252,7 @@ class NodeCore:
             base=self.base,
             ready=self.monitor.ready,
             landing=self.manager.landing,
+            touching_down=self.manager.touching_down,
         )
 
     def status(self, now: float) -> VehicleStatus | None:
@@ -524,6 +525,8 @@ class NodeCore:
         reason = check_mission(mission, self.view())
         ok = reason == AckReason.OK
         why = self._not_ready_text() if reason == AckReason.NOT_READY else ""
+        if reason == AckReason.BUSY and self.manager.touching_down:
+            why = "landing: activate it once landed, then send it again"
         ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason,
                   short_text(why))  # fmt: skip
         # only an acceptance is remembered: a rejected mission sent again is checked again
