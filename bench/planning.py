@@ -20,7 +20,7 @@ from typing import Any
 
 from swarm_node.core.mission.share import Member, PlanRequest, run_plan
 from swarm_node.database import seed_fleet
-from swarm_proto import Geometry, GeoPoint, Mission, MissionParams, MissionType
+from swarm_proto import Geometry, GeoPoint, Mission, MissionParams, MissionType, geodesy
 
 TICK_S = 0.01
 
@@ -32,8 +32,7 @@ def request(n: int = 4000) -> PlanRequest:
     for i in range(n):
         a = 2 * math.pi * i / n
         r = 150 + 20 * math.sin(7 * a)
-        pts.append((lat0 + r * math.sin(a) / 111_320,
-                    lon0 + r * math.cos(a) / (111_320 * math.cos(math.radians(lat0)))))  # fmt: skip
+        pts.append(geodesy.offset(lat0, lon0, r * math.sin(a), r * math.cos(a)))
     mission = Mission(1, 900, MissionType.AREA, Geometry.polygon(pts), MissionParams(altitude_rel_m=50.0))
     members = (Member(profiles[7], GeoPoint(37.4112, -5.9889, 10.0)),
                Member(profiles[8], GeoPoint(37.4112, -5.9885, 10.0)))  # fmt: skip

@@ -24,8 +24,10 @@ def data_age_s(status: VehicleStatus, now_unix_s: float) -> float:
     """How old the autopilot data in a status is: its `time_unix_s` is the time of the
     autopilot's sample (GPS time), and after an autopilot link loss the node keeps
     sending the last one (issue 11): `age s` says when the ground station last heard the
-    node, `data s` how old what it says is. Clamped at 0 (a vehicle clock ahead)."""
-    return round(max(0.0, now_unix_s - status.time_unix_s), 1)
+    node, `data s` how old what it says is. Clamped at 0 (a vehicle clock ahead). A radio
+    peer's status predicted by its gateway (issue 19) is `predicted_s` older than its
+    time says."""
+    return round(max(0.0, now_unix_s - status.time_unix_s) + status.predicted_s, 1)
 
 
 def fleet_rows(view: FleetView) -> list[dict[str, Any]]:

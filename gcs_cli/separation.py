@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import pymap3d
 
+from swarm_proto.geodesy import ecef_many
 from swarm_proto.trajectory import Trajectory
 
 FloatArray = npt.NDArray[np.float64]
@@ -131,8 +131,7 @@ def _ecef_at(
     t = tr.time_s[sel]
     order = np.argsort(t, kind="stable")
     t = t[order]
-    x, y, z = pymap3d.geodetic2ecef(tr.lat[sel][order], tr.lon[sel][order], tr.alt_m[sel][order])
-    xyz = np.stack([np.asarray(x, float), np.asarray(y, float), np.asarray(z, float)], -1)
+    xyz = ecef_many(tr.lat[sel][order], tr.lon[sel][order], tr.alt_m[sel][order])
     # one sample per time: the last one written
     keep = np.append(t[1:] != t[:-1], True)
     t, xyz = t[keep], xyz[keep]

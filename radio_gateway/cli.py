@@ -37,6 +37,12 @@ def run(
     members: str | None = typer.Option(None, help="initial members, e.g. 1,2,3,900"),
     local_id: list[int] = typer.Option([], help="ids whose messages go on air (default: node id)"),
     guard_ms: float | None = typer.Option(None, help="TDM guard time per slot"),
+    status_mode: str | None = typer.Option(
+        None, help="on_error (send on error, peers predicted; default) | every"
+    ),
+    min_level: int | None = typer.Option(
+        None, help="lowest need level of the adaptive schedule, 0-3 (a ground station: 2)"
+    ),
     time_source: str | None = typer.Option(
         None, help="clock | clock-free | mavlink:URL | nmea:PORT[:BAUD]"
     ),
@@ -61,6 +67,8 @@ def run(
         "initial_members": members_option(members),
         "local_ids": tuple(local_id) or None,
         "guard_s": guard_ms / 1000.0 if guard_ms is not None else None,
+        "status_mode": status_mode,
+        "min_level": min_level,
         "time_source": time_source,
         "configure_radio": True if configure_radio else None,
         "verify_radio": False if no_verify else None,

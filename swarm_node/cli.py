@@ -46,6 +46,11 @@ def run(
     ),
     status_hz: float | None = typer.Option(None, help="VehicleStatus rate (default 5)"),
     info_hz: float | None = typer.Option(None, help="VehicleInfo rate (default 1)"),
+    avoidance: bool | None = typer.Option(
+        None,
+        "--avoidance/--no-avoidance",
+        help="collision avoidance and take-off/landing sequencing at close pads (default on)",
+    ),
     log_level: str = typer.Option("INFO", help="DEBUG, INFO, WARNING, ERROR"),
     record: str | None = typer.Option(
         None, "--record", help="flight recorder: every VehicleStatus heard to this CSV"
@@ -85,6 +90,7 @@ def run(
             plan_timeout_s=plan_timeout,
             status_hz=status_hz,
             info_hz=info_hz,
+            avoidance=avoidance,
         )
     except ValueError as exc:
         typer.echo(f"swarm-node: {exc}", err=True)

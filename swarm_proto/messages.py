@@ -215,6 +215,14 @@ class VehicleStatus(Struct, frozen=True):
     mission_progress_pct: Percent = 0
     fleet_id: FleetId = 0
     alerts: Annotated[AlertFlag, Meta(description="active AlertFlag bits")] = AlertFlag.NONE
+    # appended (issue 19): a radio gateway republishes a radio peer's status predicted to
+    # `time_unix_s` from the last one it heard (dead reckoning, send on error): the
+    # position is then within `position_error_m` of the truth, and `predicted_s` is how
+    # far it was carried forward (the autopilot data is `predicted_s` older than
+    # `time_unix_s`). Both 0: the vehicle's own measurement. LAN only (the 40-byte radio
+    # layout carries measured statuses).
+    position_error_m: DistanceM = 0.0  # a radio gateway's prediction: the truth is within this
+    predicted_s: DurationS = 0.0  # a radio gateway's prediction: carried forward this long
 
     def __post_init__(self) -> None:
         if not 0 <= int(self.alerts) <= 0xFFFF:
@@ -314,7 +322,9 @@ class CommandArgs(Struct, frozen=True):
     """Arguments of a command; which are used depends on CommandKind."""
 
     point: GeoPoint | None = None
-    value: Annotated[float, Meta(ge=-1.0e6, le=1.0e6), Fixed(0.001)] | None = None  # unit per CommandKind (see CommandKind below)
+    value: Annotated[float, Meta(ge=-1.0e6, le=1.0e6), Fixed(0.001)] | None = (
+        None  # unit per CommandKind (see CommandKind below)
+    )
     text: ShortText = ""
     fleet_id: FleetId = 0
     mission_id: MissionId = 0

@@ -38,6 +38,12 @@ def demo(
     out: Path = typer.Option(
         DEMO_OUT, "--out", file_okay=False, help="the report's directory"
     ),
+    avoidance: bool = typer.Option(
+        True,
+        "--avoidance/--no-avoidance",
+        help="the nodes' collision avoidance and the close pads' take-off and landing "
+        "sequencing (docs/avoidance.md)",
+    ),
 ) -> None:
     """The paper's experiment 1, flown by the real stack (simulated MAVLink vehicles, one
     swarm-node process each, Zenoh on 127.0.0.1, the ground station): base and zones, a
@@ -72,9 +78,9 @@ def demo(
         # TDM slots are a few milliseconds of wall time at high speed-ups; a shared
         # laptop cannot write the serial ports that precisely
         typer.echo(f"warning: --radio at {speedup:g}x leaves the slots little margin", err=True)
-    raise typer.Exit(
-        run_demo(members, speedup=speedup, timeout_s=timeout, keep=keep, radio=radio, out=out)
-    )
+    code = run_demo(members, speedup=speedup, timeout_s=timeout, keep=keep, radio=radio,
+                    out=out, avoidance=avoidance)  # fmt: skip
+    raise typer.Exit(code)
 
 
 @app.command()

@@ -20,7 +20,6 @@ reference scenario of tests and benchmarks).
 
 from __future__ import annotations
 
-import math
 import multiprocessing
 import multiprocessing.process
 import os
@@ -42,6 +41,7 @@ from swarm_proto import (
     Geometry,
     NoFlyZone,
     ScaledClock,
+    geodesy,
 )
 from swarm_proto.clock import ENV_VAR as CLOCK_ENV
 from swarm_proto.clock import clock_from_spec
@@ -83,7 +83,7 @@ def free_tcp_port() -> int:
 
 
 def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float, float]:
-    return lat + north_m / 111_320.0, lon + east_m / (111_320.0 * math.cos(math.radians(lat)))
+    return geodesy.offset(lat, lon, north_m, east_m)  # the one geodesy (swarm_proto.geodesy)
 
 
 def demo_area() -> tuple[Geometry, NoFlyZone]:
@@ -183,9 +183,15 @@ def serve_vehicles(
 
 
 def start(
-    members: tuple[int, ...], speedup: float, tmp: Path, console: Console, *, radio: bool = False,
+    members: tuple[int, ...],
+    speedup: float,
+    tmp: Path,
+    console: Console,
+    *,
+    radio: bool = False,
+    avoidance: bool = False,
     spacing_m: float = 40.0,
-) -> Fleet:  # fmt: skip
+) -> Fleet:
     db_path = tmp / "swarm.db"
     with SwarmDatabase.open(db_path) as db:
         profiles = {p.vehicle_id: p for p in db.profiles()}
@@ -236,7 +242,8 @@ def start(
             [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid),
              "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}", "--connect", lans[vid],
              "--listen", "tcp/127.0.0.1:0", "--link-timeout", str(link_timeout_s(speedup)),
-             "--plan-timeout", str(plan_timeout_s(speedup))],
+             "--plan-timeout", str(plan_timeout_s(speedup)),
+             "--avoidance" if avoidance else "--no-avoidance"],
             tmp / f"node-{vid}.log",
             env,
             nice=YIELD_TO_RADIO if radio else 0,
@@ -290,14 +297,16 @@ def run_demo(
     keep: bool = False,
     radio: bool = False,
     out: Path = Path("demo-out"),
+    avoidance: bool = True,
 ) -> int:
     """`make demo`: the paper's experiment 1 with `members` (default: the six VTOLs),
     narrated, recorded and reported in `out` (swarm_sim/experiment.py); 0 when it
-    passed."""
+    passed. Collision avoidance and the close pads' take-off and landing sequencing
+    are on (the nodes' default), as in the paper's experiment."""
     from .experiment import EXPERIMENT_FLEET, run
 
     return run(members or EXPERIMENT_FLEET, speedup=speedup, timeout_s=timeout_s, keep=keep,
-               radio=radio, out=out)  # fmt: skip
+               radio=radio, out=out, avoidance=avoidance)  # fmt: skip
 
 
 def _radio_up(
@@ -334,8 +343,9 @@ def _radio_report(
     """What the ground station's gateway heard, and what the channel saw since the
     slot table was up (the TDM's promise: no collisions)."""
     assert fleet.channel is not None
-    channel = fleet.channel.stats()["channel"]
-    collisions = int(channel.get("collisions", 0))
+    every = fleet.channel.stats()
+    channel = every["channel"]
+    collisions = int(channel.get("collisions_tdm", 0))  # between packets written on time
     if stats is None:
         console.print("[red]radio: no statistics from the ground station's gateway[/]")
         return False
@@ -347,5 +357,11 @@ def _radio_report(
         f"heard {peers}; {stats.dropped_forged} forged, {stats.dropped_corrupt} corrupt; "
         f"{channel.get('packets', 0)} packets and {collisions} collisions on the channel "
         "since the table was up"
+        + (
+            f" ({channel['collisions_late']} more with a packet the emulator, descheduled "
+            f"by this machine's load, read late: {every.get('late_reads', 0)} late reads)"
+            if channel.get("collisions_late")
+            else ""
+        )
     )
     return collisions == 0

@@ -105,6 +105,7 @@ def run(
     out: Path = Path("demo-out"),
     console: Console | None = None,
     plan_kw: dict[str, Any] | None = None,
+    avoidance: bool = True,
 ) -> int:
     """Fly the story with `members`; write the report to `out`; 0 when it passed."""
     console = console or (Console() if sys.stdout.isatty() else Console(width=140))
@@ -123,7 +124,8 @@ def run(
     console.print(f"{len(members)} simulated vehicles, {speedup:g}x real time, {link}; "
                   f"report in {out}/, logs in {tmp}")  # fmt: skip
     wall0 = time.monotonic()
-    fleet = demo.start(members, speedup, tmp, console, radio=radio, spacing_m=PAD_SPACING_M)
+    fleet = demo.start(members, speedup, tmp, console, radio=radio, avoidance=avoidance,
+                       spacing_m=PAD_SPACING_M)  # fmt: skip
     clock = ScaledClock(speedup)
     now = _clock_now(fleet.clock_spec) if fleet.clock_spec else clock.now
     shell = Shell(fleet.endpoint)

@@ -118,11 +118,12 @@ class FastFleet:
         homes: Sequence[Home] | None = None,
     ) -> FastFleet:
         """Vehicles `members` (database ids), each simulated as its profile's model,
-        homes `spacing_m` apart going east (or `homes`, one per member); voting and
-        re-tasking as the seed database sets them unless `tasking` is given."""
+        homes `spacing_m` apart going east (or the `homes` given, one per member); voting
+        and re-tasking as the seed database sets them unless `tasking` is given."""
         vehicles: dict[int, SimVehicle] = {}
-        if homes is None:
-            homes = spread_homes(home, len(members), spacing_m)
+        if homes is not None and len(homes) != len(members):
+            raise ValueError(f"{len(homes)} homes for {len(members)} vehicles")
+        homes = list(homes) if homes is not None else spread_homes(home, len(members), spacing_m)
         for i, vid in enumerate(members):
             profile = profiles[vid]
             model = MODEL_OF_TYPE[profile.vehicle_type]

@@ -38,6 +38,7 @@ from swarm_proto import (
     Selector,
     VehicleStatus,
     VehicleType,
+    geodesy,
 )
 
 from .core import SITL_HOME
@@ -48,12 +49,8 @@ LANE_NEAR_M = 10.0  # a vehicle this close to one of its lanes, heading along it
 
 
 def square(center_lat: float, center_lon: float, half_m: float) -> Geometry:
-    dlat = half_m / 111_320.0
-    dlon = half_m / (111_320.0 * math.cos(math.radians(center_lat)))
-    return Geometry.polygon(
-        [(center_lat - dlat, center_lon - dlon), (center_lat - dlat, center_lon + dlon),
-         (center_lat + dlat, center_lon + dlon), (center_lat + dlat, center_lon - dlon)]
-    )  # fmt: skip
+    corners = [(-half_m, -half_m), (-half_m, half_m), (half_m, half_m), (half_m, -half_m)]
+    return Geometry.polygon([geodesy.offset(center_lat, center_lon, n, e) for n, e in corners])
 
 
 @dataclass
@@ -146,9 +143,8 @@ def lane_axis_deg(fleet: FastFleet) -> float:
     for share in plan.shares.values():
         pts = [(w.lat_deg, w.lon_deg) for w in share.waypoints if w.lat_deg]
         for (a, b), (c, d) in itertools.pairwise(pts):
-            dn, de = (c - a) * 111_320.0, (d - b) * 111_320.0 * math.cos(math.radians(a))
-            k = round(math.degrees(math.atan2(de, dn)) % 180.0)
-            weight[k] = weight.get(k, 0.0) + math.hypot(dn, de)
+            k = round(geodesy.bearing_deg(a, b, c, d) % 180.0)
+            weight[k] = weight.get(k, 0.0) + geodesy.distance_m(a, b, c, d)
     return float(max(weight, key=weight.__getitem__))
 
 

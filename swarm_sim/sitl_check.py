@@ -31,7 +31,6 @@ import contextlib
 import dataclasses
 import functools
 import json
-import math
 import os
 import signal
 import socket
@@ -63,6 +62,7 @@ from swarm_proto import (
     NoFlyZone,
     Selector,
     VehicleType,
+    geodesy,
 )
 from swarm_proto.session import ZenohSettings
 
@@ -124,17 +124,8 @@ VEHICLES = (
 EXTRA_PARAMS = {"copter": {"BATT_CAPACITY": 20000}, "quadplane": {}}
 
 
-def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float, float]:
-    return (
-        lat + north_m / 111_320.0,
-        lon + east_m / (111_320.0 * math.cos(math.radians(lat))),
-    )
-
-
-def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
-    dn = (lat2 - lat1) * 111_320.0
-    de = (lon2 - lon1) * 111_320.0 * math.cos(math.radians((lat1 + lat2) / 2))
-    return math.hypot(dn, de)
+offset = geodesy.offset  # the one geodesy (swarm_proto.geodesy)
+distance_m = geodesy.distance_m
 
 
 def _opt(x: float | None, fmt: str, none: str) -> str:

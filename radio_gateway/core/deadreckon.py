@@ -21,6 +21,10 @@ relative acceleration is at most twice the bound), lost messages or not; when no
 was lost the sender keeps the error within `threshold_m` besides.
 
 Times are the same clock on every node (GPS time); states carry the time they describe.
+
+The gateway runs this model on VehicleStatus (`telemetry.py`: `OwnTelemetry` is the
+sender, `PeerPredictor` the receivers); `SendOnError` and `PeerView` here are the same
+rules on bare states, kept for their property tests.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Before COBS (all integers little-endian):
 
 | offset | bytes | field |
 |---|---|---|
-| 0 | 1 | bits 7-5 protocol version (1); bit 0 JOIN request; bits 1-2 time stratum |
+| 0 | 1 | bits 7-5 protocol version (1); bit 0 JOIN request; bits 1-2 time stratum; bits 3-4 the sender's need level (adaptive schedule) |
 | 1 | 2 | source node id |
 | 3 | 2 | cycle counter, low 16 bits (cycle = floor(GPS time / cycle length)) |
 | 5 | 2 | slot-table version: 16-bit hash of the sender's membership |
@@ -23,6 +23,8 @@ then COBS-encoded and followed by one 0x00 delimiter. Records (unknown types ski
 | 4 ACK | source (2), seq (2), bitmap of chunks held (empty: complete) |
 | 5 JOIN, 6 LEAVE | node (2), activation cycle low 16 bits (2) |
 | 7 RELAY | a peer's latest telemetry, repeated for nodes that missed it |
+| 8 LEVEL | node (2), activation cycle low 16 bits (2), need level (1): a scheduled change of a member's slot share |
+| 9 FRAG_ACKED_BY | seq (2), total chunks (1), first chunk (1), node (2), data: chunks of a message only `node` acknowledges (an Ack answers its issuer) |
 
 Decoding never raises anything but `FrameError`, whose `reason` says which check failed.
 """
@@ -49,6 +51,7 @@ MAX_MESSAGE_BYTES = CHUNK_BYTES * MAX_CHUNKS
 FRAG_FIXED = 4  # seq, total, first
 ACK_FIXED = 4  # src, seq
 CHANGE_VALUE = 4
+LEVEL_VALUE = 5
 
 
 class RecordType(IntEnum):
@@ -59,6 +62,8 @@ class RecordType(IntEnum):
     JOIN = 5
     LEAVE = 6
     RELAY = 7
+    LEVEL = 8
+    FRAG_ACKED_BY = 9
 
 
 class FrameError(ValueError):
@@ -87,6 +92,11 @@ class Frag:
     first: int  # index of the first chunk carried
     data: bytes
     acked: bool
+    ack_by: int = 0  # acked: only this node acknowledges (0: every member)
+
+    @property
+    def fixed(self) -> int:
+        return FRAG_FIXED + (2 if self.ack_by else 0)
 
     @property
     def chunks(self) -> range:
@@ -107,7 +117,16 @@ class Change:
     at_cycle: int
 
 
-Record = Msg | Relay | Frag | Ack | Change
+@dataclass(frozen=True)
+class LevelChange:
+    """A member's need level (slot share) from `at_cycle` on (the adaptive schedule)."""
+
+    node: int
+    level: int
+    at_cycle: int
+
+
+Record = Msg | Relay | Frag | Ack | Change | LevelChange
 
 
 @dataclass(frozen=True)
@@ -120,6 +139,7 @@ class Frame:
     join: bool = False
     stratum: int = 3
     records: tuple[Record, ...] = ()
+    level: int = 1  # the sender's need level in force (adaptive schedule; 1 the default)
     unknown_records: int = field(default=0, compare=False)
 
 
@@ -136,9 +156,11 @@ def record_size(r: Record) -> int:
     if isinstance(r, Msg | Relay):
         return RECORD_HEADER_BYTES + len(r.data)
     if isinstance(r, Frag):
-        return RECORD_HEADER_BYTES + FRAG_FIXED + len(r.data)
+        return RECORD_HEADER_BYTES + r.fixed + len(r.data)
     if isinstance(r, Ack):
         return RECORD_HEADER_BYTES + ACK_FIXED + len(r.mask)
+    if isinstance(r, LevelChange):
+        return RECORD_HEADER_BYTES + LEVEL_VALUE
     return RECORD_HEADER_BYTES + CHANGE_VALUE
 
 
@@ -148,10 +170,16 @@ def _encode_record(r: Record) -> bytes:
     elif isinstance(r, Relay):
         t, v = RecordType.RELAY, r.data
     elif isinstance(r, Frag):
-        t = RecordType.FRAG_ACKED if r.acked else RecordType.FRAG
-        v = struct.pack("<HBB", r.seq, r.total, r.first) + r.data
+        if r.ack_by and r.acked:
+            t = RecordType.FRAG_ACKED_BY
+            v = struct.pack("<HBBH", r.seq, r.total, r.first, r.ack_by) + r.data
+        else:
+            t = RecordType.FRAG_ACKED if r.acked else RecordType.FRAG
+            v = struct.pack("<HBB", r.seq, r.total, r.first) + r.data
     elif isinstance(r, Ack):
         t, v = RecordType.ACK, struct.pack("<HH", r.src, r.seq) + r.mask
+    elif isinstance(r, LevelChange):
+        t, v = RecordType.LEVEL, struct.pack("<HHB", r.node, r.at_cycle & 0xFFFF, r.level)
     else:
         t = RecordType.JOIN if r.join else RecordType.LEAVE
         v = struct.pack("<HH", r.node, r.at_cycle & 0xFFFF)
@@ -164,9 +192,16 @@ def encode_body(frame: Frame) -> bytes:
     """The frame before its tag, CRC and COBS (what the tag covers)."""
     if not 0 <= frame.stratum <= 3:
         raise ValueError("stratum is 0..3")
+    if not 0 <= frame.level <= 3:
+        raise ValueError("level is 0..3")
     if len(frame.heard) != heard_bytes(frame.n_members):
         raise ValueError("heard bitmap length does not match n_members")
-    flags = (PROTOCOL_VERSION << 5) | (frame.stratum << 1) | (1 if frame.join else 0)
+    flags = (
+        (PROTOCOL_VERSION << 5)
+        | (frame.level << 3)
+        | (frame.stratum << 1)
+        | (1 if frame.join else 0)
+    )
     out = bytearray(
         HEADER.pack(flags, frame.src, frame.cycle & 0xFFFF, frame.table_hash, frame.n_members)
     )
@@ -249,11 +284,16 @@ def parse_body(body: bytes, cycle: int) -> Frame:
             if not value:
                 raise FrameError("malformed", "empty MSG")
             records.append(Msg(value) if t == RecordType.MSG else Relay(value))
-        elif t in (RecordType.FRAG, RecordType.FRAG_ACKED):
-            if length <= FRAG_FIXED:
+        elif t in (RecordType.FRAG, RecordType.FRAG_ACKED, RecordType.FRAG_ACKED_BY):
+            by = t == RecordType.FRAG_ACKED_BY
+            fixed = FRAG_FIXED + (2 if by else 0)
+            if length <= fixed:
                 raise FrameError("malformed", "FRAG without data")
             seq, total, first = struct.unpack_from("<HBB", value)
-            frag = Frag(seq, total, first, value[FRAG_FIXED:], t == RecordType.FRAG_ACKED)
+            ack_by = struct.unpack_from("<H", value, FRAG_FIXED)[0] if by else 0
+            if by and not ack_by:
+                raise FrameError("malformed", "FRAG_ACKED_BY node 0")
+            frag = Frag(seq, total, first, value[fixed:], t != RecordType.FRAG, ack_by)
             if total == 0 or frag.chunks.stop > total:
                 raise FrameError("malformed", "FRAG chunks outside the message")
             if frag.chunks.stop < total and len(frag.data) % CHUNK_BYTES:
@@ -269,6 +309,13 @@ def parse_body(body: bytes, cycle: int) -> Frame:
                 raise FrameError("malformed", "short membership change")
             node, at_lo = struct.unpack_from("<HH", value)
             records.append(Change(t == RecordType.JOIN, node, auth.unwrap16(at_lo, cycle)))
+        elif t == RecordType.LEVEL:
+            if length < LEVEL_VALUE:
+                raise FrameError("malformed", "short level change")
+            node, at_lo, lvl = struct.unpack_from("<HHB", value)
+            if lvl > 3:
+                raise FrameError("malformed", f"need level {lvl}")
+            records.append(LevelChange(node, lvl, auth.unwrap16(at_lo, cycle)))
         else:
             unknown += 1
     return Frame(
@@ -280,6 +327,7 @@ def parse_body(body: bytes, cycle: int) -> Frame:
         join=bool(flags & 1),
         stratum=(flags >> 1) & 3,
         records=tuple(records),
+        level=(flags >> 3) & 3,
         unknown_records=unknown,
     )
 

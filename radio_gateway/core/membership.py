@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from .airtime import LinkTiming
-from .frame import Change, Frame, frame_overhead
-from .slots import SlotLayout, TdmConfig, table_hash
+from .frame import Change, Frame, LevelChange, frame_overhead
+from .slots import DEFAULT_LEVEL, MAX_LEVEL, SlotLayout, TdmConfig, table_hash
 
 
 class Phase(Enum):
@@ -91,6 +91,7 @@ class _Heard:
     n: int
     cycle: int
     join: bool
+    level: int = 0
 
 
 @dataclass
@@ -100,9 +101,14 @@ class Membership:
     config: TdmConfig
     initial_members: tuple[int, ...] = ()
     seed: int = 0
+    max_pending_levels: int = 4  # level changes in flight at once (frame room)
     phase: Phase = Phase.LISTENING
     layout: SlotLayout = field(init=False)
     pending: dict[tuple[bool, int], int] = field(default_factory=dict)  # (join, node) -> at
+    # the adaptive schedule: each member's need level in force, and scheduled changes
+    levels: dict[int, int] = field(default_factory=dict)  # member -> level (absent: default)
+    pending_levels: dict[int, tuple[int, int]] = field(default_factory=dict)  # node -> (at, lvl)
+    level_request: tuple[int, int] | None = None  # ours (at, level), until a member echoes it
     evidence: dict[int, int] = field(default_factory=dict)  # member -> last cycle alive
     direct: dict[int, int] = field(default_factory=dict)  # node -> last cycle heard directly
     heard: dict[int, _Heard] = field(default_factory=dict)  # src -> its latest frame
@@ -144,6 +150,44 @@ class Membership:
             (ms.add if join else ms.discard)(node)
         return tuple(sorted(ms))
 
+    def projected_levels(self) -> dict[int, int]:
+        """The need levels once every pending change has taken effect."""
+        members = self.projected_members()
+        lv = {m: self.levels.get(m, DEFAULT_LEVEL) for m in members}
+        for node, (_, level) in self.pending_levels.items():
+            if node in lv:
+                lv[node] = level
+        return lv
+
+    def projected_hash(self) -> int:
+        return table_hash(self.projected_members(), self.projected_levels())
+
+    def level_of(self, node: int) -> int:
+        return self.levels.get(node, DEFAULT_LEVEL)
+
+    def request_level(self, level: int, cycle: int) -> bool:
+        """Ask for our slot share to follow our need (adaptive schedule): a LEVEL change
+        of ourselves, carried in our next frame (`request_sent` schedules it for us once
+        it went out); like a JOIN, every member that hears it, or a member's repeat of
+        it, schedules it (`activation_periods` later, on a period boundary) and repeats
+        it until then. One at a time, none while the membership changes or
+        `max_pending_levels` changes are in flight; True if asked."""
+        level = min(MAX_LEVEL, max(0, level))
+        me = self.my_id
+        if self.level_request is not None and self.level_request[0] <= cycle + 1:
+            self.level_request = None  # not echoed in time: ask again later
+        if (
+            self.phase is not Phase.MEMBER
+            or self.level_request is not None
+            or me in self.pending_levels
+            or self.pending
+            or len(self.pending_levels) >= self.max_pending_levels
+            or self.level_of(me) == level
+        ):
+            return False
+        self.level_request = (self._activation(cycle), level)
+        return True
+
     def heard_bitmap(self, cycle: int) -> bytes:
         """Bit i: the member of rank i was heard directly during the last period."""
         out = bytearray((self.layout.n + 7) // 8)
@@ -153,8 +197,30 @@ class Membership:
                 out[i // 8] |= 1 << (i % 8)
         return bytes(out)
 
-    def change_records(self) -> list[Change]:
-        return [Change(join, node, at) for (join, node), at in sorted(self.pending.items())]
+    def change_records(self, rotate: int = 0) -> list[Change | LevelChange]:
+        """Membership changes, then our own level request, then the level changes in
+        flight, their order rotated by `rotate` (a frame has room for a few: every
+        member repeats them, each starting elsewhere, so each is repeated)."""
+        out: list[Change | LevelChange] = [
+            Change(join, node, at) for (join, node), at in sorted(self.pending.items())
+        ]
+        if self.level_request is not None:
+            out.append(LevelChange(self.my_id, self.level_request[1], self.level_request[0]))
+        lv = [LevelChange(n, x, at) for n, (at, x) in sorted(self.pending_levels.items())]
+        if lv:
+            r = rotate % len(lv)
+            out += lv[r:] + lv[:r]
+        return out
+
+    def request_sent(self, cycle: int) -> None:
+        """Our level request went out in a frame: it is in flight (we apply it when
+        every member that heard it, or a repeat of it, does)."""
+        req = self.level_request
+        if req is None:
+            return
+        self.level_request = None
+        if req[0] > cycle:
+            self.pending_levels[self.my_id] = req
 
     # ------------------------------------------------------------------ transitions
     def _go(self, trigger: Trigger, cycle: int) -> None:
@@ -168,6 +234,9 @@ class Membership:
             self._listen_since = cycle
             self._last_heard_any = None
             self.pending.clear()
+            self.pending_levels.clear()
+            self.level_request = None
+            self.levels.clear()
             self.evidence.clear()
             self.layout = SlotLayout.build((), self.timing, self.config)
         elif new is Phase.JOINING:
@@ -179,8 +248,16 @@ class Membership:
             self._join_pick = self._rng.random()
             self._confirmed = cycle  # the table was just learned or adopted
 
-    def _adopt(self, members: tuple[int, ...], cycle: int) -> None:
-        self.layout = SlotLayout.build(members, self.timing, self.config)
+    def _adopt(
+        self, members: tuple[int, ...], cycle: int, levels: dict[int, int] | None = None
+    ) -> None:
+        if levels is not None:
+            self.levels = {
+                m: lv for m, lv in levels.items() if lv != DEFAULT_LEVEL and m in members
+            }
+        else:
+            self.levels = {m: lv for m, lv in self.levels.items() if m in members}
+        self.layout = SlotLayout.build(members, self.timing, self.config, self.levels)
         self.tables.append((cycle, self.layout.members))
         del self.tables[:-16]
         for m in self.members:
@@ -200,12 +277,12 @@ class Membership:
     # ------------------------------------------------------------------ inputs
     def on_frame(self, f: Frame) -> None:
         """A frame that passed every check (tag, freshness, replay)."""
-        self.heard[f.src] = _Heard(f.table_hash, f.n_members, f.cycle, f.join)
+        self.heard[f.src] = _Heard(f.table_hash, f.n_members, f.cycle, f.join, f.level)
         self._last_heard_any = f.cycle
         if f.join:
             if (
                 self.phase is Phase.MEMBER
-                and f.table_hash in (self.table_hash, table_hash(self.projected_members()))
+                and f.table_hash in (self.table_hash, self.projected_hash())
                 and f.src not in self.projected_members()
             ):
                 self._propose(True, f.src, self._activation(f.cycle))
@@ -224,6 +301,8 @@ class Membership:
         for r in f.records:
             if isinstance(r, Change):
                 self.on_change(r)
+            elif isinstance(r, LevelChange):
+                self.on_level_change(r)
 
     def on_change(self, c: Change) -> None:
         if self.phase is Phase.LISTENING:
@@ -234,6 +313,23 @@ class Membership:
         elif (c.node in self.members) != c.join:
             self.pending[key] = c.at_cycle
             self._learned(c.join, c.node, c.at_cycle)
+
+    def on_level_change(self, c: LevelChange) -> None:
+        """A member's scheduled need level: merged like membership changes (the earliest
+        activation; at the same activation, the higher level), so every node that heard
+        a copy applies the same share on the same cycle."""
+        if self.phase is Phase.LISTENING or c.node not in self.projected_members():
+            return
+        if c.node == self.my_id and self.level_request is not None:
+            if (c.at_cycle, c.level) != self.level_request:
+                return  # an old echo: ours stands
+            self.level_request = None
+        old = self.pending_levels.get(c.node)
+        if old is None:
+            if c.level != self.level_of(c.node):
+                self.pending_levels[c.node] = (c.at_cycle, c.level)
+        elif (c.at_cycle, -c.level) < (old[0], -old[1]):
+            self.pending_levels[c.node] = (c.at_cycle, c.level)
 
     def _learned(self, join: bool, node: int, at: int) -> None:
         self.learned.append((self._cycle, join, node, at))
@@ -268,19 +364,33 @@ class Membership:
 
     # ------------------------------------------------------------------ internals
     def _apply_due(self, cycle: int) -> None:
+        """Apply the changes due, on a period boundary of the table in force (every node
+        has that table, so all apply on the same cycle; a change scheduled under an
+        earlier table's periods waits for the next boundary of this one: a table never
+        changes inside a period)."""
+        if cycle % self.layout.k:
+            return
         due = sorted((at, key) for key, at in self.pending.items() if at <= cycle)
-        if not due or self.phase is Phase.LISTENING:
+        due_lv = sorted((at, n, lv) for n, (at, lv) in self.pending_levels.items() if at <= cycle)
+        if (not due and not due_lv) or self.phase is Phase.LISTENING:
             return
         ms = set(self.members)
         for _, (join, node) in due:
             del self.pending[(join, node)]
             (ms.add if join else ms.discard)(node)
         new = tuple(sorted(ms))
-        if new == self.members:
+        levels = {m: self.levels.get(m, DEFAULT_LEVEL) for m in new}
+        for _, node, lv in due_lv:
+            del self.pending_levels[node]
+            if node in levels:
+                levels[node] = lv
+        for node in [n for n in self.pending_levels if n not in new]:
+            del self.pending_levels[node]
+        if new == self.members and all(self.level_of(m) == levels[m] for m in new):
             return
         self.changes_applied += 1
         was_member = self.my_id in self.members
-        self._adopt(new, cycle)
+        self._adopt(new, cycle, levels)
         if self.phase is Phase.JOINING and self.my_id in new:
             self._go(Trigger.ADMITTED, cycle)
         elif self.phase is Phase.MEMBER and was_member and self.my_id not in new:
@@ -305,7 +415,7 @@ class Membership:
     def _check_votes(self, cycle: int) -> None:
         recent = self._recent(cycle)
         projected = self.projected_members()
-        mine = {self.table_hash, table_hash(projected)}
+        mine = {self.table_hash, self.projected_hash()}
         tally: dict[tuple[int, int], int] = {}
         my_votes = 1 if self.phase is Phase.MEMBER else 0
         foreign: dict[tuple[int, int], int] = {}
@@ -372,13 +482,14 @@ class Membership:
                 self._go(Trigger.LEARNED_MEMBER, cycle)
                 return
             srcs_t = tuple(sorted(srcs))
-            if len(srcs) == n and table_hash(srcs_t) == th:
-                self._adopt(srcs_t, cycle)
+            lv = {src: self.heard[src].level for src in srcs}  # levels in force, from headers
+            if len(srcs) == n and table_hash(srcs_t, lv) == th:
+                self._adopt(srcs_t, cycle, lv)
                 self._go(Trigger.LEARNED_OTHER, cycle)
                 return
             with_me = tuple(sorted(srcs | {self.my_id}))
-            if len(with_me) == n and table_hash(with_me) == th:
-                self._adopt(with_me, cycle)
+            if len(with_me) == n and table_hash(with_me, lv) == th:
+                self._adopt(with_me, cycle, lv)
                 self._go(Trigger.LEARNED_MEMBER, cycle)
                 return
 
@@ -393,34 +504,41 @@ class Membership:
             return None
         half = lay.guard_s / 2
         p = max(int(now // lay.period_s) - 1, 0)
+        change = min(
+            (*self.pending.values(), *(at for at, _ in self.pending_levels.values())),
+            default=None,
+        )
+        if change is not None:  # it takes effect on the next boundary of this table
+            change = -(-change // lay.k) * lay.k
         for period in range(p, p + 3 + lay.join_every):
-            pstart, pend = period * lay.k, (period + 1) * lay.k
-            if any(pstart < at <= pend - 1 for at in self.pending.values()):
-                continue  # the table changes inside this period: stay quiet
-            if self.phase is Phase.MEMBER:
-                idx = lay.member_slot(self.my_id, period)
-                join = False
-            else:
-                if self._join_cycle is None or (period + 1) * lay.k <= self._join_cycle:
-                    continue
-                if self._join_sent is not None or not self._view_is_fresh(now):
-                    return None
-                idx = lay.join_index(period)
-                join = True
-            if idx is None:
+            pend = (period + 1) * lay.k
+            if change is not None and change < pend:
+                # the table changes inside this period, or before it (a frame is built
+                # `prep_s` before its slot, still under the old table; the first slots
+                # of a new table may belong to someone else): stay quiet
                 continue
-            start = lay.slot_start(period, idx)
-            cycle = lay.slot_cycle(period, idx)
-            if join:
-                offset = self._join_offset()
-            elif lay.n == 1:
-                offset = lay.lone_offset(self.my_id, cycle, self.timing)
-            else:
-                offset = 0.0
-            air = start + half + offset
+            if self.phase is Phase.MEMBER:
+                for idx in lay.slots_of(self.my_id, period):
+                    start = lay.slot_start(period, idx)
+                    cycle = lay.slot_cycle(period, idx)
+                    offset = lay.lone_offset(self.my_id, cycle, self.timing) if lay.n == 1 else 0.0
+                    air = start + half + offset
+                    if air >= now and cycle >= min_cycle:
+                        return TxSlot(start, air, cycle, period, False, lay.budget)
+                continue
+            if self._join_cycle is None or (period + 1) * lay.k <= self._join_cycle:
+                continue
+            if self._join_sent is not None or not self._view_is_fresh(now):
+                return None
+            jdx = lay.join_index(period)
+            if jdx is None:
+                continue
+            start = lay.slot_start(period, jdx)
+            cycle = lay.slot_cycle(period, jdx)
+            air = start + half + self._join_offset()
             if air < now or cycle < min_cycle:
                 continue
-            return TxSlot(start, air, cycle, period, join, 0 if join else lay.budget)
+            return TxSlot(start, air, cycle, period, True, 0)
         return None
 
     def _view_is_fresh(self, now: float) -> bool:

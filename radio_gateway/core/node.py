@@ -18,6 +18,8 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 
+from swarm_proto import VehicleStatus, radio
+
 from . import frame as fr
 from .airtime import LinkTiming
 from .auth import ReplayGuard
@@ -25,7 +27,8 @@ from .cobs import Deframer
 from .membership import Membership, Phase, TxSlot
 from .outbox import Outbox, OutMessage
 from .reassembly import Reassembly
-from .slots import TdmConfig
+from .slots import DEFAULT_LEVEL, MAX_LEVEL, TdmConfig
+from .telemetry import Candidate, OwnTelemetry, SendOnErrorConfig
 from .timesync import TimeSync
 
 _EPS = 1e-6  # seconds; UNIX times near 1.7e9 carry ~2e-7 s of float rounding
@@ -47,12 +50,22 @@ class NodeConfig:
     # latest-only telemetry kept per key between slots (see Outbox): 2 with 400 ms cycles
     # carries every 5 Hz status, two to a frame
     latest_keep: int = 1
+    # send on error (issue 19): our own vehicle's status goes on air only when the peers'
+    # dead reckoning of it would be off (telemetry.OwnTelemetry); None: as queued
+    send_on_error: SendOnErrorConfig | None = None
+    # the adaptive schedule: ask for a slot share that follows our need level
+    adaptive: bool = False
+    min_level: int = 0  # never ask for less (a ground station that wants a double share: 2)
+    level_hold_s: float = 5.0  # a need level is kept this long after the need
+    delivery_s: float = 0.05  # from a frame's slot until its peers republish what it held
 
     def __post_init__(self) -> None:
         if not 1 <= self.node_id <= 65534:
             raise ValueError("node_id is 1..65534")
         if self.latest_keep < 1:
             raise ValueError("latest_keep is >= 1")
+        if not 0 <= self.min_level <= MAX_LEVEL:
+            raise ValueError(f"min_level is 0..{MAX_LEVEL}")
 
 
 @dataclass(frozen=True)
@@ -109,6 +122,9 @@ class RadioNode:
     _slot: TxSlot | None = None
     _slot_key: tuple[object, ...] = ()
     _relay: dict[int, tuple[bytes, int]] = field(default_factory=dict)  # src -> (data, cycle)
+    own: OwnTelemetry | None = None  # send on error: our own vehicle's state
+    _need: int = DEFAULT_LEVEL  # need level asked for
+    _need_since: float = -math.inf  # when a need at least that high was last seen
 
     def __post_init__(self) -> None:
         c = self.config
@@ -121,12 +137,15 @@ class RadioNode:
             c.node_id, c.source_stratum, lock_tolerance_s=max(c.tdm.guard_s / 4, 0.0005)
         )
         self.replay = ReplayGuard(c.replay_window_cycles)
+        self.reassembly.node_id = c.node_id
         first = int(self.start_s // c.tdm.cycle_s)
         self.outbox = Outbox(
             ack_timeout_s=1.5 * c.tdm.cycle_s, seq=first & 0xFFFF, latest_keep=c.latest_keep
         )
         self._cycle = first - 1
         self._last_now = self.start_s
+        if c.send_on_error is not None:
+            self.own = OwnTelemetry(c.send_on_error, encode=radio.encode)
 
     # ------------------------------------------------------------------ time
     @property
@@ -143,10 +162,23 @@ class RadioNode:
     def _raw(self, t: float) -> float:
         return t - self.timesync.correction_s
 
+    def silent_s(self, node: int, now: float) -> float:
+        """Seconds since a frame of `node` was last heard directly (inf: never)."""
+        p = self.peers.get(node)
+        if p is None or p.last_cycle is None:
+            return math.inf
+        return max(0.0, self._net(now) - (p.last_cycle + 1) * self.cycle_s)
+
     # ------------------------------------------------------------------ inputs
     def submit(self, msg: OutMessage, now: float) -> None:
         if not self.outbox.submit(msg, self._net(now)):
             self.counts["tx_refused"] += 1
+
+    def own_status(self, status: VehicleStatus, now: float) -> None:
+        """Our own vehicle's VehicleStatus (send on error: it goes on air when due)."""
+        if self.own is None:
+            raise RuntimeError("own_status needs NodeConfig.send_on_error")
+        self.own.update(status, self._net(now))
 
     def handle_bytes(self, data: bytes, now: float) -> list[Action]:
         self._last_now = max(self._last_now, now)
@@ -232,8 +264,10 @@ class RadioNode:
         if f.table_hash != lay.table_hash or lay.n < 2 or f.src not in lay.members:
             return
         period = f.cycle // lay.k
-        idx = lay.member_slot(f.src, period)
-        if idx is None or lay.slot_cycle(period, idx) != f.cycle:
+        idx = next(
+            (i for i in lay.slots_of(f.src, period) if lay.slot_cycle(period, i) == f.cycle), None
+        )
+        if idx is None:
             return
         expected = lay.slot_start(period, idx) + lay.guard_s / 2
         expected += self.config.timing.rx_delay_s(wire)
@@ -243,6 +277,7 @@ class RadioNode:
     def _advance(self, cycle: int, t: float) -> list[Action]:
         m = self.membership
         before_members, before_phase, before_k = m.members, m.phase, m.layout.k
+        before_hash = m.layout.table_hash
         m.advance(cycle)
         self.timesync.update(cycle)
         self.reassembly.expire(t)
@@ -251,6 +286,11 @@ class RadioNode:
             tr = m.transitions[-1]
             out.append(
                 Notice("info", f"radio: {tr.old.value} -> {tr.new.value} ({tr.trigger.value})")
+            )
+        if m.layout.table_hash != before_hash:
+            # resend missing chunks only once every receiver has had a slot to ack them
+            self.outbox.ack_timeout_s = max(
+                1.5 * self.cycle_s, m.layout.period_s + 0.5 * self.cycle_s
             )
         if m.members != before_members:
             for gone in set(before_members) - set(m.members):
@@ -276,14 +316,46 @@ class RadioNode:
         if m.phase is Phase.MEMBER and cycle % m.layout.k == 0:
             period = cycle // m.layout.k
             for peer in m.members:
-                if peer != self.config.node_id and m.layout.member_slot(peer, period) is not None:
-                    self.peers.setdefault(peer, PeerCounters()).expected += 1
+                if peer != self.config.node_id:
+                    slots = len(m.layout.slots_of(peer, period))
+                    if slots:
+                        self.peers.setdefault(peer, PeerCounters()).expected += slots
+            if self.config.adaptive:
+                self._ask_share(cycle, t)
         return out
+
+    # ------------------------------------------------------------------ adaptive schedule
+    def desired_level(self, t: float) -> int:
+        """Our need now: the own vehicle's (parked 0, flying 1, avoiding 2; no vehicle of
+        our own: 1), 2 while a backlog of control traffic (commands, acks, votes,
+        missions) waits for more than a slot carries, never below `min_level`."""
+        c = self.config
+        need = c.min_level
+        # a vehicle: its own need; a node without one (a ground station): the default
+        own = self.own.need_level(t) if self.own is not None and self.own.latest else DEFAULT_LEVEL
+        need = max(need, own)
+        if self.outbox.control_backlog() > self.membership.layout.budget:
+            need = max(need, 2)
+        return need
+
+    def _ask_share(self, cycle: int, t: float) -> None:
+        """Once a period: the level to ask for. Up at once, down only after the need has
+        stayed lower for `level_hold_s` (a share does not flap)."""
+        if self.own is not None and self.own.latest is None:
+            return  # no status from our vehicle yet: nothing to base a need on
+        # a table that fits one cycle gives everyone every cycle whatever the levels:
+        # changing them there would only change the table's version
+        want = self.desired_level(t) if self.membership.layout.k > 1 else DEFAULT_LEVEL
+        if want >= self._need or t - self._need_since >= self.config.level_hold_s:
+            self._need, self._need_since = want, t
+        if self.membership.request_level(self._need, cycle):
+            self.counts["level_requests"] += 1
 
     # ------------------------------------------------------------------ transmit
     def _next_slot(self, t: float) -> TxSlot | None:
         m = self.membership
-        key = (m.phase, m.table_hash, tuple(sorted(m.pending.items())), self._last_tx_cycle,
+        key = (m.phase, m.table_hash, tuple(sorted(m.pending.items())),
+               tuple(sorted(m.pending_levels.items())), self._last_tx_cycle,
                m._join_cycle, m._join_sent)  # fmt: skip
         if self._slot is not None and key == self._slot_key and self._slot.air_start >= t:
             return self._slot
@@ -303,17 +375,33 @@ class RadioNode:
         records: list[fr.Record] = []
         if not slot.join:
             room = slot.budget
-            for ch in m.change_records():
+            for ch in m.change_records(rotate=slot.cycle + self.config.node_id):
                 if fr.record_size(ch) <= room:
                     records.append(ch)
                     room -= fr.record_size(ch)
+                    if isinstance(ch, fr.LevelChange) and ch.node == self.config.node_id:
+                        m.request_sent(slot.cycle)
+            # send on error: our own status, when due, goes first (a peer's belief of us
+            # is about to be off by the threshold: a safety matter, and rare by design)
+            cand = self._own_candidate(slot, t)
+            if cand is not None and self.own is not None:
+                rec = fr.Msg(cand.data)
+                if fr.record_size(rec) <= room:
+                    records.append(rec)
+                    room -= fr.record_size(rec)
+                    self.own.sent(cand, t)
+                    self.counts[f"own_status_{cand.reason}"] += 1
+            # acknowledgements we owe, at most half the room while messages wait (a
+            # ground station owing fifty of them must still get its commands out)
+            ack_room = room // 2 if self.outbox.pending() else room
             acks = self.reassembly.take_acks()
             for i, a in enumerate(acks):
-                if fr.record_size(a) > room:
+                if fr.record_size(a) > ack_room:
                     self.reassembly.give_back(acks[i:])
                     break
                 records.append(a)
                 room -= fr.record_size(a)
+                ack_room -= fr.record_size(a)
             receivers = frozenset(lay.members) - {self.config.node_id}
             own = self.outbox.fill(room, t, receivers)
             records += own
@@ -330,6 +418,7 @@ class RadioNode:
             join=slot.join,
             stratum=stratum,
             records=tuple(records),
+            level=m.level_of(self.config.node_id),
         )
         data = fr.encode(f, self.key)
         m.sent(slot)
@@ -343,6 +432,16 @@ class RadioNode:
         end = slot.start + lay.slot_s
         latest = end - timing.airtime_s(len(data)) - timing.tx_delay_s(len(data))
         return [Transmit(data, self._raw(at), slot.cycle, slot.join, self._raw(max(latest, at)))]
+
+    def _own_candidate(self, slot: TxSlot, t: float) -> Candidate | None:
+        """Send on error: our own status for this frame, if due; the horizon is until a
+        status sent at our next opportunity would reach the peers."""
+        if self.own is None:
+            return None
+        nxt = self.membership.next_tx(slot.air_start + 1e-3, slot.cycle + 1)
+        lay = self.membership.layout
+        gap = nxt.air_start if nxt is not None else slot.air_start + lay.period_s
+        return self.own.candidate(t, gap - t + self.config.delivery_s)
 
     def _relays(self, room: int, since_cycle: int) -> list[fr.Record]:
         out: list[fr.Record] = []

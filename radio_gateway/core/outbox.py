@@ -41,7 +41,6 @@ from .frame import (
     record_size,
 )
 
-_MAX_FRAG_DATA = MAX_RECORD_VALUE - FRAG_FIXED  # whole chunks, or a message's tail
 _MIN_FRAG = RECORD_HEADER_BYTES + FRAG_FIXED + 1
 
 
@@ -53,6 +52,7 @@ class OutMessage:
     latest_only: bool = False
     acked: bool = False
     max_rate_hz: float | None = None
+    ack_by: int = 0  # acked by this member only (an Ack: its issuer); 0: every member
 
 
 @dataclass
@@ -137,6 +137,15 @@ class Outbox:
     def pending(self) -> int:
         older = sum(len(v) for v in self.older.values())
         return len(self.latest) + older + len(self.fifo) + len(self.chunked)
+
+    def control_backlog(self, klass: int = 0) -> int:
+        """Bytes of class `klass` (CONTROL: commands, acks, votes, missions) still to go
+        on air: queued messages, unsent chunks and chunks some receiver still misses."""
+        total = sum(len(q.msg.data) for q in self.fifo if q.msg.klass <= klass)
+        for c in self.chunked:
+            if c.msg.klass <= klass:
+                total += len(c.unsent | c.missing()) * CHUNK_BYTES
+        return total
 
     def on_ack(self, from_node: int, ack: Ack) -> None:
         for c in self.chunked:
@@ -225,7 +234,13 @@ class Outbox:
             order=q.order,
             total=total,
             unsent=set(range(total)),
-            receivers=set(receivers) if msg.acked else set(),
+            receivers=(
+                set()
+                if not msg.acked
+                else {msg.ack_by}
+                if msg.ack_by in receivers
+                else set(receivers)
+            ),
         )
         self.seq = (self.seq + 1) & 0xFFFF
         self._dequeue(q)
@@ -252,8 +267,10 @@ class Outbox:
         sent: set[int] = set()
         order = sorted(todo)
         i = 0
+        by = c.msg.ack_by if c.msg.acked and c.receivers == {c.msg.ack_by} else 0
+        fixed = FRAG_FIXED + (2 if by else 0)
         while i < len(order):
-            avail = min(room - used - RECORD_HEADER_BYTES - FRAG_FIXED, _MAX_FRAG_DATA)
+            avail = min(room - used - RECORD_HEADER_BYTES - fixed, MAX_RECORD_VALUE - fixed)
             first = order[i]
             data = b""
             while i < len(order) and order[i] == first + len(data) // CHUNK_BYTES:
@@ -264,7 +281,7 @@ class Outbox:
                 i += 1
             if not data:
                 break
-            rec = Frag(c.seq, c.total, first, data, c.msg.acked)
+            rec = Frag(c.seq, c.total, first, data, c.msg.acked, by)
             out.append(rec)
             used += record_size(rec)
             sent.update(rec.chunks)

@@ -26,6 +26,7 @@ class _Partial:
 
 @dataclass
 class Reassembly:
+    node_id: int = 0  # ours: a fragment acked by another node only is not acked by us
     partial_ttl_s: float = 10.0
     done_ttl_s: float = 60.0
     max_partials: int = 8
@@ -37,8 +38,9 @@ class Reassembly:
     def on_frag(self, src: int, f: Frag, now: float) -> bytes | None:
         """The whole message when this fragment completes it, else None."""
         key = (src, f.seq)
+        owe = f.acked and f.ack_by in (0, self.node_id)
         if key in self.done:
-            if f.acked:
+            if owe:
                 self.owed[key] = Ack(src, f.seq)
             self.counts["duplicate"] += 1
             return None
@@ -57,12 +59,12 @@ class Reassembly:
         for j, i in enumerate(f.chunks):
             p.chunks[i] = f.data[j * CHUNK_BYTES : (j + 1) * CHUNK_BYTES]
         if len(p.chunks) < p.total:
-            if f.acked:
+            if owe:
                 self.owed[key] = Ack(src, f.seq, ack_mask(set(p.chunks), p.total))
             return None
         del self.partials[key]
         self.done[key] = now
-        if f.acked:
+        if owe:
             self.owed[key] = Ack(src, f.seq)
         self.counts["complete"] += 1
         return b"".join(p.chunks[i] for i in range(p.total))

@@ -20,15 +20,17 @@ import serial
 import zenoh
 
 from swarm_proto.clock import Clock, clock_from_env
+from swarm_proto.radio import STATUS_BYTES
 from swarm_proto.session import SwarmBus, ZenohSettings, open_session, put_options
 from swarm_proto.topics import check_swarm_name, prefix
 
 from ..core.airtime import LinkTiming
 from ..core.auth import parse_key
-from ..core.bridge import RADIO_ATTACHMENT, Bridge, Publication
+from ..core.bridge import RADIO_ATTACHMENT, Bridge, OwnStatus, Publication
 from ..core.node import Deliver, NodeConfig, RadioNode
 from ..core.slots import TdmConfig
 from ..core.stats import StatsReporter
+from ..core.telemetry import TURN_TRAILER, PeerPredictor, PredictConfig, SendOnErrorConfig
 from ..core.xtend import RadioSettings
 from .link import RadioLink
 from .timesource import TimeSource, time_source_from_spec
@@ -49,8 +51,18 @@ class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     cycle_s: float = 0.2
     guard_s: float = 0.005
     sync_s: float = 0.006  # the module's per-packet preamble
-    min_payload: int = 42
+    min_payload: int = 42  # with send on error at least 88: a status (+ turn rate) and room
     latest_keep: int = 1  # 2 with cycle_s 0.4, min_payload 84: 5 Hz statuses, two a frame
+    # issue 19: "on_error" (send on error, peers predicted on the LAN) or "every" (each
+    # status queued, latest only, at most 5 Hz)
+    status_mode: str = "on_error"
+    threshold_m: float = 5.0  # send when the peers' prediction would be this far off
+    heartbeat_s: float = 1.0  # and at least this often
+    republish_hz: float = 5.0  # radio peers' predicted statuses on the LAN
+    max_accel_mps2: float = 6.0  # error bound of a prediction: this * age^2
+    predict_max_s: float = 5.0  # stop predicting a peer this long after its last status
+    adaptive: bool = True  # slot shares follow need levels
+    min_level: int = 0  # a ground station's gateway: 2
     silent_periods: int = 5
     initial_members: tuple[int, ...] = ()
     local_ids: tuple[int, ...] = ()  # whose messages go on air; default: node_id
@@ -61,13 +73,41 @@ class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     at_guard_s: float = 1.1
     stats_period_s: float = 1.0
 
+    def __post_init__(self) -> None:
+        if self.status_mode not in ("on_error", "every"):
+            raise ValueError(f"status_mode is 'on_error' or 'every', not {self.status_mode!r}")
+        if not 0 <= self.min_level <= 3:
+            raise ValueError("min_level is 0..3")
+        # the other numbers are checked where they are used (SendOnErrorConfig, ...)
+        self.send_on_error()
+        self.predict_config()
+
+    @property
+    def on_error(self) -> bool:
+        return self.status_mode == "on_error"
+
+    def send_on_error(self) -> SendOnErrorConfig | None:
+        if not self.on_error:
+            return None
+        return SendOnErrorConfig(threshold_m=self.threshold_m, heartbeat_s=self.heartbeat_s)
+
+    def predict_config(self) -> PredictConfig:
+        return PredictConfig(
+            republish_hz=self.republish_hz,
+            max_accel_mps2=self.max_accel_mps2,
+            predict_max_s=self.predict_max_s,
+        )
+
     def node_config(self) -> NodeConfig:
         radio = msgspec.structs.replace(self.radio, address=self.node_id)
         timing: LinkTiming = radio.timing(sync_s=self.sync_s)
+        min_payload = self.min_payload
+        if self.on_error:  # a status with its turn rate, and as much again for the rest
+            min_payload = max(min_payload, 2 * (STATUS_BYTES + TURN_TRAILER.size + 2))
         tdm = TdmConfig(
             cycle_s=self.cycle_s,
             guard_s=self.guard_s,
-            min_payload=self.min_payload,
+            min_payload=min_payload,
             silent_periods=self.silent_periods,
         )
         return NodeConfig(
@@ -76,6 +116,18 @@ class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
             tdm=tdm,
             initial_members=self.initial_members,
             latest_keep=self.latest_keep,
+            send_on_error=self.send_on_error(),
+            adaptive=self.adaptive,
+            min_level=self.min_level,
+        )
+
+    def bridge(self) -> Bridge:
+        return Bridge(
+            self.swarm,
+            self.node_id,
+            frozenset(self.local_ids or (self.node_id,)),
+            self.forward_unattributed,
+            predictor=PeerPredictor(self.predict_config()) if self.on_error else None,
         )
 
 
@@ -106,9 +158,7 @@ class Gateway:
     def __post_init__(self) -> None:
         c = self.config
         check_swarm_name(c.swarm)
-        self.bridge = Bridge(
-            c.swarm, c.node_id, frozenset(c.local_ids or (c.node_id,)), c.forward_unattributed
-        )
+        self.bridge = c.bridge()
         node = RadioNode(c.node_config(), self.key, self.time_source.now())
         self.link = RadioLink(
             self.port,
@@ -147,7 +197,10 @@ class Gateway:
         now = self.time_source.now()
         with self._lock:  # Zenoh calls back on several threads
             out = self.bridge.from_lan(key, payload, now, from_gateway=from_gw)
-        if out is not None:
+        if isinstance(out, OwnStatus):
+            status = out.status
+            self.link.call(lambda node: node.own_status(status, now))
+        elif out is not None:
             self.link.submit(out)
 
     # ------------------------------------------------------------------ air -> LAN
@@ -167,8 +220,13 @@ class Gateway:
 
     # ------------------------------------------------------------------ stats
     def _tick(self, node: RadioNode, now: float) -> None:
+        silent = self.config.predict_config().silent_s
+
+        def alive(vid: int) -> bool:  # a vehicle that is not a radio node: by its statuses
+            return vid not in node.peers or node.silent_s(vid, now) <= silent
+
         with self._lock:
-            held = self.bridge.due(now)
+            held = self.bridge.due(now) + self.bridge.predictions(now, alive)
         for pub in held:
             self._publish(pub)
         if now < self._next_stats:

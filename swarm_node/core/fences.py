@@ -26,7 +26,6 @@ Pure: no I/O; `now` is passed in.
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
@@ -34,8 +33,10 @@ import msgspec
 from shapely.geometry import Polygon
 
 from swarm_proto import GeometryKind, GeoPoint, NoFlyZone
+from swarm_proto.geodesy import distance_m
 
 from .autopilot.requests import ApRequest, ApResult, SetParam, UploadFence
+from .planning.geo import LocalFrame
 
 FENCE_MAX_ITEMS = 84  # ArduPilot on a Pixhawk (AC_PolyFence_loader::max_items)
 FENCE_FULL_HEIGHT_REL_M = 120.0  # the planners' climb-over limit above home
@@ -55,9 +56,7 @@ class FencePlan:
 
 
 def _distance_m(a_lat: float, a_lon: float, b_lat: float, b_lon: float) -> float:
-    dn = (b_lat - a_lat) * 111_320.0
-    de = (b_lon - a_lon) * 111_320.0 * math.cos(math.radians(a_lat))
-    return math.hypot(dn, de)
+    return distance_m(a_lat, a_lon, b_lat, b_lon)  # the one geodesy (swarm_proto.geodesy)
 
 
 def _zone_distance(zone: NoFlyZone, home: GeoPoint) -> float:
@@ -74,11 +73,10 @@ def approximate(
     (`inner`) or around it, checked; None when no tolerance up to 100 m gets there."""
     if max_vertices < 3:
         return None
-    lat0 = sum(p[0] for p in points) / len(points)
-    lon0 = sum(p[1] for p in points) / len(points)
-    kx = 111_320.0 * math.cos(math.radians(lat0))
-    ky = 111_320.0
-    poly = Polygon([((lon - lon0) * kx, (lat - lat0) * ky) for lat, lon in points])
+    frame = LocalFrame(
+        sum(p[0] for p in points) / len(points), sum(p[1] for p in points) / len(points)
+    )  # the planners' ENU frame (pymap3d), at the polygon's centre
+    poly = Polygon(frame.to_local_many(points))
     if not poly.is_valid:
         poly = poly.buffer(0)
     for tol in _TOLERANCES_M:
@@ -94,7 +92,7 @@ def approximate(
             continue
         if not (poly.covers(shape) if inner else shape.covers(poly)):
             continue
-        return tuple((lat0 + y / ky, lon0 + x / kx) for x, y in ring)
+        return tuple((float(a), float(b)) for a, b in frame.to_geodetic_many(ring))
     return None
 
 

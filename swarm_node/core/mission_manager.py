@@ -899,6 +899,8 @@ class MissionManager:
         self._fresh_reached |= ap.mission_reached != stale_reached
         self._fresh_current |= ap.mission_current != stale_current
         reached = max(0, min(ap.mission_reached, self.last_item)) if self._fresh_reached else 0
+        if self._fresh_current and ap.mission_current > self.last_item:
+            reached = self.last_item  # set past its last item (avoidance resumed it there)
         out = self._keep_pace(ap, now, reached, fleet)
         if self.share is not None and self._share_index:
             k = self._share_index[min(reached, len(self._share_index) - 1)] if reached else -1

@@ -16,15 +16,13 @@ one 0.8 s gap, back 0.4 s later, ended a mission ArduPilot was flying fine).
 
 from __future__ import annotations
 
-import math
+from collections.abc import MutableMapping
 from dataclasses import dataclass, field
 
 from swarm_proto import (
     Alert,
     AlertCode,
     AlertFlag,
-    Geometry,
-    GeometryKind,
     GpsFix,
     NoFlyZone,
     Severity,
@@ -35,6 +33,8 @@ from swarm_proto.text import short_text
 
 from .autopilot.state import AutopilotState
 from .profile import VehicleProfile
+from .safety.zones import ZoneBook, breach
+from .safety.zones import inside as inside  # re-exported (was defined here)
 from .state_machine import Emergency
 
 
@@ -123,35 +123,12 @@ class _Tracked:
     severity: Severity = Severity.INFO
 
 
-def _haversine_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
-    r = 6_371_008.8
-    p1, p2 = math.radians(lat1), math.radians(lat2)
-    dp, dl = p2 - p1, math.radians(lon2 - lon1)
-    a = math.sin(dp / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(dl / 2) ** 2
-    return 2 * r * math.asin(min(1.0, math.sqrt(a)))
-
-
-def inside(geometry: Geometry, lat_deg: float, lon_deg: float) -> bool:
-    """Whether a point is inside a POLYGON (holes excluded) or CIRCLE geometry."""
-    if geometry.kind == GeometryKind.CIRCLE:
-        c = geometry.points[0]
-        return _haversine_m(c.lat_deg, c.lon_deg, lat_deg, lon_deg) <= (geometry.radius_m or 0.0)
-    if geometry.kind == GeometryKind.POLYGON:
-        from shapely.geometry import Point, Polygon
-
-        poly = Polygon(
-            [(p.lon_deg, p.lat_deg) for p in geometry.points],
-            [[(p.lon_deg, p.lat_deg) for p in h] for h in geometry.holes],
-        )
-        return bool(poly.covers(Point(lon_deg, lat_deg)))
-    return False
-
-
 @dataclass
 class VehicleMonitor:
     vehicle_id: int
     thresholds: Thresholds = field(default_factory=Thresholds)
-    zones: dict[int, NoFlyZone] = field(default_factory=dict)  # and operating areas
+    # and operating areas: the node's one zone book (any mapping of zones will do)
+    zones: MutableMapping[int, NoFlyZone] = field(default_factory=ZoneBook)
     _tracked: dict[AlertCode, _Tracked] = field(default_factory=dict)
     _had_gps: bool = False
     _had_ekf: bool = False
@@ -200,24 +177,12 @@ class VehicleMonitor:
         return seen
 
     def _breach(self, s: AutopilotState, now: float) -> str | None:
-        """What is breached ("left operating area 2", "in no-fly zone 3"), or None.
-        Operating areas are 2-D (as ArduPilot's inclusion fences); with several, the
-        vehicle must be inside all of them."""
+        """What is breached ("left operating area 2", "in no-fly zone 3"), or None
+        (the zone book's geometry, safety/zones.py)."""
         assert s.lat_deg is not None and s.lon_deg is not None
         alt = s.alt_msl_m if s.alt_msl_m is not None else 0.0
-        for z in sorted(self.zones.values(), key=lambda z: (not z.operating_area, z.zone_id)):
-            if not z.in_force(now):
-                continue
-            if z.operating_area:
-                if not inside(z.geometry, s.lat_deg, s.lon_deg):
-                    return f"left operating area {z.zone_id}"
-            elif z.floor_alt_msl_m <= alt <= z.ceiling_alt_msl_m and inside(
-                z.geometry, s.lat_deg, s.lon_deg
-            ):
-                return f"in no-fly zone {z.zone_id}"
-        return None
+        return breach(self.zones.values(), s.lat_deg, s.lon_deg, alt, now)
 
-    # ------------------------------------------------------------------ step
     def update(self, s: AutopilotState, now: float) -> list[Alert]:
         """Alerts raised (with their severity) or cleared (CONDITION_CLEARED) now."""
         seen = self._observe(s, now)

@@ -13,14 +13,17 @@ with an in-memory bus and jump time from deadline to deadline.
 Routes (every input is matched; an unknown one is counted in `unhandled`, never
 dropped silently):
 
-    AutopilotUpdate        -> monitoring, mission manager, fence keeper
+    AutopilotUpdate        -> monitoring, mission manager, fence keeper (and, at the
+                              5 Hz tick, avoidance: own state, ADS-B traffic)
     AutopilotResult        -> AutopilotArbiter -> its owner: command manager (OPERATOR),
                               mission manager (MISSION), fence keeper (FENCE),
-                              emergency procedure (EMERGENCY: a refusal is alerted)
-    PeerAlive              -> membership -> roster (MemberLost)
+                              emergency procedure (EMERGENCY: a refusal is alerted),
+                              avoidance (AVOIDANCE, and its pad landing steps)
+    PeerAlive              -> membership -> roster (MemberLost), avoidance (forget)
     BadInput               -> counted, logged
-    Received(VehicleStatus)-> membership
-    Received(VehicleInfo)  -> membership, roster (answers, MemberLost, hash mismatch)
+    Received(VehicleStatus)-> membership, avoidance (a contact)
+    Received(VehicleInfo)  -> membership, roster (answers, MemberLost, hash mismatch),
+                              avoidance (the contact's type)
     Received(Ack)          -> roster (the peers' answers to missions)
     Received(Command)      -> command manager -> effects, autopilot requests (OPERATOR)
     Received(Mission)      -> acceptance checks -> state machine (NewMission)
@@ -37,7 +40,10 @@ dropped silently):
 Modules answer in one vocabulary (outputs.py): Publish, Submit(owner, request),
 Post(fsm event), Note; the router posts events to the state machine, passes requests
 through the arbiter (precedence EMERGENCY > AVOIDANCE > OPERATOR > MISSION > FENCE) and
-hands the rest to the shell.
+hands the rest to the shell. Every Submit is shown to the avoidance module first
+(safety/module.py): it holds the mission's requests while it flies a manoeuvre, holds
+the mission's launch until the pad is clear, and turns its return into a landing on
+the vehicle's own pad.
 """
 
 from __future__ import annotations
@@ -56,6 +62,7 @@ from swarm_proto import (
     AckRef,
     Alert,
     AlertCode,
+    AlertFlag,
     Command,
     CommandKind,
     FleetAssignment,
@@ -111,11 +118,12 @@ from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission.share import PlanOutcome, heading_on, pose_on
 from .mission.tasking import Tasking, TaskingSettings
 from .mission.voting import VoterLost
-from .mission_manager import Member, MissionManager, replan_battery, with_defaults
+from .mission_manager import Member, MissionManager, Phase, replan_battery, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
 from .outputs import ModuleOutput, Note, Owner, PlanJob, Post, Publish, Submit
 from .planning import PlanningError
 from .profile import VehicleProfile
+from .safety.module import AvoidanceModule
 from .swarm.regroup import Regroup
 from .swarm.roster import MemberJoined, MemberLost, Roster, RosterEvent, RosterMismatch
 
@@ -178,6 +186,7 @@ class NodeSettings:
     info_stale_after_s: float = 5.0  # peers that send only VehicleInfo (ground stations)
     thresholds: Thresholds | None = None  # default: from the profile
     fence_max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
+    avoidance: bool = True  # collision avoidance (safety/module.py); off: compare without it
 
 
 # ----------------------------------------------------------------------------- core
@@ -224,6 +233,7 @@ class NodeCore:
         self.arbiter = AutopilotArbiter()
         self.fence = FenceKeeper()  # zones -> the autopilot's fence (fences.py)
         self.fence_plan: FencePlan | None = None
+        self.avoid = AvoidanceModule(self.profile, enabled=self.settings.avoidance)
         self._zones_version = 0  # 0: no zone heard yet, the autopilot's fence is left alone
         self._fence_key: object = None
         self._next_status = self.now
@@ -265,7 +275,7 @@ class NodeCore:
             mission_state=self.mission_state,
             mission_progress=self.mission_progress_pct,
             fleet_id=self.fleet_id,
-            alerts=self.monitor.flags,
+            alerts=self.monitor.flags | (AlertFlag.COLLISION_RISK if self.avoid.active else 0),
         )
 
     def info(self) -> VehicleInfo:
@@ -351,6 +361,11 @@ class NodeCore:
                 case Post(event):
                     self.fsm.post(event)
                 case Submit(request, owner, route):
+                    took = self.avoid.on_submit(o, self.autopilot, now)
+                    if took is not None:  # held, or replaced (safety/module.py)
+                        subs, answer = took
+                        todo[0:0] = subs + (self._on_result(answer, now) if answer else [])
+                        continue
                     sent = self.arbiter.submit(owner, request, route)
                     if isinstance(sent, Routed):
                         todo[0:0] = self._on_result(sent, now)
@@ -384,7 +399,7 @@ class NodeCore:
                                   AlertCode.GENERIC, short_text(text))),
                 ]  # fmt: skip
             case Owner.AVOIDANCE:
-                return self._unhandled("avoidance", "avoidance result (no avoidance yet)")
+                return self._avoided(self.avoid.on_result(result, now))
             case _:
                 assert_never(routed.owner)
 
@@ -404,9 +419,11 @@ class NodeCore:
         match msg:
             case VehicleStatus():
                 self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
+                self.avoid.on_peer(msg, now)
                 events = self.members.on_status(msg, now)  # usually none: a known peer
                 return self._peer_events(events) if events else []
             case VehicleInfo():
+                self.avoid.on_peer(msg, now)
                 out = self._peer_events(self.members.on_info(msg, now))
                 return out + self._roster_events(self.roster.on_info(msg))
             case Ack():
@@ -616,6 +633,7 @@ class NodeCore:
             if isinstance(ev, PeerJoined):
                 out.append(Note(logging.INFO, f"peer {ev.node_id} joined ({ev.how})"))
             elif isinstance(ev, PeerLeft):
+                self.avoid.forget(ev.node_id, self.now)
                 out.append(Note(logging.WARNING, f"peer {ev.node_id} lost ({ev.why})"))
                 out += self._roster_events(self.roster.on_peer_left(ev.node_id, ev.why))
         return out
@@ -669,6 +687,7 @@ class NodeCore:
             self.commands.next_deadline(),
             self.fence.next_deadline(),
             self.tasking.next_deadline(),
+            self.avoid.next_deadline(),
         ):
             if d is not None and d < t:
                 t = d
@@ -683,6 +702,7 @@ class NodeCore:
         due = self.tasking.next_deadline()
         if due is not None and now >= due:
             out += self.changes.tasked(self.tasking.on_timer(now), now)
+        out += self._avoidance_tick(now)
         if now >= self.fsm.next_deadline():
             # issue 11: alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state
@@ -697,6 +717,40 @@ class NodeCore:
             self._next_info = max(self._next_info + self.settings.info_period_s, now)
             out.append(Publish(self.info()))
         return self._route(out, now)
+
+    def _avoidance_tick(self, now: float) -> list[ModuleOutput]:
+        """Collision avoidance at 5 Hz (safety/module.py): the own state, ADS-B traffic,
+        the altitude to come back to and the zones' ceiling in; manoeuvres out."""
+        due = self.avoid.next_deadline()
+        if due is None or now < due:
+            return []
+        climbing = self.manager.phase == Phase.CLIMBING
+        out = self.avoid.tick(
+            now, self.status(now), self.autopilot, zones=self.monitor.zones,
+            climb_target_rel_m=self.manager.takeoff_alt_m if climbing else None,
+            holder=self.arbiter.holder, pads=self._pads(),
+            peers=[(p.status, p.info.home if p.info else None)
+                   for p in self.members.peers.values() if p.present and p.status is not None],
+        )  # fmt: skip
+        return self._avoided(out)
+
+    def _pads(self) -> dict[int, GeoPoint]:
+        """Every known vehicle's home (VehicleInfo), ours included: the pads."""
+        pads = {v: p.info.home for v, p in self.members.peers.items() if p.info and p.info.home}
+        if self.autopilot.home is not None:
+            pads[self.self_id] = self.autopilot.home
+        return pads
+
+    def _avoided(self, out: list[ModuleOutput]) -> list[ModuleOutput]:
+        """Avoidance gave the autopilot back: to whoever held it before, and the
+        mission's requests held meanwhile go on."""
+        if self.avoid.release_due:
+            self.avoid.release_due = False
+            self.arbiter.release(Owner.AVOIDANCE)
+            if self.avoid.restore is not None:
+                self.arbiter.take(self.avoid.restore)
+            out += self.avoid.take_held()
+        return out
 
     def facts(self) -> fsm.Facts:
         return fsm.Facts(

@@ -8,6 +8,7 @@ db = "/var/lib/bandada/swarm.db"  # where the node resolves its identity and par
 status_hz = 5.0
 info_hz = 1.0
 plan_timeout_s = 60.0
+avoidance = true                  # collision avoidance and pad sequencing (docs/avoidance.md)
 
 [zenoh]                           # swarm_proto.session.ZenohSettings
 mode = "peer"
@@ -63,6 +64,7 @@ class NodeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     # 0.6 s is six missed position messages; with the 5 Hz state machine it keeps link
     # loss -> STATE_EMERGENCY under 1 s. Fast-time simulations on a loaded machine raise it.
     link_timeout_s: float = 0.6
+    avoidance: bool = True  # collision avoidance, take-off/landing sequencing (safety/)
     zenoh: ZenohSettings = ZenohSettings()
     profile: ProfileOverride | None = None
 

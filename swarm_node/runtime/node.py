@@ -80,6 +80,7 @@ def node_settings(config: NodeConfig) -> NodeSettings:
         info_period_s=1.0 / config.info_hz,
         plan_timeout_s=config.plan_timeout_s,
         stale_after_s=config.stale_after_s,
+        avoidance=config.avoidance,
     )
 
 

@@ -1,7 +1,9 @@
 """Flight recorder for a running node (`swarm-node run --record PATH`): every
 VehicleStatus heard on the swarm, its own included, appended to a trajectory CSV
 (`time_s,vehicle,lat,lon,alt_m,...`, see swarm_proto/trajectory.py) at the sample's GPS
-time. Several nodes recording the same swarm write the same rows; one is enough."""
+time. Several nodes recording the same swarm write the same rows; one is enough. A
+radio peer's status predicted by its gateway (`predicted_s > 0`, issue 19) is a belief,
+not a sample: it is not recorded."""
 
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ class StatusRecorder:
         bus.subscribe(STATUS, self.on_message)
 
     def on_message(self, msg: msgspec.Struct, key: str = "") -> None:
-        if isinstance(msg, VehicleStatus):
+        if isinstance(msg, VehicleStatus) and msg.predicted_s == 0.0:
             with self._lock:
                 if not self._closed:  # a late callback after close is dropped
                     self.writer.write_status(msg)

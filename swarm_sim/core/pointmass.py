@@ -22,7 +22,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import pymap3d
 
 from swarm_node.core.autopilot.requests import ChangeAltitude, Goto, SetMode
 from swarm_node.core.safety.avoidance import (
@@ -32,7 +31,7 @@ from swarm_node.core.safety.avoidance import (
     ManoeuvreKind,
     Traffic,
 )
-from swarm_proto import VehicleInfo, VehicleStatus, VehicleType
+from swarm_proto import VehicleInfo, VehicleStatus, VehicleType, geodesy
 
 T0_UNIX_S = 1_700_000_000.0
 ORIGIN = (40.4168, -3.7038, 650.0)  # lat, lon, home altitude MSL (Madrid)
@@ -140,7 +139,7 @@ def run(
         e = np.array([b.e for b in bodies])
         n = np.array([b.n for b in bodies])
         u = np.array([b.up for b in bodies])
-        lat, lon, h = pymap3d.enu2geodetic(e, n, u, lat0, lon0, h0)
+        lat, lon, h = geodesy.geodetic(e, n, u, lat0, lon0, h0).T
         if step % rec_every == 0:
             for i, b in enumerate(bodies):
                 result.samples.append(

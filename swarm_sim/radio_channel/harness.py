@@ -11,6 +11,12 @@ clock offset.
         fleet.add(i, producer=status_producer(i))
     fleet.run(until=fleet.t + 20.0)
     fleet.deliveries   # (time, receiver, sender, radio bytes)
+
+A member can also be a whole gateway (`add(..., bridge=Bridge(...), lan=...)`): its
+`lan` producer stands for the node above it, publishing messages on its LAN; they go
+through the bridge as in `radio-gateway run` (an own VehicleStatus to the node's send on
+error, the rest to the outbox), what the node hears goes through the bridge back to the
+LAN (`published`: (time, receiver, message), heard and predicted).
 """
 
 from __future__ import annotations
@@ -21,14 +27,21 @@ import random
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import msgspec
+
 from radio_gateway.core.airtime import LinkTiming
+from radio_gateway.core.bridge import Bridge, OwnStatus
 from radio_gateway.core.node import Deliver, NodeConfig, Notice, RadioNode, Transmit
 from radio_gateway.core.outbox import OutMessage
 from radio_gateway.core.slots import TdmConfig
+from radio_gateway.core.telemetry import SendOnErrorConfig
+from swarm_proto import lan as lan_codec
+from swarm_proto.topics import key_of
 
 from .model import ChannelParams, RadioChannelModel
 
 Producer = Callable[[float], list[OutMessage]]  # source time -> messages to submit
+LanProducer = Callable[[float], list[msgspec.Struct]]  # what the node above publishes
 
 
 @dataclass
@@ -40,6 +53,9 @@ class Member:
     produce_every_s: float = 0.2
     next_produce: float = 0.0
     active: bool = True
+    bridge: Bridge | None = None  # a whole gateway: its LAN side
+    lan: LanProducer | None = None
+    silent_s: float = 3.0  # predictions stop for a peer the radio has not heard this long
 
 
 @dataclass
@@ -59,9 +75,14 @@ class Fleet:
     deliveries: list[tuple[float, int, int, bytes]] = field(default_factory=list)
     notices: list[tuple[float, int, Notice]] = field(default_factory=list)
     transmits: list[tuple[float, int, Transmit]] = field(default_factory=list)
+    published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
+    swarm: str = "default"
+    keep_predictions: bool = True  # record gateways' predicted statuses in `published`
     _events: list[tuple[float, int, str, int, bytes, bool]] = field(default_factory=list)
     _seq: itertools.count[int] = field(default_factory=itertools.count)
     _rng: random.Random = field(init=False)
+    _dl: dict[int, float] = field(default_factory=dict)  # member deadlines (fleet time)
+    _dirty: set[int] = field(default_factory=set)  # members whose deadline to recompute
 
     def __post_init__(self) -> None:
         self.model = RadioChannelModel(self.max_nodes, self.params)
@@ -89,6 +110,11 @@ class Fleet:
         offset_s: float = 0.0,
         source_stratum: int = 0,
         initial_members: tuple[int, ...] = (),
+        send_on_error: SendOnErrorConfig | None = None,
+        adaptive: bool = False,
+        min_level: int = 0,
+        bridge: Bridge | None = None,
+        lan: LanProducer | None = None,
     ) -> RadioNode:
         if node_id in self.members and self.members[node_id].active:
             raise ValueError(f"node {node_id} is already running")
@@ -101,6 +127,9 @@ class Fleet:
             initial_members=initial_members,
             seed=self.seed,
             latest_keep=self.latest_keep,
+            send_on_error=send_on_error,
+            adaptive=adaptive,
+            min_level=min_level,
         )
         node = RadioNode(cfg, self.key, self.t + offset_s)
         every = produce_every_s if produce_every_s is not None else self.tdm.cycle_s
@@ -111,24 +140,44 @@ class Fleet:
             producer,
             every,
             self.t + self._rng.uniform(0, every),
+            bridge=bridge,
+            lan=lan,
         )
+        self._dirty.add(node_id)
         return node
 
     def stop(self, node_id: int) -> None:
         """The node goes silent (power off): its module stays on the channel, unused."""
         self.members[node_id].active = False
+        self._dirty.add(node_id)
 
     def node(self, node_id: int) -> RadioNode:
         return self.members[node_id].node
 
     # ------------------------------------------------------------------ loop
+    def _member_deadline(self, m: Member) -> float:
+        times = [m.node.next_deadline() - m.offset_s]
+        if m.producer is not None or m.lan is not None:
+            times.append(m.next_produce)
+        if m.bridge is not None:
+            d = m.bridge.next_deadline()
+            if d is not None:
+                times.append(d - m.offset_s)
+        return min(times)
+
     def _next(self) -> float:
+        """The earliest deadline; members' deadlines are kept and recomputed only for
+        members something happened to (a 50-node fleet is O(1) per event, not O(n))."""
+        for nid in self._dirty:
+            m = self.members.get(nid)
+            if m is not None and m.active:
+                self._dl[nid] = self._member_deadline(m)
+            else:
+                self._dl.pop(nid, None)
+        self._dirty.clear()
         times = [self.t + 1.0]
-        for m in self.members.values():
-            if m.active:
-                times.append(m.node.next_deadline() - m.offset_s)
-                if m.producer is not None:
-                    times.append(m.next_produce)
+        if self._dl:
+            times.append(min(self._dl.values()))
         d = self.model.next_deadline()
         if d is not None:
             times.append(d)
@@ -138,6 +187,7 @@ class Fleet:
 
     def run(self, until: float) -> None:
         stuck = 0
+        self._dirty.update(self.members)
         while True:
             t = max(self.t, self._next())
             if t > until:
@@ -155,6 +205,7 @@ class Fleet:
                 else:
                     nid = by_module.get(idx)
                     if nid is not None and self.members[nid].active:
+                        self._dirty.add(nid)
                         self._actions(
                             nid,
                             self.members[nid].node.handle_bytes(
@@ -164,14 +215,24 @@ class Fleet:
             for idx, data in self.model.on_timer(t):
                 delay = self._rng.uniform(0, self.read_jitter_s) if self.read_jitter_s else 0.0
                 heapq.heappush(self._events, (t + delay, next(self._seq), "read", idx, data, False))
-            for nid, m in list(self.members.items()):
+            due = [nid for nid, d in self._dl.items() if d <= t] + list(self._dirty)
+            for nid in dict.fromkeys(due):
+                m = self.members[nid]
                 if not m.active:
                     continue
+                self._dirty.add(nid)
+                local = t + m.offset_s
                 if m.producer is not None and t >= m.next_produce:
-                    for msg in m.producer(t + m.offset_s):
-                        m.node.submit(msg, t + m.offset_s)
+                    for msg in m.producer(local):
+                        m.node.submit(msg, local)
                     m.next_produce += m.produce_every_s
-                self._actions(nid, m.node.on_timer(t + m.offset_s))
+                if m.lan is not None and t >= m.next_produce:
+                    for lmsg in m.lan(local):
+                        self._from_lan(m, lmsg, local)
+                    m.next_produce += m.produce_every_s
+                self._actions(nid, m.node.on_timer(local))
+                if m.bridge is not None:
+                    self._gateway_timer(nid, m, local)
 
     def _actions(self, nid: int, actions: list[Transmit | Deliver | Notice]) -> None:
         m = self.members[nid]
@@ -185,5 +246,35 @@ class Fleet:
                 heapq.heappush(self._events, (at, next(self._seq), "write", m.module, a.data, late))
             elif isinstance(a, Deliver):
                 self.deliveries.append((self.t, nid, a.src, a.data))
+                if m.bridge is not None:
+                    pub = m.bridge.from_air(a.data, self.t + m.offset_s)
+                    if pub is not None:
+                        self.published.append((self.t, nid, pub.message))
             else:
                 self.notices.append((self.t, nid, a))
+
+    # ------------------------------------------------------------------ gateways
+    def _from_lan(self, m: Member, msg: msgspec.Struct, now: float) -> None:
+        """What `radio-gateway run` does with a sample of its LAN."""
+        assert m.bridge is not None
+        out = m.bridge.from_lan(key_of(self.swarm, msg), lan_codec.encode(msg), now)
+        if isinstance(out, OwnStatus):
+            m.node.own_status(out.status, now)
+        elif out is not None:
+            m.node.submit(out, now)
+
+    def _gateway_timer(self, nid: int, m: Member, now: float) -> None:
+        assert m.bridge is not None
+        d = m.bridge.next_deadline()
+        if d is None or d > now:
+            return
+        node = m.node
+
+        def alive(vid: int) -> bool:
+            return vid not in node.peers or node.silent_s(vid, now) <= m.silent_s
+
+        for pub in m.bridge.due(now):
+            self.published.append((self.t, nid, pub.message))
+        for pub in m.bridge.predictions(now, alive):
+            if self.keep_predictions:
+                self.published.append((self.t, nid, pub.message))

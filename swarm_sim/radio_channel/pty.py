@@ -17,6 +17,7 @@ import os
 import select
 import termios
 import threading
+import time
 import tty
 from collections.abc import Mapping
 from pathlib import Path
@@ -76,6 +77,12 @@ class PtyRadioChannel:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.overflow = 0
+        # the longest the emulator sleeps without looking, and how much later than asked
+        # it may wake before what it reads counts as late: together under half a 5 ms
+        # guard, so a read it does not flag is never late enough to overlap a neighbour
+        self.poll_s = 0.002
+        self.late_tolerance_s = 0.0005
+        self.late_reads = 0
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> PtyRadioChannel:
@@ -118,6 +125,7 @@ class PtyRadioChannel:
                 "channel": dict(self.model.counts),
                 "modules": [dict(c) for c in self.model.per_module],
                 "overflow": self.overflow,
+                "late_reads": self.late_reads,
             }
 
     def reset_stats(self) -> None:
@@ -138,18 +146,32 @@ class PtyRadioChannel:
 
     # ------------------------------------------------------------------ loop
     def run(self, stop: threading.Event | None = None) -> None:
+        """The emulator reads what hosts write when it gets to run: on a busy machine it
+        may itself be late, and bytes it reads late start their packet late, into the
+        next slot. It waits at most `poll_s` at a time; an iteration that took more than
+        that plus `late_tolerance_s` was descheduled, and what it reads is flagged late
+        (the emulator's host, not the schedule: `collisions_late`, apart from TDM
+        faults)."""
         stop = stop or self._stop
         index = {fd: i for i, fd in enumerate(self._masters)}
+        last = time.monotonic()  # when we last looked (the previous select returned)
         while not stop.is_set() and not self._stop.is_set():
             now = self.clock.now()
             with self._lock:
                 deadline = self.model.next_deadline()
-            wait = 0.05 if deadline is None else self.clock.to_wall(deadline - now)
-            wait = min(max(wait, 0.0), 0.05)
+            wait = self.poll_s if deadline is None else self.clock.to_wall(deadline - now)
+            wait = min(max(wait, 0.0), self.poll_s)
             try:
                 ready, _, _ = select.select(list(index), [], [], wait)
             except (OSError, ValueError):
                 return  # closed underneath us
+            # since we last looked: the wait asked and the tolerance (a host's write may
+            # have sat unread as long; descheduled anywhere in the loop shows here)
+            looked = time.monotonic()
+            late = looked - last > wait + self.late_tolerance_s
+            last = looked
+            if late and ready:
+                self.late_reads += 1
             now = self.clock.now()
             with self._lock:
                 for fd in ready:
@@ -163,7 +185,7 @@ class PtyRadioChannel:
                         raise
                     if data:
                         i = index[fd]
-                        self.model.from_host(i, data, now, self.host_baud(i))
+                        self.model.from_host(i, data, now, self.host_baud(i), late=late)
                 out = self.model.on_timer(self.clock.now())
             for i, data in out:
                 self._write(i, data)

@@ -110,3 +110,40 @@ def test_cli_emulator_and_gateway_refusal(tmp_path: Path) -> None:
     finally:
         sim.terminate()
         sim.wait(timeout=30)
+
+
+@pytest.mark.parametrize(
+    "args, why",
+    [
+        (["--status-mode", "sometimes"], "status_mode"),
+        (["--min-level", "4"], "min_level"),
+        (["--min-level", "-1"], "min_level"),
+    ],
+)
+def test_the_gateway_cli_refuses_bad_send_on_error_settings(args: list[str], why: str) -> None:
+    """A bad setting is a one-line error and exit code 2, before any port is opened."""
+    from typer.testing import CliRunner
+
+    from radio_gateway.cli import app
+
+    result = CliRunner().invoke(
+        app, ["run", "--node-id", "7", "--port", "/nonexistent", "--key-file", "k", *args]
+    )
+    assert result.exit_code == 2, result.output
+    assert "bad configuration" in result.output and why in result.output
+    assert "Traceback" not in result.output
+
+
+def test_bad_send_on_error_numbers_in_a_config_file_are_refused(tmp_path: Path) -> None:
+    from radio_gateway.runtime.gateway import load_config
+
+    cfg = tmp_path / "radio.toml"
+    for bad in ("threshold_m = 0.0", "heartbeat_s = -1.0", "republish_hz = 0.0"):
+        cfg.write_text(f'node_id = 7\nport = "/dev/x"\nkey_file = "k"\n{bad}\n')
+        with pytest.raises(Exception, match="> 0"):
+            load_config(cfg, {})
+    cfg.write_text('node_id = 7\nport = "/dev/x"\nkey_file = "k"\nstatus_mode = "every"\n')
+    c = load_config(cfg, {})
+    assert c.node_config().send_on_error is None and c.bridge().predictor is None
+    on = load_config(cfg, {"status_mode": "on_error"}).node_config()
+    assert on.send_on_error is not None and on.tdm.min_payload >= 88

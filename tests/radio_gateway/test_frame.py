@@ -56,18 +56,25 @@ records = st.one_of(
     st.builds(fr.Msg, st.binary(min_size=1, max_size=60)),
     st.builds(fr.Relay, st.binary(min_size=1, max_size=60)),
     st.builds(
-        lambda seq, total, first, n, acked: fr.Frag(
-            seq, total, min(first, total - 1), bytes(16 * n), acked
+        lambda seq, total, first, n, acked, by: fr.Frag(
+            seq, total, min(first, total - 1), bytes(16 * n), acked, by if acked else 0
         ),
         st.integers(0, 0xFFFF),
         st.integers(20, 255),
         st.integers(0, 200),
         st.integers(1, 3),
         st.booleans(),
+        st.sampled_from([0, 1, 900, 65534]),  # acknowledged by one node only (an Ack)
     ).filter(lambda f: f.chunks.stop <= f.total),
     st.builds(fr.Ack, st.integers(1, 65534), st.integers(0, 0xFFFF), st.binary(max_size=8)),
     st.builds(
         fr.Change, st.booleans(), st.integers(1, 65534), st.integers(CYCLE - 100, CYCLE + 100)
+    ),
+    st.builds(
+        fr.LevelChange,
+        st.integers(1, 65534),
+        st.integers(0, 3),
+        st.integers(CYCLE - 100, CYCLE + 100),
     ),
 )
 
@@ -84,6 +91,7 @@ def frames(draw: st.DrawFn) -> fr.Frame:
         join=draw(st.booleans()),
         stratum=draw(st.integers(0, 3)),
         records=tuple(draw(st.lists(records, max_size=6))),
+        level=draw(st.integers(0, 3)),
     )
 
 
@@ -255,3 +263,16 @@ def test_refused_messages_are_counted() -> None:
     a.submit(OutMessage("x", b""), T0)
     a.submit(OutMessage("y", bytes(5000)), T0)
     assert a.counts["tx_refused"] == 2
+
+
+def test_a_level_above_3_or_a_frag_acked_by_node_0_is_malformed() -> None:
+    body = fr.encode_body(fr.Frame(src=5, cycle=CYCLE, table_hash=1, n_members=0))
+    bad_level = body + bytes((fr.RecordType.LEVEL, 5)) + bytes((1, 0, 0, 0, 4))
+    with pytest.raises(fr.FrameError, match="level"):
+        fr.parse_body(bad_level, CYCLE)
+    frag = bytes((0, 0, 1, 0, 0, 0)) + bytes(16)  # seq 0, 1 chunk, first 0, node 0
+    bad_by = body + bytes((fr.RecordType.FRAG_ACKED_BY, len(frag))) + frag
+    with pytest.raises(fr.FrameError, match="node 0"):
+        fr.parse_body(bad_by, CYCLE)
+    with pytest.raises(ValueError, match="level"):
+        fr.encode_body(fr.Frame(src=5, cycle=CYCLE, table_hash=1, n_members=0, level=4))

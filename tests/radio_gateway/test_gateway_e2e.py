@@ -5,12 +5,15 @@ only its radio."""
 
 from __future__ import annotations
 
+import contextlib
+import math
 import threading
 import time
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
+import msgspec
 import pytest
 import serial
 
@@ -49,8 +52,8 @@ class World:
     lock: threading.Lock = field(default_factory=threading.Lock)
 
 
-@pytest.fixture
-def world() -> Iterator[World]:
+@contextlib.contextmanager
+def _world(status_mode: str) -> Iterator[World]:
     clock = SystemClock()
     channel = PtyRadioChannel(3, ChannelParams(), clock, registers=RadioSettings().registers())
     channel.start()
@@ -72,6 +75,7 @@ def world() -> Iterator[World]:
                 initial_members=ids,
                 verify_radio=False,
                 guard_s=0.005,
+                status_mode=status_mode,
             )
             session = open_session(ZenohSettings(connect=(lans[lan],)))
             port = serial.Serial(channel.ports[i], 230_400, timeout=0.05)
@@ -85,6 +89,20 @@ def world() -> Iterator[World]:
         for close in closers:
             close()
         channel.close()
+
+
+@pytest.fixture
+def world() -> Iterator[World]:
+    """Gateways that queue every status (the TDM's 5 Hz), to count what crosses."""
+    with _world("every") as w:
+        yield w
+
+
+@pytest.fixture
+def world_on_error() -> Iterator[World]:
+    """Gateways as shipped: send on error, radio peers predicted on the LAN."""
+    with _world("on_error") as w:
+        yield w
 
 
 def test_gateways_bridge_lans_over_the_air_once_each(world: World) -> None:
@@ -163,3 +181,62 @@ def test_gateways_bridge_lans_over_the_air_once_each(world: World) -> None:
     assert world.gateways[1].bridge.counts["to_air"] == 20
     assert world.gateways[2].bridge.counts["to_air"] == 0
     assert world.gateways[900].bridge.counts["to_air"] == 5
+
+
+def test_send_on_error_gateways_show_radio_peers_predicted_at_5_hz(world_on_error: World) -> None:
+    """Vehicle 1 flies an 18 m/s orbit of 90 m (its node publishes at 10 Hz); its gateway
+    sends a status only when the peers' dead reckoning of it would be 5 m off, or once a
+    second. The ground station, behind the radio only, still sees vehicle 1 at 5 Hz or
+    more (what it heard, and predictions between), each within its error bound of the
+    truth, and fewer statuses went on air than the 5 Hz TDM would send."""
+    world = world_on_error
+    got: list[VehicleStatus] = []
+    lock = world.lock
+
+    def seen(m: VehicleStatus, k: str) -> None:
+        if m.vehicle_id == 1:
+            with lock:
+                got.append(m)
+
+    world.gcs.subscribe(STATUS, seen)
+    time.sleep(1.5)
+    lat0, lon0, speed, radius = 37.4112, -5.9889, 18.0, 90.0
+    w = speed / radius
+    mlat = 111_200.0  # m per degree, near enough for the check below
+    mlon = mlat * math.cos(math.radians(lat0))
+
+    def truth(t: float) -> tuple[float, float]:
+        a = w * t
+        return lat0 + radius * math.sin(a) / mlat, lon0 + radius * math.cos(a) / mlon
+
+    start = time.time()
+    due = time.monotonic()
+    for _ in range(40):  # 4 s at 10 Hz
+        t = time.time()
+        lat, lon = truth(t - start)
+        a = w * (t - start)
+        s = msgspec.structs.replace(
+            status(1, t),
+            lat_deg=lat,
+            lon_deg=lon,
+            vel_north_m_s=speed * math.cos(a),
+            vel_east_m_s=-speed * math.sin(a),
+        )
+        world.v1.publish(s)
+        due += 0.1
+        time.sleep(max(0.0, due - time.monotonic()))
+    time.sleep(0.5)
+    with lock:
+        heard = list(got)
+    window = [s for s in heard if start + 1.5 <= s.time_unix_s <= start + 4.0]
+    assert len(window) >= 0.9 * 5 * 2.5, len(window)  # >= 5 Hz, real or predicted
+    predicted = [s for s in window if s.predicted_s > 0]
+    assert predicted and all(s.position_error_m > 0 for s in predicted)
+    for s in window:  # every one within its bound (+ radio quantization and clock)
+        lat, lon = truth(s.time_unix_s - start)
+        err = math.hypot((s.lat_deg - lat) * mlat, (s.lon_deg - lon) * mlon)
+        assert err <= s.position_error_m + 1.0, (err, s.position_error_m, s.predicted_s)
+    counts = world.gateways[1].link.node.counts
+    on_air = sum(v for k, v in counts.items() if k.startswith("own_status_"))
+    assert 0 < on_air < 0.6 * 5 * 4.0, dict(counts)  # under 60 % of the 5 Hz statuses
+    assert world.channel.stats()["channel"].get("collisions", 0) == 0

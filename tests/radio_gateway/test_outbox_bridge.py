@@ -3,14 +3,19 @@ crosses between the LAN and the air (no loops, no duplicates)."""
 
 from __future__ import annotations
 
+import msgspec
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from radio_gateway.core import frame as fr
-from radio_gateway.core.bridge import Bridge
+from radio_gateway.core.bridge import Bridge, OwnStatus
 from radio_gateway.core.outbox import Outbox, OutMessage, ack_mask
 from radio_gateway.core.reassembly import Reassembly
+from radio_gateway.core.telemetry import PeerPredictor, encode_turn
 from swarm_proto import (
+    Ack,
+    AckRef,
     Alert,
     AlertCode,
     Command,
@@ -251,3 +256,70 @@ def test_latest_keep_sends_the_newest_values_together_oldest_first() -> None:
     ob.submit(OutMessage("s", bytes([1, 0x64, 9]) + bytes(37), 2, True, False, 5.0), 0.31)
     recs = ob.fill(200, 0.35, frozenset())  # under the rate limit since the last send
     assert recs == [] and ob.pending() == 1
+
+
+# --------------------------------------------------------------------------- send on error
+
+
+def _soe_bridge(node: int) -> Bridge:
+    return Bridge("default", node, frozenset({node}), predictor=PeerPredictor())
+
+
+def test_send_on_error_hands_the_own_status_to_the_node_and_predicts_peers() -> None:
+    b = _soe_bridge(1)
+    own = status(1, T)
+    out = b.from_lan(*_lan(own), T)
+    assert isinstance(out, OwnStatus) and out.status == own  # the node decides when
+    moving = msgspec.structs.replace(status(2, T), vel_north_m_s=10.0)
+    heard = radio.encode(moving) + encode_turn(0.0)
+    pub = b.from_air(heard, T + 0.1)
+    assert pub is not None and pub.message.predicted_s == 0.0  # as heard, at once
+    assert b.predictions(T + 0.2) == []  # every 200 ms after that
+    (pred,) = b.predictions(T + 0.31)
+    s = pred.message
+    assert s.vehicle_id == 2 and s.time_unix_s == T + 0.31
+    assert s.predicted_s == pytest.approx(0.31) and s.position_error_m > 0
+    assert (s.lat_deg - moving.lat_deg) * 111_132 == pytest.approx(3.1, abs=0.05)
+    assert pred.key == key_of("default", s)
+    # our own status relayed back to us by a peer is not republished
+    assert b.from_air(radio.encode(status(1, T + 1)), T + 1.1) is None
+    assert b.counts["air_own_status"] == 1
+
+
+def test_a_prediction_never_goes_on_air_and_a_lan_peer_is_not_predicted() -> None:
+    b = _soe_bridge(1)
+    pred = msgspec.structs.replace(status(1, T), predicted_s=0.4, position_error_m=1.0)
+    assert b.from_lan(*_lan(pred), T) is None
+    assert b.counts["lan_predicted"] == 1
+    b.from_air(radio.encode(status(3, T)), T)
+    assert 3 in (b.predictor.peers if b.predictor else {})
+    b.from_lan(*_lan(status(3, T + 0.1)), T + 0.1)  # vehicle 3 is on our LAN as well
+    assert b.predictions(T + 1.0) == []
+    b.from_air(radio.encode(status(3, T + 0.5)), T + 0.5)
+    assert b.predictions(T + 1.5) == []  # still on the LAN: its own statuses suffice
+
+
+def test_only_the_designated_gateway_publishes_predictions() -> None:
+    low, high = _soe_bridge(1), _soe_bridge(2)
+    for b, other in ((low, 2), (high, 1)):
+        b.from_lan(*_lan(RadioStats(node_id=other, time_unix_s=T)), T)
+    for b in (low, high):
+        b.from_air(radio.encode(status(7, T)), T)
+    assert len(low.predictions(T + 0.3)) == 1
+    assert high.predictions(T + 0.3) == []  # it still predicts, to take over
+    assert len(high.predictions(T + 10.0 + 0.3)) == 0  # (silent for 10 s: dropped)
+
+
+def test_an_ack_is_acknowledged_on_air_by_its_issuer_only() -> None:
+    b = _bridge(5)
+    out = b.from_lan(*_lan(Ack(5, 900, AckRef.COMMAND, 3, True)), T)
+    assert isinstance(out, OutMessage) and out.acked and out.ack_by == 900
+    ob = Outbox()
+    ob.submit(out, T)
+    (frag,) = ob.fill(200, T, frozenset({1, 2, 900}))
+    assert isinstance(frag, fr.Frag) and frag.ack_by == 900
+    mine, other = Reassembly(node_id=900), Reassembly(node_id=1)
+    assert mine.on_frag(5, frag, T) == out.data and other.on_frag(5, frag, T) == out.data
+    assert mine.take_acks() and not other.take_acks()  # everyone delivers, one acks
+    ob.on_ack(900, fr.Ack(5, frag.seq))
+    assert ob.fill(200, T + 5, frozenset({1, 2, 900})) == [] and ob.pending() == 0

@@ -247,3 +247,25 @@ def test_thirty_unconfigured_nodes_find_each_other_and_share_the_air() -> None:
     assert f.model.counts["collisions"] == collisions
     rates = _rates(f, f.t - 28.0, f.t)
     assert min(rates.values()) >= 0.7 * lay.rate_hz  # 10 % loss
+
+
+def test_a_table_change_in_a_full_cycle_never_collides() -> None:
+    """13 nodes at 5 ms guards: slots of 15 ms, shorter than the 20 ms a frame is built
+    before its slot. When the lowest id leaves, every slot moves: a frame built before
+    the change for a slot after it, under the old table, collided with the new table's
+    owner of that time (issue 19, the table-change collision; also what a gateway
+    stalled on a loaded machine, declared gone and back, runs into). Now no frame is
+    built under a table for a slot the next table governs."""
+    tdm = TdmConfig(guard_s=0.005)
+    n = physical_limit(TIMING, tdm)
+    f = fleet(n, tdm=tdm, seed=4)
+    f.run(f.t + 2.0)
+    lay = f.node(2).membership.layout
+    assert lay.slot_s < f.node(2).config.prep_s and f.model.counts["collisions"] == 0
+    f.stop(1)  # the first slot's owner: every slot moves when it is declared gone
+    f.run(f.t + 4.0)
+    assert all(f.node(v).membership.members == tuple(range(2, n + 1)) for v in range(2, n + 1))
+    f.add(1, producer=status_producer(1), initial_members=tuple(range(1, n + 1)))
+    f.run(f.t + 12.0)
+    assert f.node(2).membership.members == tuple(range(1, n + 1))
+    assert f.model.counts["collisions"] == 0

@@ -52,6 +52,10 @@ VTOL, QUAD = SEED["Albatross 250 VTOL"], SEED["Generic Quadcopter"]
 ROVER, BOAT = SEED["Generic Rover"], SEED["Generic Boat"]
 
 
+# every vehicle at one synthetic position (`flying()`): collision avoidance, which would
+# rightly climb them apart, is off here (its own tests: tests/swarm_node/safety)
+SETTINGS = NodeSettings(plan_timeout_s=20.0, avoidance=False)
+
 def as_vehicle(p: VehicleProfile, vid: int) -> VehicleProfile:
     return msgspec.structs.replace(p, vehicle_id=vid)
 
@@ -60,7 +64,7 @@ def fleet_of(*models: VehicleProfile) -> Fleet:
     """Vehicles 1..n of these seed models, flying at 100 m, each in GO_MISSION."""
     profiles = {i: as_vehicle(p, i) for i, p in enumerate(models, start=1)}
     nodes = {
-        i: NodeCore(p, NodeSettings(plan_timeout_s=20.0), fleet_profiles=profiles)
+        i: NodeCore(p, SETTINGS, fleet_profiles=profiles)
         for i, p in profiles.items()
     }
     f = Fleet(nodes)

@@ -236,3 +236,25 @@ def test_the_demo_gives_planning_its_wall_time() -> None:
     from swarm_sim.demo import plan_timeout_s
 
     assert plan_timeout_s(5.0) == 300.0 and plan_timeout_s(1.0) == 60.0
+
+
+def test_avoidance_is_on_by_default_and_can_be_switched_off(tmp_path: Path) -> None:
+    """Issue 14: `--avoidance/--no-avoidance` and `avoidance = false` in the TOML reach
+    the core (NodeSettings.avoidance); a value that is not a boolean is refused."""
+    from typer.testing import CliRunner
+
+    from swarm_node.cli import app
+
+    assert node_settings(load_config(None, node_id=1)).avoidance is True
+    assert node_settings(load_config(None, node_id=1, avoidance=False)).avoidance is False
+    toml = tmp_path / "node.toml"
+    toml.write_text("node_id = 3\navoidance = false\n")
+    assert node_settings(load_config(toml)).avoidance is False
+    assert node_settings(load_config(toml, avoidance=True)).avoidance is True
+    toml.write_text('node_id = 3\navoidance = "sometimes"\n')
+    with pytest.raises(ValueError, match="avoidance"):
+        load_config(toml)
+    runner = CliRunner()  # the flag parses (the bad id stops the node before it starts)
+    bad_id = runner.invoke(app, ["run", "--id", "0", "--no-avoidance"])
+    assert bad_id.exit_code == 2 and "node_id" in bad_id.output
+    assert runner.invoke(app, ["run", "--id", "0", "--avoidance=maybe"]).exit_code == 2

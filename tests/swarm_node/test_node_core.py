@@ -46,6 +46,10 @@ HOME = GeoPoint(37.4112, -5.9889, 10.0)
 GCS = 900
 
 
+# every vehicle at one synthetic position (`flying()`): collision avoidance, which would
+# rightly climb them apart, is off here (its own tests: tests/swarm_node/safety)
+SETTINGS = NodeSettings(plan_timeout_s=20.0, avoidance=False)
+
 def profile(vid: int, model: str = "Generic Quadcopter") -> VehicleProfile:
     """Vehicle `vid` with the parameters of a seed model (the swarm database's seed data,
     never constants of the tests' own)."""
@@ -76,7 +80,7 @@ def flying(**kw: object) -> AutopilotState:
 def fleet(n: int = 3, **kw: object) -> Fleet:
     profiles = {i: profile(i) for i in range(1, n + 1)}
     nodes = {
-        i: NodeCore(profiles[i], NodeSettings(plan_timeout_s=20.0), fleet_profiles=profiles)
+        i: NodeCore(profiles[i], SETTINGS, fleet_profiles=profiles)
         for i in profiles
     }
     f = Fleet(nodes, **kw)  # type: ignore[arg-type]

@@ -71,3 +71,17 @@ def test_record_to_an_unwritable_path_is_a_one_line_error(tmp_path: Path) -> Non
     )
     assert result.exit_code == 2
     assert "--record" in result.output and "Traceback" not in result.output
+
+
+def test_a_predicted_status_is_not_recorded(tmp_path: Path) -> None:
+    """A radio gateway's prediction of a peer (issue 19) is a belief, not a sample."""
+    import msgspec
+
+    path = tmp_path / "rec.csv"
+    rec = StatusRecorder(path)
+    rec.on_message(status(1, 1.75e9))
+    rec.on_message(
+        msgspec.structs.replace(status(2, 1.75e9), predicted_s=0.4, position_error_m=1.0)
+    )
+    rec.close()
+    assert read_trajectory(path).vehicle.tolist() == [1]

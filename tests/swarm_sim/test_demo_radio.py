@@ -68,7 +68,9 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
     assert radio.phase == "member" and set(radio.members) == {*MEMBERS, GCS_ID}
     assert all(p.packets_per_s > 3.0 for p in radio.peers if p.node_id in MEMBERS)
     assert radio.dropped_forged == 0 and radio.dropped_corrupt == 0
-    assert channel.get("collisions", 0) == 0
+    # no TDM fault; a collision with a packet the emulator read late (descheduled by a
+    # loaded machine) is the emulator's host, counted apart (docs/radio.md)
+    assert channel.get("collisions_tdm", 0) == 0
     # nothing but the radio joins the islands: each node learnt of the other by its
     # telemetry (heard over the air), never by a Zenoh liveliness token
     for vid, other in ((7, 8), (8, 7)):

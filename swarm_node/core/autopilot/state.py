@@ -1,13 +1,28 @@
 """The autopilot as the node sees it: a snapshot maintained by the MAVLink tracker from
 HEARTBEAT, GLOBAL_POSITION_INT, SYS_STATUS / BATTERY_STATUS, GPS_RAW_INT, ATTITUDE,
-VFR_HUD, HOME_POSITION, SYSTEM_TIME, MISSION_CURRENT, MISSION_ITEM_REACHED, STATUSTEXT
-and EKF_STATUS_REPORT. Units in the names; None = not received yet."""
+VFR_HUD, HOME_POSITION, SYSTEM_TIME, MISSION_CURRENT, MISSION_ITEM_REACHED, STATUSTEXT,
+EKF_STATUS_REPORT and ADSB_VEHICLE. Units in the names; None = not received yet."""
 
 from __future__ import annotations
 
 import msgspec
 
 from swarm_proto import GeoPoint, GpsFix, VehicleType
+
+
+class AdsbReport(msgspec.Struct, frozen=True):
+    """An aircraft the autopilot hears on ADS-B (ADSB_VEHICLE): non-cooperative traffic
+    for collision avoidance. Position WGS84, altitude above mean sea level."""
+
+    icao_address: int
+    lat_deg: float
+    lon_deg: float
+    alt_msl_m: float
+    vel_north_m_s: float = 0.0  # 0 when the report's velocity is not flagged valid
+    vel_east_m_s: float = 0.0
+    vel_down_m_s: float = 0.0
+    time_s: float = 0.0  # when it was where it says (link clock: received less tslc)
+    callsign: str = ""
 
 
 class AutopilotState(msgspec.Struct, frozen=True):
@@ -61,6 +76,8 @@ class AutopilotState(msgspec.Struct, frozen=True):
     sensors_health: int = 0  # SYS_STATUS onboard_control_sensors_health
     autopilot_ready: bool = False  # booted: "ArduPilot Ready" or a HEARTBEAT in STANDBY or later
     position_trusted: bool = False  # a GPS fix (2-D or better) or an EKF absolute position was seen
+    # appended for issue 14 (collision avoidance)
+    traffic: tuple[AdsbReport, ...] = ()  # ADSB_VEHICLE: the latest report per aircraft
 
     @property
     def has_position(self) -> bool:

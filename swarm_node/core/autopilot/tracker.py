@@ -16,7 +16,7 @@ happens to every message type; anything else is counted in `unhandled`.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from enum import Enum
 from typing import Any
 
@@ -47,10 +47,15 @@ from .state import (
     EKF_POS_HORIZ_ABS,
     EKF_UNINITIALIZED,
     EKF_VELOCITY_HORIZ,
+    AdsbReport,
     AutopilotState,
 )
 
 MAV_AUTOPILOT_INVALID = 8
+ADSB_VALID_POSITION = 1 | 2  # ADSB_FLAGS_VALID_COORDS | VALID_ALTITUDE
+ADSB_VALID_VELOCITY = 4 | 8  # ADSB_FLAGS_VALID_HEADING | VALID_VELOCITY
+TRAFFIC_KEEP_S = 20.0  # an aircraft not heard on ADS-B for this long leaves `traffic`
+TRAFFIC_MAX = 32  # the nearest in time are kept beyond this many
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 UINT16_MAX = 65535
 _EARLIEST_GPS_UNIX_S = 1.42e9  # 2015: an older SYSTEM_TIME.time_unix_usec is not GPS time
@@ -118,6 +123,7 @@ class StateTracker:
             "STATUSTEXT": self._on_statustext,
             "EKF_STATUS_REPORT": self._on_ekf_status_report,
             "EXTENDED_SYS_STATE": self._on_extended_sys_state,
+            "ADSB_VEHICLE": self._on_adsb_vehicle,
         }
 
     # ------------------------------------------------------------------ public
@@ -146,7 +152,9 @@ class StateTracker:
                 return (
                     Verdict.FOREIGN if self._is_foreign_before_lock(src) else Verdict.WAITING
                 ), []
-        elif src != (self._state.sysid, self._state.compid):
+        elif src != (self._state.sysid, self._state.compid) and not (
+            mtype == "ADSB_VEHICLE" and src[0] == self._state.sysid  # its ADS-B receiver
+        ):
             self._state = msgspec.structs.replace(
                 self._state, foreign_packets=self._state.foreign_packets + 1
             )
@@ -321,6 +329,23 @@ class StateTracker:
             if self._gps_offset_s is not None:
                 changes["position_time_unix_s"] = self._gps_offset_s + msg.time_boot_ms / 1000.0
         return changes, events
+
+    def _on_adsb_vehicle(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
+        """Traffic for collision avoidance: the latest report per ICAO address, those
+        not heard for TRAFFIC_KEEP_S dropped (a report without a valid position is
+        invalid input)."""
+        try:
+            report = parse_adsb(msg.to_dict(), received_s=now)
+        except ValueError as exc:
+            raise _Invalid(str(exc)) from exc
+        keep = {
+            t.icao_address: t
+            for t in self._state.traffic
+            if now - t.time_s <= TRAFFIC_KEEP_S and t.icao_address != report.icao_address
+        }
+        keep[report.icao_address] = report
+        newest = sorted(keep.values(), key=lambda t: -t.time_s)[:TRAFFIC_MAX]
+        return {"traffic": tuple(sorted(newest, key=lambda t: t.icao_address))}, []
 
     def _on_attitude(self, msg: MAVLinkMessage, now: float) -> tuple[Changes, list[ApEvent]]:
         roll, pitch, yaw = float(msg.roll), float(msg.pitch), float(msg.yaw)
@@ -509,6 +534,7 @@ HANDLED: tuple[str, ...] = (
     "STATUSTEXT",
     "EKF_STATUS_REPORT",
     "EXTENDED_SYS_STATE",
+    "ADSB_VEHICLE",
 )
 
 #: Handed on to the command and mission cores (after the source check).
@@ -526,6 +552,45 @@ PROTOCOL: frozenset[str] = frozenset(
 )
 
 #: Sent by ArduPilot (default streams of SITL and real boards) and deliberately unused.
+def parse_adsb(report: Mapping[str, Any], *, received_s: float) -> AdsbReport:
+    """An ADSB_VEHICLE's fields (pymavlink `to_dict()`): `lat`/`lon` degE7, `altitude`
+    mm MSL, `heading` cdeg, `hor_velocity` and `ver_velocity` cm/s (up positive),
+    `flags`, `ICAO_address`, `tslc` s, `callsign`. Position and altitude must be
+    flagged valid; a velocity not flagged valid counts as zero (avoidance widens a
+    report's protection volume by its age anyway). Raises ValueError naming what is
+    wrong."""
+
+    def num(name: str, lo: float, hi: float) -> float:
+        v = report.get(name)
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise ValueError(f"ADS-B {name} must be a number, got {v!r}")
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise ValueError(f"ADS-B {name} = {v!r} is not in [{lo}, {hi}]")
+        return float(v)
+
+    flags = int(num("flags", 0, 0xFFFF))
+    if flags & ADSB_VALID_POSITION != ADSB_VALID_POSITION:
+        raise ValueError(f"ADS-B report without a valid position and altitude ({flags:#06x})")
+    lat = num("lat", -90e7, 90e7) / 1e7
+    lon = num("lon", -180e7, 180e7) / 1e7
+    alt = num("altitude", -1_000_000, 50_000_000) / 1000.0
+    vn = ve = vd = 0.0
+    if flags & ADSB_VALID_VELOCITY == ADSB_VALID_VELOCITY:  # heading and velocity
+        course = math.radians(num("heading", 0, 35_999) / 100.0)
+        speed = num("hor_velocity", 0, 65_534) / 100.0
+        vn, ve = speed * math.cos(course), speed * math.sin(course)
+        vd = -num("ver_velocity", -32_767, 32_767) / 100.0
+    icao = int(num("ICAO_address", 0, 0xFFFFFF))
+    age = num("tslc", 0, 255)
+    if not math.isfinite(received_s):
+        raise ValueError("received_s must be finite")
+    callsign = report.get("callsign", "")
+    if isinstance(callsign, bytes):
+        callsign = callsign.decode("ascii", "replace")
+    callsign = str(callsign).strip("\x00 ")[:9]
+    return AdsbReport(icao, lat, lon, alt, vn, ve, vd, received_s - age, callsign)
+
+
 IGNORED: frozenset[str] = frozenset(
     {
         "AHRS",

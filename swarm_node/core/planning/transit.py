@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from shapely.geometry import LineString
 from shapely.geometry.base import BaseGeometry
 
-from swarm_proto import LatLon, NoFlyZone
+from swarm_proto import LatLon, NoFlyZone, geodesy
 
 from ..autopilot.items import ItemKind, Waypoint
 from ..profile import VehicleProfile
@@ -195,6 +195,5 @@ def _entry(
 
 
 def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
-    dn = (lat2 - lat1) * 111_320.0
-    de = (lon2 - lon1) * 111_320.0 * math.cos(math.radians(lat1))
-    return math.hypot(dn, de)
+    """Ground distance, metres: the one geodesy (swarm_proto.geodesy)."""
+    return geodesy.distance_m(lat1, lon1, lat2, lon2)

@@ -23,17 +23,21 @@ its predicted 3-D miss distance, less the staleness widening, is below `protect_
 within `horizon_s`. Manoeuvres are upward only:
 
 - Who climbs (the same rule in every vehicle, on the same reported numbers): of two
-  cooperative aircraft, the higher one; within `tie_band_m` of each other, the higher
-  id. Against traffic that will not manoeuvre (ADS-B, a MANNED vehicle, anything
-  disarmed or below `min_active_alt_rel_m`, rovers and boats), an aircraft climbs if
+  cooperative aircraft, the higher one; within `tie_band_m` of each other, a fixed-wing
+  (plane, VTOL) before a multirotor (it climbs faster, keeps its path and cannot stop),
+  when both types are known from VehicleInfo (sent at 1 Hz from start-up, long before
+  either flies), else the higher id. Against traffic that will not manoeuvre (ADS-B, a MANNED vehicle, anything
+  below `min_active_alt_rel_m`, rovers and boats), an aircraft climbs if
   that traffic is not well above it. So the lower of a pair never climbs into the
-  upper one.
+  upper one. A disarmed aircraft on the ground (under 2 m) is not traffic for an
+  aircraft (take-off and landing beside it are sequenced: pads.py).
 - How high (three or more): targets stack in rank order, each `vertical_sep_m` above
   the target of every vehicle it gives way to (a fixed point over the conflict graph),
   capped by the ceiling. A climb target only rises until the conflict clears.
 - The vehicle that keeps its altitude but is climbing into a conflict above it levels
   off (LEVEL); a fixed-wing keeps its path (DO_CHANGE_ALTITUDE), a multirotor holds
-  position while it climbs (a GUIDED reposition over itself); rovers and boats STOP
+  position while it climbs (a GUIDED reposition over itself; the node's module flies
+  either to the mission item it was flying to, higher, while in a mission); rovers and boats STOP
   (HOLD mode) when they give way (ground pairs: the higher id) or when something
   stands in their way.
 - Hysteresis: the manoeuvre ends only when, from the planned altitude (ground
@@ -58,12 +62,15 @@ import numpy as np
 from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, VehicleType
 
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
+from ..autopilot.state import AdsbReport
+from ..autopilot.tracker import parse_adsb
 from .ttc import BadTrackError, Track, kinematic, pairwise
 
 GROUND = frozenset({VehicleType.ROVER, VehicleType.BOAT})
 MULTIROTOR = frozenset({VehicleType.COPTER})
 NEVER_MANOEUVRES = frozenset({VehicleType.MANNED})
 NOT_TRAFFIC = frozenset({VehicleType.GCS})
+FIXED_WING = frozenset({VehicleType.PLANE, VehicleType.VTOL})
 
 # how fast each kind could be going: the staleness widening is age * this
 MAX_SPEED_M_S: dict[VehicleType, float] = {
@@ -76,6 +83,7 @@ MAX_SPEED_M_S: dict[VehicleType, float] = {
     VehicleType.MANNED: 60.0,
 }
 TRAFFIC_MAX_SPEED_M_S = 60.0
+PARKED_ALT_M = 2.0  # a disarmed aircraft lower than this above its home is on the ground
 
 
 class ManoeuvreKind(StrEnum):
@@ -113,37 +121,17 @@ class Traffic:
 
     @classmethod
     def from_adsb(cls, report: Mapping[str, Any], *, received_s: float) -> Traffic:
-        """From a decoded ADSB_VEHICLE (pymavlink `to_dict()`): `lat`/`lon` degE7,
-        `altitude` mm MSL, `heading` cdeg, `hor_velocity` and `ver_velocity` cm/s (up
-        positive), `flags`, `ICAO_address`, `tslc` s. Position and altitude must be
-        flagged valid; a velocity not flagged valid counts as zero (the staleness
-        widening still applies). Raises ValueError naming what is wrong."""
+        """From a decoded ADSB_VEHICLE (pymavlink `to_dict()`; the autopilot link's
+        parser, `parse_adsb`). Raises ValueError naming what is wrong."""
+        return cls.from_report(parse_adsb(report, received_s=received_s))
 
-        def num(name: str, lo: float, hi: float) -> float:
-            v = report.get(name)
-            if isinstance(v, bool) or not isinstance(v, int | float):
-                raise ValueError(f"ADS-B {name} must be a number, got {v!r}")
-            if not (math.isfinite(v) and lo <= v <= hi):
-                raise ValueError(f"ADS-B {name} = {v!r} is not in [{lo}, {hi}]")
-            return float(v)
-
-        flags = int(num("flags", 0, 0xFFFF))
-        if flags & 3 != 3:
-            raise ValueError(f"ADS-B report without a valid position and altitude ({flags:#06x})")
-        lat = num("lat", -90e7, 90e7) / 1e7
-        lon = num("lon", -180e7, 180e7) / 1e7
-        alt = num("altitude", -1_000_000, 50_000_000) / 1000.0
-        vn = ve = vd = 0.0
-        if flags & 12 == 12:  # heading and velocity valid
-            course = math.radians(num("heading", 0, 35_999) / 100.0)
-            speed = num("hor_velocity", 0, 65_534) / 100.0
-            vn, ve = speed * math.cos(course), speed * math.sin(course)
-            vd = -num("ver_velocity", -32_767, 32_767) / 100.0
-        icao = int(num("ICAO_address", 0, 0xFFFFFF))
-        age = num("tslc", 0, 255)
-        if not math.isfinite(received_s):
-            raise ValueError("received_s must be finite")
-        return cls(icao, lat, lon, alt, vn, ve, vd, received_s - age)
+    @classmethod
+    def from_report(cls, r: AdsbReport) -> Traffic:
+        """From the autopilot link's `AutopilotState.traffic`."""
+        return cls(
+            r.icao_address, r.lat_deg, r.lon_deg, r.alt_msl_m,
+            r.vel_north_m_s, r.vel_east_m_s, r.vel_down_m_s, r.time_s,
+        )  # fmt: skip
 
 
 @dataclass(frozen=True, slots=True)
@@ -172,7 +160,8 @@ class AvoidanceConfig:
     protect_m: float = 20.0  # predicted miss (3-D) below which a pair is in conflict
     release_m: float = 30.0  # clear only when every miss from the planned altitude is above
     vertical_sep_m: float = 15.0  # a climb targets this much above who it gives way to
-    tie_band_m: float = 5.0  # within this altitude difference the higher id climbs
+    tie_band_m: float = 5.0  # within this altitude difference: fixed-wing, then higher id climbs
+    others_slack_m: float = 10.0  # the others' pairs count as in conflict with this much more
     horizon_s: float = 30.0  # how far ahead conflicts are looked for
     climb_rate_m_s: float = 5.0  # to tell whether a climb can be done in time
     ceiling_rel_m: float = 400.0  # never climb above this (above home)
@@ -266,6 +255,16 @@ class CollisionAvoider:
         vtype = self._types.get(s.vehicle_id)
         if vtype in NOT_TRAFFIC:
             return
+        if (
+            not s.armed
+            and s.alt_rel_m < PARKED_ALT_M
+            and self.config.own_type not in GROUND
+            and vtype not in GROUND
+        ):
+            # parked on its pad, motors off: not traffic for an aircraft flying above
+            # `min_active_alt_rel_m` (take-off and landing next to it: pads.py)
+            self._contacts.pop(s.vehicle_id, None)
+            return
         # the sample's own time unless it is in the future (a skewed clock): then when heard
         t = s.time_unix_s if 0.0 < s.time_unix_s <= now else now
         speed = MAX_SPEED_M_S.get(vtype or VehicleType.OTHER, 35.0)
@@ -322,6 +321,11 @@ class CollisionAvoider:
         if self._active is None:
             return self._start(own, decision, now)
         return self._continue(own, decision, now)
+
+    def abandon(self) -> None:
+        """The manoeuvre was taken from us (a higher owner flies the vehicle): forget it
+        without a RESUME; a conflict still there starts a new one at the next tick."""
+        self._active = None
 
     @property
     def manoeuvring(self) -> ManoeuvreKind | None:
@@ -381,7 +385,12 @@ class CollisionAvoider:
                 None,
                 tuple(c.track.vehicle_id for c, ok in zip(contacts, clear, strict=True) if not ok),
             )
-        conflict = (miss < cfg.protect_m) & ~np.eye(n, dtype=bool)
+        # pairs of others count as in conflict with `others_slack_m` more: each vehicle
+        # sees the others' pairs from its own (slightly different) reports, and a climb
+        # it stacks over must not be one it failed to expect
+        threshold = np.full((n, n), cfg.protect_m + cfg.others_slack_m)
+        threshold[0, :] = threshold[:, 0] = cfg.protect_m
+        conflict = (miss < threshold) & ~np.eye(n, dtype=bool)
         if not conflict[0].any():
             return _Decision(None, None, ())
         against_idx = np.flatnonzero(conflict[0])
@@ -418,11 +427,15 @@ class CollisionAvoider:
             return _Decision(None, None, against, soonest, closest)
 
         # i gives way to j (i climbs above j): j is not a cooperative aircraft and not
-        # well above i, or both are, and i is higher (within the band: higher id)
+        # well above i, or both are, and i is higher; within the band a fixed-wing before
+        # a multirotor (it climbs faster, keeps its path and cannot stop) when both types
+        # are known (VehicleInfo), else the higher id
         dz = alt[:, None] - alt[None, :]
-        by_rank = (dz > cfg.tie_band_m) | (
-            (np.abs(dz) <= cfg.tie_band_m) & (ids[:, None] > ids[None, :])
-        )
+        known = np.array([cfg.own_type is not None] + [c.vehicle_type is not None for c in contacts])
+        fw = np.array([t in FIXED_WING for t in types])
+        by_type = known[:, None] & known[None, :] & (fw[:, None] != fw[None, :])
+        in_band = np.where(by_type, fw[:, None], ids[:, None] > ids[None, :])
+        by_rank = (dz > cfg.tie_band_m) | ((np.abs(dz) <= cfg.tie_band_m) & in_band)
         # what each stands at: its altitude or where it is going, whichever is higher
         alt_cpa = alt[None, :] + k.vel[None, :, 2] * a.t_cpa_s
         level = np.maximum(alt[None, :], alt_cpa) + k.margin_m[None, :]
@@ -543,7 +556,11 @@ class CollisionAvoider:
         if capped:
             severity, why = Severity.CRITICAL, " (ceiling)"
         elif d.kind is ManoeuvreKind.CLIMB and climb_s > d.soonest_s:
-            severity, why = Severity.CRITICAL, f" (too slow: {climb_s:.0f} s to climb)"
+            # CRITICAL only when the miss it cannot climb out of in time is a danger
+            # (under half the protection distance: the paper's 10 m)
+            danger = d.closest_m < 0.5 * self.config.protect_m
+            severity = Severity.CRITICAL if danger else Severity.WARNING
+            why = f" (too slow: {climb_s:.0f} s to climb)"
         text = f"avoid: {verb} {target_rel:.0f} m{why} for {who} {when}"
         out.append(Manoeuvre(d.kind, reqs, target_rel, d.against, text))
         out.append(self._alert(own, now, severity, text))

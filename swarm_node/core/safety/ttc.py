@@ -1,8 +1,8 @@
 """Closest point of approach (CPA) between vehicles that keep their velocity: pure numpy.
 
-Every position is put in one local East-North-Up frame tangent at an origin (pymap3d,
-WGS84: geodetic -> ECEF -> ENU, exact on the ellipsoid, no flat-earth scale), and every
-NED velocity is rotated from its own vehicle's tangent plane into that frame (ENU ->
+Every position is put in one local East-North-Up frame tangent at an origin
+(`swarm_proto.geodesy`: pymap3d, WGS84, geodetic -> ECEF -> ENU, exact on the
+ellipsoid, no flat-earth scale), and every NED velocity is rotated from its own vehicle's tangent plane into that frame (ENU ->
 ECEF -> ENU), so the geometry stays exact for vehicles kilometres apart.
 
 Altitudes are above mean sea level (`VehicleStatus.alt_msl_m`, ADS-B altitude): the one
@@ -11,9 +11,13 @@ heights over the ellipsoid; the geoid separation is the same to a few centimetre
 the few kilometres avoidance looks at, so the relative geometry is exact to that.
 
 Stale telemetry is never trusted as fresh: a report `age` seconds old is first
-extrapolated to `now` with its velocity, and the vehicle may have done anything since,
-so its protection volume widens by `age * max_speed` (the distance it could have moved).
-Callers compare `miss_m - margin_m` with their thresholds.
+extrapolated to `now` with its velocity, and the vehicle may have manoeuvred since, so
+its protection volume widens by how far it could be from the extrapolation: at most
+`0.5 * max_accel * age^2` (it changes velocity no faster than that) and never more than
+`age * (max_speed + speed)` (the distance it could have moved, plus where the
+extrapolation put it). A report that is itself a prediction (a radio peer's status
+republished by its gateway, issue 19: `VehicleStatus.position_error_m`) widens it by
+that error bound as well. Callers compare `miss_m - margin_m` with their thresholds.
 
     rel_p = p_other - p_own, rel_v = v_other - v_own
     t_cpa = clip(-(rel_p . rel_v) / |rel_v|^2, 0, horizon)     (0 when diverging)
@@ -28,13 +32,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-import pymap3d
 
-from swarm_proto import VehicleStatus
+from swarm_proto import VehicleStatus, geodesy
 
 FloatArray = npt.NDArray[np.float64]
 
 EPS_SPEED2 = 1e-9  # |relative velocity|^2 below this: no relative motion, CPA is now
+DEFAULT_MAX_ACCEL_M_S2 = 10.0  # a fixed-wing at 45 degrees of bank (g tan 45)
 
 
 class BadTrackError(ValueError):
@@ -46,7 +50,9 @@ class Track:
     """Where a vehicle was at `time_s` and how it moved (NED velocity, m/s).
 
     `time_s` is on the caller's clock (the one `now` is on); `max_speed_m_s` is how fast
-    it could go, used to widen its protection volume by what it could have moved since."""
+    it could go, used to widen its protection volume by what it could have moved since;
+    `error_m` is how far the reported position may be from the truth at `time_s` (a
+    radio gateway's prediction: `VehicleStatus.position_error_m`; 0 when measured)."""
 
     vehicle_id: int
     lat_deg: float
@@ -57,6 +63,8 @@ class Track:
     vel_down_m_s: float = 0.0
     time_s: float = 0.0
     max_speed_m_s: float = 0.0
+    error_m: float = 0.0
+    max_accel_m_s2: float = DEFAULT_MAX_ACCEL_M_S2
 
     def __post_init__(self) -> None:
         values = (
@@ -68,6 +76,7 @@ class Track:
             self.vel_down_m_s,
             self.time_s,
             self.max_speed_m_s,
+            self.error_m,
         )
         if not all(math.isfinite(v) for v in values):
             raise BadTrackError(f"vehicle {self.vehicle_id}: non-finite track value {values}")
@@ -75,14 +84,17 @@ class Track:
             raise BadTrackError(
                 f"vehicle {self.vehicle_id}: position ({self.lat_deg}, {self.lon_deg}) out of range"
             )
-        if self.max_speed_m_s < 0.0:
-            raise BadTrackError(f"vehicle {self.vehicle_id}: negative max speed")
+        if self.max_speed_m_s < 0.0 or self.error_m < 0.0 or not self.max_accel_m_s2 >= 0.0:
+            raise BadTrackError(
+                f"vehicle {self.vehicle_id}: negative max speed, acceleration or error"
+            )
 
     @classmethod
     def from_status(
         cls, s: VehicleStatus, *, time_s: float | None = None, max_speed_m_s: float = 0.0
     ) -> Track:
-        """From a VehicleStatus; `time_s` defaults to the sample's own time."""
+        """From a VehicleStatus; `time_s` defaults to the sample's own time; a predicted
+        status's error bound (`position_error_m`) becomes the track's `error_m`."""
         return cls(
             s.vehicle_id,
             s.lat_deg,
@@ -93,6 +105,7 @@ class Track:
             s.vel_down_m_s,
             s.time_unix_s if time_s is None else time_s,
             max_speed_m_s,
+            s.position_error_m,
         )
 
     @property
@@ -111,16 +124,13 @@ class Frame:
 
     def positions(self, lat: FloatArray, lon: FloatArray, h: FloatArray) -> FloatArray:
         """(N, 3) east, north, up metres."""
-        e, n, u = pymap3d.geodetic2enu(lat, lon, h, self.lat0_deg, self.lon0_deg, self.h0_m)
-        return np.stack([np.asarray(e, float), np.asarray(n, float), np.asarray(u, float)], -1)
+        return geodesy.enu(lat, lon, h, self.lat0_deg, self.lon0_deg, self.h0_m)
 
     def velocities(
         self, lat: FloatArray, lon: FloatArray, vn: FloatArray, ve: FloatArray, vd: FloatArray
     ) -> FloatArray:
         """(N, 3) ENU velocities in this frame, from NED velocities at (lat, lon)."""
-        x, y, z = pymap3d.enu2uvw(ve, vn, -vd, lat, lon)  # own tangent plane -> ECEF axes
-        e, n, u = pymap3d.uvw2enu(x, y, z, self.lat0_deg, self.lon0_deg)
-        return np.stack([np.asarray(e, float), np.asarray(n, float), np.asarray(u, float)], -1)
+        return geodesy.ned_to_enu_velocity(lat, lon, vn, ve, vd, self.lat0_deg, self.lon0_deg)
 
 
 @dataclass(frozen=True, slots=True)
@@ -132,7 +142,7 @@ class Kinematic:
     pos: FloatArray  # (N, 3) ENU m at `now`
     vel: FloatArray  # (N, 3) ENU m/s
     age_s: FloatArray  # (N,) how old each report is at `now` (>= 0)
-    margin_m: FloatArray  # (N,) age * max speed
+    margin_m: FloatArray  # (N,) how far from its extrapolation it could be, + error bound
 
 
 def kinematic(tracks: Sequence[Track], now: float, frame: Frame | None = None) -> Kinematic:
@@ -151,7 +161,11 @@ def kinematic(tracks: Sequence[Track], now: float, frame: Frame | None = None) -
     age = np.maximum(0.0, now - np.array([t.time_s for t in tracks]))
     vel = frame.velocities(lat, lon, vn, ve, vd)
     pos = frame.positions(lat, lon, h) + vel * age[:, None]
-    margin = age * np.array([t.max_speed_m_s for t in tracks])
+    speed = np.hypot(vn, ve)
+    by_speed = age * (np.array([t.max_speed_m_s for t in tracks]) + speed)
+    by_accel = 0.5 * np.array([t.max_accel_m_s2 for t in tracks]) * age * age
+    margin = np.minimum(by_speed, by_accel)
+    margin += np.array([t.error_m for t in tracks])
     return Kinematic(tuple(t.vehicle_id for t in tracks), pos, vel, age, margin)
 
 

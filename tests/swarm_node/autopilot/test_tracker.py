@@ -101,6 +101,7 @@ def test_the_handler_table_covers_what_the_issue_lists() -> None:
         "HEARTBEAT", "GLOBAL_POSITION_INT", "SYS_STATUS", "BATTERY_STATUS", "GPS_RAW_INT",
         "ATTITUDE", "VFR_HUD", "HOME_POSITION", "SYSTEM_TIME", "MISSION_CURRENT",
         "MISSION_ITEM_REACHED", "STATUSTEXT", "EKF_STATUS_REPORT", "EXTENDED_SYS_STATE",
+        "ADSB_VEHICLE",
     }  # fmt: skip
     assert set(t.handlers) == wanted == set(HANDLED)
     assert not (wanted & IGNORED) and not (wanted & PROTOCOL) and not (IGNORED & PROTOCOL)
@@ -269,8 +270,16 @@ f32 = st.floats(width=32, allow_nan=True, allow_infinity=True)
 @st.composite
 def any_message(draw: st.DrawFn) -> Any:
     kind = draw(
-        st.sampled_from(["gpi", "att", "vfr", "sys", "gps", "time", "home", "hb", "ekf", "cur"])
+        st.sampled_from(
+            ["gpi", "att", "vfr", "sys", "gps", "time", "home", "hb", "ekf", "cur", "adsb"]
+        )
     )
+    if kind == "adsb":
+        return mavlink.MAVLink_adsb_vehicle_message(
+            draw(st.integers(0, 2**32 - 1)), draw(i32), draw(i32), 0, draw(i32), draw(u16),
+            draw(u16), draw(st.integers(-32768, 32767)), b"X", 0, draw(st.integers(0, 255)),
+            draw(u16), 0,
+        )  # fmt: skip
     if kind == "gpi":
         return mavlink.MAVLink_global_position_int_message(
             draw(st.integers(0, 2**32 - 1)), draw(i32), draw(i32), draw(i32), draw(i32),
@@ -357,3 +366,42 @@ def test_heartbeats_alone_do_not_flap_the_link_but_telemetry_makes_it_quick() ->
     assert t.next_deadline() == pytest.approx(last + 0.9)
     (lost,) = t.on_timer(last + 0.9)
     assert isinstance(lost, LinkLost) and lost.silent_s <= 1.0
+
+
+def adsb(
+    icao: int = 0xABCDEF, lat: float = 37.42, lon: float = -5.99, alt_m: float = 150.0,
+    heading_cdeg: int = 9000, speed_cm_s: int = 3000, climb_cm_s: int = -100,
+    flags: int = 1 | 2 | 4 | 8, tslc: int = 1, callsign: bytes = b"EC123",
+) -> Any:
+    return mavlink.MAVLink_adsb_vehicle_message(
+        icao, round(lat * 1e7), round(lon * 1e7), 0, round(alt_m * 1000), heading_cdeg,
+        speed_cm_s, climb_cm_s, callsign, 1, tslc, flags, 0,
+    )  # fmt: skip
+
+
+def test_adsb_traffic_is_kept_per_aircraft_and_dropped_when_silent() -> None:
+    """Issue 14: ADSB_VEHICLE from the autopilot (or its ADS-B receiver, same system)
+    becomes `traffic` for collision avoidance, the latest report per ICAO address."""
+    t = tracker()
+    v, _ = t.handle(wire(adsb()), T0 + 1)
+    assert v is Verdict.ACCEPTED
+    (r,) = t.state.traffic
+    assert (r.icao_address, r.lat_deg, r.lon_deg, r.alt_msl_m) == (0xABCDEF, 37.42, -5.99, 150.0)
+    assert r.vel_east_m_s == pytest.approx(30.0) and abs(r.vel_north_m_s) < 1e-9
+    assert r.vel_down_m_s == pytest.approx(1.0) and r.time_s == T0 and r.callsign == "EC123"
+    t.handle(wire(adsb(icao=7, flags=1 | 2), sysid=1, compid=156), T0 + 2)  # the receiver
+    assert [x.icao_address for x in t.state.traffic] == [7, 0xABCDEF]
+    assert t.state.traffic[0].vel_east_m_s == 0.0  # velocity not flagged valid: none
+    t.handle(wire(adsb(icao=7, lat=37.43)), T0 + 30)  # the other silent for 29 s: dropped
+    assert [(x.icao_address, x.lat_deg) for x in t.state.traffic] == [(7, 37.43)]
+    v, _ = t.handle(wire(adsb(icao=9), sysid=2), T0 + 31)  # another system: foreign
+    assert v is Verdict.FOREIGN and len(t.state.traffic) == 1
+
+
+@pytest.mark.parametrize(
+    "msg", [adsb(flags=1), adsb(lat=95.0), adsb(tslc=0, flags=0)], ids=["no-alt", "lat", "flags"]
+)
+def test_adsb_without_a_valid_position_is_invalid_input(msg: Any) -> None:
+    t = tracker()
+    v, _ = t.handle(wire(msg), T0 + 1)
+    assert v is Verdict.INVALID and t.state.traffic == () and t.state.bad_packets == 1

@@ -141,18 +141,18 @@ def test_three_way_targets_stack_by_rank() -> None:
 def test_stale_telemetry_widens_the_protection_volume() -> None:
     fresh = [status(1, 0, 0, 100, ve=20), status(2, 800, 60, 100, ve=-20)]  # 60 m abeam
     assert feed(avoider(2), fresh) == []
-    old = status(1, 0, 0, 100, ve=20, t=T - 2.0)  # heard now, sampled 2 s ago
+    old = status(1, 0, 0, 100, ve=20, t=T - 4.0)  # heard now, sampled 4 s ago
     av = avoider(2)
     av.handle(old, T)
     (m,) = manoeuvres(feed(av, [fresh[1]]))
-    assert m.kind is ManoeuvreKind.CLIMB  # 60 m < 20 m + 2 s * 35 m/s
+    assert m.kind is ManoeuvreKind.CLIMB  # 60 m < 20 m + 0.5 * 10 m/s^2 * (4 s)^2
 
 
 def test_a_report_is_at_least_as_old_as_when_it_was_heard() -> None:
     av = avoider(2)
     av.handle(status(1, 0, 0, 100, ve=20), T)  # heard at T, says T
-    av.handle(status(2, 800, 60, 100, ve=-20, t=T + 2.0), T + 2.0)
-    assert manoeuvres(av.on_timer(T + 2.0))  # not heard for 2 s: widened
+    av.handle(status(2, 800, 60, 100, ve=-20, t=T + 4.0), T + 4.0)
+    assert manoeuvres(av.on_timer(T + 4.0))  # not heard for 4 s: widened by 80 m
 
 
 def test_a_rover_and_a_plane() -> None:
@@ -479,3 +479,22 @@ def test_a_non_cooperative_intruder_in_fast_time() -> None:
     assert min(separations(on.samples)) > 10.0
     off = run(starts, duration_s=60.0, avoid=False)
     assert min(separations(off.samples)) < 5.0
+
+
+def test_in_the_band_a_fixed_wing_climbs_before_a_multirotor_once_types_are_known() -> None:
+    """A VTOL (id 1) and a quadcopter (id 7) head-on at one altitude: with both types
+    known (VehicleInfo) the VTOL climbs, whatever the ids; each side decides alike. With
+    the peer's type unknown the higher id climbs (the rule every report allows)."""
+    def info(vid: int, vtype: VehicleType) -> VehicleInfo:
+        return VehicleInfo(vehicle_id=vid, vehicle_type=vtype, model="m", user_id=f"U{vid}")
+
+    pair = [status(1, 0, 0, 100, ve=20), status(7, 800, 0, 100, ve=-10)]
+    vtol = avoider(1, VehicleType.VTOL)
+    copter = avoider(7, VehicleType.COPTER)
+    vtol.handle(info(7, VehicleType.COPTER), T)
+    copter.handle(info(1, VehicleType.VTOL), T)
+    (m,) = manoeuvres(feed(vtol, pair))
+    assert m.kind is ManoeuvreKind.CLIMB
+    assert manoeuvres(feed(copter, pair)) == []
+    # the VTOL has not heard the copter's VehicleInfo: ids decide, the copter (7) climbs
+    assert manoeuvres(feed(avoider(1, VehicleType.VTOL), pair)) == []

@@ -54,3 +54,37 @@ def test_a_host_at_the_wrong_serial_rate_gets_garbage() -> None:
         finally:
             good.close()
             slow.close()
+
+
+def test_what_a_descheduled_emulator_reads_late_is_counted_apart() -> None:
+    """Two hosts write 30 ms apart (no overlap on air) while the emulator's process is
+    stopped (a loaded machine): it reads both at once, their packets overlap, and the
+    collision is counted as late (`collisions_late`), not as a TDM fault."""
+    import os
+    import signal
+
+    from swarm_sim.radio_channel.pty import ChannelProcess
+
+    regs = RadioSettings().registers()
+    with ChannelProcess(3, ChannelParams(), registers=regs) as ch:
+        ports = [serial.Serial(p, 230_400, timeout=0.1) for p in ch.ports]
+        try:
+            ports[0].write(b"settle\x00")
+            assert _read(ports[1], 7) == b"settle\x00"
+            ch.reset_stats()
+            os.kill(ch._proc.pid, signal.SIGSTOP)
+            try:
+                ports[0].write(b"a" * 40 + b"\x00")
+                time.sleep(0.03)
+                ports[1].write(b"b" * 40 + b"\x00")
+                time.sleep(0.05)
+            finally:
+                os.kill(ch._proc.pid, signal.SIGCONT)
+            time.sleep(0.3)
+            stats = ch.stats()
+        finally:
+            for p in ports:
+                p.close()
+    c = stats["channel"]
+    assert c.get("collisions", 0) == 1 and c.get("collisions_late", 0) == 1
+    assert c.get("collisions_tdm", 0) == 0 and stats["late_reads"] >= 1

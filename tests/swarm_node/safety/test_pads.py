@@ -1,0 +1,126 @@
+"""Take-off and landing deconfliction at neighbouring pads (safety/pads.py)."""
+
+from __future__ import annotations
+
+import itertools
+
+from hypothesis import given
+from hypothesis import strategies as st
+
+from swarm_node.core.safety.pads import PadConfig, hold_layer, may_move
+from swarm_proto import GeoPoint, MissionState, VehicleStatus, geodesy
+
+LAT, LON = 37.41, -5.99
+T = 1.8e9
+
+
+def pad(east_m: float, north_m: float = 0.0) -> GeoPoint:
+    lat, lon = geodesy.offset(LAT, LON, north_m, east_m)
+    return GeoPoint(lat, lon, 10.0)
+
+
+def status(
+    vid: int,
+    east_m: float,
+    alt_rel_m: float = 0.0,
+    armed: bool = False,
+    state: MissionState = MissionState.IDLE,
+) -> VehicleStatus:
+    p = pad(east_m)
+    return VehicleStatus(
+        vehicle_id=vid, time_unix_s=T, lat_deg=p.lat_deg, lon_deg=p.lon_deg,
+        alt_msl_m=10.0 + alt_rel_m, alt_rel_m=alt_rel_m, armed=armed, mission_state=state,
+    )  # fmt: skip
+
+
+def ids(blockers: list) -> list[int]:
+    return [b.vehicle_id for b in blockers]
+
+
+def test_a_simultaneous_take_off_goes_in_id_order() -> None:
+    """Three vehicles 8 m apart, all about to take off: only the lowest id goes."""
+    peers = {v: status(v, 8.0 * (v - 1), state=MissionState.PREMISSION) for v in (1, 2, 3)}
+    pads = {v: pad(8.0 * (v - 1)) for v in peers}
+
+    def blockers(v: int) -> list[int]:
+        return ids(may_move(v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=True))
+
+    assert blockers(1) == []
+    assert blockers(2) == [1]
+    assert sorted(blockers(3)) == [1, 2]
+
+
+def test_the_next_goes_once_the_one_before_is_high_or_gone() -> None:
+    mine = pad(8.0)
+    climbing = status(1, 0.0, alt_rel_m=12.0, armed=True, state=MissionState.PREMISSION)
+    assert ids(may_move(2, mine, [(climbing, pad(0.0))], taking_off=True)) == [1]
+    high = status(1, 0.0, alt_rel_m=31.0, armed=True, state=MissionState.PREMISSION)
+    assert may_move(2, mine, [(high, pad(0.0))], taking_off=True) == []
+    gone = status(1, 60.0, alt_rel_m=12.0, armed=True, state=MissionState.MISSION)
+    assert may_move(2, mine, [(gone, pad(0.0))], taking_off=True) == []
+
+
+def test_who_does_not_block_a_take_off() -> None:
+    mine = pad(8.0)
+    # a higher id about to take off waits for us; a lower id that is not going (IDLE)
+    # or stands on a pad far away does not hold us; a silent peer is not in the list
+    higher = status(3, 16.0, state=MissionState.PREMISSION)
+    idle = status(1, 0.0, state=MissionState.IDLE)
+    far = status(1, 60.0, state=MissionState.PREMISSION)
+    for peer, p in ((higher, pad(16.0)), (idle, pad(0.0)), (far, pad(60.0))):
+        assert may_move(2, mine, [(peer, p)], taking_off=True) == [], peer
+
+
+def test_landing_waits_for_a_low_neighbour_and_for_the_layers_below() -> None:
+    mine = pad(8.0)
+
+    def blockers(peer: VehicleStatus, at: GeoPoint, own_rel: float) -> list[int]:
+        return ids(may_move(2, mine, [(peer, at)], taking_off=False, own_alt_msl_m=10.0 + own_rel))
+
+    taking_off = status(3, 16.0, alt_rel_m=5.0, armed=True)  # higher id, but low
+    assert blockers(taking_off, pad(16.0), 60.0) == [3]
+    holding = status(1, 0.0, alt_rel_m=60.0, armed=True)  # a neighbour holding at 60 m
+    assert blockers(holding, pad(0.0), 90.0) == [1]  # we would descend through it
+    assert blockers(holding, pad(0.0), 30.0) == []  # it is above us
+    level_lower = status(1, 0.0, alt_rel_m=62.0, armed=True)
+    level_higher = status(3, 16.0, alt_rel_m=62.0, armed=True)
+    assert blockers(level_lower, pad(0.0), 60.0) == [1]  # level: the lower id first
+    assert blockers(level_higher, pad(16.0), 60.0) == []
+    # a take-off is not held by a neighbour 60 m up
+    assert may_move(2, mine, [(holding, pad(0.0))], taking_off=True) == []
+    landed = status(1, 0.0, alt_rel_m=0.2, armed=False)
+    assert blockers(landed, pad(0.0), 60.0) == []
+
+
+@given(st.lists(st.tuples(st.floats(-60, 60), st.floats(0, 120)), min_size=2, max_size=7))
+def test_landings_never_deadlock(spots: list[tuple[float, float]]) -> None:
+    """Any number of vehicles waiting over neighbouring pads at any heights: unless one
+    is low (taking off or landing: moving), one of them may land."""
+    peers = {
+        v + 1: status(v + 1, e, alt_rel_m=max(2.0, h), armed=True) for v, (e, h) in enumerate(spots)
+    }
+    pads = {v: pad(spots[v - 1][0]) for v in peers}
+    free = [
+        v
+        for v, me in peers.items()
+        if not may_move(
+            v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=False,
+            own_alt_msl_m=me.alt_msl_m,
+        )
+    ]  # fmt: skip
+    if all(s.alt_rel_m >= PadConfig().stagger_m for s in peers.values()):
+        assert free
+
+
+@given(st.lists(st.tuples(st.floats(-400, 400), st.floats(-400, 400)), min_size=1, max_size=8))
+def test_holding_layers_never_repeat_among_pads_whose_circles_may_overlap(
+    spots: list[tuple[float, float]],
+) -> None:
+    pads = {v + 1: pad(e, n) for v, (e, n) in enumerate(spots)}
+    cfg = PadConfig()
+    layer = {v: hold_layer(v, p, {u: q for u, q in pads.items() if u != v}) for v, p in pads.items()}
+    for a, b in itertools.combinations(pads, 2):
+        pa, pb = pads[a], pads[b]
+        if geodesy.distance_m(pa.lat_deg, pa.lon_deg, pb.lat_deg, pb.lon_deg) < cfg.hold_near_m:
+            assert layer[a] != layer[b]
+    assert min(layer.values()) == cfg.hold_alt_rel_m
