@@ -374,13 +374,16 @@ def draw_altitude(out: Path, flight: Flight, record: Record, t0: float) -> None:
     marks = {"survey": "survey", "vote": "target reported", "fail": "replanned",
              "inherit": "vehicle lost", "finish": "inherited", "home": "all missions flown"}  # fmt: skip
     top = max(float(flight.alt_rel_m.max()) if len(flight.alt_rel_m) else 100.0, 50.0)
+    k = 0
     for t, step in record.steps:
         if step in marks:
             ax.axvline(t / 60.0, color="grey", linestyle=":", linewidth=0.8)
-            ax.text(t / 60.0, top * 1.02, marks[step], rotation=30, fontsize=7, va="bottom")
+            ax.text(t / 60.0, top * (1.02 + 0.07 * (k % 4)), f" {marks[step]}", fontsize=7,
+                    va="bottom", ha="left", color="dimgrey")  # fmt: skip
+            k += 1
     ax.set_xlabel("time since the base was set, min")
     ax.set_ylabel("height above home, m")
-    ax.set_ylim(-5, top * 1.25)
+    ax.set_ylim(-5, top * 1.35)
     ax.grid(True, linewidth=0.3)
     ax.legend(fontsize=7, ncol=3, loc="lower center")
     fig.tight_layout()

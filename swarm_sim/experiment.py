@@ -194,18 +194,13 @@ def run(
                     if isinstance(m, VehicleStatus | VehicleInfo | Alert | Ack | Vote):
                         actions += story.handle(m, t)
                 actions += story.on_timer(t)
-                if story.record.winners:
-                    narrator.context[AREA_ID] = (
-                        f"{' and '.join(map(str, story.record.winners))} voted out to the target"
-                        if not story.record.failed else
-                        f"vehicle {next(iter(story.record.failed))} lost"
-                    )  # fmt: skip
                 for a in actions:
                     if isinstance(a, Send):
                         shell.publish(a.msg)
                     elif isinstance(a, Say):
                         _say(console, t - sim0, "operator", a.text, "bold cyan")
                     elif isinstance(a, Fail):
+                        narrator.lost(a.vehicle_id)
                         _fail(fleet, a.vehicle_id)
                     elif isinstance(a, Finished):
                         finished = a

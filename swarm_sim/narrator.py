@@ -68,7 +68,14 @@ class Narrator:
         self.t0 = t0
         self.names = names or {}  # mission id -> what it is ("the area survey")
         self.context: dict[int, str] = {}  # mission id -> why its fleet replans now
+        self.chosen: dict[int, list[int]] = {}  # mission id -> members voted out of it
         self.vehicles: dict[int, _Vehicle] = {}
+
+    def lost(self, vehicle_id: int) -> None:
+        """A vehicle is gone (the script made it fail): its fleet's replan is for it."""
+        mid = self.vehicles.get(vehicle_id, _Vehicle()).mission_id
+        if mid:
+            self.context[mid] = f"vehicle {vehicle_id} lost, its share is shared out"
 
     def mission(self, mission_id: int) -> str:
         return self.names.get(mission_id, f"mission {mission_id}")
@@ -102,6 +109,8 @@ class Narrator:
                 return Doing.VOTING
             if s.fsm_state == FsmState.PLAN:
                 return Doing.PLANNING
+            if s.fsm_state == FsmState.GO_MISSION and mid > 0:
+                return Doing.TAKING_OFF  # planned: waiting its turn to launch, or launching
             return Doing.READY if s.fsm_state == FsmState.GO_MISSION else Doing.PAD
         match s.mission_state:
             case MissionState.VOTING:
@@ -153,6 +162,8 @@ class Narrator:
             case Doing.VOTING:
                 return f"voting who flies {m}"
             case Doing.TAKING_OFF:
+                if not s.armed:
+                    return f"launching for {m} (in turn with the pads next to it)"
                 return f"taking off for {m}"
             case Doing.TO_ENTRY:
                 return f"flying to its entry point of {m} (PREMISSION: the fleet arrives together)"
@@ -183,6 +194,11 @@ class Narrator:
                          "is flown (MISSION_COMPLETE)")]  # fmt: skip
         if a.text.startswith("chosen for mission "):
             mid = _mission_of(a.text, 3)
+            left = self.vehicles.setdefault(a.vehicle_id, _Vehicle()).mission_id
+            if left:
+                self.chosen.setdefault(left, []).append(a.vehicle_id)
+                gone = " and ".join(map(str, self.chosen[left]))
+                self.context[left] = f"{gone} voted out to {self.mission(mid)}"
             score = a.text.rsplit(" ", 1)[-1]
             return [Line(t, a.vehicle_id, f"chosen by the vote for {self.mission(mid)} "
                          f"(score {score}): leaves its fleet", 1)]  # fmt: skip

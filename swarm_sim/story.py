@@ -101,23 +101,25 @@ class StoryPlan:
 
     @classmethod
     def experiment_one(
-        cls, members: Sequence[int], origin: tuple[float, float], **kw: object
-    ) -> StoryPlan:
+        cls, members: Sequence[int], origin: tuple[float, float], *, scale: float = 1.0,
+        **kw: object,
+    ) -> StoryPlan:  # fmt: skip
         """The places, north of pads going east from `origin`: a 1000 x 700 m field
         1 km north with a no-fly zone in it, the target 250 m east of the field, a
-        400 m square perimeter west of it and a route north of it past a second zone."""
+        400 m square perimeter west of it and a route north of it past a second zone
+        (every distance times `scale`: a shorter story for tests)."""
         f = LocalFrame(*origin)
 
         def at(east: float, north: float) -> tuple[float, float]:
-            return f.to_geodetic(east, north)
+            return f.to_geodetic(east * scale, north * scale)
 
         def poly(*pts: tuple[float, float]) -> Geometry:
             return Geometry.polygon([at(e, n) for e, n in pts])
 
         area = poly((-425, 650), (575, 650), (575, 1350), (-425, 1350))
-        zone1 = NoFlyZone(1, Geometry.circle(*at(250, 1050), 60.0), floor_alt_msl_m=-100.0,
+        zone1 = NoFlyZone(1, Geometry.circle(*at(250, 1050), 60.0 * scale), floor_alt_msl_m=-100.0,
                           ceiling_alt_msl_m=1000.0, name="field zone")  # fmt: skip
-        zone2 = NoFlyZone(2, Geometry.circle(*at(75, 1760), 80.0), floor_alt_msl_m=-100.0,
+        zone2 = NoFlyZone(2, Geometry.circle(*at(75, 1760), 80.0 * scale), floor_alt_msl_m=-100.0,
                           ceiling_alt_msl_m=1000.0, name="route zone")  # fmt: skip
         perimeter = poly((-1150, 800), (-750, 800), (-750, 1200), (-1150, 1200))
         route = Geometry(
@@ -662,8 +664,13 @@ def fly_fast(
     """The story against a FastFleet: the ground station hears everything the vehicles
     publish (`on_message(msg, now)` hears it too), its messages reach every vehicle at
     once, `Fail` vanishes a vehicle."""
+    from swarm_node.core.node import NodeSettings
+
     from .fast_fleet import FastFleet
 
+    # the close pads' take-off sequence is part of the launch, which the state machine
+    # bounds with the plan timeout: as the demo's nodes at 5x (demo.plan_timeout_s)
+    settings = settings or NodeSettings(plan_timeout_s=300.0)
     fleet = FastFleet.build(list(plan.members), profiles, spacing_m=spacing_m,  # type: ignore[arg-type]
                             settings=settings, mission_defaults=seed_mission_defaults())  # type: ignore[arg-type]  # fmt: skip
     t_start = fleet.now
