@@ -112,15 +112,15 @@ def draw(
     for m in missions:
         g = m.geometry
         xy = [frame.xy(p.lat_deg, p.lon_deg) for p in g.points]
+        label = f"mission {m.mission_id} ({m.mission_type.name.lower()})"
         if g.kind == GeometryKind.POLYGON:
             ax.add_patch(Polygon(xy, closed=True, facecolor=(0.85, 0.85, 0.85), edgecolor="black",
-                                 linestyle="--", linewidth=1.0, zorder=1,
-                                 label=f"mission {m.mission_id} ({m.mission_type.name.lower()})"))  # fmt: skip
+                                 linestyle="--", linewidth=1.0, zorder=1, label=label))  # fmt: skip
         elif g.kind == GeometryKind.CIRCLE:
             ax.add_patch(Circle(xy[0], g.radius_m or 0.0, fill=False, edgecolor="black",
-                                linestyle="--", zorder=1, label=f"mission {m.mission_id}"))  # fmt: skip
+                                linestyle="--", zorder=1, label=label))  # fmt: skip
         else:
-            ax.plot(*zip(*xy, strict=True), "k--", marker="x", zorder=1, label=f"mission {m.mission_id}")
+            ax.plot(*zip(*xy, strict=True), "k--", marker="x", zorder=1, label=label)
         drawn["missions"] += 1
     for z in zones:
         if not z.active:

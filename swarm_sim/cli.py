@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import typer
+
+DEMO_OUT = Path("demo-out")
 
 app = typer.Typer(
     help="bandada simulator: vehicles, radio channel, scenarios.", no_args_is_help=True
@@ -16,52 +20,67 @@ def _group() -> None:
 
 @app.command()
 def demo(
-    vehicle_ids: str = typer.Option(
-        "1,2,3,7,8", "--vehicles", help="seed database ids: 1-6 Albatross VTOL, 7-9 quadcopters"
+    vehicle_ids: str | None = typer.Option(
+        None, "--vehicles", help="seed database ids (default 1-6: the six Albatross VTOLs; "
+        "7-9 quadcopters, 10-11 rovers, 12-13 boats); at least 4",
+    ),
+    mixed: bool = typer.Option(
+        False, "--mixed", help="add three quadcopters (7-9), a rover (10) and a boat (12)"
     ),
     speedup: float | None = typer.Option(
         None, help="simulated seconds per wall second (default 5, or 1 with --radio)"
     ),
-    timeout: float = typer.Option(600.0, help="wall seconds to wait for the fleet to land"),
+    timeout: float = typer.Option(1800.0, help="wall seconds the whole story may take"),
     keep: bool = typer.Option(False, help="keep the node logs"),
     radio: bool = typer.Option(
         False, "--radio", help="vehicles and ground station talk only over the emulated radio"
     ),
+    out: Path = typer.Option(
+        DEMO_OUT, "--out", file_okay=False, help="the report's directory"
+    ),
     avoidance: bool = typer.Option(
-        False,
+        True,
         "--avoidance/--no-avoidance",
-        help="the nodes' collision avoidance (off: the default fleet's 3.3 Ah quadcopters "
-        "have no reserve for its climbs and landing holds, docs/avoidance.md)",
+        help="the nodes' collision avoidance and the close pads' take-off and landing "
+        "sequencing (docs/avoidance.md)",
     ),
 ) -> None:
-    """A simulated swarm flies an area-coverage mission around a no-fly zone, through
-    the real stack (simulated MAVLink vehicles, one swarm-node process each, Zenoh on
-    127.0.0.1, the ground station), and lands. With --radio, every message between
-    vehicles and the ground station crosses the emulated 900 MHz TDM radio instead."""
+    """The paper's experiment 1, flown by the real stack (simulated MAVLink vehicles, one
+    swarm-node process each, Zenoh on 127.0.0.1, the ground station): base and zones, a
+    simultaneous take-off, a survey split across the fleet, a target reported and two
+    vehicles voted out to it, the others re-split the survey, one vehicle fails and its
+    share is inherited, a perimeter and a route flown with simultaneous arrival, return
+    and landing. Narrated live; report.json, the flight CSV and pictures in --out. Exit 1
+    if a mission was not completed, airborne vehicles came within 5 m or the survey
+    covered under 99 %. With --radio, every message between vehicles and the ground
+    station crosses the emulated 900 MHz TDM radio instead."""
     from .demo import run_demo
+    from .experiment import EXPERIMENT_FLEET, MIXED_EXTRA
 
-    try:
-        members = tuple(int(x) for x in vehicle_ids.split(","))
-    except ValueError as exc:
-        raise typer.BadParameter("comma-separated ids", param_hint="--vehicles") from exc
+    if vehicle_ids is not None and mixed:
+        raise typer.BadParameter("give --vehicles or --mixed, not both", param_hint="--mixed")
+    if vehicle_ids is not None:
+        try:
+            members = tuple(int(x) for x in vehicle_ids.split(","))
+        except ValueError as exc:
+            raise typer.BadParameter("comma-separated ids", param_hint="--vehicles") from exc
+        if len(set(members)) != len(members) or len(members) < 4:
+            raise typer.BadParameter("at least 4 distinct ids", param_hint="--vehicles")
+    else:
+        members = EXPERIMENT_FLEET + (MIXED_EXTRA if mixed else ())
     if speedup is None:
         speedup = 1.0 if radio else 5.0
-    if not speedup > 0:
-        raise typer.BadParameter("must be positive", param_hint="--speedup")
+    if not (speedup > 0 and speedup <= 100):
+        raise typer.BadParameter("must be in (0, 100]", param_hint="--speedup")
+    if not (timeout > 0):
+        raise typer.BadParameter("must be positive", param_hint="--timeout")
     if radio and speedup > 2.0:
         # TDM slots are a few milliseconds of wall time at high speed-ups; a shared
         # laptop cannot write the serial ports that precisely
         typer.echo(f"warning: --radio at {speedup:g}x leaves the slots little margin", err=True)
-    raise typer.Exit(
-        run_demo(
-            members,
-            speedup=speedup,
-            timeout_s=timeout,
-            keep=keep,
-            radio=radio,
-            avoidance=avoidance,
-        )
-    )
+    code = run_demo(members, speedup=speedup, timeout_s=timeout, keep=keep, radio=radio,
+                    out=out, avoidance=avoidance)  # fmt: skip
+    raise typer.Exit(code)
 
 
 @app.command()

@@ -1,10 +1,11 @@
-"""The demo: a heterogeneous simulated swarm flies an area-coverage mission with a
-no-fly zone, on this machine, in fast time, through the real stack.
+"""The demo's fleet: simulated ArduPilot vehicles and one `swarm-node run` process per
+vehicle, on this machine, in fast time, through the real stack; `make demo` flies the
+paper's experiment 1 with it (swarm_sim/experiment.py, story.py).
 
     simulated ArduPilot vehicles (MAVLink on TCP, one thread)     swarm_sim.runtime
       <-> one `swarm-node run` process per vehicle                 swarm_node
       <-> Zenoh on 127.0.0.1 (a router-mode session here)
-      <-> the ground station (this process)                        gcs_cli.ground
+      <-> the ground station (the demo's process)                  gcs_cli.ground
 
 With `radio=True` (`swarm-sim demo --radio`) nothing crosses Zenoh between vehicles:
 each vehicle's node and its `radio-gateway run` process share a Zenoh network of their
@@ -13,8 +14,8 @@ gateways talk over the emulated XTend channel (pseudo-terminals, TDM slots, fram
 authentication), after configuring their modules through AT command mode.
 
 Every process shares one simulated clock (BANDADA_CLOCK) and one seeded swarm database
-(BANDADA_DB) in a temporary directory. The ground station sets the base, declares the
-zone, sends the mission, and watches the fleet plan, fly, return and land.
+(BANDADA_DB) in a temporary directory. `demo_area` is the earlier demo's survey (a
+reference scenario of tests and benchmarks).
 """
 
 from __future__ import annotations
@@ -22,43 +23,30 @@ from __future__ import annotations
 import multiprocessing
 import multiprocessing.process
 import os
-import shutil
+import queue
 import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 
-from gcs_cli.ground import FleetView, GroundStation
-from gcs_cli.render import fleet_table
 from swarm_node.database import SwarmDatabase
 from swarm_proto import (
-    AlertCode,
-    CommandArgs,
-    CommandKind,
-    FsmState,
     Geometry,
-    GeoPoint,
-    Mission,
-    MissionParams,
-    MissionType,
     NoFlyZone,
     ScaledClock,
-    Selector,
     geodesy,
 )
 from swarm_proto.clock import ENV_VAR as CLOCK_ENV
 from swarm_proto.clock import clock_from_spec
 from swarm_proto.messages import RadioStats
-from swarm_proto.session import SwarmBus, ZenohSettings, open_session
-from swarm_proto.topics import RADIO_STATS
+from swarm_proto.session import ZenohSettings, open_session
 
 from .core import SITL_HOME
 from .fast_fleet import MODEL_OF_TYPE
@@ -118,6 +106,13 @@ class Fleet:
     endpoint: str  # where the ground station connects
     gateways: dict[int, subprocess.Popen[bytes]] = field(default_factory=dict)
     channel: ChannelProcess | None = None  # the emulated radio channel (radio mode)
+    clock_spec: str = ""  # the shared simulated clock (BANDADA_CLOCK)
+    crashes: Any = None  # a queue to the simulator: system ids of vehicles that crash
+
+    def crash(self, vid: int) -> None:
+        """Take the vehicle's aircraft out of the simulator (`VehicleServer.remove`)."""
+        if self.crashes is not None:
+            self.crashes.put(vid)
 
 
 # In radio mode the gateways and the channel keep the default priority and everything
@@ -170,14 +165,21 @@ def start_radio(
 
 
 def serve_vehicles(
-    specs: list[VehicleSpec], clock_spec: str, stop: threading.Event, nice: int = 0
-) -> None:
+    specs: list[VehicleSpec], clock_spec: str, stop: threading.Event, nice: int = 0,
+    crashes: Any = None,
+) -> None:  # fmt: skip
     """The simulated vehicles, in a process of their own (spawned): the ground station
-    and Zenoh in the demo process must not slow the vehicles' clock-driven loop."""
+    and Zenoh in the demo process must not slow the vehicles' clock-driven loop.
+    `crashes`: a queue of system ids whose aircraft are taken away."""
     if nice:
         os.nice(nice)
-    with VehicleServer(specs, clock_from_spec(clock_spec)):
-        stop.wait()
+    with VehicleServer(specs, clock_from_spec(clock_spec)) as server:
+        while not stop.wait(0.2):
+            while crashes is not None:
+                try:
+                    server.remove(int(crashes.get_nowait()))
+                except queue.Empty:
+                    break
 
 
 def start(
@@ -188,6 +190,7 @@ def start(
     *,
     radio: bool = False,
     avoidance: bool = False,
+    spacing_m: float = 40.0,
 ) -> Fleet:
     db_path = tmp / "swarm.db"
     with SwarmDatabase.open(db_path) as db:
@@ -198,7 +201,7 @@ def start(
     if unknown:
         raise SystemExit(f"not vehicles of the seed database: {unknown}")
     clock = ScaledClock(speedup)
-    homes = spread_homes(SITL_HOME, len(members), 40.0)
+    homes = spread_homes(SITL_HOME, len(members), spacing_m)
     specs = [
         VehicleSpec(
             MODEL_OF_TYPE[profiles[vid].vehicle_type],
@@ -211,9 +214,10 @@ def start(
     ]
     ctx = multiprocessing.get_context("spawn")
     stop_simulator = ctx.Event()
+    crashes = ctx.Queue()
     simulator = ctx.Process(
         target=serve_vehicles,
-        args=(specs, clock.spec(), stop_simulator, YIELD_TO_RADIO if radio else 0),
+        args=(specs, clock.spec(), stop_simulator, YIELD_TO_RADIO if radio else 0, crashes),
         name="vehicles",
     )
     simulator.start()
@@ -254,8 +258,9 @@ def start(
             "(115.2 kbps, 200 ms TDM cycle), one gateway per node"
         )
     return Fleet(
-        tmp, router, simulator, stop_simulator, nodes, lans[GCS_ID], gateways, channel
-    )
+        tmp, router, simulator, stop_simulator, nodes, lans[GCS_ID], gateways, channel,
+        clock.spec(), crashes,
+    )  # fmt: skip
 
 
 def _interrupt(processes: list[subprocess.Popen[bytes]]) -> None:
@@ -276,176 +281,32 @@ def stop(fleet: Fleet) -> None:
     fleet.simulator.join(15)
     if fleet.simulator.is_alive():
         fleet.simulator.kill()
+    if fleet.crashes is not None:
+        fleet.crashes.close()
+        fleet.crashes.join_thread()
     if fleet.channel is not None:
         fleet.channel.close()
     if fleet.router is not None:
         fleet.router.close()  # type: ignore[attr-defined]
 
 
-def _all(view: FleetView, members: tuple[int, ...], pred: object) -> bool:
-    return all(vid in view.status and pred(view, vid) for vid in members)  # type: ignore[operator]
-
-
 def run_demo(
-    members: tuple[int, ...] = DEFAULT_FLEET,
+    members: tuple[int, ...] | None = None,
     speedup: float = 5.0,
-    timeout_s: float = 600.0,
+    timeout_s: float = 1800.0,
     keep: bool = False,
     radio: bool = False,
-    avoidance: bool = False,
+    out: Path = Path("demo-out"),
+    avoidance: bool = True,
 ) -> int:
-    console = Console() if sys.stdout.isatty() else Console(width=160)
-    tmp = Path(tempfile.mkdtemp(prefix="bandada-demo-"))
-    console.rule("[bold]bandada demo" + (" over the emulated radio" if radio else ""))
-    link = "a 900 MHz TDM radio (emulated)" if radio else "Zenoh on 127.0.0.1"
-    console.print(
-        f"{len(members)} simulated vehicles, {speedup:g}x real time, {link}, logs in {tmp}"
-    )
-    fleet = start(members, speedup, tmp, console, radio=radio, avoidance=avoidance)
-    gs = GroundStation(ZenohSettings(connect=(fleet.endpoint,)), gcs_id=GCS_ID)
-    radio_stats: dict[int, RadioStats] = {}
-    stats_bus = None
-    if radio:  # the gateways' statistics, as `gcs` would read them
-        stats_bus = SwarmBus.open(ZenohSettings(connect=(fleet.endpoint,)))
-        stats_bus.subscribe(RADIO_STATS, lambda m, k: radio_stats.__setitem__(m.node_id, m))
-    ok = False
-    t_start = time.monotonic()
-    configuring: dict[str, int] = {}
-    try:
-        if radio:
-            configuring = _radio_up(radio_stats, members, fleet, console)
-        ok = _script(gs, members, speedup, timeout_s, console)
-        if radio:
-            ok = _radio_report(radio_stats.get(GCS_ID), fleet, configuring, console) and ok
-    except KeyboardInterrupt:
-        console.print("[yellow]interrupted[/]")
-    finally:
-        console.print(f"[dim]stopping ({time.monotonic() - t_start:.0f} s wall)[/]")
-        if stats_bus is not None:
-            stats_bus.close()
-        gs.close()
-        stop(fleet)
-        if keep or not ok:
-            console.print(f"node logs kept in {tmp}")
-        else:
-            shutil.rmtree(tmp, ignore_errors=True)
-    return 0 if ok else 1
+    """`make demo`: the paper's experiment 1 with `members` (default: the six VTOLs),
+    narrated, recorded and reported in `out` (swarm_sim/experiment.py); 0 when it
+    passed. Collision avoidance and the close pads' take-off and landing sequencing
+    are on (the nodes' default), as in the paper's experiment."""
+    from .experiment import EXPERIMENT_FLEET, run
 
-
-def _step(console: Console, text: str) -> None:
-    console.print(f"[bold cyan]>[/] {text}")
-
-
-def _script(
-    gs: GroundStation, members: tuple[int, ...], speedup: float, timeout_s: float, console: Console
-) -> bool:
-    wall = 1.0 / speedup  # wall seconds per simulated second
-
-    _step(console, "waiting for every node to join and its autopilot to get a GPS position")
-    ready = gs.wait_for(
-        lambda v: _all(
-            v,
-            members,
-            lambda v, i: (
-                v.status[i].gps_fix >= 3
-                and v.info.get(i) is not None
-                and v.info[i].home is not None
-            ),
-        ),
-        60.0 + 60 * wall,
-    )
-    if not ready:
-        console.print(fleet_table(gs.snapshot()))
-        console.print("[red]the fleet did not come up[/]")
-        return False
-    view = gs.snapshot()
-    home = view.info[members[0]].home
-    assert home is not None
-    base = GeoPoint(home.lat_deg, home.lon_deg, home.alt_msl_m)
-    _step(
-        console, f"set the base at {base.lat_deg:.5f}, {base.lon_deg:.5f} (every vehicle activates)"
-    )
-    acks = gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=base), timeout_s=10.0)
-    console.print(f"  acks: {sorted((a.vehicle_id, a.reason.name) for a in acks)}")
-    if not gs.wait_for(
-        lambda v: _all(v, members, lambda v, i: v.fsm_state(i) == FsmState.GO_MISSION), 30.0
-    ):
-        console.print(fleet_table(gs.snapshot()))
-        console.print("[red]the fleet did not activate[/]")
-        return False
-    area, zone = demo_area()
-    _step(console, "declare a no-fly zone (35 m circle) inside the survey area")
-    gs.zone(zone)
-    time.sleep(0.5)
-    mission = Mission(MISSION_ID, GCS_ID, MissionType.AREA, area, MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
-                      Selector.ids(*members), "demo survey", time.time())  # fmt: skip
-    _step(
-        console,
-        f"send an area-coverage mission to vehicles {list(members)} (300 x 260 m, 60 m above home)",
-    )
-    acks = gs.mission(mission, timeout_s=10.0)
-    console.print(f"  acks: {sorted((a.vehicle_id, a.accepted, a.reason.name) for a in acks)}")
-    if not acks or not all(a.accepted for a in acks):
-        return False
-    _step(
-        console,
-        "the fleet plans together (STATE_PLAN), splits the lanes, takes off and flies; then returns and lands",
-    )
-    t0 = time.monotonic()
-    done = _watch(gs, members, timeout_s, console)
-    view = gs.snapshot()
-    console.print(fleet_table(view, title="fleet at the end"))
-    completed = {a.vehicle_id for a in view.alerts if a.code == AlertCode.MISSION_COMPLETE}
-    bad = [a for a in view.alerts if a.severity >= 2]
-    sim_s = (time.monotonic() - t0) * speedup
-    console.print(
-        f"mission complete on {sorted(completed)}; {len(bad)} critical alerts; about {sim_s / 60:.1f} simulated minutes"
-    )
-    for a in bad:
-        console.print(f"  [red]{a.vehicle_id} {a.code.name} {a.text}[/]")
-    ok = done and completed == set(members) and not bad
-    console.print(
-        "[bold green]demo complete: the swarm flew the survey and landed[/]"
-        if ok
-        else "[bold red]demo failed[/]"
-    )
-    return ok
-
-
-def _watch(gs: GroundStation, members: tuple[int, ...], timeout_s: float, console: Console) -> bool:
-    """Until every vehicle has landed and deactivated (or the timeout)."""
-
-    def landed(view: FleetView) -> bool:
-        return _all(
-            view,
-            members,
-            lambda v, i: v.fsm_state(i) == FsmState.INACTIVE and not v.status[i].armed,
-        )
-
-    end = time.monotonic() + timeout_s
-    if console.is_terminal:
-        from rich.live import Live
-
-        with Live(fleet_table(gs.snapshot()), console=console, refresh_per_second=4) as live:
-            while time.monotonic() < end:
-                if gs.wait_for(landed, 0.25):
-                    return True
-                live.update(fleet_table(gs.snapshot(), title="fleet (live)"))
-        return False
-    last = 0.0
-    while time.monotonic() < end:
-        if gs.wait_for(landed, 1.0):
-            return True
-        if time.monotonic() - last > 5.0:
-            last = time.monotonic()
-            view = gs.snapshot()
-            line = "  ".join(
-                f"{i}:{view.fsm_state(i).name[:4]}/{view.status[i].mission_progress_pct}%/{view.status[i].alt_rel_m:.0f}m"
-                for i in members
-                if i in view.status
-            )
-            console.print(f"  {line}")
-    return False
+    return run(members or EXPERIMENT_FLEET, speedup=speedup, timeout_s=timeout_s, keep=keep,
+               radio=radio, out=out, avoidance=avoidance)  # fmt: skip
 
 
 def _radio_up(

@@ -47,7 +47,7 @@ from swarm_node.core.node import (
 )
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.plan_memo import PlanMemo
-from swarm_proto import DeclaredState, VehicleType, lan
+from swarm_proto import DeclaredState, MissionType, VehicleType, lan
 
 from .core import SITL_HOME, Home, VehicleEndpoint
 from .runtime.server import spread_homes
@@ -125,6 +125,7 @@ class FastFleet:
     profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)
     settings: NodeSettings | None = None
     tasking: TaskingSettings | None = None
+    mission_defaults: Mapping[MissionType, Mapping[str, float]] | None = None
 
     def __post_init__(self) -> None:
         # swarm messages and results in time order; a broadcast is one entry for all its
@@ -155,6 +156,7 @@ class FastFleet:
         start_unix_s: float = 1.8e9,
         settings: NodeSettings | None = None,
         tasking: TaskingSettings | None = None,
+        mission_defaults: Mapping[MissionType, Mapping[str, float]] | None = None,
         homes: Sequence[Home] | None = None,
     ) -> FastFleet:
         """Vehicles `members` (database ids), each simulated as its profile's model,
@@ -174,10 +176,13 @@ class FastFleet:
             )
             node = NodeCore(
                 profile, settings or NodeSettings(), now=start_unix_s, fleet_profiles=profiles,
-                tasking_settings=tasking or seed_tasking(),
+                tasking_settings=tasking or seed_tasking(), mission_defaults=mission_defaults or {},
             )  # fmt: skip
             vehicles[vid] = SimVehicle(node, link, endpoint, next_poll=start_unix_s)
-        return cls(vehicles, start_unix_s, profiles=profiles, settings=settings, tasking=tasking)
+        return cls(
+            vehicles, start_unix_s, profiles=profiles, settings=settings, tasking=tasking,
+            mission_defaults=mission_defaults,
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ inputs
     def broadcast(self, msg: msgspec.Struct, to: Sequence[int] | None = None) -> None:
@@ -401,6 +406,7 @@ class FastFleet:
             profile, self.settings or NodeSettings(), now=self.now,
             fleet_profiles=self.profiles or {profile.vehicle_id: profile},
             tasking_settings=self.tasking or seed_tasking(),
+            mission_defaults=self.mission_defaults or {},
         )  # fmt: skip
         v.link = LinkCore(
             LinkSettings(vehicle_type=profile.vehicle_type, link_timeout_s=0.6), self.now

@@ -81,6 +81,7 @@ class NodeView:
     base: GeoPoint | None
     ready: bool  # vehicle monitoring says the vehicle is ready
     landing: bool = False  # the mission manager is bringing the vehicle home or down
+    touching_down: bool = False  # ... and is landing it now (the way home's last stage)
 
     @property
     def on_mission(self) -> bool:
@@ -342,7 +343,7 @@ def check_mission(mission: Mission, view: NodeView) -> AckReason:
     reason to reject. A mission that does not address this vehicle is NOT_ADDRESSED
     whatever the vehicle's state (its other problems do not concern this mission);
     then the paper's order: home not defined (then no base), vehicle not ready
-    (an emergency first, then not ready)."""
+    (an emergency first, then not ready); then a vehicle landing is BUSY."""
     sel = mission.selection
     if not sel.addresses(view.self_id, view.fleet_id):
         return AckReason.NOT_ADDRESSED
@@ -358,6 +359,10 @@ def check_mission(mission: Mission, view: NodeView) -> AckReason:
         return AckReason.EMERGENCY
     if not view.ready or view.fsm_state == FsmState.INACTIVE:
         return AckReason.NOT_READY
+    if view.touching_down:
+        # a VTOL in its final descent sent into AUTO sat armed on its pad for ever: the
+        # mission is for after the landing (ACTIVATE, then send it again)
+        return AckReason.BUSY
     return AckReason.OK
 
 

@@ -90,6 +90,9 @@ from .swarm.roster import Roster
 UNSET_WHEN_ZERO: dict[MissionType, frozenset[str]] = {
     MissionType.AUTOLAND: frozenset({"separation_s", "altitude_step_m"}),
     MissionType.MUMT: frozenset({"altitude_step_m", "radius_m"}),
+    # fixed-wing orbiting one point at one height rely on their phases alone, which an
+    # ArduPilot loiter does not hold: a target's step of 0 is the database's
+    MissionType.TARGET: frozenset({"altitude_step_m"}),
 }
 
 
@@ -806,6 +809,11 @@ class MissionManager:
     def landing(self) -> bool:
         """On the way down or home (what ABORT_LANDING can cancel)."""
         return self.phase in (Phase.RETURNING, Phase.LANDING)
+
+    @property
+    def touching_down(self) -> bool:
+        """Landing now (the way home's last stage): a new mission waits for the landing."""
+        return self.phase == Phase.LANDING
 
     def landing_route(
         self, point: GeoPoint, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float

@@ -122,7 +122,7 @@ from .fences import (
 )
 from .fleet_changes import FleetChanges
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
-from .mission.share import PlanOutcome, pose_on
+from .mission.share import PlanOutcome, heading_on, pose_on
 from .mission.tasking import Tasking, TaskingSettings
 from .mission.voting import VoterLost
 from .mission_manager import Member, MissionManager, Phase, replan_battery, with_defaults
@@ -313,6 +313,7 @@ class NodeCore:
             base=self.base,
             ready=self.monitor.ready,
             landing=self.manager.landing,
+            touching_down=self.manager.touching_down,
         )
 
     def status(self, now: float) -> VehicleStatus | None:
@@ -742,6 +743,8 @@ class NodeCore:
         reason = check_mission(mission, self.view())
         ok = reason == AckReason.OK
         why = self._not_ready_text() if reason == AckReason.NOT_READY else ""
+        if reason == AckReason.BUSY and self.manager.touching_down:
+            why = "landing: activate it once landed, then send it again"
         ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason,
                   short_text(why))  # fmt: skip
         # only an acceptance is remembered: a rejected mission sent again is checked again
@@ -1171,7 +1174,8 @@ class NodeCore:
             profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
             if profile is None:
                 continue
-            members.append(Member(profile, pose_on(base, vid, progress) if base else None))
+            members.append(Member(profile, pose_on(base, vid, progress) if base else None,
+                                  heading_deg=heading_on(base, vid, progress) if base else None))  # fmt: skip
         self.roster.replanned(survivors)
         battery = (
             replan_battery(base, members, progress, flown, mission.params.altitude_rel_m)

@@ -195,6 +195,9 @@ def _vertical(body: Body, alt_target: float, climb: float, sink: float, dt: floa
     body.vd = -vz
 
 
+LEAN_MAX_DEG = 30.0  # hover-capable vehicles' lean limit (ANGLE_MAX, Q_ANGLE_MAX defaults)
+
+
 def _hover_attitude(body: Body, dt: float) -> None:
     """Tilt from the horizontal acceleration and the air drag (cosmetic, for ATTITUDE)."""
     if dt <= 0:
@@ -209,8 +212,13 @@ def _hover_attitude(body: Body, dt: float) -> None:
     h = math.radians(body.heading_deg)
     fwd = an * math.cos(h) + ae * math.sin(h)
     right = -an * math.sin(h) + ae * math.cos(h)
-    body.pitch_rad = -math.atan2(fwd, G_M_S2)
-    body.roll_rad = math.atan2(right, G_M_S2)
+    # ArduCopter's ANGLE_MAX and a QuadPlane's Q_ANGLE_MAX (30 degrees by default): a
+    # VTOL slowing on its lift motors from wing speed leans no further (its wing still
+    # carries it), and the first step after the wing model (an old previous speed)
+    # does not read as a dive
+    lim = math.radians(LEAN_MAX_DEG)
+    body.pitch_rad = _clamp(-math.atan2(fwd, G_M_S2), -lim, lim)
+    body.roll_rad = _clamp(math.atan2(right, G_M_S2), -lim, lim)
 
 
 def _yaw_towards(body: Body, heading_want: float, rate_deg_s: float, dt: float) -> None:

@@ -102,6 +102,8 @@ class VehicleServer:
         self._stop = threading.Event()
         self._actions: list[Callable[[], None]] = []  # run by the serving thread
         self._actions_lock = threading.Lock()
+        self._removals: list[int] = []  # system ids to take away (another thread asks)
+        self._removals_lock = threading.Lock()
 
     # lifecycle -------------------------------------------------------------------
 
@@ -133,8 +135,28 @@ class VehicleServer:
         if not self.vehicles:
             self.start()
         while not stop.is_set():
+            if self._removals:
+                self._remove_now()
             self._run_timers()
             self._wait_and_read()
+
+    def remove(self, system_id: int) -> None:
+        """Take a vehicle away (a crash: it stops, its clients are disconnected, its port
+        closes); from any thread, carried out by the serving loop."""
+        with self._removals_lock:
+            self._removals.append(system_id)
+
+    def _remove_now(self) -> None:
+        with self._removals_lock:
+            gone, self._removals = set(self._removals), []
+        for vehicle in [v for v in self.vehicles if v.spec.system_id in gone]:
+            for client in list(vehicle.clients):
+                self._drop(client)
+            with contextlib.suppress(KeyError, ValueError):
+                self._sel.unregister(vehicle.listener)
+            vehicle.listener.close()
+            self.vehicles.remove(vehicle)
+            log.info("vehicle %d: removed", vehicle.spec.system_id)
 
     def start_thread(self) -> None:
         """start() and serve() in a daemon thread; stop with close()."""

@@ -397,3 +397,40 @@ def test_unset_mission_parameters_come_from_the_database() -> None:
     f.run_until(f.now + 0.5)
     assert f.nodes[1].missions[92].params.radius_m is None
     assert f.nodes[2].missions[93].params.separation_s == 30.0
+
+
+def test_a_target_mission_derived_from_a_report_gets_the_database_altitude_step() -> None:
+    """Found flying the paper's experiment 1 (`make demo`): the two VTOLs voted out to a
+    reported person orbited it at the same height, their phases drifted together (an
+    ArduPilot loiter holds no phase) and they came within 1.7 m. The mission derived
+    from the report carried altitude step 0, which counted as given, so the database's
+    target step (10 m, "vertical separation between vehicles") never applied. A target
+    mission's step of 0 is now unset, as AUTOLAND's and MUM-T's are."""
+    from swarm_node.core.mission.tasking import target_mission_id
+    from swarm_node.runtime.node import tasking_settings_of
+    from swarm_proto import GeoPoint, TargetReport, TargetSource
+
+    with SwarmDatabase.memory() as db:
+        defaults = mission_defaults_of(db)
+        tasking = tasking_settings_of(db)
+    step = defaults[MissionType.TARGET]["altitude_step_m"]
+    assert step > 0
+    profiles = {i: profile(i) for i in (1, 2, 3)}
+    f = Fleet({i: NodeCore(p, fleet_profiles=profiles, mission_defaults=defaults,
+                           tasking_settings=tasking) for i, p in profiles.items()})  # fmt: skip
+    for i in f.nodes:
+        f.set_autopilot(i, flying())
+    activate(f)
+    report = TargetReport(7, GCS, TargetSource.OPERATOR, f.now, GeoPoint(37.42, -5.98, 0.0),
+                          "person", 0.95)  # fmt: skip
+    send(f, report)
+    f.run_until(f.now + 1.0)
+    mid = target_mission_id(GCS, 7)
+    held = [n.missions[mid] for n in f.nodes.values() if mid in n.missions]
+    assert held, "no vehicle took the target mission up"
+    assert all(m.params.altitude_step_m == step for m in held)
+    # an operator's step is the operator's
+    send(f, Mission(95, GCS, MissionType.TARGET, Geometry.point(37.42, -5.98),
+                    MissionParams(altitude_step_m=25.0), Selector.ids(1)))  # fmt: skip
+    f.run_until(f.now + 0.5)
+    assert f.nodes[1].missions[95].params.altitude_step_m == 25.0

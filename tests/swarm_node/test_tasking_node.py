@@ -59,7 +59,7 @@ def tasking_fleet(n: int, **kw: object) -> Fleet:
     nodes = {
         i: NodeCore(
             profiles[i],
-            NodeSettings(plan_timeout_s=30.0),
+            NodeSettings(plan_timeout_s=30.0, avoidance=False),  # co-located synthetic vehicles
             fleet_profiles=profiles,
             tasking_settings=settings(),
         )

@@ -103,6 +103,28 @@ def test_two_clients_on_one_port_and_disconnects(
         c.close()
 
 
+def test_a_vehicle_removed_is_gone_and_the_other_flies_on(
+    two_vehicles: tuple[VehicleServer, list[int]],
+) -> None:
+    """`remove` (the demo's crash): the vehicle's clients are cut off and its port
+    closes; the other vehicle is served as before."""
+    server, ports = two_vehicles
+    a, b = connect(ports[0]), connect(ports[1])
+    try:
+        assert a.wait_heartbeat(timeout=10) is not None
+        server.remove(1)
+        deadline = time.monotonic() + 10
+        while len(server.vehicles) != 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert [v.spec.system_id for v in server.vehicles] == [2]
+        assert b.recv_match(type="HEARTBEAT", blocking=True, timeout=10) is not None
+        with pytest.raises(OSError):
+            mavutil.mavlink_connection(f"tcp:127.0.0.1:{ports[0]}", retries=0)
+    finally:
+        a.close()
+        b.close()
+
+
 def test_cli_vehicle_uses_the_shared_clock_from_the_environment() -> None:
     instance = 40 + os.getpid() % 40  # a SITL-style port unlikely to be taken: 6160..6550
     port = sitl_port(instance)

@@ -272,18 +272,29 @@ class _VerifyExec(_StepExec):
     started at spec.seq: that item, or a later one other than the item current before
     the request (MISSION_CURRENT is the current NAV item: ArduPilot runs DO items such
     as DO_CHANGE_SPEED at once and reports the first NAV item after them; the item
-    current before is what a mission that did not restart keeps reporting)."""
+    current before is what a mission that did not restart keeps reporting). When the
+    mission last uploaded is known, its first NAV item from spec.seq on counts too, even
+    if it is the item current before: a new mission whose first waypoint has the index
+    the old one was at (a vehicle on its way home, two items into the return, sent its
+    next mission) is started, and staying there flies it."""
 
-    def __init__(self, spec: VerifySpec, seen: set[int], before: int | None = None) -> None:
+    def __init__(
+        self, spec: VerifySpec, seen: set[int], before: int | None = None, nav: int | None = None
+    ) -> None:
         self.spec = spec
         self.seen = seen
         self.before = before
+        self.nav = nav
         self.deadline: float | None = None
         self.outcome = None
 
     def _check(self) -> None:
         seq = self.spec.seq
-        if seq in self.seen or any(v > seq and v != self.before for v in self.seen):
+        if (
+            seq in self.seen
+            or (self.nav is not None and self.nav in self.seen)
+            or any(v > seq and v != self.before for v in self.seen)
+        ):
             self.outcome = StepOutcome(True)
             self.deadline = None
 
@@ -481,6 +492,15 @@ class RequestRunner:
         self._queues: dict[str, deque[_Job]] = {COMMAND_LANE: deque(), TRANSFER_LANE: deque()}
         self._active: dict[str, _Job | None] = {COMMAND_LANE: None, TRANSFER_LANE: None}
         self.last_goto: tuple[float, float, float] | None = None
+        # (seq, command) of the mission last uploaded (None: not uploaded by us)
+        self.mission_items: tuple[tuple[int, int], ...] | None = None
+
+    def first_nav(self, seq: int) -> int | None:
+        """The first NAV item (MAV_CMD_NAV_*: commands below 100) at or after `seq` of the
+        mission last uploaded; None when unknown."""
+        if self.mission_items is None:
+            return None
+        return min((s for s, cmd in self.mission_items if s >= seq and cmd < 100), default=None)
 
     # ------------------------------------------------------------------ public
 
@@ -627,6 +647,13 @@ class RequestRunner:
                 if job.index >= len(job.plan.steps):
                     if job.plan.goto_target is not None:
                         self.last_goto = job.plan.goto_target
+                    for sp in job.plan.steps:
+                        if (
+                            isinstance(sp, TransferSpec)
+                            and sp.kind == MissionKind.MISSION
+                            and sp.items is not None
+                        ):
+                            self.mission_items = tuple((i.seq, i.command) for i in sp.items)
                     done.append(
                         self._finish(
                             job, True, "", ApError.NONE, outcome.mav_result, outcome.attempts
@@ -670,7 +697,9 @@ class RequestRunner:
         elif isinstance(spec, ParamSpec):
             job.step = _ParamExec(spec, target, self.settings)
         elif isinstance(spec, VerifySpec):
-            job.step = _VerifyExec(spec, job.seen_current, job.current_before)
+            job.step = _VerifyExec(
+                spec, job.seen_current, job.current_before, self.first_nav(spec.seq)
+            )
         else:
             job.step = _TransferExec(spec, target, self.settings)
         out += job.step.start(now, ctx.state)

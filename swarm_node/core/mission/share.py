@@ -15,18 +15,21 @@ loop: the mission manager emits a `PlanJob` (a picklable `PlanRequest`), the she
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 from swarm_proto import GeoPoint, Mission, NoFlyZone
 
+from ..autopilot.items import ItemKind
 from ..planning import PlanningError, PlanVehicle, VehiclePose
 from ..planning.fleet_plan import PLANNERS, FleetPlan, Share
 from ..planning.fleet_plan import plan_fleet as plan_whole_fleet
+from ..planning.geo import LocalFrame
 from ..profile import VehicleProfile
 
 __all__ = ["PLANNERS", "FleetPlan", "Member", "PlanOutcome", "PlanRequest", "Replay", "Share",
-           "plan_fleet", "pose_on", "replay", "run_plan"]  # fmt: skip
+           "heading_on", "plan_fleet", "pose_on", "replay", "run_plan"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -39,11 +42,18 @@ class Member:
     home: GeoPoint | None
     #: the battery it published on entering PLAN (None: unknown, planned as full)
     battery_pct: float | None = None
+    #: a replan's survivor: its heading along its share there (None: north, a home)
+    heading_deg: float | None = None
 
 
 def _vehicles(members: Sequence[Member]) -> list[PlanVehicle]:
     return [
-        PlanVehicle(m.profile, VehiclePose(m.home.lat_deg, m.home.lon_deg) if m.home else None)
+        PlanVehicle(
+            m.profile,
+            VehiclePose(m.home.lat_deg, m.home.lon_deg, heading_deg=m.heading_deg or 0.0)
+            if m.home
+            else None,
+        )
         for m in members
     ]
 
@@ -59,6 +69,32 @@ def pose_on(base: FleetPlan, vehicle_id: int, progress_m: Mapping[int, float]) -
     except (PlanningError, ValueError):
         return None
     return GeoPoint(lat, lon, 0.0)
+
+
+def heading_on(
+    base: FleetPlan, vehicle_id: int, progress_m: Mapping[int, float]
+) -> float | None:
+    """The heading (degrees from north) of a member's share where its progress puts it:
+    along the leg it is on (how a replan heads the survivors: a fixed-wing's first turn
+    depends on it; the same on every node). None: no share, or no leg there."""
+    share = base.shares.get(vehicle_id)
+    if share is None or not share.waypoints:
+        return None
+    try:
+        k, lat, lon = share.at(progress_m.get(vehicle_id, 0.0))
+    except (PlanningError, ValueError):
+        return None
+    ahead = next(
+        (w for w in share.waypoints[k + 1 :] if w.kind == ItemKind.WAYPOINT
+         and (w.lat_deg, w.lon_deg) != (lat, lon)),
+        None,
+    )  # fmt: skip
+    if ahead is None:
+        return None
+    x, y = LocalFrame(lat, lon).to_local(ahead.lat_deg, ahead.lon_deg)
+    if math.hypot(x, y) < 1e-6:
+        return None
+    return math.degrees(math.atan2(x, y)) % 360.0
 
 
 @dataclass(frozen=True)

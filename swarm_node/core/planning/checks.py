@@ -139,6 +139,8 @@ def track_cover_problems(
 
     mine = [t for t in tracks if t.vehicle_id == vehicle_id]
     if not mine:
+        if not any(w.kind in _POSITIONED for w in waypoints):
+            return []  # an empty share (the others fly it all): nothing to describe
         return [f"vehicle {vehicle_id}: no tracks"]
     geoms = [LineString(t.points) if len(t.points) > 1 else Point(t.points[0]) for t in mine]
     out = []

@@ -161,7 +161,7 @@ def decompose(
         target = _polygonal(cover.difference(keep))
         if target.is_empty or target.area < 1e-6 * max(poly.area, 1.0):
             raise EmptyAreaError("nothing to cover outside the no-fly zones' margins")
-    return Region(cover, keep, poly, Obstacles(keep), target)
+    return Region(cover, keep, poly, Obstacles(keep, raw), target)
 
 
 def _polygonal(g: BaseGeometry) -> Polygon | MultiPolygon:
@@ -919,7 +919,8 @@ def _transition_uncached(a: Pose, b: Pose, turns: TurnModel, obstacles: Obstacle
         trace = shortest_path(a, b, turns.radius_m).sample_xy(ARC_STEP_M)  # (n, 2) array
     if not obstacles.crosses(trace):
         return Leg(tuple(pts), length, False)
-    around = obstacles.path((a.x, a.y), (b.x, b.y))
+    # a vehicle's start (a replan from where it is) may be in a zone's margin
+    around = obstacles.path_from((a.x, a.y), (b.x, b.y))
     return Leg(tuple(around), LineString(around).length, False)
 
 

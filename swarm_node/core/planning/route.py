@@ -197,7 +197,7 @@ def approach(
     they wait on the spot."""
     turns = v.turns(speed_m_s)
     keep = zones.keep_out(alt_m) if zones.at(alt_m) else None
-    obst = Obstacles(keep) if keep is not None and not keep.is_empty else None
+    obst = Obstacles(keep, zones.raw(alt_m)) if keep is not None and not keep.is_empty else None
     start_xy = (start.x, start.y)
     path_poses: list[tuple[float, Pose]] = []  # candidate places for the waiting orbit
     pts: list[tuple[float, float]] = []
@@ -225,7 +225,7 @@ def approach(
             length = pts_s[0]
     if math.isnan(length):  # around the zones
         assert obst is not None
-        around = obst.path(start_xy, (goal.x, goal.y))
+        around = obst.path_from(start_xy, (goal.x, goal.y))  # it may be in a margin
         pts = list(around[1:])
         pts_s = list(itertools.accumulate(math.dist(a, b) for a, b in itertools.pairwise(around)))
         trace, length = list(around), pts_s[-1] if pts_s else 0.0

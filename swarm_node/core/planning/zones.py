@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import shapely
+import shapely.ops
 from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
@@ -307,8 +308,11 @@ class Obstacles:
     are the vertices of the polygons grown by a little, edges the node pairs that see
     each other. `path(a, b)` adds the two end points and runs Dijkstra."""
 
-    def __init__(self, blocked: BaseGeometry) -> None:
+    def __init__(self, blocked: BaseGeometry, core: BaseGeometry | None = None) -> None:
         self.blocked = blocked
+        # the zones themselves when `blocked` is them grown by a margin: a vehicle inside
+        # the margin may leave it (`path_from`), one inside a zone is not led through it
+        self.core = core
         self.inner = blocked.buffer(-1e-6) if not blocked.is_empty else blocked
         shapely.prepare(self.inner)
         nodes: list[tuple[float, float]] = []
@@ -359,6 +363,35 @@ class Obstacles:
         ok = np.flatnonzero(~shapely.intersects(self.inner, segs))  # prepared first
         d = np.hypot(*(self._pts[ok] - np.asarray(p)).T)
         return list(zip(ok.tolist(), d.tolist(), strict=True))
+
+    def way_out(self, p: tuple[float, float]) -> tuple[float, float] | None:
+        """The nearest point `_CLEAR_M` outside the polygons from `p` when `p` is inside
+        them (None when it is not)."""
+        if self.is_empty or not self.inner.contains(Point(p)):
+            return None
+        edge = shapely.ops.nearest_points(self.blocked.boundary, Point(p))[0]
+        dx, dy = edge.x - p[0], edge.y - p[1]
+        d = math.hypot(dx, dy)
+        if d < 1e-9:
+            return (float(edge.x), float(edge.y))
+        return (float(edge.x + dx / d * _CLEAR_M), float(edge.y + dy / d * _CLEAR_M))
+
+    def path_from(
+        self, a: tuple[float, float], b: tuple[float, float]
+    ) -> list[tuple[float, float]]:
+        """`path` from where a vehicle is: a vehicle inside the inflated zones (in a
+        zone's margin: turning at the end of a lane next to it, overshooting a corner)
+        first leaves them the shortest way (straight away from the zone the margin is
+        around), then goes around them. A goal inside them is still `NoSafeRouteError`."""
+        out = self.way_out(a)
+        if (
+            out is None
+            or self.core is None
+            or self.inner.contains(Point(out))
+            or LineString([a, out]).intersects(self.core)
+        ):
+            return self.path(a, b)  # not in a margin we know: NoSafeRouteError
+        return [a, *self.path(out, b)]
 
     def path(self, a: tuple[float, float], b: tuple[float, float]) -> list[tuple[float, float]]:
         """Shortest polyline from `a` to `b` not crossing the interior of the polygons;

@@ -94,6 +94,27 @@ def test_a_mission_that_starts_with_a_do_item_is_started() -> None:
     )
 
 
+def test_a_mission_whose_first_waypoint_is_at_the_current_index_is_started() -> None:
+    """Found flying the paper's experiment 1 over processes (`make demo`): a VTOL two
+    items into its way home was sent its next mission, whose first NAV item (after its
+    DO_CHANGE_SPEED items) had the very index the way home was at. MISSION_CURRENT went
+    on reporting that index, which counted as "did not start" (the old current item),
+    so the node left the fleet. The first NAV item of the mission just uploaded counts."""
+    f = loitering_after_mission_1()
+    assert f.state.mission_current == 3
+    second = (Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=8.0),
+              Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=8.0), *_leg((150, 60), (40, 60)))  # fmt: skip
+    assert f.do(rq.UploadMission(items=second)).ok
+    started = f.do(rq.StartMission())
+    assert started.ok, started
+    target = offset(150, 60)
+    f.wait(
+        lambda: distance_m(f.state.lat_deg, f.state.lon_deg, *target) < 5.0,
+        120,
+        "flying mission 2",
+    )
+
+
 def test_a_mission_that_does_not_start_is_noticed() -> None:
     """An autopilot that accepts everything but never reports the new current item: the
     request fails NOT_STARTED instead of reporting success (the node then falls back)."""

@@ -12,7 +12,7 @@ import math
 import msgspec
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LineString, Point, Polygon
 
@@ -245,6 +245,8 @@ def _square(cx: float, cy: float, w: float, h: float) -> Geometry:
     quad=st.booleans(),
     heading=st.floats(0, 359),
 )
+# found on CI: the quadcopter's share is empty (the VTOLs fly it all), so it has no track
+@example(zx=0.0, zy=0.0, zr=58.0, w=250.0, h=200.0, n_fw=2, quad=True, heading=0.0)
 def test_area_plans_around_a_random_zone_are_flown_clear_of_it(
     seed: dict[str, VehicleProfile],
     zx: float, zy: float, zr: float, w: float, h: float, n_fw: int, quad: bool, heading: float,
