@@ -83,7 +83,9 @@ def declared(
     timeout: float = typer.Option(3.0, help="seconds to wait for the answer"),
 ) -> None:
     """What the operator declared (zones, bases, fleets, missions), as a node holds it:
-    any node can be asked, they converge on the newest declarations."""
+    any node can be asked, they converge on the newest declarations.
+
+    Example: gcs declared 3 --json"""
     if not timeout > 0:
         raise typer.BadParameter("must be > 0", param_hint="--timeout")
     with ctx.obj.open() as gs:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import msgspec
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -96,5 +97,6 @@ def test_the_node_monitoring_fences_and_planners_share_one_book(fleet_profiles: 
     zone = NoFlyZone(4, square(80.0))
     node.handle(Received(zone), 1.0)
     assert isinstance(node.monitor.zones, ZoneBook)
-    assert node.planning_zones(1.0) == [zone] == node.monitor.zones.no_fly(1.0)
+    held = msgspec.structs.replace(zone, time_unix_s=1.0)  # unstamped: stamped on receipt
+    assert node.planning_zones(1.0) == [held] == node.monitor.zones.no_fly(1.0)
     assert node.monitor.zones.breach(LAT, LON, 10.0, 1.0) == "in no-fly zone 4"
