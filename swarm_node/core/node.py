@@ -380,6 +380,10 @@ class NodeCore:
         match event:
             case Received(msg):  # first: by far the most frequent input
                 out += self._on_message(msg, now)
+                if not out and type(msg) is VehicleStatus and not self._dirty:
+                    # a peer's telemetry that changed nothing here (the usual case, 5 Hz
+                    # per peer): no share record to keep, nothing to store or route
+                    return []
             case AutopilotUpdate(state):
                 out += self._on_autopilot(state, now)
             case AutopilotResult(result):

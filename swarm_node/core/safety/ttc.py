@@ -78,7 +78,8 @@ class Track:
             self.max_speed_m_s,
             self.error_m,
         )
-        if not all(math.isfinite(v) for v in values):
+        # one sum: any NaN or infinity (or values so large they overflow) is not finite
+        if not math.isfinite(sum(values)):
             raise BadTrackError(f"vehicle {self.vehicle_id}: non-finite track value {values}")
         if not (-90.0 <= self.lat_deg <= 90.0 and -180.0 <= self.lon_deg <= 180.0):
             raise BadTrackError(
