@@ -81,6 +81,7 @@ from ..autopilot.requests import (
     ApResult,
     Arm,
     ChangeAltitude,
+    ChangeSpeed,
     Goto,
     Land,
     ReturnToLaunch,
@@ -114,6 +115,15 @@ RESUME_BY_MODE = frozenset(
     {"LOITER", "QLOITER", "QHOVER", "POSHOLD", "ALT_HOLD", "BRAKE", "CIRCLE", "CRUISE",
      "FBWA", "FBWB", "HOLD", "MANUAL", "STABILIZE", "QSTABILIZE"}
 )  # fmt: skip
+
+
+def steers(req: ApRequest) -> bool:
+    """Whether a held mission request says where the vehicle goes (a new mission, a
+    mode, a return...): it then replaces the module's own resume. A speed does not: the
+    PREMISSION and MISSION speed rule's ChangeSpeed, held while suspended, goes on after
+    the mission is resumed (measured: taken for the mission's newest intent, it left two
+    VTOLs circling their avoidance Goto in GUIDED for good)."""
+    return not isinstance(req, ChangeSpeed)
 
 
 @dataclass(slots=True)
@@ -229,6 +239,10 @@ class AvoidanceModule:
                 assert isinstance(req, UploadMission)
             self.items = req.items
         if self.suspension is not None and mine and flies(req):
+            if isinstance(req, ChangeSpeed):
+                # the speed rule asks every second: only its newest goes on (a
+                # superseded one is not answered; the manager does not wait on them)
+                self.held = [h for h in self.held if not isinstance(h.request, ChangeSpeed)]
             self.held.append(o)
             self._count("held")
             return [], None
@@ -583,8 +597,8 @@ class AvoidanceModule:
     def _resume_requests(
         self, m: Manoeuvre, ap: AutopilotState, s: Suspension
     ) -> tuple[ApRequest, ...]:
-        if self.held:
-            return ()  # the mission asked for something meanwhile: that goes next
+        if any(steers(h.request) for h in self.held):
+            return ()  # the mission asked for something else meanwhile: that goes next
         planned = m.target_alt_rel_m
         if not s.via_goto and self.profile.vehicle_type not in GROUND:
             w = self._item(ap.mission_current) if ap.mode_name == "AUTO" else None
