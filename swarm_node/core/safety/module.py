@@ -225,6 +225,8 @@ class AvoidanceModule:
         on the own pad, its flight requests held while avoidance flies."""
         if not self.enabled:
             return None
+        if o.owner == Owner.AVOIDANCE and o.route == Owner.MISSION:
+            return None  # the mission's, passed on under a manoeuvre flown on its path
         mine = (o.route or o.owner) == Owner.MISSION
         req = original = o.request
         if isinstance(req, UploadMission) and mine:
@@ -238,7 +240,18 @@ class AvoidanceModule:
                 req = o.request
                 assert isinstance(req, UploadMission)
             self.items = req.items
-        if self.suspension is not None and mine and flies(req):
+        s = self.suspension
+        if s is not None and mine and flies(req) and self._on_path(s):
+            # a fixed-wing flies its manoeuvre on its mission's path (ChangeAltitude): what
+            # the mission asks goes on at once, ranked as the manoeuvre (the arbiter would
+            # refuse MISSION), and the manoeuvre's altitude is asked again at its next
+            # item. Held instead, a fleet stacked at one point (a route's end) would hold
+            # its way home for ever: the conflict never clears while it circles there.
+            self._count("passed")
+            took = self._mission_request(o, req, ap, now)
+            subs, answer = took if took is not None else ([o], None)
+            return [self._ranked(x) for x in subs], answer
+        if s is not None and mine and flies(req):
             if isinstance(req, ChangeSpeed):
                 # the speed rule asks every second: only its newest goes on (a
                 # superseded one is not answered; the manager does not wait on them)
@@ -248,6 +261,31 @@ class AvoidanceModule:
             return [], None
         if not mine or not self.pads_on or self.suspension is not None:
             return ([o], None) if o.request is not original else None
+        took = self._mission_request(o, req, ap, now)
+        if took is not None:
+            return took
+        return ([o], None) if o.request is not original else None
+
+    def _on_path(self, s: Suspension) -> bool:
+        """The manoeuvre is an altitude flown on what the vehicle flies (a fixed-wing's
+        ChangeAltitude), not a Goto that suspends it."""
+        return not s.via_goto and self._aircraft() and not s.resuming
+
+    def _ranked(self, o: ModuleOutput) -> ModuleOutput:
+        """A request of the mission (or of its landing on the pad) passed on while a
+        manoeuvre holds the autopilot: ranked as AVOIDANCE, its result still routed to
+        whoever asked."""
+        if isinstance(o, Submit) and o.owner == Owner.MISSION:
+            return Submit(o.request, Owner.AVOIDANCE, o.route or Owner.MISSION)
+        return o
+
+    def _mission_request(
+        self, o: Submit, req: ApRequest, ap: AutopilotState, now: float
+    ) -> Intercepted | None:
+        """The pads' handling of the mission's launch, return and landing (None: as
+        asked)."""
+        if not self.pads_on:
+            return None
         if isinstance(req, Arm) and self._aircraft() and not ap.armed:
             if self._launch_blockers(ap):
                 self.launch = o
@@ -262,7 +300,7 @@ class AvoidanceModule:
             return [], Routed(
                 o.route or o.owner, ApResult(req.request_id, True, "landing on its pad")
             )
-        return ([o], None) if o.request is not original else None
+        return None
 
     # ------------------------------------------------------------------ pads
     def _aircraft(self) -> bool:
@@ -533,15 +571,11 @@ class AvoidanceModule:
             return m.requests
         target = m.target_alt_rel_m
         if not self._hovering(ap) or ap.lat_deg is None or ap.lon_deg is None:
-            w = self._item(s.item) if s.mode == "AUTO" else None
-            if w is not None and w.kind != ItemKind.LAND and self._goto_clear(ap, w):
-                # on to the item it flew to, higher (GUIDED: the mission is suspended;
-                # it circles the item if it gets there first): nothing near to cut into
-                s.via_goto = True
-                return (Goto(lat_deg=w.lat_deg, lon_deg=w.lon_deg, alt_rel_m=target),)
-            # near a zone a Goto could cut the flyable turns and circle the item into it:
-            # it keeps flying what it flies (its mission's zone-safe path in AUTO, the
-            # altitude asked again at each new item)
+            # a fixed-wing keeps flying what it flies, higher: in AUTO its mission's
+            # flyable, zone-safe path and schedule, the altitude asked again at each new
+            # item. A Goto to its item (as before) cut the turns, circled the item, was
+            # resumed past it (a survey's lane skipped) and put a PREMISSION fleet 18 s
+            # late at its entries; near a zone it flew into it (measured, both).
             s.via_goto = False
             s.item_seen = ap.mission_current
             return (ChangeAltitude(alt_rel_m=target),)
@@ -573,14 +607,6 @@ class AvoidanceModule:
         if distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= near:
             return item + 1
         return item
-
-    def _goto_clear(self, ap: AutopilotState, w: Waypoint) -> bool:
-        """Whether a fixed-wing may leave its mission's path for a Goto to its item: only
-        with no no-fly zone in force. The Goto cuts the flyable turns, circles the item
-        and the mission resumes from wherever that left it: the path flown is no longer
-        the one the planners kept clear of the zones (measured: the demo survey's VTOL
-        resumed past its item into the zone)."""
-        return not self._zones
 
     def _resume(self, m: Manoeuvre, ap: AutopilotState, now: float) -> list[ModuleOutput]:
         s = self.suspension
@@ -636,9 +662,12 @@ class AvoidanceModule:
             self._pending[rid] = req
             if resume:
                 self._resume_ids.add(rid)
+            rank = owner
             if owner != Owner.AVOIDANCE:
                 self._pad_ids.add(rid)
-            out.append(Submit(req, owner, Owner.AVOIDANCE))
+                if self.suspension is not None:
+                    rank = Owner.AVOIDANCE  # the arbiter would refuse MISSION meanwhile
+            out.append(Submit(req, rank, Owner.AVOIDANCE))
         self._count("requests")
         return out
 
