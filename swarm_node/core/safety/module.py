@@ -23,13 +23,10 @@ requests are refused meanwhile, except the mission's own, which are held here, n
 refused, so the sortie never fails for it). The manoeuvre is flown as:
 
     vehicle                   doing            manoeuvre (to the avoider's target altitude)
-    fixed-wing, VTOL flying   AUTO mission     Goto the item it was flying to, higher
-                                               (GUIDED; it circles the item if it gets
-                                               there): the mission is suspended. With a
-                                               no-fly zone in force: ChangeAltitude, the
-                                               mission flown on along its flyable,
-                                               zone-safe path at the new altitude (asked
-                                               again at each new item)
+    fixed-wing, VTOL flying   AUTO mission     ChangeAltitude: the mission flown on along
+                                               its flyable, zone-safe path at the new
+                                               altitude (asked again at each new item);
+                                               the mission's requests go on under it
     fixed-wing, VTOL flying   anything else    ChangeAltitude (keeps RTL, LOITER, GUIDED)
     multirotor, VTOL hovering AUTO mission     Goto the item it was flying to, higher
                                                (GUIDED): on its zone-safe leg, stopping
