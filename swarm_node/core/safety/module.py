@@ -35,7 +35,8 @@ refused, so the sortie never fails for it). The manoeuvre is flown as:
     rover, boat               anything         HOLD mode (stops)
 
 When the avoider says clear (RESUME), the vehicle goes back to what it was doing: the
-mission's held requests if it had any (they are its newest intent); else a fixed-wing
+mission's held requests if it asked where to go meanwhile (its newest intent; a speed
+is not one: it goes on after the resume); else a fixed-wing
 changes altitude back to its mission item's (or the planned one), and the others go
 back by the mode they were in: AUTO -> StartMission(first_item = the item they were
 flying to), RTL -> ReturnToLaunch, QRTL, LOITER and the like -> that mode again,
