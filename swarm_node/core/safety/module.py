@@ -23,13 +23,10 @@ requests are refused meanwhile, except the mission's own, which are held here, n
 refused, so the sortie never fails for it). The manoeuvre is flown as:
 
     vehicle                   doing            manoeuvre (to the avoider's target altitude)
-    fixed-wing, VTOL flying   AUTO mission     Goto the item it was flying to, higher
-                                               (GUIDED; it circles the item if it gets
-                                               there): the mission is suspended. With a
-                                               no-fly zone in force: ChangeAltitude, the
-                                               mission flown on along its flyable,
-                                               zone-safe path at the new altitude (asked
-                                               again at each new item)
+    fixed-wing, VTOL flying   AUTO mission     ChangeAltitude: the mission flown on along
+                                               its flyable, zone-safe path at the new
+                                               altitude (asked again at each new item);
+                                               the mission's requests go on under it
     fixed-wing, VTOL flying   anything else    ChangeAltitude (keeps RTL, LOITER, GUIDED)
     multirotor, VTOL hovering AUTO mission     Goto the item it was flying to, higher
                                                (GUIDED): on its zone-safe leg, stopping
@@ -38,7 +35,8 @@ refused, so the sortie never fails for it). The manoeuvre is flown as:
     rover, boat               anything         HOLD mode (stops)
 
 When the avoider says clear (RESUME), the vehicle goes back to what it was doing: the
-mission's held requests if it had any (they are its newest intent); else a fixed-wing
+mission's held requests if it asked where to go meanwhile (its newest intent; a speed
+is not one: it goes on after the resume); else a fixed-wing
 changes altitude back to its mission item's (or the planned one), and the others go
 back by the mode they were in: AUTO -> StartMission(first_item = the item they were
 flying to), RTL -> ReturnToLaunch, QRTL, LOITER and the like -> that mode again,
@@ -81,6 +79,7 @@ from ..autopilot.requests import (
     ApResult,
     Arm,
     ChangeAltitude,
+    ChangeSpeed,
     Goto,
     Land,
     ReturnToLaunch,
@@ -114,6 +113,15 @@ RESUME_BY_MODE = frozenset(
     {"LOITER", "QLOITER", "QHOVER", "POSHOLD", "ALT_HOLD", "BRAKE", "CIRCLE", "CRUISE",
      "FBWA", "FBWB", "HOLD", "MANUAL", "STABILIZE", "QSTABILIZE"}
 )  # fmt: skip
+
+
+def steers(req: ApRequest) -> bool:
+    """Whether a held mission request says where the vehicle goes (a new mission, a
+    mode, a return...): it then replaces the module's own resume. A speed does not: the
+    PREMISSION and MISSION speed rule's ChangeSpeed, held while suspended, goes on after
+    the mission is resumed (measured: taken for the mission's newest intent, it left two
+    VTOLs circling their avoidance Goto in GUIDED for good)."""
+    return not isinstance(req, ChangeSpeed)
 
 
 @dataclass(slots=True)
@@ -215,6 +223,8 @@ class AvoidanceModule:
         on the own pad, its flight requests held while avoidance flies."""
         if not self.enabled:
             return None
+        if o.owner == Owner.AVOIDANCE and o.route == Owner.MISSION:
+            return None  # the mission's, passed on under a manoeuvre flown on its path
         mine = (o.route or o.owner) == Owner.MISSION
         req = original = o.request
         if isinstance(req, UploadMission) and mine:
@@ -228,12 +238,52 @@ class AvoidanceModule:
                 req = o.request
                 assert isinstance(req, UploadMission)
             self.items = req.items
-        if self.suspension is not None and mine and flies(req):
+        s = self.suspension
+        if s is not None and mine and flies(req) and self._on_path(s):
+            # a fixed-wing flies its manoeuvre on its mission's path (ChangeAltitude): what
+            # the mission asks goes on at once, ranked as the manoeuvre (the arbiter would
+            # refuse MISSION), and the manoeuvre's altitude is asked again at its next
+            # item. Held instead, a fleet stacked at one point (a route's end) would hold
+            # its way home for ever: the conflict never clears while it circles there.
+            self._count("passed")
+            took = self._mission_request(o, req, ap, now)
+            subs, answer = took if took is not None else ([o], None)
+            return [self._ranked(x) for x in subs], answer
+        if s is not None and mine and flies(req):
+            if isinstance(req, ChangeSpeed):
+                # the speed rule asks every second: only its newest goes on (a
+                # superseded one is not answered; the manager does not wait on them)
+                self.held = [h for h in self.held if not isinstance(h.request, ChangeSpeed)]
             self.held.append(o)
             self._count("held")
             return [], None
         if not mine or not self.pads_on or self.suspension is not None:
             return ([o], None) if o.request is not original else None
+        took = self._mission_request(o, req, ap, now)
+        if took is not None:
+            return took
+        return ([o], None) if o.request is not original else None
+
+    def _on_path(self, s: Suspension) -> bool:
+        """The manoeuvre is an altitude flown on what the vehicle flies (a fixed-wing's
+        ChangeAltitude), not a Goto that suspends it."""
+        return not s.via_goto and self._aircraft() and not s.resuming
+
+    def _ranked(self, o: ModuleOutput) -> ModuleOutput:
+        """A request of the mission (or of its landing on the pad) passed on while a
+        manoeuvre holds the autopilot: ranked as AVOIDANCE, its result still routed to
+        whoever asked."""
+        if isinstance(o, Submit) and o.owner == Owner.MISSION:
+            return Submit(o.request, Owner.AVOIDANCE, o.route or Owner.MISSION)
+        return o
+
+    def _mission_request(
+        self, o: Submit, req: ApRequest, ap: AutopilotState, now: float
+    ) -> Intercepted | None:
+        """The pads' handling of the mission's launch, return and landing (None: as
+        asked)."""
+        if not self.pads_on:
+            return None
         if isinstance(req, Arm) and self._aircraft() and not ap.armed:
             if self._launch_blockers(ap):
                 self.launch = o
@@ -248,7 +298,7 @@ class AvoidanceModule:
             return [], Routed(
                 o.route or o.owner, ApResult(req.request_id, True, "landing on its pad")
             )
-        return ([o], None) if o.request is not original else None
+        return None
 
     # ------------------------------------------------------------------ pads
     def _aircraft(self) -> bool:
@@ -519,15 +569,11 @@ class AvoidanceModule:
             return m.requests
         target = m.target_alt_rel_m
         if not self._hovering(ap) or ap.lat_deg is None or ap.lon_deg is None:
-            w = self._item(s.item) if s.mode == "AUTO" else None
-            if w is not None and w.kind != ItemKind.LAND and self._goto_clear(ap, w):
-                # on to the item it flew to, higher (GUIDED: the mission is suspended;
-                # it circles the item if it gets there first): nothing near to cut into
-                s.via_goto = True
-                return (Goto(lat_deg=w.lat_deg, lon_deg=w.lon_deg, alt_rel_m=target),)
-            # near a zone a Goto could cut the flyable turns and circle the item into it:
-            # it keeps flying what it flies (its mission's zone-safe path in AUTO, the
-            # altitude asked again at each new item)
+            # a fixed-wing keeps flying what it flies, higher: in AUTO its mission's
+            # flyable, zone-safe path and schedule, the altitude asked again at each new
+            # item. A Goto to its item (as before) cut the turns, circled the item, was
+            # resumed past it (a survey's lane skipped) and put a PREMISSION fleet 18 s
+            # late at its entries; near a zone it flew into it (measured, both).
             s.via_goto = False
             s.item_seen = ap.mission_current
             return (ChangeAltitude(alt_rel_m=target),)
@@ -560,14 +606,6 @@ class AvoidanceModule:
             return item + 1
         return item
 
-    def _goto_clear(self, ap: AutopilotState, w: Waypoint) -> bool:
-        """Whether a fixed-wing may leave its mission's path for a Goto to its item: only
-        with no no-fly zone in force. The Goto cuts the flyable turns, circles the item
-        and the mission resumes from wherever that left it: the path flown is no longer
-        the one the planners kept clear of the zones (measured: the demo survey's VTOL
-        resumed past its item into the zone)."""
-        return not self._zones
-
     def _resume(self, m: Manoeuvre, ap: AutopilotState, now: float) -> list[ModuleOutput]:
         s = self.suspension
         if s is None:
@@ -583,8 +621,8 @@ class AvoidanceModule:
     def _resume_requests(
         self, m: Manoeuvre, ap: AutopilotState, s: Suspension
     ) -> tuple[ApRequest, ...]:
-        if self.held:
-            return ()  # the mission asked for something meanwhile: that goes next
+        if any(steers(h.request) for h in self.held):
+            return ()  # the mission asked for something else meanwhile: that goes next
         planned = m.target_alt_rel_m
         if not s.via_goto and self.profile.vehicle_type not in GROUND:
             w = self._item(ap.mission_current) if ap.mode_name == "AUTO" else None
@@ -622,9 +660,12 @@ class AvoidanceModule:
             self._pending[rid] = req
             if resume:
                 self._resume_ids.add(rid)
+            rank = owner
             if owner != Owner.AVOIDANCE:
                 self._pad_ids.add(rid)
-            out.append(Submit(req, owner, Owner.AVOIDANCE))
+                if self.suspension is not None:
+                    rank = Owner.AVOIDANCE  # the arbiter would refuse MISSION meanwhile
+            out.append(Submit(req, rank, Owner.AVOIDANCE))
         self._count("requests")
         return out
 

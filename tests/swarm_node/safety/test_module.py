@@ -16,6 +16,7 @@ from swarm_node.core.autopilot.requests import (
     ApResult,
     Arm,
     ChangeAltitude,
+    ChangeSpeed,
     Goto,
     Land,
     ReturnToLaunch,
@@ -102,31 +103,67 @@ def flying_vtol() -> tuple[AvoidanceModule, AutopilotState]:
     return m, state
 
 
-def test_a_fixed_wing_in_its_mission_flies_on_to_its_item_higher_and_resumes_there() -> None:
+def test_a_fixed_wing_in_its_mission_climbs_on_its_path_and_comes_back_to_its_item() -> None:
+    """A fixed-wing keeps flying its mission (AUTO: its flyable path and schedule), higher:
+    a Goto to its item cut the turns, circled it, resumed past it and put a PREMISSION
+    fleet 18 s late at its entries (test_premission_flown)."""
     m, state = flying_vtol()
     m.on_peer(head_on_peer(T), T)
     out = tick(m, state, T)
-    (goto,) = requests(out)
-    w = MISSION_ITEMS[2]  # the mission's item 3 (the third waypoint), higher (GUIDED)
-    assert isinstance(goto, Goto) and (goto.lat_deg, goto.lon_deg) == (w.lat_deg, w.lon_deg)
-    assert goto.alt_rel_m > state.alt_rel_m
+    (climb,) = requests(out)
+    assert isinstance(climb, ChangeAltitude) and climb.alt_rel_m > state.alt_rel_m
     assert [o.owner for o in out if isinstance(o, Submit)] == [Owner.AVOIDANCE]
     assert m.active and m.suspension is not None and m.suspension.item == 3
     alert = next(o.msg for o in out if isinstance(o, Publish))
     assert isinstance(alert, Alert) and alert.code == AlertCode.COLLISION_RISK
-    assert m.on_result(ApResult(goto.request_id, True), T) == []
-    state = msgspec.structs.replace(state, mode_name="GUIDED")
+    assert m.on_result(ApResult(climb.request_id, True), T) == []
     m.forget(1, T + 0.2)
     now, resume = T, None
     while resume is None and now < T + 10:
         now += 0.2
         reqs = requests(tick(m, state, now))
         resume = reqs[0] if reqs else None
-    assert isinstance(resume, StartMission) and resume.first_item == 3
+    assert isinstance(resume, ChangeAltitude)
+    assert resume.alt_rel_m == MISSION_ITEMS[2].alt_rel_m  # the item it flies to
     assert now - T >= 3.0  # the clear hold
     assert not m.release_due
     m.on_result(ApResult(resume.request_id, True), now)
     assert m.release_due and not m.active
+
+
+def test_under_a_fixed_wings_climb_the_missions_requests_go_on_at_once() -> None:
+    """The mission's requests are not held while a fixed-wing climbs on its path: they
+    go on ranked as the manoeuvre (results to the mission), and the climb is asked again
+    at the new mission's item. Held, a fleet stacked at a route's end never went home."""
+    m, state = flying_vtol()
+    m.on_peer(head_on_peer(T), T)
+    (climb,) = requests(tick(m, state, T))
+    m.on_result(ApResult(climb.request_id, True), T)
+    home = (
+        Waypoint(ItemKind.WAYPOINT, *at(0.0, 100.0), 60.0),
+        Waypoint(ItemKind.RTL, 0.0, 0.0, 0.0),
+    )
+    subs, answer = m.on_submit(
+        Submit(UploadMission(items=home, request_id=5), Owner.MISSION), state, T
+    ) or ([], None)
+    assert answer is None and [(o.owner, o.route) for o in subs] == [
+        (Owner.AVOIDANCE, Owner.MISSION)
+    ]
+    (up,) = subs
+    assert isinstance(up, Submit) and isinstance(up.request, UploadMission)
+    assert up.request.items[-1].kind == ItemKind.LAND  # home to its pad, as without avoidance
+    assert m.on_submit(up, state, T) is None  # passed on: not intercepted twice
+    start = Submit(StartMission(request_id=6), Owner.MISSION)
+    assert m.on_submit(start, state, T) == (
+        [Submit(start.request, Owner.AVOIDANCE, Owner.MISSION)],
+        None,
+    )
+    arb = AutopilotArbiter(holder=Owner.AVOIDANCE)
+    assert not isinstance(arb.submit(Owner.AVOIDANCE, start.request, Owner.MISSION), Routed)
+    state = msgspec.structs.replace(state, mission_current=1)  # the new mission's first item
+    (again,) = requests(tick(m, state, T + 0.2))
+    assert isinstance(again, ChangeAltitude) and again.alt_rel_m == climb.alt_rel_m
+    assert m.held == []
 
 
 def test_with_a_zone_a_fixed_wing_flies_its_mission_on_at_the_new_altitude() -> None:
@@ -177,10 +214,14 @@ def test_a_multirotor_in_its_mission_stops_at_its_item_and_resumes_there() -> No
 
 def test_the_missions_requests_wait_and_go_on_after_the_manoeuvre() -> None:
     """What the mission manager asks meanwhile is held (not refused: its sortie must
-    not fail for it) and goes on, instead of the module's own resume, once clear."""
-    m, state = flying_vtol()
-    m.on_peer(head_on_peer(T), T)
+    not fail for it) and goes on, instead of the module's own resume, once clear: a
+    multirotor stopped at its item (Goto)."""
+    m = AvoidanceModule(COPTER)
+    state = ap(groundspeed_m_s=10.0, vel_east_m_s=10.0)
+    m.on_submit(Submit(UploadMission(items=MISSION_ITEMS), Owner.MISSION), state, T)
+    m.on_peer(head_on_peer(T, east_m=300.0, vid=1), T)
     (goto,) = requests(tick(m, state, T))
+    assert isinstance(goto, Goto)
     m.on_result(ApResult(goto.request_id, True), T)
     state = msgspec.structs.replace(state, mode_name="GUIDED")
     held = Submit(StartMission(request_id=7), Owner.MISSION)
@@ -193,6 +234,33 @@ def test_the_missions_requests_wait_and_go_on_after_the_manoeuvre() -> None:
         now += 0.2
         assert requests(tick(m, state, now)) == []
     assert m.release_due and m.take_held() == [held]
+
+
+def test_a_speed_the_mission_asks_meanwhile_waits_for_the_resume() -> None:
+    """The speed rule's ChangeSpeed (every second) is held, only its newest, and goes on
+    after the module's own resume: taken for the mission's newest intent, it left VTOLs
+    circling their avoidance Goto in GUIDED for good (test_premission_flown)."""
+    m = AvoidanceModule(COPTER)
+    state = ap(groundspeed_m_s=10.0, vel_east_m_s=10.0)
+    m.on_submit(Submit(UploadMission(items=MISSION_ITEMS), Owner.MISSION), state, T)
+    m.on_peer(head_on_peer(T, east_m=300.0, vid=1), T)
+    (goto,) = requests(tick(m, state, T))
+    m.on_result(ApResult(goto.request_id, True), T)
+    state = msgspec.structs.replace(state, mode_name="GUIDED")
+    for k, speed in enumerate((20.0, 21.0, 22.0)):
+        sp = Submit(ChangeSpeed(speed_m_s=speed, request_id=10 + k), Owner.MISSION)
+        assert m.on_submit(sp, state, T) == ([], None)
+    m.forget(1, T)
+    now, resume = T, None
+    while resume is None and now < T + 10:
+        now += 0.2
+        reqs = requests(tick(m, state, now))
+        resume = reqs[0] if reqs else None
+    assert isinstance(resume, StartMission) and resume.first_item == 3
+    m.on_result(ApResult(resume.request_id, True), now)
+    (held,) = m.take_held() if m.release_due else []
+    assert isinstance(held, Submit) and isinstance(held.request, ChangeSpeed)
+    assert held.request.speed_m_s == 22.0
 
 
 def test_the_arbiter_gives_avoidance_precedence_and_control_back() -> None:
@@ -349,7 +417,11 @@ def test_the_return_lands_on_the_own_pad_at_its_holding_layer() -> None:
     upload, start = requests(subs)
     assert isinstance(upload, UploadMission) and isinstance(start, StartMission)
     there, hold, land = upload.items
-    assert [w.kind for w in upload.items] == [ItemKind.WAYPOINT, ItemKind.LOITER_UNLIMITED, ItemKind.LAND]
+    assert [w.kind for w in upload.items] == [
+        ItemKind.WAYPOINT,
+        ItemKind.LOITER_UNLIMITED,
+        ItemKind.LAND,
+    ]
     assert (land.lat_deg, land.lon_deg) == (LAT, LON)  # its own pad, not the base
     assert hold.alt_rel_m == there.alt_rel_m == 60.0  # second in its cluster: 30 + 30
     # the mission manager's Land later is answered at once: the landing is on its way
