@@ -64,7 +64,7 @@ from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, 
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
 from ..autopilot.state import AdsbReport
 from ..autopilot.tracker import parse_adsb
-from .ttc import BadTrackError, Track, kinematic, pairwise
+from .ttc import BadTrackError, Track, entry_time, kinematic, pairwise
 
 GROUND = frozenset({VehicleType.ROVER, VehicleType.BOAT})
 MULTIROTOR = frozenset({VehicleType.COPTER})
@@ -172,6 +172,10 @@ class AvoidanceConfig:
     level_climb_m_s: float = 0.5  # a stand-on vehicle climbing faster than this levels off
     retarget_m: float = 1.0  # a new climb request only for a target this much higher
     own_max_speed_m_s: float = 0.0  # the own state is fresh; widen it by age * this
+    # a multirotor starts a manoeuvre only when the loss of separation is within the time
+    # it needs (to climb to its target, or to stop: whichever is longer) plus this margin
+    act_margin_s: float = 5.0
+    stop_accel_m_s2: float = 2.5  # how hard a multirotor brakes (ArduCopter WPNAV_ACCEL)
 
     def __post_init__(self) -> None:
         if not (0 < self.protect_m < self.release_m):
@@ -180,6 +184,8 @@ class AvoidanceConfig:
             raise ValueError("vertical_sep_m, period_s and horizon_s must be positive")
         if self.climb_rate_m_s <= 0 or self.tie_band_m < 0 or self.clear_hold_s < 0:
             raise ValueError("climb_rate_m_s must be positive, tie_band_m and clear_hold_s >= 0")
+        if self.act_margin_s < 0 or self.stop_accel_m_s2 <= 0:
+            raise ValueError("act_margin_s must be >= 0 and stop_accel_m_s2 positive")
 
 
 @dataclass(slots=True)
@@ -209,6 +215,7 @@ class _Decision:
     against: tuple[int, ...]
     soonest_s: float = math.inf
     closest_m: float = math.inf
+    loss_s: float = math.inf  # when the separation is first lost (inside protect_m)
 
 
 @dataclass
@@ -397,6 +404,13 @@ class CollisionAvoider:
         against = tuple(tracks[i].vehicle_id for i in against_idx)
         soonest = float(np.minimum(a.t_cpa_s, a0.t_cpa_s)[0, against_idx].min())
         closest = float(np.minimum(a.miss_m, a0.miss_m)[0, against_idx].min())
+        # when the own separation to them is first lost, with or without vertical rates
+        rel_p = k.pos[against_idx] - k.pos[0]
+        radius = cfg.protect_m + a.margin_m[0, against_idx]
+        loss = min(
+            float(entry_time(rel_p, k.vel[against_idx] - k.vel[0], radius, cfg.horizon_s).min()),
+            float(entry_time(rel_p, level_k.vel[against_idx] - level_k.vel[0], radius, cfg.horizon_s).min()),
+        )
 
         # who can manoeuvre, what kind each is, the reported altitudes the rule compares
         types = [cfg.own_type, *(c.vehicle_type or VehicleType.OTHER for c in contacts)]
@@ -423,8 +437,8 @@ class CollisionAvoider:
             gives[0] = False
             hit = conflict[0] & gives
             if hit.any():
-                return _Decision(ManoeuvreKind.STOP, None, against, soonest, closest)
-            return _Decision(None, None, against, soonest, closest)
+                return _Decision(ManoeuvreKind.STOP, None, against, soonest, closest, loss)
+            return _Decision(None, None, against, soonest, closest, loss)
 
         # i gives way to j (i climbs above j): j is not a cooperative aircraft and not
         # well above i, or both are, and i is higher; within the band a fixed-wing before
@@ -447,12 +461,12 @@ class CollisionAvoider:
             target = self._stack(lexical, coop_air, conflict, dz, alt, level)
             assert target is not None
         if target[0] > alt[0] + 0.5:
-            return _Decision(ManoeuvreKind.CLIMB, float(target[0]), against, soonest, closest)
+            return _Decision(ManoeuvreKind.CLIMB, float(target[0]), against, soonest, closest, loss)
         # stand-on: level off if climbing into a conflict above
         above = conflict[0] & (alt > alt[0])
         if above.any() and own.vel_down_m_s < -cfg.level_climb_m_s:
-            return _Decision(ManoeuvreKind.LEVEL, float(alt[0]), against, soonest, closest)
-        return _Decision(None, None, against, soonest, closest)
+            return _Decision(ManoeuvreKind.LEVEL, float(alt[0]), against, soonest, closest, loss)
+        return _Decision(None, None, against, soonest, closest, loss)
 
     def _stack(
         self,
@@ -488,8 +502,27 @@ class CollisionAvoider:
             c = min(c, self._zone_ceiling_rel)
         return c
 
+    def time_to_act_s(self, own: VehicleStatus, target_msl_m: float | None) -> float:
+        """How long before the loss of separation a multirotor must start its manoeuvre:
+        the climb to `target_msl_m` or the stop from its ground speed, whichever takes
+        longer (both are flown at once), plus `act_margin_s`."""
+        cfg = self.config
+        climb = 0.0 if target_msl_m is None else max(0.0, target_msl_m - own.alt_msl_m)
+        stop = math.hypot(own.vel_north_m_s, own.vel_east_m_s) / cfg.stop_accel_m_s2
+        return max(climb / cfg.climb_rate_m_s, stop) + cfg.act_margin_s
+
     def _start(self, own: VehicleStatus, d: _Decision, now: float) -> list[Output]:
         if d.kind is None:
+            return []
+        if (
+            self.config.own_type in MULTIROTOR
+            and d.kind in (ManoeuvreKind.CLIMB, ManoeuvreKind.LEVEL)
+            and d.loss_s > self.time_to_act_s(own, d.target_msl_m)
+        ):
+            # a multirotor can stop and climb in seconds: it does not react to a
+            # constant-velocity prediction further ahead than it needs (a survey lane's
+            # end turns it long before), it watches it at every tick instead
+            self._count("deferred_ticks")
             return []
         planned = own.alt_rel_m if self._planned_rel is None else self._planned_rel
         self._active = _Active(

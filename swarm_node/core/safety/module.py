@@ -322,7 +322,8 @@ class AvoidanceModule:
         pads[self.profile.vehicle_id] = pad
         types = {**self._types, self.profile.vehicle_id: self.profile.vehicle_type}
         wings = {v for v, t in types.items() if t in (VehicleType.PLANE, VehicleType.VTOL)}
-        return hold_layer(self.profile.vehicle_id, pad, pads, self.pad_config, wings)
+        hover = {v for v, t in types.items() if t == VehicleType.COPTER}
+        return hold_layer(self.profile.vehicle_id, pad, pads, self.pad_config, wings, hover)
 
     def _pad_items(self, pad: GeoPoint, hold: float) -> tuple[Waypoint, Waypoint]:
         return (

@@ -200,6 +200,32 @@ def closest_approach(rel_pos: FloatArray, rel_vel: FloatArray, horizon_s: float)
     )
 
 
+def entry_time(
+    rel_pos: FloatArray, rel_vel: FloatArray, radius_m: FloatArray | float, horizon_s: float
+) -> FloatArray:
+    """When each relative motion `rel_pos + rel_vel * t` first comes within `radius_m`
+    (the loss of separation), t in [0, horizon]; 0 if it is within it now, infinity if
+    it does not come that close by the horizon ((..., 3) in, (...) out).
+
+        |p + v t| = R  ->  t = (-(p.v) - sqrt((p.v)^2 - |v|^2 (|p|^2 - R^2))) / |v|^2
+    """
+    r = np.broadcast_to(np.asarray(radius_m, dtype=float), rel_pos.shape[:-1])
+    p2 = np.einsum("...i,...i->...", rel_pos, rel_pos)
+    v2 = np.einsum("...i,...i->...", rel_vel, rel_vel)
+    pv = np.einsum("...i,...i->...", rel_pos, rel_vel)
+    disc = pv * pv - v2 * (p2 - r * r)
+    moving = v2 > EPS_SPEED2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(
+            moving & (disc >= 0.0),
+            (-pv - np.sqrt(np.maximum(disc, 0.0))) / np.where(moving, v2, 1.0),
+            np.inf,
+        )
+    t = np.where(t < 0.0, np.inf, t)  # outside and moving apart: both roots behind
+    t = np.where(p2 <= r * r, 0.0, t)  # within it now
+    return np.where(t <= max(0.0, horizon_s), t, np.inf)
+
+
 def approaches(own: Track, others: Sequence[Track], now: float, horizon_s: float) -> Approach:
     """CPA of `own` against each of `others` (arrays of len(others)), in own's frame."""
     k = kinematic([own, *others], now)

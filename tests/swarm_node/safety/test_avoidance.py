@@ -188,7 +188,7 @@ def test_two_rovers_the_higher_id_stops() -> None:
 
 
 def test_a_multirotor_holds_over_itself_while_it_climbs() -> None:
-    pair = head_on()
+    pair = [status(1, 0, 0, 100, ve=20), status(2, 200, 0, 100, ve=-20)]  # 4.5 s to the loss
     (m,) = manoeuvres(feed(avoider(2, VehicleType.COPTER), pair))
     (goto,) = m.requests
     assert isinstance(goto, Goto)
