@@ -387,6 +387,16 @@ class CollisionAvoider:
         miss = np.minimum(a.miss_m, a0.miss_m) - a.margin_m
         if planned:
             clear = miss[0, 1:] >= cfg.release_m
+            if not clear.all():
+                # going back must not bring it closer to anyone than staying: a contact
+                # the way back moves away from (one stacked above a climb, which waits
+                # for it in turn) does not hold it up, or two stacked vehicles would
+                # each wait for the other for good
+                k_here = kinematic([self._own_track(own, now, False), *tracks[1:]], now)
+                here = pairwise(k_here, cfg.horizon_s)
+                here0 = pairwise(replace(k_here, vel=k_here.vel * np.array([1.0, 1.0, 0.0])), cfg.horizon_s)
+                stay = np.minimum(here.miss_m, here0.miss_m)[0, 1:] - here.margin_m[0, 1:]
+                clear |= miss[0, 1:] > stay
             return _Decision(
                 None,
                 None,
@@ -517,11 +527,13 @@ class CollisionAvoider:
         if (
             self.config.own_type in MULTIROTOR
             and d.kind in (ManoeuvreKind.CLIMB, ManoeuvreKind.LEVEL)
+            and abs(own.vel_down_m_s) <= self.config.level_climb_m_s
             and d.loss_s > self.time_to_act_s(own, d.target_msl_m)
         ):
-            # a multirotor can stop and climb in seconds: it does not react to a
-            # constant-velocity prediction further ahead than it needs (a survey lane's
-            # end turns it long before), it watches it at every tick instead
+            # a multirotor in level flight can stop and climb in seconds: it does not
+            # react to a constant-velocity prediction further ahead than it needs (a
+            # survey lane's end turns it long before), it watches it at every tick
+            # instead. Climbing or descending (a take-off, a landing) it acts at once.
             self._count("deferred_ticks")
             return []
         planned = own.alt_rel_m if self._planned_rel is None else self._planned_rel

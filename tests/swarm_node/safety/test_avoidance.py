@@ -498,3 +498,37 @@ def test_in_the_band_a_fixed_wing_climbs_before_a_multirotor_once_types_are_know
     assert manoeuvres(feed(copter, pair)) == []
     # the VTOL has not heard the copter's VehicleInfo: ids decide, the copter (7) climbs
     assert manoeuvres(feed(avoider(1, VehicleType.VTOL), pair)) == []
+
+
+def test_two_stacked_multirotors_never_hold_each_other_up() -> None:
+    """9 climbed to 45 m for 7, 8 climbed to 60 m over 9; 7 has gone. 9 going back to
+    30 m brings it no closer to 8 above it, so 9 goes back (then 8 once 9 has flown
+    on): neither waits for the other for good (measured in FastFleet before: both
+    hovered there until BATTERY_CRITICAL)."""
+    av9 = avoider(9, VehicleType.COPTER, clear_hold_s=0.0)
+    av8 = avoider(8, VehicleType.COPTER, clear_hold_s=0.0)
+    for av in (av8, av9):
+        av.handle(PlannedAltitude(alt_rel_m=30.0), T)
+    assert manoeuvres(feed(av9, [status(7, 40, 0, 30, ve=-5), status(9, 0, 0, 30)]))
+    assert manoeuvres(feed(av8, [status(9, 10, 0, 30), status(8, 0, 0, 36)]))
+    av9.handle(Forget(7), T)
+    now, resumed9, resumed8 = T, [], []
+    here9, here8 = status(9, 0, 0, 45), status(8, 2, 0, 60)  # hovering, 8 over 9
+    while now < T + 10 and not resumed9:
+        now += 0.2
+        # the peer's report as heard: 0.4 s old (its protection volume widened by it)
+        here9 = msgspec.structs.replace(here9, time_unix_s=now)
+        here8 = msgspec.structs.replace(here8, time_unix_s=now - 0.4)
+        resumed9 = [m for m in manoeuvres(feed(av9, [here9, here8], now)) if m.kind is ManoeuvreKind.RESUME]
+        out8 = manoeuvres(feed(av8, [here9, here8], now))
+        assert all(m.kind is not ManoeuvreKind.RESUME for m in out8)  # 8 waits while 9 is under it
+    assert resumed9 and resumed9[0].target_alt_rel_m == 30.0
+    # 9 back at 30 m flies on; 8 is then clear too
+    while now < T + 20 and not resumed8:
+        now += 0.2
+        gone = T + 10 + 0.0
+        here9 = status(9, 0, 80 + 10 * (now - gone), 30, vn=10, t=now)
+        here8 = msgspec.structs.replace(here8, time_unix_s=now)
+        here9 = msgspec.structs.replace(here9, time_unix_s=now - 0.4)
+        resumed8 = [m for m in manoeuvres(feed(av8, [here9, here8], now)) if m.kind is ManoeuvreKind.RESUME]
+    assert resumed8 and resumed8[0].target_alt_rel_m == 30.0
