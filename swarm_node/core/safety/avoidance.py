@@ -388,15 +388,22 @@ class CollisionAvoider:
         if planned:
             clear = miss[0, 1:] >= cfg.release_m
             if not clear.all():
-                # going back must not bring it closer to anyone than staying: a contact
-                # the way back moves away from (one stacked above a climb, which waits
-                # for it in turn) does not hold it up, or two stacked vehicles would
-                # each wait for the other for good
+                # coming back down from a climb, away from a contact above that is not
+                # descending (one stacked over the climb, which waits for it in turn):
+                # that contact does not hold it up when the way back is no conflict with
+                # it and no closer to it than staying, or two stacked vehicles would each
+                # wait for the other for good
                 k_here = kinematic([self._own_track(own, now, False), *tracks[1:]], now)
+                level_here = replace(k_here, vel=k_here.vel * np.array([1.0, 1.0, 0.0]))
                 here = pairwise(k_here, cfg.horizon_s)
-                here0 = pairwise(replace(k_here, vel=k_here.vel * np.array([1.0, 1.0, 0.0])), cfg.horizon_s)
+                here0 = pairwise(level_here, cfg.horizon_s)
                 stay = np.minimum(here.miss_m, here0.miss_m)[0, 1:] - here.margin_m[0, 1:]
-                clear |= miss[0, 1:] > stay
+                back = miss[0, 1:]
+                above = (k_here.pos[1:, 2] > k_here.pos[0, 2]) & (
+                    k_here.vel[1:, 2] >= -cfg.level_climb_m_s
+                )
+                down = tracks[0].alt_msl_m < own.alt_msl_m - 0.5  # the planned track's
+                clear |= down & above & (back > stay) & (back >= cfg.protect_m)
             return _Decision(
                 None,
                 None,

@@ -16,6 +16,7 @@ from swarm_node.core.safety.ttc import (
     Track,
     approaches,
     closest_approach,
+    entry_time,
 )
 
 LAT0, LON0, H0 = 40.4168, -3.7038, 650.0
@@ -163,3 +164,36 @@ def test_an_older_report_of_the_same_motion_never_looks_safer(
     young = approaches(own, [report(age1)], 100.0, 30.0)
     old = approaches(own, [report(age1 + extra)], 100.0, 30.0)
     assert old.miss_m[0] - old.margin_m[0] <= young.miss_m[0] - young.margin_m[0] + 0.05
+
+
+def test_the_loss_of_separation_comes_before_the_closest_approach() -> None:
+    """Head-on at 40 m/s closing from 1000 m: the 20 m sphere is entered at 24.5 s, the
+    closest point is at 25 s; inside already: 0; passing 30 m apart: never."""
+    p, v = np.array([[1000.0, 0.0, 0.0]]), np.array([[-40.0, 0.0, 0.0]])
+    assert entry_time(p, v, 20.0, 60.0)[0] == pytest.approx(24.5)
+    assert entry_time(p, v, 20.0, 20.0)[0] == math.inf  # beyond the horizon
+    assert entry_time(np.array([[10.0, 0.0, 0.0]]), v, 20.0, 60.0)[0] == 0.0
+    assert entry_time(np.array([[1000.0, 30.0, 0.0]]), v, 20.0, 60.0)[0] == math.inf
+    assert entry_time(p, -v, 20.0, 60.0)[0] == math.inf  # moving apart
+    assert entry_time(p, np.zeros((1, 3)), 20.0, 60.0)[0] == math.inf  # no relative motion
+
+
+vec = st.tuples(*[st.floats(-500, 500)] * 3)
+
+
+@given(vec, st.tuples(*[st.floats(-50, 50)] * 3), st.floats(1.0, 60.0))
+def test_the_entry_is_on_the_sphere_and_no_later_than_the_cpa(
+    p: tuple[float, float, float], v: tuple[float, float, float], radius: float
+) -> None:
+    rel_p, rel_v = np.array([p]), np.array([v])
+    t = float(entry_time(rel_p, rel_v, radius, 120.0)[0])
+    a = closest_approach(rel_p, rel_v, 120.0)
+    if math.isinf(t):
+        assert a.miss_m[0] > radius - 1e-6
+        return
+    assert 0.0 <= t <= a.t_cpa_s[0] + 1e-9
+    d = float(np.linalg.norm(rel_p[0] + rel_v[0] * t))
+    if t > 0.0:
+        assert d == pytest.approx(radius, rel=1e-6, abs=1e-6)
+    else:
+        assert d <= radius + 1e-9
