@@ -64,7 +64,17 @@ from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, 
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
 from ..autopilot.state import AdsbReport
 from ..autopilot.tracker import parse_adsb
-from .ttc import BadTrackError, Track, entry_time, kinematic, pairwise
+from .ttc import (
+    BadTrackError,
+    Frame,
+    Kinematic,
+    Track,
+    along_route,
+    entry_time,
+    kinematic,
+    pairwise,
+    route_approach,
+)
 
 GROUND = frozenset({VehicleType.ROVER, VehicleType.BOAT})
 MULTIROTOR = frozenset({VehicleType.COPTER})
@@ -149,7 +159,17 @@ class Forget:
     vehicle_id: int
 
 
-Event = VehicleStatus | VehicleInfo | Traffic | PlannedAltitude | Ceiling | Forget
+@dataclass(frozen=True, slots=True)
+class OwnRoute:
+    """Where the own multirotor flies next in its mission (AUTO): the items ahead in
+    order, (lat, lon, altitude above home), the last one held; `speed_m_s` the speed it
+    flies them at (at least its ground speed is used). None: not flying a mission."""
+
+    points: tuple[tuple[float, float, float], ...] | None
+    speed_m_s: float = 0.0
+
+
+Event = VehicleStatus | VehicleInfo | Traffic | PlannedAltitude | Ceiling | Forget | OwnRoute
 Output = Manoeuvre | Alert
 
 
@@ -227,6 +247,7 @@ class CollisionAvoider:
     _types: dict[int, VehicleType] = field(default_factory=dict)
     _planned_rel: float | None = None
     _zone_ceiling_rel: float | None = None
+    _route: OwnRoute | None = None
     _active: _Active | None = None
     _next: float | None = None
     counters: dict[str, int] = field(default_factory=dict)
@@ -253,6 +274,8 @@ class CollisionAvoider:
                 self._zone_ceiling_rel = ev.alt_rel_m
             case Forget():
                 self._contacts.pop(ev.vehicle_id, None)
+            case OwnRoute():
+                self._route = ev if ev.points else None
         return []
 
     def _count(self, what: str) -> None:
@@ -385,6 +408,20 @@ class CollisionAvoider:
         a0 = pairwise(level_k, cfg.horizon_s)
         n = len(tracks)
         miss = np.minimum(a.miss_m, a0.miss_m) - a.margin_m
+        radius = cfg.protect_m + a.margin_m[0, 1:]
+        if not planned:
+            # the own row: when the closest approach comes, how close, when the
+            # separation is first lost (with the vertical rates or without them)
+            t_row = np.minimum(a.t_cpa_s, a0.t_cpa_s)[0, 1:]
+            miss_row = np.minimum(a.miss_m, a0.miss_m)[0, 1:]
+            rel_p = k.pos[1:] - k.pos[0]
+            loss_row = np.minimum(
+                entry_time(rel_p, k.vel[1:] - k.vel[0], radius, cfg.horizon_s),
+                entry_time(rel_p, level_k.vel[1:] - level_k.vel[0], radius, cfg.horizon_s),
+            )
+            if self._follows_route(own):
+                t_row, miss_row, loss_row = self._route_row(own, tracks[0], k, level_k, radius)
+                miss[0, 1:] = miss[1:, 0] = miss_row - a.margin_m[0, 1:]
         if planned:
             clear = miss[0, 1:] >= cfg.release_m
             if not clear.all():
@@ -419,15 +456,9 @@ class CollisionAvoider:
             return _Decision(None, None, ())
         against_idx = np.flatnonzero(conflict[0])
         against = tuple(tracks[i].vehicle_id for i in against_idx)
-        soonest = float(np.minimum(a.t_cpa_s, a0.t_cpa_s)[0, against_idx].min())
-        closest = float(np.minimum(a.miss_m, a0.miss_m)[0, against_idx].min())
-        # when the own separation to them is first lost, with or without vertical rates
-        rel_p = k.pos[against_idx] - k.pos[0]
-        radius = cfg.protect_m + a.margin_m[0, against_idx]
-        loss = min(
-            float(entry_time(rel_p, k.vel[against_idx] - k.vel[0], radius, cfg.horizon_s).min()),
-            float(entry_time(rel_p, level_k.vel[against_idx] - level_k.vel[0], radius, cfg.horizon_s).min()),
-        )
+        soonest = float(t_row[against_idx - 1].min())
+        closest = float(miss_row[against_idx - 1].min())
+        loss = float(loss_row[against_idx - 1].min())
 
         # who can manoeuvre, what kind each is, the reported altitudes the rule compares
         types = [cfg.own_type, *(c.vehicle_type or VehicleType.OTHER for c in contacts)]
@@ -484,6 +515,41 @@ class CollisionAvoider:
         if above.any() and own.vel_down_m_s < -cfg.level_climb_m_s:
             return _Decision(ManoeuvreKind.LEVEL, float(alt[0]), against, soonest, closest, loss)
         return _Decision(None, None, against, soonest, closest, loss)
+
+    def _follows_route(self, own: VehicleStatus) -> bool:
+        """The own multirotor flies its mission's route in level flight, not manoeuvring:
+        its own motion is predicted along the route, not straight on."""
+        return (
+            self._route is not None
+            and self.config.own_type in MULTIROTOR
+            and self._active is None
+            and abs(own.vel_down_m_s) <= self.config.level_climb_m_s
+        )
+
+    def _route_row(
+        self,
+        own: VehicleStatus,
+        own_track: Track,
+        k: Kinematic,
+        level_k: Kinematic,
+        radius: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The own row (t_cpa, miss, loss of separation against every contact) with
+        the own vehicle flying its route's legs: ArduCopter flies to its item, turns
+        there onto the next leg (a survey lane's end), holds at the last one; the
+        contacts keep their velocity, with their vertical rates or without."""
+        route = self._route
+        assert route is not None and route.points is not None
+        cfg = self.config
+        home = own.alt_msl_m - own.alt_rel_m
+        pts = np.array(route.points, dtype=float)
+        frame = Frame(own_track.lat_deg, own_track.lon_deg, own_track.alt_msl_m)
+        enu = frame.positions(pts[:, 0], pts[:, 1], pts[:, 2] + home)
+        speed = max(math.hypot(own.vel_north_m_s, own.vel_east_m_s), route.speed_m_s)
+        legs = along_route(k.pos[0], enu, speed, cfg.horizon_s)
+        t1, m1, e1 = route_approach(legs, k.pos[1:], k.vel[1:], radius, cfg.horizon_s)
+        t0, m0, e0 = route_approach(legs, level_k.pos[1:], level_k.vel[1:], radius, cfg.horizon_s)
+        return np.where(m0 < m1, t0, t1), np.minimum(m0, m1), np.minimum(e0, e1)
 
     def _stack(
         self,

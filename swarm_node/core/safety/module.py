@@ -98,6 +98,7 @@ from .avoidance import (
     Forget,
     Manoeuvre,
     ManoeuvreKind,
+    OwnRoute,
     PlannedAltitude,
     Traffic,
 )
@@ -446,6 +447,7 @@ class AvoidanceModule:
             av.handle(own, now)
             av.handle(PlannedAltitude(self._planned(ap, climb_target_rel_m)), now)
             av.handle(Ceiling(self._ceiling(own, zones, now)), now)
+            av.handle(self._route(ap), now)
         for r in ap.traffic:
             if self._traffic_seen.get(r.icao_address) != r.time_s:
                 self._traffic_seen[r.icao_address] = r.time_s
@@ -490,6 +492,26 @@ class AvoidanceModule:
             out += self._submit(s.last, now)  # another request took the mode back
             self._count("reasserted")
         return out
+
+    def _route(self, ap: AutopilotState) -> OwnRoute:
+        """A multirotor's way ahead in its mission (AUTO, not suspended): the items from
+        the one it flies to, up to a hold, a landing or a return (None otherwise)."""
+        if (
+            self.profile.vehicle_type != VehicleType.COPTER
+            or ap.mode_name != "AUTO"
+            or self.suspension is not None
+        ):
+            return OwnRoute(None)
+        points: list[tuple[float, float, float]] = []
+        for w in self.items[max(0, ap.mission_current - 1) :]:
+            if w.kind in (ItemKind.LAND, ItemKind.RTL, ItemKind.TAKEOFF):
+                break
+            if w.kind == ItemKind.CHANGE_SPEED or (w.lat_deg == 0.0 and w.lon_deg == 0.0):
+                continue
+            points.append((w.lat_deg, w.lon_deg, w.alt_rel_m))
+            if w.kind != ItemKind.WAYPOINT:
+                break  # a loiter: it stays there
+        return OwnRoute(tuple(points) or None, self.profile.cruise_speed_m_s)
 
     def _planned(self, ap: AutopilotState, climb_target: float | None) -> float | None:
         """The altitude to come back to: the mission item's (AUTO), the take-off

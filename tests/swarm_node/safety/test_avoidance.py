@@ -21,6 +21,7 @@ from swarm_node.core.safety.avoidance import (
     Forget,
     Manoeuvre,
     ManoeuvreKind,
+    OwnRoute,
     PlannedAltitude,
     Traffic,
 )
@@ -485,6 +486,7 @@ def test_in_the_band_a_fixed_wing_climbs_before_a_multirotor_once_types_are_know
     """A VTOL (id 1) and a quadcopter (id 7) head-on at one altitude: with both types
     known (VehicleInfo) the VTOL climbs, whatever the ids; each side decides alike. With
     the peer's type unknown the higher id climbs (the rule every report allows)."""
+
     def info(vid: int, vtype: VehicleType) -> VehicleInfo:
         return VehicleInfo(vehicle_id=vid, vehicle_type=vtype, model="m", user_id=f"U{vid}")
 
@@ -519,7 +521,9 @@ def test_two_stacked_multirotors_never_hold_each_other_up() -> None:
         # the peer's report as heard: 0.4 s old (its protection volume widened by it)
         here9 = msgspec.structs.replace(here9, time_unix_s=now)
         here8 = msgspec.structs.replace(here8, time_unix_s=now - 0.4)
-        resumed9 = [m for m in manoeuvres(feed(av9, [here9, here8], now)) if m.kind is ManoeuvreKind.RESUME]
+        resumed9 = [
+            m for m in manoeuvres(feed(av9, [here9, here8], now)) if m.kind is ManoeuvreKind.RESUME
+        ]
         out8 = manoeuvres(feed(av8, [here9, here8], now))
         assert all(m.kind is not ManoeuvreKind.RESUME for m in out8)  # 8 waits while 9 is under it
     assert resumed9 and resumed9[0].target_alt_rel_m == 30.0
@@ -530,7 +534,9 @@ def test_two_stacked_multirotors_never_hold_each_other_up() -> None:
         here9 = status(9, 0, 80 + 10 * (now - gone), 30, vn=10, t=now)
         here8 = msgspec.structs.replace(here8, time_unix_s=now)
         here9 = msgspec.structs.replace(here9, time_unix_s=now - 0.4)
-        resumed8 = [m for m in manoeuvres(feed(av8, [here9, here8], now)) if m.kind is ManoeuvreKind.RESUME]
+        resumed8 = [
+            m for m in manoeuvres(feed(av8, [here9, here8], now)) if m.kind is ManoeuvreKind.RESUME
+        ]
     assert resumed8 and resumed8[0].target_alt_rel_m == 30.0
 
 
@@ -581,6 +587,32 @@ def test_two_multirotors_head_on_in_fast_time_one_climb_not_a_cycle() -> None:
     kinds = [m.kind for m in now.manoeuvres[2]]
     assert kinds == [ManoeuvreKind.CLIMB, ManoeuvreKind.RESUME] and now.manoeuvres[1] == []
     assert min(separations(now.samples)) >= 14.9
-    early = run(starts, duration_s=60.0, avoid=True, config={"climb_rate_m_s": 2.5, "act_margin_s": 30.0})
+    early = run(
+        starts, duration_s=60.0, avoid=True, config={"climb_rate_m_s": 2.5, "act_margin_s": 30.0}
+    )
     assert len(early.manoeuvres[2]) > 4
     assert min(separations(early.samples)) >= 14.9
+
+
+def test_a_multirotor_on_its_route_does_not_climb_for_what_its_lane_end_turns_it_from() -> None:
+    """Quadcopter 8 flies east at 10 m/s, 7 hovers 60 m ahead at its altitude: straight
+    on, the loss is 4 s ahead and 8 climbs. Its mission turns it north at the lane's end
+    20 m ahead (its own route, which it knows): 40 m from 7 at the closest, no climb. A
+    route that goes on to 7 is a conflict again."""
+    pair = [status(7, 60, 0, 30), status(8, 0, 0, 30, ve=10)]
+    at = [
+        pymap3d.enu2geodetic(e, n, 0.0, LAT0, LON0, HOME)[:2]
+        for e, n in ((20, 0), (20, 200), (200, 0))
+    ]
+    turn = OwnRoute(((*at[0], 30.0), (*at[1], 30.0)), 10.0)
+    ahead = OwnRoute(((*at[2], 30.0),), 10.0)
+    assert manoeuvres(feed(avoider(8, VehicleType.COPTER, climb_rate_m_s=2.5), pair))
+    av = avoider(8, VehicleType.COPTER, climb_rate_m_s=2.5)
+    av.handle(turn, T)
+    assert feed(av, pair) == []
+    av = avoider(8, VehicleType.COPTER, climb_rate_m_s=2.5)
+    av.handle(ahead, T)
+    assert manoeuvres(feed(av, pair))
+    plane = avoider(8, VehicleType.PLANE)  # a fixed-wing's route is not used: it acts
+    plane.handle(turn, T)
+    assert manoeuvres(feed(plane, pair))

@@ -160,7 +160,9 @@ def test_holding_layers_never_repeat_among_holds_that_could_conflict(
     hover = {v + 1 for v, (_e, _n, h) in enumerate(spots) if h}
     wing = set(pads) - hover
     layer = {
-        v: hold_layer(v, p, {u: q for u, q in pads.items() if u != v}, fixed_wing=wing, hovering=hover)
+        v: hold_layer(
+            v, p, {u: q for u, q in pads.items() if u != v}, fixed_wing=wing, hovering=hover
+        )
         for v, p in pads.items()
     }
     for a, b in itertools.combinations(pads, 2):
