@@ -10,6 +10,8 @@ peers' telemetry and non-cooperative traffic, ticking at 5 Hz.
                                              manoeuvre started)
     Ceiling                                  the zones' ceiling above home (None: config's)
     Forget                                   a contact lost (membership), dropped now
+    OwnRoute                                 a multirotor's mission items ahead (AUTO): its
+                                             own motion is predicted along them
 
     outputs (on_timer)                       meaning for the node
     Manoeuvre(CLIMB | LEVEL | STOP)          submit `requests` as owner AVOIDANCE, suspend the
@@ -40,9 +42,18 @@ within `horizon_s`. Manoeuvres are upward only:
   either to the mission item it was flying to, higher, while in a mission); rovers and boats STOP
   (HOLD mode) when they give way (ground pairs: the higher id) or when something
   stands in their way.
+- When: a fixed-wing at once; a multirotor in level flight when the loss of separation
+  (`ttc.entry_time`) is within the time it needs (its climb, or its stop, whichever is
+  longer, plus `act_margin_s`): it can stop and climb in seconds, and a survey lane's
+  end turns it long before a 30 s straight line would meet anyone. Climbing or
+  descending it acts at once. In its mission its own motion is predicted along its
+  route (`OwnRoute`), the contacts' straight on.
 - Hysteresis: the manoeuvre ends only when, from the planned altitude (ground
   vehicles: with the velocity they had), every predicted miss is above `release_m`
-  (> `protect_m`) for `clear_hold_s`; then RESUME, back to the planned altitude.
+  (> `protect_m`) for `clear_hold_s`; then RESUME, back to the planned altitude. A
+  contact above that is not descending does not hold up a way back down that is no
+  conflict with it and no closer to it than staying (two stacked vehicles would wait
+  for each other for good).
 
 The core never reads a clock: `now` is the caller's (the same clock as the contacts'
 `time_s`; VehicleStatus times are GPS UNIX seconds). A report is at least as old as

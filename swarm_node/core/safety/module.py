@@ -9,7 +9,8 @@ manoeuvres carried out through the arbiter as owner AVOIDANCE while the mission 
                                                 suspended (returns True: held)
     tick(now, own status, autopilot, ...)       feeds the own state, ADS-B traffic
                                                 (`AutopilotState.traffic`), the planned
-                                                altitude and the zones' ceiling; runs the
+                                                altitude, the zones' ceiling and a
+                                                multirotor's route ahead; runs the
                                                 avoider's 5 Hz tick; answers with Submits
                                                 (owner AVOIDANCE) and Alerts
     on_result(ApResult)                         results of its requests
