@@ -25,9 +25,11 @@ is taking off or landing), so it cannot deadlock. A peer that is silent (lost) d
 block.
 
 `hold_layer` gives every vehicle returning to neighbouring pads its own holding
-altitude (its rank in the cluster of pads joined by steps under `hold_near_m`: holding
-circles that could overlap; multirotors low, fixed-wing above, each by id), so vehicles
-waiting for their turn to land are stacked `layer_m` apart.
+altitude (its rank in the cluster of pads joined by steps shorter than their holds
+need, `holds_apart_m`: `hold_near_m` for holding circles that could overlap,
+`hover_near_m` for two multirotors hovering still over their pads; multirotors low,
+fixed-wing above, each by id), so vehicles waiting for their turn to land are stacked
+`layer_m` apart, and multirotors on pads far enough apart all hold at the lowest layer.
 
 Pure: no I/O, no clock.
 """
