@@ -10,6 +10,8 @@ peers' telemetry and non-cooperative traffic, ticking at 5 Hz.
                                              manoeuvre started)
     Ceiling                                  the zones' ceiling above home (None: config's)
     Forget                                   a contact lost (membership), dropped now
+    OwnRoute                                 a multirotor's mission items ahead (AUTO): its
+                                             own motion is predicted along them
 
     outputs (on_timer)                       meaning for the node
     Manoeuvre(CLIMB | LEVEL | STOP)          submit `requests` as owner AVOIDANCE, suspend the
@@ -40,9 +42,18 @@ within `horizon_s`. Manoeuvres are upward only:
   either to the mission item it was flying to, higher, while in a mission); rovers and boats STOP
   (HOLD mode) when they give way (ground pairs: the higher id) or when something
   stands in their way.
+- When: a fixed-wing at once; a multirotor in level flight when the loss of separation
+  (`ttc.entry_time`) is within the time it needs (its climb, or its stop, whichever is
+  longer, plus `act_margin_s`): it can stop and climb in seconds, and a survey lane's
+  end turns it long before a 30 s straight line would meet anyone. Climbing or
+  descending it acts at once. In its mission its own motion is predicted along its
+  route (`OwnRoute`), the contacts' straight on.
 - Hysteresis: the manoeuvre ends only when, from the planned altitude (ground
   vehicles: with the velocity they had), every predicted miss is above `release_m`
-  (> `protect_m`) for `clear_hold_s`; then RESUME, back to the planned altitude.
+  (> `protect_m`) for `clear_hold_s`; then RESUME, back to the planned altitude. A
+  contact above that is not descending does not hold up a way back down that is no
+  conflict with it and no closer to it than staying (two stacked vehicles would wait
+  for each other for good).
 
 The core never reads a clock: `now` is the caller's (the same clock as the contacts'
 `time_s`; VehicleStatus times are GPS UNIX seconds). A report is at least as old as
@@ -64,7 +75,17 @@ from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, 
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
 from ..autopilot.state import AdsbReport
 from ..autopilot.tracker import parse_adsb
-from .ttc import BadTrackError, Track, kinematic, pairwise
+from .ttc import (
+    BadTrackError,
+    Frame,
+    Kinematic,
+    Track,
+    along_route,
+    entry_time,
+    kinematic,
+    pairwise,
+    route_approach,
+)
 
 GROUND = frozenset({VehicleType.ROVER, VehicleType.BOAT})
 MULTIROTOR = frozenset({VehicleType.COPTER})
@@ -149,7 +170,17 @@ class Forget:
     vehicle_id: int
 
 
-Event = VehicleStatus | VehicleInfo | Traffic | PlannedAltitude | Ceiling | Forget
+@dataclass(frozen=True, slots=True)
+class OwnRoute:
+    """Where the own multirotor flies next in its mission (AUTO): the items ahead in
+    order, (lat, lon, altitude above home), the last one held; `speed_m_s` the speed it
+    flies them at (at least its ground speed is used). None: not flying a mission."""
+
+    points: tuple[tuple[float, float, float], ...] | None
+    speed_m_s: float = 0.0
+
+
+Event = VehicleStatus | VehicleInfo | Traffic | PlannedAltitude | Ceiling | Forget | OwnRoute
 Output = Manoeuvre | Alert
 
 
@@ -172,6 +203,10 @@ class AvoidanceConfig:
     level_climb_m_s: float = 0.5  # a stand-on vehicle climbing faster than this levels off
     retarget_m: float = 1.0  # a new climb request only for a target this much higher
     own_max_speed_m_s: float = 0.0  # the own state is fresh; widen it by age * this
+    # a multirotor starts a manoeuvre only when the loss of separation is within the time
+    # it needs (to climb to its target, or to stop: whichever is longer) plus this margin
+    act_margin_s: float = 5.0
+    stop_accel_m_s2: float = 2.5  # how hard a multirotor brakes (ArduCopter WPNAV_ACCEL)
 
     def __post_init__(self) -> None:
         if not (0 < self.protect_m < self.release_m):
@@ -180,6 +215,8 @@ class AvoidanceConfig:
             raise ValueError("vertical_sep_m, period_s and horizon_s must be positive")
         if self.climb_rate_m_s <= 0 or self.tie_band_m < 0 or self.clear_hold_s < 0:
             raise ValueError("climb_rate_m_s must be positive, tie_band_m and clear_hold_s >= 0")
+        if self.act_margin_s < 0 or self.stop_accel_m_s2 <= 0:
+            raise ValueError("act_margin_s must be >= 0 and stop_accel_m_s2 positive")
 
 
 @dataclass(slots=True)
@@ -209,6 +246,7 @@ class _Decision:
     against: tuple[int, ...]
     soonest_s: float = math.inf
     closest_m: float = math.inf
+    loss_s: float = math.inf  # when the separation is first lost (inside protect_m)
 
 
 @dataclass
@@ -220,6 +258,7 @@ class CollisionAvoider:
     _types: dict[int, VehicleType] = field(default_factory=dict)
     _planned_rel: float | None = None
     _zone_ceiling_rel: float | None = None
+    _route: OwnRoute | None = None
     _active: _Active | None = None
     _next: float | None = None
     counters: dict[str, int] = field(default_factory=dict)
@@ -246,6 +285,8 @@ class CollisionAvoider:
                 self._zone_ceiling_rel = ev.alt_rel_m
             case Forget():
                 self._contacts.pop(ev.vehicle_id, None)
+            case OwnRoute():
+                self._route = ev if ev.points else None
         return []
 
     def _count(self, what: str) -> None:
@@ -378,8 +419,39 @@ class CollisionAvoider:
         a0 = pairwise(level_k, cfg.horizon_s)
         n = len(tracks)
         miss = np.minimum(a.miss_m, a0.miss_m) - a.margin_m
+        radius = cfg.protect_m + a.margin_m[0, 1:]
+        if not planned:
+            # the own row: when the closest approach comes, how close, when the
+            # separation is first lost (with the vertical rates or without them)
+            t_row = np.minimum(a.t_cpa_s, a0.t_cpa_s)[0, 1:]
+            miss_row = np.minimum(a.miss_m, a0.miss_m)[0, 1:]
+            rel_p = k.pos[1:] - k.pos[0]
+            loss_row = np.minimum(
+                entry_time(rel_p, k.vel[1:] - k.vel[0], radius, cfg.horizon_s),
+                entry_time(rel_p, level_k.vel[1:] - level_k.vel[0], radius, cfg.horizon_s),
+            )
+            if self._follows_route(own):
+                t_row, miss_row, loss_row = self._route_row(own, tracks[0], k, level_k, radius)
+                miss[0, 1:] = miss[1:, 0] = miss_row - a.margin_m[0, 1:]
         if planned:
             clear = miss[0, 1:] >= cfg.release_m
+            if not clear.all():
+                # coming back down from a climb, away from a contact above that is not
+                # descending (one stacked over the climb, which waits for it in turn):
+                # that contact does not hold it up when the way back is no conflict with
+                # it and no closer to it than staying, or two stacked vehicles would each
+                # wait for the other for good
+                k_here = kinematic([self._own_track(own, now, False), *tracks[1:]], now)
+                level_here = replace(k_here, vel=k_here.vel * np.array([1.0, 1.0, 0.0]))
+                here = pairwise(k_here, cfg.horizon_s)
+                here0 = pairwise(level_here, cfg.horizon_s)
+                stay = np.minimum(here.miss_m, here0.miss_m)[0, 1:] - here.margin_m[0, 1:]
+                back = miss[0, 1:]
+                above = (k_here.pos[1:, 2] > k_here.pos[0, 2]) & (
+                    k_here.vel[1:, 2] >= -cfg.level_climb_m_s
+                )
+                down = tracks[0].alt_msl_m < own.alt_msl_m - 0.5  # the planned track's
+                clear |= down & above & (back > stay) & (back >= cfg.protect_m)
             return _Decision(
                 None,
                 None,
@@ -395,8 +467,9 @@ class CollisionAvoider:
             return _Decision(None, None, ())
         against_idx = np.flatnonzero(conflict[0])
         against = tuple(tracks[i].vehicle_id for i in against_idx)
-        soonest = float(np.minimum(a.t_cpa_s, a0.t_cpa_s)[0, against_idx].min())
-        closest = float(np.minimum(a.miss_m, a0.miss_m)[0, against_idx].min())
+        soonest = float(t_row[against_idx - 1].min())
+        closest = float(miss_row[against_idx - 1].min())
+        loss = float(loss_row[against_idx - 1].min())
 
         # who can manoeuvre, what kind each is, the reported altitudes the rule compares
         types = [cfg.own_type, *(c.vehicle_type or VehicleType.OTHER for c in contacts)]
@@ -423,8 +496,8 @@ class CollisionAvoider:
             gives[0] = False
             hit = conflict[0] & gives
             if hit.any():
-                return _Decision(ManoeuvreKind.STOP, None, against, soonest, closest)
-            return _Decision(None, None, against, soonest, closest)
+                return _Decision(ManoeuvreKind.STOP, None, against, soonest, closest, loss)
+            return _Decision(None, None, against, soonest, closest, loss)
 
         # i gives way to j (i climbs above j): j is not a cooperative aircraft and not
         # well above i, or both are, and i is higher; within the band a fixed-wing before
@@ -447,12 +520,47 @@ class CollisionAvoider:
             target = self._stack(lexical, coop_air, conflict, dz, alt, level)
             assert target is not None
         if target[0] > alt[0] + 0.5:
-            return _Decision(ManoeuvreKind.CLIMB, float(target[0]), against, soonest, closest)
+            return _Decision(ManoeuvreKind.CLIMB, float(target[0]), against, soonest, closest, loss)
         # stand-on: level off if climbing into a conflict above
         above = conflict[0] & (alt > alt[0])
         if above.any() and own.vel_down_m_s < -cfg.level_climb_m_s:
-            return _Decision(ManoeuvreKind.LEVEL, float(alt[0]), against, soonest, closest)
-        return _Decision(None, None, against, soonest, closest)
+            return _Decision(ManoeuvreKind.LEVEL, float(alt[0]), against, soonest, closest, loss)
+        return _Decision(None, None, against, soonest, closest, loss)
+
+    def _follows_route(self, own: VehicleStatus) -> bool:
+        """The own multirotor flies its mission's route in level flight, not manoeuvring:
+        its own motion is predicted along the route, not straight on."""
+        return (
+            self._route is not None
+            and self.config.own_type in MULTIROTOR
+            and self._active is None
+            and abs(own.vel_down_m_s) <= self.config.level_climb_m_s
+        )
+
+    def _route_row(
+        self,
+        own: VehicleStatus,
+        own_track: Track,
+        k: Kinematic,
+        level_k: Kinematic,
+        radius: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The own row (t_cpa, miss, loss of separation against every contact) with
+        the own vehicle flying its route's legs: ArduCopter flies to its item, turns
+        there onto the next leg (a survey lane's end), holds at the last one; the
+        contacts keep their velocity, with their vertical rates or without."""
+        route = self._route
+        assert route is not None and route.points is not None
+        cfg = self.config
+        home = own.alt_msl_m - own.alt_rel_m
+        pts = np.array(route.points, dtype=float)
+        frame = Frame(own_track.lat_deg, own_track.lon_deg, own_track.alt_msl_m)
+        enu = frame.positions(pts[:, 0], pts[:, 1], pts[:, 2] + home)
+        speed = max(math.hypot(own.vel_north_m_s, own.vel_east_m_s), route.speed_m_s)
+        legs = along_route(k.pos[0], enu, speed, cfg.horizon_s)
+        t1, m1, e1 = route_approach(legs, k.pos[1:], k.vel[1:], radius, cfg.horizon_s)
+        t0, m0, e0 = route_approach(legs, level_k.pos[1:], level_k.vel[1:], radius, cfg.horizon_s)
+        return np.where(m0 < m1, t0, t1), np.minimum(m0, m1), np.minimum(e0, e1)
 
     def _stack(
         self,
@@ -488,8 +596,29 @@ class CollisionAvoider:
             c = min(c, self._zone_ceiling_rel)
         return c
 
+    def time_to_act_s(self, own: VehicleStatus, target_msl_m: float | None) -> float:
+        """How long before the loss of separation a multirotor must start its manoeuvre:
+        the climb to `target_msl_m` or the stop from its ground speed, whichever takes
+        longer (both are flown at once), plus `act_margin_s`."""
+        cfg = self.config
+        climb = 0.0 if target_msl_m is None else max(0.0, target_msl_m - own.alt_msl_m)
+        stop = math.hypot(own.vel_north_m_s, own.vel_east_m_s) / cfg.stop_accel_m_s2
+        return max(climb / cfg.climb_rate_m_s, stop) + cfg.act_margin_s
+
     def _start(self, own: VehicleStatus, d: _Decision, now: float) -> list[Output]:
         if d.kind is None:
+            return []
+        if (
+            self.config.own_type in MULTIROTOR
+            and d.kind in (ManoeuvreKind.CLIMB, ManoeuvreKind.LEVEL)
+            and abs(own.vel_down_m_s) <= self.config.level_climb_m_s
+            and d.loss_s > self.time_to_act_s(own, d.target_msl_m)
+        ):
+            # a multirotor in level flight can stop and climb in seconds: it does not
+            # react to a constant-velocity prediction further ahead than it needs (a
+            # survey lane's end turns it long before), it watches it at every tick
+            # instead. Climbing or descending (a take-off, a landing) it acts at once.
+            self._count("deferred_ticks")
             return []
         planned = own.alt_rel_m if self._planned_rel is None else self._planned_rel
         self._active = _Active(

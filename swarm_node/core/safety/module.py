@@ -9,7 +9,8 @@ manoeuvres carried out through the arbiter as owner AVOIDANCE while the mission 
                                                 suspended (returns True: held)
     tick(now, own status, autopilot, ...)       feeds the own state, ADS-B traffic
                                                 (`AutopilotState.traffic`), the planned
-                                                altitude and the zones' ceiling; runs the
+                                                altitude, the zones' ceiling and a
+                                                multirotor's route ahead; runs the
                                                 avoider's 5 Hz tick; answers with Submits
                                                 (owner AVOIDANCE) and Alerts
     on_result(ApResult)                         results of its requests
@@ -98,6 +99,7 @@ from .avoidance import (
     Forget,
     Manoeuvre,
     ManoeuvreKind,
+    OwnRoute,
     PlannedAltitude,
     Traffic,
 )
@@ -322,7 +324,8 @@ class AvoidanceModule:
         pads[self.profile.vehicle_id] = pad
         types = {**self._types, self.profile.vehicle_id: self.profile.vehicle_type}
         wings = {v for v, t in types.items() if t in (VehicleType.PLANE, VehicleType.VTOL)}
-        return hold_layer(self.profile.vehicle_id, pad, pads, self.pad_config, wings)
+        hover = {v for v, t in types.items() if t == VehicleType.COPTER}
+        return hold_layer(self.profile.vehicle_id, pad, pads, self.pad_config, wings, hover)
 
     def _pad_items(self, pad: GeoPoint, hold: float) -> tuple[Waypoint, Waypoint]:
         return (
@@ -445,6 +448,7 @@ class AvoidanceModule:
             av.handle(own, now)
             av.handle(PlannedAltitude(self._planned(ap, climb_target_rel_m)), now)
             av.handle(Ceiling(self._ceiling(own, zones, now)), now)
+            av.handle(self._route(ap), now)
         for r in ap.traffic:
             if self._traffic_seen.get(r.icao_address) != r.time_s:
                 self._traffic_seen[r.icao_address] = r.time_s
@@ -489,6 +493,26 @@ class AvoidanceModule:
             out += self._submit(s.last, now)  # another request took the mode back
             self._count("reasserted")
         return out
+
+    def _route(self, ap: AutopilotState) -> OwnRoute:
+        """A multirotor's way ahead in its mission (AUTO, not suspended): the items from
+        the one it flies to, up to a hold, a landing or a return (None otherwise)."""
+        if (
+            self.profile.vehicle_type != VehicleType.COPTER
+            or ap.mode_name != "AUTO"
+            or self.suspension is not None
+        ):
+            return OwnRoute(None)
+        points: list[tuple[float, float, float]] = []
+        for w in self.items[max(0, ap.mission_current - 1) :]:
+            if w.kind in (ItemKind.LAND, ItemKind.RTL, ItemKind.TAKEOFF):
+                break
+            if w.kind == ItemKind.CHANGE_SPEED or (w.lat_deg == 0.0 and w.lon_deg == 0.0):
+                continue
+            points.append((w.lat_deg, w.lon_deg, w.alt_rel_m))
+            if w.kind != ItemKind.WAYPOINT:
+                break  # a loiter: it stays there
+        return OwnRoute(tuple(points) or None, self.profile.cruise_speed_m_s)
 
     def _planned(self, ap: AutopilotState, climb_target: float | None) -> float | None:
         """The altitude to come back to: the mission item's (AUTO), the take-off

@@ -25,9 +25,11 @@ is taking off or landing), so it cannot deadlock. A peer that is silent (lost) d
 block.
 
 `hold_layer` gives every vehicle returning to neighbouring pads its own holding
-altitude (its rank in the cluster of pads joined by steps under `hold_near_m`: holding
-circles that could overlap; multirotors low, fixed-wing above, each by id), so vehicles
-waiting for their turn to land are stacked `layer_m` apart.
+altitude (its rank in the cluster of pads joined by steps shorter than their holds
+need, `holds_apart_m`: `hold_near_m` for holding circles that could overlap,
+`hover_near_m` for two multirotors hovering still over their pads; multirotors low,
+fixed-wing above, each by id), so vehicles waiting for their turn to land are stacked
+`layer_m` apart, and multirotors on pads far enough apart all hold at the lowest layer.
 
 Pure: no I/O, no clock.
 """
@@ -55,6 +57,11 @@ class PadConfig:
     hold_alt_rel_m: float = 30.0  # the lowest holding layer over a pad
     layer_m: float = 30.0  # between holding layers (over the avoider's 20 m and its margins)
     hold_near_m: float = 150.0  # pads this close share the holding layers (loiter circles)
+    # two vehicles that hover over their pads (multirotors) share the holding layers only
+    # when their pads are this close: hovering still over pads at least the avoider's
+    # release distance (30 m) apart, they are never in conflict; a hoverer and a circler
+    # share them when the pads are closer than the mean of the two distances (90 m)
+    hover_near_m: float = 30.0
 
     def __post_init__(self) -> None:
         if min(self.near_m, self.stagger_m, self.layer_m) <= 0:
@@ -119,26 +126,41 @@ def hold_layer(
     pads: Mapping[int, GeoPoint],
     config: PadConfig = PadConfig(),
     fixed_wing: Collection[int] = (),
+    hovering: Collection[int] = (),
 ) -> float:
     """The holding altitude above home of `own_id` over its pad: `hold_alt_rel_m` plus
     `layer_m` times its rank in its cluster, the vehicles whose pads are joined by steps
-    shorter than `hold_near_m` (holding circles that could overlap). Rank: vehicles that
-    hover first (the low layers: a multirotor's slow descent from high costs battery),
-    then the `fixed_wing` ones (they circle, and fly down fast), each by id. Every member
-    of a cluster computes the same cluster from the same pads, so layers never repeat."""
+    shorter than their holding volumes need (`holds_apart_m`: holding circles that could
+    overlap, 150 m; two vehicles known to hover over their pads, the `hovering` ones,
+    30 m). Rank: vehicles that hover first (the low layers: a multirotor's slow descent
+    from high costs battery), then the `fixed_wing` ones (they circle, and fly down
+    fast), each by id. Every member of a cluster computes the same cluster from the same
+    pads and types, so layers never repeat among vehicles whose holds could conflict."""
     every = dict(pads)
     every[own_id] = pad
+    hover = set(hovering)
     cluster = {own_id}
     todo = [own_id]
     while todo:
-        a = every[todo.pop()]
+        u = todo.pop()
+        a = every[u]
         for vid, p in every.items():
-            if (
-                vid not in cluster
-                and distance_m(a.lat_deg, a.lon_deg, p.lat_deg, p.lon_deg) < config.hold_near_m
-            ):
+            if vid not in cluster and distance_m(
+                a.lat_deg, a.lon_deg, p.lat_deg, p.lon_deg
+            ) < holds_apart_m(u in hover, vid in hover, config):
                 cluster.add(vid)
                 todo.append(vid)
     wing = set(fixed_wing)
     rank = sorted(cluster, key=lambda v: (v in wing, v)).index(own_id)
     return config.hold_alt_rel_m + rank * config.layer_m
+
+
+def holds_apart_m(a_hovers: bool, b_hovers: bool, config: PadConfig = PadConfig()) -> float:
+    """How far apart two pads must be for their vehicles to hold over them at one layer:
+    `hover_near_m` when both hover still over their pads (multirotors), `hold_near_m`
+    when both circle (fixed-wing, or a type not known), their mean for one of each."""
+    if a_hovers and b_hovers:
+        return config.hover_near_m
+    if a_hovers or b_hovers:
+        return 0.5 * (config.hover_near_m + config.hold_near_m)
+    return config.hold_near_m

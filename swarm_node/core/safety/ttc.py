@@ -200,6 +200,90 @@ def closest_approach(rel_pos: FloatArray, rel_vel: FloatArray, horizon_s: float)
     )
 
 
+def entry_time(
+    rel_pos: FloatArray, rel_vel: FloatArray, radius_m: FloatArray | float, horizon_s: float
+) -> FloatArray:
+    """When each relative motion `rel_pos + rel_vel * t` first comes within `radius_m`
+    (the loss of separation), t in [0, horizon]; 0 if it is within it now, infinity if
+    it does not come that close by the horizon ((..., 3) in, (...) out).
+
+        |p + v t| = R  ->  t = (-(p.v) - sqrt((p.v)^2 - |v|^2 (|p|^2 - R^2))) / |v|^2
+    """
+    r = np.broadcast_to(np.asarray(radius_m, dtype=float), rel_pos.shape[:-1])
+    p2 = np.einsum("...i,...i->...", rel_pos, rel_pos)
+    v2 = np.einsum("...i,...i->...", rel_vel, rel_vel)
+    pv = np.einsum("...i,...i->...", rel_pos, rel_vel)
+    disc = pv * pv - v2 * (p2 - r * r)
+    moving = v2 > EPS_SPEED2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(
+            moving & (disc >= 0.0),
+            (-pv - np.sqrt(np.maximum(disc, 0.0))) / np.where(moving, v2, 1.0),
+            np.inf,
+        )
+    t = np.where(t < 0.0, np.inf, t)  # outside and moving apart: both roots behind
+    t = np.where(p2 <= r * r, 0.0, t)  # within it now
+    return np.where(t <= max(0.0, horizon_s), t, np.inf)
+
+
+def along_route(
+    start: FloatArray, points: FloatArray, speed_m_s: float, horizon_s: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The legs of a vehicle flying from `start` through `points` ((M, 3), one frame) at
+    `speed_m_s`, then holding at the last point, over [0, horizon]: each leg's start time,
+    start position and velocity ((L,), (L, 3), (L, 3))."""
+    times, starts, vels = [], [], []
+    t, at = 0.0, np.asarray(start, dtype=float)
+    for p in np.asarray(points, dtype=float):
+        if t >= horizon_s:
+            break
+        d = p - at
+        length = float(np.linalg.norm(d))
+        if length < 1e-6:
+            continue
+        if speed_m_s <= 0.0:
+            break
+        times.append(t)
+        starts.append(at)
+        vels.append(d * (speed_m_s / length))
+        t += length / speed_m_s
+        at = p
+    times.append(t)  # holding at the last point
+    starts.append(at)
+    vels.append(np.zeros(3))
+    return np.array(times), np.array(starts), np.array(vels)
+
+
+def route_approach(
+    legs: tuple[FloatArray, FloatArray, FloatArray],
+    pos: FloatArray,
+    vel: FloatArray,
+    radius_m: FloatArray,
+    horizon_s: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Closest approach and loss of separation between a vehicle flying `legs`
+    (`along_route`) and others keeping their velocity (`pos`, `vel`: (N, 3) at t = 0):
+    exact, leg by leg. Returns (t_cpa, miss, entry) ((N,) each; entry: infinity if never
+    within `radius_m` by the horizon)."""
+    times, starts, vels = legs
+    n = pos.shape[0]
+    best_t, best_miss, entry = np.zeros(n), np.full(n, np.inf), np.full(n, np.inf)
+    for i, t0 in enumerate(times):
+        if t0 > horizon_s:
+            break
+        t1 = times[i + 1] if i + 1 < len(times) else horizon_s
+        span = max(0.0, min(t1, horizon_s) - t0)
+        rel_p = pos + vel * t0 - starts[i]
+        rel_v = vel - vels[i]
+        a = closest_approach(rel_p, rel_v, span)
+        better = a.miss_m < best_miss
+        best_t = np.where(better, t0 + a.t_cpa_s, best_t)
+        best_miss = np.where(better, a.miss_m, best_miss)
+        e = entry_time(rel_p, rel_v, radius_m, span)
+        entry = np.where(np.isinf(entry) & np.isfinite(e), t0 + e, entry)
+    return best_t, best_miss, entry
+
+
 def approaches(own: Track, others: Sequence[Track], now: float, horizon_s: float) -> Approach:
     """CPA of `own` against each of `others` (arrays of len(others)), in own's frame."""
     k = kinematic([own, *others], now)

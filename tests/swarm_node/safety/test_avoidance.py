@@ -21,6 +21,7 @@ from swarm_node.core.safety.avoidance import (
     Forget,
     Manoeuvre,
     ManoeuvreKind,
+    OwnRoute,
     PlannedAltitude,
     Traffic,
 )
@@ -188,7 +189,7 @@ def test_two_rovers_the_higher_id_stops() -> None:
 
 
 def test_a_multirotor_holds_over_itself_while_it_climbs() -> None:
-    pair = head_on()
+    pair = [status(1, 0, 0, 100, ve=20), status(2, 200, 0, 100, ve=-20)]  # 4.5 s to the loss
     (m,) = manoeuvres(feed(avoider(2, VehicleType.COPTER), pair))
     (goto,) = m.requests
     assert isinstance(goto, Goto)
@@ -485,6 +486,7 @@ def test_in_the_band_a_fixed_wing_climbs_before_a_multirotor_once_types_are_know
     """A VTOL (id 1) and a quadcopter (id 7) head-on at one altitude: with both types
     known (VehicleInfo) the VTOL climbs, whatever the ids; each side decides alike. With
     the peer's type unknown the higher id climbs (the rule every report allows)."""
+
     def info(vid: int, vtype: VehicleType) -> VehicleInfo:
         return VehicleInfo(vehicle_id=vid, vehicle_type=vtype, model="m", user_id=f"U{vid}")
 
@@ -498,3 +500,119 @@ def test_in_the_band_a_fixed_wing_climbs_before_a_multirotor_once_types_are_know
     assert manoeuvres(feed(copter, pair)) == []
     # the VTOL has not heard the copter's VehicleInfo: ids decide, the copter (7) climbs
     assert manoeuvres(feed(avoider(1, VehicleType.VTOL), pair)) == []
+
+
+def test_two_stacked_multirotors_never_hold_each_other_up() -> None:
+    """9 climbed to 45 m for 7, 8 climbed to 60 m over 9; 7 has gone. 9 going back to
+    30 m brings it no closer to 8 above it, so 9 goes back (then 8 once 9 has flown
+    on): neither waits for the other for good (measured in FastFleet before: both
+    hovered there until BATTERY_CRITICAL)."""
+    av9 = avoider(9, VehicleType.COPTER, clear_hold_s=0.0)
+    av8 = avoider(8, VehicleType.COPTER, clear_hold_s=0.0)
+    for av in (av8, av9):
+        av.handle(PlannedAltitude(alt_rel_m=30.0), T)
+    assert manoeuvres(feed(av9, [status(7, 40, 0, 30, ve=-5), status(9, 0, 0, 30)]))
+    assert manoeuvres(feed(av8, [status(9, 10, 0, 30), status(8, 0, 0, 36)]))
+    av9.handle(Forget(7), T)
+    now, resumed9, resumed8 = T, [], []
+    here9, here8 = status(9, 0, 0, 45), status(8, 2, 0, 60)  # hovering, 8 over 9
+    while now < T + 10 and not resumed9:
+        now += 0.2
+        # the peer's report as heard: 0.4 s old (its protection volume widened by it)
+        here9 = msgspec.structs.replace(here9, time_unix_s=now)
+        here8 = msgspec.structs.replace(here8, time_unix_s=now - 0.4)
+        resumed9 = [
+            m for m in manoeuvres(feed(av9, [here9, here8], now)) if m.kind is ManoeuvreKind.RESUME
+        ]
+        out8 = manoeuvres(feed(av8, [here9, here8], now))
+        assert all(m.kind is not ManoeuvreKind.RESUME for m in out8)  # 8 waits while 9 is under it
+    assert resumed9 and resumed9[0].target_alt_rel_m == 30.0
+    # 9 back at 30 m flies on; 8 is then clear too
+    while now < T + 20 and not resumed8:
+        now += 0.2
+        gone = T + 10 + 0.0
+        here9 = status(9, 0, 80 + 10 * (now - gone), 30, vn=10, t=now)
+        here8 = msgspec.structs.replace(here8, time_unix_s=now)
+        here9 = msgspec.structs.replace(here9, time_unix_s=now - 0.4)
+        resumed8 = [
+            m for m in manoeuvres(feed(av8, [here9, here8], now)) if m.kind is ManoeuvreKind.RESUME
+        ]
+    assert resumed8 and resumed8[0].target_alt_rel_m == 30.0
+
+
+def copters_head_on(t: float, gap_m: float = 600.0) -> list[VehicleStatus]:
+    """Two quadcopters at 30 m flying at each other at 10 m/s, `gap_m` apart at T."""
+    d = 10.0 * (t - T)
+    return [status(1, gap_m - d, 0, 30, ve=-10, t=t), status(2, d, 0, 30, ve=10, t=t)]
+
+
+def test_a_multirotor_in_level_flight_acts_within_the_time_it_needs_not_30_s_ahead() -> None:
+    """The separation is lost 29 s ahead; quadcopter 2 gives way. It needs 6 s to climb
+    15 m at 2.5 m/s (and 4 s to stop from 10 m/s, at once): it climbs when the loss is
+    11 s ahead (6 s + the 5 s margin), with its climb done 5 s before it; a fixed-wing in
+    the same place climbs at once (it cannot stop, its climb on its path costs nothing)."""
+    av = avoider(2, VehicleType.COPTER, climb_rate_m_s=2.5)
+    now, first = T, None
+    while first is None and now < T + 30:
+        first = next(iter(manoeuvres(feed(av, copters_head_on(now), now))), None)
+        now += 0.2
+    assert first is not None and first.kind is ManoeuvreKind.CLIMB
+    loss_s = (600.0 - 20.0) / 20.0 - (now - 0.2 - T)
+    assert 10.8 <= loss_s <= 11.0 + 1e-6
+    assert av.counters["deferred_ticks"] > 80
+    assert av.time_to_act_s(copters_head_on(T)[1], HOME + 45.0) == pytest.approx(11.0)
+    plane = avoider(2, VehicleType.PLANE, climb_rate_m_s=2.5)
+    assert manoeuvres(feed(plane, copters_head_on(T)))
+
+
+def test_a_multirotor_climbing_or_descending_acts_at_once() -> None:
+    """Taking off or landing, its vertical motion is the prediction's weak part: no
+    deferral (measured: deferred, three quadcopters taking off under each other met
+    in a conflict 1 s ahead that no climb could resolve)."""
+    pair = copters_head_on(T)
+    pair[1] = msgspec.structs.replace(pair[1], vel_down_m_s=-2.5)
+    assert manoeuvres(feed(avoider(2, VehicleType.COPTER, climb_rate_m_s=2.5), pair))
+
+
+def test_two_multirotors_head_on_in_fast_time_one_climb_not_a_cycle() -> None:
+    """Point-mass, two quadcopters head-on from 600 m: the one that gives way climbs once
+    and comes back once, 15 m over the other. Acting 30 s ahead, it stopped (a Goto),
+    its prediction then cleared (the closing speed halved, the approach beyond the
+    horizon) and it flew on into the conflict again: seven climbs and resumes."""
+    starts = [
+        Start(1, VehicleType.COPTER, 0, 0, 30, 10, 0, climb_rate_m_s=2.5, sink_rate_m_s=1.5),
+        Start(2, VehicleType.COPTER, 600, 0, 30, -10, 0, climb_rate_m_s=2.5, sink_rate_m_s=1.5),
+    ]
+    now = run(starts, duration_s=60.0, avoid=True, config={"climb_rate_m_s": 2.5})
+    kinds = [m.kind for m in now.manoeuvres[2]]
+    assert kinds == [ManoeuvreKind.CLIMB, ManoeuvreKind.RESUME] and now.manoeuvres[1] == []
+    assert min(separations(now.samples)) >= 14.9
+    early = run(
+        starts, duration_s=60.0, avoid=True, config={"climb_rate_m_s": 2.5, "act_margin_s": 30.0}
+    )
+    assert len(early.manoeuvres[2]) > 4
+    assert min(separations(early.samples)) >= 14.9
+
+
+def test_a_multirotor_on_its_route_does_not_climb_for_what_its_lane_end_turns_it_from() -> None:
+    """Quadcopter 8 flies east at 10 m/s, 7 hovers 60 m ahead at its altitude: straight
+    on, the loss is 4 s ahead and 8 climbs. Its mission turns it north at the lane's end
+    20 m ahead (its own route, which it knows): 40 m from 7 at the closest, no climb. A
+    route that goes on to 7 is a conflict again."""
+    pair = [status(7, 60, 0, 30), status(8, 0, 0, 30, ve=10)]
+    at = [
+        pymap3d.enu2geodetic(e, n, 0.0, LAT0, LON0, HOME)[:2]
+        for e, n in ((20, 0), (20, 200), (200, 0))
+    ]
+    turn = OwnRoute(((*at[0], 30.0), (*at[1], 30.0)), 10.0)
+    ahead = OwnRoute(((*at[2], 30.0),), 10.0)
+    assert manoeuvres(feed(avoider(8, VehicleType.COPTER, climb_rate_m_s=2.5), pair))
+    av = avoider(8, VehicleType.COPTER, climb_rate_m_s=2.5)
+    av.handle(turn, T)
+    assert feed(av, pair) == []
+    av = avoider(8, VehicleType.COPTER, climb_rate_m_s=2.5)
+    av.handle(ahead, T)
+    assert manoeuvres(feed(av, pair))
+    plane = avoider(8, VehicleType.PLANE)  # a fixed-wing's route is not used: it acts
+    plane.handle(turn, T)
+    assert manoeuvres(feed(plane, pair))

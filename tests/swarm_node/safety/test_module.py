@@ -466,3 +466,21 @@ def test_a_manoeuvre_during_the_landing_starts_the_descent_again() -> None:
         for r in out:
             m.on_result(ApResult(r.request_id, True), now)
     assert again, "the descent was never asked again"
+
+
+def test_a_multirotor_in_its_mission_gives_the_avoider_its_way_ahead() -> None:
+    """In AUTO, the items from the one it flies to, up to the landing; nothing outside
+    AUTO, nothing for a fixed-wing (it acts on the straight line)."""
+    from swarm_node.core.safety.avoidance import OwnRoute
+
+    m = AvoidanceModule(COPTER)
+    state = ap(groundspeed_m_s=10.0, vel_east_m_s=10.0)
+    land = Waypoint(ItemKind.LAND, *at(0.0, 0.0), 0.0)
+    m.on_submit(Submit(UploadMission(items=(*MISSION_ITEMS, land)), Owner.MISSION), state, T)
+    route = m._route(state)  # mission_current 3: items 3, 4, 5, not the landing
+    assert route.points == tuple((w.lat_deg, w.lon_deg, w.alt_rel_m) for w in MISSION_ITEMS[2:])
+    assert route.speed_m_s == COPTER.cruise_speed_m_s
+    assert m._route(msgspec.structs.replace(state, mode_name="GUIDED")) == OwnRoute(None)
+    v = AvoidanceModule(VTOL)
+    v.on_submit(Submit(UploadMission(items=MISSION_ITEMS), Owner.MISSION), state, T)
+    assert v._route(state) == OwnRoute(None)

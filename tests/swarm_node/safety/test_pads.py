@@ -7,7 +7,7 @@ import itertools
 from hypothesis import given
 from hypothesis import strategies as st
 
-from swarm_node.core.safety.pads import PadConfig, hold_layer, may_move
+from swarm_node.core.safety.pads import PadConfig, hold_layer, holds_apart_m, may_move
 from swarm_proto import GeoPoint, MissionState, VehicleStatus, geodesy
 
 LAT, LON = 37.41, -5.99
@@ -124,3 +124,50 @@ def test_holding_layers_never_repeat_among_pads_whose_circles_may_overlap(
         if geodesy.distance_m(pa.lat_deg, pa.lon_deg, pb.lat_deg, pb.lon_deg) < cfg.hold_near_m:
             assert layer[a] != layer[b]
     assert min(layer.values()) == cfg.hold_alt_rel_m
+
+
+def test_multirotors_hover_over_pads_40_m_apart_at_one_layer() -> None:
+    """Two quadcopters on pads 40 m apart hover still over them: more than the avoider's
+    30 m release distance apart, they hold (and land) at the lowest layer, 30 m, not
+    30 and 60 m (the second one's climb to 60 m and its 42 s descent cost it its
+    reserve in two sorties on one battery); 20 m apart they still take two layers, and
+    next to a fixed-wing's circle (150 m) they do too."""
+    quads = {7: pad(0), 8: pad(40)}
+    hover = {7, 8}
+    assert [hold_layer(v, p, quads, hovering=hover) for v, p in quads.items()] == [30.0, 30.0]
+    assert hold_layer(8, pad(40), {7: pad(0)}) == 60.0  # types not known: circles
+    close = {7: pad(0), 8: pad(20)}
+    assert [hold_layer(v, p, close, hovering=hover) for v, p in close.items()] == [30.0, 60.0]
+    mixed = {7: pad(0), 8: pad(40), 2: pad(80)}
+    layers = {v: hold_layer(v, p, mixed, fixed_wing={2}, hovering=hover) for v, p in mixed.items()}
+    assert layers == {7: 30.0, 8: 60.0, 2: 90.0}
+    assert holds_apart_m(True, True) == 30.0 and holds_apart_m(False, False) == 150.0
+    assert holds_apart_m(True, False) == holds_apart_m(False, True) == 90.0
+
+
+@given(
+    st.lists(
+        st.tuples(st.floats(-200, 200), st.floats(-200, 200), st.booleans()), min_size=1, max_size=8
+    )
+)
+def test_holding_layers_never_repeat_among_holds_that_could_conflict(
+    spots: list[tuple[float, float, bool]],
+) -> None:
+    """With hoverers and circlers mixed: two vehicles whose pads are closer than their
+    holds need (30 m both hovering, 150 m both circling, 90 m one of each) never share a
+    layer, and every vehicle computes the same layers from the same pads and types."""
+    pads = {v + 1: pad(e, n) for v, (e, n, _h) in enumerate(spots)}
+    hover = {v + 1 for v, (_e, _n, h) in enumerate(spots) if h}
+    wing = set(pads) - hover
+    layer = {
+        v: hold_layer(
+            v, p, {u: q for u, q in pads.items() if u != v}, fixed_wing=wing, hovering=hover
+        )
+        for v, p in pads.items()
+    }
+    for a, b in itertools.combinations(pads, 2):
+        pa, pb = pads[a], pads[b]
+        d = geodesy.distance_m(pa.lat_deg, pa.lon_deg, pb.lat_deg, pb.lon_deg)
+        if d < holds_apart_m(a in hover, b in hover):
+            assert layer[a] != layer[b]
+    assert min(layer.values()) == PadConfig().hold_alt_rel_m

@@ -14,8 +14,11 @@ from swarm_node.core.safety.ttc import (
     EPS_SPEED2,
     BadTrackError,
     Track,
+    along_route,
     approaches,
     closest_approach,
+    entry_time,
+    route_approach,
 )
 
 LAT0, LON0, H0 = 40.4168, -3.7038, 650.0
@@ -163,3 +166,77 @@ def test_an_older_report_of_the_same_motion_never_looks_safer(
     young = approaches(own, [report(age1)], 100.0, 30.0)
     old = approaches(own, [report(age1 + extra)], 100.0, 30.0)
     assert old.miss_m[0] - old.margin_m[0] <= young.miss_m[0] - young.margin_m[0] + 0.05
+
+
+def test_the_loss_of_separation_comes_before_the_closest_approach() -> None:
+    """Head-on at 40 m/s closing from 1000 m: the 20 m sphere is entered at 24.5 s, the
+    closest point is at 25 s; inside already: 0; passing 30 m apart: never."""
+    p, v = np.array([[1000.0, 0.0, 0.0]]), np.array([[-40.0, 0.0, 0.0]])
+    assert entry_time(p, v, 20.0, 60.0)[0] == pytest.approx(24.5)
+    assert entry_time(p, v, 20.0, 20.0)[0] == math.inf  # beyond the horizon
+    assert entry_time(np.array([[10.0, 0.0, 0.0]]), v, 20.0, 60.0)[0] == 0.0
+    assert entry_time(np.array([[1000.0, 30.0, 0.0]]), v, 20.0, 60.0)[0] == math.inf
+    assert entry_time(p, -v, 20.0, 60.0)[0] == math.inf  # moving apart
+    assert entry_time(p, np.zeros((1, 3)), 20.0, 60.0)[0] == math.inf  # no relative motion
+
+
+vec = st.tuples(*[st.floats(-500, 500)] * 3)
+
+
+@given(vec, st.tuples(*[st.floats(-50, 50)] * 3), st.floats(1.0, 60.0))
+def test_the_entry_is_on_the_sphere_and_no_later_than_the_cpa(
+    p: tuple[float, float, float], v: tuple[float, float, float], radius: float
+) -> None:
+    rel_p, rel_v = np.array([p]), np.array([v])
+    t = float(entry_time(rel_p, rel_v, radius, 120.0)[0])
+    a = closest_approach(rel_p, rel_v, 120.0)
+    if math.isinf(t):
+        assert a.miss_m[0] > radius - 1e-6
+        return
+    assert 0.0 <= t <= a.t_cpa_s[0] + 1e-9
+    d = float(np.linalg.norm(rel_p[0] + rel_v[0] * t))
+    if t > 0.0:
+        assert d == pytest.approx(radius, rel=1e-6, abs=1e-6)
+    else:
+        assert d <= radius + 1e-9
+
+
+def test_a_route_is_flown_leg_by_leg_then_held() -> None:
+    legs = along_route(np.zeros(3), np.array([[30.0, 0, 0], [30.0, 50.0, 0]]), 10.0, 60.0)
+    times, starts, vels = legs
+    assert times.tolist() == pytest.approx([0.0, 3.0, 8.0])
+    assert np.allclose(vels, [[10.0, 0, 0], [0, 10.0, 0], [0, 0, 0]])
+    assert starts[2].tolist() == pytest.approx([30.0, 50.0, 0.0])
+
+
+def test_a_route_that_turns_away_misses_what_the_straight_line_hits() -> None:
+    """Flying east at 10 m/s to a lane's end 30 m ahead, then north: a vehicle hovering
+    120 m east is 90 m away at the closest, never inside 20 m; straight on, it is hit
+    at 12 s (inside 20 m at 10 s)."""
+    legs = along_route(np.zeros(3), np.array([[30.0, 0, 0], [30.0, 300.0, 0]]), 10.0, 30.0)
+    other, still = np.array([[120.0, 0, 0]]), np.zeros((1, 3))
+    t, miss, entry = route_approach(legs, other, still, np.array([20.0]), 30.0)
+    assert miss[0] == pytest.approx(90.0) and t[0] == pytest.approx(3.0) and entry[0] == math.inf
+    straight = along_route(np.zeros(3), np.array([[300.0, 0, 0]]), 10.0, 30.0)
+    t, miss, entry = route_approach(straight, other, still, np.array([20.0]), 30.0)
+    assert miss[0] == pytest.approx(0.0) and t[0] == pytest.approx(12.0)
+    assert entry[0] == pytest.approx(10.0)
+
+
+@given(vec, st.tuples(*[st.floats(-50, 50)] * 3), st.tuples(*[st.floats(-20, 20)] * 3))
+def test_one_long_leg_is_the_straight_line(
+    p: tuple[float, float, float], v: tuple[float, float, float], u: tuple[float, float, float]
+) -> None:
+    """A route of one leg longer than the horizon is constant velocity: the same closest
+    approach and loss of separation as `closest_approach` and `entry_time`."""
+    own_v = np.array(u)
+    speed = float(np.linalg.norm(own_v))
+    if speed < 0.1:
+        return
+    legs = along_route(np.zeros(3), np.array([own_v * 100.0]), speed, 30.0)
+    rel_p, rel_v = np.array([p]), np.array([v]) - own_v
+    _t, miss, entry = route_approach(legs, np.array([p]), np.array([v]), np.array([20.0]), 30.0)
+    a = closest_approach(rel_p, rel_v, 30.0)
+    assert miss[0] == pytest.approx(a.miss_m[0], abs=1e-6)
+    e = entry_time(rel_p, rel_v, 20.0, 30.0)[0]
+    assert (math.isinf(e) and math.isinf(entry[0])) or entry[0] == pytest.approx(e, abs=1e-6)
