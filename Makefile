@@ -35,8 +35,10 @@ typecheck: $(STAMP)
 ## the suite mostly waits (processes, Zenoh, simulated radios): two workers halve its wall
 ## time on 2 cores (measured 5:18 against 9:25 in one process); TEST_WORKERS=0 runs it in one
 TEST_WORKERS ?= 2
+## tests marked `timing` (real-time TDM on pseudo-terminals) run alone, after the others
 unit: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) -m "not soak and not scale and not timing" $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -m "timing and not soak and not scale" $(PYTEST_ARGS)
 
 ## bench: every benchmark, or one with BENCH=<topic>; writes bench/results/<topic>.json
 bench: $(STAMP)

@@ -39,7 +39,8 @@ from tests.conftest import free_tcp_port
 
 from .helpers import KEY, status
 
-pytestmark = pytest.mark.network
+# real-time TDM over pseudo-terminals: run alone, after the parallel part of `make test`
+pytestmark = [pytest.mark.network, pytest.mark.timing]
 
 
 @dataclass

@@ -22,6 +22,9 @@ from swarm_sim.radio_channel.model import ChannelParams
 from .helpers import status_arrivals
 from .ptyfleet import PtyFleet
 
+# real-time TDM over pseudo-terminals: run alone, after the parallel part of `make test`
+pytestmark = pytest.mark.timing
+
 
 def _rates(deliveries: list, start: float, end: float) -> dict[tuple[int, int], float]:
     arrivals = status_arrivals(deliveries)
