@@ -80,6 +80,9 @@ def read_state(path: Path) -> SwarmState:
 def collect(gs: GroundStation, timeout_s: float = 2.0) -> tuple[SwarmState, list[str]]:
     """The swarm's state as the vehicles tell it now, and what did not agree."""
     alive = gs.discover()
+    if not alive:  # a slow start on a loaded host: the 1 Hz VehicleInfo says who is there
+        gs.wait_for(lambda v: bool(v.info), max(timeout_s, 3.0))
+        alive = set(gs.snapshot().vehicle_ids())
     gs.wait_for(lambda v: all(i in v.info for i in alive), 2.5)  # VehicleInfo: 1 Hz
     view = gs.snapshot()
     warnings: list[str] = []
