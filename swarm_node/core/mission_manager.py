@@ -203,6 +203,11 @@ class MissionManager:
     lands: bool = False  # the share ends with a landing (AUTOLAND): landed completes it
     follow: Follow | None = None  # MUM-T: our slot around the lead
     _confirmed: bool = False  # PlanSucceeded posted for this plan
+    # an airborne share's approach: planned from where the vehicle was; planned again if
+    # it has moved on by the time its upload is done (held, slow link): (share waypoints,
+    # zones, home altitude, lat, lon, times planned again)
+    _approach: tuple[tuple[Waypoint, ...], tuple[NoFlyZone, ...], float, float, float, int] | None = None
+    _ap: AutopilotState | None = None  # the autopilot as last seen
 
     def __post_init__(self) -> None:
         self.sync = FleetSync(self.profile.vehicle_id, self.profile)
@@ -356,11 +361,15 @@ class MissionManager:
         self.follow, self.turn = None, None
         launch = 0.0 if ap.armed else launch_s(self.profile, mission.params.altitude_rel_m)
         sync = not replan and self.sync.begin(outcome.plan, ap, zones, now, home_alt, launch)
+        self._approach = None
         if not sync:
+            base_waypoints = waypoints
             try:
                 waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
             except (PlanningError, ValueError) as exc:
                 return self._failed(mid, f"approach: {exc}")
+            if ap.armed and ap.lat_deg is not None and ap.lon_deg is not None:
+                self._approach = (base_waypoints, tuple(zones), home_alt, ap.lat_deg, ap.lon_deg, 0)
         self.zones = tuple(zones)
         self.mission_id = mid
         self.mission = mission
@@ -723,7 +732,7 @@ class MissionManager:
         zone-safe waypoints to above home, then RTL (whose landing the autopilot or
         `on_autopilot` completes). Without zones in the way, plain RTL."""
         self.mission_id = fsm.RETURN_MISSION
-        self.phase = Phase.RETURNING
+        self.phase, self._approach = Phase.RETURNING, None
         self.sortie.go(Trigger.RETURN)
         self.hold_s, self.hold_seq = 0.0, 0
         done = [Post(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
@@ -790,7 +799,7 @@ class MissionManager:
         self.reattached = False
         self._planning, self._held = None, None  # a plan job still running is abandoned
         self.share, self._share_index, self._offset = None, (), 0.0
-        self.turn, self.lands, self.follow = None, False, None
+        self.turn, self.lands, self.follow, self._approach = None, False, None, None
         self.sync.stop()
         self.agreement.end()
         self.sortie.go(trigger)
@@ -845,6 +854,10 @@ class MissionManager:
                 return self._abandon(f"autopilot: {result.reason}")
             self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
+        if isinstance(done, UploadMission) and self._steps and isinstance(self._steps[0], StartMission):
+            again = self._approach_again(now)
+            if again:
+                return again
         if self.phase == Phase.STARTING and not self._steps:
             if isinstance(done, Takeoff):
                 self.phase = Phase.CLIMBING  # the mission starts once it has climbed
@@ -858,11 +871,44 @@ class MissionManager:
                 return self._confirm(mid)
         return self._next()
 
+    def _approach_again(self, now: float) -> list[Out]:
+        """The share is uploaded but the vehicle has flown on meanwhile (its upload held
+        under an avoidance manoeuvre, a slow link, a loaded host): started now, a
+        fixed-wing would turn back to an approach planned from where it was, through
+        whatever the approach went around. Planned again from here (at most 3 times;
+        then started as it is: the autopilot flies to the leg's next item)."""
+        a, ap = self._approach, self._ap
+        if self.phase != Phase.STARTING or self.share is None or a is None:
+            return []  # only a share's own upload (not a way home, a landing route)
+        if ap is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
+            return []
+        base, zones, home_alt, lat, lon, tries = a
+        moved = distance_m(lat, lon, ap.lat_deg, ap.lon_deg)
+        if moved <= self._approach_slack_m() or tries >= 3:
+            return []
+        try:
+            waypoints = self._tight(self._with_approach(base, ap, zones, now, home_alt))
+        except (PlanningError, ValueError):
+            return []  # keep the approach we have
+        self._approach = (base, zones, home_alt, ap.lat_deg, ap.lon_deg, tries + 1)
+        self._steps = [UploadMission(items=self._load(waypoints, ap)), StartMission()]
+        mid = self.mission_id if self.mission_id is not None else 0
+        return [Log(f"mission {mid}: moved {moved:.0f} m while uploading; approach planned "
+                    "again from here"), *self._next()]  # fmt: skip
+
+    def _approach_slack_m(self) -> float:
+        """How far the vehicle may move between planning its approach and starting it:
+        a quarter of a fixed-wing's turn radius, 10 m for the others."""
+        if self.profile.is_fixed_wing:
+            return max(10.0, 0.25 * self.profile.turn_radius_m())
+        return 10.0
+
     def on_autopilot(
         self, ap: AutopilotState, now: float, fleet: Roster | None = None
     ) -> list[Out]:
         """`fleet`: the mission's roster (the members' published ETAs, progress and
         hashes: PREMISSION, the MISSION speed rule, the agreement on a replan)."""
+        self._ap = ap
         if fleet is not None and self.sortie.state == MissionState.REPLAN:
             agreed = self._agree(ap, now, fleet)
             if agreed:
