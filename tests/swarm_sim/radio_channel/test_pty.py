@@ -56,6 +56,7 @@ def test_a_host_at_the_wrong_serial_rate_gets_garbage() -> None:
             slow.close()
 
 
+@pytest.mark.timing  # real time on pseudo-terminals: run alone (make test's second part)
 def test_what_a_descheduled_emulator_reads_late_is_counted_apart() -> None:
     """Two hosts write 30 ms apart (no overlap on air) while the emulator's process is
     stopped (a loaded machine): it reads both at once, their packets overlap, and the
