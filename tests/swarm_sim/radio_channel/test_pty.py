@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import pytest
 import serial
 
 from radio_gateway.core.xtend import RadioSettings
