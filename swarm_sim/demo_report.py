@@ -298,23 +298,28 @@ def vote_rows(plan: StoryPlan, record: Record) -> list[dict[str, Any]]:
 
 def replan_rows(record: Record) -> list[dict[str, Any]]:
     """The replans the vehicles went through (REPLAN in their status), one event per
-    mission and cause: who replanned, when, why."""
+    mission and cause: who replanned, when, why. The cause is the story's step when a
+    vehicle entered REPLAN (the vote's replan spans the VOTE and REPLAN steps: the
+    vehicles enter it within a second of each other, the step changes between them)."""
     events: list[dict[str, Any]] = []
     victim = next(iter(record.failed), None)
     for t, mid, vid, phase in sorted(record.replans):
-        last = events[-1] if events else None
-        if last is not None and last["mission_id"] == mid and last["phase"] == phase \
-                and t - last["t_s"] < 30.0:  # fmt: skip
-            last["vehicles"].append(vid)
-            continue
-        if phase in ("vote", "replan", "fail"):
+        if mid != AREA_ID:  # the story changes only the survey's fleet
+            cause, why = "other", "a member of its fleet was lost (or in an emergency)"
+        elif phase in ("vote", "replan", "fail"):
+            cause = "vote"
             why = (f"vehicles {', '.join(map(str, record.winners))} voted out to the target: "
                    "the others re-split what is left")  # fmt: skip
         elif phase in ("inherit", "finish") and victim is not None:
+            cause = "lost"
             why = f"vehicle {victim} lost: the survivors share out the rest of its share"
         else:
-            why = "the fleet changed"
-        events.append({"t_s": round(t, 1), "mission_id": mid, "phase": phase,
+            cause, why = phase, "the fleet changed"
+        last = next((e for e in reversed(events) if e["mission_id"] == mid), None)
+        if last is not None and last["cause"] == cause and t - last["t_s"] < 30.0:
+            last["vehicles"].append(vid)
+            continue
+        events.append({"t_s": round(t, 1), "mission_id": mid, "phase": phase, "cause": cause,
                        "vehicles": [vid], "why": why})  # fmt: skip
     for e in events:
         e["vehicles"] = sorted(set(e["vehicles"]))

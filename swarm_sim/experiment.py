@@ -88,7 +88,7 @@ class Shell:
 
 
 def _say(console: Console, t_s: float, who: str, text: str, style: str | None = None) -> None:
-    m, s = divmod(max(0.0, t_s), 60.0)
+    m, s = divmod(round(max(0.0, t_s), 1), 60.0)  # rounded first: never "3:60.0"
     line = Text(f"{int(m):3d}:{s:04.1f} ", style="dim")
     line.append(f"{who:<11}", style=style or "bold")
     line.append(text, style=None if style != "bold cyan" else "cyan")

@@ -89,6 +89,10 @@ class StoryPlan:
     side_overlap: float = 0.5
     perimeter_alt_m: float = 100.0
     route_alt_m: float = 100.0
+    # the pair flies the perimeter and the route together (one PREMISSION meet, the same
+    # final loiter): layered further apart than avoidance's conflict distance (20 m), or
+    # they would fly the whole mission as a conflict, and end it stacked over one point
+    layer_m: float = 30.0
     target_class: str = "person"
     target_at_pct: int = 15  # the survey's progress (its slowest member) at the report
     fail_after_s: float = 20.0  # the stayers fly their new shares this long before one fails
@@ -142,12 +146,12 @@ class StoryPlan:
 
     def perimeter_mission(self, ids: Sequence[int], now: float) -> Mission:
         params = MissionParams(altitude_rel_m=self.perimeter_alt_m, loops=1,
-                               altitude_step_m=10.0)  # fmt: skip
+                               altitude_step_m=self.layer_m)  # fmt: skip
         return Mission(PERIMETER_ID, GCS_ID, MissionType.PERIMETER, self.perimeter, params,
                        Selector.ids(*ids), "perimeter", max(0.0, now))  # fmt: skip
 
     def route_mission(self, ids: Sequence[int], now: float) -> Mission:
-        params = MissionParams(altitude_rel_m=self.route_alt_m, altitude_step_m=10.0)
+        params = MissionParams(altitude_rel_m=self.route_alt_m, altitude_step_m=self.layer_m)
         return Mission(ROUTE_ID, GCS_ID, MissionType.ROUTE, self.route, params,
                        Selector.ids(*ids), "route", max(0.0, now))  # fmt: skip
 
