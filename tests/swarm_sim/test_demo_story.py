@@ -1,0 +1,193 @@
+"""Issue 18's checks: the paper's experiment 1 as `make demo` flies it (swarm_sim/story.py,
+narrator.py, demo_report.py).
+
+The default run flies a shortened story (`StoryPlan.experiment_one(scale=0.7)`: every
+distance 0.7 times the demo's) end to end in fast time (FastFleet: simulated vehicles,
+real MAVLink bytes, the six node cores) with the same script, recorder and report as
+`swarm-sim demo`, and checks report.json and the pictures' content. The soak test flies
+the same shortened story through the demo's real processes (`swarm-sim demo`'s
+`experiment.run`: simulated vehicles on TCP, one `swarm-node run` each, Zenoh on
+127.0.0.1).
+
+Below 0.7 the story no longer holds together: the survey is flown before the last of
+six close pads has launched (scale 0.6), and smaller fields put the vehicles' 50 m turns
+near the zones."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from matplotlib.path import Path as PixelPath
+
+from gcs_cli.plot import read_georeference, vehicle_colors
+from swarm_proto import geodesy
+from swarm_sim.core import SITL_HOME
+from swarm_sim.demo_report import fast_report, replan_rows
+from swarm_sim.narrator import Narrator
+from swarm_sim.story import AREA_ID, Record, StoryPlan
+
+MEMBERS = (1, 2, 3, 4, 5, 6)  # the seed database's six Albatross 250 VTOLs
+SCALE = 0.7
+STEPS = ["base", "zones", "area", "launch", "survey", "vote", "replan", "fail", "inherit",
+         "finish", "home", "done"]  # fmt: skip
+
+
+def _plan() -> StoryPlan:
+    return StoryPlan.experiment_one(MEMBERS, (SITL_HOME.lat_deg, SITL_HOME.lon_deg), scale=SCALE)
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory: pytest.TempPathFactory, fleet_profiles: dict) -> tuple[Path, dict]:
+    out = tmp_path_factory.mktemp("demo-out")
+    fast_report(_plan(), {v: fleet_profiles[v] for v in MEMBERS}, out)
+    report: dict[str, Any] = json.loads((out / "report.json").read_text())
+    return out, report
+
+
+def _check_report(report: dict[str, Any]) -> None:
+    """What report.json must say after the whole story (the demo's exit 0)."""
+    assert report["ok"], report["failures"]
+    assert report["failures"] == []
+    assert report["missions_completed"] == report["missions_total"] == 4
+    assert {m["kind"] for m in report["missions"]} == {"area", "target", "perimeter", "route"}
+    assert report["coverage"] >= 0.99
+    sep = report["separation"]
+    assert sep["near"] == 0 and sep["min_sep_m"] > 5.0
+    assert len(sep["airborne"]["pairs"]) == 15  # every pair of six
+    assert [s["step"] for s in report["timeline"]] == STEPS
+    # the vote: everyone scored, two winners, the best two scores
+    (vote,) = report["votes"]
+    assert vote["decided"] and set(vote["voters"]) == set(MEMBERS)
+    scores = {int(v): s for v, s in vote["scores"].items()}
+    assert set(scores) == set(MEMBERS)
+    best = sorted(scores, key=lambda v: -scores[v])[:2]
+    assert sorted(vote["winners"]) == sorted(best) == sorted(report["winners"])
+    stayers = sorted(set(MEMBERS) - set(best))
+    # the two replans of the survey: the stayers re-split, then the survivors inherit
+    (victim,) = (int(v) for v in report["failed"])
+    assert victim in stayers
+    causes = {e["cause"]: e for e in report["replans"] if e["mission_id"] == AREA_ID}
+    assert causes["vote"]["vehicles"] == stayers
+    assert causes["lost"]["vehicles"] == [v for v in stayers if v != victim]
+    assert report["landed"] == sorted(set(MEMBERS) - {victim})
+    area = next(m for m in report["missions"] if m["kind"] == "area")
+    assert area["failed"] == [victim] and sorted(area["left_for_another"]) == sorted(best)
+    for kind in ("target", "perimeter", "route"):
+        m = next(m for m in report["missions"] if m["kind"] == kind)
+        assert sorted(m["completed_by"]) == sorted(best), kind
+
+
+def test_the_shortened_story_is_flown_end_to_end(flown: tuple[Path, dict]) -> None:
+    out, report = flown
+    _check_report(report)
+    assert report["files"] == {"flight": "flight.csv", "top": "top.png",
+                               "altitude": "altitude.png", "separation": "separation.png"}  # fmt: skip
+    for name in report["files"].values():
+        assert (out / name).stat().st_size > 1000, name
+    header = (out / "flight.csv").read_text().splitlines()[0]
+    assert header.startswith("time_s,vehicle,lat,lon,alt_m")
+
+
+def _pixels(png: Path) -> np.ndarray:
+    import matplotlib.image as mpimg
+
+    return np.asarray(mpimg.imread(png))[:, :, :3]
+
+
+def _near(img: np.ndarray, rgb: tuple[float, float, float], tol: float = 0.06) -> np.ndarray:
+    return np.asarray(np.abs(img - np.array(rgb)).max(axis=2) < tol)
+
+
+def test_the_top_view_has_the_tracks_inside_the_area_and_the_zone(flown: tuple[Path, dict]) -> None:
+    """top.png, put back on the field by its georeference: every vehicle's color inside
+    the survey area (its lanes), the field's no-fly zone filled in red, and no track
+    drawn across the zone."""
+    out, _ = flown
+    plan = _plan()
+    png = out / "top.png"
+    img = _pixels(png)
+    rows, cols = np.mgrid[0 : img.shape[0], 0 : img.shape[1]]
+    centres = np.column_stack([cols.ravel() + 0.5, rows.ravel() + 0.5])
+    _, pixel = read_georeference(png)
+    area = PixelPath([pixel(p.lat_deg, p.lon_deg) for p in plan.area.points])
+    inside = area.contains_points(centres).reshape(img.shape[:2])
+    assert inside.sum() > 20_000  # the field is a large part of the picture
+    colors = vehicle_colors(MEMBERS)
+    for vid in MEMBERS:
+        mine = _near(img, colors[vid])
+        assert (mine & inside).sum() > 300, vid  # its survey lanes
+    # the zone: a disc of the zone's translucent red, inside the field
+    zone = plan.zones[0].geometry
+    lat, lon = zone.points[0].lat_deg, zone.points[0].lon_deg
+    c, r = pixel(lat, lon)
+    edge_c, edge_r = pixel(*geodesy.offset(lat, lon, 0.0, zone.radius_m or 0.0))
+    radius_px = float(np.hypot(edge_c - c, edge_r - r))
+    assert radius_px > 8
+    disc = (cols + 0.5 - c) ** 2 + (rows + 0.5 - r) ** 2 < (0.7 * radius_px) ** 2
+    assert inside[disc].all()  # the zone is in the field
+    reddish = (img[:, :, 0] - img[:, :, 1] > 0.2) & (img[:, :, 1] - img[:, :, 2] < 0.05)
+    assert reddish[disc].mean() > 0.6, reddish[disc].mean()
+    ring = ((cols + 0.5 - c) ** 2 + (rows + 0.5 - r) ** 2 - radius_px**2) ** 2 < (2 * radius_px) ** 2
+    assert _near(img, (0.8, 0.0, 0.0), 0.1)[ring].sum() > 20  # its edge
+    for vid in MEMBERS:  # no track across the zone (vehicle 4's red is not the zone's)
+        assert _near(img, colors[vid], 0.04)[disc].sum() < 10, vid
+
+
+def test_the_altitude_and_separation_pictures_show_every_vehicle(flown: tuple[Path, dict]) -> None:
+    out, _ = flown
+    colors = vehicle_colors(MEMBERS)
+    altitude = _pixels(out / "altitude.png")
+    for vid in MEMBERS:
+        assert _near(altitude, colors[vid]).sum() > 100, vid
+    separation = _pixels(out / "separation.png")
+    assert separation.std() > 0.05  # drawn, not blank
+    assert _near(separation, (1.0, 1.0, 1.0)).mean() < 0.95
+
+
+def test_replans_are_grouped_by_cause_not_by_the_story_step() -> None:
+    """The stayers enter REPLAN within a second of each other while the story moves
+    from VOTE to REPLAN: one event. A replan of another mission is not the vote's."""
+    rec = Record(winners=(3, 6), failed={5: 280.0})
+    rec.replans = [(253.7, AREA_ID, 1, "vote"), (253.7, AREA_ID, 4, "vote"),
+                   (253.8, AREA_ID, 2, "replan"), (253.8, AREA_ID, 5, "replan"),
+                   (282.9, AREA_ID, 1, "inherit"), (283.0, AREA_ID, 2, "inherit"),
+                   (283.0, AREA_ID, 4, "inherit"), (290.0, 77, 6, "inherit")]  # fmt: skip
+    events = replan_rows(rec)
+    assert [(e["cause"], e["vehicles"]) for e in events] == [
+        ("vote", [1, 2, 4, 5]), ("lost", [1, 2, 4]), ("other", [6])]  # fmt: skip
+    assert "3, 6 voted out" in events[0]["why"] and "vehicle 5 lost" in events[1]["why"]
+
+
+def test_the_narrator_and_the_clock_words() -> None:
+    from rich.console import Console
+
+    from swarm_sim.experiment import _say
+
+    buf = io.StringIO()
+    _say(Console(file=buf, width=100), 239.96, "vehicle 4", "flying its share")
+    assert "4:00.0" in buf.getvalue() and "3:60.0" not in buf.getvalue()
+    n = Narrator(0.0, {AREA_ID: "the survey"})
+    assert n.mission(AREA_ID) == "the survey" and n.mission(9) == "mission 9"
+
+
+@pytest.mark.soak
+@pytest.mark.network
+def test_the_shortened_story_through_the_real_processes(tmp_path: Path) -> None:
+    """`swarm-sim demo` as `make demo` runs it (real node processes, simulated vehicles
+    on TCP, Zenoh on 127.0.0.1), the story shortened, at 8x: exit 0 and report.json."""
+    from rich.console import Console
+
+    from swarm_sim.experiment import run
+
+    out = tmp_path / "demo-out"
+    code = run(MEMBERS, speedup=8.0, timeout_s=900.0, out=out,
+               console=Console(file=io.StringIO(), width=140), plan_kw={"scale": SCALE})  # fmt: skip
+    report = json.loads((out / "report.json").read_text())
+    assert code == 0, report["failures"]
+    _check_report(report)
+    assert report["sim_s"] > 300 and report["speedup"] == 8.0
