@@ -25,7 +25,17 @@ import pytest
 from matplotlib.path import Path as PixelPath
 
 from gcs_cli.plot import read_georeference, vehicle_colors
-from swarm_proto import geodesy
+from swarm_proto import (
+    Alert,
+    AlertCode,
+    FsmState,
+    MissionState,
+    Severity,
+    VehicleInfo,
+    VehicleStatus,
+    VehicleType,
+    geodesy,
+)
 from swarm_sim.core import SITL_HOME
 from swarm_sim.demo_report import fast_report, replan_rows
 from swarm_sim.narrator import Narrator
@@ -163,7 +173,7 @@ def test_replans_are_grouped_by_cause_not_by_the_story_step() -> None:
     assert "3, 6 voted out" in events[0]["why"] and "vehicle 5 lost" in events[1]["why"]
 
 
-def test_the_narrator_and_the_clock_words() -> None:
+def test_the_clock_never_reads_60_seconds() -> None:
     from rich.console import Console
 
     from swarm_sim.experiment import _say
@@ -171,8 +181,33 @@ def test_the_narrator_and_the_clock_words() -> None:
     buf = io.StringIO()
     _say(Console(file=buf, width=100), 239.96, "vehicle 4", "flying its share")
     assert "4:00.0" in buf.getvalue() and "3:60.0" not in buf.getvalue()
+
+
+def _status(state: MissionState, fsm: FsmState, alt: float, armed: bool = True) -> VehicleStatus:
+    return VehicleStatus(4, 1.8e9, 37.4, -5.98, 10.0 + alt, alt, armed=armed, fsm_state=fsm,
+                         mission_state=state, battery_pct=88)  # fmt: skip
+
+
+def _info(mission_id: int) -> VehicleInfo:
+    return VehicleInfo(4, VehicleType.VTOL, "Albatross 250 VTOL", "ALB-04", mission_id=mission_id)
+
+
+def test_the_narrator_says_returning_once_a_share_is_flown_and_never_mission_0() -> None:
+    """A vehicle that has flown its share goes through STATE_PLAN for its way home: it
+    is returning, not planning the survey again. A vehicle planning before its
+    VehicleInfo shows the mission plans "a new mission"."""
     n = Narrator(0.0, {AREA_ID: "the survey"})
-    assert n.mission(AREA_ID) == "the survey" and n.mission(9) == "mission 9"
+    n.handle(_info(0), 0.0)
+    (line,) = n.handle(_status(MissionState.IDLE, FsmState.PLAN, 0.0, armed=False), 1.0)
+    assert line.text.startswith("planning a new mission with its fleet"), line.text
+    n.handle(_info(AREA_ID), 2.0)
+    (line,) = n.handle(_status(MissionState.MISSION, FsmState.GO_MISSION, 80.0), 3.0)
+    assert line.text == "flying its share of the survey at 80 m"
+    alert = Alert(4, 1.8e9, Severity.INFO, AlertCode.MISSION_COMPLETE, "mission 101")
+    (line,) = n.handle(alert, 4.0)
+    assert line.text == "the survey: its share is flown (MISSION_COMPLETE)"
+    (line,) = n.handle(_status(MissionState.PLANNING, FsmState.PLAN, 80.0), 4.1)
+    assert line.text == "returning to its pad (88% battery)"
 
 
 @pytest.mark.soak
