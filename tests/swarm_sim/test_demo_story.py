@@ -226,3 +226,13 @@ def test_the_shortened_story_through_the_real_processes(tmp_path: Path) -> None:
     assert code == 0, report["failures"]
     _check_report(report)
     assert report["sim_s"] > 300 and report["speedup"] == 8.0
+
+
+def test_the_pair_flies_the_perimeter_and_route_layered_beyond_a_conflict() -> None:
+    """Layered 10 m apart, the pair flew its whole route as an avoidance conflict and,
+    stacked over the route's last loiter, was held there for good (a demo run)."""
+    from swarm_node.core.safety.avoidance import AvoidanceConfig
+
+    plan = _plan()
+    for m in (plan.perimeter_mission((2, 6), 0.0), plan.route_mission((2, 6), 0.0)):
+        assert m.params.altitude_step_m > AvoidanceConfig().protect_m + 5.0
