@@ -235,4 +235,4 @@ def test_the_pair_flies_the_perimeter_and_route_layered_beyond_a_conflict() -> N
 
     plan = _plan()
     for m in (plan.perimeter_mission((2, 6), 0.0), plan.route_mission((2, 6), 0.0)):
-        assert m.params.altitude_step_m > AvoidanceConfig().protect_m + 5.0
+        assert m.params.altitude_step_m > AvoidanceConfig(1, VehicleType.VTOL).protect_m + 5.0
