@@ -236,3 +236,16 @@ def test_the_pair_flies_the_perimeter_and_route_layered_beyond_a_conflict() -> N
     plan = _plan()
     for m in (plan.perimeter_mission((2, 6), 0.0), plan.route_mission((2, 6), 0.0)):
         assert m.params.altitude_step_m > AvoidanceConfig(1, VehicleType.VTOL).protect_m + 5.0
+
+
+def test_a_picture_without_a_georeference_is_refused(tmp_path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, _ = plt.subplots()
+    fig.savefig(tmp_path / "plain.png")
+    plt.close(fig)
+    with pytest.raises(ValueError, match="no georeference"):
+        read_georeference(tmp_path / "plain.png")
