@@ -43,7 +43,7 @@ from swarm_node.core.planning.fleet_plan import FleetPlan
 from swarm_node.core.planning.geo import LocalFrame
 from swarm_node.core.planning.zones import ZoneSet
 from swarm_node.core.profile import VehicleProfile
-from swarm_proto import GeoPoint, VehicleInfo, VehicleStatus
+from swarm_proto import GeoPoint, Severity, VehicleInfo, VehicleStatus
 from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter
 
 from .story import AREA_ID, PERIMETER_ID, ROUTE_ID, Record, StoryPlan
@@ -296,6 +296,15 @@ def vote_rows(plan: StoryPlan, record: Record) -> list[dict[str, Any]]:
     return out
 
 
+def critical_rows(record: Record) -> list[dict[str, Any]]:
+    """Every CRITICAL alert heard (an emergency's cause among them)."""
+    return [
+        {"t_s": round(t, 1), "vehicle": a.vehicle_id, "code": a.code.name, "text": a.text}
+        for t, a in record.alerts
+        if a.severity >= Severity.CRITICAL
+    ]
+
+
 def replan_rows(record: Record) -> list[dict[str, Any]]:
     """The replans the vehicles went through (REPLAN in their status), one event per
     mission and cause: who replanned, when, why. The cause is the story's step when a
@@ -489,6 +498,7 @@ def build(
         "winners": list(record.winners),
         "replans": replan_rows(record),
         "failed": {str(v): round(t, 1) for v, t in record.failed.items()},
+        "critical_alerts": critical_rows(record),
         "landed": sorted(record.landed),
         "timeline": [{"t_s": round(t, 1), "step": s} for t, s in record.steps],
         "outcome": record.outcome,

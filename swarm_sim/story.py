@@ -18,6 +18,10 @@ processes; `fly_fast` runs the same script against FastFleet (tests, development
     HOME     every vehicle returns to its pad and lands
     DONE
 
+A vehicle of ours in STATE_EMERGENCY (a no-fly zone entered, a link lost, a battery
+critical) ends the story there, failed, with the vehicle's critical alert: the demo
+says what went wrong when it happens, not at a phase's timeout minutes later.
+
 The core: `handle(msg, now)` and `on_timer(now)` return actions (`Send`, `Fail`, `Say`,
 `Finished`); `next_deadline()`; time in simulated seconds, never read. What happened
 is kept in `record` (the report's source: missions, completions, votes, replans)."""
@@ -53,6 +57,7 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
     Selector,
+    Severity,
     TargetReport,
     TargetSource,
     VehicleInfo,
@@ -462,6 +467,14 @@ class Story:
     # ------------------------------------------------------------------ the script
     def _step(self, now: float) -> list[Action]:
         p, plan, rec = self.plan, self.plan, self.record
+        if self.phase not in (Phase.UP, Phase.DONE):
+            for v in self.alive:  # the experiment has failed: say why now, not at a timeout
+                s = self.status.get(v)
+                if s is not None and s.fsm_state == FsmState.EMERGENCY:
+                    why = next((a.text for _, a in reversed(rec.alerts) if a.vehicle_id == v
+                                and a.severity >= Severity.CRITICAL), "")  # fmt: skip
+                    return self._finish(False, f"{self.phase.value}: vehicle {v} in an "
+                                        f"emergency{': ' + why if why else ''}", now)  # fmt: skip
         match self.phase:
             case Phase.UP:
                 up = all(

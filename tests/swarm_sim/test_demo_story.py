@@ -249,3 +249,31 @@ def test_a_picture_without_a_georeference_is_refused(tmp_path: Path) -> None:
     plt.close(fig)
     with pytest.raises(ValueError, match="no georeference"):
         read_georeference(tmp_path / "plain.png")
+
+
+def test_a_vehicle_in_an_emergency_ends_the_story_at_once_with_its_alert() -> None:
+    """Run 6 of the first series waited 10 minutes of wall time for a phase's timeout
+    after vehicle 4 entered the field's zone; the story now ends there, failed, and
+    says why."""
+    from swarm_proto import GeoPoint as Point
+    from swarm_proto import GpsFix
+    from swarm_sim.story import Finished, Phase, Send, Story
+
+    plan = _plan()
+    story = Story(plan, 0.0)
+    home = Point(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 10.0)
+    actions: list[object] = []
+    for v in MEMBERS:
+        story.handle(VehicleInfo(v, VehicleType.VTOL, "Albatross 250 VTOL", f"ALB-0{v}",
+                                 home=home), 1.0)  # fmt: skip
+        actions += story.handle(VehicleStatus(v, 1.8e9, home.lat_deg, home.lon_deg, 10.0, 0.0,
+                                              gps_fix=GpsFix.FIX_3D), 1.0)  # fmt: skip
+    assert story.phase == Phase.BASE and any(isinstance(a, Send) for a in actions)
+    story.handle(Alert(4, 1.8e9, Severity.CRITICAL, AlertCode.GEOFENCE_BREACH,
+                       "in no-fly zone 1 at 37.420525,-5.985487 89 m"), 2.0)  # fmt: skip
+    out = story.handle(VehicleStatus(4, 1.8e9, home.lat_deg, home.lon_deg, 99.0, 89.0,
+                                     armed=True, fsm_state=FsmState.EMERGENCY), 2.1)  # fmt: skip
+    (done,) = [a for a in out if isinstance(a, Finished)]
+    assert not done.ok and story.phase == Phase.DONE
+    assert done.why == "base: vehicle 4 in an emergency: in no-fly zone 1 at 37.420525,-5.985487 89 m"
+    assert story.record.outcome == done.why
