@@ -71,6 +71,7 @@ PERIMETER_ID = 103
 ROUTE_ID = 104
 TARGET_ID = 1  # the report's id (the target mission's id is derived from it)
 LANDED_M = 3.0  # a vehicle this low above home, disarmed, is on the ground
+TARGET_WAIT_S = 20.0  # the pair's second watches the target at most this much longer
 
 Heard = VehicleStatus | VehicleInfo | Alert | Ack | Vote
 
@@ -611,6 +612,20 @@ class Story:
             for v in ids
         )
 
+    def _target_watched(self, now: float) -> bool:
+        """Both of the pair have flown their share of the target, or one has and the
+        other has watched on for TARGET_WAIT_S more: the first is on its way home and
+        must get the perimeter before it is landing (a vehicle in its final descent
+        refuses a mission BUSY; without avoidance's holding layers one was, 40 s after
+        it finished the target)."""
+        rec = self.record.missions.get(self.plan.target_mission_id)
+        if rec is None or not self.record.winners:
+            return False
+        done = [rec.completed[v] for v in self.record.winners if v in rec.completed]
+        if len(done) == len(self.record.winners):
+            return True
+        return bool(done) and self.record.rel(now) - min(done) >= TARGET_WAIT_S
+
     def _finish_phase(self, now: float) -> list[Action]:
         """The target's pair, once it has watched the target, patrols the perimeter and
         then flies the route (each a PREMISSION meet: the pair finishes a mission within
@@ -620,7 +635,7 @@ class Story:
         out: list[Action] = []
         pair = p.perimeter_by or rec.winners
         crew = p.route_by or rec.winners
-        if PERIMETER_ID not in self._finish_sent and self._completed(p.target_mission_id, rec.winners):
+        if PERIMETER_ID not in self._finish_sent and self._target_watched(now):
             self._finish_sent.add(PERIMETER_ID)
             self._mission(PERIMETER_ID, "perimeter").sent_at = rec.rel(now)
             out += [Say(f"target watched: {', '.join(map(str, pair))} patrol the perimeter west "

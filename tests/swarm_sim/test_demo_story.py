@@ -87,7 +87,10 @@ def _check_report(report: dict[str, Any]) -> None:
     assert report["landed"] == sorted(set(MEMBERS) - {victim})
     area = next(m for m in report["missions"] if m["kind"] == "area")
     assert area["failed"] == [victim] and sorted(area["left_for_another"]) == sorted(best)
-    for kind in ("target", "perimeter", "route"):
+    target = next(m for m in report["missions"] if m["kind"] == "target")
+    assert target["completed_by"]  # the second may be sent on 20 s after the first
+    assert sorted(target["completed_by"] + target["left_for_another"]) == sorted(best)
+    for kind in ("perimeter", "route"):
         m = next(m for m in report["missions"] if m["kind"] == kind)
         assert sorted(m["completed_by"]) == sorted(best), kind
 
@@ -277,3 +280,20 @@ def test_a_vehicle_in_an_emergency_ends_the_story_at_once_with_its_alert() -> No
     assert not done.ok and story.phase == Phase.DONE
     assert done.why == "base: vehicle 4 in an emergency: in no-fly zone 1 at 37.420525,-5.985487 89 m"
     assert story.record.outcome == done.why
+
+
+def test_the_perimeter_waits_for_the_second_of_the_pair_at_most_20_s() -> None:
+    """Without avoidance's holding layers the first of the pair was in its final
+    descent 40 s after it finished the target, and refused the perimeter BUSY."""
+    from swarm_sim.story import TARGET_WAIT_S, MissionRecord, Story
+
+    plan = _plan()
+    story = Story(plan, 0.0)
+    story.record.t0, story.record.winners = 0.0, (3, 6)
+    assert not story._target_watched(500.0)
+    target = MissionRecord(plan.target_mission_id, "target", completed={3: 400.0})
+    story.record.missions[plan.target_mission_id] = target
+    assert not story._target_watched(400.0 + TARGET_WAIT_S - 1.0)
+    assert story._target_watched(400.0 + TARGET_WAIT_S)
+    target.completed[6] = 405.0
+    assert story._target_watched(405.0)
