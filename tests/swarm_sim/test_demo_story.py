@@ -297,3 +297,25 @@ def test_the_perimeter_waits_for_the_second_of_the_pair_at_most_20_s() -> None:
     assert story._target_watched(400.0 + TARGET_WAIT_S)
     target.completed[6] = 405.0
     assert story._target_watched(405.0)
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--vehicles", "1,2"], "at least 4 distinct ids"),
+        (["--vehicles", "1,2,3,3"], "at least 4 distinct ids"),
+        (["--vehicles", "1,x,3,4"], "comma-separated ids"),
+        (["--vehicles", "1,2,3,4", "--mixed"], "not both"),
+        (["--speedup", "0"], "must be in (0, 100]"),
+        (["--speedup", "nan"], "must be in (0, 100]"),
+        (["--timeout", "-1"], "must be positive"),
+    ],
+)
+def test_bad_demo_options_are_one_line_and_exit_2(args: list[str], says: str) -> None:
+    from typer.testing import CliRunner
+
+    from swarm_sim.cli import app
+
+    result = CliRunner().invoke(app, ["demo", *args])
+    assert result.exit_code == 2, result.output
+    assert says in " ".join(result.output.split())
