@@ -31,7 +31,7 @@ from swarm_node.core.node import NodeSettings
 from swarm_node.database import SwarmDatabase
 from swarm_sim.core import SITL_HOME
 from swarm_sim.demo_report import fast_report
-from swarm_sim.experiment import EXPERIMENT_FLEET
+from swarm_sim.experiment import DEFAULT_SPEEDUP, EXPERIMENT_FLEET
 from swarm_sim.experiment import run as run_demo
 from swarm_sim.story import StoryPlan
 
@@ -50,7 +50,7 @@ def _figures(report: dict[str, Any]) -> dict[str, Any]:
 def real(out: Path) -> dict[str, Any]:
     import json
 
-    code = run_demo(EXPERIMENT_FLEET, speedup=5.0, out=out,
+    code = run_demo(EXPERIMENT_FLEET, speedup=DEFAULT_SPEEDUP, out=out,
                     console=Console(file=io.StringIO(), width=140))  # fmt: skip
     report: dict[str, Any] = json.loads((out / "report.json").read_text())
     return {**_figures(report), "exit_code": code}
@@ -69,7 +69,7 @@ def run() -> dict[str, Any]:
         figures = real(Path(tmp) / "real")
         figures["fast_time"] = fast(Path(tmp) / "fast")
         figures["baseline_no_avoidance"] = fast(Path(tmp) / "off", avoidance=False)
-    figures["setup"] = ("swarm-sim demo: vehicles 1-6 (Albatross 250 VTOL), pads 30 m apart, "
-                        "5x real time, Zenoh on 127.0.0.1; fast_time and the baseline: the "
-                        "same story in FastFleet")  # fmt: skip
+    figures["setup"] = (f"swarm-sim demo: vehicles 1-6 (Albatross 250 VTOL), pads 30 m apart, "
+                        f"{DEFAULT_SPEEDUP:g}x real time, Zenoh on 127.0.0.1; fast_time and the "
+                        "baseline: the same story in FastFleet")  # fmt: skip
     return figures

@@ -217,18 +217,19 @@ def test_the_narrator_says_returning_once_a_share_is_flown_and_never_mission_0()
 @pytest.mark.network
 def test_the_shortened_story_through_the_real_processes(tmp_path: Path) -> None:
     """`swarm-sim demo` as `make demo` runs it (real node processes, simulated vehicles
-    on TCP, Zenoh on 127.0.0.1), the story shortened, at 8x: exit 0 and report.json."""
+    on TCP, Zenoh on 127.0.0.1), the story shortened, at the demo's speed-up: exit 0 and
+    report.json."""
     from rich.console import Console
 
-    from swarm_sim.experiment import run
+    from swarm_sim.experiment import DEFAULT_SPEEDUP, run
 
     out = tmp_path / "demo-out"
-    code = run(MEMBERS, speedup=8.0, timeout_s=900.0, out=out,
+    code = run(MEMBERS, speedup=DEFAULT_SPEEDUP, timeout_s=900.0, out=out,
                console=Console(file=io.StringIO(), width=140), plan_kw={"scale": SCALE})  # fmt: skip
     report = json.loads((out / "report.json").read_text())
     assert code == 0, report["failures"]
     _check_report(report)
-    assert report["sim_s"] > 300 and report["speedup"] == 8.0
+    assert report["sim_s"] > 300 and report["speedup"] == DEFAULT_SPEEDUP
 
 
 def test_the_pair_flies_the_perimeter_and_route_layered_beyond_a_conflict() -> None:
