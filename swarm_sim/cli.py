@@ -28,7 +28,7 @@ def demo(
         False, "--mixed", help="add three quadcopters (7-9), a rover (10) and a boat (12)"
     ),
     speedup: float | None = typer.Option(
-        None, help="simulated seconds per wall second (default 5, or 1 with --radio)"
+        None, help="simulated seconds per wall second (default 3, or 1 with --radio)"
     ),
     timeout: float = typer.Option(1800.0, help="wall seconds the whole story may take"),
     keep: bool = typer.Option(False, help="keep the node logs"),

@@ -215,6 +215,7 @@ def test_the_narrator_says_returning_once_a_share_is_flown_and_never_mission_0()
 
 @pytest.mark.soak
 @pytest.mark.network
+@pytest.mark.timeout(900)
 def test_the_shortened_story_through_the_real_processes(tmp_path: Path) -> None:
     """`swarm-sim demo` as `make demo` runs it (real node processes, simulated vehicles
     on TCP, Zenoh on 127.0.0.1), the story shortened, at the demo's speed-up: exit 0 and
