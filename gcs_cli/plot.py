@@ -12,12 +12,14 @@ its own."""
 
 from __future__ import annotations
 
+import json
 import math
 import queue
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -167,10 +169,45 @@ def draw(
     ax.legend(loc="best", fontsize=7, framealpha=0.8)
     fig.tight_layout()
     try:
-        fig.savefig(out, format="png")
+        fig.savefig(out, format="png", metadata={"Description": _georeference(fig, ax, frame)})
     finally:
         plt.close(fig)
     return drawn
+
+
+def _georeference(fig: Any, ax: Any, frame: Frame) -> str:
+    """Where the map is in the picture, as JSON in the PNG's Description: the local
+    frame's centre, the axes' limits in metres and their box in image pixels (origin top
+    left), so that a reader (the demo's tests) can put a point of the field on a pixel."""
+    fig.canvas.draw()  # the final layout (equal aspect, tight layout) before reading it
+    box = ax.get_window_extent()
+    height = fig.get_size_inches()[1] * fig.dpi
+    return json.dumps({
+        "frame_lat_lon": [frame.lat0, frame.lon0],
+        "xlim_m": list(ax.get_xlim()), "ylim_m": list(ax.get_ylim()),
+        "axes_px": [box.x0, height - box.y1, box.x1, height - box.y0],
+    })  # fmt: skip
+
+
+def read_georeference(png: Path) -> tuple[Frame, Callable[[float, float], tuple[float, float]]]:
+    """A picture `draw` made: its frame and a function (lat, lon) -> (column, row) in
+    image pixels. ValueError when the picture has no georeference."""
+    from PIL import Image
+
+    with Image.open(png) as img:
+        text = img.info.get("Description")
+    if not text:
+        raise ValueError(f"{png}: no georeference")
+    g = json.loads(text)
+    frame = Frame(*g["frame_lat_lon"])
+    (x0, x1), (y0, y1) = g["xlim_m"], g["ylim_m"]
+    c0, r0, c1, r1 = g["axes_px"]
+
+    def pixel(lat: float, lon: float) -> tuple[float, float]:
+        x, y = frame.xy(lat, lon)
+        return c0 + (x - x0) / (x1 - x0) * (c1 - c0), r1 - (y - y0) / (y1 - y0) * (r1 - r0)
+
+    return frame, pixel
 
 
 @app.command()

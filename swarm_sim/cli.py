@@ -28,7 +28,7 @@ def demo(
         False, "--mixed", help="add three quadcopters (7-9), a rover (10) and a boat (12)"
     ),
     speedup: float | None = typer.Option(
-        None, help="simulated seconds per wall second (default 5, or 1 with --radio)"
+        None, help="simulated seconds per wall second (default 3, or 1 with --radio)"
     ),
     timeout: float = typer.Option(1800.0, help="wall seconds the whole story may take"),
     keep: bool = typer.Option(False, help="keep the node logs"),
@@ -55,7 +55,7 @@ def demo(
     covered under 99 %. With --radio, every message between vehicles and the ground
     station crosses the emulated 900 MHz TDM radio instead."""
     from .demo import run_demo
-    from .experiment import EXPERIMENT_FLEET, MIXED_EXTRA
+    from .experiment import DEFAULT_SPEEDUP, EXPERIMENT_FLEET, MIXED_EXTRA
 
     if vehicle_ids is not None and mixed:
         raise typer.BadParameter("give --vehicles or --mixed, not both", param_hint="--mixed")
@@ -69,7 +69,7 @@ def demo(
     else:
         members = EXPERIMENT_FLEET + (MIXED_EXTRA if mixed else ())
     if speedup is None:
-        speedup = 1.0 if radio else 5.0
+        speedup = 1.0 if radio else DEFAULT_SPEEDUP
     if not (speedup > 0 and speedup <= 100):
         raise typer.BadParameter("must be in (0, 100]", param_hint="--speedup")
     if not (timeout > 0):

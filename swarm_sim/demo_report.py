@@ -43,7 +43,7 @@ from swarm_node.core.planning.fleet_plan import FleetPlan
 from swarm_node.core.planning.geo import LocalFrame
 from swarm_node.core.planning.zones import ZoneSet
 from swarm_node.core.profile import VehicleProfile
-from swarm_proto import GeoPoint, VehicleInfo, VehicleStatus
+from swarm_proto import GeoPoint, Severity, VehicleInfo, VehicleStatus
 from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter
 
 from .story import AREA_ID, PERIMETER_ID, ROUTE_ID, Record, StoryPlan
@@ -296,25 +296,39 @@ def vote_rows(plan: StoryPlan, record: Record) -> list[dict[str, Any]]:
     return out
 
 
+def critical_rows(record: Record) -> list[dict[str, Any]]:
+    """Every CRITICAL alert heard (an emergency's cause among them)."""
+    return [
+        {"t_s": round(t, 1), "vehicle": a.vehicle_id, "code": a.code.name, "text": a.text}
+        for t, a in record.alerts
+        if a.severity >= Severity.CRITICAL
+    ]
+
+
 def replan_rows(record: Record) -> list[dict[str, Any]]:
     """The replans the vehicles went through (REPLAN in their status), one event per
-    mission and cause: who replanned, when, why."""
+    mission and cause: who replanned, when, why. The cause is the story's step when a
+    vehicle entered REPLAN (the vote's replan spans the VOTE and REPLAN steps: the
+    vehicles enter it within a second of each other, the step changes between them)."""
     events: list[dict[str, Any]] = []
     victim = next(iter(record.failed), None)
     for t, mid, vid, phase in sorted(record.replans):
-        last = events[-1] if events else None
-        if last is not None and last["mission_id"] == mid and last["phase"] == phase \
-                and t - last["t_s"] < 30.0:  # fmt: skip
-            last["vehicles"].append(vid)
-            continue
-        if phase in ("vote", "replan", "fail"):
+        if mid != AREA_ID:  # the story changes only the survey's fleet
+            cause, why = "other", "a member of its fleet was lost (or in an emergency)"
+        elif phase in ("vote", "replan", "fail"):
+            cause = "vote"
             why = (f"vehicles {', '.join(map(str, record.winners))} voted out to the target: "
                    "the others re-split what is left")  # fmt: skip
         elif phase in ("inherit", "finish") and victim is not None:
+            cause = "lost"
             why = f"vehicle {victim} lost: the survivors share out the rest of its share"
         else:
-            why = "the fleet changed"
-        events.append({"t_s": round(t, 1), "mission_id": mid, "phase": phase,
+            cause, why = phase, "the fleet changed"
+        last = next((e for e in reversed(events) if e["mission_id"] == mid), None)
+        if last is not None and last["cause"] == cause and t - last["t_s"] < 30.0:
+            last["vehicles"].append(vid)
+            continue
+        events.append({"t_s": round(t, 1), "mission_id": mid, "phase": phase, "cause": cause,
                        "vehicles": [vid], "why": why})  # fmt: skip
     for e in events:
         e["vehicles"] = sorted(set(e["vehicles"]))
@@ -484,6 +498,7 @@ def build(
         "winners": list(record.winners),
         "replans": replan_rows(record),
         "failed": {str(v): round(t, 1) for v, t in record.failed.items()},
+        "critical_alerts": critical_rows(record),
         "landed": sorted(record.landed),
         "timeline": [{"t_s": round(t, 1), "step": s} for t, s in record.steps],
         "outcome": record.outcome,
@@ -500,3 +515,49 @@ def build(
     }
     (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
     return report
+
+
+# --------------------------------------------------------------------------- fast time
+
+
+def fast_report(
+    plan: StoryPlan,
+    profiles: Mapping[int, VehicleProfile],
+    out: Path,
+    *,
+    pictures: bool = True,
+    settings: object | None = None,
+) -> dict[str, Any]:
+    """The story flown against FastFleet (`story.fly_fast`: simulated vehicles, real
+    MAVLink bytes, the node cores; no processes, no sockets) and reported as the demo
+    reports it: report.json, flight.csv and the pictures in `out`. The tests' and the
+    benchmark's shorter, deterministic demo."""
+    import time
+
+    from swarm_proto import VehicleInfo
+
+    from .story import fly_fast
+
+    out.mkdir(parents=True, exist_ok=True)
+    recorder = FlightRecorder(out / "flight.csv")
+    homes: dict[int, GeoPoint] = {}
+    base: list[GeoPoint] = []
+
+    def heard(msg: object, now: float) -> None:
+        if isinstance(msg, VehicleInfo) and msg.vehicle_id in plan.members:
+            if msg.home is not None:
+                homes[msg.vehicle_id] = msg.home
+            if msg.base is not None:
+                base[:] = [msg.base]
+        recorder.handle(msg)
+
+    wall0 = time.perf_counter()
+    try:
+        run = fly_fast(plan, profiles, on_message=heard, settings=settings)
+    finally:
+        recorder.close()
+    meta = {"fast_time": True, "wall_s": round(time.perf_counter() - wall0, 1),
+            "sim_s": round(run.duration_s, 1)}  # fmt: skip
+    return build(out, plan=plan, record=run.story.record, flight_csv=out / "flight.csv",
+                 profiles=profiles, homes=homes, base=base[0] if base else None, meta=meta,
+                 pictures=pictures)  # fmt: skip

@@ -60,6 +60,11 @@ from .story import AREA_ID, PERIMETER_ID, ROUTE_ID, Fail, Finished, Say, Send, S
 EXPERIMENT_FLEET = (1, 2, 3, 4, 5, 6)  # the seed database's six Albatross 250 VTOLs
 MIXED_EXTRA = (7, 8, 9, 10, 12)  # --mixed: three quadcopters, a rover, a boat
 PAD_SPACING_M = 30.0  # the paper's pads
+# `swarm-sim demo` without --speedup or --radio. Planning is wall time (a replan 1-3 s on
+# a loaded 2-core machine): at 5x that is 5-15 s of flight on the old share and the
+# replan's 15 s agreement window is 3 s of wall time; 4 of 8 runs in a row failed
+# there, 5 of 5 passed at 3x (docs/benchmarks.md, "demo")
+DEFAULT_SPEEDUP = 3.0
 TICK_S = 0.1  # wall seconds between the story's timers when nothing is heard
 COLORS = ("cyan", "green", "yellow", "magenta", "blue", "bright_red", "bright_green",
           "bright_yellow", "bright_magenta", "bright_cyan", "white", "bright_blue")  # fmt: skip
@@ -88,7 +93,7 @@ class Shell:
 
 
 def _say(console: Console, t_s: float, who: str, text: str, style: str | None = None) -> None:
-    m, s = divmod(max(0.0, t_s), 60.0)
+    m, s = divmod(round(max(0.0, t_s), 1), 60.0)  # rounded first: never "3:60.0"
     line = Text(f"{int(m):3d}:{s:04.1f} ", style="dim")
     line.append(f"{who:<11}", style=style or "bold")
     line.append(text, style=None if style != "bold cyan" else "cyan")

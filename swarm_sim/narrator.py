@@ -61,6 +61,7 @@ class _Vehicle:
     status: VehicleStatus | None = None
     info: VehicleInfo | None = None
     voted: set[int] = field(default_factory=set)
+    completed: set[int] = field(default_factory=set)  # missions it said MISSION_COMPLETE of
 
 
 class Narrator:
@@ -116,7 +117,11 @@ class Narrator:
             case MissionState.VOTING:
                 return Doing.VOTING
             case MissionState.PLANNING:
-                return Doing.PLANNING if s.alt_rel_m < ON_GROUND_M or mid else Doing.RETURNING
+                # a vehicle that has flown its share plans its way home (STATE_PLAN of
+                # the return): it is returning, not planning the mission again
+                if s.alt_rel_m >= ON_GROUND_M and (not mid or mid in v.completed):
+                    return Doing.RETURNING
+                return Doing.PLANNING
             case MissionState.REPLAN:
                 return Doing.REPLANNING
             case MissionState.PREMISSION:
@@ -158,6 +163,7 @@ class Narrator:
         m = self.mission(mid)
         match doing:
             case Doing.PLANNING:
+                m = m if mid else "a new mission"  # its VehicleInfo does not show it yet
                 return f"planning {m} with its fleet (STATE_PLAN: waits until all are there)"
             case Doing.VOTING:
                 return f"voting who flies {m}"
@@ -190,6 +196,7 @@ class Narrator:
     def _alert(self, a: Alert, t: float) -> list[Line]:
         if a.code == AlertCode.MISSION_COMPLETE:
             mid = _mission_of(a.text)
+            self.vehicles.setdefault(a.vehicle_id, _Vehicle()).completed.add(mid)
             return [Line(t, a.vehicle_id, f"{self.mission(mid) if mid else a.text}: its share "
                          "is flown (MISSION_COMPLETE)")]  # fmt: skip
         if a.text.startswith("chosen for mission "):

@@ -18,6 +18,10 @@ processes; `fly_fast` runs the same script against FastFleet (tests, development
     HOME     every vehicle returns to its pad and lands
     DONE
 
+A vehicle of ours in STATE_EMERGENCY (a no-fly zone entered, a link lost, a battery
+critical) ends the story there, failed, with the vehicle's critical alert: the demo
+says what went wrong when it happens, not at a phase's timeout minutes later.
+
 The core: `handle(msg, now)` and `on_timer(now)` return actions (`Send`, `Fail`, `Say`,
 `Finished`); `next_deadline()`; time in simulated seconds, never read. What happened
 is kept in `record` (the report's source: missions, completions, votes, replans)."""
@@ -53,6 +57,7 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
     Selector,
+    Severity,
     TargetReport,
     TargetSource,
     VehicleInfo,
@@ -66,6 +71,7 @@ PERIMETER_ID = 103
 ROUTE_ID = 104
 TARGET_ID = 1  # the report's id (the target mission's id is derived from it)
 LANDED_M = 3.0  # a vehicle this low above home, disarmed, is on the ground
+TARGET_WAIT_S = 20.0  # the pair's second watches the target at most this much longer
 
 Heard = VehicleStatus | VehicleInfo | Alert | Ack | Vote
 
@@ -89,6 +95,10 @@ class StoryPlan:
     side_overlap: float = 0.5
     perimeter_alt_m: float = 100.0
     route_alt_m: float = 100.0
+    # the pair flies the perimeter and the route together (one PREMISSION meet, the same
+    # final loiter): layered further apart than avoidance's conflict distance (20 m), or
+    # they would fly the whole mission as a conflict, and end it stacked over one point
+    layer_m: float = 30.0
     target_class: str = "person"
     target_at_pct: int = 15  # the survey's progress (its slowest member) at the report
     fail_after_s: float = 20.0  # the stayers fly their new shares this long before one fails
@@ -142,12 +152,12 @@ class StoryPlan:
 
     def perimeter_mission(self, ids: Sequence[int], now: float) -> Mission:
         params = MissionParams(altitude_rel_m=self.perimeter_alt_m, loops=1,
-                               altitude_step_m=10.0)  # fmt: skip
+                               altitude_step_m=self.layer_m)  # fmt: skip
         return Mission(PERIMETER_ID, GCS_ID, MissionType.PERIMETER, self.perimeter, params,
                        Selector.ids(*ids), "perimeter", max(0.0, now))  # fmt: skip
 
     def route_mission(self, ids: Sequence[int], now: float) -> Mission:
-        params = MissionParams(altitude_rel_m=self.route_alt_m, altitude_step_m=10.0)
+        params = MissionParams(altitude_rel_m=self.route_alt_m, altitude_step_m=self.layer_m)
         return Mission(ROUTE_ID, GCS_ID, MissionType.ROUTE, self.route, params,
                        Selector.ids(*ids), "route", max(0.0, now))  # fmt: skip
 
@@ -458,6 +468,14 @@ class Story:
     # ------------------------------------------------------------------ the script
     def _step(self, now: float) -> list[Action]:
         p, plan, rec = self.plan, self.plan, self.record
+        if self.phase not in (Phase.UP, Phase.DONE):
+            for v in self.alive:  # the experiment has failed: say why now, not at a timeout
+                s = self.status.get(v)
+                if s is not None and s.fsm_state == FsmState.EMERGENCY:
+                    why = next((a.text for _, a in reversed(rec.alerts) if a.vehicle_id == v
+                                and a.severity >= Severity.CRITICAL), "")  # fmt: skip
+                    return self._finish(False, f"{self.phase.value}: vehicle {v} in an "
+                                        f"emergency{': ' + why if why else ''}", now)  # fmt: skip
         match self.phase:
             case Phase.UP:
                 up = all(
@@ -594,6 +612,20 @@ class Story:
             for v in ids
         )
 
+    def _target_watched(self, now: float) -> bool:
+        """Both of the pair have flown their share of the target, or one has and the
+        other has watched on for TARGET_WAIT_S more: the first is on its way home and
+        must get the perimeter before it is landing (a vehicle in its final descent
+        refuses a mission BUSY; without avoidance's holding layers one was, 40 s after
+        it finished the target)."""
+        rec = self.record.missions.get(self.plan.target_mission_id)
+        if rec is None or not self.record.winners:
+            return False
+        done = [rec.completed[v] for v in self.record.winners if v in rec.completed]
+        if len(done) == len(self.record.winners):
+            return True
+        return bool(done) and self.record.rel(now) - min(done) >= TARGET_WAIT_S
+
     def _finish_phase(self, now: float) -> list[Action]:
         """The target's pair, once it has watched the target, patrols the perimeter and
         then flies the route (each a PREMISSION meet: the pair finishes a mission within
@@ -603,7 +635,7 @@ class Story:
         out: list[Action] = []
         pair = p.perimeter_by or rec.winners
         crew = p.route_by or rec.winners
-        if PERIMETER_ID not in self._finish_sent and self._completed(p.target_mission_id, rec.winners):
+        if PERIMETER_ID not in self._finish_sent and self._target_watched(now):
             self._finish_sent.add(PERIMETER_ID)
             self._mission(PERIMETER_ID, "perimeter").sent_at = rec.rel(now)
             out += [Say(f"target watched: {', '.join(map(str, pair))} patrol the perimeter west "

@@ -103,6 +103,7 @@ NAMED: dict[str, tuple[str, ...]] = {
         "split_imbalance",
         "gis_4000/full_plan_ms",
     ),
+    "demo": ("wall_s", "sim_s", "coverage", "near", "danger", "min_sep_m", "missions_completed"),
     "faults": ("faults", "recovered", "declared_state_lost", "false_emergencies", "coverage_min"),
     "mission": (
         "battery_min_pct_at_landing",
@@ -257,3 +258,14 @@ def test_fault_campaign_rows() -> None:
         assert isinstance(row["recovered"], bool)
         assert row["declared_state_lost"] == 0 and row["false_emergencies"] == 0, row
     assert data["baseline"] and all(r["fault"] == "none" for r in data["baseline"])
+
+
+def test_the_demo_figures_are_a_passing_run() -> None:
+    """Issue 18: the demo's figures come from a run that passed (every mission, no
+    near-collision, the area covered), beside the fast-time flight of the same story."""
+    data = _load("demo")
+    assert data["ok"] and data["exit_code"] == 0, data["failures"]
+    assert data["missions_completed"] == data["missions_total"] == 4
+    assert data["near"] == 0 and data["coverage"] >= 0.99
+    assert data["fast_time"]["ok"] and data["fast_time"]["near"] == 0
+    assert "near" in data["baseline_no_avoidance"]
