@@ -160,14 +160,19 @@ def swath_m(profiles: Sequence[VehicleProfile], alt_m: float) -> float:
     return 2.0 * alt_m * math.tan(math.radians(hfov) / 2.0)
 
 
-def survey_runs(flight: Flight, mission_id: int, alt_m: float) -> dict[int, list[npt.NDArray[np.float64]]]:
+def survey_runs(
+    flight: Flight, mission_id: int, alt_m: float, top_m: float | None = None
+) -> dict[int, list[npt.NDArray[np.float64]]]:
     """Each vehicle's runs of samples flying `mission_id` (MISSION, or REPLAN: it flies
-    its share meanwhile) within ALT_BAND_M of `alt_m`, as (n, 2) lat/lon arrays, broken
-    where the samples are more than GAP_S apart."""
+    its share meanwhile) within ALT_BAND_M of the survey's heights (`alt_m`, the lowest
+    member, to `top_m`, the highest), as (n, 2) lat/lon arrays, broken where the samples
+    are more than GAP_S apart."""
+    top = alt_m if top_m is None else top_m
     ok = (
         (flight.mission_id == mission_id)
         & np.isin(flight.state, ("MISSION", "REPLAN"))
-        & (np.abs(flight.alt_rel_m - alt_m) < ALT_BAND_M)
+        & (flight.alt_rel_m > alt_m - ALT_BAND_M)
+        & (flight.alt_rel_m < top + ALT_BAND_M)
         & flight.armed
     )
     out: dict[int, list[npt.NDArray[np.float64]]] = {}
@@ -200,9 +205,11 @@ def coverable(plan: StoryPlan, first: FleetPlan | None) -> tuple[LocalFrame, Bas
 def coverage(
     flight: Flight, plan: StoryPlan, swath: float, frame: LocalFrame, target: BaseGeometry
 ) -> float:
-    """The fraction of `target` (in `frame`) under the flown survey tracks' swath."""
+    """The fraction of `target` (in `frame`) under the flown survey tracks' swath (the
+    lowest member's: the higher ones see more)."""
     lines = []
-    for runs in survey_runs(flight, AREA_ID, plan.area_alt_m).values():
+    top = plan.area_alt_m + plan.area_layer_m * max(len(plan.members) - 1, 0)
+    for runs in survey_runs(flight, AREA_ID, plan.area_alt_m, top).values():
         for run in runs:
             lines.append(LineString(frame.to_local_many(run.tolist())).buffer(swath / 2.0))
     if not lines or target.area <= 0.0:

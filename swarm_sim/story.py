@@ -92,6 +92,11 @@ class StoryPlan:
     route: Geometry
     reporter: int  # whose camera reports the target
     area_alt_m: float = 80.0
+    # each member of the survey at its own height, this far above the one before (the
+    # planner's altitude_step_m): planned lanes and replanned shares cross, and a turning
+    # aircraft is seen late by avoidance's straight-line prediction (a demo run came
+    # within 2.8 m at one height); lanes are spaced for the lowest camera
+    area_layer_m: float = 10.0
     side_overlap: float = 0.5
     perimeter_alt_m: float = 100.0
     route_alt_m: float = 100.0
@@ -146,7 +151,8 @@ class StoryPlan:
         return target_mission_id(self.reporter, TARGET_ID)
 
     def area_mission(self, now: float) -> Mission:
-        params = MissionParams(altitude_rel_m=self.area_alt_m, side_overlap=self.side_overlap)
+        params = MissionParams(altitude_rel_m=self.area_alt_m, side_overlap=self.side_overlap,
+                               altitude_step_m=self.area_layer_m)  # fmt: skip
         return Mission(AREA_ID, GCS_ID, MissionType.AREA, self.area, params,
                        Selector.ids(*self.members), "survey", max(0.0, now))  # fmt: skip
 
