@@ -518,26 +518,32 @@ class GroundStation:
     def declared_state(self, node_id: int, timeout_s: float = 3.0) -> DeclaredState | None:
         """What the operator declared, as node `node_id` holds it (its DECLARED
         queryable; issue 16). None: it did not answer."""
-        for reply in self.bus.session.get(
-            DECLARED.key(self.swarm, vehicle_id=node_id), timeout=timeout_s
-        ):
-            if reply.ok is not None:
-                try:
-                    return lan.decode(reply.ok.payload.to_bytes(), DeclaredState)
-                except Exception:
-                    return None
-        return None
+        return self._ask_one(DECLARED.key(self.swarm, vehicle_id=node_id), DeclaredState, timeout_s)
 
     def peers_of(self, node_id: int, timeout_s: float = 2.0) -> SwarmView | None:
-        for reply in self.bus.session.get(
-            PEERS.key(self.swarm, vehicle_id=node_id), timeout=timeout_s
-        ):
-            if reply.ok is not None:
-                try:
-                    return lan.decode(reply.ok.payload.to_bytes(), SwarmView)
-                except Exception:
-                    return None
-        return None
+        """Node `node_id`'s view of the swarm (its PEERS queryable); None: no answer."""
+        return self._ask_one(PEERS.key(self.swarm, vehicle_id=node_id), SwarmView, timeout_s)
+
+    def _ask_one(self, key: str, kind: type[T], timeout_s: float) -> T | None:
+        """One node's queryable, asked again every 0.2 s until it answers or `timeout_s`:
+        a fresh session (a router that has not told it of the queryable yet) gets no
+        reply at once rather than after the timeout. None: no answer, or a bad one."""
+        end = time.monotonic() + timeout_s
+        while True:
+            left = end - time.monotonic()
+            try:
+                replies = list(self.bus.session.get(key, timeout=max(0.2, min(left, 1.0))))
+            except Exception:  # a closed session
+                return None
+            for reply in replies:
+                if reply.ok is not None:
+                    try:
+                        return lan.decode(reply.ok.payload.to_bytes(), kind)
+                    except DecodeError:
+                        return None
+            if time.monotonic() >= end:
+                return None
+            time.sleep(0.2)
 
     def close(self) -> None:
         self._stop.set()

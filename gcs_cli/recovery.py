@@ -82,7 +82,7 @@ def collect(gs: GroundStation, timeout_s: float = 2.0) -> tuple[SwarmState, list
     alive = gs.discover()
     if not alive:  # a slow start on a loaded host: the 1 Hz VehicleInfo says who is there
         gs.wait_for(lambda v: bool(v.info), max(timeout_s, 3.0))
-        alive = set(gs.snapshot().vehicle_ids())
+    alive |= set(gs.snapshot().vehicle_ids())  # and every vehicle heard meanwhile (5 Hz)
     gs.wait_for(lambda v: all(i in v.info for i in alive), 2.5)  # VehicleInfo: 1 Hz
     view = gs.snapshot()
     warnings: list[str] = []

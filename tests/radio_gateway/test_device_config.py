@@ -73,6 +73,7 @@ def _env(**extra: str) -> dict[str, str]:
     return env
 
 
+@pytest.mark.timing  # AT command guard times on an emulated radio, in real time: run alone
 def test_cli_emulator_and_gateway_refusal(tmp_path: Path) -> None:
     """`swarm-sim radio` prints its ports; `radio-gateway run` on a factory-set module
     refuses to start, and with --configure it sets the module up and runs."""
