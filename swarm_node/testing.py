@@ -117,15 +117,17 @@ class Fleet:
         """Every published `cls` (from `sender`), in order. Scans only what was published
         since the last call with the same arguments (a predicate calling this at every
         step of a long flight stays linear), unless `published` was changed under it."""
-        return _matching(self.published, self._scans, cls, sender)
+        return published_matching(self.published, self._scans, cls, sender)
 
 
-def _matching(
+def published_matching(
     published: list[tuple[float, int, msgspec.Struct]],
     scans: dict[tuple[type, int | None], tuple[int, object, list]],
     cls: type,
     sender: int | None,
 ) -> list:
+    """Every `cls` in `published` (from `sender`), scanning only what was appended since
+    the last call with the same `scans` key (FastFleet and the fleet harness share it)."""
     start, last, found = scans.get((cls, sender), (0, None, []))
     if start > len(published) or (start and published[start - 1] is not last):
         start, found = 0, []  # cleared or replaced: scan afresh

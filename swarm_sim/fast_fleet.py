@@ -47,6 +47,7 @@ from swarm_node.core.node import (
 )
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.plan_memo import PlanMemo
+from swarm_node.testing import published_matching
 from swarm_proto import DeclaredState, MissionType, VehicleType, lan
 
 from .core import SITL_HOME, Home, VehicleEndpoint
@@ -470,21 +471,5 @@ class FastFleet:
         """Every published `cls` (from `sender`), in order. Scans only what was published
         since the last call with the same arguments (a predicate calling this at every
         step of a long flight stays linear), unless `published` was changed under it."""
-        return _matching(self.published, self._scans, cls, sender)
+        return published_matching(self.published, self._scans, cls, sender)
 
-
-def _matching(
-    published: list[tuple[float, int, msgspec.Struct]],
-    scans: dict[tuple[type, int | None], tuple[int, object, list]],
-    cls: type,
-    sender: int | None,
-) -> list:
-    start, last, found = scans.get((cls, sender), (0, None, []))
-    if start > len(published) or (start and published[start - 1] is not last):
-        start, found = 0, []  # cleared or replaced: scan afresh
-    found = found + [
-        m for _, s, m in published[start:] if isinstance(m, cls) and (sender is None or s == sender)
-    ]
-    if published:
-        scans[(cls, sender)] = (len(published), published[-1], found)
-    return list(found)
