@@ -472,4 +472,3 @@ class FastFleet:
         since the last call with the same arguments (a predicate calling this at every
         step of a long flight stays linear), unless `published` was changed under it."""
         return published_matching(self.published, self._scans, cls, sender)
-
