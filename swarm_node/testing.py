@@ -47,6 +47,7 @@ class Fleet:
     delay_s: tuple[float, float] = (0.0, 0.0)  # uniform delay range per link
     autopilot: AutopilotFn = always_ok
     plan_delay_s: float = 0.0  # how long a plan job takes (it runs inline, in no time)
+    plan_delays: dict[int, float] = field(default_factory=dict)  # per node, over plan_delay_s
     plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
     #: (sender, receiver, message) -> lost: a link that fails one way, or for one message
     drop: Callable[[int, int, msgspec.Struct], bool] | None = None
@@ -88,7 +89,8 @@ class Fleet:
                 self.notes.append((self.now, node_id, o.text))
             elif isinstance(o, PlanJob):
                 done = PlanDone(self.plans.run(o.request))
-                self.deliver(node_id, done, self.now + self.plan_delay_s)
+                delay = self.plan_delays.get(node_id, self.plan_delay_s)
+                self.deliver(node_id, done, self.now + delay)
 
     def run_until(self, t_end: float) -> None:
         """Process inputs and timers in time order up to t_end."""

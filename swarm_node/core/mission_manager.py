@@ -288,7 +288,8 @@ class MissionManager:
         re-synchronise on a mismatch; fly on without it when no agreement comes
         (mission/agreement.py)."""
         self.agreement.begin(now)
-        verdict = self.agreement.verdict(fleet, now, held=self._held is not None)
+        verdict = self.agreement.verdict(fleet, now, held=self._held is not None,
+                                         planning=self._planning is not None)  # fmt: skip
         if verdict == Verdict.WAIT:
             return []
         if verdict == Verdict.AGREED:
@@ -733,6 +734,8 @@ class MissionManager:
         `on_autopilot` completes). Without zones in the way, plain RTL."""
         self.mission_id = fsm.RETURN_MISSION
         self.phase, self._approach = Phase.RETURNING, None
+        self._planning, self._held = None, None  # a plan job still running is abandoned
+        self.agreement.end()
         self.sortie.go(Trigger.RETURN)
         self.hold_s, self.hold_seq = 0.0, 0
         done = [Post(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
