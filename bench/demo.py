@@ -60,7 +60,7 @@ def fast(out: Path, *, avoidance: bool = True) -> dict[str, Any]:
     with SwarmDatabase.memory() as db:
         profiles = {v: db.vehicle_profile(v) for v in EXPERIMENT_FLEET}
     plan = StoryPlan.experiment_one(EXPERIMENT_FLEET, (SITL_HOME.lat_deg, SITL_HOME.lon_deg))
-    settings = NodeSettings(plan_timeout_s=300.0, avoidance=avoidance)
+    settings = NodeSettings(avoidance=avoidance)
     return _figures(fast_report(plan, profiles, out, pictures=False, settings=settings))
 
 

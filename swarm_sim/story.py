@@ -706,9 +706,9 @@ def fly_fast(
 
     from .fast_fleet import FastFleet
 
-    # the close pads' take-off sequence is part of the launch, which the state machine
-    # bounds with the plan timeout: as the demo's nodes at 5x (demo.plan_timeout_s)
-    settings = settings or NodeSettings(plan_timeout_s=300.0)
+    # the nodes' defaults (a 60 s plan timeout: the close pads' take-off queue is not
+    # counted in it, state_machine.Facts.launch_queued)
+    settings = settings or NodeSettings()
     fleet = FastFleet.build(list(plan.members), profiles, spacing_m=spacing_m,  # type: ignore[arg-type]
                             settings=settings, mission_defaults=seed_mission_defaults())  # type: ignore[arg-type]  # fmt: skip
     t_start = fleet.now

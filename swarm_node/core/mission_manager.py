@@ -513,6 +513,8 @@ class MissionManager:
         assert self.share is not None and self.mission_id is not None
         if self._in_flight is not None or self._steps:
             return []  # uploading
+        if not sync.active:  # a replan dropped the meet (begin_replan): fly on from here
+            return self._fly_share_from_here(ap, now, "the meet dropped by a replan")
         if sync.leg is not None:
             if now < sync.depart_unix_s - AP_POLL_S / 2:
                 return []
@@ -535,13 +537,20 @@ class MissionManager:
             self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap))]
         except (PlanningError, ValueError) as exc:  # fly the share as planned
             sync.stop()
-            try:
-                waypoints = self._with_approach(self.share.waypoints, ap, self.zones, now, home_alt)
-            except (PlanningError, ValueError) as exc2:
-                return self._abandon(f"approach: {exc2}")
-            note = Log(f"mission {self.mission_id}: no PREMISSION leg ({exc}); flying the share")
-            self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
-            self.phase = Phase.STARTING
+            return self._fly_share_from_here(ap, now, f"no PREMISSION leg ({exc})")
+        return [note, *self._next()]
+
+    def _fly_share_from_here(self, ap: AutopilotState, now: float, why: str) -> list[Out]:
+        """Climbed, without a meet: our share with an approach from where we are."""
+        assert self.share is not None
+        home_alt = ap.home.alt_msl_m if ap.home else 0.0
+        try:
+            waypoints = self._with_approach(self.share.waypoints, ap, self.zones, now, home_alt)
+        except (PlanningError, ValueError) as exc2:
+            return self._abandon(f"approach: {exc2}")
+        note = Log(f"mission {self.mission_id}: {why}; flying the share")
+        self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
+        self.phase = Phase.STARTING
         return [note, *self._next()]
 
     def _abandon(self, reason: str) -> list[Out]:
@@ -864,9 +873,11 @@ class MissionManager:
         if self.phase == Phase.STARTING and not self._steps:
             if isinstance(done, Takeoff):
                 self.phase = Phase.CLIMBING  # the mission starts once it has climbed
-                # PREMISSION: the plan is flown from the take-off (the climb and the
-                # meet would otherwise count against the state machine's plan timeout)
-                return self._confirm(mid) if self.sync.active else []
+                # the plan is flown from the take-off: the climb (held level for
+                # minutes by avoidance under a fleet taking off at close pads) and a
+                # PREMISSION's meet would otherwise count against the state machine's
+                # plan timeout (a demo vehicle was sent home from 46 m)
+                return self._confirm(mid)
             if isinstance(done, StartMission):
                 self.phase = Phase.FLYING
                 if not self.sync.flying_leg:  # PREMISSION: MISSION from the entry on

@@ -1019,6 +1019,7 @@ class NodeCore:
             emergency=self.monitor.emergency,
             fleet_ready=self._fleet_ready(),
             armed=self.autopilot.armed,
+            launch_queued=self.avoid.launch is not None,
         )
 
     def _fleet_ready(self) -> bool:

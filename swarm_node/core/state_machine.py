@@ -68,6 +68,9 @@ class Facts:
     emergency: Emergency | None = None  # most severe active emergency-level alert
     fleet_ready: bool = False  # every live member of the fleet is in PLAN for our mission
     armed: bool = False  # the vehicle is armed (flying, or about to)
+    # the plan is made and the take-off waits its turn at the close pads (safety/pads.py):
+    # a wait that grows with the fleet, not planning, so the plan timeout does not count it
+    launch_queued: bool = False
 
 
 @dataclass(frozen=True)
@@ -562,6 +565,8 @@ class StateMachine:
         self.emergency: Emergency | None = None
         self.plan_timeout_s = plan_timeout_s
         self.entered_at = now
+        self._queued_s = 0.0  # time in this PLAN spent in the take-off queue
+        self._queued_since: float | None = None
         self._next_tick = now
         self._pending: list[Event] = []
         self.ignored: list[tuple[FsmState, Event]] = []  # events no rule wanted (for logs)
@@ -576,6 +581,7 @@ class StateMachine:
     def tick(self, now: float, facts: Facts) -> Transition | None:
         """One 5 Hz step: at most one rule fires. Returns what happened, or None."""
         self._next_tick = max(self._next_tick + TICK_S, now)
+        self._count_queue(now, facts)
         fired = self._fire(now, facts)
         if fired is None:
             self._drop_pending()
@@ -591,13 +597,28 @@ class StateMachine:
         return Transition(rule.name, rule.action, before, self.state, outputs)
 
     # internals ------------------------------------------------------------
+    def _count_queue(self, now: float, facts: Facts) -> None:
+        queued = self.state == FsmState.PLAN and facts.launch_queued
+        if queued and self._queued_since is None:
+            self._queued_since = now
+        elif not queued and self._queued_since is not None:
+            self._queued_s += now - self._queued_since
+            self._queued_since = None
+
+    def plan_elapsed_s(self, now: float) -> float:
+        """Time in STATE_PLAN, less the take-off queue's wait."""
+        if self.state != FsmState.PLAN:
+            return 0.0
+        queued = self._queued_s + (now - self._queued_since if self._queued_since is not None else 0.0)
+        return now - self.entered_at - queued
+
     def _context(self, now: float, facts: Facts, event: Event | None) -> Context:
         return Context(
             state=self.state,
             mission_id=self.mission_id,
             released=self.released,
             emergency=self.emergency,
-            plan_elapsed_s=now - self.entered_at if self.state == FsmState.PLAN else 0.0,
+            plan_elapsed_s=self.plan_elapsed_s(now),
             plan_timeout_s=self.plan_timeout_s,
             facts=facts,
             event=event,
@@ -647,6 +668,7 @@ class StateMachine:
         ):
             self.state = target
             self.entered_at = now
+            self._queued_s, self._queued_since = 0.0, None
             if target != FsmState.EMERGENCY:
                 self.emergency = None
 

@@ -347,3 +347,41 @@ def test_a_replan_of_a_mission_a_newer_one_replaced_is_dropped() -> None:
     fsm.post(Replan(92))
     tr = fsm.tick(2.0, OK)
     assert tr is not None and tr.outputs == [BeginPlan(92, replan=True)]
+
+
+def test_the_take_off_queue_does_not_count_against_the_plan_timeout() -> None:
+    """Six VTOLs at close pads take off in turn, each when the one before is 30 m up
+    (safety/pads.py): the last waits about a minute with its plan made. Counted as
+    planning, the default 60 s plan timeout sent the last two home from their pads
+    (`swarm-sim demo --radio`, 1x). The wait in the queue is not planning; the time
+    before and after it is."""
+    fsm = machine(P)
+    queued = Facts(active=True, base_set=True, vehicle_ready=True, launch_queued=True)
+    t = 0.0
+    for _ in range(int(10.0 / TICK_S)):  # planning: 10 s
+        t += TICK_S
+        assert fsm.tick(t, OK) is None
+    for _ in range(int(100.0 / TICK_S)):  # in the queue: 100 s (the timeout is 30 s)
+        t += TICK_S
+        assert fsm.tick(t, queued) is None
+    assert fsm.state == P and fsm.plan_elapsed_s(t) == pytest.approx(10.0, abs=0.2)
+    for _ in range(int(15.0 / TICK_S)):  # launched, still in PLAN: 25 s in all
+        t += TICK_S
+        assert fsm.tick(t, OK) is None
+    fired = None
+    while fired is None and t < 200.0:
+        t += TICK_S
+        fired = fsm.tick(t, OK)
+    assert fired is not None and fired.rule == "plan timeout"
+    assert fsm.plan_elapsed_s(t) == 0.0  # not in PLAN any more
+    assert t == pytest.approx(130.0, abs=0.3)  # 10 + 100 (queued) + 20 s
+
+
+def test_a_new_plan_state_forgets_the_last_queue() -> None:
+    fsm = machine(P)
+    queued = Facts(active=True, base_set=True, vehicle_ready=True, launch_queued=True)
+    fsm.tick(1.0, queued)
+    fsm.tick(20.0, OK)  # 19 s queued
+    fsm.post(Replan(7))
+    assert fsm.tick(21.0, OK) is not None and fsm.state == P  # PLAN entered again
+    assert fsm.plan_elapsed_s(51.5) == pytest.approx(30.5)
