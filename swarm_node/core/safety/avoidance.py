@@ -53,7 +53,8 @@ within `horizon_s`. Manoeuvres are upward only:
   (> `protect_m`) for `clear_hold_s`; then RESUME, back to the planned altitude. A
   contact above that is not descending does not hold up a way back down that is no
   conflict with it and no closer to it than staying (two stacked vehicles would wait
-  for each other for good).
+  for each other for good). Nor does a still pair (both hovering) that is no conflict
+  from the planned altitude: waiting cannot change it.
 
 The core never reads a clock: `now` is the caller's (the same clock as the contacts'
 `time_s`; VehicleStatus times are GPS UNIX seconds). A report is at least as old as
@@ -201,6 +202,7 @@ class AvoidanceConfig:
     forget_after_s: float = 10.0  # a contact silent this long is dropped
     min_active_alt_rel_m: float = 10.0  # aircraft below this do not manoeuvre (take-off/land)
     level_climb_m_s: float = 0.5  # a stand-on vehicle climbing faster than this levels off
+    still_m_s: float = 1.0  # hovering: a still pair's release needs only protect_m
     retarget_m: float = 1.0  # a new climb request only for a target this much higher
     own_max_speed_m_s: float = 0.0  # the own state is fresh; widen it by age * this
     # a multirotor starts a manoeuvre only when the loss of separation is within the time
@@ -452,6 +454,14 @@ class CollisionAvoider:
                 )
                 down = tracks[0].alt_msl_m < own.alt_msl_m - 0.5  # the planned track's
                 clear |= down & above & (back > stay) & (back >= cfg.protect_m)
+                # a still pair (both hovering) that is no conflict from the planned
+                # altitude does not hold it up either: waiting cannot change it (two
+                # VTOLs hovering over pads 30 m apart, a radio peer's error bound of up to
+                # 8 m: once inside 20 m, each held the other under the 30 m release for
+                # good, and the climb held the one's PREMISSION leg)
+                speed = np.hypot(k_here.vel[:, 0], k_here.vel[:, 1])
+                still = (speed < cfg.still_m_s) & (np.abs(k_here.vel[:, 2]) < cfg.level_climb_m_s)
+                clear |= still[0] & still[1:] & (back >= cfg.protect_m)
             return _Decision(
                 None,
                 None,

@@ -616,3 +616,36 @@ def test_a_multirotor_on_its_route_does_not_climb_for_what_its_lane_end_turns_it
     plane = avoider(8, VehicleType.PLANE)  # a fixed-wing's route is not used: it acts
     plane.handle(turn, T)
     assert manoeuvres(feed(plane, pair))
+
+
+def test_two_hovering_vtols_30_m_apart_do_not_hold_each_other_for_good() -> None:
+    """`swarm-sim demo --radio`: VTOLs 1 and 2, climbed over their pads 30 m apart,
+    hover waiting for their PREMISSION meet. Over the radio a peer is a prediction
+    with its error bound (up to 8 m between its 1 s heartbeats): once inside 20 m
+    with it, 1 climbed; then, both hovering, the miss from its planned altitude less
+    the bound stayed under the 30 m release for good, and the climb (a Goto that holds
+    the mission) kept 1 from ever starting its leg. Waiting cannot change a still pair:
+    outside the conflict distance (20 m) it does not hold the release."""
+    av = avoider(1, VehicleType.VTOL, clear_hold_s=0.0)
+    av.handle(PlannedAltitude(alt_rel_m=80.0), T)
+
+    def peer(now: float, error_m: float) -> VehicleStatus:
+        s = status(2, 30, 0, 72, t=now)
+        return msgspec.structs.replace(s, position_error_m=error_m)
+
+    assert manoeuvres(feed(av, [status(1, 0, 0, 82), peer(T, 12.0)]))  # 30 - 12 < 20
+    now, resumed = T, []
+    while now < T + 20 and not resumed:
+        now += 0.2
+        error = 2.0 + 6.0 * ((now - T) % 1.0)  # the bound between heartbeats: 2-8 m
+        out = feed(av, [status(1, 0, 0, 83, t=now), peer(now, error)], now)
+        resumed = [m for m in manoeuvres(out) if m.kind is ManoeuvreKind.RESUME]
+    assert resumed and resumed[0].target_alt_rel_m == 80.0
+    # a still pair inside the conflict distance is still held apart
+    av = avoider(1, VehicleType.VTOL, clear_hold_s=0.0)
+    av.handle(PlannedAltitude(alt_rel_m=80.0), T)
+    assert manoeuvres(feed(av, [status(1, 0, 0, 82), status(2, 12, 0, 75)]))
+    for i in range(50):
+        now = T + 0.2 * (i + 1)
+        out = feed(av, [status(1, 0, 0, 95, t=now), status(2, 12, 0, 75, t=now)], now)
+        assert not [m for m in manoeuvres(out) if m.kind is ManoeuvreKind.RESUME]
