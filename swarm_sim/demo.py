@@ -108,6 +108,7 @@ class Fleet:
     channel: ChannelProcess | None = None  # the emulated radio channel (radio mode)
     clock_spec: str = ""  # the shared simulated clock (BANDADA_CLOCK)
     crashes: Any = None  # a queue to the simulator: system ids of vehicles that crash
+    lans: dict[int, str] = field(default_factory=dict)  # each node's Zenoh network (radio: its own)
 
     def crash(self, vid: int) -> None:
         """Take the vehicle's aircraft out of the simulator (`VehicleServer.remove`)."""
@@ -259,7 +260,7 @@ def start(
         )
     return Fleet(
         tmp, router, simulator, stop_simulator, nodes, lans[GCS_ID], gateways, channel,
-        clock.spec(), crashes,
+        clock.spec(), crashes, lans,
     )  # fmt: skip
 
 

@@ -41,6 +41,7 @@ from swarm_proto import (
     Alert,
     GeoPoint,
     ScaledClock,
+    TargetReport,
     VehicleInfo,
     VehicleStatus,
     Vote,
@@ -78,17 +79,33 @@ def _clock_now(spec: str) -> Callable[[], float]:
 class Shell:
     """The ground station's side of the demo: one queue of everything heard."""
 
-    def __init__(self, endpoint: str) -> None:
+    def __init__(self, endpoint: str, lans: dict[int, str] | None = None) -> None:
         self.gs = GroundStation(ZenohSettings(connect=(endpoint,)), gcs_id=demo.GCS_ID)
         self.heard: queue.SimpleQueue[object] = queue.SimpleQueue()
         for topic in (STATUS, INFO, ALERT, ACK, VOTE):
             self.gs.bus.subscribe(topic, lambda m, k: self.heard.put(m))
+        self.endpoint = endpoint
+        self.lans = lans or {}
+        self._onboard: dict[int, SwarmBus] = {}
 
     def publish(self, msg: Any) -> None:
+        """What the operator sends, on the ground station's network; a vehicle's camera
+        report on that vehicle's own (with --radio its gateway puts it on air: a gateway
+        sends only what its own node originated, so the ground station's would not)."""
         validate(msg)
-        self.gs.bus.publish(msg)
+        src = msg.source_id if isinstance(msg, TargetReport) else None
+        lan = self.lans.get(src) if src is not None else None
+        if src is None or lan is None or lan == self.endpoint:
+            self.gs.bus.publish(msg)
+            return
+        bus = self._onboard.get(src)
+        if bus is None:
+            bus = self._onboard[src] = SwarmBus.open(ZenohSettings(connect=(lan,)))
+        bus.publish(msg)
 
     def close(self) -> None:
+        for bus in self._onboard.values():
+            bus.close()
         self.gs.close()
 
 
@@ -133,7 +150,7 @@ def run(
                        spacing_m=PAD_SPACING_M)  # fmt: skip
     clock = ScaledClock(speedup)
     now = _clock_now(fleet.clock_spec) if fleet.clock_spec else clock.now
-    shell = Shell(fleet.endpoint)
+    shell = Shell(fleet.endpoint, fleet.lans)
     radio_stats: dict[int, RadioStats] = {}
     stats_bus = None
     configuring: dict[str, int] = {}

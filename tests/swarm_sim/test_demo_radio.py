@@ -5,7 +5,9 @@ between them over the emulated TDM channel."""
 
 from __future__ import annotations
 
+import contextlib
 import io
+import queue
 import time
 from pathlib import Path
 
@@ -13,11 +15,22 @@ import pytest
 from rich.console import Console
 
 from gcs_cli.ground import GroundStation
-from swarm_proto import CommandArgs, CommandKind, FsmState, GeoPoint, Selector
+from swarm_node.core.mission.tasking import target_mission_id
+from swarm_proto import (
+    CommandArgs,
+    CommandKind,
+    FsmState,
+    GeoPoint,
+    Selector,
+    TargetReport,
+    TargetSource,
+    Vote,
+)
 from swarm_proto.messages import RadioStats
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import RADIO_STATS
 from swarm_sim.demo import GCS_ID, _radio_up, start, stop
+from swarm_sim.experiment import Shell
 
 pytestmark = pytest.mark.network
 
@@ -61,10 +74,29 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
         # on air: docs/radio.md)
         assert fleet.channel is not None
         channel = fleet.channel.stats()["channel"]
+        # a vehicle's camera report is published on its own network, as on its
+        # companion computer: its gateway puts it on air (the ground station's would not:
+        # a gateway sends only what its own node originated) and every vehicle votes
+        shell = Shell(fleet.endpoint, fleet.lans)
+        try:
+            report = TargetReport(1, MEMBERS[0], TargetSource.PAYLOAD, time.time(),
+                                  GeoPoint(home.lat_deg + 0.002, home.lon_deg, 0.0), "person")  # fmt: skip
+            shell.publish(report)
+            tmid = target_mission_id(MEMBERS[0], 1)
+            voted: set[int] = set()
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and voted != set(MEMBERS):
+                with contextlib.suppress(queue.Empty):
+                    m = shell.heard.get(timeout=0.2)
+                    if isinstance(m, Vote) and m.mission_id == tmid:
+                        voted.add(m.voter_id)
+        finally:
+            shell.close()
     finally:
         bus.close()
         gs.close()
         stop(fleet)
+    assert voted == set(MEMBERS), f"votes heard from {voted} (logs in {tmp_path})"
     assert radio.phase == "member" and set(radio.members) == {*MEMBERS, GCS_ID}
     assert all(p.packets_per_s > 3.0 for p in radio.peers if p.node_id in MEMBERS)
     assert radio.dropped_forged == 0 and radio.dropped_corrupt == 0
