@@ -116,9 +116,13 @@ class FastFleet:
     submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     plan_delay_s: float = 0.0  # simulated time a plan job takes
     plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
-    # with a list here, every swarm message published is also appended to it as (sender,
-    # LAN bytes, type): the part of a fleet split over processes (parallel_fleet.py)
-    export: list[tuple[int, bytes, type]] | None = None
+    # with a list here, every swarm message published is also appended to it as (time it
+    # is heard, sender, LAN bytes, type): the part of a fleet split over processes
+    # (parallel_fleet.py)
+    export: list[tuple[float, int, bytes, type]] | None = None
+    # the swarm's network latency: a message published at t is heard at t + latency_s
+    # (0: at once; a fleet split over processes needs some, to run apart meanwhile)
+    latency_s: float = 0.0
     loss: float = 0.0  # fraction of swarm messages lost between nodes (seeded)
     groups: dict[int, int] | None = None  # a partition: nodes hear only their own group
     seed: int = 1
@@ -205,9 +209,10 @@ class FastFleet:
                 raw = lan.encode(o.msg)
                 wire = lan.decode(raw, type(o.msg))
                 others = tuple(o for o in self.vehicles if o != vid and self._carried(vid, o))
-                heapq.heappush(self._bus, (self.now, next(self._seq), others, Received(wire)))
+                heard = self.now + self.latency_s
+                heapq.heappush(self._bus, (heard, next(self._seq), others, Received(wire)))
                 if self.export is not None:
-                    self.export.append((vid, raw, type(o.msg)))
+                    self.export.append((heard, vid, raw, type(o.msg)))
             elif isinstance(o, Persist):
                 self._deliver(vid, v.store.save(o), self.now)
             elif isinstance(o, Submit):
@@ -456,6 +461,15 @@ class FastFleet:
         while self._deadline() <= end:
             self._step()
         self.now = end
+
+    def run_before(self, end: float) -> None:
+        """Everything due before `end` (not at it), then the clock at `end`: one window
+        of a split fleet, whose parts hear each other `latency_s` late (nothing heard
+        from outside can be due before the window's end). Nothing outside the fleet may
+        have changed a vehicle since the last window (messages come by `receive`)."""
+        while self._deadline() < end:
+            self._step()
+        self.now = max(self.now, end)
 
     def run_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
         end = self.now + timeout_s
