@@ -475,6 +475,8 @@ class NodeCore:
         if self.reattach.active:
             return  # the record restored at start is the one to decide with
         m, r = self.manager, self.roster
+        if self.sortie_record is None and m.phase.value != "flying":
+            return  # no share flown, none recorded: nothing to keep (most inputs)
         rec = sortie_record(
             mission_id=m.mission_id, flying=m.phase.value == "flying", members=r.members,
             planned=r.planned, generation=r.generation, members_hash_=r.members_hash,
