@@ -105,6 +105,9 @@ class SimVehicle:
     backlog: bytearray = field(default_factory=bytearray)  # MAVLink waiting in its socket
     down: bool = False  # the node's process is dead (kill -9); the vehicle flies on
     store: MemoryStore = field(default_factory=MemoryStore)  # its database (issue 16)
+    # its link's, autopilot poll's and simulator's next deadline at its last scheduling
+    # (None: ask them again): a node input with no output moves only the node's
+    others_due: float | None = None
 
 
 @dataclass
@@ -116,9 +119,13 @@ class FastFleet:
     submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     plan_delay_s: float = 0.0  # simulated time a plan job takes
     plans: PlanMemo = field(default_factory=PlanMemo)  # each distinct plan job planned once
-    # with a list here, every swarm message published is also appended to it as (sender,
-    # LAN bytes, type): the part of a fleet split over processes (parallel_fleet.py)
-    export: list[tuple[int, bytes, type]] | None = None
+    # with a list here, every swarm message published is also appended to it as (time it
+    # is heard, sender, LAN bytes, type): the part of a fleet split over processes
+    # (parallel_fleet.py)
+    export: list[tuple[float, int, bytes, type]] | None = None
+    # the swarm's network latency: a message published at t is heard at t + latency_s
+    # (0: at once; a fleet split over processes needs some, to run apart meanwhile)
+    latency_s: float = 0.0
     loss: float = 0.0  # fraction of swarm messages lost between nodes (seeded)
     groups: dict[int, int] | None = None  # a partition: nodes hear only their own group
     seed: int = 1
@@ -144,6 +151,7 @@ class FastFleet:
         self._due: dict[int, float] = {}
         self._rank: dict[int, int] = {}
         self._dirty: set[int] = set()
+        self._heard: set[int] = set()  # nodes that took an input and answered nothing
         self._rescan()
 
     @classmethod
@@ -205,9 +213,10 @@ class FastFleet:
                 raw = lan.encode(o.msg)
                 wire = lan.decode(raw, type(o.msg))
                 others = tuple(o for o in self.vehicles if o != vid and self._carried(vid, o))
-                heapq.heappush(self._bus, (self.now, next(self._seq), others, Received(wire)))
+                heard = self.now + self.latency_s
+                heapq.heappush(self._bus, (heard, next(self._seq), others, Received(wire)))
                 if self.export is not None:
-                    self.export.append((vid, raw, type(o.msg)))
+                    self.export.append((heard, vid, raw, type(o.msg)))
             elif isinstance(o, Persist):
                 self._deliver(vid, v.store.save(o), self.now)
             elif isinstance(o, Submit):
@@ -250,14 +259,43 @@ class FastFleet:
 
     # ------------------------------------------------------------------ scheduling
     def _vehicle_deadline(self, v: SimVehicle) -> float:
+        ep = v.endpoint.next_deadline()
+        v.others_due = None
         if v.down:  # the autopilot flies on; nobody reads it
             t = float("inf")
         elif v.stalled_until > self.now:  # nothing of the node runs until it resumes
             t = v.stalled_until
         else:
-            t = min(v.link.next_deadline(), v.node.next_deadline(), v.next_poll)
-        ep = v.endpoint.next_deadline()
+            others = min(v.link.next_deadline(), v.next_poll)
+            if ep is not None and ep < others:
+                others = ep
+            v.others_due = others
+            node = v.node.next_deadline()
+            return node if node < others else others
         return ep if ep is not None and ep < t else t
+
+    def _schedule_node(self, vid: int) -> None:
+        """Vehicle `vid`'s node took an input and answered nothing: only the node's
+        deadline may have moved (a peer's telemetry, the usual bus message)."""
+        v = self.vehicles.get(vid)
+        if v is None or v.others_due is None:
+            self._schedule(vid)
+            return
+        node = v.node.next_deadline()
+        d = node if node < v.others_due else v.others_due
+        if self._due.get(vid) != d:
+            self._due[vid] = d
+            heapq.heappush(self._timers, (d, self._rank[vid], vid))
+
+    def _reschedule(self) -> None:
+        """The vehicles something happened to since the last time, afresh."""
+        for vid in self._dirty:
+            self._schedule(vid)
+        for vid in self._heard:
+            if vid not in self._dirty:
+                self._schedule_node(vid)
+        self._dirty.clear()
+        self._heard.clear()
 
     def _schedule(self, vid: int) -> None:
         v = self.vehicles.get(vid)
@@ -276,6 +314,7 @@ class FastFleet:
         self._timers = []
         self._due = {}
         self._dirty.clear()
+        self._heard.clear()
         for vid in self.vehicles:
             self._schedule(vid)
 
@@ -289,9 +328,7 @@ class FastFleet:
         return float("inf")
 
     def _deadline(self) -> float:
-        for vid in self._dirty:
-            self._schedule(vid)
-        self._dirty.clear()
+        self._reschedule()
         t = self._bus[0][0] if self._bus else float("inf")
         return min(t, self._next_timer())
 
@@ -330,11 +367,10 @@ class FastFleet:
                     continue
                 out = v.node.handle(event, now)
                 if out:
-                    self._node_out(vid, out)
-            self._dirty.update(targets)  # their nodes had an input: deadlines may move
-        for vid in self._dirty:
-            self._schedule(vid)
-        self._dirty.clear()
+                    self._node_out(vid, out)  # anything of it may have moved
+                else:
+                    self._heard.add(vid)  # only its node's deadline may have moved
+        self._reschedule()
         due: set[int] = set()
         while self._next_timer() <= self.now:
             vid = heapq.heappop(self._timers)[2]
@@ -456,6 +492,15 @@ class FastFleet:
         while self._deadline() <= end:
             self._step()
         self.now = end
+
+    def run_before(self, end: float) -> None:
+        """Everything due before `end` (not at it), then the clock at `end`: one window
+        of a split fleet, whose parts hear each other `latency_s` late (nothing heard
+        from outside can be due before the window's end). Nothing outside the fleet may
+        have changed a vehicle since the last window (messages come by `receive`)."""
+        while self._deadline() < end:
+            self._step()
+        self.now = max(self.now, end)
 
     def run_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
         end = self.now + timeout_s

@@ -7,14 +7,13 @@ grows with the square of its size and a 100-vehicle swarm is more than one Pytho
 process can run at ten times real time (docs/benchmarks.md, `sim`). Split in two, each
 part delivers half of the messages.
 
-Time is kept in lock step: the first part runs in the calling process and coordinates;
-every part runs everything due at the earliest deadline of all (`FastFleet.step_at`)
-and answers with the messages it published meanwhile (LAN bytes) and its own next
-deadline. Those messages are handed
-to the other parts at the same time, and the step repeats at that time until no part
-has anything left there. Every run with the same split is the same; messages between
-parts are taken after the ones published inside a part at the same time (in one
-process they would interleave in publishing order).
+Time is kept in windows as long as the swarm's network latency (`latency_s`, 10 ms
+by default, a LAN's): a message published at t is heard at t + latency_s, in its own
+part as in the others, so in a window [T, T + latency_s) nothing a part hears from
+another can be due; each part runs its window alone, then the parts exchange what they
+published (LAN bytes, with the time they are heard) and the next window starts. Every
+run with the same split is the same; in one process with the same latency, messages
+heard at the same time interleave in publishing order, here a part's own first.
 
     with ParallelFleet(range(1, 101), profiles, parts=2) as fleet:
         fleet.run_for(10.0)
@@ -33,7 +32,8 @@ from swarm_node.core.profile import VehicleProfile
 from .core import SITL_HOME, Home
 from .runtime.server import spread_homes
 
-Outgoing = list[tuple[int, bytes, type]]
+Outgoing = list[tuple[float, int, bytes, type]]
+LATENCY_S = 0.010  # the swarm's network latency (a LAN's), the length of a window
 
 
 def _part_main(
@@ -42,11 +42,12 @@ def _part_main(
     profiles: Mapping[int, VehicleProfile],
     homes: Sequence[Home],
     start_unix_s: float,
+    latency_s: float,
 ) -> None:
     from .fast_fleet import FastFleet
 
     fleet = FastFleet.build(members, profiles, homes=homes, start_unix_s=start_unix_s)
-    fleet.export = []
+    fleet.export, fleet.latency_s = [], latency_s
     conn.send(("ready", fleet._deadline()))
     cpu0 = time.process_time()
     while True:
@@ -57,11 +58,11 @@ def _part_main(
         if cmd == "peers":
             conn.send(_live_peers(fleet))
             continue
-        for raw, cls in incoming:
-            fleet.receive(raw, cls, t)
-        nxt = fleet.step_at(t)
+        for at, raw, cls in incoming:
+            fleet.receive(raw, cls, at)
+        fleet.run_before(t)
         out, fleet.export = fleet.export, []
-        conn.send((out, nxt))
+        conn.send(out)
 
 
 def _live_peers(fleet: Any) -> dict[int, list[int]]:
@@ -82,6 +83,7 @@ class ParallelFleet:
         home: Home = SITL_HOME,
         spacing_m: float = 40.0,
         start_unix_s: float = 1.8e9,
+        latency_s: float = LATENCY_S,
     ) -> None:
         from .fast_fleet import FastFleet
 
@@ -90,10 +92,13 @@ class ParallelFleet:
         size = -(-len(ids) // parts)
         shares = [ids[k * size : (k + 1) * size] for k in range(parts)]
         ctx = mp.get_context("spawn")
+        if not latency_s > 0.0:
+            raise ValueError(f"a split fleet needs a network latency > 0, not {latency_s}")
         self.now = start_unix_s
+        self.latency_s = latency_s
         self.workers: list[tuple[Any, Connection]] = []
         self.cpu_s: list[float] = []  # each part's CPU seconds (after close)
-        self.steps = 0
+        self.steps = 0  # windows run
         self.exchanged = 0  # messages handed from one part to the others
         for k, share in enumerate(shares[1:], start=1):
             if not share:
@@ -102,7 +107,7 @@ class ParallelFleet:
             proc = ctx.Process(
                 target=_part_main,
                 args=(theirs, share, {v: profiles[v] for v in share},
-                      homes[k * size : k * size + len(share)], start_unix_s),
+                      homes[k * size : k * size + len(share)], start_unix_s, latency_s),
                 daemon=True,
             )  # fmt: skip
             proc.start()
@@ -113,37 +118,33 @@ class ParallelFleet:
             shares[0], {v: profiles[v] for v in shares[0]}, homes=homes[: len(shares[0])],
             start_unix_s=start_unix_s,
         )  # fmt: skip
-        self.local.export = []
+        self.local.export, self.local.latency_s = [], latency_s
         self._cpu0 = time.process_time()
-        self._next = [self.local._deadline()] + [conn.recv()[1] for _p, conn in self.workers]
-        self._incoming: list[list[tuple[bytes, type]]] = [[] for _ in self._next]
+        for _proc, conn in self.workers:
+            conn.recv()  # ready
+        self._incoming: list[Outgoing] = [[] for _ in range(1 + len(self.workers))]
 
     def run_for(self, seconds: float) -> None:
         end = self.now + seconds
-        while True:
-            t = self.now if any(self._incoming) else min(self._next)
-            if t > end:
-                break
-            self.now = max(self.now, t)
+        while self.now < end:
+            window_end = min(self.now + self.latency_s, end)
             for (_proc, conn), incoming in zip(self.workers, self._incoming[1:], strict=True):
-                conn.send(("step", self.now, incoming))
-            for raw, cls in self._incoming[0]:
-                self.local.receive(raw, cls, self.now)
-            nxt = self.local.step_at(self.now)
+                conn.send(("window", window_end, [(at, raw, cls) for at, _s, raw, cls in incoming]))
+            for at, _sender, raw, cls in self._incoming[0]:
+                self.local.receive(raw, cls, at)
+            self.local.run_before(window_end)
             mine, self.local.export = self.local.export, []
-            answers = [(mine, nxt)] + [conn.recv() for _proc, conn in self.workers]
+            answers = [mine] + [conn.recv() for _proc, conn in self.workers]
             self.steps += 1
             self._incoming = [[] for _ in answers]
-            for k, (out, nxt) in enumerate(answers):
-                self._next[k] = nxt
+            for k, out in enumerate(answers):
                 if not out:
                     continue
-                sent = [(raw, cls) for _sender, raw, cls in out]
                 for j in range(len(answers)):
                     if j != k:
-                        self._incoming[j] += sent
+                        self._incoming[j] += out
                 self.exchanged += len(out)
-        self.now = end
+            self.now = window_end
 
     def live_peers(self) -> dict[int, list[int]]:
         """Every vehicle's node: the peers it lists as live."""

@@ -108,6 +108,14 @@ class SwarmMembership:
         return out
 
     def on_status(self, msg: VehicleStatus, now: float) -> list[PeerEvent]:
+        peer = self.peers.get(msg.vehicle_id)
+        if peer is not None and peer.alive_token and peer.present:
+            # the usual event on a LAN (5 Hz per peer): a peer its liveliness token keeps,
+            # never stale, not watched (what `_heard` does for it, without the walk)
+            if now > peer.last_heard_s:
+                peer.last_heard_s = now
+            peer.status = msg
+            return []
         return self._heard(msg.vehicle_id, now, status=msg)
 
     def on_info(self, msg: VehicleInfo, now: float) -> list[PeerEvent]:

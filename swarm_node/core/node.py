@@ -52,6 +52,7 @@ the vehicle's own pad.
 from __future__ import annotations
 
 import logging
+import math
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -282,6 +283,10 @@ class NodeCore:
         self._replanning = False  # in PLAN for a replan of the current mission
         self.stalls = StallMeter()  # the node's own stalls, apart from link loss (stalls.py)
         self._due: float | None = None  # the deadline this core last declared
+        # every module's deadline but the membership's, as last computed; fresh while
+        # only peers' telemetry that changed nothing came in since (handle's fast path)
+        self._rest_due = math.inf
+        self._rest_fresh = False
         self.declared = DeclaredBook()  # what the operator declared (declared.py)
         self._base_stamp = 0.0  # the stamp of the declaration our base came from
         self._fleet_stamp = 0.0
@@ -376,14 +381,31 @@ class NodeCore:
     # ------------------------------------------------------------------ inputs
     def handle(self, event: Input, now: float) -> list[Output]:
         self.now = now
-        out: list[ModuleOutput] = self._stalled(now)
+        fresh, self._rest_fresh = self._rest_fresh, False
+        if (
+            type(event) is Received
+            and type(msg := event.msg) is VehicleStatus
+            and not self._dirty
+            and self.stalls.idle(now, self._due)
+        ):
+            # a peer's telemetry (by far the most frequent input, 5 Hz per peer): its
+            # route without the dispatch; when it changed nothing here (the usual case),
+            # no share record to keep, nothing to store or route, and no deadline moved
+            # but the membership's
+            self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
+            self.avoid.on_peer(msg, now)
+            events = self.members.on_status(msg, now)  # usually none: a known peer
+            if not events:
+                self._rest_fresh = fresh
+                return []
+            out: list[ModuleOutput] = list(self._peer_events(events))
+            if self.manager.info_due():
+                out.append(Publish(self.info()))
+            return self._routed(out, now)
+        out = self._stalled(now)
         match event:
-            case Received(msg):  # first: by far the most frequent input
+            case Received(msg):
                 out += self._on_message(msg, now)
-                if not out and type(msg) is VehicleStatus and not self._dirty:
-                    # a peer's telemetry that changed nothing here (the usual case, 5 Hz
-                    # per peer): no share record to keep, nothing to store or route
-                    return []
             case AutopilotUpdate(state):
                 out += self._on_autopilot(state, now)
             case AutopilotResult(result):
@@ -453,6 +475,8 @@ class NodeCore:
         if self.reattach.active:
             return  # the record restored at start is the one to decide with
         m, r = self.manager, self.roster
+        if self.sortie_record is None and m.phase.value != "flying":
+            return  # no share flown, none recorded: nothing to keep (most inputs)
         rec = sortie_record(
             mission_id=m.mission_id, flying=m.phase.value == "flying", members=r.members,
             planned=r.planned, generation=r.generation, members_hash_=r.members_hash,
@@ -517,6 +541,8 @@ class NodeCore:
     def _stalled(self, now: float) -> list[ModuleOutput]:
         """The node's own stall (served later than its declared deadline): not counted
         as autopilot link loss, reported apart (stalls.py)."""
+        if self.stalls.idle(now, self._due):
+            return []
         stall = self.stalls.observe(now, self._due)
         if stall:
             self.monitor.note_stall(stall)
@@ -926,10 +952,19 @@ class NodeCore:
 
     # ------------------------------------------------------------------ time
     def next_deadline(self) -> float:
-        # called at every step of a runtime or harness: O(1), no allocation
+        # called at every step of a runtime or harness (after every input): O(1), and
+        # after a peer's telemetry that changed nothing, only the membership's is asked
+        m = self.members.next_deadline()
+        t = self._rest_due if self._rest_fresh else self._rest_deadline()
+        if m is not None and m < t:
+            t = m
+        self._due = t  # the deadline declared: served later than it, the node stalled
+        return t
+
+    def _rest_deadline(self) -> float:
+        """Every module's next deadline but the membership's."""
         t = min(self._next_status, self._next_info, self.fsm.next_deadline())
         for d in (
-            self.members.next_deadline(),
             self.commands.next_deadline(),
             self.fence.next_deadline(),
             self.tasking.next_deadline(),
@@ -941,11 +976,12 @@ class NodeCore:
         ):
             if d is not None and d < t:
                 t = d
-        self._due = t  # the deadline declared: served later than it, the node stalled
+        self._rest_due, self._rest_fresh = t, True
         return t
 
     def on_timer(self, now: float) -> list[Output]:
         self.now = now
+        self._rest_fresh = False
         out: list[ModuleOutput] = self._stalled(now)
         out += self._peer_events(self.members.on_timer(now))
         out += self._suspects_left(now)
@@ -987,11 +1023,14 @@ class NodeCore:
         out = self.avoid.tick(
             now, self.status(now), self.autopilot, zones=self.monitor.zones,
             climb_target_rel_m=self.manager.takeoff_alt_m if climbing else None,
-            holder=self.arbiter.holder, pads=self._pads(),
-            peers=[(p.status, p.info.home if p.info else None)
-                   for p in self.members.peers.values() if p.present and p.status is not None],
+            holder=self.arbiter.holder, pads=self._pads, peers=self._peer_homes,
         )  # fmt: skip
         return self._avoided(out)
+
+    def _peer_homes(self) -> list[tuple[VehicleStatus, GeoPoint | None]]:
+        """The live peers' latest statuses with their homes (the pad rules')."""
+        return [(p.status, p.info.home if p.info else None)
+                for p in self.members.peers.values() if p.present and p.status is not None]  # fmt: skip
 
     def _pads(self) -> dict[int, GeoPoint]:
         """Every known vehicle's home (VehicleInfo), ours included: the pads."""

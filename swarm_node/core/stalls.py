@@ -71,3 +71,7 @@ class StallMeter:
 
     def next_deadline(self) -> float | None:
         return self._report_at
+
+    def idle(self, now: float, due: float | None) -> bool:
+        """Nothing to observe nor report at `now` (the check on every input)."""
+        return self._report_at is None and (due is None or not now - due > self.tolerance_s)

@@ -41,14 +41,14 @@ class CountingPeers(dict):  # type: ignore[type-arg]
         return x
 
 
-def _node(fleet_profiles: dict, peers: int, *, liveliness: bool) -> tuple[NodeCore, int]:
+def _node(
+    fleet_profiles: dict, peers: int, *, liveliness: bool, avoidance: bool = False
+) -> tuple[NodeCore, int]:
     """Node 7 on the ground (no base: it never plans), hearing `peers` synthetic peers
     (status at 5 Hz, info at 1 Hz, with or without liveliness tokens) for 4 simulated
     seconds, timers served as the runtime serves them. Returns the node and the number
     of inputs and timer calls it handled."""
-    # avoidance off: its 5 Hz tick looks at every peer by design (a cost per tick, not per
-    # input; bench `node` measures the core with it on)
-    settings = NodeSettings(avoidance=False)
+    settings = NodeSettings(avoidance=avoidance)
     core = NodeCore(fleet_profiles[7], settings, now=0.0, fleet_profiles=fleet_profiles)
     table = CountingPeers(core.members.peers)
     core.members.peers = table
@@ -97,6 +97,21 @@ def test_peers_looked_at_per_event_do_not_grow_with_the_swarm(
         per_event[peers] = visits / handled
     # before issue 20 the staleness deadline alone walked every peer at every call:
     # about `peers` visits per event; now a couple, whatever the swarm's size
+    assert max(per_event.values()) <= 3.0, per_event
+    assert per_event[1000] <= 1.2 * per_event[10] + 0.1, per_event
+
+
+def test_avoidance_on_a_grounded_node_walks_no_peer_at_its_ticks(fleet_profiles: dict) -> None:
+    """Collision avoidance's 5 Hz tick on a vehicle on the ground: the peers' statuses
+    wait (the latest per peer) and the pad rules' peer table is asked only for a take-off
+    or a landing, so the visits per event stay as flat as without avoidance."""
+    per_event = {}
+    for peers in (10, 100, 1000):
+        core, handled = _node(fleet_profiles, peers, liveliness=True, avoidance=True)
+        assert core.avoid.enabled and core.avoid.counters.get("ticks", 0) >= 15
+        table = core.members.peers
+        assert isinstance(table, CountingPeers)
+        per_event[peers] = (getattr(core.members, "visits", 0) + table.walked) / handled
     assert max(per_event.values()) <= 3.0, per_event
     assert per_event[1000] <= 1.2 * per_event[10] + 0.1, per_event
 
@@ -167,7 +182,7 @@ def _renumbered(profile: Any, vid: int) -> Any:
 def test_a_fleet_split_over_two_processes_is_one_swarm(fleet_profiles: dict) -> None:
     """ParallelFleet (the sim benchmark's 100 vehicles on 2 cores): six vehicles in two
     processes, every node hears all five others, across the split, and the parts
-    exchange what they publish."""
+    exchange what they publish, once per window of the swarm's network latency."""
     from swarm_sim.parallel_fleet import ParallelFleet
 
     ids = (1, 7, 8, 10, 12, 2)
@@ -176,5 +191,7 @@ def test_a_fleet_split_over_two_processes_is_one_swarm(fleet_profiles: dict) -> 
         fleet.run_for(3.0)
         peers = fleet.live_peers()
     assert peers == {v: sorted(set(ids) - {v}) for v in ids}
-    assert fleet.exchanged > 0 and fleet.steps > 0
+    assert fleet.exchanged > 0
+    # one exchange per window of the network latency, not one per deadline
+    assert abs(fleet.steps - 3.0 / fleet.latency_s) <= 1
     assert len(fleet.cpu_s) == 2

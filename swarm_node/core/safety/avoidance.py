@@ -257,6 +257,10 @@ class CollisionAvoider:
     _own: VehicleStatus | None = None
     _own_received: float = 0.0
     _contacts: dict[int, _Contact] = field(default_factory=dict)
+    # peers' latest statuses since the last tick, made contacts at the tick: a peer
+    # reports at 5 Hz and the decision runs at 5 Hz, so a status is one dict store
+    # (many peers report more often than the tick runs, and most never conflict)
+    _heard: dict[int, tuple[VehicleStatus, float]] = field(default_factory=dict)
     _types: dict[int, VehicleType] = field(default_factory=dict)
     _planned_rel: float | None = None
     _zone_ceiling_rel: float | None = None
@@ -273,12 +277,13 @@ class CollisionAvoider:
             case VehicleStatus() if ev.vehicle_id == self.config.own_id:
                 self._own, self._own_received = ev, now
             case VehicleStatus():
-                self._peer(ev, now)
+                self._heard[ev.vehicle_id] = (ev, now)
             case VehicleInfo():
                 if ev.vehicle_id != self.config.own_id:
                     self._types[ev.vehicle_id] = ev.vehicle_type
                     if ev.vehicle_type in NOT_TRAFFIC:
                         self._contacts.pop(ev.vehicle_id, None)
+                        self._heard.pop(ev.vehicle_id, None)
             case Traffic():
                 self._traffic(ev, now)
             case PlannedAltitude():
@@ -287,12 +292,29 @@ class CollisionAvoider:
                 self._zone_ceiling_rel = ev.alt_rel_m
             case Forget():
                 self._contacts.pop(ev.vehicle_id, None)
+                self._heard.pop(ev.vehicle_id, None)
             case OwnRoute():
                 self._route = ev if ev.points else None
         return []
 
+    def heard(self, s: VehicleStatus, now: float) -> None:
+        """A peer's status: what `handle` does with it, without the dispatch (the hot
+        path, 5 Hz per peer): kept, the latest per peer, until the next tick."""
+        if self._next is None:
+            self._next = now
+        if s.vehicle_id == self.config.own_id:
+            self._own, self._own_received = s, now
+        else:
+            self._heard[s.vehicle_id] = (s, now)
+
     def _count(self, what: str) -> None:
         self.counters[what] = self.counters.get(what, 0) + 1
+
+    def _absorb(self) -> None:
+        """The statuses heard since the last tick become contacts (or drop them)."""
+        heard, self._heard = self._heard, {}
+        for s, received in heard.values():
+            self._peer(s, received)
 
     def _peer(self, s: VehicleStatus, now: float) -> None:
         vtype = self._types.get(s.vehicle_id)
@@ -349,17 +371,18 @@ class CollisionAvoider:
         nxt = self._next + self.config.period_s
         self._next = nxt if nxt > now else now + self.config.period_s  # late: no catch-up burst
         self._count("ticks")
-        stale = [
-            k for k, c in self._contacts.items() if now - c.received_s > self.config.forget_after_s
-        ]
-        for k in stale:
-            del self._contacts[k]
         own = self._own
         if own is None or not self._can_act(own):
             if self._active is not None:  # landed, disarmed: nothing to come back to
                 self._active = None
                 return [self._alert(own, now, Severity.INFO, "avoidance: off (not flying)", True)]
-            return []
+            return []  # the statuses heard wait (the latest per peer) until it flies
+        self._absorb()
+        stale = [
+            k for k, c in self._contacts.items() if now - c.received_s > self.config.forget_after_s
+        ]
+        for k in stale:
+            del self._contacts[k]
         decision = self._decide(own, now, planned=False)
         if self._active is None:
             return self._start(own, decision, now)

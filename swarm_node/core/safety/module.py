@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 import msgspec
@@ -174,10 +174,11 @@ class AvoidanceModule:
     pads_on: bool = True  # take-off and landing deconfliction (pads.py)
     launch: Submit | None = None  # the mission's Arm, held until the pad is clear
     landing: PadLanding | None = None
-    _pads: dict[int, GeoPoint] = field(default_factory=dict)  # every known vehicle's home
+    # every known vehicle's home, asked for when a pad rule needs it (not at every tick)
+    _pads_of: Callable[[], Mapping[int, GeoPoint]] = dict
     _types: dict[int, VehicleType] = field(default_factory=dict)  # from VehicleInfo
     _zones: list[NoFlyZone] = field(default_factory=list)  # the no-fly zones in force
-    _peers: list[tuple[VehicleStatus, GeoPoint | None]] = field(default_factory=list)
+    _peers_of: Callable[[], Iterable[tuple[VehicleStatus, GeoPoint | None]]] = list
     _launch_waited: float | None = None
     _next_tick: float = 0.0  # the first tick at once
     counters: dict[str, int] = field(default_factory=dict)
@@ -210,6 +211,9 @@ class AvoidanceModule:
     # ------------------------------------------------------------------ inputs
     def on_peer(self, msg: VehicleStatus | VehicleInfo, now: float) -> None:
         if self.enabled and msg.vehicle_id != self.profile.vehicle_id:
+            if type(msg) is VehicleStatus:  # 5 Hz per peer: the avoider's hot path
+                self.avoider.heard(msg, now)
+                return
             self.avoider.handle(msg, now)
             if isinstance(msg, VehicleInfo):
                 self._types[msg.vehicle_id] = msg.vehicle_type
@@ -314,13 +318,13 @@ class AvoidanceModule:
         if pad is None:
             return False
         blockers = may_move(
-            self.profile.vehicle_id, pad, self._peers, taking_off=True, config=self.pad_config
+            self.profile.vehicle_id, pad, self._peers_of(), taking_off=True, config=self.pad_config
         )
         self._launch_why = ", ".join(b.why for b in blockers)
         return bool(blockers)
 
     def _hold_alt(self, pad: GeoPoint) -> float:
-        pads = dict(self._pads)
+        pads = dict(self._pads_of())
         pads[self.profile.vehicle_id] = pad
         types = {**self._types, self.profile.vehicle_id: self.profile.vehicle_type}
         wings = {v for v, t in types.items() if t in (VehicleType.PLANE, VehicleType.VTOL)}
@@ -391,7 +395,7 @@ class AvoidanceModule:
         ):
             return out
         blockers = may_move(
-            self.profile.vehicle_id, ld.pad, self._peers, taking_off=False,
+            self.profile.vehicle_id, ld.pad, self._peers_of(), taking_off=False,
             config=self.pad_config, own_alt_msl_m=ap.alt_msl_m,
         )  # fmt: skip
         if blockers:
@@ -427,20 +431,31 @@ class AvoidanceModule:
         zones: Mapping[int, NoFlyZone] | None = None,
         climb_target_rel_m: float | None = None,
         holder: Owner | None = None,
-        pads: Mapping[int, GeoPoint] | None = None,
-        peers: Iterable[tuple[VehicleStatus, GeoPoint | None]] = (),
+        pads: Mapping[int, GeoPoint] | Callable[[], Mapping[int, GeoPoint]] | None = None,
+        peers: Iterable[tuple[VehicleStatus, GeoPoint | None]]
+        | Callable[[], Iterable[tuple[VehicleStatus, GeoPoint | None]]] = (),
     ) -> list[ModuleOutput]:
         """The 5 Hz tick (when `next_deadline` is due). `climb_target_rel_m`: the
         take-off altitude while the mission manager climbs to it; `holder`: who holds
         the autopilot now (the arbiter's); `pads`: every known vehicle's home; `peers`:
-        the peers' latest statuses with their homes."""
+        the peers' latest statuses with their homes. Each of the last two may be a
+        function giving it, asked only when a take-off or landing needs it (a swarm's
+        size is not walked at 5 Hz)."""
         if not self.enabled or now < self._next_tick:
             return []
         period = self.cfg.period_s
         nxt = self._next_tick + period
         self._next_tick = nxt if nxt > now else now + period  # late: no catch-up burst
-        self._pads = dict(pads or {})
-        self._peers = list(peers)
+        if callable(pads):
+            self._pads_of = pads
+        else:
+            held_pads = dict(pads or {})
+            self._pads_of = lambda: held_pads
+        if callable(peers):
+            self._peers_of = peers
+        else:
+            held_peers = list(peers)
+            self._peers_of = lambda: held_peers
         self._zones = [z for z in (zones or {}).values() if z.in_force(now) and not z.operating_area]
         pad_out = self._pads_tick(ap, now) if self.pads_on else []
         av = self.avoider
