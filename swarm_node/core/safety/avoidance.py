@@ -484,7 +484,10 @@ class CollisionAvoider:
                 # good, and the climb held the one's PREMISSION leg)
                 speed = np.hypot(k_here.vel[:, 0], k_here.vel[:, 1])
                 still = (speed < cfg.still_m_s) & (np.abs(k_here.vel[:, 2]) < cfg.level_climb_m_s)
-                clear |= still[0] & still[1:] & (back >= cfg.protect_m)
+                released = still[0] & still[1:] & (back >= cfg.protect_m) & ~clear
+                if released.any():
+                    self._count("still_release")
+                clear |= released
             return _Decision(
                 None,
                 None,
