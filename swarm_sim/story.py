@@ -98,8 +98,14 @@ class StoryPlan:
     # within 2.8 m at one height); lanes are spaced for the lowest camera
     area_layer_m: float = 10.0
     side_overlap: float = 0.5
-    perimeter_alt_m: float = 100.0
-    route_alt_m: float = 100.0
+    # the target's pair patrols the perimeter and flies the route above the survey's
+    # layers (80 m up to 80 + 10 x 5 for six), as an operator gives missions that cross
+    # each other their own altitude blocks: the pair's leg to the perimeter crosses the
+    # whole field while the survivors still survey it, and avoidance predicts a turning
+    # fixed-wing straight on (at 100 m a run's leg met a surveying member at its lane
+    # end: a CRITICAL 'too slow' climb 3 s ahead)
+    perimeter_alt_m: float = 140.0
+    route_alt_m: float = 140.0
     # the pair flies the perimeter and the route together (one PREMISSION meet, the same
     # final loiter): layered further apart than avoidance's conflict distance (20 m), or
     # they would fly the whole mission as a conflict, and end it stacked over one point
