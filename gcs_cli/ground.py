@@ -8,6 +8,7 @@ token and publishes a VehicleInfo of type GCS, so vehicles list it among their p
 
 from __future__ import annotations
 
+import logging
 import queue
 import threading
 import time
@@ -193,7 +194,9 @@ class GroundStation:
         while not self._stop.wait(1.0):
             try:
                 self.bus.publish(info)
-            except RuntimeError:  # closed
+            except Exception as exc:  # the session closed (zenoh.ZError) under it
+                if not self._stop.is_set():
+                    logging.getLogger(__name__).warning("ground station info stopped: %s", exc)
                 return
 
     # ------------------------------------------------------------------ waiting
@@ -547,9 +550,9 @@ class GroundStation:
 
     def close(self) -> None:
         self._stop.set()
-        self.bus.close()
-        if self._announcer is not None:
+        if self._announcer is not None:  # it stops before its session closes under it
             self._announcer.join(2.0)
+        self.bus.close()
 
     def __enter__(self) -> GroundStation:
         return self

@@ -212,7 +212,10 @@ class FastFleet:
                 self.published.append((self.now, vid, o.msg))
                 raw = lan.encode(o.msg)
                 wire = lan.decode(raw, type(o.msg))
-                others = tuple(o for o in self.vehicles if o != vid and self._carried(vid, o))
+                if self.groups is None and self.loss <= 0.0:  # every node hears it
+                    others = tuple(o for o in self.vehicles if o != vid)
+                else:
+                    others = tuple(o for o in self.vehicles if o != vid and self._carried(vid, o))
                 heard = self.now + self.latency_s
                 heapq.heappush(self._bus, (heard, next(self._seq), others, Received(wire)))
                 if self.export is not None:

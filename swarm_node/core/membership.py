@@ -108,15 +108,26 @@ class SwarmMembership:
         return out
 
     def on_status(self, msg: VehicleStatus, now: float) -> list[PeerEvent]:
-        peer = self.peers.get(msg.vehicle_id)
-        if peer is not None and peer.alive_token and peer.present:
-            # the usual event on a LAN (5 Hz per peer): a peer its liveliness token keeps,
-            # never stale, not watched (what `_heard` does for it, without the walk)
-            if now > peer.last_heard_s:
-                peer.last_heard_s = now
-            peer.status = msg
-            return []
-        return self._heard(msg.vehicle_id, now, status=msg)
+        vid = msg.vehicle_id
+        peer = self.peers.get(vid)
+        if peer is not None and peer.present and peer.status is not None:
+            # the usual event (5 Hz per peer), what `_heard` does for it: a known peer
+            # heard again, kept by its liveliness token (a LAN: never stale, not
+            # watched), or by telemetry, last in the staleness list
+            if peer.alive_token:
+                if now > peer.last_heard_s:
+                    peer.last_heard_s = now
+                peer.status = msg
+                return []
+            watch = self._watch
+            if now >= self._latest_s and vid in watch:
+                if now > peer.last_heard_s:
+                    peer.last_heard_s = now
+                peer.status = msg
+                self._latest_s = now
+                watch.move_to_end(vid)  # the most recently heard of all
+                return []
+        return self._heard(vid, now, status=msg)
 
     def on_info(self, msg: VehicleInfo, now: float) -> list[PeerEvent]:
         return self._heard(msg.vehicle_id, now, info=msg)

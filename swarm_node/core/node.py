@@ -382,26 +382,28 @@ class NodeCore:
     def handle(self, event: Input, now: float) -> list[Output]:
         self.now = now
         fresh, self._rest_fresh = self._rest_fresh, False
-        if (
-            type(event) is Received
-            and type(msg := event.msg) is VehicleStatus
-            and not self._dirty
-            and self.stalls.idle(now, self._due)
-        ):
-            # a peer's telemetry (by far the most frequent input, 5 Hz per peer): its
-            # route without the dispatch; when it changed nothing here (the usual case),
-            # no share record to keep, nothing to store or route, and no deadline moved
-            # but the membership's
-            self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
-            self.avoid.on_peer(msg, now)
-            events = self.members.on_status(msg, now)  # usually none: a known peer
-            if not events:
-                self._rest_fresh = fresh
-                return []
-            out: list[ModuleOutput] = list(self._peer_events(events))
-            if self.manager.info_due():
-                out.append(Publish(self.info()))
-            return self._routed(out, now)
+        if type(event) is Received and not self._dirty and self.stalls.idle(now, self._due):
+            # a peer's telemetry (by far the most frequent input, 5 Hz per peer) and, with
+            # no mission, its info: their route without the dispatch; when they change
+            # nothing here (the usual case), no share record to keep, nothing to store or
+            # route, and no deadline moved but the membership's
+            msg = event.msg
+            events: list[PeerEvent] | None = None
+            if type(msg) is VehicleStatus:
+                self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
+                self.avoid.on_peer(msg, now)
+                events = self.members.on_status(msg, now)  # usually none: a known peer
+            elif type(msg) is VehicleInfo and self.roster.mission_id is None:
+                self.avoid.on_peer(msg, now)  # no roster to answer: nothing else hears it
+                events = self.members.on_info(msg, now)
+            if events is not None:
+                if not events:
+                    self._rest_fresh = fresh
+                    return []
+                out: list[ModuleOutput] = list(self._peer_events(events))
+                if self.manager.info_due():
+                    out.append(Publish(self.info()))
+                return self._routed(out, now)
         out = self._stalled(now)
         match event:
             case Received(msg):

@@ -437,6 +437,14 @@ class CollisionAvoider:
             return _Decision(None, None, ())
         tracks = [self._own_track(own, now, planned), *(c.track for c in contacts)]
         k = kinematic(tracks, now)
+        near = self._within_reach(k)
+        if near is not None:  # the others cannot touch our decision: left out
+            if len(near) == 1:
+                return _Decision(None, None, ())
+            tracks = [tracks[i] for i in near]
+            contacts = [contacts[i - 1] for i in near[1:]]
+            k = Kinematic(tuple(k.ids[i] for i in near), k.pos[near], k.vel[near],
+                          k.age_s[near], k.margin_m[near])  # fmt: skip
         a = pairwise(k, cfg.horizon_s)
         # a climb or a descent is not trusted to resolve anything before it is done: a
         # pair conflicts if it does with the vertical rates or without them
@@ -562,6 +570,39 @@ class CollisionAvoider:
         if above.any() and own.vel_down_m_s < -cfg.level_climb_m_s:
             return _Decision(ManoeuvreKind.LEVEL, float(alt[0]), against, soonest, closest, loss)
         return _Decision(None, None, against, soonest, closest, loss)
+
+    def _within_reach(self, k: Kinematic) -> np.ndarray | None:
+        """The tracks (indices, the own first) that can take part in our decision: the
+        own vehicle's cluster, grown from it through every pair that could come within
+        the largest threshold (`protect_m` + `others_slack_m`, or `release_m`) inside
+        the horizon, by a bound that cannot miss one: the horizontal distance now, less
+        what both can fly in the horizon at their speed (3D; the own at its route's
+        speed if higher) and their staleness margins. A contact outside the cluster is
+        in conflict with nothing in it, so the conflicts, the give-way stacking and the
+        release among the cluster are the same without it. None: every track (a swarm
+        in one cluster). Grows with the cluster, not with the swarm squared."""
+        n = len(k.ids)
+        if n <= 8:
+            return None  # a small swarm: the whole decision costs no more
+        cfg = self.config
+        thr = max(cfg.protect_m + cfg.others_slack_m, cfg.release_m)
+        speed = np.linalg.norm(k.vel, axis=1)
+        if self._route is not None:
+            speed[0] = max(float(speed[0]), self._route.speed_m_s)
+        reach = cfg.horizon_s * speed + k.margin_m
+        xy = k.pos[:, :2]
+        keep = np.zeros(n, dtype=bool)
+        keep[0] = True
+        frontier = np.array([0])
+        while frontier.size:
+            d = np.linalg.norm(xy[None, :, :] - xy[frontier][:, None, :], axis=2)
+            may = (d - reach[frontier][:, None] - reach[None, :] <= thr).any(axis=0)
+            new = may & ~keep
+            keep |= new
+            frontier = np.flatnonzero(new)
+        if keep.all():
+            return None
+        return np.flatnonzero(keep)
 
     def _follows_route(self, own: VehicleStatus) -> bool:
         """The own multirotor flies its mission's route in level flight, not manoeuvring:

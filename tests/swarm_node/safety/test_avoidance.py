@@ -649,3 +649,42 @@ def test_two_hovering_vtols_30_m_apart_do_not_hold_each_other_for_good() -> None
         now = T + 0.2 * (i + 1)
         out = feed(av, [status(1, 0, 0, 95, t=now), status(2, 12, 0, 75, t=now)], now)
         assert not [m for m in manoeuvres(out) if m.kind is ManoeuvreKind.RESUME]
+
+
+@settings(max_examples=120, deadline=None)
+@given(
+    n=st.integers(min_value=9, max_value=40),
+    spread=st.sampled_from([300.0, 2000.0, 8000.0]),
+    seed=st.integers(min_value=0, max_value=10_000),
+    planned=st.booleans(),
+)
+def test_leaving_out_contacts_beyond_reach_changes_no_decision(
+    n: int, spread: float, seed: float, planned: bool
+) -> None:
+    """Issue 20: a flying node's decision looks only at its cluster (the contacts that
+    could come within the largest threshold of it, or of one that could, inside the
+    horizon): the same decision as over the whole swarm."""
+    import random
+
+    rnd = random.Random(seed)
+    av = avoider(1)
+    own = status(1, 0.0, 0.0, 100.0, ve=22.0)
+    def anyone(i: int) -> VehicleStatus:
+        e, n_, up = (rnd.uniform(-spread, spread), rnd.uniform(-spread, spread),
+                     rnd.uniform(60.0, 140.0))  # fmt: skip
+        v = (rnd.uniform(-25.0, 25.0), rnd.uniform(-25.0, 25.0), rnd.uniform(-2.0, 2.0))
+        return status(i, e, n_, up, ve=v[0], vn=v[1], vu=v[2])
+
+    others = [anyone(i) for i in range(2, n + 2)]
+    feed(av, [own, *others])
+    pruned = av._decide(own, T, planned=planned)
+    av._within_reach = lambda k: None  # type: ignore[method-assign]
+    whole = av._decide(own, T, planned=planned)
+    assert (pruned.kind, pruned.target_msl_m, sorted(pruned.against)) == (
+        whole.kind,
+        whole.target_msl_m,
+        sorted(whole.against),
+    )
+    if not planned and pruned.against:
+        assert pruned.soonest_s == pytest.approx(whole.soonest_s)
+        assert pruned.closest_m == pytest.approx(whole.closest_m)
