@@ -285,10 +285,7 @@ class FastFleet:
             self._schedule(vid)
             return
         node = v.node.next_deadline()
-        d = node if node < v.others_due else v.others_due
-        if self._due.get(vid) != d:
-            self._due[vid] = d
-            heapq.heappush(self._timers, (d, self._rank[vid], vid))
+        self._push(vid, node if node < v.others_due else v.others_due)
 
     def _reschedule(self) -> None:
         """The vehicles something happened to since the last time, afresh."""
@@ -305,7 +302,11 @@ class FastFleet:
         if v is None:
             self._due.pop(vid, None)
             return
-        d = self._vehicle_deadline(v)
+        self._push(vid, self._vehicle_deadline(v))
+
+    def _push(self, vid: int, d: float) -> None:
+        """Vehicle `vid` is due at `d`: into the heap if that is new (the entry it
+        had is skipped as stale when it comes up)."""
         if self._due.get(vid) != d:
             self._due[vid] = d
             heapq.heappush(self._timers, (d, self._rank[vid], vid))

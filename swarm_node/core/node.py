@@ -390,9 +390,7 @@ class NodeCore:
             msg = event.msg
             events: list[PeerEvent] | None = None
             if type(msg) is VehicleStatus:
-                self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
-                self.avoid.on_peer(msg, now)
-                events = self.members.on_status(msg, now)  # usually none: a known peer
+                events = self._peer_status(msg, now)
             elif type(msg) is VehicleInfo and self.roster.mission_id is None:
                 self.avoid.on_peer(msg, now)  # no roster to answer: nothing else hears it
                 events = self.members.on_info(msg, now)
@@ -639,9 +637,7 @@ class NodeCore:
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
         match msg:
             case VehicleStatus():
-                self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
-                self.avoid.on_peer(msg, now)
-                events = self.members.on_status(msg, now)  # usually none: a known peer
+                events = self._peer_status(msg, now)
                 return self._peer_events(events) if events else []
             case VehicleInfo():
                 self.avoid.on_peer(msg, now)
@@ -678,6 +674,12 @@ class NodeCore:
                 return []
             case _:
                 return self._unhandled(type(msg).__name__, f"message {type(msg).__name__}")
+
+    def _peer_status(self, msg: VehicleStatus, now: float) -> list[PeerEvent]:
+        """A peer's telemetry to the modules that keep it; the membership's events."""
+        self.manager.on_peer_status(msg, now)  # MUM-T: the lead's telemetry
+        self.avoid.on_peer(msg, now)
+        return self.members.on_status(msg, now)  # usually none: a known peer
 
     def _zone_ack(self, zone: NoFlyZone, held: NoFlyZone | None) -> list[ModuleOutput]:
         """Answer the zone's issuer (a repeat too): held, or for a withdrawal of a zone

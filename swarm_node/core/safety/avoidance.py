@@ -274,10 +274,8 @@ class CollisionAvoider:
         if self._next is None:
             self._next = now
         match ev:
-            case VehicleStatus() if ev.vehicle_id == self.config.own_id:
-                self._own, self._own_received = ev, now
             case VehicleStatus():
-                self._heard[ev.vehicle_id] = (ev, now)
+                self.heard(ev, now)
             case VehicleInfo():
                 if ev.vehicle_id != self.config.own_id:
                     self._types[ev.vehicle_id] = ev.vehicle_type
