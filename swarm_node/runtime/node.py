@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
+import os
 import queue
 import threading
 import time
@@ -98,6 +99,7 @@ from ..database import ProfileError, SwarmDatabase
 from ..database.queryable import DatabaseQueryable
 from ..database.state import NodeStateStore
 from .config import NodeConfig
+from .parent_watch import exit_with_parent
 from .persistence import StateWriter
 
 log = logging.getLogger("swarm_node")
@@ -186,7 +188,10 @@ class PlanWorker:
     def start(self) -> None:
         if self.kind == "process":
             ctx = multiprocessing.get_context("spawn")
-            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+            # the worker ends with the node, even a node killed with SIGKILL
+            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx,
+                                             initializer=exit_with_parent,
+                                             initargs=(os.getpid(),))  # fmt: skip
         else:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
 
