@@ -222,7 +222,12 @@ def _swarm_profiles(n: int) -> dict[int, Any]:
 
 
 def swarm_rt(
-    n: int, sim_s: float = SWARM_SIM_S, warm_s: float = SWARM_WARM_S, *, parts: int = 1
+    n: int,
+    sim_s: float = SWARM_SIM_S,
+    warm_s: float = SWARM_WARM_S,
+    *,
+    parts: int = 1,
+    liveliness: bool = False,
 ) -> dict[str, Any]:
     """A whole swarm (vehicles, their links and node cores exchanging real MAVLink and
     swarm messages), on the ground, nodes up and publishing: simulated seconds per wall
@@ -234,12 +239,14 @@ def swarm_rt(
     profiles = _swarm_profiles(n)
     if parts == 1:
         fleet = FastFleet.build(list(range(1, n + 1)), profiles)
+        if liveliness:
+            fleet.hold_tokens()
         fleet.run_for(warm_s)
         cpu0, wall0 = time.process_time(), time.perf_counter()
         fleet.run_for(sim_s)
         cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
     else:
-        with ParallelFleet(range(1, n + 1), profiles, parts=parts) as pf:
+        with ParallelFleet(range(1, n + 1), profiles, parts=parts, liveliness=liveliness) as pf:
             pf.run_for(warm_s)
             cpu_warm = _part_cpu(pf)
             wall0 = time.perf_counter()

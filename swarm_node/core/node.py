@@ -54,7 +54,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import assert_never
 
@@ -398,11 +398,8 @@ class NodeCore:
                 if not events:
                     self._rest_fresh = fresh
                     return []
-                out: list[ModuleOutput] = list(self._peer_events(events))
-                if self.manager.info_due():
-                    out.append(Publish(self.info()))
-                return self._routed(out, now)
-        out = self._stalled(now)
+                return self._peers_changed(events, now)
+        out: list[ModuleOutput] = self._stalled(now)
         match event:
             case Received(msg):
                 out += self._on_message(msg, now)
@@ -428,6 +425,38 @@ class NodeCore:
             case _:
                 assert_never(event)
         if self.manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s
+            out.append(Publish(self.info()))
+        return self._routed(out, now)
+
+    def hear(self, events: Sequence[Input], now: float) -> list[tuple[int, list[Output]]]:
+        """`handle` for each of `events` in turn, all at `now` (what a harness hands a
+        node at one time, in one call): the outputs of those that answered, by index.
+        A peer's telemetry that changes nothing runs as `handle`'s first branch does,
+        without the call."""
+        answered: list[tuple[int, list[Output]]] = []
+        for i, event in enumerate(events):
+            if (
+                type(event) is Received
+                and type(event.msg) is VehicleStatus
+                and not self._dirty
+                and self.stalls.idle(now, self._due)
+            ):
+                self.now = now
+                changed = self._peer_status(event.msg, now)
+                if changed:
+                    self._rest_fresh = False
+                    out = self._peers_changed(changed, now)
+                    if out:
+                        answered.append((i, out))
+                continue
+            out = self.handle(event, now)
+            if out:
+                answered.append((i, out))
+        return answered
+
+    def _peers_changed(self, events: list[PeerEvent], now: float) -> list[Output]:
+        out: list[ModuleOutput] = list(self._peer_events(events))
+        if self.manager.info_due():
             out.append(Publish(self.info()))
         return self._routed(out, now)
 
