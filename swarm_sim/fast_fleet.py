@@ -426,6 +426,10 @@ class FastFleet:
         for vid in sorted(due, key=self._rank.__getitem__):
             self._timers_of(vid, self.vehicles[vid])
             self._schedule(vid)
+            # scheduled after all its timers did: what they marked is taken into account
+            # (nothing else touches this vehicle before the next step)
+            self._dirty.discard(vid)
+            self._heard.discard(vid)
 
     def _hear_one(self, entry: tuple[float, int, tuple[int, ...], Input]) -> None:
         """A bus entry, target by target."""
