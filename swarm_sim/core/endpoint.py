@@ -102,17 +102,23 @@ class VehicleEndpoint:
         enc = self._encoder
         sysid, compid = enc.srcSystem, enc.srcComponent
         fast = not enc.signing.sign_outgoing
+        pack = mavcodec.pack
         chunks = []
+        seq = enc.seq
         for msg in messages:
             try:
                 # the usual message without pymavlink's bookkeeping (the same bytes)
-                data = mavcodec.pack(msg, enc.seq, sysid, compid) if fast else None
-                chunks.append(data or msg.pack(enc))
+                data = pack(msg, seq, sysid, compid) if fast else None
+                if data is None:
+                    enc.seq = seq
+                    data = msg.pack(enc)
             except (struct.error, ValueError, TypeError, OverflowError):
                 # a field out of range for its wire type: drop the message, keep serving
                 self.counters["encode_errors"] += 1
                 continue
-            enc.seq = (enc.seq + 1) % 256
+            chunks.append(data)
+            seq = (seq + 1) % 256
+        enc.seq = seq
         self.counters["tx_messages"] += len(messages)
         return b"".join(chunks)
 

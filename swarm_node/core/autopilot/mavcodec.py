@@ -33,7 +33,7 @@ _V2_MARKER = 0xFD
 _V2_HEADER_LEN = 10
 
 
-def _crc(data: bytes, extra: bytes) -> int:
+def _crc(data: bytes | bytearray, extra: bytes) -> int:
     assert _mcrf4xx is not None
     return int(_mcrf4xx(extra, _mcrf4xx(data, 0xFFFF)))
 
@@ -109,7 +109,7 @@ def unpack(buf: bytearray, start: int, total: int) -> Any | None:
         return None
     msgbuf = buf[start : start + total]
     crc = _CRC.unpack_from(msgbuf, total - 2)[0]
-    if _crc(bytes(msgbuf[1:-2]), lay.extra) != crc:
+    if _crc(msgbuf[1:-2], lay.extra) != crc:
         return None
     payload = msgbuf[_V2_HEADER_LEN:-2]
     size = lay.size
