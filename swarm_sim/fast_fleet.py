@@ -153,6 +153,7 @@ class FastFleet:
         self._rng = random.Random(self.seed)
         self.lost_messages = 0
         self.batches_heard = 0  # batches the nodes took together (_hear_together)
+        self.heard_messages = 0  # swarm messages handed to nodes (one per hearer)
         self._scans: dict[tuple[type, int | None], tuple[int, object, list]] = {}
         # one global deadline heap (issue 20): each vehicle's earliest deadline (its
         # endpoint, link, poll and node), pushed again whenever the vehicle was touched;
@@ -444,6 +445,7 @@ class FastFleet:
                 heapq.heappush(self._bus, (v.stalled_until, seq, (vid,), event))
                 continue
             out = v.node.handle(event, now)
+            self.heard_messages += type(event) is Received
             if out:
                 self._node_out(vid, out)  # anything of it may have moved
             else:
@@ -474,7 +476,9 @@ class FastFleet:
         heard = [(sender, entry[3]) for sender, entry in zip(senders, batch, strict=True)]
         answers: list[tuple[int, int, int, list]] = []
         for vid, v in vehicles.items():
-            answered = v.node.hear([event for sender, event in heard if sender != vid], now)
+            mine = [event for sender, event in heard if sender != vid]
+            self.heard_messages += len(mine)
+            answered = v.node.hear(mine, now)
             if answered:
                 ks = [k for k, sender in enumerate(senders) if sender != vid]
                 rank = self._rank[vid]

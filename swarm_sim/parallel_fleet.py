@@ -61,6 +61,9 @@ def _part_main(
         if cmd == "peers":
             conn.send(_live_peers(fleet))
             continue
+        if cmd == "heard":
+            conn.send(fleet.heard_messages)
+            continue
         for at, raw, cls in incoming:
             fleet.receive(raw, cls, at)
         fleet.run_before(t)
@@ -161,6 +164,14 @@ class ParallelFleet:
             conn.send(("peers", self.now, []))
             out.update(conn.recv())
         return out
+
+    def heard_messages(self) -> int:
+        """Swarm messages handed to the nodes so far, one per hearer, in every part."""
+        total = self.local.heard_messages
+        for _proc, conn in self.workers:
+            conn.send(("heard", self.now, []))
+            total += conn.recv()
+        return int(total)
 
     def close(self) -> None:
         for _proc, conn in self.workers:

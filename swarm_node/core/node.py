@@ -434,24 +434,22 @@ class NodeCore:
         A peer's telemetry that changes nothing runs as `handle`'s first branch does,
         without the call."""
         answered: list[tuple[int, list[Output]]] = []
+        # handle's check for its first branch, again only after an input that took
+        # another (a quiet one changes neither)
+        quiet = not self._dirty and self.stalls.idle(now, self._due)
         for i, event in enumerate(events):
-            if (
-                type(event) is Received
-                and type(event.msg) is VehicleStatus
-                and not self._dirty
-                and self.stalls.idle(now, self._due)
-            ):
+            if quiet and type(event) is Received and type(event.msg) is VehicleStatus:
                 self.now = now
                 changed = self._peer_status(event.msg, now)
-                if changed:
-                    self._rest_fresh = False
-                    out = self._peers_changed(changed, now)
-                    if out:
-                        answered.append((i, out))
-                continue
-            out = self.handle(event, now)
+                if not changed:
+                    continue
+                self._rest_fresh = False
+                out = self._peers_changed(changed, now)
+            else:
+                out = self.handle(event, now)
             if out:
                 answered.append((i, out))
+            quiet = not self._dirty and self.stalls.idle(now, self._due)
         return answered
 
     def _peers_changed(self, events: list[PeerEvent], now: float) -> list[Output]:
