@@ -387,13 +387,7 @@ class NodeCore:
             # no mission, its info: their route without the dispatch; when they change
             # nothing here (the usual case), no share record to keep, nothing to store or
             # route, and no deadline moved but the membership's
-            msg = event.msg
-            events: list[PeerEvent] | None = None
-            if type(msg) is VehicleStatus:
-                events = self._peer_status(msg, now)
-            elif type(msg) is VehicleInfo and self.roster.mission_id is None:
-                self.avoid.on_peer(msg, now)  # no roster to answer: nothing else hears it
-                events = self.members.on_info(msg, now)
+            events = self._peer_telemetry(event.msg, now)
             if events is not None:
                 if not events:
                     self._rest_fresh = fresh
@@ -438,11 +432,13 @@ class NodeCore:
         # another (a quiet one changes neither)
         quiet = not self._dirty and self.stalls.idle(now, self._due)
         for i, event in enumerate(events):
-            if quiet and type(event) is Received and type(event.msg) is VehicleStatus:
+            changed = None
+            if quiet and type(event) is Received:
                 self.now = now
-                changed = self._peer_status(event.msg, now)
-                if not changed:
+                changed = self._peer_telemetry(event.msg, now)
+                if changed is not None and not changed:
                     continue
+            if changed:
                 self._rest_fresh = False
                 out = self._peers_changed(changed, now)
             else:
@@ -451,6 +447,17 @@ class NodeCore:
                 answered.append((i, out))
             quiet = not self._dirty and self.stalls.idle(now, self._due)
         return answered
+
+    def _peer_telemetry(self, msg: msgspec.Struct, now: float) -> list[PeerEvent] | None:
+        """A peer's telemetry (by far the most frequent input, 5 Hz per peer) and, with no
+        mission, its info, to the modules that keep them: the membership's events. None:
+        not such a message (it takes the dispatch)."""
+        if type(msg) is VehicleStatus:
+            return self._peer_status(msg, now)
+        if type(msg) is VehicleInfo and self.roster.mission_id is None:
+            self.avoid.on_peer(msg, now)  # no roster to answer: nothing else hears it
+            return self.members.on_info(msg, now)
+        return None
 
     def _peers_changed(self, events: list[PeerEvent], now: float) -> list[Output]:
         out: list[ModuleOutput] = list(self._peer_events(events))
