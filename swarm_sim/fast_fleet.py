@@ -129,6 +129,15 @@ class FastFleet:
     loss: float = 0.0  # fraction of swarm messages lost between nodes (seeded)
     groups: dict[int, int] | None = None  # a partition: nodes hear only their own group
     seed: int = 1
+    # a LAN swarm (Zenoh): every node's liveliness token is seen by its peers, who know
+    # it by that token rather than by the staleness of its telemetry (the membership's
+    # cheaper path); a partition withdraws the tokens across it a lease later, a vanished
+    # node's token goes a lease later too (`hold_tokens`; off: peers known by telemetry)
+    liveliness: bool = False
+    lease_s: float = 2.0  # the Zenoh lease (swarm_node/runtime/config.py)
+    # each node takes what it hears at one time in one call (off: entry by entry, the
+    # reference the same run must match, tests/swarm_sim/test_fast_fleet.py)
+    hear_together: bool = True
     # what a restarted node is built with (restart_node)
     profiles: Mapping[int, VehicleProfile] = field(default_factory=dict)
     settings: NodeSettings | None = None
@@ -143,6 +152,8 @@ class FastFleet:
         self._tokens = itertools.count(1)
         self._rng = random.Random(self.seed)
         self.lost_messages = 0
+        self.batches_heard = 0  # batches the nodes took together (_hear_together)
+        self.heard_messages = 0  # swarm messages handed to nodes (one per hearer)
         self._scans: dict[tuple[type, int | None], tuple[int, object, list]] = {}
         # one global deadline heap (issue 20): each vehicle's earliest deadline (its
         # endpoint, link, poll and node), pushed again whenever the vehicle was touched;
@@ -152,6 +163,9 @@ class FastFleet:
         self._rank: dict[int, int] = {}
         self._dirty: set[int] = set()
         self._heard: set[int] = set()  # nodes that took an input and answered nothing
+        self._from: dict[int, int] = {}  # bus entries for every vehicle but their sender
+        self._token_ids: list[int] = []  # the peers whose liveliness tokens are seen here
+        self._token_groups: dict[int, int] | None = None  # the partition they were seen in
         self._rescan()
 
     @classmethod
@@ -203,6 +217,39 @@ class FastFleet:
     def _deliver(self, vid: int, event: Input, at: float) -> None:
         heapq.heappush(self._bus, (at, next(self._seq), (vid,), event))
 
+    def hold_tokens(self, ids: Sequence[int] | None = None) -> None:
+        """A LAN swarm: the nodes here see the liveliness tokens of peers `ids` (default:
+        the fleet's vehicles; a split fleet names the other parts' too) from now on, as
+        a node's liveliness subscriber lists the tokens already declared when it starts."""
+        self.liveliness = True
+        known = set(self._token_ids)
+        self._token_ids += [
+            i for i in (ids if ids is not None else self.vehicles) if i not in known
+        ]
+        self._token_groups = dict(self.groups) if self.groups is not None else None
+        for vid in self.vehicles:
+            for other in self._token_ids:
+                if other != vid and other not in known and self._reachable(vid, other):
+                    self._deliver(vid, PeerAlive(other, True), self.now)
+
+    def _retoken(self) -> None:
+        """The partition changed: tokens across a new cut go a lease later, tokens across
+        a healed one are seen again at once."""
+        old, self._token_groups = (
+            self._token_groups,
+            (dict(self.groups) if self.groups is not None else None),
+        )
+        for vid in self.vehicles:
+            for other in self._token_ids:
+                if other == vid:
+                    continue
+                before = old is None or old.get(vid) == old.get(other)
+                now_ = self._reachable(vid, other)
+                if before and not now_:
+                    self._deliver(vid, PeerAlive(other, False), self.now + self.lease_s)
+                elif now_ and not before:
+                    self._deliver(vid, PeerAlive(other, True), self.now)
+
     # ------------------------------------------------------------------ plumbing
     def _node_out(self, vid: int, outputs: list) -> None:
         v = self.vehicles[vid]
@@ -212,12 +259,14 @@ class FastFleet:
                 self.published.append((self.now, vid, o.msg))
                 raw = lan.encode(o.msg)
                 wire = lan.decode(raw, type(o.msg))
+                seq = next(self._seq)
                 if self.groups is None and self.loss <= 0.0:  # every node hears it
                     others = tuple(o for o in self.vehicles if o != vid)
+                    self._from[seq] = vid
                 else:
                     others = tuple(o for o in self.vehicles if o != vid and self._carried(vid, o))
                 heard = self.now + self.latency_s
-                heapq.heappush(self._bus, (heard, next(self._seq), others, Received(wire)))
+                heapq.heappush(self._bus, (heard, seq, others, Received(wire)))
                 if self.export is not None:
                     self.export.append((heard, vid, raw, type(o.msg)))
             elif isinstance(o, Persist):
@@ -314,6 +363,8 @@ class FastFleet:
     def _rescan(self) -> None:
         """Every vehicle's deadline afresh: at each entry from outside (a test may have
         changed a vehicle between runs: swapped its endpoint, sent its link a request)."""
+        if self.liveliness and self.groups != self._token_groups:
+            self._retoken()
         self._rank = {vid: i for i, vid in enumerate(self.vehicles)}
         self._timers = []
         self._due = {}
@@ -359,21 +410,14 @@ class FastFleet:
 
     def _step_at(self, t: float) -> None:
         self.now = max(self.now, t)
-        while self._bus and self._bus[0][0] <= self.now:
-            _, seq, targets, event = heapq.heappop(self._bus)
-            vehicles, now = self.vehicles, self.now
-            for vid in targets:
-                v = vehicles.get(vid)
-                if v is None or v.down:  # a killed vehicle or node hears nothing
-                    continue
-                if v.stalled_until > now:  # a stopped process reads it when it resumes
-                    heapq.heappush(self._bus, (v.stalled_until, seq, (vid,), event))
-                    continue
-                out = v.node.handle(event, now)
-                if out:
-                    self._node_out(vid, out)  # anything of it may have moved
-                else:
-                    self._heard.add(vid)  # only its node's deadline may have moved
+        bus = self._bus
+        while bus and bus[0][0] <= self.now:
+            batch = []
+            while bus and bus[0][0] <= self.now:
+                batch.append(heapq.heappop(bus))
+            if not self._hear_together(batch):
+                for entry in batch:
+                    self._hear_one(entry)
         self._reschedule()
         due: set[int] = set()
         while self._next_timer() <= self.now:
@@ -383,6 +427,68 @@ class FastFleet:
         for vid in sorted(due, key=self._rank.__getitem__):
             self._timers_of(vid, self.vehicles[vid])
             self._schedule(vid)
+            # scheduled after all its timers did: what they marked is taken into account
+            # (nothing else touches this vehicle before the next step)
+            self._dirty.discard(vid)
+            self._heard.discard(vid)
+
+    def _hear_one(self, entry: tuple[float, int, tuple[int, ...], Input]) -> None:
+        """A bus entry, target by target."""
+        _, seq, targets, event = entry
+        self._from.pop(seq, None)
+        vehicles, now = self.vehicles, self.now
+        for vid in targets:
+            v = vehicles.get(vid)
+            if v is None or v.down:  # a killed vehicle or node hears nothing
+                continue
+            if v.stalled_until > now:  # a stopped process reads it when it resumes
+                heapq.heappush(self._bus, (v.stalled_until, seq, (vid,), event))
+                continue
+            out = v.node.handle(event, now)
+            self.heard_messages += type(event) is Received
+            if out:
+                self._node_out(vid, out)  # anything of it may have moved
+            else:
+                self._heard.add(vid)  # only its node's deadline may have moved
+
+    def _hear_together(self, batch: list[tuple[float, int, tuple[int, ...], Input]]) -> bool:
+        """The usual batch: swarm messages due now, each for every vehicle here but its
+        sender, none of them stopped or dead. Each node takes its share in one call
+        (`NodeCore.hear`, in the bus's order), then what they answered is carried out in
+        the order entry by entry, target by target would have given (only the harness
+        sees the answers: no node hears them before). False: not such a batch, nothing
+        done (take it entry by entry)."""
+        vehicles, now = self.vehicles, self.now
+        if len(batch) < 2 or not self.hear_together:
+            return False
+        n = len(vehicles)
+        senders: list[int | None] = []
+        for _, seq, targets, event in batch:
+            sender = self._from.get(seq)
+            if type(event) is not Received or len(targets) != (n - 1 if sender in vehicles else n):
+                return False  # (targets were every vehicle but the sender when it was sent)
+            senders.append(sender)
+        if any(v.down or v.stalled_until > now for v in vehicles.values()):
+            return False
+        for _, seq, _, _ in batch:
+            self._from.pop(seq, None)
+        self.batches_heard += 1
+        heard = [(sender, entry[3]) for sender, entry in zip(senders, batch, strict=True)]
+        answers: list[tuple[int, int, int, list]] = []
+        for vid, v in vehicles.items():
+            mine = [event for sender, event in heard if sender != vid]
+            self.heard_messages += len(mine)
+            answered = v.node.hear(mine, now)
+            if answered:
+                ks = [k for k, sender in enumerate(senders) if sender != vid]
+                rank = self._rank[vid]
+                answers += [(ks[i], rank, vid, out) for i, out in answered]
+            else:
+                self._heard.add(vid)  # only its node's deadline may have moved
+        answers.sort(key=lambda a: (a[0], a[1]))
+        for _k, _rank, vid, out in answers:
+            self._node_out(vid, out)
+        return True
 
     def _timers_of(self, vid: int, v: SimVehicle) -> None:
         ep = v.endpoint.next_deadline()
@@ -487,7 +593,13 @@ class FastFleet:
 
     def kill(self, vid: int) -> SimVehicle:
         """The vehicle and its node vanish at once (a crash, a dead companion computer):
-        nothing more is heard from it; the others notice by its silence."""
+        nothing more is heard from it; the others notice by its silence (on a LAN, by
+        its liveliness token, which goes a lease later)."""
+        if self.liveliness:
+            self._token_ids = [i for i in self._token_ids if i != vid]
+            for other in self.vehicles:
+                if other != vid:
+                    self._deliver(other, PeerAlive(vid, False), self.now + self.lease_s)
         return self.vehicles.pop(vid)
 
     def run_for(self, seconds: float) -> None:

@@ -43,11 +43,14 @@ def _part_main(
     homes: Sequence[Home],
     start_unix_s: float,
     latency_s: float,
+    tokens: Sequence[int] | None,
 ) -> None:
     from .fast_fleet import FastFleet
 
     fleet = FastFleet.build(members, profiles, homes=homes, start_unix_s=start_unix_s)
     fleet.export, fleet.latency_s = [], latency_s
+    if tokens is not None:
+        fleet.hold_tokens(tokens)
     conn.send(("ready", fleet._deadline()))
     cpu0 = time.process_time()
     while True:
@@ -57,6 +60,9 @@ def _part_main(
             return
         if cmd == "peers":
             conn.send(_live_peers(fleet))
+            continue
+        if cmd == "heard":
+            conn.send(fleet.heard_messages)
             continue
         for at, raw, cls in incoming:
             fleet.receive(raw, cls, at)
@@ -72,7 +78,8 @@ def _live_peers(fleet: Any) -> dict[int, list[int]]:
 class ParallelFleet:
     """`members` (database ids, profiles as for FastFleet.build) split into `parts`
     worker processes (contiguous shares of the list), homes as FastFleet.build gives
-    the whole list."""
+    the whole list. `liveliness`: a LAN swarm, every node sees every other's liveliness
+    token (FastFleet.hold_tokens)."""
 
     def __init__(
         self,
@@ -84,6 +91,7 @@ class ParallelFleet:
         spacing_m: float = 40.0,
         start_unix_s: float = 1.8e9,
         latency_s: float = LATENCY_S,
+        liveliness: bool = False,
     ) -> None:
         from .fast_fleet import FastFleet
 
@@ -107,7 +115,8 @@ class ParallelFleet:
             proc = ctx.Process(
                 target=_part_main,
                 args=(theirs, share, {v: profiles[v] for v in share},
-                      homes[k * size : k * size + len(share)], start_unix_s, latency_s),
+                      homes[k * size : k * size + len(share)], start_unix_s, latency_s,
+                      ids if liveliness else None),
                 daemon=True,
             )  # fmt: skip
             proc.start()
@@ -119,6 +128,8 @@ class ParallelFleet:
             start_unix_s=start_unix_s,
         )  # fmt: skip
         self.local.export, self.local.latency_s = [], latency_s
+        if liveliness:
+            self.local.hold_tokens(ids)
         self._cpu0 = time.process_time()
         for _proc, conn in self.workers:
             conn.recv()  # ready
@@ -153,6 +164,14 @@ class ParallelFleet:
             conn.send(("peers", self.now, []))
             out.update(conn.recv())
         return out
+
+    def heard_messages(self) -> int:
+        """Swarm messages handed to the nodes so far, one per hearer, in every part."""
+        total = self.local.heard_messages
+        for _proc, conn in self.workers:
+            conn.send(("heard", self.now, []))
+            total += conn.recv()
+        return int(total)
 
     def close(self) -> None:
         for _proc, conn in self.workers:

@@ -52,6 +52,11 @@ NAMED: dict[str, tuple[str, ...]] = {
         "swarm/vehicles_10/kept_pace_at_10x",
         "swarm/vehicles_50/kept_pace_at_10x",
         "swarm/vehicles_100/kept_pace_at_10x",
+        "swarm/vehicles_10/rates_kept",
+        "swarm/vehicles_50/rates_kept",
+        "swarm/vehicles_100/rates_kept",
+        "swarm_rt_factor_one_process/vehicles_100",
+        "swarm_rt_factor_telemetry_peers/vehicles_100",
     ),
     "radio_scale": (
         "bare_limit_ratio",

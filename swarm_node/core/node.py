@@ -54,7 +54,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import assert_never
 
@@ -387,22 +387,13 @@ class NodeCore:
             # no mission, its info: their route without the dispatch; when they change
             # nothing here (the usual case), no share record to keep, nothing to store or
             # route, and no deadline moved but the membership's
-            msg = event.msg
-            events: list[PeerEvent] | None = None
-            if type(msg) is VehicleStatus:
-                events = self._peer_status(msg, now)
-            elif type(msg) is VehicleInfo and self.roster.mission_id is None:
-                self.avoid.on_peer(msg, now)  # no roster to answer: nothing else hears it
-                events = self.members.on_info(msg, now)
+            events = self._peer_telemetry(event.msg, now)
             if events is not None:
                 if not events:
                     self._rest_fresh = fresh
                     return []
-                out: list[ModuleOutput] = list(self._peer_events(events))
-                if self.manager.info_due():
-                    out.append(Publish(self.info()))
-                return self._routed(out, now)
-        out = self._stalled(now)
+                return self._peers_changed(events, now)
+        out: list[ModuleOutput] = self._stalled(now)
         match event:
             case Received(msg):
                 out += self._on_message(msg, now)
@@ -428,6 +419,49 @@ class NodeCore:
             case _:
                 assert_never(event)
         if self.manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s
+            out.append(Publish(self.info()))
+        return self._routed(out, now)
+
+    def hear(self, events: Sequence[Input], now: float) -> list[tuple[int, list[Output]]]:
+        """`handle` for each of `events` in turn, all at `now` (what a harness hands a
+        node at one time, in one call): the outputs of those that answered, by index.
+        A peer's telemetry that changes nothing runs as `handle`'s first branch does,
+        without the call."""
+        answered: list[tuple[int, list[Output]]] = []
+        # handle's check for its first branch, again only after an input that took
+        # another (a quiet one changes neither)
+        quiet = not self._dirty and self.stalls.idle(now, self._due)
+        for i, event in enumerate(events):
+            changed = None
+            if quiet and type(event) is Received:
+                self.now = now
+                changed = self._peer_telemetry(event.msg, now)
+                if changed is not None and not changed:
+                    continue
+            if changed:
+                self._rest_fresh = False
+                out = self._peers_changed(changed, now)
+            else:
+                out = self.handle(event, now)
+            if out:
+                answered.append((i, out))
+            quiet = not self._dirty and self.stalls.idle(now, self._due)
+        return answered
+
+    def _peer_telemetry(self, msg: msgspec.Struct, now: float) -> list[PeerEvent] | None:
+        """A peer's telemetry (by far the most frequent input, 5 Hz per peer) and, with no
+        mission, its info, to the modules that keep them: the membership's events. None:
+        not such a message (it takes the dispatch)."""
+        if type(msg) is VehicleStatus:
+            return self._peer_status(msg, now)
+        if type(msg) is VehicleInfo and self.roster.mission_id is None:
+            self.avoid.on_peer(msg, now)  # no roster to answer: nothing else hears it
+            return self.members.on_info(msg, now)
+        return None
+
+    def _peers_changed(self, events: list[PeerEvent], now: float) -> list[Output]:
+        out: list[ModuleOutput] = list(self._peer_events(events))
+        if self.manager.info_due():
             out.append(Publish(self.info()))
         return self._routed(out, now)
 

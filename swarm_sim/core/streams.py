@@ -119,17 +119,22 @@ class StreamScheduler:
     def due(self, now: float) -> list[int]:
         """Message ids due at `now`; each is rescheduled one interval later (skipping
         missed slots rather than bursting)."""
-        if self._next is None or self._next > now + 1e-9:
+        limit = now + 1e-9
+        if self._next is None or self._next > limit:
             return []
         out = []
-        for mid, t in self._due.items():
-            if t <= now + 1e-9:
+        due, intervals = self._due, self.intervals
+        first = math.inf  # the next due time, found in the same pass
+        for mid, t in due.items():
+            if t <= limit:
                 out.append(mid)
-                nxt = t + self.intervals[mid]
-                if nxt <= now:
-                    nxt = now + self.intervals[mid]
-                self._due[mid] = nxt
-        self._next = min(self._due.values()) if self._due else None
+                t += intervals[mid]
+                if t <= now:
+                    t = now + intervals[mid]
+                due[mid] = t
+            if t < first:
+                first = t
+        self._next = first if due else None
         return out
 
     def next_deadline(self) -> float | None:

@@ -43,8 +43,6 @@ def square(center_lat: float, center_lon: float, half_m: float) -> Geometry:
     )
 
 
-
-
 def test_a_mixed_fleet_flies_an_area_mission_and_lands(fleet_profiles: dict) -> None:
     members = [1, 7, 8]  # an Albatross VTOL and two quadcopters from the seed
     fleet = FastFleet.build(members, fleet_profiles)
@@ -164,3 +162,65 @@ def test_one_albatross_with_many_lanes_flies_around_the_demo_zone(fleet_profiles
         a.vehicle_id for a in fleet.messages(Alert) if a.code == AlertCode.MISSION_COMPLETE
     }
     assert 1 in completed
+
+
+def _mission_run(fleet_profiles: dict, *, together: bool, latency_s: float) -> FastFleet:
+    members = [1, 7, 8, 10]
+    fleet = FastFleet.build(members, fleet_profiles)
+    fleet.hear_together, fleet.latency_s = together, latency_s
+    fleet.run_for(8.0)
+    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+    fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
+    fleet.run_for(3.0)
+    area = square(SITL_HOME.lat_deg + 0.003, SITL_HOME.lon_deg, 100.0)
+    mission = Mission(
+        42, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=60.0), Selector.ids(*members)
+    )
+    fleet.broadcast(mission)
+    fleet.run_for(40.0)  # the vote, the plans, the uploads and the take-offs
+    return fleet
+
+
+def test_nodes_hearing_a_batch_together_give_the_same_run(fleet_profiles: dict) -> None:
+    """FastFleet hands each node what it hears at one time in one call (issue 20): the
+    same messages published at the same times, the same notes and autopilot requests
+    as hearing entry by entry, in one process (latency 0) and in a split fleet's
+    windows (10 ms)."""
+    for latency_s in (0.0, 0.010):
+        together = _mission_run(fleet_profiles, together=True, latency_s=latency_s)
+        one_by_one = _mission_run(fleet_profiles, together=False, latency_s=latency_s)
+        assert together.batches_heard > 100 and one_by_one.batches_heard == 0
+        assert all(v.node.manager.phase.value == "flying" for v in together.vehicles.values())
+        assert together.published == one_by_one.published
+        assert together.notes == one_by_one.notes
+        assert together.submitted == one_by_one.submitted
+
+
+def test_a_lan_swarm_knows_its_peers_by_liveliness_token(fleet_profiles: dict) -> None:
+    """FastFleet.hold_tokens (issue 20, the sim bench's LAN swarm): every node knows
+    every peer by its liveliness token (none is watched for staleness); a vanished
+    vehicle's token goes a lease later; a partition withdraws the tokens across it a
+    lease later and a healed one shows them again at once."""
+    members = [1, 7, 8, 10]
+    fleet = FastFleet.build(members, fleet_profiles)
+    fleet.hold_tokens()
+    fleet.run_for(8.0)
+
+    def known(vid: int) -> dict[int, bool]:
+        peers = fleet.vehicles[vid].node.members.peers
+        return {p: peer.alive_token for p, peer in peers.items() if peer.present}
+
+    for vid in members:
+        assert known(vid) == {p: True for p in members if p != vid}
+        assert not fleet.vehicles[vid].node.members._watch
+    fleet.kill(10)
+    fleet.run_for(fleet.lease_s - 0.5)
+    assert 10 in known(1)  # its token outlives it by the lease
+    fleet.run_for(1.0)
+    assert all(10 not in known(vid) for vid in (1, 7, 8))
+    fleet.groups = {1: 0, 7: 0, 8: 1}
+    fleet.run_for(fleet.lease_s + 0.5)
+    assert set(known(1)) == {7} and set(known(8)) == set()
+    fleet.groups = None
+    fleet.run_for(1.0)
+    assert set(known(1)) == {7, 8} and known(8) == {1: True, 7: True}

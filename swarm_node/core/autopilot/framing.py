@@ -15,6 +15,8 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from . import mavcodec
+
 STX_V1 = 0xFE
 STX_V2 = 0xFD
 _SIGNED = 0x01
@@ -73,7 +75,10 @@ class MavFramer:
             if n - i < total:
                 break
             try:
-                msg = self._parser.decode(bytearray(buf[i : i + total]))
+                # the usual frame without pymavlink's bookkeeping (the same message)
+                msg = mavcodec.unpack(buf, i, total) or self._parser.decode(
+                    bytearray(buf[i : i + total])
+                )
             except Exception as exc:  # pymavlink raises MAVError, struct.error, ...
                 junk, i = junk + 1, i + 1
                 reason = _short(exc)
@@ -124,6 +129,12 @@ class MavEncoder:
         self.compid = compid
 
     def encode(self, msg: MAVLinkMessage) -> bytes:
-        data = bytes(msg.pack(self._mav))
-        self._mav.seq = (self._mav.seq + 1) % 256
+        mav = self._mav
+        data = (
+            None
+            if mav.signing.sign_outgoing
+            else mavcodec.pack(msg, mav.seq, self.sysid, self.compid)
+        )
+        data = data or bytes(msg.pack(mav))
+        mav.seq = (mav.seq + 1) % 256
         return data

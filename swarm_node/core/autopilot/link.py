@@ -169,15 +169,15 @@ class LinkCore:
         return out
 
     def next_deadline(self) -> float:
-        deadlines = [self._next_heartbeat]
+        t = self._next_heartbeat
         for d in (
             self.tracker.next_deadline(),
             self.streams.next_deadline(),
             self.runner.next_deadline(),
         ):
-            if d is not None:
-                deadlines.append(d)
-        return min(deadlines)
+            if d is not None and d < t:
+                t = d
+        return t
 
     def close(self, reason: str = "link closed") -> list[Output]:
         """Cancel every pending request (results with ApError.CANCELLED)."""

@@ -558,14 +558,13 @@ class RequestRunner:
         return out, done
 
     def next_deadline(self) -> float | None:
-        deadlines = [
-            d
-            for job in self._active.values()
-            if job is not None and job.step is not None
-            for d in [job.step.next_deadline()]
-            if d is not None
-        ]
-        return min(deadlines) if deadlines else None
+        t: float | None = None
+        for job in self._active.values():
+            if job is not None and job.step is not None:
+                d = job.step.next_deadline()
+                if d is not None and (t is None or d < t):
+                    t = d
+        return t
 
     def cancel_all(self, reason: str) -> list[Finished]:
         done: list[Finished] = []

@@ -143,8 +143,10 @@ class StreamRequester:
         return self._request(list(self.rates_hz), now)
 
     def next_deadline(self) -> float | None:
-        deadlines = [d for d in (self._ack_deadline, self._watch_at) if d is not None]
-        return min(deadlines) if deadlines else None
+        a, b = self._ack_deadline, self._watch_at
+        if a is None:
+            return b
+        return a if b is None or a < b else b
 
     def on_timer(self, now: float, link_ok: bool = True) -> list[MAVLinkMessage]:
         """`link_ok` False: only the fallback decision runs (the watchdog waits)."""
