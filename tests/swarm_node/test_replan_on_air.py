@@ -44,7 +44,7 @@ def test_survivors_behind_the_radio_replan_from_the_same_inputs_and_plan() -> No
     assert used[0] == used[1], used  # to the bit: ours as the others hear it
     p1, p2 = (f.nodes[i].manager.fleet_plan for i in (1, 2))
     assert p1 is not None and p2 is not None and p1.roster == p2.roster == (1, 2)
-    assert p1.shares == p2.shares
+    assert p1.shares == p2.shares and p1.digest() == p2.digest()  # what the nodes log
     # what a node publishes is on the grid: LAN and radio receivers hear the same
     for i in (1, 2):
         info = f.nodes[i].info()
