@@ -3,7 +3,9 @@
 `Fleet` joins NodeCores with an in-memory broadcast bus, lets a seeded random source
 drop or delay messages per link, answers autopilot requests through a pluggable
 function, and advances time by jumping to the earliest deadline: a long scenario runs
-in milliseconds and every run with the same seed is the same.
+in milliseconds and every run with the same seed is the same. With `over_air` every
+node hears the others' messages as the radio carries them (`swarm_proto.radio.quantized`:
+floats at the radio's resolution), as in `swarm-sim demo --radio`.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from swarm_node.core.node import (
     Submit,
 )
 from swarm_node.plan_memo import PlanMemo
+from swarm_proto import EncodeError, radio
 
 AutopilotFn = Callable[[int, ApRequest], ApResult | None]  # (node id, request) -> answer
 
@@ -54,6 +57,9 @@ class Fleet:
     published: list[tuple[float, int, msgspec.Struct]] = field(default_factory=list)
     submitted: list[tuple[float, int, ApRequest]] = field(default_factory=list)
     notes: list[tuple[float, int, str]] = field(default_factory=list)
+    #: the others hear what a node publishes at the radio's resolution (every node
+    #: behind its own radio gateway)
+    over_air: bool = False
 
     def __post_init__(self) -> None:
         self.rng = random.Random(self.seed)
@@ -65,6 +71,16 @@ class Fleet:
         t = self.now if at is None else at
         heapq.heappush(self._queue, (t, next(self._seq), node_id, event))
 
+    def _heard(self, msg: msgspec.Struct) -> msgspec.Struct:
+        """`msg` as the others hear it (over the air: at radio resolution; a message the
+        radio has no encoding for as it is)."""
+        if not self.over_air:
+            return msg
+        try:
+            return radio.quantized(msg, now_unix_s=self.now)
+        except EncodeError:
+            return msg
+
     def set_autopilot(self, node_id: int, state: object) -> None:
         assert isinstance(state, msgspec.Struct)
         self.deliver(node_id, AutopilotUpdate(state))  # type: ignore[arg-type]
@@ -73,13 +89,14 @@ class Fleet:
         for o in outputs:
             if isinstance(o, Publish):
                 self.published.append((self.now, node_id, o.msg))
+                heard = self._heard(o.msg)
                 for other in self.nodes:
                     if other == node_id or self.rng.random() < self.loss:
                         continue
                     if self.drop is not None and self.drop(node_id, other, o.msg):
                         continue
                     delay = self.rng.uniform(*self.delay_s)
-                    self.deliver(other, Received(o.msg), self.now + delay)
+                    self.deliver(other, Received(heard), self.now + delay)
             elif isinstance(o, Submit):
                 self.submitted.append((self.now, node_id, o.request))
                 answer = self.autopilot(node_id, o.request)

@@ -678,3 +678,26 @@ def quantized(msg: msgspec.Struct, *, now_unix_s: float | None = None) -> msgspe
     """What a receiver decodes from `msg`: the message at radio resolution."""
     now = now_unix_s if now_unix_s is not None else getattr(msg, "time_unix_s", 0.0)
     return decode(encode(msg), now_unix_s=now)
+
+
+_ON_AIR: dict[tuple[type, str], tuple[_Codec, Any]] = {}
+
+
+def on_air(cls: type[msgspec.Struct], name: str, value: Any) -> Any:
+    """Field `name` of a `cls` message holding `value`, as every receiver decodes it from
+    the radio (floats on their fixed-point grid, bounds clamped as the encoder does,
+    nested structs alike). Idempotent, and bit-identical to what `decode(encode(msg))`
+    gives: a sender that computes with the value it publishes computes what its radio
+    receivers compute (and its LAN receivers, when it publishes that value). An
+    EncodeError for a value the field cannot carry."""
+    known = _ON_AIR.get((cls, name))
+    if known is None:
+        codec = next((c for n, c, _r in _plan(cls).fields if n == name), None)
+        if codec is None:
+            raise EncodeError(f"{cls.__name__} has no field {name!r}")
+        known = _ON_AIR[(cls, name)] = (codec, typing.get_type_hints(cls, include_extras=True)[name])
+    codec, hint = known
+    try:
+        return msgspec.convert(codec.dec(codec.enc(value)), hint)
+    except (TypeError, ValueError, OverflowError, msgspec.MsgspecError) as exc:
+        raise EncodeError(f"{cls.__name__}.{name}: {exc}") from exc

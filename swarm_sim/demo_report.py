@@ -534,6 +534,7 @@ def fast_report(
     *,
     pictures: bool = True,
     settings: object | None = None,
+    over_air: bool = False,
 ) -> dict[str, Any]:
     """The story flown against FastFleet (`story.fly_fast`: simulated vehicles, real
     MAVLink bytes, the node cores; no processes, no sockets) and reported as the demo
@@ -560,7 +561,7 @@ def fast_report(
 
     wall0 = time.perf_counter()
     try:
-        run = fly_fast(plan, profiles, on_message=heard, settings=settings)
+        run = fly_fast(plan, profiles, on_message=heard, settings=settings, over_air=over_air)
     finally:
         recorder.close()
     meta = {"fast_time": True, "wall_s": round(time.perf_counter() - wall0, 1),

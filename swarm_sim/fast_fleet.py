@@ -48,7 +48,7 @@ from swarm_node.core.node import (
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.plan_memo import PlanMemo
 from swarm_node.testing import published_matching
-from swarm_proto import DeclaredState, MissionType, VehicleType, lan
+from swarm_proto import DeclaredState, EncodeError, MissionType, VehicleType, lan, radio
 
 from .core import SITL_HOME, Home, VehicleEndpoint
 from .runtime.server import spread_homes
@@ -143,6 +143,10 @@ class FastFleet:
     settings: NodeSettings | None = None
     tasking: TaskingSettings | None = None
     mission_defaults: Mapping[MissionType, Mapping[str, float]] | None = None
+    # every swarm message heard as the radio carries it (`radio.quantized`: floats at the
+    # radio's resolution; one the radio cannot encode as the LAN carries it), as in
+    # `swarm-sim demo --radio` where each node is behind its own gateway
+    over_air: bool = False
 
     def __post_init__(self) -> None:
         # swarm messages and results in time order; a broadcast is one entry for all its
@@ -210,9 +214,18 @@ class FastFleet:
     # ------------------------------------------------------------------ inputs
     def broadcast(self, msg: msgspec.Struct, to: Sequence[int] | None = None) -> None:
         """Deliver a swarm message (e.g. from a ground station) to nodes now."""
-        decoded = lan.decode(lan.encode(msg), type(msg))
+        decoded = self._wire(msg, lan.encode(msg))
         targets = tuple(to) if to is not None else tuple(self.vehicles)
         heapq.heappush(self._bus, (self.now, next(self._seq), targets, Received(decoded)))
+
+    def _wire(self, msg: msgspec.Struct, raw: bytes) -> msgspec.Struct:
+        """`msg` as its receivers decode it (the LAN's bytes `raw`, or over the air)."""
+        if self.over_air:
+            try:
+                return radio.quantized(msg, now_unix_s=self.now)
+            except EncodeError:
+                pass
+        return lan.decode(raw, type(msg))
 
     def _deliver(self, vid: int, event: Input, at: float) -> None:
         heapq.heappush(self._bus, (at, next(self._seq), (vid,), event))
@@ -258,7 +271,7 @@ class FastFleet:
             if isinstance(o, Publish):
                 self.published.append((self.now, vid, o.msg))
                 raw = lan.encode(o.msg)
-                wire = lan.decode(raw, type(o.msg))
+                wire = self._wire(o.msg, raw)
                 seq = next(self._seq)
                 if self.groups is None and self.loss <= 0.0:  # every node hears it
                     others = tuple(o for o in self.vehicles if o != vid)

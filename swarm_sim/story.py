@@ -704,10 +704,12 @@ def fly_fast(
     timeout_s: float = 7200.0,
     on_step: object | None = None,
     on_message: object | None = None,
+    over_air: bool = False,
 ) -> FastRun:
     """The story against a FastFleet: the ground station hears everything the vehicles
     publish (`on_message(msg, now)` hears it too), its messages reach every vehicle at
-    once, `Fail` vanishes a vehicle."""
+    once, `Fail` vanishes a vehicle. `over_air`: every message heard at the radio's
+    resolution (`FastFleet.over_air`)."""
     from swarm_node.core.node import NodeSettings
 
     from .fast_fleet import FastFleet
@@ -717,6 +719,7 @@ def fly_fast(
     settings = settings or NodeSettings()
     fleet = FastFleet.build(list(plan.members), profiles, spacing_m=spacing_m,  # type: ignore[arg-type]
                             settings=settings, mission_defaults=seed_mission_defaults())  # type: ignore[arg-type]  # fmt: skip
+    fleet.over_air = over_air
     t_start = fleet.now
     story = Story(plan, fleet.now)
     seen = 0

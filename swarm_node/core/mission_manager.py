@@ -276,7 +276,8 @@ class MissionManager:
             if outcome.plan is not None and fleet is not None:
                 self._held = outcome
                 note = Log(f"mission {self._planning[0].mission_id}: replanned for "
-                           f"{list(outcome.plan.roster)}; flown once they all agree")  # fmt: skip
+                           f"{list(outcome.plan.roster)} (plan {outcome.plan.digest()}); "
+                           "flown once they all agree")  # fmt: skip
                 return [note, *self._agree(ap, now, fleet)]  # maybe at once
             if fleet is not None:  # no replan: fly on, with the roster every member flies
                 fleet.rollback()
@@ -385,7 +386,8 @@ class MissionManager:
         if sync:  # PREMISSION: launch, climb, then our leg to the fleet's meet time
             group = list(self.sync.group)
             note = Log(f"mission {mid}: planned for fleet {fleet_ids}; PREMISSION with {group}, "
-                       f"at our entry by {self.sync.eta_unix_s:.1f} at the earliest")  # fmt: skip
+                       f"at our entry by {self.sync.eta_unix_s:.1f} at the earliest "
+                       f"(plan {outcome.plan.digest()})")  # fmt: skip
             if ap.armed:
                 self.phase = Phase.MEETING
                 return [note, *self._confirm(mid)]

@@ -123,6 +123,12 @@ from .fences import (
 )
 from .fleet_changes import FleetChanges
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
+from .mission.published import (
+    along_share,
+    lineage_battery,
+    published_home,
+    published_progress,
+)
 from .mission.share import PlanOutcome, heading_on, pose_on
 from .mission.tasking import Tasking, TaskingSettings
 from .mission.voting import VoterLost
@@ -337,6 +343,8 @@ class NodeCore:
     def info(self) -> VehicleInfo:
         p = self.profile
         mid = self.fsm.mission_id
+        progress_m, path_m = published_progress(self.manager.sortie.progress_m,
+                                                self.manager.sortie.path_m)  # fmt: skip
         return VehicleInfo(
             vehicle_id=self.self_id,
             vehicle_type=p.vehicle_type,
@@ -347,15 +355,16 @@ class NodeCore:
             payload_subtype=p.payload_subtype[:48],
             payload_type=p.payload_type[:48],
             cruise_speed_m_s=_clamp(p.cruise_speed_m_s, 0.0, 300.0),
-            home=self.autopilot.home,
+            home=published_home(self.autopilot.home),
             base=self.base,
             fleet_id=self.fleet_id,
             mission_id=mid if mid is not None and mid > 0 else 0,
             fsm_state=self.fsm.state,
             errors=self.monitor.active_codes,
             members_hash=self.roster.members_hash,
-            mission_progress_m=_clamp(self.manager.sortie.progress_m, 0.0, 1.0e6),
-            mission_path_m=_clamp(self.manager.sortie.path_m, 0.0, 1.0e6),
+            # on the radio's grid: what every member hears and plans from, we too
+            mission_progress_m=progress_m,
+            mission_path_m=path_m,
             roll_deg=_clamp(self.autopilot.roll_deg, -180.0, 180.0),
             pitch_deg=_clamp(self.autopilot.pitch_deg, -180.0, 180.0),
             sensors_present=self.autopilot.sensors_present & 0xFFFFFFFF,
@@ -1259,7 +1268,7 @@ class NodeCore:
             members.append(Member(profile, pose_on(base, vid, progress) if base else None,
                                   heading_deg=heading_on(base, vid, progress) if base else None))  # fmt: skip
         self.roster.replanned(survivors)
-        battery = (
+        battery = lineage_battery(  # on the lineage's grid: a joiner replays it exactly
             replan_battery(base, members, progress, flown, mission.params.altitude_rel_m)
             if base is not None
             else {}
@@ -1276,26 +1285,24 @@ class NodeCore:
         return out
 
     def _progress_now(self) -> tuple[dict[int, float], dict[int, float]]:
-        """Every member's metres along its share of the fleet plan: ours as flown, the
-        others' as they last published it (held while replanning: the same everywhere);
-        and the metres each flew before the last replan."""
+        """Every member's metres along its share of the fleet plan and the metres it flew
+        before the last replan, from what each published (held while replanning: the
+        same everywhere), ours as we publish it: at the radio's resolution, as the
+        others hear it (mission/published.py)."""
         base = self.manager.fleet_plan
         progress: dict[int, float] = {}
         flown: dict[int, float] = {}  # metres flown before the last replan
         if base is not None:
+            sortie = self.manager.sortie
             for vid in base.roster:
                 if vid not in base.shares:
                     continue
-                if vid == self.self_id:
-                    done = self.manager.share_progress_m()
-                    before = self.manager.sortie.progress_m - done
-                else:
-                    p, path = self.roster.progress_of(vid)
-                    # less what it flew before the last replan; nothing heard: nothing flown
-                    before = path - base.shares[vid].length_m if path > 0.0 else 0.0
-                    done = p - before if path > 0.0 else 0.0
-                progress[vid] = min(max(done, 0.0), base.shares[vid].length_m)
-                flown[vid] = max(before, 0.0)
+                p, path = (
+                    published_progress(sortie.progress_m, sortie.path_m)
+                    if vid == self.self_id
+                    else self.roster.progress_of(vid)
+                )
+                progress[vid], flown[vid] = along_share(base.shares[vid].length_m, p, path)
         return progress, flown
 
     def _start_return(self, now: float) -> list[ModuleOutput]:
@@ -1307,7 +1314,8 @@ class NodeCore:
         members whose profile is unknown are returned apart (planning without them
         would send two vehicles over the same ground)."""
         battery = self.roster.plan_battery
-        out = [Member(self.profile, self.autopilot.home, battery.get(self.self_id))]
+        home = published_home(self.autopilot.home)  # as the others hear it
+        out = [Member(self.profile, home, battery.get(self.self_id))]
         unknown = []
         for vid in self.roster.flying:
             if vid == self.self_id:

@@ -29,6 +29,7 @@ from swarm_proto import (
     lan,
     radio,
 )
+from swarm_proto import messages as swarm_proto_messages
 from swarm_proto.testing import message_of, messages
 from swarm_proto.units import Fixed, Saturate
 
@@ -334,3 +335,27 @@ def test_lan_and_radio_agree_on_what_is_invalid(kw: dict[str, Any]) -> None:
 @given(view=message_of(SwarmView))
 def test_swarm_view_round_trips_on_the_lan(view: SwarmView) -> None:
     assert lan.decode(lan.encode(view), SwarmView) == view
+
+
+@given(msg=message_of(swarm_proto_messages.VehicleInfo))
+def test_a_field_on_air_is_what_receivers_decode_and_stays_there(msg: Any) -> None:
+    """`radio.on_air` gives a field as the radio's receivers decode it, to the bit, and
+    a value already on air is unchanged (a sender publishing it and computing with it
+    computes what its receivers do: mission/published.py)."""
+    heard = radio.quantized(msg)
+    for name in ("mission_progress_m", "mission_path_m", "home", "battery_pct"):
+        mine = radio.on_air(type(msg), name, getattr(msg, name))
+        assert mine == getattr(heard, name)
+        assert radio.on_air(type(msg), name, mine) == mine
+    again = radio.quantized(msgspec.structs.replace(
+        msg, mission_progress_m=heard.mission_progress_m, home=heard.home))  # fmt: skip
+    assert again.mission_progress_m == heard.mission_progress_m and again.home == heard.home
+
+
+def test_on_air_refuses_what_the_field_cannot_carry() -> None:
+    vi = swarm_proto_messages.VehicleInfo
+    for bad in (math.nan, -1.0, 2.0e6):
+        with pytest.raises(EncodeError):
+            radio.on_air(vi, "mission_progress_m", bad)
+    with pytest.raises(EncodeError):
+        radio.on_air(vi, "no_such_field", 1.0)

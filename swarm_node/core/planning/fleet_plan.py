@@ -34,6 +34,7 @@ order give the same plan.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -245,6 +246,12 @@ class FleetPlan:
     #: the battery each member had at the first plan (missing: full), what it was given
     #: work for; a replan counts down from it
     launch_battery_pct: Mapping[int, float] = field(default_factory=dict)
+
+    def digest(self) -> str:
+        """8 hex digits of every member's share to the bit: nodes that log the same
+        digest hold the same plan (the node logs it with every plan it makes)."""
+        shares = [(vid, s.waypoints) for vid, s in sorted(self.shares.items())]
+        return hashlib.blake2s(msgspec.msgpack.encode(shares), digest_size=4).hexdigest()
 
     def share(self, vehicle_id: int) -> Share:
         try:
