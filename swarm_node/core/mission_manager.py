@@ -759,6 +759,11 @@ class MissionManager:
         self.hold_s, self.hold_seq = 0.0, 0
         done = [Post(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
         home = ap.home
+        if not ap.armed and ap.link_ok and (ap.alt_rel_m or 0.0) < 2.0:
+            # on the ground (a member its fleet's plan gave nothing): nothing to fly; an
+            # RTL would leave the disarmed vehicle in RTL mode. Landed at the next update
+            self._steps = []
+            return done
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
             self._steps = [ReturnToLaunch()]
             return [*done, *self._next()]
