@@ -763,7 +763,7 @@ class MissionManager:
             # on the ground (a member its fleet's plan gave nothing): nothing to fly; an
             # RTL would leave the disarmed vehicle in RTL mode. Landed at the next update
             self._steps = []
-            return done
+            return [*done]
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
             self._steps = [ReturnToLaunch()]
             return [*done, *self._next()]
