@@ -47,14 +47,6 @@ VTOL_TRANSITION_S = 5.0
 #: the last metres of a landing at ArduPilot's LAND_SPEED (0.5 m/s)
 LAND_FINAL_M = 10.0
 LAND_FINAL_M_S = 0.5
-#: lift motors climbing draw more than in hover: this fraction of the hover current more
-#: per m/s of climb (assumption, the simulated vehicles' law, swarm_sim.core.autopilot:
-#: a quadcopter at 2.5 m/s draws 1.375 x hover). Counted at hover, a quadcopter's climb
-#: to 140 m (the mixed demo's layer) was 175 mAh short: 5 % of its 3.3 Ah, half the reserve
-CLIMB_CURRENT_PER_M_S = 0.15
-#: a multirotor's RTL hovers over home this long before it descends (ArduCopter
-#: RTL_LOIT_TIME, 5000 ms by default)
-COPTER_RTL_LOITER_S = 5.0
 
 
 #: the mission manager starts a share once this much of the take-off altitude is reached
@@ -147,7 +139,6 @@ class Endurance:
     climb_s: float  # on the lift motors (0 for vehicles without)
     land_s: float
     hover_a: float
-    climb_a: float = 0.0  # the lift motors' current while climbing
 
     @classmethod
     def of(cls, profile: VehicleProfile, altitude_m: float) -> Endurance:
@@ -165,16 +156,7 @@ class Endurance:
             final = min(alt, LAND_FINAL_M)
             climb = alt / up
             land = (alt - final) / down + final / LAND_FINAL_M_S
-            if not vtol:
-                land += COPTER_RTL_LOITER_S
-            return cls(usable, cruise, climb, land, hover,
-                       hover * (1.0 + CLIMB_CURRENT_PER_M_S * up))  # fmt: skip
         return cls(usable, cruise, climb, land, hover)
-
-    @property
-    def sortie_lift_mah(self) -> float:
-        """The climb and the landing on the lift motors (mAh)."""
-        return (self.climb_a * self.climb_s + self.hover_a * self.land_s) / 3.6
 
     @property
     def cruise_budget_s(self) -> float:
@@ -182,7 +164,7 @@ class Endurance:
         climb and the landing: inf when the profile has no battery figures."""
         if math.isinf(self.usable_mah):
             return math.inf
-        left = self.usable_mah - self.sortie_lift_mah
+        left = self.usable_mah - self.hover_a * (self.climb_s + self.land_s) / 3.6
         return max(left, 0.0) * 3.6 / self.cruise_a
 
     def ground_budget_s(self, battery_pct: float, profile: VehicleProfile) -> float:
@@ -194,7 +176,7 @@ class Endurance:
         usable = profile.battery_capacity_mah * max(
             frac - profile.battery_critical_pct / 100.0 - RESERVE_FRACTION, 0.0
         )
-        left = usable - self.sortie_lift_mah
+        left = usable - self.hover_a * (self.climb_s + self.land_s) / 3.6
         return max(left, 0.0) * 3.6 / self.cruise_a
 
     def airborne_budget_s(self, battery_pct: float, profile: VehicleProfile) -> float:
@@ -216,12 +198,12 @@ class Endurance:
         figures."""
         if math.isinf(self.usable_mah) or capacity_mah <= 0.0 or not math.isfinite(flown_s):
             return start_pct
-        mah = (self.cruise_a * max(flown_s, 0.0) + self.climb_a * self.climb_s) / 3.6
+        mah = (self.cruise_a * max(flown_s, 0.0) + self.hover_a * self.climb_s) / 3.6
         return min(max(start_pct - 100.0 * mah / capacity_mah, 0.0), 100.0)
 
     def used_pct(self, cruise_s: float, capacity_mah: float) -> float:
         """Battery used (% of capacity) by a sortie with `cruise_s` at cruise."""
         if math.isinf(self.usable_mah) or capacity_mah <= 0.0:
             return 0.0
-        mah = self.cruise_a * cruise_s / 3.6 + self.sortie_lift_mah
+        mah = (self.cruise_a * cruise_s + self.hover_a * (self.climb_s + self.land_s)) / 3.6
         return 100.0 * mah / capacity_mah

@@ -644,21 +644,11 @@ def _plan_area(
     best: tuple[float, Any] | None = None
     rounds = FLYABLE_ROUNDS if aware and any(v.profile.is_fixed_wing for v in vehicles) else 1
     for _ in range(rounds):
-        try:
-            raw = plan_area(
-                mission.geometry, vehicles, mission.params, zones=zones, now_unix_s=now_unix_s,
-                home_alt_msl_m=home_alt_msl_m, zone_margin_m=margin, endurance=aware,
-                extra_s=extra, legacy_split=not aware,
-                battery_pct=battery_pct if aware else None,
-            )  # fmt: skip
-        except InfeasibleTimingError:
-            if best is None:
-                raise
-            # a later round's times left a short-range member a few seconds over its
-            # budget at every partition: the plan of an earlier round is kept (its
-            # split within every budget; measured: 2 s over for a quadcopter once its
-            # climb was counted at its climb current)
-            break
+        raw = plan_area(
+            mission.geometry, vehicles, mission.params, zones=zones, now_unix_s=now_unix_s,
+            home_alt_msl_m=home_alt_msl_m, zone_margin_m=margin, endurance=aware, extra_s=extra,
+            legacy_split=not aware, battery_pct=battery_pct if aware else None,
+        )  # fmt: skip
         detail = flyable_plan(
             raw, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
         )
