@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
+import os
 import queue
 import threading
 import time
@@ -99,6 +100,7 @@ from ..database.queryable import DatabaseQueryable
 from ..database.state import NodeStateStore
 from .config import NodeConfig
 from .persistence import StateWriter
+from .planner_worker import watch_parent
 
 log = logging.getLogger("swarm_node")
 
@@ -192,7 +194,9 @@ class PlanWorker:
         (`share.warm`: about 0.5 s of CPU), not in the first plan job's time."""
         if self.kind == "process":
             ctx = multiprocessing.get_context("spawn")
-            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+            self._pool = ProcessPoolExecutor(
+                max_workers=1, mp_context=ctx, initializer=watch_parent, initargs=(os.getpid(),)
+            )
             try:
                 self._pool.submit(warm)
             except Exception:  # a broken pool: the first plan job says so
