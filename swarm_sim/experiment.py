@@ -159,7 +159,7 @@ def run(
         stats_bus.subscribe(RADIO_STATS, lambda m, k: radio_stats.__setitem__(m.node_id, m))
     plan = StoryPlan.experiment_one(
         members, (SITL_HOME.lat_deg, SITL_HOME.lon_deg), repeat_s=max(1.0, speedup),
-        planning_s=demo.plan_timeout_s(speedup), **(plan_kw or {}),
+        planning_s=demo.plan_timeout_s(speedup, len(members)), **(plan_kw or {}),
     )  # fmt: skip
     recorder = FlightRecorder(out / "flight.csv")
     story = Story(plan, now())

@@ -62,6 +62,7 @@ class _Vehicle:
     info: VehicleInfo | None = None
     voted: set[int] = field(default_factory=set)
     completed: set[int] = field(default_factory=set)  # missions it said MISSION_COMPLETE of
+    flew: bool = False  # seen armed
 
 
 class Narrator:
@@ -140,6 +141,7 @@ class Narrator:
     def _status(self, s: VehicleStatus, t: float) -> list[Line]:
         v = self.vehicles.setdefault(s.vehicle_id, _Vehicle())
         v.status = s
+        v.flew = v.flew or s.armed
         doing = self._doing(v)
         mid = v.info.mission_id if v.info is not None else 0
         out: list[Line] = []
@@ -196,9 +198,14 @@ class Narrator:
     def _alert(self, a: Alert, t: float) -> list[Line]:
         if a.code == AlertCode.MISSION_COMPLETE:
             mid = _mission_of(a.text)
-            self.vehicles.setdefault(a.vehicle_id, _Vehicle()).completed.add(mid)
-            return [Line(t, a.vehicle_id, f"{self.mission(mid) if mid else a.text}: its share "
-                         "is flown (MISSION_COMPLETE)")]  # fmt: skip
+            v = self.vehicles.setdefault(a.vehicle_id, _Vehicle())
+            v.completed.add(mid)
+            m = self.mission(mid) if mid else a.text
+            if not v.flew:  # the fleet's plan gave it nothing to fly
+                return [Line(t, a.vehicle_id, f"{m}: the plan gives it no share (beyond its "
+                             "battery, or nothing its speed adds): it stays on its pad "
+                             "(MISSION_COMPLETE)")]  # fmt: skip
+            return [Line(t, a.vehicle_id, f"{m}: its share is flown (MISSION_COMPLETE)")]
         if a.text.startswith("chosen for mission "):
             mid = _mission_of(a.text, 3)
             left = self.vehicles.setdefault(a.vehicle_id, _Vehicle()).mission_id

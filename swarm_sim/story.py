@@ -308,6 +308,7 @@ class Story:
         self._finish_sent: set[int] = set()
         self._base_seq = 1
         self.finished: Finished | None = None
+        self._airborne: set[int] = set()  # members seen armed
 
     # ------------------------------------------------------------------ views
     @property
@@ -317,6 +318,17 @@ class Story:
     @property
     def alive(self) -> list[int]:
         return [m for m in self.members if m not in self.record.failed]
+
+    @property
+    def surveyors(self) -> list[int]:
+        """The alive members that fly the survey: not those the fleet's plan gave no
+        share (they completed it on the ground: an area beyond a quadcopter's battery,
+        a boat's speed adding nothing), who stay down for the rest of the story."""
+        return [v for v in self.alive if not self._stood_by(v)]
+
+    def _stood_by(self, vid: int) -> bool:
+        rec = self.record.missions.get(AREA_ID)
+        return rec is not None and vid in rec.completed and vid not in self._airborne
 
     def _flying_share(self, vid: int, mission_id: int) -> bool:
         s, i = self.status.get(vid), self.info.get(vid)
@@ -366,6 +378,8 @@ class Story:
         if s.vehicle_id not in self.members:
             return
         self.status[s.vehicle_id] = s
+        if s.armed:
+            self._airborne.add(s.vehicle_id)
         if s.mission_state == MissionState.REPLAN:
             if s.vehicle_id not in self._replanning or now - self._replanning[s.vehicle_id] > 2.0:
                 mid = self._last_mission.get(s.vehicle_id, 0)
@@ -547,15 +561,22 @@ class Story:
                 return [Say("the fleet plans the survey together and takes off")]
             case Phase.LAUNCH:
                 if not all(
-                    self._flying_share(v, AREA_ID)
-                    and self.status[v].mission_state == MissionState.MISSION
+                    self._stood_by(v) or (
+                        self._flying_share(v, AREA_ID)
+                        and self.status[v].mission_state == MissionState.MISSION
+                    )
                     for v in self.members
-                ):
+                ):  # fmt: skip
                     return []
                 self._go(Phase.SURVEY, now)
-                return [Say(f"all {len(self.members)} vehicles fly their shares of the survey")]
+                down = [v for v in self.members if self._stood_by(v)]
+                if not down:
+                    return [Say(f"all {len(self.members)} vehicles fly their shares of the survey")]
+                return [Say(f"{len(self.surveyors)} vehicles fly their shares of the survey; the "
+                            f"plan gave {', '.join(map(str, down))} none (beyond their battery "
+                            "or adding nothing at their speed): they stay down")]  # fmt: skip
             case Phase.SURVEY:
-                progress = [self.status[v].mission_progress_pct for v in self.members]
+                progress = [self.status[v].mission_progress_pct for v in self.surveyors]
                 if min(progress) < p.target_at_pct:
                     return []
                 self._go(Phase.VOTE, now)
@@ -575,7 +596,7 @@ class Story:
                 if len(going) < 2 and not (going and now - self.since > 60.0):
                     return []
                 rec.winners = tuple(going)
-                rec.stayers = tuple(v for v in self.alive if v not in going)
+                rec.stayers = tuple(v for v in self.surveyors if v not in going)
                 self._go(Phase.REPLAN, now)
                 return [Say(f"voted out to the target: {', '.join(map(str, going))}; "
                             f"{', '.join(map(str, rec.stayers))} re-split the area")]  # fmt: skip

@@ -282,7 +282,7 @@ class MissionManager:
             if fleet is not None:  # no replan: fly on, with the roster every member flies
                 fleet.rollback()
             self.agreement.end()
-        return self._take_plan(outcome, ap, now)
+        return self._take_plan(outcome, ap, now, fleet)
 
     def _agree(self, ap: AutopilotState, now: float, fleet: Roster) -> list[Out]:
         """REPLAN: fly the held replan once every survivor planned it with our roster;
@@ -325,7 +325,9 @@ class MissionManager:
     ) -> Publish:
         return Publish(Alert(self.profile.vehicle_id, max(now, 0.0), severity, code, text[:64]))
 
-    def _take_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[Out]:
+    def _take_plan(
+        self, outcome: PlanOutcome, ap: AutopilotState, now: float, fleet: Roster | None = None
+    ) -> list[Out]:
         assert self._planning is not None
         mission, zones = self._planning
         self._planning = None
@@ -351,10 +353,18 @@ class MissionManager:
         if replan and old is not None and waypoints == old.waypoints:
             self.share = share
             return self._resume(mid)  # our share did not change (a route): nothing to upload
-        if replan and not any(w.kind == ItemKind.WAYPOINT for w in waypoints):
-            self.sortie.finish()  # nothing left for us: the mission is done here
+        split = outcome.plan.mission.mission_type == MissionType.AREA  # a share may be empty
+        if split and not replan and fleet is not None:  # members given nothing stay down
+            fleet.nothing_to_fly(idle_members(outcome.plan))
+        if (replan or split) and not any(w.kind == ItemKind.WAYPOINT for w in waypoints):
+            # nothing (left) for us: the mission is done here. On the ground the vehicle
+            # does not take off (the split found no work its battery or speed adds: a
+            # quadcopter whose field is beyond its reach would hover at its take-off
+            # altitude until BATTERY_CRITICAL); in the air it flies home
+            self.sortie.finish()
             self.stop(Trigger.COMPLETE)
-            return [Post(fsm.PlanSucceeded(mid)), Post(fsm.MissionComplete(mid))]
+            note = Log(f"mission {mid}: the plan gives us nothing to fly; done")
+            return [note, Post(fsm.PlanSucceeded(mid)), Post(fsm.MissionComplete(mid))]
         if not waypoints:
             return self._failed(mid, "nothing to fly for this vehicle")
         follow = Follow.of(outcome.plan, self.profile) if not replan else self.follow
@@ -751,6 +761,11 @@ class MissionManager:
         self.hold_s, self.hold_seq = 0.0, 0
         done = [Post(fsm.PlanSucceeded(fsm.RETURN_MISSION))]
         home = ap.home
+        if not ap.armed and ap.link_ok and (ap.alt_rel_m or 0.0) < 2.0:
+            # on the ground (a member its fleet's plan gave nothing): nothing to fly; an
+            # RTL would leave the disarmed vehicle in RTL mode. Landed at the next update
+            self._steps = []
+            return [*done]
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
             self._steps = [ReturnToLaunch()]
             return [*done, *self._next()]
@@ -1053,6 +1068,17 @@ class MissionManager:
             return True
         r = abs(w.loiter_radius_m or 0.0) + max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
         return distance_m(ap.lat_deg, ap.lon_deg, w.lat_deg, w.lon_deg) <= r
+
+
+def idle_members(plan: FleetPlan) -> tuple[int, ...]:
+    """The members a plan gives no waypoint to fly (the same on every node)."""
+    return tuple(
+        sorted(
+            vid
+            for vid, share in plan.shares.items()
+            if not any(w.kind == ItemKind.WAYPOINT for w in share.waypoints)
+        )
+    )
 
 
 def replan_battery(

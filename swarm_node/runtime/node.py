@@ -74,7 +74,7 @@ from swarm_proto.topics import (
 
 from ..core.autopilot.requests import ApRequest, ApResult
 from ..core.autopilot.state import AutopilotState
-from ..core.mission.share import PlanOutcome, PlanRequest, run_plan
+from ..core.mission.share import PlanOutcome, PlanRequest, run_plan, warm
 from ..core.mission.tasking import RETASK_MODULE, VOTING_MODULE, TaskingSettings
 from ..core.node import (
     AutopilotResult,
@@ -185,13 +185,22 @@ class PlanWorker:
         self._deliver = deliver
         self._pool: Executor | None = None
 
+    @property
+    def started(self) -> bool:
+        return self._pool is not None
+
     def start(self) -> None:
+        """Start the worker; a process worker is spawned and imports the planners now
+        (`share.warm`: about 0.5 s of CPU), not in the first plan job's time."""
         if self.kind == "process":
             ctx = multiprocessing.get_context("spawn")
-            # the worker ends with the node, even a node killed with SIGKILL
-            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx,
-                                             initializer=exit_with_parent,
-                                             initargs=(os.getpid(),))  # fmt: skip
+            self._pool = ProcessPoolExecutor(
+                max_workers=1, mp_context=ctx, initializer=exit_with_parent, initargs=(os.getpid(),)
+            )
+            try:
+                self._pool.submit(warm)
+            except Exception:  # a broken pool: the first plan job says so
+                log.exception("could not start the planner worker")
         else:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
 
@@ -450,8 +459,8 @@ class NodeRuntime:
         )
         self.bus.watch_alive(self._alive)
         self.bus.declare_alive(self.core.self_id)
-        # the planner's worker process starts with the first plan job (~1 s, off the
-        # loop): a node that never plans, or is starting up, does not pay for it
+        # the planner's worker process starts once the node is active (the run loop),
+        # or with the first plan job: a node that never plans does not pay for it
         key = PEERS.key(self.config.swarm, vehicle_id=self.core.self_id)
         self._queryable = self.bus.session.declare_queryable(key, self._answer_peers)
         if self.database is not None:  # peers and the ground station read our database
@@ -491,6 +500,10 @@ class NodeRuntime:
                 jobs, self._plan_jobs = self._plan_jobs, []
                 for job in jobs:  # after the step: starting the worker takes a while
                     self.planner.submit(job)
+                if not self.planner.started and self.core.fsm.state != FsmState.INACTIVE:
+                    # active (base set): missions come next. Eleven nodes of a demo on
+                    # two cores plan at once; the worker's start-up is not in that time
+                    self.planner.start()
         finally:
             self.close()
 

@@ -236,6 +236,12 @@ def test_the_demo_gives_planning_its_wall_time() -> None:
     from swarm_sim.demo import plan_timeout_s
 
     assert plan_timeout_s(5.0) == 300.0 and plan_timeout_s(1.0) == 60.0
+    # the demo's nodes share the machine's cores, each planning the whole fleet at once:
+    # the 60 s a node has on its own computer, stretched by nodes per core
+    assert plan_timeout_s(3.0, 11, cpus=2) == 990.0
+    assert plan_timeout_s(3.0, 6, cpus=2) == 540.0
+    assert plan_timeout_s(3.0, 2, cpus=2) == plan_timeout_s(3.0, 1, cpus=8) == 180.0
+    assert plan_timeout_s(100.0, 11, cpus=1) == 3600.0  # the node's config bound
 
 
 def test_avoidance_is_on_by_default_and_can_be_switched_off(tmp_path: Path) -> None:

@@ -194,6 +194,25 @@ def test_a_member_that_finished_its_share_is_not_lost() -> None:
     assert r.flying == (1,)
 
 
+def test_a_member_the_plan_gave_nothing_is_neither_lost_nor_a_joiner() -> None:
+    """A member with no share (a quadcopter whose field is beyond its battery) stays on
+    the ground and leaves the mission at once: not a loss to replan for, and its
+    VehicleInfo still in PLAN for the mission (heard after our plan) is not a joiner.
+    Before, the mixed demo's five idle members set every node replanning twice."""
+    r = Roster(1)
+    r.open(MID, Selector())
+    peers = peers_of([2, 3], {2: info(2), 3: info(3)})
+    r.on_ack(ack(2, True))
+    r.on_ack(ack(3, True))
+    r.freeze(peers)
+    r.nothing_to_fly([3, 9])  # 9: not a member, ignored
+    assert r.finished == {3} and r.flying == (1, 2)
+    assert r.on_info(info(3)) == []  # still in PLAN: no MemberJoined
+    down = info(3, mid=0, state=FsmState.INACTIVE)  # completed on the ground, path 0
+    assert r.on_info(down) == [] and r.lost == {}
+    assert r.survivors(peers) == (1, 2)
+
+
 def test_mission_ids_past_2_31_hash_and_earlier_hashes_are_unchanged() -> None:
     """Mission ids are uint32 (`gcs mission` picks them from the clock): one past 2^31
     crashed the node's VehicleInfo (OverflowError). The hash of every id below 2^31 (and

@@ -236,6 +236,28 @@ def test_the_shortened_story_through_the_real_processes(tmp_path: Path) -> None:
     assert report["sim_s"] > 300 and report["speedup"] == DEFAULT_SPEEDUP
 
 
+@pytest.mark.soak
+@pytest.mark.timeout(900)
+def test_the_mixed_story_is_flown_in_fast_time(tmp_path: Path, fleet_profiles: dict) -> None:
+    """`swarm-sim demo --mixed`'s fleet (six VTOLs, three quadcopters, a rover, a boat)
+    through the whole story in fast time (about 90 s of wall time): the split gives the
+    field 1 km away to the VTOLs; the others stay on their pads (none reaches
+    BATTERY_CRITICAL hovering with an empty share, as before) and land, and the
+    VTOLs fly the rest of the story as the six-VTOL demo does."""
+    from swarm_sim.experiment import EXPERIMENT_FLEET, MIXED_EXTRA
+
+    members = EXPERIMENT_FLEET + MIXED_EXTRA
+    plan = StoryPlan.experiment_one(members, (SITL_HOME.lat_deg, SITL_HOME.lon_deg))
+    report = fast_report(plan, {v: fleet_profiles[v] for v in members}, tmp_path, pictures=False)
+    assert report["ok"], report["failures"]
+    assert report["missions_completed"] == report["missions_total"] == 4
+    assert report["coverage"] >= 0.99 and report["separation"]["near"] == 0
+    area = next(m for m in report["missions"] if m["kind"] == "area")
+    assert set(MIXED_EXTRA) <= set(area["completed_by"])  # on the ground, at once
+    assert not any(int(v) in MIXED_EXTRA for v in report["failed"])
+    assert set(report["landed"]) >= set(MIXED_EXTRA)
+
+
 def test_the_pair_flies_the_perimeter_and_route_layered_beyond_a_conflict() -> None:
     """Layered 10 m apart, the pair flew its whole route as an avoidance conflict and,
     stacked over the route's last loiter, was held there for good (a demo run)."""

@@ -224,3 +224,39 @@ def test_a_lan_swarm_knows_its_peers_by_liveliness_token(fleet_profiles: dict) -
     fleet.groups = None
     fleet.run_for(1.0)
     assert set(known(1)) == {7, 8} and known(8) == {1: True, 7: True}
+
+
+def test_a_member_the_split_gives_nothing_stays_on_its_pad(fleet_profiles: dict) -> None:
+    """A field beyond a quadcopter's battery (1 km away: 3.3 Ah flies it ~1.8 km at
+    cruise after its climb and landing): the endurance-aware split gives the quadcopter
+    no lanes. It does not take off (before, it climbed, hovered at its take-off altitude
+    with an empty mission and reached BATTERY_CRITICAL: the mixed demo's failure), says
+    its share is done, and its leaving the mission is not a loss the others replan for."""
+    from swarm_node.core.node import NodeSettings
+
+    members = [1, 2, 7]  # two Albatross VTOLs and a quadcopter
+    fleet = FastFleet.build(members, fleet_profiles, settings=NodeSettings(avoidance=False))
+    fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
+    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
+    fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
+    assert fleet.run_until(
+        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
+    )
+    area = square(SITL_HOME.lat_deg + 1200.0 / 111_320.0, SITL_HOME.lon_deg, 150.0)
+    fleet.broadcast(Mission(43, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=60.0),
+                            Selector.ids(*members)))  # fmt: skip
+    done = fleet.run_until(
+        lambda: all(v.node.fsm.state == FsmState.INACTIVE for v in fleet.vehicles.values()), 1800
+    )
+    assert done, [(v.node.fsm.state, v.node.manager.phase) for v in fleet.vehicles.values()]
+    quad = [s for s in fleet.messages(VehicleStatus) if s.vehicle_id == 7]
+    assert quad and not any(s.armed for s in quad)
+    assert fleet.vehicles[7].node.manager.fleet_plan is not None
+    completed = {
+        a.vehicle_id for a in fleet.messages(Alert) if a.code == AlertCode.MISSION_COMPLETE
+    }
+    assert completed == set(members)
+    others = [s for s in fleet.messages(VehicleStatus) if s.vehicle_id != 7]
+    assert max(s.mission_progress_pct for s in others) == 100
+    assert not any(s.mission_state.name == "REPLAN" for s in others)  # 7 was not lost
+    assert not any("lost" in text for _t, vid, text in fleet.notes if vid != 7)

@@ -24,7 +24,37 @@ def test_six_vtols_inherit_the_share_of_one_killed_at_40_percent(fleet_profiles:
     assert r.double_flown < 0.02  # the lost member's last second (1 Hz VehicleInfo) again
 
 
-@pytest.mark.parametrize("victim", [8, pytest.param(10, marks=pytest.mark.soak)])
+NO_RESERVE = pytest.mark.xfail(
+    strict=True,
+    reason="on the 160 m field the first split gives rover 10 no lanes: a member given "
+    "nothing now stays on its pad and leaves the mission (issue 18's --mixed: before, an "
+    "aircraft with an empty share took off and hovered until BATTERY_CRITICAL), so it is "
+    "no reserve the survivors' replan can hand the lost member's rest to",
+)
+
+
+def test_two_quadcopters_and_a_rover_with_shares_inherit_the_share_of_a_quadcopter(
+    fleet_profiles: dict,
+) -> None:
+    """The issue's second fleet on a 200 m field 150 m north, where the first split gives
+    each of the three a share: quadcopter 8 killed at 40 % of its share, quadcopter 7 and
+    the rover cover the field (as on the 160 m field before members given nothing stayed
+    on their pads: test_two_quadcopters_and_a_rover_inherit_the_share_of_one_killed_at_40_percent)."""
+    r = inheritance(fleet_profiles, (7, 8, 10), victim=8, at_fraction=0.4, half_m=100.0,
+                    alt_m=40.0, north_m=150.0)  # fmt: skip
+    assert r.replan_seen and r.same_plan and r.hashes == 1
+    assert r.completed == set(r.survivors) == {7, 10}
+    assert r.lanes_cover > 0.7
+    assert r.coverage >= 0.99
+    assert r.double_flown < 0.02
+    assert r.battery_critical == ()
+
+
+@pytest.mark.parametrize(
+    "victim",
+    [pytest.param(8, marks=[pytest.mark.soak, NO_RESERVE]),
+     pytest.param(10, marks=[pytest.mark.soak, NO_RESERVE])],
+)  # fmt: skip
 def test_two_quadcopters_and_a_rover_inherit_the_share_of_one_killed_at_40_percent(
     fleet_profiles: dict, victim: int
 ) -> None:

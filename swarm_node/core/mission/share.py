@@ -29,7 +29,7 @@ from ..planning.geo import LocalFrame
 from ..profile import VehicleProfile
 
 __all__ = ["PLANNERS", "FleetPlan", "Member", "PlanOutcome", "PlanRequest", "Replay", "Share",
-           "heading_on", "plan_fleet", "pose_on", "replay", "run_plan"]  # fmt: skip
+           "heading_on", "plan_fleet", "pose_on", "replay", "run_plan", "warm"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -167,6 +167,12 @@ def plan_fleet(
         mission, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m,
         battery_pct=battery or None,
     )  # fmt: skip
+
+
+def warm() -> bool:
+    """Nothing: a worker process that runs it has imported the planners (what a node's
+    planner worker does once the node is active, before its first plan job)."""
+    return True
 
 
 def run_plan(req: PlanRequest) -> PlanOutcome:

@@ -14,6 +14,9 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from shapely.geometry import LineString
+from shapely.geometry.base import BaseGeometry
+
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
 
@@ -183,6 +186,27 @@ def _polyline_poses(pts: Sequence[tuple[float, float]], step_m: float) -> list[t
     return out
 
 
+def ahead_of(
+    start: Pose, around: Sequence[tuple[float, float]], raw: BaseGeometry
+) -> list[tuple[float, float]]:
+    """A polyline from a fixed-wing's position without its first corners that lie
+    behind it (more than 90 degrees off its heading) while the straight way to the next
+    one stays out of the zones (`raw`): the autopilot flies to a corner behind it in a
+    loop whose side is its own choice, and the turn onto the next leg after it may face
+    the zone. Measured: a VTOL voted out at a survey lane's end 35 m from a zone got a
+    way around the zone's margin starting 55 m behind it, looped to it and turned into
+    the zone (GEOFENCE_BREACH)."""
+    out = list(around)
+    hx, hy = math.cos(start.yaw), math.sin(start.yaw)
+    while len(out) > 2:
+        x, y = out[1]
+        behind = (x - start.x) * hx + (y - start.y) * hy < 0.0
+        if not behind or (not raw.is_empty and LineString([out[0], out[2]]).intersects(raw)):
+            break
+        del out[1]
+    return out
+
+
 def approach(
     v: PlanVehicle, start: Pose, goal: Pose, speed_m_s: float, zones: ZoneSet, alt_m: float
 ) -> Approach:
@@ -226,6 +250,8 @@ def approach(
     if math.isnan(length):  # around the zones
         assert obst is not None
         around = obst.path_from(start_xy, (goal.x, goal.y))  # it may be in a margin
+        if isinstance(turns, DubinsTurns):
+            around = ahead_of(start, around, zones.raw(alt_m))
         pts = list(around[1:])
         pts_s = list(itertools.accumulate(math.dist(a, b) for a, b in itertools.pairwise(around)))
         trace, length = list(around), pts_s[-1] if pts_s else 0.0

@@ -117,6 +117,11 @@ RESUME_BY_MODE = frozenset(
 )  # fmt: skip
 
 
+#: how long after the mission's StartMission the autopilot's state may still show the
+#: mode before it (the command's ack, then the next heartbeat; simulated seconds)
+START_SEEN_S = 3.0
+
+
 def steers(req: ApRequest) -> bool:
     """Whether a held mission request says where the vehicle goes (a new mission, a
     mode, a return...): it then replaces the module's own resume. A speed does not: the
@@ -188,6 +193,9 @@ class AvoidanceModule:
     _traffic_seen: dict[int, float] = field(default_factory=dict)
     _blocked_noted: bool = False
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
+    #: the mission's last StartMission passed on, and when: a manoeuvre that begins
+    #: before the autopilot shows AUTO must go back to it, not to the mode it saw
+    _started: tuple[Submit, float] | None = None
 
     def __post_init__(self) -> None:
         p = self.profile
@@ -263,6 +271,8 @@ class AvoidanceModule:
             self.held.append(o)
             self._count("held")
             return [], None
+        if mine and s is None and isinstance(req, StartMission):
+            self._started = (o, now)
         if not mine or not self.pads_on or self.suspension is not None:
             return ([o], None) if o.request is not original else None
         took = self._mission_request(o, req, ap, now)
@@ -596,6 +606,13 @@ class AvoidanceModule:
                 holder if holder not in (None, Owner.AVOIDANCE) else None,
             )
             self._count("suspensions")
+            started, self._started = self._started, None
+            if started is not None and now - started[1] <= START_SEEN_S and ap.mode_name != "AUTO":
+                # the mission was just started, and the autopilot's state does not show
+                # it yet (a PREMISSION leg, sent as a VTOL's climb was levelled at its
+                # pad): the resume would put it back in GUIDED over the pad for good
+                # (a mixed demo's VTOL hovered there until the story timed out)
+                self.held.append(started[0])
         s.resuming = False  # a new conflict while going back: the manoeuvre goes on
         s.resume_tries = 0
         reqs = self._requests(m, ap, s)

@@ -180,7 +180,13 @@ class Roster:
             if info.fsm_state == FsmState.PLAN and info.battery_pct >= 0:
                 self.plan_battery.setdefault(vid, info.battery_pct)
         out: list[RosterEvent] = []
-        if self.frozen and in_mission and info.fsm_state == FsmState.PLAN and vid not in self.flying:
+        if (
+            self.frozen
+            and in_mission
+            and info.fsm_state == FsmState.PLAN
+            and vid not in self.flying
+            and vid not in self.finished  # done with it (nothing to fly): still in PLAN
+        ):
             return [MemberJoined(mid, vid)]  # a vehicle joining (or a lost one back)
         if self.frozen and vid in self.members and vid not in self.lost and vid not in self.finished:
             if info.fsm_state == FsmState.EMERGENCY:
@@ -304,6 +310,13 @@ class Roster:
             if info.fsm_state != FsmState.PLAN and info.members_hash != nxt:
                 return False
         return True
+
+    def nothing_to_fly(self, ids: Iterable[int]) -> None:
+        """The plan gives these members no share (an area no battery of theirs reaches,
+        say): they stay on the ground and are done with the mission, as a member that
+        flew all its share is; leaving it is not a loss to replan for. Every member
+        marks the same, from the same plan."""
+        self.finished |= set(ids) & set(self.members)
 
     def survivors(self, peers: Mapping[int, Peer]) -> tuple[int, ...]:
         return tuple(

@@ -218,3 +218,31 @@ def test_two_albatross_at_a_target_never_exceed_the_orbit_speed(fleet: Fleet) ->
         assert a.speed_m_s <= p.cruise_speed_m_s + 1e-9
         assert bank_radius(p, a.speed_m_s) <= plan.orbit_radius_m + 1e-9
     _check_arrivals(plan.legs, {a.vehicle_id: a for a in plan.arrivals}, vs)
+
+
+def test_a_fixed_wing_in_a_zone_margin_is_not_sent_to_a_corner_behind_it() -> None:
+    """The way around a zone's margin from a fixed-wing inside it (voted out at a survey
+    lane's end 35 m from the zone, heading away from it): its first corners behind the
+    aircraft are left out while the straight way on stays out of the zone. Measured
+    before: the first corner 55 m behind it, the autopilot's loop to it and the turn on
+    into the zone (GEOFENCE_BREACH in the mixed demo's story)."""
+    import math
+
+    from shapely.geometry import Point
+
+    from swarm_node.core.planning.dubins import Pose
+    from swarm_node.core.planning.route import ahead_of
+
+    zone = Point(0.0, 0.0).buffer(60.0)
+    yaw = math.radians(90.0 - 124.0)  # heading 124 degrees: away from the zone, south-east
+    start = Pose(-85.0, -43.0, yaw)
+    around = [(-85.0, -43.0), (-135.0, -67.0), (-125.0, -84.0), (-116.0, -95.0),
+              (-58.0, -140.0), (0.0, -150.0), (484.0, -169.0)]  # fmt: skip
+    out = ahead_of(start, around, zone)
+    assert out[0] == around[0] and out[1:] == around[3:]
+    hx, hy = math.cos(yaw), math.sin(yaw)
+    assert (out[1][0] - start.x) * hx + (out[1][1] - start.y) * hy >= 0.0  # ahead of it
+    # a corner behind it that the straight way on would cut through the zone is kept
+    wall = [(-85.0, -43.0), (-100.0, -60.0), (60.0, -10.0)]
+    assert ahead_of(Pose(-85.0, -43.0, math.radians(-10.0)), wall, zone) == wall
+    assert ahead_of(start, around[:2], zone) == around[:2]  # nothing but the goal: kept

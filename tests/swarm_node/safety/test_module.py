@@ -236,6 +236,44 @@ def test_the_missions_requests_wait_and_go_on_after_the_manoeuvre() -> None:
     assert m.release_due and m.take_held() == [held]
 
 
+def test_a_mission_started_just_before_a_manoeuvre_is_started_again_after_it() -> None:
+    """The mission's StartMission passed on, and a manoeuvre begins before the autopilot
+    shows AUTO (a VTOL's PREMISSION leg sent from its hover over the pad, levelled there
+    for a neighbour): the resume goes to that mission, not back to the GUIDED hover it
+    saw. Before, a mixed demo's VTOL hovered over its pad until the story timed out."""
+    m = AvoidanceModule(VTOL)
+    hover = ap(mode_name="GUIDED", groundspeed_m_s=0.0, vel_east_m_s=0.0, mission_current=0)
+    m.on_submit(Submit(UploadMission(items=MISSION_ITEMS), Owner.MISSION), hover, T)
+    start = Submit(StartMission(first_item=0, request_id=9), Owner.MISSION)
+    assert m.on_submit(start, hover, T) is None  # passed on to the arbiter
+    m.on_peer(head_on_peer(T, east_m=60.0, vid=1), T + 0.2)
+    (goto,) = requests(tick(m, hover, T + 0.2))  # still GUIDED in the state it sees
+    assert isinstance(goto, Goto) and m.suspension is not None
+    assert m.suspension.mode == "GUIDED"
+    m.on_result(ApResult(goto.request_id, True), T + 0.2)
+    m.forget(1, T + 0.4)
+    now, sent = T + 0.4, []
+    while not m.release_due and now < T + 10:
+        now += 0.2
+        sent += requests(tick(m, hover, now))
+    assert not any(isinstance(r, Goto) for r in sent)  # no hover over the pad again
+    assert m.release_due and m.take_held() == [start]
+
+
+def test_a_manoeuvre_long_after_the_mission_started_resumes_as_it_saw() -> None:
+    """Only a StartMission the autopilot's state may not show yet is asked again: one
+    that long passed (the vehicle in GUIDED since, for a reason of its own) is not."""
+    m = AvoidanceModule(COPTER)
+    state = ap(groundspeed_m_s=10.0, vel_east_m_s=10.0)
+    m.on_submit(Submit(UploadMission(items=MISSION_ITEMS), Owner.MISSION), state, T)
+    m.on_submit(Submit(StartMission(first_item=1, request_id=9), Owner.MISSION), state, T)
+    later = T + 60.0
+    guided = msgspec.structs.replace(state, mode_name="GUIDED")
+    m.on_peer(head_on_peer(later, east_m=300.0, vid=7), later)
+    (goto,) = requests(m.tick(later, status(8, guided, later), guided))
+    assert isinstance(goto, Goto) and m.held == []
+
+
 def test_a_speed_the_mission_asks_meanwhile_waits_for_the_resume() -> None:
     """The speed rule's ChangeSpeed (every second) is held, only its newest, and goes on
     after the module's own resume: taken for the mission's newest intent, it left VTOLs
