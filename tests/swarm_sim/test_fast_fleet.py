@@ -190,7 +190,9 @@ def test_nodes_hearing_a_batch_together_give_the_same_run(fleet_profiles: dict) 
         together = _mission_run(fleet_profiles, together=True, latency_s=latency_s)
         one_by_one = _mission_run(fleet_profiles, together=False, latency_s=latency_s)
         assert together.batches_heard > 100 and one_by_one.batches_heard == 0
-        assert all(v.node.manager.phase.value == "flying" for v in together.vehicles.values())
+        phases = {vid: v.node.manager.phase.value for vid, v in together.vehicles.items()}
+        # the rover's split share of this field is empty: it stays on its pad
+        assert phases == {1: "flying", 7: "flying", 8: "flying", 10: "idle"}
         assert together.published == one_by_one.published
         assert together.notes == one_by_one.notes
         assert together.submitted == one_by_one.submitted
