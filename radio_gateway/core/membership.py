@@ -378,7 +378,8 @@ class Membership:
         every peer out on resuming (`swarm-sim demo --radio` run 5)."""
         if cycles > 0:
             for m in self.evidence:
-                self.evidence[m] += cycles
+                if m != self.my_id:  # ours is what peers report of us: none came
+                    self.evidence[m] += cycles
 
     def advance(self, cycle: int) -> None:
         """Called once at the start of every cycle, in order."""

@@ -175,6 +175,24 @@ def test_a_stale_members_leaves_of_peers_we_hear_are_not_adopted() -> None:
     assert m.members == (1, 2, 3, 4, 5, 6) and m.phase is Phase.MEMBER
 
 
+def test_a_stall_of_our_own_is_no_evidence_against_the_peers() -> None:
+    """RadioNode.on_timer tells the membership when its timer came cycles late (our
+    process was descheduled): the peers' silence over the stall does not remove them."""
+    gap = TDM.silent_periods + 3
+    for stall in (False, True):
+        m, c = _member()
+        for src in (1, 2):
+            m.on_frame(_frame(src, c, (1, 2, 9)))
+        if stall:
+            m.stalled(gap)
+        c = _advance(m, c, gap + 1)  # the catch-up, nothing heard
+        leaves = {node for _, join, node, _ in m.learned if not join}
+        assert leaves == (set() if stall else {1, 2})
+        if stall:  # a peer that stays silent afterwards still leaves
+            _advance(m, c, TDM.silent_periods + 1)
+            assert set(m.pending) == {(False, 1), (False, 2)}
+
+
 def test_an_outvoted_member_relearns() -> None:
     m, c = _member()
     for _ in range(TDM.mismatch_periods + 1):
