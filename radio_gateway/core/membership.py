@@ -323,7 +323,8 @@ class Membership:
         older than ours: a gateway whose loop stalled for `silent_periods` finds every
         peer silent and schedules them all out (`swarm-sim demo --radio` run 5: every
         gateway adopted LEAVEs of everyone but the stalled one, itself included)."""
-        window = self.config.fresh_periods * self.layout.k
+        cfg = self.config  # fresher than the silence that proposes a LEAVE, always
+        window = min(cfg.fresh_periods, cfg.silent_periods - 1) * self.layout.k
         if node == self.my_id:
             if self.phase is not Phase.MEMBER:
                 return False
