@@ -300,19 +300,43 @@ class Membership:
                 self.evidence[m] = max(self.evidence[m], f.cycle - k)
         for r in f.records:
             if isinstance(r, Change):
-                self.on_change(r)
+                self.on_change(r, f.cycle)
             elif isinstance(r, LevelChange):
                 self.on_level_change(r)
 
-    def on_change(self, c: Change) -> None:
+    def on_change(self, c: Change, cycle: int | None = None) -> None:
         if self.phase is Phase.LISTENING:
             return
+        if not c.join and cycle is not None and self._alive(c.node, cycle):
+            return  # a stale view (its sender stalled or went deaf): not adopted, not repeated
         key = (c.join, c.node)
         if key in self.pending:
             self.pending[key] = min(self.pending[key], c.at_cycle)
         elif (c.node in self.members) != c.join:
             self.pending[key] = c.at_cycle
             self._learned(c.join, c.node, c.at_cycle)
+
+    def _alive(self, node: int, cycle: int) -> bool:
+        """We have fresh evidence that `node` is on the air: heard directly in the last
+        `fresh_periods` periods, or (ourselves, whose frames we do not hear) reported in a
+        peer's heard bitmap as recently. A LEAVE of it comes from a sender whose view is
+        older than ours: a gateway whose loop stalled for `silent_periods` finds every
+        peer silent and schedules them all out (`swarm-sim demo --radio` run 5: every
+        gateway adopted LEAVEs of everyone but the stalled one, itself included)."""
+        cfg = self.config  # fresher than the silence that proposes a LEAVE, always
+        window = min(cfg.fresh_periods, cfg.silent_periods - 1) * self.layout.k
+        if node == self.my_id:
+            if self.phase is not Phase.MEMBER:
+                return False
+            last = self.evidence.get(node)
+            return last is not None and last > self._adopted_at() and cycle - last <= window
+        last = self.direct.get(node)
+        return last is not None and cycle - last <= window
+
+    def _adopted_at(self) -> int:
+        """The cycle our table took effect (evidence set before it is a grace period,
+        not a peer's report)."""
+        return self.tables[-1][0] if self.tables else -(10**12)
 
     def on_level_change(self, c: LevelChange) -> None:
         """A member's scheduled need level: merged like membership changes (the earliest
@@ -346,6 +370,17 @@ class Membership:
         if slot.join:
             self._join_sent = slot.cycle
             self._join_attempts += 1
+
+    def stalled(self, cycles: int) -> None:
+        """We heard nothing for `cycles` cycles through no fault of the peers (our
+        process was descheduled: what the port held is too old for the replay window):
+        that silence is no evidence against anyone, so every member's grace period is
+        moved on by it. Without this a gateway stalled past `silent_periods` scheduled
+        every peer out on resuming (`swarm-sim demo --radio` run 5)."""
+        if cycles > 0:
+            for m in self.evidence:
+                if m != self.my_id:  # ours is what peers report of us: none came
+                    self.evidence[m] += cycles
 
     def advance(self, cycle: int) -> None:
         """Called once at the start of every cycle, in order."""

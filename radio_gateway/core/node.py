@@ -32,6 +32,7 @@ from .telemetry import Candidate, OwnTelemetry, SendOnErrorConfig
 from .timesync import TimeSync
 
 _EPS = 1e-6  # seconds; UNIX times near 1.7e9 carry ~2e-7 s of float rounding
+_STALL_CYCLES = 2  # a timer this many cycles late: our process stalled (not a peer's silence)
 
 
 @dataclass(frozen=True)
@@ -193,6 +194,8 @@ class RadioNode:
         t = self._net(now)
         # deadlines went through the correction and back: allow for the rounding
         cyc = math.floor((t + _EPS) / self.cycle_s)
+        if cyc - self._cycle > _STALL_CYCLES:  # our loop stalled: not the peers' silence
+            self.membership.stalled(cyc - self._cycle - 1)
         while self._cycle < cyc:
             self._cycle += 1
             out += self._advance(self._cycle, t)

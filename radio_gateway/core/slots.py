@@ -47,6 +47,9 @@ class TdmConfig:
     min_payload: int = 42  # record bytes every slot must carry: a 40-byte status + header
     silent_periods: int = 5  # leave detection: periods without evidence of life
     activation_periods: int = 2  # membership changes take effect this many periods later
+    # a LEAVE of a member heard (directly, or ourselves in a peer's bitmap) in the last
+    # fresh_periods periods is a stale sender's view: not adopted (< silent_periods)
+    fresh_periods: int = 2
     join_every: int = 25  # periods between stolen join windows when no join slot fits
     listen_cycles: int = 3  # silence before a node bootstraps a table of its own
     join_backoff: int = 4  # initial random backoff (join windows), doubles per failure

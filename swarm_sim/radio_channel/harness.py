@@ -151,6 +151,13 @@ class Fleet:
         self.members[node_id].active = False
         self._dirty.add(node_id)
 
+    def resume(self, node_id: int) -> None:
+        """A stopped node's process runs again, with its state (a stall: descheduled,
+        swapped out); what its port received meanwhile is lost, as a real stall's
+        backlog is too old for the replay window."""
+        self.members[node_id].active = True
+        self._dirty.add(node_id)
+
     def node(self, node_id: int) -> RadioNode:
         return self.members[node_id].node
 

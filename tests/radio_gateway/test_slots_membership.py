@@ -140,6 +140,59 @@ def test_a_member_told_it_left_rejoins() -> None:
     assert (Phase.MEMBER, Trigger.REMOVED) in _triggers(m)
 
 
+def test_a_stale_members_leaves_of_peers_we_hear_are_not_adopted() -> None:
+    """`swarm-sim demo --radio` run 5 (docs/radio.md, "A LEAVE is checked"): gateway 2's
+    loop stalled over a second (load 4.6 on 2 cores); catching up cycle by cycle before
+    reading what the radio had heard, it found every peer silent for `silent_periods`
+    and scheduled LEAVE(1, 3, 4, 5, 6, 900). Every gateway adopted those LEAVEs from its
+    frame, itself included, and the fleet's table became [2] and then []. A LEAVE of a
+    member the receiver hears (or of itself, reported heard) is a stale view: not adopted.
+    """
+    fleet7 = (1, 2, 3, 4, 5, 6, 900)
+    m = _m(1, initial_members=fleet7)
+    c = _advance(m, C0, TDM.listen_cycles + 1)
+    for _ in range(3):  # the fleet is on the air, every peer heard, reporting us
+        for src in (2, 3, 4, 5, 6, 900):
+            m.on_frame(_frame(src, c, fleet7))
+        c = _advance(m, c, 1)
+    stale = tuple(Change(False, n, c + 2) for n in (1, 3, 4, 5, 6, 900))
+    for src in (3, 4, 5, 6, 900):
+        m.on_frame(_frame(src, c, fleet7))
+    m.on_frame(_frame(2, c, fleet7, heard=b"\x00", records=stale))  # 2 heard nobody
+    for _ in range(4):
+        for src in (2, 3, 4, 5, 6, 900):
+            m.on_frame(_frame(src, c, fleet7))
+        c = _advance(m, c, 1)
+    assert m.phase is Phase.MEMBER and m.members == fleet7
+    assert not m.pending and m.changes_applied == 0
+    # a member that really went quiet still leaves, on another member's word
+    for _ in range(2):
+        for src in (2, 3, 4, 5, 6):
+            m.on_frame(_frame(src, c, fleet7, heard=b"\x3f"))  # nobody hears 900
+        c = _advance(m, c, 1)
+    m.on_frame(_frame(2, c, fleet7, heard=b"\x3f", records=(Change(False, 900, c + 2),)))
+    c = _advance(m, c, 3)
+    assert m.members == (1, 2, 3, 4, 5, 6) and m.phase is Phase.MEMBER
+
+
+def test_a_stall_of_our_own_is_no_evidence_against_the_peers() -> None:
+    """RadioNode.on_timer tells the membership when its timer came cycles late (our
+    process was descheduled): the peers' silence over the stall does not remove them."""
+    gap = TDM.silent_periods + 3
+    for stall in (False, True):
+        m, c = _member()
+        for src in (1, 2):
+            m.on_frame(_frame(src, c, (1, 2, 9)))
+        if stall:
+            m.stalled(gap)
+        c = _advance(m, c, gap + 1)  # the catch-up, nothing heard
+        leaves = {node for _, join, node, _ in m.learned if not join}
+        assert leaves == (set() if stall else {1, 2})
+        if stall:  # a peer that stays silent afterwards still leaves
+            _advance(m, c, TDM.silent_periods + 1)
+            assert set(m.pending) == {(False, 1), (False, 2)}
+
+
 def test_an_outvoted_member_relearns() -> None:
     m, c = _member()
     for _ in range(TDM.mismatch_periods + 1):

@@ -8,7 +8,7 @@ from collections import Counter
 
 import pytest
 
-from radio_gateway.core.membership import Phase
+from radio_gateway.core.membership import Phase, Trigger
 from radio_gateway.core.outbox import OutMessage
 from radio_gateway.core.slots import SlotLayout, TdmConfig, physical_limit
 from radio_gateway.core.timesync import FREE
@@ -269,3 +269,30 @@ def test_a_table_change_in_a_full_cycle_never_collides() -> None:
     f.run(f.t + 12.0)
     assert f.node(2).membership.members == tuple(range(1, n + 1))
     assert f.model.counts["collisions"] == 0
+
+
+@pytest.mark.parametrize(("phase_s", "stall_s"), [(0.0, 1.1), (0.05, 1.0), (0.1, 0.9), (0.0, 2.0)])
+def test_a_gateway_stalled_past_the_leave_timeout_does_not_dissolve_the_table(
+    phase_s: float, stall_s: float
+) -> None:
+    """`swarm-sim demo --radio` run 5: gateway 2's process stalled for about a second
+    (load 4.6 on 2 cores). It heard nothing (what its port held came too late for the
+    replay window) and, catching up cycle by cycle, found every peer silent for
+    `silent_periods`: it scheduled LEAVE(everyone else), every gateway adopted those
+    from its frames (themselves included), and the table became [2], then [] (the
+    stalls here did that before the fix). Now the stalled gateway takes its stall as no
+    evidence, and nobody adopts a LEAVE of a member it hears: only the silent one is
+    removed, and it rejoins."""
+    f = fleet(7)
+    f.run(f.t + 3.0 + phase_s)
+    assert all(f.node(i).membership.members == tuple(range(1, 8)) for i in range(1, 8))
+    f.stop(2)  # the process is descheduled: no timer, no reads, no writes
+    f.run(f.t + stall_s)
+    f.resume(2)
+    f.run(f.t + 6.0)
+    for i in range(1, 8):
+        m = f.node(i).membership
+        assert m.phase is Phase.MEMBER and m.members == tuple(range(1, 8)), i
+        assert all(len(members) >= 6 for _, members in m.tables), (i, m.tables)
+        if i != 2:
+            assert not any(t.trigger is Trigger.REMOVED for t in m.transitions), i
