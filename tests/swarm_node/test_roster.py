@@ -68,13 +68,18 @@ def test_answers_heard_before_the_mission_count() -> None:
     assert r.ready(peers) and r.freeze(peers) == (1, 2)
 
 
-def test_a_member_lost_is_an_event_once() -> None:
+def frozen_with_2_and_3() -> Roster:
+    """Vehicle 1's roster for MID, frozen with peers 2 and 3 (both accepted)."""
     r = Roster(1)
     r.open(MID, Selector())
-    peers = peers_of([2, 3], {2: info(2), 3: info(3)})
     r.on_ack(ack(2, True))
     r.on_ack(ack(3, True))
-    r.freeze(peers)
+    r.freeze(peers_of([2, 3], {2: info(2), 3: info(3)}))
+    return r
+
+
+def test_a_member_lost_is_an_event_once() -> None:
+    r = frozen_with_2_and_3()
     assert r.on_peer_left(2, "stale") == [MemberLost(MID, 2, "stale")]
     assert r.on_peer_left(2, "liveliness") == []
     assert r.on_info(info(3, state=FsmState.EMERGENCY)) == [MemberLost(MID, 3, "emergency")]
@@ -179,12 +184,7 @@ def msgspec_replace(m: VehicleInfo, **kw: float) -> VehicleInfo:
 
 
 def test_a_member_that_finished_its_share_is_not_lost() -> None:
-    r = Roster(1)
-    r.open(MID, Selector())
-    peers = peers_of([2, 3], {2: info(2), 3: info(3)})
-    r.on_ack(ack(2, True))
-    r.on_ack(ack(3, True))
-    r.freeze(peers)
+    r = frozen_with_2_and_3()
     home = msgspec_replace(info(2, mid=0, state=FsmState.GO_MISSION), mission_progress_m=900.0,
                            mission_path_m=900.0)  # fmt: skip
     assert r.on_info(home) == [] and r.finished == {2}
@@ -199,18 +199,13 @@ def test_a_member_the_plan_gave_nothing_is_neither_lost_nor_a_joiner() -> None:
     the ground and leaves the mission at once: not a loss to replan for, and its
     VehicleInfo still in PLAN for the mission (heard after our plan) is not a joiner.
     Before, the mixed demo's five idle members set every node replanning twice."""
-    r = Roster(1)
-    r.open(MID, Selector())
-    peers = peers_of([2, 3], {2: info(2), 3: info(3)})
-    r.on_ack(ack(2, True))
-    r.on_ack(ack(3, True))
-    r.freeze(peers)
+    r = frozen_with_2_and_3()
     r.nothing_to_fly([3, 9])  # 9: not a member, ignored
     assert r.finished == {3} and r.flying == (1, 2)
     assert r.on_info(info(3)) == []  # still in PLAN: no MemberJoined
     down = info(3, mid=0, state=FsmState.INACTIVE)  # completed on the ground, path 0
     assert r.on_info(down) == [] and r.lost == {}
-    assert r.survivors(peers) == (1, 2)
+    assert r.survivors(peers_of([2, 3], {2: info(2), 3: info(3)})) == (1, 2)
 
 
 def test_mission_ids_past_2_31_hash_and_earlier_hashes_are_unchanged() -> None:
