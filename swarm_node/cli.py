@@ -28,7 +28,9 @@ def run(
     ),
     swarm: str | None = typer.Option(None, help="swarm name (default: default)"),
     db: str | None = typer.Option(None, help="swarm database file (else $BANDADA_DB)"),
-    mode: str | None = typer.Option(None, help="Zenoh mode: peer (default) or router (multi-hop)"),
+    mode: str | None = typer.Option(
+        None, help="Zenoh mode: peer (default), client (of a router, which routes) or router"
+    ),
     connect: list[str] = typer.Option([], help="Zenoh endpoints to connect to"),
     listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
     lease_ms: int | None = typer.Option(None, help="Zenoh lease: how soon a frozen peer is lost"),

@@ -251,7 +251,7 @@ def start(
         nodes[vid] = _spawn(
             [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid),
              "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}", "--connect", lans[vid],
-             "--listen", "tcp/127.0.0.1:0", "--link-timeout", str(link_timeout_s(speedup)),
+             *zenoh_role(radio), "--link-timeout", str(link_timeout_s(speedup)),
              "--plan-timeout", str(plan_timeout_s(speedup, len(members))),
              "--avoidance" if avoidance else "--no-avoidance"],
             tmp / f"node-{vid}.log",
@@ -271,6 +271,16 @@ def start(
         tmp, router, simulator, stop_simulator, nodes, lans[GCS_ID], gateways, channel,
         clock.spec(), crashes, lans,
     )  # fmt: skip
+
+
+def zenoh_role(radio: bool) -> tuple[str, ...]:
+    """How a demo node joins Zenoh. On the LAN it is a client of the demo's router, which
+    routes everything: a zenoh 1.10 peer never re-makes a direct (gossip) link to another
+    peer once that link drops (a stall past the lease under load), and the router does
+    not carry peer-to-peer traffic, so the two would stay deaf to each other for good;
+    a client re-dials its router at once (tests/swarm_proto/test_link_cuts.py). Behind
+    the radio a node is a peer of its own gateway."""
+    return ("--mode", "peer", "--listen", "tcp/127.0.0.1:0") if radio else ("--mode", "client")
 
 
 def _interrupt(processes: list[subprocess.Popen[bytes]]) -> None:

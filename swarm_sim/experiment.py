@@ -49,7 +49,7 @@ from swarm_proto import (
 )
 from swarm_proto.clock import clock_from_spec
 from swarm_proto.messages import RadioStats
-from swarm_proto.session import SwarmBus, ZenohSettings
+from swarm_proto.session import Mode, SwarmBus, ZenohSettings
 from swarm_proto.topics import ACK, ALERT, INFO, RADIO_STATS, STATUS, VOTE
 
 from . import demo
@@ -79,8 +79,10 @@ def _clock_now(spec: str) -> Callable[[], float]:
 class Shell:
     """The ground station's side of the demo: one queue of everything heard."""
 
-    def __init__(self, endpoint: str, lans: dict[int, str] | None = None) -> None:
-        self.gs = GroundStation(ZenohSettings(connect=(endpoint,)), gcs_id=demo.GCS_ID)
+    def __init__(
+        self, endpoint: str, lans: dict[int, str] | None = None, mode: Mode = "peer"
+    ) -> None:
+        self.gs = GroundStation(ZenohSettings(mode=mode, connect=(endpoint,)), gcs_id=demo.GCS_ID)
         self.heard: queue.SimpleQueue[object] = queue.SimpleQueue()
         for topic in (STATUS, INFO, ALERT, ACK, VOTE):
             self.gs.bus.subscribe(topic, lambda m, k: self.heard.put(m))
@@ -150,7 +152,8 @@ def run(
                        spacing_m=PAD_SPACING_M)  # fmt: skip
     clock = ScaledClock(speedup)
     now = _clock_now(fleet.clock_spec) if fleet.clock_spec else clock.now
-    shell = Shell(fleet.endpoint, fleet.lans)
+    # on the LAN a client of the demo's router, as the nodes are (demo.zenoh_role)
+    shell = Shell(fleet.endpoint, fleet.lans, mode="peer" if radio else "client")
     radio_stats: dict[int, RadioStats] = {}
     stats_bus = None
     configuring: dict[str, int] = {}

@@ -255,9 +255,10 @@ def unmount(where: Path) -> None:
 
 def _node(vid: int, rig_tmp: Path, swarm: str, endpoint: str, port: int, env: dict[str, str],
           db: Path | None = None) -> Node:  # fmt: skip
+    # a client of the rig's router, as in the demo (demo.zenoh_role)
     args = [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid), "--swarm", swarm,
             "--autopilot", f"tcp:127.0.0.1:{port}", "--connect", endpoint,
-            "--listen", "tcp/127.0.0.1:0"]  # fmt: skip
+            "--mode", "client"]  # fmt: skip
     if db is not None:
         args += ["--db", str(db)]
     return Node(vid, args, env, rig_tmp / f"node-{vid}.log")
@@ -291,8 +292,8 @@ def start_rig(tmp: Path, *, victim_env: dict[str, str] | None = None,
             full = fill_a_disk(tmp / "full-disk", own_db)
             nodes[vid].args[nodes[vid].args.index("--db") + 1] = str(full)
         nodes[vid].start()
-    bus = SwarmBus.open(ZenohSettings(connect=(endpoint,)), swarm)
-    gs = GroundStation(ZenohSettings(connect=(endpoint,)), swarm, GCS_ID)
+    bus = SwarmBus.open(ZenohSettings(mode="client", connect=(endpoint,)), swarm)
+    gs = GroundStation(ZenohSettings(mode="client", connect=(endpoint,)), swarm, GCS_ID)
     area = square(SITL_HOME.lat_deg + 0.0012, SITL_HOME.lon_deg, HALF_M)
     rig = Rig(tmp, swarm, endpoint, router, server, nodes, bus, gs, area,
               LocalFrame.at(list(area.points)),

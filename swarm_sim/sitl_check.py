@@ -398,8 +398,8 @@ class Harness:
             run.node = self._spawn([py, "-m", "swarm_node.cli", "run", "--id", str(s.node_id),
                                     "--autopilot", url, "--swarm", SWARM, "--db",
                                     str(self.tmp / f"node{s.node_id}.db"), "--connect",
-                                    f"tcp/127.0.0.1:{self.router_port}", "--listen",
-                                    "tcp/127.0.0.1:0"], f"node{s.node_id}")  # fmt: skip
+                                    f"tcp/127.0.0.1:{self.router_port}", "--mode",
+                                    "client"], f"node{s.node_id}")  # fmt: skip
         time.sleep(1.0)
         for run in self.runs:
             p = run.spec.port
@@ -409,8 +409,10 @@ class Harness:
             if self.args.sim:  # SITL reads them from a parm file
                 for name, value in EXTRA_PARAMS.get(run.spec.kind, {}).items():
                     run.downloader.set_param(name, value)
-        self.gs = GroundStation(ZenohSettings(connect=(f"tcp/127.0.0.1:{self.router_port}",)),
-                                SWARM)  # fmt: skip
+        # nodes and ground station are clients of the router, as in the demo (demo.zenoh_role)
+        self.gs = GroundStation(
+            ZenohSettings(mode="client", connect=(f"tcp/127.0.0.1:{self.router_port}",)), SWARM
+        )
 
     def close(self) -> None:
         if self.gs is not None:

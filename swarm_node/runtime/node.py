@@ -38,6 +38,7 @@ import msgspec
 import zenoh
 
 from swarm_proto import (
+    Ack,
     Alert,
     AlertCode,
     Clock,
@@ -510,6 +511,11 @@ class NodeRuntime:
     def _execute(self, outputs: list[Output]) -> None:
         for o in outputs:
             if isinstance(o, Publish):
+                if isinstance(o.msg, Ack):
+                    # what we acknowledge (a zone, a mission, a declaration) is what our
+                    # queryables answer from now on: a ground station that asks right
+                    # after the ack must not read the snapshot from before it
+                    self._refresh_snapshot(self.clock.now(), force=True)
                 if isinstance(o.msg, Alert):
                     log.warning(
                         "node %d: alert %s %s: %s",

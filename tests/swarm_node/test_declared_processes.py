@@ -43,6 +43,8 @@ def test_a_restarted_node_keeps_what_was_declared_and_gcs_reads_it(
         area = NoFlyZone(4, Geometry.circle(37.41, -5.99, 3000.0), operating_area=True)
         assert gs.declare_zone(zone, timeout_s=10) == {1, 2}
         assert gs.declare_zone(area, timeout_s=10) == {1, 2}
+        # a node answers from what it acknowledged: asked at once, it holds the zone
+        assert set(gs.zones_held(area.zone_id, timeout_s=2)) == {1, 2}
 
         os.kill(procs[2].pid, signal.SIGKILL)  # its database holds zone 3 in force
         procs[2].wait(10)
