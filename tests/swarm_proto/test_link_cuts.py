@@ -13,9 +13,12 @@ its router at once. So the demo's nodes and ground station are clients of its ro
 
 from __future__ import annotations
 
+import os
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 import zenoh
@@ -95,24 +98,32 @@ class Member:
 
 
 @pytest.fixture
-def swarm() -> Iterator[Callable[[str, int], tuple[str, Member, Member, int]]]:
+def swarm() -> Iterator[Callable[..., tuple[str, Member, Member, int]]]:
     """Make a router and two members in `mode`; yields (endpoint, gcs, node, port)."""
     reason = _can_cut()
     if reason:
         pytest.skip(reason)
     made: list[object] = []
 
-    def make(mode: str, first_id: int = 900) -> tuple[str, Member, Member, int]:
+    def make(mode: str, scouting: str | None = None) -> tuple[str, Member, Member, int]:
+        """`scouting`: the interface to scout on by multicast (else none)."""
         port = free_tcp_port()
         endpoint = f"tcp/127.0.0.1:{port}"
-        router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+        router = open_session(
+            ZenohSettings(mode="router", listen=(endpoint,), scouting_interface=scouting)
+        )
         made.append(router)
 
         def settings() -> ZenohSettings:
             listen = (f"tcp/127.0.0.1:{free_tcp_port()}",) if mode == "peer" else ()
-            return ZenohSettings(mode=mode, connect=(endpoint,), listen=listen)  # type: ignore[arg-type]
+            return ZenohSettings(
+                mode=mode,  # type: ignore[arg-type]
+                connect=(endpoint,),
+                listen=listen,
+                scouting_interface=scouting,
+            )
 
-        gcs = Member(settings(), first_id)
+        gcs = Member(settings(), 900)
         made.append(gcs)
         node = Member(settings(), 2)
         made.append(node)
@@ -173,3 +184,38 @@ def test_peers_whose_direct_link_drops_stay_deaf_to_each_other(swarm) -> None:
     assert _links_to(port) == to_router  # the router links were never touched
     assert not healed, "zenoh now re-makes a dropped peer link: revisit docs/deploy.md"
     assert gcs.alive.get(node.node_id) is False and node.alive.get(gcs.node_id) is False
+
+
+NETNS_ENV = "BANDADA_TEST_IN_NETNS"
+
+
+def test_peers_that_scout_by_multicast_remake_a_dropped_link(swarm) -> None:
+    """Topology a of docs/deploy.md (scouting-peer.json5): with multicast scouting on,
+    the peers find each other again within a scouting period. Run in a network namespace
+    of its own, whose loopback carries multicast (the host's does not)."""
+    if not os.environ.get(NETNS_ENV):
+        here = Path(__file__).resolve()
+        script = (
+            "ip link set lo up && ip link set lo multicast on && "
+            "ip route add 224.0.0.0/4 dev lo && exec " + sys.executable + " -m pytest -q "
+            "-p no:cacheprovider -p no:randomly "
+            + f"{here}::{test_peers_that_scout_by_multicast_remake_a_dropped_link.__name__}"
+        )
+        r = subprocess.run(
+            ["unshare", "-n", "sh", "-c", script], capture_output=True, text=True, timeout=120,
+            cwd=here.parents[2], env={**os.environ, NETNS_ENV: "1"}, check=False,
+        )  # fmt: skip
+        if r.returncode != 0 and "unshare" in r.stderr and "Operation not permitted" in r.stderr:
+            pytest.skip("cannot make a network namespace")
+        assert r.returncode == 0 and "1 passed" in r.stdout, r.stdout[-3000:] + r.stderr[-2000:]
+        return
+    _, gcs, node, _ = swarm("peer", scouting="lo")
+    assert _talk((gcs, node), 10.0, _hear_each_other(gcs, node, 0.0)), "never met"
+    listens = [int(e.rsplit(":", 1)[1]) for m in (gcs, node) for e in m.listen]
+    direct = set().union(*(_links_to(p) for p in listens))
+    assert direct, "no direct link"
+    assert _cut(direct) or pytest.skip("the kernel cannot destroy sockets (ss -K)")
+    cut_at = time.monotonic()
+    assert _talk((gcs, node), 10.0, _hear_each_other(gcs, node, cut_at + 0.5)), (
+        f"after the cut: gcs alive={gcs.alive}, node alive={node.alive}"
+    )
