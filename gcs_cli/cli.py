@@ -111,7 +111,7 @@ class Link:
             gs = GroundStation(self.settings, self.swarm, self.gcs_id,
                                database_ids=database_ids())  # fmt: skip
         except Exception as exc:
-            from .db import _zenoh_reason
+            from swarm_proto.session import zenoh_reason as _zenoh_reason
 
             err = _clickx.ClickException(f"cannot open Zenoh: {_zenoh_reason(exc)}")
             err.exit_code = 2  # type: ignore[attr-defined]  # a taken port, a bad certificate: the setup

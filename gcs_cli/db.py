@@ -21,7 +21,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 import sqlite3
 import sys
 import tempfile
@@ -39,6 +38,7 @@ from rich.table import Table as RichTable
 from swarm_node.database import SwarmDatabase, SwarmDbError, resolve_db_path
 from swarm_node.database.document import decode_json, encode_json
 from swarm_node.database.tables import GROUPS, TABLES, Table, convert, table, tables_of
+from swarm_proto.session import zenoh_reason as _zenoh_reason
 
 _TABLES_HELP = "\n\n".join(
     f"{g}: {', '.join(t.name for t in TABLES if t.group == g)}" for g in GROUPS
@@ -455,14 +455,6 @@ def query(
     errors = [r.error for r in replies if r.error is not None]
     if len(errors) == len(replies):
         raise _fail(str(errors[0]))
-
-
-def _zenoh_reason(exc: Exception) -> str:
-    """Zenoh's message without its Rust debug wrapping and source locations."""
-    text = str(exc)
-    found = re.search(r'msg: "(.*?)(?: at /[^"]*)?"', text)
-    reason = found.group(1) if found else text.splitlines()[0] if text else type(exc).__name__
-    return re.sub(r" at /\S+\.rs:\d+\.?", "", reason)[:300]
 
 
 @app.command()

@@ -61,8 +61,11 @@ def run(
     """Run the node: autopilot link, monitoring, swarm manager, state machine."""
     import logging
 
+    import zenoh
+
     from swarm_proto import clock_from_env
     from swarm_proto.clock import steady
+    from swarm_proto.session import zenoh_reason
     from swarm_proto.shutdown import stop_event
 
     from .runtime.config import load_config
@@ -112,6 +115,10 @@ def run(
         node = build_node(cfg, steady(clock_from_env()))  # never steps (issue 16)
     except (ValueError, OSError) as exc:
         typer.echo(f"swarm-node: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    except zenoh.ZError as exc:  # a client whose router is not (yet) there, a bad endpoint
+        hint = " (a client needs its router running)" if cfg.zenoh.mode == "client" else ""
+        typer.echo(f"swarm-node: cannot open Zenoh: {zenoh_reason(exc)}{hint}", err=True)
         raise typer.Exit(2) from exc
     if recorder is not None:
         recorder.attach(node.bus)

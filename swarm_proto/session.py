@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import threading
 from collections import Counter
 from collections.abc import Callable
@@ -112,6 +113,14 @@ def _is_loopback(endpoint: str) -> bool:
     locator = endpoint.split("#")[0].split("/", 1)[-1]
     host = locator.rsplit(":", 1)[0].strip("[]")
     return host in ("localhost", "::1") or host.startswith("127.")
+
+
+def zenoh_reason(exc: Exception) -> str:
+    """Zenoh's error message without its Rust source locations, for a person."""
+    text = str(exc)
+    found = re.search(r'msg: "(.*?)(?: at /[^"]*)?"', text)
+    reason = found.group(1) if found else text.splitlines()[0] if text else type(exc).__name__
+    return re.sub(r"\s*at /\S+\.rs:\d+\.?", "", reason)[:300]
 
 
 def open_session(s: ZenohSettings) -> zenoh.Session:

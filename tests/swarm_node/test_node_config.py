@@ -264,3 +264,16 @@ def test_avoidance_is_on_by_default_and_can_be_switched_off(tmp_path: Path) -> N
     bad_id = runner.invoke(app, ["run", "--id", "0", "--no-avoidance"])
     assert bad_id.exit_code == 2 and "node_id" in bad_id.output
     assert runner.invoke(app, ["run", "--id", "0", "--avoidance=maybe"]).exit_code == 2
+
+
+def test_a_client_whose_router_is_not_there_gets_a_clear_error(swarm_db: Path) -> None:
+    """`--mode client` with the router down: exit 2 and a sentence, no traceback (the
+    service unit restarts the node until the router is up)."""
+    r = subprocess.run(
+        node_cmd("run", "--id", "1", "--mode", "client", "--connect", "tcp/127.0.0.1:9",
+                 "--autopilot", "tcp:127.0.0.1:9"),
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert r.returncode == 2, r.stderr
+    assert "cannot open Zenoh" in r.stderr and "router" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr + r.stdout
