@@ -20,6 +20,7 @@ reference scenario of tests and benchmarks).
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import multiprocessing.process
 import os
@@ -176,20 +177,37 @@ def start_radio(
 
 def serve_vehicles(
     specs: list[VehicleSpec], clock_spec: str, stop: threading.Event, nice: int = 0,
-    crashes: Any = None,
+    crashes: Any = None, bound: Any = None,
 ) -> None:  # fmt: skip
     """The simulated vehicles, in a process of their own (spawned): the ground station
     and Zenoh in the demo process must not slow the vehicles' clock-driven loop.
-    `crashes`: a queue of system ids whose aircraft are taken away."""
+    `crashes`: a queue of system ids whose aircraft are taken away; `bound`: a queue
+    that gets the list of ports the vehicles listen on once they do."""
     if nice:
         os.nice(nice)
     with VehicleServer(specs, clock_from_spec(clock_spec)) as server:
+        if bound is not None:
+            bound.put(server.ports)
         while not stop.wait(0.2):
             while crashes is not None:
                 try:
                     server.remove(int(crashes.get_nowait()))
                 except queue.Empty:
                     break
+
+
+def _bound_ports(bound: Any, simulator: Any, timeout_s: float = 120.0) -> list[int]:
+    """The ports the simulator process listens on, or SystemExit if it died first.
+    (Ports picked free here and bound there were a race: another process on a busy
+    machine took one in between, and every node found no autopilot.)"""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        try:
+            return list(bound.get(timeout=0.5))
+        except queue.Empty:
+            if not simulator.is_alive():
+                raise SystemExit(f"the simulator stopped (exit {simulator.exitcode})") from None
+    raise SystemExit("the simulator did not start its vehicles in time")
 
 
 def start(
@@ -218,19 +236,25 @@ def start(
             instance=i,
             home=homes[i],
             sysid=vid,
-            port=free_tcp_port(),
+            port=0,  # the simulator binds free ports and says which (no race for them)
         )
         for i, vid in enumerate(members)
     ]
     ctx = multiprocessing.get_context("spawn")
     stop_simulator = ctx.Event()
     crashes = ctx.Queue()
+    bound = ctx.Queue()
     simulator = ctx.Process(
         target=serve_vehicles,
-        args=(specs, clock.spec(), stop_simulator, YIELD_TO_RADIO if radio else 0, crashes),
+        args=(specs, clock.spec(), stop_simulator, YIELD_TO_RADIO if radio else 0, crashes,
+              bound),
         name="vehicles",
-    )
+    )  # fmt: skip
     simulator.start()
+    specs = [
+        dataclasses.replace(spec, port=port)
+        for spec, port in zip(specs, _bound_ports(bound, simulator), strict=True)
+    ]
     env = {
         **os.environ,
         CLOCK_ENV: clock.spec(),

@@ -85,7 +85,7 @@ class VehicleServer:
         instead of new ones, one per spec; their time must not be ahead of `clock`."""
         if not specs:
             raise ValueError("no vehicles to serve")
-        ports = [s.tcp_port for s in specs]
+        ports = [s.tcp_port for s in specs if s.tcp_port != 0]  # 0: any free port
         if len(set(ports)) != len(ports):
             raise ValueError(f"two vehicles on one port: {ports}")
         if endpoints is not None and len(endpoints) != len(specs):
@@ -129,6 +129,12 @@ class VehicleServer:
         except BaseException:
             self.close()
             raise
+
+    @property
+    def ports(self) -> list[int]:
+        """The TCP port each vehicle listens on, in spec order (after start: a spec's
+        port 0 is the free port the kernel gave)."""
+        return [int(v.listener.getsockname()[1]) for v in self.vehicles]
 
     def serve(self, stop: threading.Event | None = None) -> None:
         stop = stop if stop is not None else self._stop

@@ -61,6 +61,28 @@ def test_sitl_ports() -> None:
     assert [sitl_port(i) for i in range(3)] == [5760, 5770, 5780]
 
 
+def test_vehicles_on_port_0_get_free_ports_and_say_which() -> None:
+    """The demo's simulator binds free ports itself and reports them (ports picked free
+    by the demo and bound later by the simulator process were a race on a busy host)."""
+    specs = [VehicleSpec("copter", instance=i, port=0, sysid=i + 1) for i in range(3)]
+    server = VehicleServer(specs, ScaledClock(SPEEDUP))
+    server.start_thread()
+    try:
+        ports = server.ports
+        assert len(set(ports)) == 3 and all(p > 0 for p in ports), ports
+        m = mavutil.mavlink_connection(f"tcp:127.0.0.1:{ports[2]}", source_system=250)
+        try:
+            hb = m.wait_heartbeat(timeout=20)
+            assert hb is not None and m.target_system == 3
+        finally:
+            m.close()
+    finally:
+        server.close()
+    with pytest.raises(ValueError, match="one port"):
+        VehicleServer([VehicleSpec("copter", port=7), VehicleSpec("vtol", port=7)],
+                      ScaledClock(SPEEDUP))  # fmt: skip
+
+
 def test_pymavlink_client_sees_two_vehicles_in_one_process(
     two_vehicles: tuple[VehicleServer, list[int]],
 ) -> None:
