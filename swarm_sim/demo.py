@@ -25,6 +25,7 @@ import multiprocessing
 import multiprocessing.process
 import os
 import queue
+import random
 import signal
 import socket
 import subprocess
@@ -86,10 +87,32 @@ def link_timeout_s(speedup: float) -> float:
     return min(30.0, max(0.6, 2.0 * speedup))
 
 
-def free_tcp_port() -> int:
+def free_tcp_port(rng: random.Random | None = None) -> int:
+    """A free loopback TCP port for another process to listen on, chosen below the
+    kernel's ephemeral range: the kernel's own pick (port 0) comes from that range, which
+    every outgoing connection on a busy host draws from too, so it could be taken
+    before the listener binds it."""
+    rng = rng or random.Random()
+    low = _ephemeral_low()
+    for _ in range(50):
+        port = rng.randrange(max(1024, low - 12_000), low)
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def _ephemeral_low(path: str = "/proc/sys/net/ipv4/ip_local_port_range") -> int:
+    try:
+        with open(path) as f:
+            return max(2048, int(f.read().split()[0]))
+    except (OSError, ValueError, IndexError):
+        return 32768  # Linux's default
 
 
 def offset(lat: float, lon: float, north_m: float, east_m: float) -> tuple[float, float]:

@@ -234,3 +234,23 @@ def test_cli_vehicle_home_and_speedup() -> None:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.communicate()
+
+
+def test_the_demo_picks_listening_ports_below_the_ephemeral_range(tmp_path: Path) -> None:
+    """Outgoing connections on a busy host draw from the kernel's ephemeral range, so a
+    port picked there may be gone before a gateway or router listens on it."""
+    import random
+    import socket
+
+    from swarm_sim import demo
+
+    low = demo._ephemeral_low()
+    ports = {demo.free_tcp_port(random.Random(seed)) for seed in range(20)}
+    assert all(1024 <= p < low for p in ports) and len(ports) > 15, ports
+    for p in list(ports)[:3]:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", p))
+    bad = tmp_path / "range"
+    bad.write_text("garbage\n")
+    assert demo._ephemeral_low(str(bad)) == 32768
+    assert demo._ephemeral_low(str(tmp_path / "missing")) == 32768
