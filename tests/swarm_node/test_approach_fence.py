@@ -20,7 +20,9 @@ import math
 import pytest
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
+from swarm_node.core.autopilot.requests import UploadMission
 from swarm_node.core.mission_manager import MissionManager, flown_speed_m_s
+from swarm_node.core.outputs import Submit
 from swarm_node.core.planning.fleet_plan import TURN_RADIUS_MARGIN
 from swarm_node.core.planning.flight import FIXED_WING_ACCEPT_M
 from swarm_node.core.planning.geo import LocalFrame
@@ -76,7 +78,10 @@ def _uploaded(speed_m_s: float = FLOWN_M_S) -> tuple[Waypoint, ...]:
 
 
 def _fly(
-    items: tuple[Waypoint, ...], speed_m_s: float, t_max_s: float = 150.0
+    items: tuple[Waypoint, ...],
+    speed_m_s: float,
+    t_max_s: float = 150.0,
+    start: tuple[float, float, float] = STARTED_AT,
 ) -> list[tuple[float, float]]:
     """The path (east, north) the simulator's fixed-wing model and AUTO waypoint task (what
     the demo's vehicles fly: an L1-style track, turns at the 45 degree bank limit, the
@@ -85,7 +90,7 @@ def _fly(
     `speed_m_s` (the slower CHANGE_SPEED is not applied: the wider turns)."""
     f = _frame()
     pts = [f.to_local(w.lat_deg, w.lon_deg) for w in items if w.kind == ItemKind.WAYPOINT]
-    x, y, hdg = STARTED_AT
+    x, y, hdg = start
     body = Body(n=y, e=x, alt=120.0, airspeed=speed_m_s, heading_deg=hdg, on_ground=False)
     body.vn = speed_m_s * math.cos(math.radians(hdg))
     body.ve = speed_m_s * math.sin(math.radians(hdg))
@@ -147,3 +152,24 @@ def test_the_speed_flown_is_the_faster_of_air_and_ground_speed_and_never_nan() -
     assert flown_speed_m_s(flying(airspeed_m_s=26.0, groundspeed_m_s=31.0)) == 31.0
     assert flown_speed_m_s(flying(airspeed_m_s=math.nan, groundspeed_m_s=math.nan)) == 0.0
     assert flown_speed_m_s(flying(airspeed_m_s=math.inf, groundspeed_m_s=0.0)) == 0.0
+
+
+@pytest.mark.parametrize("pose", [(-43.0, 188.0, 331.0, 30.3), (69.0, 210.0, 41.0, 29.3)])
+def test_the_way_home_of_a_fixed_wing_faster_than_cruise_is_flown_clear_of_the_zone(
+    pose: tuple[float, float, float, float],
+) -> None:
+    """North of the field zone heading away from home (south of it), at a catch-up
+    speed: the way home's entry turns back past the zone (before the fix: planned at
+    the 69 m cruise minimum and flown 32 m and 20 m into the zone)."""
+    x, y, hdg, speed = pose
+    lat, lon = _frame().to_geodetic(x, y)
+    ap = flying(lat_deg=lat, lon_deg=lon, heading_deg=hdg, airspeed_m_s=speed,
+                groundspeed_m_s=speed, alt_rel_m=110.0,
+                home=GeoPoint(37.4112, -5.98788, HOME_ALT_MSL_M))  # fmt: skip
+    outs = MissionManager(profile(4, VTOL)).start_return(ap, [_zone()], NOW)
+    (up,) = [
+        o.request for o in outs if isinstance(o, Submit) and isinstance(o.request, UploadMission)
+    ]
+    path = _fly(up.items, speed, t_max_s=80.0, start=(x, y, hdg))
+    assert min(y for _x, y in path) < -300.0  # past the zone, on its way home
+    assert _clearance_m(path) > 20.0
