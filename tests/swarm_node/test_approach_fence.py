@@ -9,7 +9,8 @@ CHANGE_SPEED 26 m/s came after the approach) when its replanned share was upload
 share began behind it. The approach's Dubins entry was planned at the 69 m minimum
 radius of 26 m/s, and the flyable check at the 89.6 m of 26 m/s with the planners'
 1.3 margin, which at 29.6 m/s is the aircraft's minimum (89.3 m): predicted 2 m clear
-of the zone, the entry arc was flown 20 m wide and the leg after it crossed the zone.
+of the zone, the aircraft flew the entry arc wide (turning 65 m east of its planned
+eastmost point) and the leg after it crossed the zone.
 Now the share's speed is set before the approach, and the entry is planned at 1.3 times
 the minimum radius of the faster of the speed flown now and the share's."""
 

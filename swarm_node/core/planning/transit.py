@@ -42,7 +42,7 @@ def flown_turn_radius_m(profile: VehicleProfile, speed_m_s: float | None = None)
     cruise; capped at its maximum speed). `flyable` keeps that margin at cruise only:
     at a PREMISSION's catch-up speed (29.6 m/s for a 26 m/s Albatross) its radius is
     the aircraft's minimum, and a replan's approach planned at it (its Dubins entry at
-    the 69 m cruise minimum) was flown 20 m wider, into the demo's field zone."""
+    the 69 m cruise minimum) was flown wide, into the demo's field zone."""
     cruise = profile.cruise_speed_m_s
     v = speed_m_s if speed_m_s is not None and math.isfinite(speed_m_s) else 0.0
     if profile.max_speed_m_s > 0.0:
