@@ -21,9 +21,13 @@ from .autopilot.items import ItemKind, Waypoint
 from .autopilot.requests import ApRequest, ReturnToLaunch, StartMission, UploadMission
 from .autopilot.state import AutopilotState
 from .planning import PlanningError
-from .planning.fleet_plan import flyable
 from .planning.flight import FIXED_WING_ACCEPT_M
-from .planning.transit import TRANSIT_MARGIN_M, fixed_wing_transit, safe_transit
+from .planning.transit import (
+    TRANSIT_MARGIN_M,
+    fixed_wing_transit,
+    flown_turn_radius_m,
+    safe_transit,
+)
 from .profile import VehicleProfile
 
 MIN_RETURN_ALT_M = 30.0  # as the mission manager's way home
@@ -50,7 +54,8 @@ def zone_safe_emergency(
     there = (base.lat_deg, base.lon_deg) if base is not None else (home.lat_deg, home.lon_deg)
     start = (ap.lat_deg, ap.lon_deg)
     alt = max(ap.alt_rel_m or 0.0, MIN_RETURN_ALT_M)
-    radius = flyable(profile).turn_radius_m()
+    # the planners' margin at the speed it flies now (faster than cruise: a wider turn)
+    radius = flown_turn_radius_m(profile, max(ap.airspeed_m_s, ap.groundspeed_m_s))
     margin = max(TRANSIT_MARGIN_M, 2.0 * radius)
     try:
         if profile.is_fixed_wing:

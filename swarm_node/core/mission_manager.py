@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
@@ -79,6 +80,7 @@ from .planning.transit import (
     TRANSIT_MARGIN_M,
     distance_m,
     fixed_wing_transit,
+    flown_turn_radius_m,
     fly_corners,
     safe_transit,
 )
@@ -681,13 +683,27 @@ class MissionManager:
     ) -> tuple[Waypoint, ...]:
         """Prefix the leg from where the vehicle is to its first waypoint, around zones;
         a fixed-wing's then made flyable from its pose (the leg's points and the plan's
-        first one, where the plan assumed it starts, may be skipped)."""
+        first one, where the plan assumed it starts, may be skipped). The share's speed
+        is set before the leg (the leg is flown at the speed the flyable stage plans its
+        turns for), and the leg's first turn, flown while the aircraft is still at its
+        speed now, is planned at the radius of the faster of the two."""
         first_at = next((i for i, w in enumerate(waypoints) if w.kind == ItemKind.WAYPOINT), None)
         if first_at is None or ap.lat_deg is None or ap.lon_deg is None:
             return waypoints
         first = waypoints[first_at]
+        speed = next(
+            (i for i, w in enumerate(waypoints[:first_at]) if w.kind == ItemKind.CHANGE_SPEED),
+            None,
+        )
+        lead: tuple[Waypoint, ...] = ()
+        if speed is not None and self.profile.is_fixed_wing:
+            lead, waypoints = (waypoints[speed],), (*waypoints[:speed], *waypoints[speed + 1 :])
+            first_at -= 1
         leg: list[Waypoint] = []
         if zones:
+            now_m_s = flown_speed_m_s(ap)
+            if lead and lead[0].speed_m_s is not None:
+                now_m_s = max(now_m_s, lead[0].speed_m_s)
             leg = self._transit(
                 (ap.lat_deg, ap.lon_deg),
                 ap.heading_deg,
@@ -696,9 +712,10 @@ class MissionManager:
                 zones,
                 now,
                 home_alt,
+                speed_m_s=now_m_s,
             )[:-1]
-        out = (*leg, *waypoints)
-        free = frozenset(range(len(leg))) | {len(leg) + first_at}
+        out = (*lead, *leg, *waypoints)
+        free = frozenset(range(len(lead) + len(leg))) | {len(lead) + len(leg) + first_at}
         return fly_corners(
             out, self.profile, zones, start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
             free=free, now=now, home_alt_msl_m=home_alt,
@@ -713,11 +730,16 @@ class MissionManager:
         zones: Sequence[NoFlyZone],
         now: float,
         home_alt: float,
+        speed_m_s: float | None = None,
     ) -> list[Waypoint]:
+        """A zone-safe transit; a fixed-wing's entered along a Dubins path at the radius
+        of `speed_m_s` (what it flies now) with the planners' margin
+        (`flown_turn_radius_m`)."""
         if self.profile.is_fixed_wing:
             return fixed_wing_transit(
                 start, heading_deg, end, alt_rel_m, zones,
-                radius_m=self.profile.turn_radius_m(), now=now, home_alt_msl_m=home_alt,
+                radius_m=flown_turn_radius_m(self.profile, speed_m_s), now=now,
+                home_alt_msl_m=home_alt,
             )  # fmt: skip
         return safe_transit(
             start,
@@ -803,8 +825,9 @@ class MissionManager:
         assert ap.lat_deg is not None and ap.lon_deg is not None
         alt = max(ap.alt_rel_m or 0.0, 30.0)
         return self._transit(
-            (ap.lat_deg, ap.lon_deg), ap.heading_deg, there, alt, zones, now, home_alt
-        )
+            (ap.lat_deg, ap.lon_deg), ap.heading_deg, there, alt, zones, now, home_alt,
+            speed_m_s=flown_speed_m_s(ap),
+        )  # fmt: skip
 
     def _flyable_leg(
         self,
@@ -821,6 +844,7 @@ class MissionManager:
         return fly_corners(
             leg, self.profile, zones, start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
             free=frozenset(range(len(leg) - 1)), now=now, home_alt_msl_m=home_alt,
+            speed_m_s=flown_speed_m_s(ap),
         )  # fmt: skip
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
@@ -1125,6 +1149,14 @@ def share_index_of_items(
                 break
         out.append(k)
     return tuple(out)
+
+
+def flown_speed_m_s(ap: AutopilotState) -> float:
+    """The speed a vehicle flies now, for the radius of its next turn: the faster of its
+    airspeed and groundspeed (a tailwind widens the turn over the ground); 0 when
+    unknown or not finite."""
+    v = max(ap.airspeed_m_s, ap.groundspeed_m_s)
+    return v if math.isfinite(v) and v > 0.0 else 0.0
 
 
 def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float, ...]:

@@ -6,6 +6,9 @@ flyable from its pose at its planned turn radius.
     safe_transit        straight, or the shortest way round the inflated zones
     fixed_wing_transit  the same, entered along a zone-clear Dubins path
     fly_corners         a fixed-wing's waypoints flyable from where it is (flight.py)
+    flown_turn_radius_m the radius those legs are planned at: the margin kept at the
+                        speed the aircraft flies them (faster than cruise after a
+                        PREMISSION's catch-up)
     flyable             (fleet_plan.py) the profile planners use: turns at 1.3 x the
                         minimum radius
 """
@@ -24,12 +27,27 @@ from ..autopilot.items import ItemKind, Waypoint
 from ..profile import VehicleProfile
 from .dubins import Pose, all_paths
 from .errors import PlanningError
-from .fleet_plan import flyable
+from .fleet_plan import TURN_RADIUS_MARGIN, flyable
 from .flight import TURN_CLEARANCE_M, flyable_waypoints
 from .geo import LocalFrame, heading_to_yaw
 from .zones import ZoneSet
 
 TRANSIT_MARGIN_M = 20.0  # least clearance from a no-fly zone on transit legs
+
+
+def flown_turn_radius_m(profile: VehicleProfile, speed_m_s: float | None = None) -> float:
+    """The turn radius a fixed-wing's legs off the plan (the approach to its share, the
+    way home) are planned at: TURN_RADIUS_MARGIN times its minimum radius at the faster
+    of its cruise speed and `speed_m_s`, the speed it flies now (None, 0 or not finite:
+    cruise; capped at its maximum speed). `flyable` keeps that margin at cruise only:
+    at a PREMISSION's catch-up speed (29.6 m/s for a 26 m/s Albatross) its radius is
+    the aircraft's minimum, and a replan's approach planned at it (its Dubins entry at
+    the 69 m cruise minimum) was flown wide, into the demo's field zone."""
+    cruise = profile.cruise_speed_m_s
+    v = speed_m_s if speed_m_s is not None and math.isfinite(speed_m_s) else 0.0
+    if profile.max_speed_m_s > 0.0:
+        v = min(v, profile.max_speed_m_s)
+    return TURN_RADIUS_MARGIN * profile.turn_radius_m(max(v, cruise) if v > 0.0 else None)
 
 
 def fly_corners(
@@ -41,12 +59,15 @@ def fly_corners(
     free: frozenset[int],
     now: float,
     home_alt_msl_m: float,
+    speed_m_s: float | None = None,
 ) -> tuple[Waypoint, ...]:
     """A fixed-wing's waypoints made flyable from `start` (lat, lon, heading: where it
     is now) at its planned turn radius (`planning.flight.flyable_waypoints`): the
     points of `free` (item indexes: transit legs) may be skipped, the others are
-    passed. Other vehicles' waypoints unchanged. Raises `PlanningError` when a corner
-    has no connection clear of the zones, or the flown path would enter one."""
+    passed. The radius is the one of the waypoints' first CHANGE_SPEED; without one,
+    of `speed_m_s`, the speed the aircraft flies now (`flown_turn_radius_m`). Other
+    vehicles' waypoints unchanged. Raises `PlanningError` when a corner has no
+    connection clear of the zones, or the flown path would enter one."""
     if not profile.is_fixed_wing:
         return tuple(waypoints)
     pos = [(w.lat_deg, w.lon_deg) for w in waypoints if w.kind == ItemKind.WAYPOINT]
@@ -61,8 +82,13 @@ def fly_corners(
         x, y = frame.to_local(start[0], start[1])
         pose = Pose(x, y, heading_to_yaw(start[2]))
     zs = ZoneSet.from_messages(zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m)
+    radius = (
+        flown_turn_radius_m(profile, speed_m_s)
+        if speed is None and speed_m_s is not None
+        else flyable(profile).turn_radius_m(speed)
+    )
     out, _tracks = flyable_waypoints(
-        waypoints, frame, zs, radius_m=flyable(profile).turn_radius_m(speed), start=pose,
+        waypoints, frame, zs, radius_m=radius, start=pose,
         free=free, vehicle_id=profile.vehicle_id,
     )  # fmt: skip
     return out
