@@ -220,7 +220,7 @@ class Gateway:
 
     # ------------------------------------------------------------------ stats
     def _tick(self, node: RadioNode, now: float) -> None:
-        silent = self.config.predict_config().silent_s
+        silent = node.silence_limit_s(self.config.predict_config().silent_s)
 
         def alive(vid: int) -> bool:  # a vehicle that is not a radio node: by its statuses
             return vid not in node.peers or node.silent_s(vid, now) <= silent

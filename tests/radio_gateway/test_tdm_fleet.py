@@ -365,3 +365,18 @@ def test_no_outage_up_to_2_5_s_shrinks_a_table(
     f.run(f.t + 3.0 + phase_s)
     _silence(f, outage_s, stalled, stall_s)
     _assert_table_kept(f, stalled if stall_s > outage_s + 0.8 else 0)
+
+
+def test_a_peer_is_predicted_as_long_as_the_slot_table_keeps_it() -> None:
+    """The gateway stops predicting a peer to its node after `silent_s` (3 s) unheard,
+    but never before the slot table itself would remove it: past the physical limit a
+    period is several cycles (36 members: every 3rd cycle, 0.6 s), and 5 + 2 periods
+    of it are 4.2 s."""
+    for n, k in ((7, 1), (36, 3)):
+        f = fleet(n)
+        f.run(f.t + 2.0)
+        node = f.node(1)
+        assert node.membership.layout.k == k and len(node.membership.members) == n
+        want = max(3.0, (TDM.silent_periods + TDM.activation_periods) * k * TDM.cycle_s)
+        assert node.silence_limit_s(3.0) == pytest.approx(want)
+    assert want > 3.0
