@@ -9,6 +9,14 @@ VehicleInfo (a ground station), is given `info_stale_after_s` instead: over the 
 info is the lowest class, so two seconds would be two missed updates. Pure: events and
 `now` in, PeerJoined/PeerLeft out.
 
+**Behind the radio** (once a peer's status comes as a gateway's prediction:
+`predicted_s` or `position_error_m` set) a status peer goes stale after
+`radio_stale_after_s` (4 s), not 2 s: its gateway republishes it at 5 Hz, predicted,
+as long as the radio hears it (3 s at most unheard, 5 s at most without a status: then
+it stops), so a gap here is one of the gateway's own (descheduled, or a status path
+hiccup: a `--radio` run at load 17 lost vehicle 5 at every node at once for 0.4 s
+while every slot table kept it, and the replan that followed broke the fleet up).
+
 **Our feed's silence is no evidence** (`feed_quiet_s`, `feed_outage_s`): when every
 peer known by telemetry (two or more; each is heard at 5 Hz, radio peers as their
 gateway's predictions) has been silent for over `feed_quiet_s`, what stopped is our own
@@ -93,15 +101,22 @@ class SwarmMembership:
     _watch: OrderedDict[int, Peer] = field(default_factory=OrderedDict, repr=False)
     _watch_info: OrderedDict[int, Peer] = field(default_factory=OrderedDict, repr=False)
     visits: int = 0  # peers examined by the timer and the deadline (not by their own event)
+    # behind a radio gateway (a peer's status came as its prediction) a peer that sends
+    # VehicleStatus goes stale after this, if longer than `stale_after_s`
+    radio_stale_after_s: float = 4.0
+    behind_radio: bool = False
     feed_quiet_s: float = 1.0  # every telemetry peer silent this long: our feed stopped
     feed_outage_s: float = 5.0  # ... and is held for up to this long (then they go stale)
     _latest_s: float = field(default=float("-inf"), repr=False)  # latest time any peer was heard
     _since_s: float = field(default=float("-inf"), repr=False)  # our feed came back then
 
     def _stale_after(self, peer: Peer) -> float:
+        status_s = self.stale_after_s
+        if self.behind_radio:
+            status_s = max(status_s, self.radio_stale_after_s)
         if peer.status is None:
-            return max(self.stale_after_s, self.info_stale_after_s)
-        return self.stale_after_s
+            return max(status_s, self.info_stale_after_s)
+        return status_s
 
     # ------------------------------------------------------------------ inputs
     def on_alive(self, node_id: int, alive: bool, now: float) -> list[PeerEvent]:
@@ -124,6 +139,8 @@ class SwarmMembership:
         peer = self.peers.get(vid)
         if peer is None or not peer.alive_token:
             self._feed_heard(now)
+        if not self.behind_radio and (msg.predicted_s > 0.0 or msg.position_error_m > 0.0):
+            self.behind_radio = True  # a gateway's prediction: our peers are radio peers
         if peer is not None and peer.present and peer.status is not None:
             # the usual event (5 Hz per peer), what `_heard` does for it: a known peer
             # heard again, kept by its liveliness token (a LAN: never stale, not

@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import msgspec
+
 from swarm_node.core.membership import PeerJoined, PeerLeft, SwarmMembership
 from swarm_proto import FsmState, VehicleInfo, VehicleStatus, VehicleType
 
@@ -105,3 +107,24 @@ def test_a_single_silent_peer_among_talking_ones_leaves_on_time() -> None:
     m = SwarmMembership(1, stale_after_s=2.0)
     _talking(m, (2,), 0.0, 1.0)
     assert m.on_timer(3.0) == [PeerLeft(2, "stale")]
+
+
+def test_behind_the_radio_a_peer_gets_4_s_before_it_goes_stale() -> None:
+    """A radio peer comes at 5 Hz as its gateway's prediction while the radio hears it;
+    a gap here is the gateway's own: 4 s, not 2 s (`radio_stale_after_s`). On a LAN
+    (no predictions) the 2 s stand."""
+    for radio in (False, True):
+        m = SwarmMembership(1, stale_after_s=2.0)
+        for t in (0.0, 0.2):
+            for vid in (2, 3):
+                s = status(vid, t)
+                if radio:
+                    s = msgspec.structs.replace(s, position_error_m=0.1, predicted_s=0.2)
+                m.on_status(s, t)
+        _talking(m, (2,), 0.4, 3.0)  # 3 falls silent after 0.2 s; 2 keeps talking
+        left = m.on_timer(3.0)
+        assert left == ([] if radio else [PeerLeft(3, "stale")]), radio
+        assert m.behind_radio is radio
+        if radio:
+            _talking(m, (2,), 3.2, 4.2)
+            assert m.on_timer(4.2) == [PeerLeft(3, "stale")]
