@@ -227,6 +227,10 @@ class Gateway:
 
         with self._lock:
             held = self.bridge.due(now) + self.bridge.predictions(now, alive)
+            dropped = self.bridge.predictor.dropped if self.bridge.predictor else []
+            for vid, why in dropped:  # its node sees it go stale a moment later
+                log.info("no longer predicting vehicle %d to our node: %s", vid, why)
+            dropped.clear()
         for pub in held:
             self._publish(pub)
         if now < self._next_stats:
