@@ -31,6 +31,11 @@ def _decoder(cls: type[T]) -> msgspec.msgpack.Decoder[T]:
     return msgspec.msgpack.Decoder(cls)
 
 
+def decoder(cls: type[T]) -> msgspec.msgpack.Decoder[T]:
+    """The (cached) decoder of `cls` (`warm.warm_decoders` builds them all up front)."""
+    return _decoder(cls)
+
+
 def decode(data: bytes | bytearray | memoryview, cls: type[T]) -> T:
     try:
         return _decoder(cls).decode(data)

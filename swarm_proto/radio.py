@@ -252,6 +252,13 @@ def _plan(cls: type) -> _StructCodec:
     return plan
 
 
+def plan(cls: type) -> None:
+    """Build the radio field plan of `cls` now (`warm.warm_decoders`: a plan is
+    registered before its fields are filled in, so it must not be built first on two
+    threads at once)."""
+    _plan(cls)
+
+
 # --------------------------------------------------------------------------- status layout
 
 #: version, tag, vehicle_id, time_ms mod 2^32, lat e7, lon e7, alt_msl/4, alt_rel/4,

@@ -24,6 +24,7 @@ import zenoh
 from . import lan
 from .errors import DecodeError
 from .topics import ALIVE, Congestion, Reliability, Topic, prefix, topic_of
+from .warm import warm_decoders
 
 log = logging.getLogger(__name__)
 
@@ -124,6 +125,10 @@ def zenoh_reason(exc: Exception) -> str:
 
 
 def open_session(s: ZenohSettings) -> zenoh.Session:
+    """Open a session; first, on this thread, build every message decoder (`warm`:
+    msgspec builds a type's decode information lazily, and two Zenoh or serial threads
+    meeting a type for the first time at once crashed a gateway)."""
+    warm_decoders()
     return zenoh.open(zenoh_config(s))
 
 
@@ -174,6 +179,7 @@ class SwarmBus:
         on_bad_input: BadInputCallback | None = None,
         owns_session: bool = False,
     ) -> None:
+        warm_decoders()  # before the callbacks below can decode on Zenoh's threads
         self.session = session
         self.swarm = swarm
         self.prefix = prefix(swarm)

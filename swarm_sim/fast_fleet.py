@@ -128,6 +128,9 @@ class FastFleet:
     latency_s: float = 0.0
     loss: float = 0.0  # fraction of swarm messages lost between nodes (seeded)
     groups: dict[int, int] | None = None  # a partition: nodes hear only their own group
+    # nodes that hear nothing until a time, while the others still hear them: a node whose
+    # radio gateway is descheduled (the others' gateways go on predicting it): vid -> until
+    deaf: dict[int, float] = field(default_factory=dict)
     seed: int = 1
     # a LAN swarm (Zenoh): every node's liveliness token is seen by its peers, who know
     # it by that token rather than by the staleness of its telemetry (the membership's
@@ -273,7 +276,7 @@ class FastFleet:
                 raw = lan.encode(o.msg)
                 wire = self._wire(o.msg, raw)
                 seq = next(self._seq)
-                if self.groups is None and self.loss <= 0.0:  # every node hears it
+                if self.groups is None and self.loss <= 0.0 and not self.deaf:  # all hear it
                     others = tuple(o for o in self.vehicles if o != vid)
                     self._from[seq] = vid
                 else:
@@ -298,6 +301,8 @@ class FastFleet:
     def _carried(self, src: int, dst: int) -> bool:
         """Whether a message from `src` reaches `dst` (a partition, seeded loss)."""
         if self.groups is not None and self.groups.get(src) != self.groups.get(dst):
+            return False
+        if self.deaf.get(dst, float("-inf")) > self.now:
             return False
         if self.loss > 0.0 and self._rng.random() < self.loss:
             self.lost_messages += 1

@@ -17,6 +17,13 @@ Phases (`TRANSITIONS` is the whole state machine):
   `silent_periods` periods (no frame of its own and no peer reporting it in a heard
   bitmap) gets a LEAVE, scheduled and spread the same way. Changes merge by taking the
   earliest activation cycle, so every node applies them on the same cycle.
+  Silence of every other member at once is no evidence against any of them, for up to
+  `outage_periods` (an outage: the channel, or our own receiver, went quiet; members
+  fail one by one): no LEAVE, and the first member heard again gives all a fresh grace
+  period. Past `outage_periods` the silence counts as before: the members that all left
+  at once leave, and two groups that formed apart and collide slot for slot on one
+  channel (each hears nobody) fall apart into lone members, whose random offsets let
+  them find each other and merge.
 
 Convergence after disagreement (loss of every copy of a change): frames carry the
 16-bit hash of their sender's table. A node whose table is outvoted for
@@ -287,6 +294,12 @@ class Membership:
             ):
                 self._propose(True, f.src, self._activation(f.cycle))
             return
+        if f.src != self.my_id and f.src in self.evidence and self._outage(f.cycle):
+            # the first member heard after every other one went quiet at once: the
+            # silence told nothing of them; each gets a fresh grace period
+            for m in self.evidence:
+                if m != self.my_id:  # ours is what peers report of us
+                    self.evidence[m] = max(self.evidence[m], f.cycle)
         self.direct[f.src] = f.cycle
         if f.src in self.members and f.table_hash == self.table_hash:
             self._confirmed = f.cycle
@@ -431,8 +444,28 @@ class Membership:
         elif self.phase is Phase.MEMBER and was_member and self.my_id not in new:
             self._go(Trigger.REMOVED, cycle)
 
+    def _silence(self, cycle: int) -> int | None:
+        """Cycles since any other member last showed evidence of life (None: we are
+        alone in the table)."""
+        last = max((c for m, c in self.evidence.items() if m != self.my_id), default=None)
+        return None if last is None else cycle - last
+
+    def _outage(self, cycle: int) -> bool:
+        """Every other member unheard for over `fresh_periods` periods at once: the
+        channel or our own receiver went quiet, not all of them (they send every period,
+        and fail one by one). The `swarm-sim demo --radio` run at load 17: the channel
+        emulator's process descheduled for 1-2 s, every gateway heard nobody and
+        scheduled every peer out (tables of 4, 1, 0 members)."""
+        silence = self._silence(cycle)
+        quiet = max(1, min(self.config.fresh_periods, self.config.silent_periods - 1))
+        return silence is not None and silence > quiet * self.layout.k
+
     def _check_leaves(self, cycle: int) -> None:
-        limit = self.config.silent_periods * self.layout.k
+        k = self.layout.k
+        silence = self._silence(cycle) or 0
+        if self._outage(cycle) and silence <= self.config.outage_periods * k:
+            return  # no evidence against anyone (a grace period when one is heard again)
+        limit = self.config.silent_periods * k
         for m in self.members:
             if m == self.my_id or (False, m) in self.pending:
                 continue

@@ -170,6 +170,15 @@ class RadioNode:
             return math.inf
         return max(0.0, self._net(now) - (p.last_cycle + 1) * self.cycle_s)
 
+    def silence_limit_s(self, floor_s: float) -> float:
+        """How long a peer may go unheard before we stop predicting it to our node: at
+        least `floor_s`, and never sooner than the slot table itself would remove it
+        (`silent_periods` + `activation_periods` periods: past the physical limit a
+        period is several cycles, and each member is heard once per period)."""
+        tdm = self.config.tdm
+        periods = tdm.silent_periods + tdm.activation_periods
+        return max(floor_s, periods * self.membership.layout.period_s)
+
     # ------------------------------------------------------------------ inputs
     def submit(self, msg: OutMessage, now: float) -> None:
         if not self.outbox.submit(msg, self._net(now)):

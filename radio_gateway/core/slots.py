@@ -50,6 +50,11 @@ class TdmConfig:
     # a LEAVE of a member heard (directly, or ourselves in a peer's bitmap) in the last
     # fresh_periods periods is a stale sender's view: not adopted (< silent_periods)
     fresh_periods: int = 2
+    # every other member unheard at once (the channel, or our receiver, went quiet): no
+    # evidence against any of them for this many periods; past it, their silence counts
+    # (the members that all left at once leave; two groups that formed apart and collide
+    # slot for slot on one channel fall apart and re-merge: membership.py)
+    outage_periods: int = 25
     join_every: int = 25  # periods between stolen join windows when no join slot fits
     listen_cycles: int = 3  # silence before a node bootstraps a table of its own
     join_backoff: int = 4  # initial random backoff (join windows), doubles per failure
@@ -60,6 +65,8 @@ class TdmConfig:
             raise ValueError("need 0 <= guard_s < cycle_s")
         if self.silent_periods < 1 or self.activation_periods < 1 or self.join_every < 1:
             raise ValueError("silent_periods, activation_periods and join_every must be >= 1")
+        if self.outage_periods < self.silent_periods:
+            raise ValueError("outage_periods must be >= silent_periods")
 
 
 MAX_LEVEL = 3  # need levels 0..3 (two header bits)

@@ -328,6 +328,8 @@ class PeerPredictor:
     config: PredictConfig = field(default_factory=PredictConfig)
     peers: dict[int, _Peer] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
+    # (vehicle, why) of each peer `due` stopped predicting, for the shell to log and clear
+    dropped: list[tuple[int, str]] = field(default_factory=list)
     _next: float | None = None  # cached next_deadline (None: to recompute)
     _stale_next: bool = True
 
@@ -392,11 +394,17 @@ class PeerPredictor:
             p = self.peers[vid]
             if now < p.next_pub:
                 continue
-            if now - p.heard_at > self.config.predict_max_s or (
-                alive is not None and not alive(vid)
-            ):
+            old = now - p.heard_at > self.config.predict_max_s
+            if old or (alive is not None and not alive(vid)):
                 del self.peers[vid]
                 self.counts["dropped"] = self.counts.get("dropped", 0) + 1
+                why = (
+                    f"no status heard for {now - p.heard_at:.1f} s"
+                    if old
+                    else "the radio no longer hears it"
+                )
+                self.dropped.append((vid, why))
+                del self.dropped[:-16]
                 continue
             p.next_pub += period
             if p.next_pub <= now:  # late (a busy host): no burst of catch-up predictions

@@ -220,13 +220,17 @@ class Gateway:
 
     # ------------------------------------------------------------------ stats
     def _tick(self, node: RadioNode, now: float) -> None:
-        silent = self.config.predict_config().silent_s
+        silent = node.silence_limit_s(self.config.predict_config().silent_s)
 
         def alive(vid: int) -> bool:  # a vehicle that is not a radio node: by its statuses
             return vid not in node.peers or node.silent_s(vid, now) <= silent
 
         with self._lock:
             held = self.bridge.due(now) + self.bridge.predictions(now, alive)
+            dropped = self.bridge.predictor.dropped if self.bridge.predictor else []
+            for vid, why in dropped:  # its node sees it go stale a moment later
+                log.info("no longer predicting vehicle %d to our node: %s", vid, why)
+            dropped.clear()
         for pub in held:
             self._publish(pub)
         if now < self._next_stats:

@@ -9,6 +9,23 @@ VehicleInfo (a ground station), is given `info_stale_after_s` instead: over the 
 info is the lowest class, so two seconds would be two missed updates. Pure: events and
 `now` in, PeerJoined/PeerLeft out.
 
+**Behind the radio** (once a peer's status comes as a gateway's prediction:
+`predicted_s` or `position_error_m` set) a status peer goes stale after
+`radio_stale_after_s` (4 s), not 2 s: its gateway republishes it at 5 Hz, predicted,
+as long as the radio hears it (3 s at most unheard, 5 s at most without a status: then
+it stops), so a gap here is one of the gateway's own (descheduled, or a status path
+hiccup: a `--radio` run at load 17 lost vehicle 5 at every node at once for 0.4 s
+while every slot table kept it, and the replan that followed broke the fleet up).
+
+**Our feed's silence is no evidence** (`feed_quiet_s`, `feed_outage_s`): when every
+peer known by telemetry (two or more; each is heard at 5 Hz, radio peers as their
+gateway's predictions) has been silent for over `feed_quiet_s`, what stopped is our own
+feed (our radio gateway descheduled on a loaded host, the channel down), not all of
+them at once: none goes stale until the silence reaches `feed_outage_s`, and when one
+is heard again every one gets a fresh `stale_after_s`. A `swarm-sim demo --radio` at
+load 10-20 replanned three times at launch, "the fleet changed", for such gaps. A single
+telemetry peer's silence is taken at its word, as a LAN peer's withdrawn token is.
+
 Cost per event does not grow with the swarm (issue 20): the peers that can go stale
 (present, no liveliness token) are kept in two lists, one per staleness rule, least
 recently heard first. Hearing a peer moves it to the end of its list; the next deadline
@@ -84,12 +101,22 @@ class SwarmMembership:
     _watch: OrderedDict[int, Peer] = field(default_factory=OrderedDict, repr=False)
     _watch_info: OrderedDict[int, Peer] = field(default_factory=OrderedDict, repr=False)
     visits: int = 0  # peers examined by the timer and the deadline (not by their own event)
+    # behind a radio gateway (a peer's status came as its prediction) a peer that sends
+    # VehicleStatus goes stale after this, if longer than `stale_after_s`
+    radio_stale_after_s: float = 4.0
+    behind_radio: bool = False
+    feed_quiet_s: float = 1.0  # every telemetry peer silent this long: our feed stopped
+    feed_outage_s: float = 5.0  # ... and is held for up to this long (then they go stale)
     _latest_s: float = field(default=float("-inf"), repr=False)  # latest time any peer was heard
+    _since_s: float = field(default=float("-inf"), repr=False)  # our feed came back then
 
     def _stale_after(self, peer: Peer) -> float:
+        status_s = self.stale_after_s
+        if self.behind_radio:
+            status_s = max(status_s, self.radio_stale_after_s)
         if peer.status is None:
-            return max(self.stale_after_s, self.info_stale_after_s)
-        return self.stale_after_s
+            return max(status_s, self.info_stale_after_s)
+        return status_s
 
     # ------------------------------------------------------------------ inputs
     def on_alive(self, node_id: int, alive: bool, now: float) -> list[PeerEvent]:
@@ -110,6 +137,10 @@ class SwarmMembership:
     def on_status(self, msg: VehicleStatus, now: float) -> list[PeerEvent]:
         vid = msg.vehicle_id
         peer = self.peers.get(vid)
+        if peer is None or not peer.alive_token:
+            self._feed_heard(now)
+        if not self.behind_radio and (msg.predicted_s > 0.0 or msg.position_error_m > 0.0):
+            self.behind_radio = True  # a gateway's prediction: our peers are radio peers
         if peer is not None and peer.present and peer.status is not None:
             # the usual event (5 Hz per peer), what `_heard` does for it: a known peer
             # heard again, kept by its liveliness token (a LAN: never stale, not
@@ -130,15 +161,20 @@ class SwarmMembership:
         return self._heard(vid, now, status=msg)
 
     def on_info(self, msg: VehicleInfo, now: float) -> list[PeerEvent]:
+        peer = self.peers.get(msg.vehicle_id)
+        if peer is None or not peer.alive_token:
+            self._feed_heard(now)
         return self._heard(msg.vehicle_id, now, info=msg)
 
     def on_timer(self, now: float) -> list[PeerEvent]:
         out: list[PeerEvent] = []
+        if self._feed_out(now):
+            return out  # our feed stopped: no evidence against anyone (module docstring)
         for watch in (self._watch, self._watch_info):
             while watch:
                 peer = next(iter(watch.values()))
                 self.visits += 1
-                if now - peer.last_heard_s < self._stale_after(peer):
+                if now - max(peer.last_heard_s, self._since_s) < self._stale_after(peer):
                     break  # the least recently heard is not stale: nor is anyone after it
                 out += self._leave(peer, "stale")
                 self._rewatch(peer)
@@ -150,8 +186,34 @@ class SwarmMembership:
             if watch:
                 peer = next(iter(watch.values()))
                 self.visits += 1
-                times.append(peer.last_heard_s + self._stale_after(peer))
-        return min(times) if times else None
+                times.append(max(peer.last_heard_s, self._since_s) + self._stale_after(peer))
+        if not times:
+            return None
+        first = min(times)
+        newest = self._newest()
+        if newest is not None and newest + self.feed_quiet_s < first < newest + self.feed_outage_s:
+            return newest + self.feed_outage_s  # held until then, unless one is heard
+        return first
+
+    # ------------------------------------------------------------------ our feed
+    def _newest(self) -> float | None:
+        """When the most recently heard telemetry peer was heard (None: fewer than two)."""
+        if len(self._watch) < 2:
+            return None
+        return next(reversed(self._watch.values())).last_heard_s
+
+    def _feed_out(self, now: float) -> bool:
+        """Every telemetry peer (two or more) silent for over `feed_quiet_s`, not yet
+        `feed_outage_s`: our feed stopped, their silence tells nothing."""
+        newest = self._newest()
+        return newest is not None and self.feed_quiet_s < now - newest < self.feed_outage_s
+
+    def _feed_heard(self, now: float) -> None:
+        """A telemetry peer heard: if every one had gone quiet, each gets a fresh
+        `stale_after_s` from now (the others may follow a moment later)."""
+        newest = self._newest()
+        if newest is not None and now - newest > self.feed_quiet_s:
+            self._since_s = max(self._since_s, now)
 
     # ------------------------------------------------------------------ views
     def live(self) -> list[Peer]:

@@ -177,8 +177,9 @@ def test_a_stale_members_leaves_of_peers_we_hear_are_not_adopted() -> None:
 
 def test_a_stall_of_our_own_is_no_evidence_against_the_peers() -> None:
     """RadioNode.on_timer tells the membership when its timer came cycles late (our
-    process was descheduled): the peers' silence over the stall does not remove them."""
-    gap = TDM.silent_periods + 3
+    process was descheduled): the peers' silence over the stall does not remove them,
+    however long (past `outage_periods`, the silence of everyone counts otherwise)."""
+    gap = TDM.outage_periods + 3
     for stall in (False, True):
         m, c = _member()
         for src in (1, 2):
@@ -188,9 +189,40 @@ def test_a_stall_of_our_own_is_no_evidence_against_the_peers() -> None:
         c = _advance(m, c, gap + 1)  # the catch-up, nothing heard
         leaves = {node for _, join, node, _ in m.learned if not join}
         assert leaves == (set() if stall else {1, 2})
-        if stall:  # a peer that stays silent afterwards still leaves
-            _advance(m, c, TDM.silent_periods + 1)
-            assert set(m.pending) == {(False, 1), (False, 2)}
+        if stall:  # a peer that stays silent afterwards, while another is heard, leaves
+            for _ in range(TDM.silent_periods + 2):
+                m.on_frame(_frame(1, c, (1, 2, 9), heard=b"\x04"))  # 1 hears us, not 2
+                c = _advance(m, c, 1)
+            assert set(m.pending) == {(False, 2)}
+
+
+def test_every_member_silent_at_once_is_an_outage_not_evidence() -> None:
+    """The channel, or our receiver, went quiet (the channel emulator descheduled in the
+    --radio demo at load 17): no LEAVE for `outage_periods`, and the first member heard
+    again gives every member a fresh grace period (the others may be heard a slot
+    later). Past `outage_periods` the silence counts: members that all left at once leave."""
+    for quiet in (TDM.silent_periods + 1, TDM.outage_periods):
+        m, c = _member((1, 2, 3, 9))
+        for src in (1, 2, 3):
+            m.on_frame(_frame(src, c, (1, 2, 3, 9)))
+        c = _advance(m, c, quiet + 1)
+        assert not m.pending, quiet
+        for _ in range(TDM.silent_periods):  # 1 is back, alone so far (hearing only us)
+            m.on_frame(_frame(1, c, (1, 2, 3, 9), heard=b"\x08"))
+            c = _advance(m, c, 1)
+        assert not m.pending, quiet  # 2 and 3 have their grace period
+        for _ in range(2):  # 2 is back too; 3 never comes back: it leaves
+            for src in (1, 2):
+                m.on_frame(_frame(src, c, (1, 2, 3, 9), heard=b"\x0b"))
+            c = _advance(m, c, 1)
+        assert set(m.pending) == {(False, 3)}, quiet
+    m, c = _member((1, 2, 3, 9))
+    for src in (1, 2, 3):
+        m.on_frame(_frame(src, c, (1, 2, 3, 9)))
+    c = _advance(m, c, TDM.outage_periods + 2)  # the last cycle: outage_periods + 1 quiet
+    assert set(m.pending) == {(False, 1), (False, 2), (False, 3)}
+    _advance(m, c, TDM.activation_periods + 1)
+    assert m.members == (9,) and m.phase is Phase.MEMBER
 
 
 def test_an_outvoted_member_relearns() -> None:

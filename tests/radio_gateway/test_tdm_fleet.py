@@ -3,10 +3,14 @@ the TDM schedule, membership changes, loss, time sync and rate reduction."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
+import os
 from collections import Counter
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from radio_gateway.core.membership import Phase, Trigger
 from radio_gateway.core.outbox import OutMessage
@@ -296,3 +300,84 @@ def test_a_gateway_stalled_past_the_leave_timeout_does_not_dissolve_the_table(
         assert all(len(members) >= 6 for _, members in m.tables), (i, m.tables)
         if i != 2:
             assert not any(t.trigger is Trigger.REMOVED for t in m.transitions), i
+
+
+def _silence(f: Fleet, outage_s: float, stalled: int = 0, stall_s: float = 0.0) -> None:
+    params = f.model.params
+    start = f.t
+    f.model.params = dataclasses.replace(params, loss=1.0)
+    if stalled:
+        f.stop(stalled)
+    for t, what in sorted([(outage_s, "channel"), (stall_s, "gateway")]):
+        if what == "gateway" and not stalled:
+            continue
+        f.run(max(f.t, start + t))
+        if what == "channel":
+            f.model.params = params
+        else:
+            f.resume(stalled)
+    f.run(f.t + 6.0)
+
+
+def _assert_table_kept(f: Fleet, stalled: int = 0) -> None:
+    """Every table whole throughout, but for `stalled`, which may be removed (and
+    rejoin): a gateway silent past `silent_periods` while the others hear each other."""
+    want = tuple(range(1, 8))
+    for i in want:
+        m = f.node(i).membership
+        assert m.phase is Phase.MEMBER and m.members == want, (i, m.members)
+        for _, members in m.tables:
+            assert set(want) - set(members) <= {stalled}, (i, m.tables)
+        if not stalled:
+            assert not m.learned, (i, m.learned)  # no LEAVE was even scheduled
+
+
+@pytest.mark.parametrize(
+    ("phase_s", "outage_s"), [(0.0, 0.5), (0.07, 0.9), (0.13, 1.0), (0.07, 1.6), (0.19, 2.5)]
+)
+def test_a_channel_outage_for_everyone_removes_nobody(phase_s: float, outage_s: float) -> None:
+    """The --radio demo at load 17: the channel emulator's process was descheduled,
+    every gateway heard nobody for over a second and scheduled every peer out (tables of
+    4, 1 and 0 members; 1.0-1.2 s outages emptied every table here before the fix).
+    Silence of every member at once is an outage, no evidence: no LEAVE, and a grace
+    period for all when one is heard again."""
+    f = fleet(7)
+    f.run(f.t + 3.0 + phase_s)
+    _silence(f, outage_s)
+    _assert_table_kept(f)
+
+
+@settings(max_examples=int(os.environ.get("OUTAGE_EXAMPLES", "10")), deadline=None)
+@given(
+    phase_s=st.floats(0.0, 0.2),
+    outage_s=st.floats(0.5, 2.5),
+    stalled=st.sampled_from([0, 1, 4, 7]),
+    stall_s=st.floats(0.0, 2.5),
+)
+def test_no_outage_up_to_2_5_s_shrinks_a_table(
+    phase_s: float, outage_s: float, stalled: int, stall_s: float
+) -> None:
+    """Any outage of 0.5-2.5 s at any phase of the cycle, with or without one gateway
+    descheduled too for up to 2.5 s from the same moment (on a loaded host both
+    starve at once): no table loses a member but the stalled gateway, and that one
+    only if it stayed silent after the channel came back for about the LEAVE timeout
+    (`silent_periods`: 1 s; 0.8 s allowed for the phase)."""
+    f = fleet(7)
+    f.run(f.t + 3.0 + phase_s)
+    _silence(f, outage_s, stalled, stall_s)
+    _assert_table_kept(f, stalled if stall_s > outage_s + 0.8 else 0)
+
+
+def test_a_peer_is_predicted_as_long_as_the_slot_table_keeps_it() -> None:
+    """The gateway stops predicting a peer to its node after `silent_s` (3 s) unheard,
+    but never before the slot table itself would remove it: past the physical limit a
+    period is several cycles (36 members: every 3rd cycle, 0.6 s), and 5 + 2 periods
+    of it are 4.2 s."""
+    for n, k in ((7, 1), (36, 3)):
+        f = fleet(n)
+        f.run(f.t + 2.0)
+        node = f.node(1)
+        assert node.membership.layout.k == k and len(node.membership.members) == n
+        want = max(3.0, (TDM.silent_periods + TDM.activation_periods) * k * TDM.cycle_s)
+        assert node.silence_limit_s(3.0) == pytest.approx(want)
+    assert want > 3.0

@@ -219,6 +219,8 @@ def test_predictions_come_at_5_hz_and_stop_when_the_peer_falls_silent() -> None:
     # heard again, then nothing for predict_max_s: dropped
     assert p.on_status(_orbit(3.5), 0.2, T0 + 3.5)
     assert p.due(T0 + 3.5 + 5.1) == [] and 3 not in p.peers
+    # each drop says why (the gateway logs it: its node sees the peer go stale after)
+    assert p.dropped == [(3, "the radio no longer hears it"), (3, "no status heard for 5.1 s")]
 
 
 def test_an_older_or_repeated_status_keeps_the_newer_and_the_peer_alive() -> None:

@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import msgspec
+
 from swarm_node.core.membership import PeerJoined, PeerLeft, SwarmMembership
 from swarm_proto import FsmState, VehicleInfo, VehicleStatus, VehicleType
 
@@ -65,3 +67,64 @@ def test_fleets_and_ground_stations() -> None:
     assert [p.node_id for p in m.vehicles()] == [2, 4, 6]
     assert m.peers[900].is_ground_station
     assert m.peers[2].fsm_state == FsmState.PLAN
+
+
+def _talking(m: SwarmMembership, peers: tuple[int, ...], start: float, end: float) -> None:
+    t = start
+    while t <= end + 1e-9:
+        for vid in peers:
+            m.on_status(status(vid, t), t)
+        t = round(t + 0.2, 6)
+
+
+def test_every_telemetry_peer_silent_at_once_is_our_feed_not_theirs() -> None:
+    """Behind the radio every peer comes through our gateway (5 Hz each): when all of
+    them fall silent at once, our gateway (or the channel) stopped, not all of them (the
+    --radio demo at load 10-20 lost its peers at launch and replanned three times). None
+    goes stale before `feed_outage_s`; heard again, each gets a fresh `stale_after_s`."""
+    m = SwarmMembership(1, stale_after_s=2.0)
+    _talking(m, (2, 3, 4), 0.0, 1.0)
+    assert m.on_timer(3.5) == [] and m.on_timer(5.9) == []
+    assert m.next_deadline() == 1.0 + m.feed_outage_s  # held until then
+    assert sorted(e.node_id for e in m.on_timer(6.0)) == [2, 3, 4]  # too long: they are gone
+    # a 3 s gap (a gateway descheduled): nobody lost; 2 and 3 come back, 4 never does
+    m = SwarmMembership(1, stale_after_s=2.0)
+    _talking(m, (2, 3, 4), 0.0, 1.0)
+    assert m.on_timer(4.0) == []
+    _talking(m, (2, 3), 4.0, 5.8)  # 4 had its fresh 2 s from 4.0
+    assert m.on_timer(5.8) == []
+    _talking(m, (2, 3), 6.0, 6.0)
+    assert m.on_timer(6.0) == [PeerLeft(4, "stale")]
+
+
+def test_a_single_silent_peer_among_talking_ones_leaves_on_time() -> None:
+    m = SwarmMembership(1, stale_after_s=2.0)
+    _talking(m, (2, 3, 4), 0.0, 1.0)
+    _talking(m, (2, 3), 1.2, 3.0)
+    assert m.on_timer(2.9) == []
+    assert m.on_timer(3.0) == [PeerLeft(4, "stale")]
+    # one peer only: its silence is taken at its word, as before
+    m = SwarmMembership(1, stale_after_s=2.0)
+    _talking(m, (2,), 0.0, 1.0)
+    assert m.on_timer(3.0) == [PeerLeft(2, "stale")]
+
+
+def test_behind_the_radio_a_peer_gets_4_s_before_it_goes_stale() -> None:
+    """A radio peer comes at 5 Hz as its gateway's prediction while the radio hears it;
+    a gap here is the gateway's own: 4 s, not 2 s (`radio_stale_after_s`). On a LAN
+    (no predictions) the 2 s stand."""
+    for radio in (False, True):
+        m = SwarmMembership(1, stale_after_s=2.0)
+        for t in (0.0, 0.2):
+            for vid in (2, 3):
+                s = status(vid, t)
+                if radio:
+                    s = msgspec.structs.replace(s, position_error_m=0.1, predicted_s=0.2)
+                m.on_status(s, t)
+        _talking(m, (2,), 0.4, 3.0)  # 3 falls silent after 0.2 s; 2 keeps talking
+        left = m.on_timer(3.0)
+        assert left == ([] if radio else [PeerLeft(3, "stale")]), radio
+        assert m.behind_radio is radio
+        if radio:
+            _talking(m, (2,), 3.2, 4.2)
+            assert m.on_timer(4.2) == [PeerLeft(3, "stale")]

@@ -124,13 +124,18 @@ def test_staleness_by_deadline_still_drops_a_silent_peer_on_time(fleet_profiles:
     last = max(p.last_heard_s for p in m.peers.values())
     silent = 5000  # a new peer, heard once
     m.on_status(VehicleStatus(silent, last, 37.41, -5.99, 60.0, 50.0), last)
-    for vid in range(1000, 2000):  # everyone else is heard again later
-        m.on_status(VehicleStatus(vid, last + 1.5, 37.41, -5.99, 60.0, 50.0), last + 1.5)
+    # everyone else keeps talking (each silence of all of them over `feed_quiet_s` would
+    # be our feed's, no evidence against anyone)
+    for t in (last + 0.9, last + 1.8):
+        for vid in range(1000, 2000):
+            m.on_status(VehicleStatus(vid, t, 37.41, -5.99, 60.0, 50.0), t)
     assert m.next_deadline() == pytest.approx(last + m.stale_after_s)
     assert [e.node_id for e in m.on_timer(last + m.stale_after_s - 1e-6)] == []
     left = m.on_timer(last + m.stale_after_s)
     assert [e.node_id for e in left] == [silent]
-    assert m.next_deadline() == pytest.approx(last + 1.5 + m.stale_after_s)
+    # the next: were all of them to fall silent now, that would be our feed's silence,
+    # held until `feed_outage_s`
+    assert m.next_deadline() == pytest.approx(last + 1.8 + m.feed_outage_s)
 
 
 def test_the_fast_time_harness_evaluates_deadlines_per_event_not_per_vehicle(
