@@ -19,6 +19,7 @@ is the first peer of each list; the timer looks only at peers whose time has com
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from swarm_proto import FsmState, VehicleInfo, VehicleStatus, VehicleType
@@ -108,26 +109,36 @@ class SwarmMembership:
         return out
 
     def on_status(self, msg: VehicleStatus, now: float) -> list[PeerEvent]:
-        vid = msg.vehicle_id
-        peer = self.peers.get(vid)
-        if peer is not None and peer.present and peer.status is not None:
-            # the usual event (5 Hz per peer), what `_heard` does for it: a known peer
-            # heard again, kept by its liveliness token (a LAN: never stale, not
-            # watched), or by telemetry, last in the staleness list
+        if self.heard_again((msg,), now):
+            return []
+        return self._heard(msg.vehicle_id, now, status=msg)
+
+    def heard_again(self, msgs: Sequence[VehicleStatus], now: float) -> int:
+        """The usual event (5 Hz per peer), what `on_status` does for it, for a run of
+        statuses at once: each from a known peer heard again, kept by its liveliness
+        token (a LAN: never stale, not watched), or by telemetry, last in the staleness
+        list. Returns how many of `msgs` (from the first) were such; the first that is
+        not is left untouched (`on_status` takes it)."""
+        peers, watch = self.peers, self._watch
+        for k, msg in enumerate(msgs):
+            vid = msg.vehicle_id
+            peer = peers.get(vid)
+            if peer is None or not peer.present or peer.status is None:
+                return k
             if peer.alive_token:
                 if now > peer.last_heard_s:
                     peer.last_heard_s = now
                 peer.status = msg
-                return []
-            watch = self._watch
+                continue
             if now >= self._latest_s and vid in watch:
                 if now > peer.last_heard_s:
                     peer.last_heard_s = now
                 peer.status = msg
                 self._latest_s = now
                 watch.move_to_end(vid)  # the most recently heard of all
-                return []
-        return self._heard(vid, now, status=msg)
+                continue
+            return k
+        return len(msgs)
 
     def on_info(self, msg: VehicleInfo, now: float) -> list[PeerEvent]:
         return self._heard(msg.vehicle_id, now, info=msg)

@@ -64,7 +64,7 @@ the time since it was received.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Any
@@ -304,6 +304,18 @@ class CollisionAvoider:
             self._own, self._own_received = s, now
         else:
             self._heard[s.vehicle_id] = (s, now)
+
+    def heard_all(self, statuses: Sequence[VehicleStatus], now: float) -> None:
+        """`heard` for each of `statuses` in turn, at once (a run a node hears together)."""
+        if not statuses:
+            return
+        if self._next is None:
+            self._next = now
+        latest = {s.vehicle_id: (s, now) for s in statuses}
+        own = latest.pop(self.config.own_id, None)
+        if own is not None:
+            self._own, self._own_received = own
+        self._heard.update(latest)
 
     def _count(self, what: str) -> None:
         self.counters[what] = self.counters.get(what, 0) + 1

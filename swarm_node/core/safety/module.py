@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import msgspec
@@ -225,6 +225,11 @@ class AvoidanceModule:
             self.avoider.handle(msg, now)
             if isinstance(msg, VehicleInfo):
                 self._types[msg.vehicle_id] = msg.vehicle_type
+
+    def on_peer_statuses(self, statuses: Sequence[VehicleStatus], now: float) -> None:
+        """`on_peer` for each of peers' `statuses` (none of them ours), at once."""
+        if self.enabled:
+            self.avoider.heard_all(statuses, now)
 
     def forget(self, vehicle_id: int, now: float) -> None:
         if self.enabled:
