@@ -113,31 +113,40 @@ class SwarmMembership:
             return []
         return self._heard(msg.vehicle_id, now, status=msg)
 
-    def heard_again(self, msgs: Sequence[VehicleStatus], now: float) -> int:
-        """The usual event (5 Hz per peer), what `on_status` does for it, for a run of
-        statuses at once: each from a known peer heard again, kept by its liveliness
-        token (a LAN: never stale, not watched), or by telemetry, last in the staleness
-        list. Returns how many of `msgs` (from the first) were such; the first that is
-        not is left untouched (`on_status` takes it)."""
-        peers, watch = self.peers, self._watch
+    def heard_again(self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float) -> int:
+        """The usual event (5 Hz per peer), what `on_status` and `on_info` do for it, for
+        a run of statuses and infos at once: each from a known peer heard again, kept by
+        its liveliness token (a LAN: never stale, not watched), or by telemetry, last in
+        the staleness list. Returns how many of `msgs` (from the first) were such; the
+        first that is not is left untouched (`on_status` or `on_info` takes it)."""
+        peers = self.peers
         for k, msg in enumerate(msgs):
             vid = msg.vehicle_id
             peer = peers.get(vid)
-            if peer is None or not peer.present or peer.status is None:
+            if peer is None or not peer.present:
                 return k
-            if peer.alive_token:
+            if isinstance(msg, VehicleStatus):
+                if peer.status is None:
+                    return k
+                if not peer.alive_token:
+                    watch = self._watch
+                    if not (now >= self._latest_s and vid in watch):
+                        return k
+                    self._latest_s = now
+                    watch.move_to_end(vid)  # the most recently heard of all
                 if now > peer.last_heard_s:
                     peer.last_heard_s = now
                 peer.status = msg
                 continue
-            if now >= self._latest_s and vid in watch:
-                if now > peer.last_heard_s:
-                    peer.last_heard_s = now
-                peer.status = msg
+            if not peer.alive_token:
+                watch = self._watch if peer.status is not None else self._watch_info
+                if not (now >= self._latest_s and vid in watch):
+                    return k
                 self._latest_s = now
-                watch.move_to_end(vid)  # the most recently heard of all
-                continue
-            return k
+                watch.move_to_end(vid)
+            if now > peer.last_heard_s:
+                peer.last_heard_s = now
+            peer.info = msg
         return len(msgs)
 
     def on_info(self, msg: VehicleInfo, now: float) -> list[PeerEvent]:

@@ -465,21 +465,32 @@ class NodeCore:
         return answered
 
     def _statuses_again(self, events: Sequence[Input], i: int, now: float) -> int:
-        """From `events[i]`, the run of peers' statuses that change nothing but what is
-        kept of those peers (known peers heard again: the membership's usual event)
-        taken together, as `_peer_status` takes each; returns where the run ends."""
-        run = []
+        """From `events[i]`, the run of peers' statuses (and infos, with no mission: the
+        messages `_peer_telemetry` takes) that change nothing but what is kept of those
+        peers (known peers heard again: the membership's usual event), taken together
+        as `_peer_telemetry` takes each; returns where the run ends."""
+        run: list[VehicleStatus | VehicleInfo] = []
+        statuses: list[VehicleStatus] = []
+        infos = self.roster.mission_id is None
         for k in range(i, len(events)):
             event = events[k]
-            if type(event) is not Received or type(event.msg) is not VehicleStatus:
+            if type(event) is not Received:
                 break
-            run.append(event.msg)
+            msg = event.msg
+            if type(msg) is VehicleStatus:
+                statuses.append(msg)
+            elif type(msg) is not VehicleInfo or not infos:
+                break
+            run.append(msg)
         taken = self.members.heard_again(run, now) if run else 0
         if taken:
             self.now = now
-            statuses = run if taken == len(run) else run[:taken]
-            self.manager.on_peer_statuses(statuses, now)
-            self.avoid.on_peer_statuses(statuses, now)
+            if taken < len(run):
+                run = run[:taken]
+                statuses = [m for m in run if type(m) is VehicleStatus]
+            if statuses:
+                self.manager.on_peer_statuses(statuses, now)
+            self.avoid.on_peers(run, now)
         return i + taken
 
     def _peer_telemetry(self, msg: msgspec.Struct, now: float) -> list[PeerEvent] | None:

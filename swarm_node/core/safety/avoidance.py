@@ -305,17 +305,26 @@ class CollisionAvoider:
         else:
             self._heard[s.vehicle_id] = (s, now)
 
-    def heard_all(self, statuses: Sequence[VehicleStatus], now: float) -> None:
-        """`heard` for each of `statuses` in turn, at once (a run a node hears together)."""
-        if not statuses:
+    def heard_all(self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float) -> None:
+        """`heard` for each status of `msgs`, `handle` for each info, in turn, at once (a
+        run a node hears together)."""
+        if not msgs:
             return
         if self._next is None:
             self._next = now
-        latest = {s.vehicle_id: (s, now) for s in statuses}
-        own = latest.pop(self.config.own_id, None)
-        if own is not None:
-            self._own, self._own_received = own
-        self._heard.update(latest)
+        own, heard = self.config.own_id, self._heard
+        for m in msgs:
+            vid = m.vehicle_id
+            if isinstance(m, VehicleStatus):
+                if vid == own:
+                    self._own, self._own_received = m, now
+                else:
+                    heard[vid] = (m, now)
+            elif vid != own:  # a VehicleInfo, as `handle` takes it
+                self._types[vid] = m.vehicle_type
+                if m.vehicle_type in NOT_TRAFFIC:
+                    self._contacts.pop(vid, None)
+                    heard.pop(vid, None)
 
     def _count(self, what: str) -> None:
         self.counters[what] = self.counters.get(what, 0) + 1
