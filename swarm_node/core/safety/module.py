@@ -565,7 +565,7 @@ class AvoidanceModule:
         airframe's ceiling, above home."""
         home_msl = own.alt_msl_m - own.alt_rel_m
         best: float | None = None
-        if zones is not None:
+        if zones:  # (none held: no floor above)
             reach = 2.0 * self.profile.turn_radius_m() + 2.0 * self.cfg.protect_m
             floor = ceiling_msl(zones.values(), own.lat_deg, own.lon_deg, own.alt_msl_m, now, reach)
             if floor is not None:
