@@ -490,7 +490,7 @@ class NodeCore:
                 statuses = [m for m in run if type(m) is VehicleStatus]
             if statuses:
                 self.manager.on_peer_statuses(statuses, now)
-            self.avoid.on_peers(run, now)
+            self.avoid.on_peers(run, now, len(statuses))
         return i + taken
 
     def _peer_telemetry(self, msg: msgspec.Struct, now: float) -> list[PeerEvent] | None:

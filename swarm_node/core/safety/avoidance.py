@@ -305,14 +305,23 @@ class CollisionAvoider:
         else:
             self._heard[s.vehicle_id] = (s, now)
 
-    def heard_all(self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float) -> None:
+    def heard_all(
+        self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float, statuses_only: bool = False
+    ) -> None:
         """`heard` for each status of `msgs`, `handle` for each info, in turn, at once (a
-        run a node hears together)."""
+        run a node hears together; `statuses_only`: the caller knows it has no info)."""
         if not msgs:
             return
         if self._next is None:
             self._next = now
         own, heard = self.config.own_id, self._heard
+        if statuses_only:  # (the usual run) the latest of each peer
+            latest = {s.vehicle_id: (s, now) for s in msgs}
+            mine = latest.pop(own, None)
+            if mine is not None:
+                self._own, self._own_received = mine  # type: ignore[assignment]
+            heard.update(latest)  # type: ignore[arg-type]
+            return
         for m in msgs:
             vid = m.vehicle_id
             if isinstance(m, VehicleStatus):

@@ -226,13 +226,18 @@ class AvoidanceModule:
             if isinstance(msg, VehicleInfo):
                 self._types[msg.vehicle_id] = msg.vehicle_type
 
-    def on_peers(self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float) -> None:
-        """`on_peer` for each of peers' `msgs` (none of them ours), at once."""
+    def on_peers(
+        self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float, statuses: int
+    ) -> None:
+        """`on_peer` for each of peers' `msgs` (none of them ours; `statuses` of them
+        are VehicleStatus), at once."""
         if self.enabled:
-            self.avoider.heard_all(msgs, now)
-            for m in msgs:
-                if type(m) is VehicleInfo:
-                    self._types[m.vehicle_id] = m.vehicle_type
+            only = statuses == len(msgs)
+            self.avoider.heard_all(msgs, now, statuses_only=only)
+            if not only:
+                for m in msgs:
+                    if type(m) is VehicleInfo:
+                        self._types[m.vehicle_id] = m.vehicle_type
 
     def forget(self, vehicle_id: int, now: float) -> None:
         if self.enabled:
