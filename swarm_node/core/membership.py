@@ -165,6 +165,8 @@ class SwarmMembership:
         return out
 
     def next_deadline(self) -> float | None:
+        if not self._watch and not self._watch_info:
+            return None  # (a LAN swarm: every peer kept by its token)
         times = []
         for watch in (self._watch, self._watch_info):
             if watch:
