@@ -173,6 +173,8 @@ class FastFleet:
         self._from: dict[int, int] = {}  # bus entries for every vehicle but their sender
         self._token_ids: list[int] = []  # the peers whose liveliness tokens are seen here
         self._token_groups: dict[int, int] | None = None  # the partition they were seen in
+        self._everyone: tuple[int, ...] = ()  # the vehicles when `_others` was made
+        self._others: dict[int, tuple[int, ...]] = {}  # every vehicle but the key
         self._rescan()
 
     @classmethod
@@ -277,7 +279,7 @@ class FastFleet:
                 wire = self._wire(o.msg, raw)
                 seq = next(self._seq)
                 if self.groups is None and self.loss <= 0.0 and not self.deaf:  # all hear it
-                    others = tuple(o for o in self.vehicles if o != vid)
+                    others = self._others_of(vid)
                     self._from[seq] = vid
                 else:
                     others = tuple(o for o in self.vehicles if o != vid and self._carried(vid, o))
@@ -297,6 +299,16 @@ class FastFleet:
             elif isinstance(o, PlanJob):  # inline, after the simulated planning time
                 done = PlanDone(self.plans.run(o.request))
                 self._deliver(vid, done, self.now + self.plan_delay_s)
+
+    def _others_of(self, vid: int) -> tuple[int, ...]:
+        """Every vehicle here but `vid`, in the fleet's order (kept while the fleet's
+        vehicles stay the same)."""
+        if self._everyone != tuple(self.vehicles):
+            self._everyone, self._others = tuple(self.vehicles), {}
+        others = self._others.get(vid)
+        if others is None:
+            others = self._others[vid] = tuple(o for o in self._everyone if o != vid)
+        return others
 
     def _carried(self, src: int, dst: int) -> bool:
         """Whether a message from `src` reaches `dst` (a partition, seeded loss)."""
@@ -491,10 +503,21 @@ class FastFleet:
         for _, seq, _, _ in batch:
             self._from.pop(seq, None)
         self.batches_heard += 1
-        heard = [(sender, entry[3]) for sender, entry in zip(senders, batch, strict=True)]
+        events = [entry[3] for entry in batch]
+        sent: dict[int | None, list[int]] = {}  # each sender's entries in the batch
+        for k, sender in enumerate(senders):
+            sent.setdefault(sender, []).append(k)
         answers: list[tuple[int, int, int, list]] = []
         for vid, v in vehicles.items():
-            mine = [event for sender, event in heard if sender != vid]
+            own = sent.get(vid)
+            if own is None:
+                mine = events
+            elif len(own) == 1:
+                mine = events[: own[0]] + events[own[0] + 1 :]
+            else:
+                mine = [
+                    event for sender, event in zip(senders, events, strict=True) if sender != vid
+                ]
             self.heard_messages += len(mine)
             answered = v.node.hear(mine, now)
             if answered:

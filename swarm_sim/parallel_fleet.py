@@ -11,8 +11,11 @@ Time is kept in windows as long as the swarm's network latency (`latency_s`, 10 
 by default, a LAN's): a message published at t is heard at t + latency_s, in its own
 part as in the others, so in a window [T, T + latency_s) nothing a part hears from
 another can be due; each part runs its window alone, then the parts exchange what they
-published (LAN bytes, with the time they are heard) and the next window starts. Every
-run with the same split is the same; in one process with the same latency, messages
+published (LAN bytes, with the time they are heard) and the next window starts, when
+something is first due in any part (each part says when its next deadline is): windows
+with nothing in them are not run (one exchange per window, and most of the wall time is
+the exchanges: issue 20), the same run as back-to-back windows (`skip_idle=False`,
+tests/swarm_node/test_scaling.py). Every run with the same split is the same; in one process with the same latency, messages
 heard at the same time interleave in publishing order, here a part's own first.
 
     with ParallelFleet(range(1, 101), profiles, parts=2) as fleet:
@@ -64,11 +67,14 @@ def _part_main(
         if cmd == "heard":
             conn.send(fleet.heard_messages)
             continue
+        if cmd == "published":
+            conn.send(fleet.published)
+            continue
         for at, raw, cls in incoming:
             fleet.receive(raw, cls, at)
         fleet.run_before(t)
         out, fleet.export = fleet.export, []
-        conn.send(out)
+        conn.send((out, fleet._deadline()))
 
 
 def _live_peers(fleet: Any) -> dict[int, list[int]]:
@@ -92,6 +98,7 @@ class ParallelFleet:
         start_unix_s: float = 1.8e9,
         latency_s: float = LATENCY_S,
         liveliness: bool = False,
+        skip_idle: bool = True,
     ) -> None:
         from .fast_fleet import FastFleet
 
@@ -107,6 +114,7 @@ class ParallelFleet:
         self.workers: list[tuple[Any, Connection]] = []
         self.cpu_s: list[float] = []  # each part's CPU seconds (after close)
         self.steps = 0  # windows run
+        self.skip_idle = skip_idle
         self.exchanged = 0  # messages handed from one part to the others
         for k, share in enumerate(shares[1:], start=1):
             if not share:
@@ -131,30 +139,39 @@ class ParallelFleet:
         if liveliness:
             self.local.hold_tokens(ids)
         self._cpu0 = time.process_time()
-        for _proc, conn in self.workers:
-            conn.recv()  # ready
+        # the earliest time anything is due in any part (its timers, what it was handed)
+        self._next = min([self.local._deadline()] + [conn.recv()[1] for _p, conn in self.workers])
         self._incoming: list[Outgoing] = [[] for _ in range(1 + len(self.workers))]
 
     def run_for(self, seconds: float) -> None:
+        """`seconds` of the swarm, window by window. A window starts when something is
+        first due in any part (`skip_idle`; otherwise right after the last one, the
+        reference): until then no part does anything, and nothing it publishes in the
+        window is heard before the window's end, so windows with nothing in them are
+        not run and every run is the same as with back-to-back windows."""
         end = self.now + seconds
         while self.now < end:
-            window_end = min(self.now + self.latency_s, end)
+            start = min(max(self._next, self.now), end) if self.skip_idle else self.now
+            window_end = min(start + self.latency_s, end)
             for (_proc, conn), incoming in zip(self.workers, self._incoming[1:], strict=True):
                 conn.send(("window", window_end, [(at, raw, cls) for at, _s, raw, cls in incoming]))
             for at, _sender, raw, cls in self._incoming[0]:
                 self.local.receive(raw, cls, at)
             self.local.run_before(window_end)
             mine, self.local.export = self.local.export, []
-            answers = [mine] + [conn.recv() for _proc, conn in self.workers]
+            answers = [(mine, self.local._deadline())] + [conn.recv() for _p, conn in self.workers]
             self.steps += 1
             self._incoming = [[] for _ in answers]
-            for k, out in enumerate(answers):
+            nxt = min(due for _out, due in answers)
+            for k, (out, _due) in enumerate(answers):
                 if not out:
                     continue
                 for j in range(len(answers)):
                     if j != k:
                         self._incoming[j] += out
                 self.exchanged += len(out)
+                nxt = min(nxt, min(at for at, _s, _raw, _cls in out))
+            self._next = nxt
             self.now = window_end
 
     def live_peers(self) -> dict[int, list[int]]:
@@ -163,6 +180,15 @@ class ParallelFleet:
         for _proc, conn in self.workers:
             conn.send(("peers", self.now, []))
             out.update(conn.recv())
+        return out
+
+    def published(self) -> list[tuple[float, int, Any]]:
+        """Every swarm message published so far, in every part (time, sender, message),
+        part by part."""
+        out = list(self.local.published)
+        for _proc, conn in self.workers:
+            conn.send(("published", self.now, []))
+            out += conn.recv()
         return out
 
     def heard_messages(self) -> int:

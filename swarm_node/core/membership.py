@@ -36,6 +36,7 @@ is the first peer of each list; the timer looks only at peers whose time has com
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from swarm_proto import FsmState, VehicleInfo, VehicleStatus, VehicleType
@@ -135,30 +136,52 @@ class SwarmMembership:
         return out
 
     def on_status(self, msg: VehicleStatus, now: float) -> list[PeerEvent]:
-        vid = msg.vehicle_id
-        peer = self.peers.get(vid)
-        if peer is None or not peer.alive_token:
-            self._feed_heard(now)
-        if not self.behind_radio and (msg.predicted_s > 0.0 or msg.position_error_m > 0.0):
-            self.behind_radio = True  # a gateway's prediction: our peers are radio peers
-        if peer is not None and peer.present and peer.status is not None:
-            # the usual event (5 Hz per peer), what `_heard` does for it: a known peer
-            # heard again, kept by its liveliness token (a LAN: never stale, not
-            # watched), or by telemetry, last in the staleness list
-            if peer.alive_token:
+        if self.heard_again((msg,), now):
+            return []
+        return self._heard(msg.vehicle_id, now, status=msg)
+
+    def heard_again(self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float) -> int:
+        """The usual event (5 Hz per peer), what `on_status` and `on_info` do for it, for
+        a run of statuses and infos at once: each from a known peer heard again, kept by
+        its liveliness token (a LAN: never stale, not watched), or by telemetry, last in
+        the staleness list. Returns how many of `msgs` (from the first) were such; the
+        first that is not is left to `on_status` or `on_info` (what both do first for
+        every message, noting our feed heard and a gateway's prediction, is idempotent)."""
+        peers = self.peers
+        for k, msg in enumerate(msgs):
+            vid = msg.vehicle_id
+            peer = peers.get(vid)
+            if peer is None or not peer.alive_token:
+                self._feed_heard(now)
+            if isinstance(msg, VehicleStatus) and not self.behind_radio and (
+                msg.predicted_s > 0.0 or msg.position_error_m > 0.0
+            ):
+                self.behind_radio = True  # a gateway's prediction: our peers are radio peers
+            if peer is None or not peer.present:
+                return k
+            if isinstance(msg, VehicleStatus):
+                if peer.status is None:
+                    return k
+                if not peer.alive_token:
+                    watch = self._watch
+                    if not (now >= self._latest_s and vid in watch):
+                        return k
+                    self._latest_s = now
+                    watch.move_to_end(vid)  # the most recently heard of all
                 if now > peer.last_heard_s:
                     peer.last_heard_s = now
                 peer.status = msg
-                return []
-            watch = self._watch
-            if now >= self._latest_s and vid in watch:
-                if now > peer.last_heard_s:
-                    peer.last_heard_s = now
-                peer.status = msg
+                continue
+            if not peer.alive_token:
+                watch = self._watch if peer.status is not None else self._watch_info
+                if not (now >= self._latest_s and vid in watch):
+                    return k
                 self._latest_s = now
-                watch.move_to_end(vid)  # the most recently heard of all
-                return []
-        return self._heard(vid, now, status=msg)
+                watch.move_to_end(vid)
+            if now > peer.last_heard_s:
+                peer.last_heard_s = now
+            peer.info = msg
+        return len(msgs)
 
     def on_info(self, msg: VehicleInfo, now: float) -> list[PeerEvent]:
         peer = self.peers.get(msg.vehicle_id)
@@ -181,6 +204,8 @@ class SwarmMembership:
         return out
 
     def next_deadline(self) -> float | None:
+        if not self._watch and not self._watch_info:
+            return None  # (a LAN swarm: every peer kept by its token)
         times = []
         for watch in (self._watch, self._watch_info):
             if watch:

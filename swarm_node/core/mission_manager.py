@@ -480,6 +480,12 @@ class MissionManager:
         if self.follow is not None:
             self.follow.on_status(status, now)
 
+    def on_peer_statuses(self, statuses: Sequence[VehicleStatus], now: float) -> None:
+        """`on_peer_status` for each of `statuses` in turn."""
+        if self.follow is not None:
+            for status in statuses:
+                self.follow.on_status(status, now)
+
     def _load(self, waypoints: tuple[Waypoint, ...], ap: AutopilotState) -> tuple[Waypoint, ...]:
         """The items to upload for `waypoints` (our share, with its approach), and what
         following them needs: the item that completes the share, a timed hold, metres

@@ -191,7 +191,9 @@ class VehicleMonitor:
         if s.armed and (abs(s.roll_deg) > t.max_tilt_deg or abs(s.pitch_deg) > t.max_tilt_deg):
             seen.add(AlertCode.ATTITUDE_ABNORMAL)
         self._breach_text = (
-            self._breach(s, now) if s.lat_deg is not None and s.lon_deg is not None else None
+            self._breach(s, now)
+            if self.zones and s.lat_deg is not None and s.lon_deg is not None
+            else None
         )
         if self._breach_text:
             seen.add(AlertCode.GEOFENCE_BREACH)
@@ -207,6 +209,27 @@ class VehicleMonitor:
     def update(self, s: AutopilotState, now: float) -> list[Alert]:
         """Alerts raised (with their severity) or cleared (CONDITION_CLEARED) now."""
         seen = self._observe(s, now)
+        out: list[Alert] = []
+        tracked = self._tracked
+        if (
+            seen
+            or len(tracked) < len(SPECS)
+            or any(tr.active or tr.since is not None for tr in tracked.values())
+        ):
+            out = self._escalate(s, seen, now)
+        self.ready = (
+            s.link_ok
+            and s.gps_fix >= GpsFix.FIX_3D
+            and s.ekf_ok
+            and s.home is not None
+            and AlertCode.AUTOPILOT_MISMATCH not in seen
+            and all(tr.severity < Severity.CRITICAL for tr in tracked.values() if tr.active)
+        )
+        return out
+
+    def _escalate(self, s: AutopilotState, seen: set[AlertCode], now: float) -> list[Alert]:
+        """Each alert's escalation and clearing (nothing to do when nothing is seen and
+        nothing is raised or being timed: the usual tick)."""
         out: list[Alert] = []
         t = self.thresholds
         for code, spec in SPECS.items():
@@ -250,14 +273,6 @@ class VehicleMonitor:
                                 f"{code.name} cleared",
                             )
                         )
-        self.ready = (
-            s.link_ok
-            and s.gps_fix >= GpsFix.FIX_3D
-            and s.ekf_ok
-            and s.home is not None
-            and AlertCode.AUTOPILOT_MISMATCH not in seen
-            and all(tr.severity < Severity.CRITICAL for tr in self._tracked.values() if tr.active)
-        )
         return out
 
     def not_ready_text(self, s: AutopilotState) -> str:

@@ -440,7 +440,14 @@ class NodeCore:
         # handle's check for its first branch, again only after an input that took
         # another (a quiet one changes neither)
         quiet = not self._dirty and self.stalls.idle(now, self._due)
-        for i, event in enumerate(events):
+        i, n = 0, len(events)
+        while i < n:
+            if quiet:  # known peers' statuses heard again, a run at once (most of it)
+                i = self._statuses_again(events, i, now)
+                if i == n:
+                    break
+            event = events[i]
+            i += 1
             changed = None
             if quiet and type(event) is Received:
                 self.now = now
@@ -453,9 +460,38 @@ class NodeCore:
             else:
                 out = self.handle(event, now)
             if out:
-                answered.append((i, out))
+                answered.append((i - 1, out))
             quiet = not self._dirty and self.stalls.idle(now, self._due)
         return answered
+
+    def _statuses_again(self, events: Sequence[Input], i: int, now: float) -> int:
+        """From `events[i]`, the run of peers' statuses (and infos, with no mission: the
+        messages `_peer_telemetry` takes) that change nothing but what is kept of those
+        peers (known peers heard again: the membership's usual event), taken together
+        as `_peer_telemetry` takes each; returns where the run ends."""
+        run: list[VehicleStatus | VehicleInfo] = []
+        statuses: list[VehicleStatus] = []
+        infos = self.roster.mission_id is None
+        for k in range(i, len(events)):
+            event = events[k]
+            if type(event) is not Received:
+                break
+            msg = event.msg
+            if type(msg) is VehicleStatus:
+                statuses.append(msg)
+            elif type(msg) is not VehicleInfo or not infos:
+                break
+            run.append(msg)
+        taken = self.members.heard_again(run, now) if run else 0
+        if taken:
+            self.now = now
+            if taken < len(run):
+                run = run[:taken]
+                statuses = [m for m in run if type(m) is VehicleStatus]
+            if statuses:
+                self.manager.on_peer_statuses(statuses, now)
+            self.avoid.on_peers(run, now, len(statuses))
+        return i + taken
 
     def _peer_telemetry(self, msg: msgspec.Struct, now: float) -> list[PeerEvent] | None:
         """A peer's telemetry (by far the most frequent input, 5 Hz per peer) and, with no

@@ -1,6 +1,8 @@
 from __future__ import annotations
 
 import msgspec
+from hypothesis import given
+from hypothesis import strategies as st
 
 from swarm_node.core.membership import PeerJoined, PeerLeft, SwarmMembership
 from swarm_proto import FsmState, VehicleInfo, VehicleStatus, VehicleType
@@ -128,3 +130,55 @@ def test_behind_the_radio_a_peer_gets_4_s_before_it_goes_stale() -> None:
         if radio:
             _talking(m, (2,), 3.2, 4.2)
             assert m.on_timer(4.2) == [PeerLeft(3, "stale")]
+
+
+_Heard = list[tuple[str, int, int]]  # (what: status / info / alive / dead, peer, time step)
+
+
+@given(
+    st.lists(
+        st.tuples(st.sampled_from(["status", "info", "alive", "dead"]),
+                  st.integers(2, 6), st.integers(0, 3)),
+        max_size=40,
+    ),
+    st.lists(st.tuples(st.sampled_from(["status", "info"]), st.integers(1, 7)), max_size=12),
+)  # fmt: skip
+def test_a_run_heard_again_at_once_is_the_same_as_one_by_one(before: _Heard, run: list) -> None:
+    """`heard_again` (a node hearing a batch, issue 20) takes a run of statuses and infos
+    from known peers heard again as `on_status` / `on_info` take each, and stops,
+    untouched, at the first message that would take another path."""
+
+    def message(what: str, vid: int, t: float) -> VehicleStatus | VehicleInfo:
+        if what == "status":
+            return status(vid, t)
+        return VehicleInfo(vid, VehicleType.GCS if vid == 6 else VehicleType.COPTER, "m", "u")
+
+    def state(m: SwarmMembership) -> str:
+        return repr((m.peers, list(m._watch), list(m._watch_info), m._latest_s))
+
+    one, bulk = SwarmMembership(1), SwarmMembership(1)
+    now = 0.0
+    for what, vid, dt in before:
+        now += dt * 0.1
+        for m in (one, bulk):
+            if what in ("alive", "dead"):
+                m.on_alive(vid, what == "alive", now)
+            else:
+                msg = message(what, vid, now)
+                m.on_status(msg, now) if isinstance(msg, VehicleStatus) else m.on_info(msg, now)
+    now += 0.1
+    msgs = [message(what, vid, now) for what, vid in run]
+    taken = bulk.heard_again(msgs, now)
+    for msg in msgs[:taken]:
+        got = one.on_status(msg, now) if isinstance(msg, VehicleStatus) else one.on_info(msg, now)
+        assert got == []  # nothing but what is kept of the peer changed
+    assert state(bulk) == state(one)
+    if taken < len(msgs):
+        nxt = msgs[taken]
+        if isinstance(nxt, VehicleStatus):
+            one.on_status(nxt, now)
+            bulk.on_status(nxt, now)
+        else:
+            one.on_info(nxt, now)
+            bulk.on_info(nxt, now)
+        assert state(bulk) == state(one)

@@ -164,10 +164,14 @@ def test_one_albatross_with_many_lanes_flies_around_the_demo_zone(fleet_profiles
     assert 1 in completed
 
 
-def _mission_run(fleet_profiles: dict, *, together: bool, latency_s: float) -> FastFleet:
+def _mission_run(
+    fleet_profiles: dict, *, together: bool, latency_s: float, tokens: bool = False
+) -> FastFleet:
     members = [1, 7, 8, 10]
     fleet = FastFleet.build(members, fleet_profiles)
     fleet.hear_together, fleet.latency_s = together, latency_s
+    if tokens:
+        fleet.hold_tokens()
     fleet.run_for(8.0)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
@@ -185,10 +189,13 @@ def test_nodes_hearing_a_batch_together_give_the_same_run(fleet_profiles: dict) 
     """FastFleet hands each node what it hears at one time in one call (issue 20): the
     same messages published at the same times, the same notes and autopilot requests
     as hearing entry by entry, in one process (latency 0) and in a split fleet's
-    windows (10 ms)."""
-    for latency_s in (0.0, 0.010):
-        together = _mission_run(fleet_profiles, together=True, latency_s=latency_s)
-        one_by_one = _mission_run(fleet_profiles, together=False, latency_s=latency_s)
+    windows (10 ms), with peers known by their telemetry and (the sim bench's LAN swarm)
+    by their liveliness tokens; a run of known peers' statuses is taken at once."""
+    for latency_s, tokens in ((0.0, False), (0.010, False), (0.010, True)):
+        together = _mission_run(fleet_profiles, together=True, latency_s=latency_s, tokens=tokens)
+        one_by_one = _mission_run(
+            fleet_profiles, together=False, latency_s=latency_s, tokens=tokens
+        )
         assert together.batches_heard > 100 and one_by_one.batches_heard == 0
         phases = {vid: v.node.manager.phase.value for vid, v in together.vehicles.items()}
         # the rover's split share of this field is empty: it stays on its pad

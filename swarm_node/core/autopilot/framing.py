@@ -51,7 +51,8 @@ class MavFramer:
         i = 0
         n = len(buf)
         while i < n:
-            j = _next_stx(buf, i)
+            # a frame where the last one ended (the usual case): no search
+            j = i if buf[i] == STX_V2 or buf[i] == STX_V1 else _next_stx(buf, i)
             if j < 0:
                 junk += n - i
                 reason = reason or "no start marker"

@@ -64,7 +64,7 @@ the time since it was received.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Any
@@ -304,6 +304,36 @@ class CollisionAvoider:
             self._own, self._own_received = s, now
         else:
             self._heard[s.vehicle_id] = (s, now)
+
+    def heard_all(
+        self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float, statuses_only: bool = False
+    ) -> None:
+        """`heard` for each status of `msgs`, `handle` for each info, in turn, at once (a
+        run a node hears together; `statuses_only`: the caller knows it has no info)."""
+        if not msgs:
+            return
+        if self._next is None:
+            self._next = now
+        own, heard = self.config.own_id, self._heard
+        if statuses_only:  # (the usual run) the latest of each peer
+            latest = {s.vehicle_id: (s, now) for s in msgs}
+            mine = latest.pop(own, None)
+            if mine is not None:
+                self._own, self._own_received = mine  # type: ignore[assignment]
+            heard.update(latest)  # type: ignore[arg-type]
+            return
+        for m in msgs:
+            vid = m.vehicle_id
+            if isinstance(m, VehicleStatus):
+                if vid == own:
+                    self._own, self._own_received = m, now
+                else:
+                    heard[vid] = (m, now)
+            elif vid != own:  # a VehicleInfo, as `handle` takes it
+                self._types[vid] = m.vehicle_type
+                if m.vehicle_type in NOT_TRAFFIC:
+                    self._contacts.pop(vid, None)
+                    heard.pop(vid, None)
 
     def _count(self, what: str) -> None:
         self.counters[what] = self.counters.get(what, 0) + 1

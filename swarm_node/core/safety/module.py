@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import msgspec
@@ -225,6 +225,19 @@ class AvoidanceModule:
             self.avoider.handle(msg, now)
             if isinstance(msg, VehicleInfo):
                 self._types[msg.vehicle_id] = msg.vehicle_type
+
+    def on_peers(
+        self, msgs: Sequence[VehicleStatus | VehicleInfo], now: float, statuses: int
+    ) -> None:
+        """`on_peer` for each of peers' `msgs` (none of them ours; `statuses` of them
+        are VehicleStatus), at once."""
+        if self.enabled:
+            only = statuses == len(msgs)
+            self.avoider.heard_all(msgs, now, statuses_only=only)
+            if not only:
+                for m in msgs:
+                    if type(m) is VehicleInfo:
+                        self._types[m.vehicle_id] = m.vehicle_type
 
     def forget(self, vehicle_id: int, now: float) -> None:
         if self.enabled:
@@ -557,7 +570,7 @@ class AvoidanceModule:
         airframe's ceiling, above home."""
         home_msl = own.alt_msl_m - own.alt_rel_m
         best: float | None = None
-        if zones is not None:
+        if zones:  # (none held: no floor above)
             reach = 2.0 * self.profile.turn_radius_m() + 2.0 * self.cfg.protect_m
             floor = ceiling_msl(zones.values(), own.lat_deg, own.lon_deg, own.alt_msl_m, now, reach)
             if floor is not None:

@@ -688,3 +688,32 @@ def test_leaving_out_contacts_beyond_reach_changes_no_decision(
     if not planned and pruned.against:
         assert pruned.soonest_s == pytest.approx(whole.soonest_s)
         assert pruned.closest_m == pytest.approx(whole.closest_m)
+
+
+@given(
+    st.lists(st.tuples(st.sampled_from(["status", "info", "gcs"]), st.integers(1, 5)), max_size=20),
+    st.booleans(),
+)
+def test_a_run_heard_at_once_is_the_same_as_one_by_one(run: list, statuses_only: bool) -> None:
+    """`heard_all` (a node hearing a batch, issue 20) keeps what `heard` (statuses) and
+    `handle` (infos; a ground station's is no traffic) keep, message by message."""
+    if statuses_only:
+        run = [("status", vid) for _what, vid in run]
+
+    def message(what: str, vid: int) -> VehicleStatus | VehicleInfo:
+        if what == "status":
+            return status(vid, 10.0 * vid, 0.0, 30.0)
+        vtype = VehicleType.GCS if what == "gcs" else VehicleType.COPTER
+        return VehicleInfo(vid, vtype, "m", "u")
+
+    one, bulk = avoider(1, VehicleType.COPTER), avoider(1, VehicleType.COPTER)
+    for av in (one, bulk):  # known contacts before the run
+        for vid in (2, 3):
+            av.heard(status(vid, 5.0, 5.0, 30.0), T - 1.0)
+        av.on_timer(T - 1.0)
+    msgs = [message(what, vid) for what, vid in run]
+    for m in msgs:
+        one.heard(m, T) if isinstance(m, VehicleStatus) else one.handle(m, T)
+    bulk.heard_all(msgs, T, statuses_only=statuses_only)
+    for name in ("_heard", "_types", "_contacts", "_own", "_own_received", "_next"):
+        assert repr(getattr(bulk, name)) == repr(getattr(one, name)), name
