@@ -406,7 +406,7 @@ class AvoidanceModule:
             return out
         blockers = may_move(
             self.profile.vehicle_id, ld.pad, self._peers_of(), taking_off=False,
-            config=self.pad_config, own_alt_msl_m=ap.alt_msl_m,
+            config=self.pad_config, own_alt_msl_m=ap.alt_msl_m, own_circles=not self._hovering(ap),
         )  # fmt: skip
         if blockers:
             if ld.waited_since is None:

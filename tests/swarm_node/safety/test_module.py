@@ -479,6 +479,29 @@ def test_the_return_lands_on_the_own_pad_at_its_holding_layer() -> None:
     assert isinstance(go, StartMission) and go.first_item == 3
 
 
+def test_a_circling_vtol_does_not_descend_onto_a_neighbour_landing_60_m_away() -> None:
+    """The demo's near-collision (4.78 m, story time 708 s): VTOL 6, holding over its
+    pad, was let down while VTOL 4 (pad 60 m west) flew its slow landing approach 130 m
+    from 6's pad, and circled down through it. Now 6 holds until 4 is down."""
+    m = AvoidanceModule(profile("Albatross 250 VTOL", 6))
+    pad4 = GeoPoint(*at(0.0, -60.0), HOME_MSL)
+    state = ap(mode_name="AUTO", north=800.0)
+    m.tick(T, status(6, state, T), state, pads={4: pad4})
+    m.on_submit(Submit(ReturnToLaunch(request_id=9), Owner.MISSION), state, T)
+    assert m.landing is not None and m.landing.hold_alt_rel_m == 60.0
+    over = ap(mode_name="AUTO", mission_current=2, alt_rel_m=60.0)  # circling its hold
+    approach = status(4, ap(north=126.0, east=-33.0, alt_rel_m=35.0, groundspeed_m_s=5.0,
+                            vel_east_m_s=0.0, vel_north_m_s=-5.0), T)  # fmt: skip
+    out = m.tick(T + 1, status(6, over, T + 1), over, peers=[(approach, pad4)], pads={4: pad4})
+    assert requests(out) == [], "6 descends while 4 lands 60 m from its pad"
+    assert any(isinstance(o, Note) and "4 below" in o.text for o in out)
+    down = status(4, ap(east=-60.0, alt_rel_m=0.0, armed=False, groundspeed_m_s=0.0,
+                        vel_east_m_s=0.0), T + 30)  # fmt: skip
+    out = m.tick(T + 30, status(6, over, T + 30), over, peers=[(down, pad4)], pads={4: pad4})
+    (lower,) = requests(out)
+    assert isinstance(lower, ChangeAltitude) and lower.alt_rel_m == 30.0
+
+
 def test_a_manoeuvre_during_the_landing_starts_the_descent_again() -> None:
     """A fixed-wing circling down to its pad's lowest layer climbs for a conflict; once
     clear the pad's gate starts the descent again (it circled its layer for good)."""
