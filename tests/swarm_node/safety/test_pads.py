@@ -165,6 +165,40 @@ def test_landings_never_deadlock(spots: list[tuple[float, float]]) -> None:
         assert free
 
 
+
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(-60, 60), st.floats(-250, 250), st.floats(0, 180), st.floats(0, 30),
+            st.booleans(),
+        ),
+        min_size=2, max_size=7,
+    )
+)  # fmt: skip
+def test_landings_never_deadlock_with_circles_and_approaches(
+    spots: list[tuple[float, float, float, float, bool]],
+) -> None:
+    """As above, with vehicles off their pads (on their way in), at any speed, circling
+    or hovering: the own circle and a neighbour counted at its pad only widen the reach,
+    the waits still follow altitude then id, so unless one is low one of them may land."""
+    peers = {
+        v + 1: flying(v + 1, e, n, alt_rel_m=max(2.0, h), speed_m_s=speed)
+        for v, (e, n, h, speed, _c) in enumerate(spots)
+    }
+    pads = {v: pad(spots[v - 1][0]) for v in peers}
+    circles = {v: spots[v - 1][4] for v in peers}
+    free = [
+        v
+        for v, me in peers.items()
+        if not may_move(
+            v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=False,
+            own_alt_msl_m=me.alt_msl_m, own_circles=circles[v],
+        )
+    ]  # fmt: skip
+    if all(s.alt_rel_m >= PadConfig().stagger_m for s in peers.values()):
+        assert free
+
+
 @given(st.lists(st.tuples(st.floats(-400, 400), st.floats(-400, 400)), min_size=1, max_size=8))
 def test_holding_layers_never_repeat_among_pads_whose_circles_may_overlap(
     spots: list[tuple[float, float]],
