@@ -502,6 +502,34 @@ def test_a_circling_vtol_does_not_descend_onto_a_neighbour_landing_60_m_away() -
     assert isinstance(lower, ChangeAltitude) and lower.alt_rel_m == 30.0
 
 
+def test_a_new_mission_on_the_way_home_ends_the_landing_on_the_pad() -> None:
+    """Found in the demo's logs: VTOL 6 was on its way home after the perimeter when the
+    route came; the return's landing was kept, and 3 s into the route (its item 2, the
+    old hold's number) its gate said "landing: on its pad" and sent it down towards
+    30 m (it dipped 4.5 m before the next item). A new mission ends the landing."""
+    m = AvoidanceModule(VTOL)
+    state = ap(mode_name="AUTO", north=800.0)
+    m.tick(T, status(2, state, T), state)
+    home = (*MISSION_ITEMS[:1], Waypoint(ItemKind.RTL, 0.0, 0.0, 0.0))
+    (converted,), _ = m.on_submit(  # type: ignore[misc]
+        Submit(UploadMission(request_id=5, items=home), Owner.MISSION), state, T
+    )
+    # the node passes the converted upload through again (NodeCore._route)
+    assert m.on_submit(converted, state, T) is None
+    assert m.landing is not None and m.landing.hold_seq == 2
+    route = UploadMission(request_id=6, items=MISSION_ITEMS)
+    assert m.on_submit(Submit(route, Owner.MISSION), state, T) is None
+    assert m.landing is None
+    flying = ap(mode_name="AUTO", mission_current=2, alt_rel_m=170.0)  # the route's item 2
+    assert requests(m.tick(T + 3, status(2, flying, T + 3), flying)) == []
+    # the pad return's own upload (its RTL turned into a hold and a landing) keeps it
+    subs, _ = m.on_submit(Submit(ReturnToLaunch(request_id=9), Owner.MISSION), state, T + 4)  # type: ignore[misc]
+    for o in subs:
+        if isinstance(o, Submit):
+            assert m.on_submit(o, state, T + 4) is None
+    assert m.landing is not None
+
+
 def test_a_manoeuvre_during_the_landing_starts_the_descent_again() -> None:
     """A fixed-wing circling down to its pad's lowest layer climbs for a conflict; once
     clear the pad's gate starts the descent again (it circled its layer for good)."""
