@@ -186,6 +186,8 @@ class MissionManager:
     _stale: tuple[int, int] = (-1, 0)  # MISSION_ITEM_REACHED, MISSION_CURRENT of an earlier mission
     _fresh_reached: bool = False  # the autopilot reported an item of this mission
     _fresh_current: bool = False
+    #: our StartMission was answered: the next state's MISSION_ITEM_REACHED is of before it
+    _restarted: bool = False
     fleet_plan: FleetPlan | None = None  # the whole fleet's plan (replanning starts from it)
     reattached: bool = False  # flying a share uploaded before the node restarted
     share: Share | None = None  # our share of it, as flown
@@ -504,7 +506,7 @@ class MissionManager:
         assert self.share is not None
         self._share_index = share_index_of_items(waypoints, self.share.waypoints)
         self._stale = (ap.mission_reached, ap.mission_current)
-        self._fresh_reached = self._fresh_current = False
+        self._fresh_reached = self._fresh_current = self._restarted = False
         return waypoints
 
     def _confirm(self, mid: int) -> list[Out]:
@@ -591,6 +593,7 @@ class MissionManager:
         self.mission_id, self.items, self.last_item = mission_id, items, last_item
         self._stale = (-2, -2)  # everything the autopilot reports now is of this mission
         self._fresh_reached = self._fresh_current = True
+        self._restarted = False
         self.hold_s, self.hold_seq = 0.0, 0
         self.phase = Phase.FLYING
         self.reattached = True  # the autopilot past the last item: the share is flown
@@ -921,6 +924,7 @@ class MissionManager:
                 return self._confirm(mid)
             if isinstance(done, StartMission):
                 self.phase = Phase.FLYING
+                self._restarted = True
                 if not self.sync.flying_leg:  # PREMISSION: MISSION from the entry on
                     self.sortie.go(Trigger.STARTED)
                 return self._confirm(mid)
@@ -1015,7 +1019,18 @@ class MissionManager:
     def _flying(self, ap: AutopilotState, now: float, fleet: Roster | None = None) -> list[Out]:
         """Progress along the share and its end: the last item reached, or the timed
         hold over. Only items this mission's autopilot run reported count: the last
-        MISSION_ITEM_REACHED of an earlier mission is still in the state."""
+        MISSION_ITEM_REACHED of an earlier mission is still in the state, and so is one
+        reported between our upload and our StartMission: uploaded in AUTO, the autopilot
+        keeps its item index and flies the new mission's item there until StartMission
+        sets the first, and may report it reached (an item deep in a replanned share: a
+        demo survivor's progress jumped 1,500 m, the field's top lane, at its start; lost
+        soon after, its replan left that lane unflown, issue 18). StartMission is
+        answered once the autopilot reports our first item current, after any such
+        report: the first state since holds it, and it is not of this run."""
+        if self._restarted:
+            self._restarted = False
+            self._stale = (ap.mission_reached, self._stale[1])
+            self._fresh_reached = False
         stale_reached, stale_current = self._stale
         self._fresh_reached |= ap.mission_reached != stale_reached
         self._fresh_current |= ap.mission_current != stale_current
