@@ -12,9 +12,16 @@ from __future__ import annotations
 
 import pytest
 
-from swarm_node.core.autopilot.requests import ApRequest, ApResult, StartMission, UploadMission
+from swarm_node.core.autopilot.requests import (
+    ApRequest,
+    ApResult,
+    Arm,
+    StartMission,
+    Takeoff,
+    UploadMission,
+)
 from swarm_node.core.node import AutopilotResult
-from swarm_proto import MissionState
+from swarm_proto import MissionState, VehicleType
 from tests.swarm_node.test_mission_defects import area, keep_polling, uploads
 from tests.swarm_node.test_node_core import activate, fleet, flying, send
 
@@ -69,3 +76,36 @@ def test_an_item_reported_before_the_replanned_share_starts_is_not_progress(
     f.set_autopilot(1, flying(mission_reached=3, mission_current=4))
     f.run_until(f.now + 0.2)
     assert manager.share_progress_m() > 0.0
+
+
+def test_the_simulator_reports_an_item_of_a_mission_uploaded_in_auto_before_it_starts() -> None:
+    """The premise, over real MAVLink bytes: a plane flying a mission in AUTO gets a new
+    one; the simulator (AP_Mission keeps the item index) flies the new item 2 from where
+    the old item 2 was, finds it passed and reports it reached, 330 m before the vehicle
+    gets there; after StartMission the state shows that item at or beyond the current
+    one, which `MissionManager._reached_item` does not count."""
+    from swarm_node.core.autopilot.items import Waypoint
+    from tests.swarm_node.autopilot.test_flights import SimFlight, offset, ready
+
+    f = SimFlight("plane", VehicleType.PLANE)
+    ready(f)
+
+    def wps(*points: tuple[float, float]) -> tuple[Waypoint, ...]:
+        return tuple(Waypoint(lat_deg=p[0], lon_deg=p[1], alt_rel_m=80.0) for p in
+                     (offset(n, e) for n, e in points))  # fmt: skip
+
+    assert f.do(UploadMission(items=wps((600, 0), (1600, 0), (2600, 0)))).ok
+    assert f.do(Arm()).ok and f.do(Takeoff(alt_rel_m=60.0)).ok
+    f.wait(lambda: (f.state.alt_rel_m or 0.0) > 55.0, 180, "climb")
+    assert f.do(StartMission()).ok
+    f.wait(
+        lambda: f.state.mission_current == 2 and f.state.lat_deg > offset(950, 0)[0], 300, "leg 2"
+    )
+    assert f.state.mission_reached == 1
+    assert f.do(UploadMission(items=wps((900, -800), (1300, 0), (1300, 800)))).ok
+    end = f.now + 0.3  # the node's StartMission follows the upload's answer
+    while f.now < end:
+        f.step()
+    assert f.state.mission_reached == 2  # never flown: the vehicle is 300 m short of it
+    assert f.do(StartMission()).ok
+    assert (f.state.mission_reached, f.state.mission_current) == (2, 1)
