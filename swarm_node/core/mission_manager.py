@@ -186,6 +186,7 @@ class MissionManager:
     _stale: tuple[int, int] = (-1, 0)  # MISSION_ITEM_REACHED, MISSION_CURRENT of an earlier mission
     _fresh_reached: bool = False  # the autopilot reported an item of this mission
     _fresh_current: bool = False
+    _reached: int = 0  # the last item reached flying this mission (`_reached_item`)
     fleet_plan: FleetPlan | None = None  # the whole fleet's plan (replanning starts from it)
     reattached: bool = False  # flying a share uploaded before the node restarted
     share: Share | None = None  # our share of it, as flown
@@ -511,6 +512,7 @@ class MissionManager:
         self._share_index = share_index_of_items(waypoints, self.share.waypoints)
         self._stale = (ap.mission_reached, ap.mission_current)
         self._fresh_reached = self._fresh_current = False
+        self._reached = 0
         return waypoints
 
     def _confirm(self, mid: int) -> list[Out]:
@@ -597,6 +599,7 @@ class MissionManager:
         self.mission_id, self.items, self.last_item = mission_id, items, last_item
         self._stale = (-2, -2)  # everything the autopilot reports now is of this mission
         self._fresh_reached = self._fresh_current = True
+        self._reached = 0
         self.hold_s, self.hold_seq = 0.0, 0
         self.phase = Phase.FLYING
         self.reattached = True  # the autopilot past the last item: the share is flown
@@ -1021,11 +1024,11 @@ class MissionManager:
     def _flying(self, ap: AutopilotState, now: float, fleet: Roster | None = None) -> list[Out]:
         """Progress along the share and its end: the last item reached, or the timed
         hold over. Only items this mission's autopilot run reported count: the last
-        MISSION_ITEM_REACHED of an earlier mission is still in the state."""
-        stale_reached, stale_current = self._stale
-        self._fresh_reached |= ap.mission_reached != stale_reached
+        MISSION_ITEM_REACHED of an earlier mission is still in the state (see also
+        `_reached_item`)."""
+        stale_current = self._stale[1]
         self._fresh_current |= ap.mission_current != stale_current
-        reached = max(0, min(ap.mission_reached, self.last_item)) if self._fresh_reached else 0
+        reached = self._reached_item(ap)
         if self._fresh_current and ap.mission_current > self.last_item:
             reached = self.last_item  # set past its last item (avoidance resumed it there)
         out = self._keep_pace(ap, now, reached, fleet)
@@ -1050,6 +1053,23 @@ class MissionManager:
         self.sortie.finish()
         self.stop(Trigger.COMPLETE)
         return [*out, Post(fsm.MissionComplete(mid))]
+
+    def _reached_item(self, ap: AutopilotState) -> int:
+        """The last item of our upload the autopilot reached flying it (0: none yet).
+        A report counts once it differs from what the autopilot reported before our
+        upload (`_stale`), and only while the autopilot flies an item after it: our
+        shares have no jumps, so an item reported reached at or beyond the current one
+        (MISSION_CURRENT known, > 0) is not of this run. Uploaded in AUTO, the autopilot
+        keeps its item index and flies the new mission's item there until our
+        StartMission sets the first one, and may report that item (deep in a replanned
+        share) reached: a demo survivor's progress jumped 1,500 m down its new share,
+        the field's top lane, the second it started it; lost soon after, its inheritors
+        took that lane as flown and nobody flew it (issue 18). A state read between a
+        MISSION_ITEM_REACHED and the MISSION_CURRENT after it keeps the item before."""
+        self._fresh_reached |= ap.mission_reached != self._stale[0]
+        if self._fresh_reached and not 0 < ap.mission_current <= ap.mission_reached:
+            self._reached = max(0, min(ap.mission_reached, self.last_item))
+        return self._reached
 
     def _landing(self, ap: AutopilotState, now: float, fleet: Roster | None) -> list[Out]:
         """AUTOLAND: leave the hold in our turn (mission/landing.py); landed (disarmed
