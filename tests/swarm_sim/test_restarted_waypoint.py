@@ -14,6 +14,7 @@ circle circled it for ever. Fast time, real MAVLink bytes."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from tests.swarm_sim.conftest import Pilot, make_pilot
 
@@ -24,7 +25,10 @@ ACCEPTED = 0
 ACCEPT_M = 15.0  # the node's fixed-wing waypoint acceptance (planning.flight)
 
 
-def _item(p: Pilot, cmd: int, north: float, east: float, alt: float, params=(0.0, 0.0, 0.0, 0.0)):
+def _item(
+    p: Pilot, cmd: int, north: float, east: float, alt: float,
+    params: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+) -> tuple[Any, ...]:  # fmt: skip
     x, y = p.latlon(north, east) if (north or east) else (0, 0)
     return (cmd, REL if (north or east) else 0, params, x, y, alt)
 
