@@ -1032,6 +1032,8 @@ class MissionManager:
         if self._fresh_current and ap.mission_current > self.last_item:
             reached = self.last_item  # set past its last item (avoidance resumed it there)
         out = self._keep_pace(ap, now, reached, fleet)
+        if self.phase != Phase.FLYING:  # the PREMISSION watchdog flies the share from here
+            return out
         if self.share is not None and self._share_index:
             k = self._share_index[min(reached, len(self._share_index) - 1)] if reached else -1
             self.sortie.advance(
@@ -1096,6 +1098,9 @@ class MissionManager:
         etas = fleet.entry_at if fleet is not None else {}
         gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
         meet = sync.meet_time(etas, gone) or sync.meet_unix_s
+        late = sync.overdue(now, meet)
+        if late is not None and self._in_flight is None and not self._steps:
+            return self._leg_overdue(ap, now, late)
         speed = sync.control(
             ap, now, reached, self.share_progress_m(), meet,
             fleet.progress if fleet is not None else {}, gone,
@@ -1108,6 +1113,14 @@ class MissionManager:
             req = ChangeSpeed(request_id=next(self._ids), speed_m_s=speed)
             out.append(Submit(req, self.owner, Owner.MISSION))
         return out
+
+    def _leg_overdue(self, ap: AutopilotState, now: float, late_s: float) -> list[Out]:
+        """The PREMISSION watchdog (FleetSync.overdue): the leg makes no progress to the
+        entry; the meet is given up and the share flown from here, with an alert."""
+        text = f"mission {self.mission_id}: PREMISSION leg not at its entry {late_s:.0f} s after the meet"
+        self.sync.stop()
+        return [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now, AlertCode.GENERIC),
+                *self._fly_share_from_here(ap, now, "the PREMISSION leg overdue")]  # fmt: skip
 
     def _on_station(self, ap: AutopilotState) -> bool:
         """Within the hold's loiter circle (its radius plus a turn radius)."""

@@ -111,7 +111,16 @@ class Hold(NavTask):
 @dataclass
 class FlyTo(NavTask):
     """Go to a point; done within `accept_m` (hover-capable: also within 2 m of height)
-    or, for fixed-wing, once past the line through the point square to the track."""
+    or, for fixed-wing, once past the line through the point square to the track.
+
+    A fixed-wing's track starts at `origin` (the previous waypoint) unless that gives no
+    track: ArduPlane's `set_next_WP` flies from where the aircraft is when the previous
+    waypoint is the point itself (`Location::line_path_proportion` reads two coincident
+    points as passed). That happens when the same item is started again: a mission
+    uploaded in AUTO restarts its current index, then DO_SET_MISSION_CURRENT starts it
+    once more. Without a track the point could only be reached within `accept_m`, and an
+    aircraft that had flown past it, its turn circle wider than that, circled it for
+    ever (issue 18: a demo VTOL until BATTERY_LOW)."""
 
     n: float
     e: float
@@ -128,7 +137,19 @@ class FlyTo(NavTask):
     held_s: float = 0.0
     name = "flyto"
 
+    def _no_track(self, ctx: NavContext) -> None:
+        """ArduPlane's set_next_WP: no track from a previous waypoint on the point itself;
+        the aircraft flies from where it is."""
+        if (
+            ctx.fixed_wing
+            and not self.vtol
+            and self.origin is not None
+            and math.hypot(self.n - self.origin[0], self.e - self.origin[1]) < 1.0
+        ):
+            self.origin = (ctx.body.n, ctx.body.e)
+
     def target(self, ctx: NavContext) -> Target:
+        self._no_track(ctx)
         speed = self.speed if self.speed > 0 else ctx.wp_speed
         if self.vtol:
             speed = 0.0  # the VTOL speed
@@ -169,6 +190,7 @@ class FlyTo(NavTask):
 
     def update(self, ctx: NavContext, dt: float) -> bool:
         b = ctx.body
+        self._no_track(ctx)
         if self.origin is None:
             self.origin = (b.n, b.e)
         if not self.reached:

@@ -21,6 +21,12 @@ from the entry on, and in flight sets its airspeed every CONTROL_PERIOD_S to wha
 it to the entry at T (`premission_speed` on what is left of the leg). A member that
 cannot make T after all publishes its new ETA: T only moves later, for everyone.
 
+Watchdog: a member still on its leg well past the meet time (`overdue`: LEG_OVERDUE_S,
+or LEG_OVERDUE_FRACTION of the leg's planned time if longer) gives up the meet and flies
+its share from where it is, with an alert: an autopilot circling a waypoint it cannot
+reach, or a leg started on items it had flown past while they were uploaded, would
+otherwise fly until its battery is low, the node silent (issue 18).
+
 MISSION: past the entry, every member's lateness is measured against its share's
 planned schedule from T (`Share.planned_s_at`, from the entry on); `sync_speed` speeds
 up a member behind the group's mean lateness and slows one ahead, in proportion, within
@@ -73,6 +79,12 @@ RESEND_S = 5.0  # an airspeed the autopilot does not fly is commanded again afte
 ETA_MARGIN = 0.02  # of the predicted time, for what the model misses ...
 ETA_MARGIN_S = 2.0  # ... and a fixed part (an arming retry, a slow upload)
 META_WAIT_S = 15.0  # climbed: wait at most this long for the others' ETAs
+#: the PREMISSION watchdog: a leg not at its entry this long after the meet time (or
+#: this fraction of the leg's planned time, if longer) makes no progress (issue 18: a
+#: demo VTOL circled its leg's first waypoint until BATTERY_LOW): the share is flown
+#: from where the vehicle is, with an alert
+LEG_OVERDUE_S = 30.0
+LEG_OVERDUE_FRACTION = 0.5
 #: switches for the benchmark's baselines: the fleet without a meet, and without the
 #: MISSION speed rule (bench/mission.py)
 PREMISSION = True
@@ -276,6 +288,18 @@ class FleetSync:
         )
 
     # ------------------------------------------------------------------ in flight
+    def overdue(self, now: float, meet_unix_s: float) -> float | None:
+        """The PREMISSION watchdog: seconds past the meet time (the later of `meet_unix_s`
+        and the one our leg was planned for) when our leg, flown, has still not reached
+        the entry LEG_OVERDUE_S after it (or LEG_OVERDUE_FRACTION of the leg's planned
+        time, if longer); else None."""
+        if not self.flying_leg:
+            return None
+        meet = max(meet_unix_s, self.meet_unix_s)
+        grace = max(LEG_OVERDUE_S, LEG_OVERDUE_FRACTION * max(meet - self.depart_unix_s, 0.0))
+        late = now - meet
+        return late if late > grace else None
+
     def control(
         self,
         ap: AutopilotState,
