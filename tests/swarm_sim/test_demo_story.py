@@ -349,15 +349,16 @@ def test_bad_demo_options_are_one_line_and_exit_2(args: list[str], says: str) ->
 
 
 @pytest.mark.soak
-@pytest.mark.xfail(strict=True, reason="avoidance predicts a turning fixed-wing straight on")
 def test_the_shortened_story_keeps_5_m_between_a_returning_vtol_and_a_turning_one(
     tmp_path: Path, fleet_profiles: dict
 ) -> None:
-    """A known weakness, reproduced: in the story shortened to 0.7 (since the still-pair
-    release changed the launch's timing), vehicle 5, its target watched, turns for home
-    at 100 m across the field while vehicle 3 makes its lane-end turn at 100 m: each
-    predicts the other straight on, the conflict is seen 2 s ahead at 19 m, too late to
-    climb, and they pass 3.7 m apart (the demo's own distances keep 16.5 m)."""
+    """Was a strict xfail, a known weakness reproduced: in the story shortened to 0.7,
+    vehicle 5, its target watched, turned for home at 100 m across the field while
+    vehicle 3 made its lane-end turn at 100 m: each predicted the other straight on and
+    they passed 3.7 m apart. The story's timing has moved on since (it kept 10.7 m at
+    the closest, 1-2 at take-off, in the run that lifted the xfail): the weakness
+    itself, a turning aircraft predicted straight on, remains (docs/avoidance.md, known
+    limits); this keeps the shortened story's 5 m."""
     report = fast_report(_plan(0.7), {v: fleet_profiles[v] for v in MEMBERS}, tmp_path,
                          pictures=False)  # fmt: skip
     assert report["separation"]["near"] == 0, report["separation"]["min_sep_m"]
