@@ -435,8 +435,12 @@ def premission_meet(
 # --------------------------------------------------------------------------- AUTOLAND, MUM-T
 
 
-def _ready(members: Sequence[int], profiles: Mapping[int, VehicleProfile]) -> FastFleet:
-    fleet = FastFleet.build(list(members), profiles, spacing_m=60.0)
+def ready_fleet(
+    members: Sequence[int], profiles: Mapping[int, VehicleProfile], spacing_m: float = 60.0
+) -> FastFleet:
+    """A FastFleet of `members` on pads `spacing_m` apart, positioned, base set, every
+    node in GO_MISSION (ready for a mission)."""
+    fleet = FastFleet.build(list(members), profiles, spacing_m=spacing_m)
     fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
@@ -444,6 +448,9 @@ def _ready(members: Sequence[int], profiles: Mapping[int, VehicleProfile]) -> Fa
         lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
     )
     return fleet
+
+
+_ready = ready_fleet
 
 
 def _completed(fleet: FastFleet, mid: int) -> set[int]:

@@ -12,11 +12,6 @@ from __future__ import annotations
 import pytest
 
 from swarm_proto import (
-    Command,
-    CommandArgs,
-    CommandKind,
-    FsmState,
-    GeoPoint,
     Mission,
     MissionParams,
     MissionState,
@@ -24,21 +19,15 @@ from swarm_proto import (
 )
 from swarm_sim.core import SITL_HOME
 from swarm_sim.fast_fleet import FastFleet
-from swarm_sim.scenarios import square
+from swarm_sim.scenarios import ready_fleet, square
 
 GCS = 900
 MEMBERS = (1, 2, 3)  # seed Albatross VTOLs, pads 30 m apart: they take off in turn
 
 
 def _fleet(fleet_profiles: dict) -> FastFleet:
-    fleet = FastFleet.build(list(MEMBERS), fleet_profiles, spacing_m=30.0)
+    fleet = ready_fleet(MEMBERS, fleet_profiles, spacing_m=30.0)
     assert not fleet.liveliness  # peers known by their telemetry, as behind the radio
-    fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
-    base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
-    fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
-    assert fleet.run_until(
-        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
-    )
     area = square(SITL_HOME.lat_deg + 0.004, SITL_HOME.lon_deg, 200.0)
     params = MissionParams(altitude_rel_m=60.0, side_overlap=0.5, altitude_step_m=10.0)
     fleet.broadcast(Mission(71, GCS, MissionType.AREA, area, params))
