@@ -61,6 +61,7 @@ T = TypeVar("T", bound=msgspec.Struct)
 
 
 REPEAT_S = 1.0  # commands and missions are sent again this often until answered
+DISCOVER_RETRY_S = 0.2  # an empty liveliness answer asked again after this
 DISCOVER_S = 2.0  # a fresh ground station's window to hear the vehicles that are alive
 HEARD_ALIVE_S = 5.0  # a vehicle heard this recently counts as alive (behind the radio)
 RATE_WINDOW_S = 2.0  # packets per second are counted over this window
@@ -384,22 +385,30 @@ class GroundStation:
         up to `window_s` until each of them has been heard (its type and fleet known).
         Returns the ids of the vehicles among them (ground stations left out)."""
         found: set[int] = set()
-        try:
-            replies = self.bus.session.liveliness().get(
-                ALIVE.wildcard(self.swarm), timeout=window_s
-            )
-            for reply in replies:
-                if reply.ok is None:
-                    continue
-                params = ALIVE.parse(self.swarm, str(reply.ok.key_expr))
-                if params is not None and params["node_id"].isdigit():
-                    found.add(int(params["node_id"]))
-        except Exception:  # a closed session: nothing more to discover
-            return set()
-        with self._lock:
-            found |= self.view.alive  # and what the liveliness subscriber has seen
-            found.discard(self.gcs_id)
-            self.view.alive |= found
+        end = time.monotonic() + window_s
+        while True:
+            try:
+                replies = self.bus.session.liveliness().get(
+                    ALIVE.wildcard(self.swarm), timeout=max(0.1, end - time.monotonic())
+                )
+                for reply in replies:
+                    if reply.ok is None:
+                        continue
+                    params = ALIVE.parse(self.swarm, str(reply.ok.key_expr))
+                    if params is not None and params["node_id"].isdigit():
+                        found.add(int(params["node_id"]))
+            except Exception:  # a closed session: nothing more to discover
+                return set()
+            with self._lock:
+                found |= self.view.alive  # and what the liveliness subscriber has seen
+                found.discard(self.gcs_id)
+                self.view.alive |= found
+            # a fresh client session under load can get an empty answer at once (its
+            # router had not matched it yet: `gcs declared` found "no vehicle alive"
+            # right after a node restart): asked again within the window
+            if found or time.monotonic() + DISCOVER_RETRY_S >= end:
+                break
+            time.sleep(DISCOVER_RETRY_S)
         self.wait_for(lambda v: all(i in v.status or i in v.info for i in found), window_s)
         with self._lock:
             return {i for i in found if self.view.type_of(i) != VehicleType.GCS}

@@ -66,10 +66,15 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
                 lambda: all(infos.get(v) and infos[v].mission_id == 77 for v in (7, 8)), 20
             )
             assert went is not None, {v: (i.mission_id, i.fsm_state) for v, i in infos.items()}
-            assert all(
-                infos[v].mission_id == 0 and infos[v].fsm_state == FsmState.GO_MISSION
-                for v in (1, 9)
+            # the losers' next info (1 Hz) says they stood down
+            stood = wait_until(
+                lambda: all(
+                    infos[v].mission_id == 0 and infos[v].fsm_state == FsmState.GO_MISSION
+                    for v in (1, 9)
+                ),
+                10,
             )
+            assert stood is not None, {v: (i.mission_id, i.fsm_state) for v, i in infos.items()}
             print(out)
             print(f"gcs mission --count 2: answered, voted and shown in {took:.1f} s")
             # add: vehicle 1 (stood down) joins the winners' fleet; they replan with it
