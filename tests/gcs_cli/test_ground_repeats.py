@@ -114,3 +114,23 @@ def test_the_ground_station_does_not_wait_for_itself(zenoh_router: str) -> None:
             gs.close()
     assert [(a.vehicle_id, a.accepted) for a in acks] == [(5, True)]
     assert took < 10.0  # generous: it returns in milliseconds; the timeout is 20 s
+
+
+def test_discovery_asks_again_while_nobody_answers(zenoh_router: str) -> None:
+    """A liveliness query that finds nobody is asked again within the discovery window
+    (a fresh client session under load got an empty answer at once right after a node
+    restart: `gcs declared` said "no vehicle alive to ask"). Here the vehicle comes
+    alive 0.6 s into the window."""
+    settings = ZenohSettings(mode="client", connect=(zenoh_router,))
+    with SwarmBus.open(settings, "disc") as vehicle:
+        gs = GroundStation(settings, "disc", announce=False)
+        timer = threading.Timer(0.6, lambda: vehicle.declare_alive(6))
+        try:
+            timer.start()
+            t0 = time.monotonic()
+            found = gs.discover(window_s=3.0)
+            took = time.monotonic() - t0
+        finally:
+            timer.cancel()
+            gs.close()
+    assert found == {6}, (found, took)
