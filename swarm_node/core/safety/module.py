@@ -160,6 +160,7 @@ class PadLanding:
     descending: bool = False
     lowering: bool = False  # a fixed-wing circles down to the lowest layer first
     waited_since: float | None = None
+    upload_id: int | None = None  # the mission's return upload it was made of
 
 
 Intercepted = tuple[list[ModuleOutput], Routed | None]  # replacement requests, an answer
@@ -264,6 +265,15 @@ class AvoidanceModule:
                 o = self._pad_return(o, req, ap, now)  # zone-safe legs home, then the pad
                 req = o.request
                 assert isinstance(req, UploadMission)
+            elif self.landing is not None and req.request_id not in (
+                *self._pad_ids, self.landing.upload_id
+            ):
+                # a new mission replaces the return (a vehicle sent on again on its way
+                # home): its landing is over. Kept, its gate fired in the new mission at
+                # the old hold's item number (measured in the demo: the route's leg was
+                # sent down towards 30 m, and once below 35 m it would have been sent to
+                # the old landing's item)
+                self.landing = None
             self.items = req.items
         s = self.suspension
         if s is not None and mine and flies(req) and self._on_path(s):
@@ -369,7 +379,9 @@ class AvoidanceModule:
         hold = self._hold_alt(pad)
         legs = req.items[:-1]
         items = (*legs, *self._pad_items(pad, hold))
-        self.landing = PadLanding(pad, len(legs) + 1, len(legs) + 2, hold, o.owner)
+        self.landing = PadLanding(
+            pad, len(legs) + 1, len(legs) + 2, hold, o.owner, upload_id=req.request_id
+        )
         self._count("pad_returns")
         return Submit(msgspec.structs.replace(req, items=items), o.owner, o.route)
 
@@ -419,7 +431,7 @@ class AvoidanceModule:
             return out
         blockers = may_move(
             self.profile.vehicle_id, ld.pad, self._peers_of(), taking_off=False,
-            config=self.pad_config, own_alt_msl_m=ap.alt_msl_m,
+            config=self.pad_config, own_alt_msl_m=ap.alt_msl_m, own_circles=not self._hovering(ap),
         )  # fmt: skip
         if blockers:
             if ld.waited_since is None:
