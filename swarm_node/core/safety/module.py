@@ -36,8 +36,9 @@ refused, so the sortie never fails for it). The manoeuvre is flown as:
     rover, boat               anything         HOLD mode (stops)
 
 When the avoider says clear (RESUME), the vehicle goes back to what it was doing: the
-mission's held requests if it asked where to go meanwhile (its newest intent; a speed
-is not one: it goes on after the resume); else a fixed-wing
+mission's held requests if it asked where to go meanwhile (its newest intent) and one
+of them will reach the autopilot (`_goes_on`: not a speed, not a Land the pad landing
+answers itself, not one the arbiter will refuse; those go on after the resume); else a fixed-wing
 changes altitude back to its mission item's (or the planned one), and the others go
 back by the mode they were in: AUTO -> StartMission(first_item = the item they were
 flying to), RTL -> ReturnToLaunch, QRTL, LOITER and the like -> that mode again,
@@ -160,6 +161,7 @@ class PadLanding:
     descending: bool = False
     lowering: bool = False  # a fixed-wing circles down to the lowest layer first
     waited_since: float | None = None
+    upload_id: int | None = None  # the mission's return upload it was made of
 
 
 Intercepted = tuple[list[ModuleOutput], Routed | None]  # replacement requests, an answer
@@ -264,6 +266,15 @@ class AvoidanceModule:
                 o = self._pad_return(o, req, ap, now)  # zone-safe legs home, then the pad
                 req = o.request
                 assert isinstance(req, UploadMission)
+            elif self.landing is not None and req.request_id not in (
+                *self._pad_ids, self.landing.upload_id
+            ):
+                # a new mission replaces the return (a vehicle sent on again on its way
+                # home): its landing is over. Kept, its gate fired in the new mission at
+                # the old hold's item number (measured in the demo: the route's leg was
+                # sent down towards 30 m, and once below 35 m it would have been sent to
+                # the old landing's item)
+                self.landing = None
             self.items = req.items
         s = self.suspension
         if s is not None and mine and flies(req) and self._on_path(s):
@@ -322,12 +333,30 @@ class AvoidanceModule:
             return None
         if isinstance(req, ReturnToLaunch) and self._lands_on_pad() and ap.armed:
             return self._pad_rtl(o, ap, now)
-        if isinstance(req, Land) and self.landing is not None:
+        if self._answered_here(req):
             # the landing on the pad is already on its way: answered at once
             return [], Routed(
                 o.route or o.owner, ApResult(req.request_id, True, "landing on its pad")
             )
         return None
+
+    def _answered_here(self, req: ApRequest) -> bool:
+        """A mission request this module answers itself, sending nothing to the
+        autopilot: the mission manager's Land while the landing on the pad flies."""
+        return isinstance(req, Land) and self.landing is not None
+
+    def _goes_on(self, h: Submit, s: Suspension) -> bool:
+        """Whether a held mission request, passed on once control is given back, will
+        reach the autopilot and say where the vehicle goes: then it replaces the
+        module's own resume. Not a speed (`steers`), not a request this module answers
+        itself (a Land during the landing on the pad), not one the arbiter will refuse
+        (the holder given control back outranks it). Deferring to one of those left a
+        quadcopter in its manoeuvre's GUIDED for good (test_retasking)."""
+        return (
+            steers(h.request)
+            and not self._answered_here(h.request)
+            and not (s.holder is not None and s.holder > h.owner)
+        )
 
     # ------------------------------------------------------------------ pads
     def _aircraft(self) -> bool:
@@ -369,7 +398,9 @@ class AvoidanceModule:
         hold = self._hold_alt(pad)
         legs = req.items[:-1]
         items = (*legs, *self._pad_items(pad, hold))
-        self.landing = PadLanding(pad, len(legs) + 1, len(legs) + 2, hold, o.owner)
+        self.landing = PadLanding(
+            pad, len(legs) + 1, len(legs) + 2, hold, o.owner, upload_id=req.request_id
+        )
         self._count("pad_returns")
         return Submit(msgspec.structs.replace(req, items=items), o.owner, o.route)
 
@@ -419,7 +450,7 @@ class AvoidanceModule:
             return out
         blockers = may_move(
             self.profile.vehicle_id, ld.pad, self._peers_of(), taking_off=False,
-            config=self.pad_config, own_alt_msl_m=ap.alt_msl_m,
+            config=self.pad_config, own_alt_msl_m=ap.alt_msl_m, own_circles=not self._hovering(ap),
         )  # fmt: skip
         if blockers:
             if ld.waited_since is None:
@@ -690,7 +721,7 @@ class AvoidanceModule:
     def _resume_requests(
         self, m: Manoeuvre, ap: AutopilotState, s: Suspension
     ) -> tuple[ApRequest, ...]:
-        if any(steers(h.request) for h in self.held):
+        if any(self._goes_on(h, s) for h in self.held):
             return ()  # the mission asked for something else meanwhile: that goes next
         planned = m.target_alt_rel_m
         if not s.via_goto and self.profile.vehicle_type not in GROUND:

@@ -10,9 +10,13 @@ are sequenced among neighbours:
 
     a peer u blocks vehicle v (pad P) if
       (a) u is airborne (above `airborne_m`) within `near_m` of P horizontally (plus
-          `circle_m` while it flies faster than `hover_speed_m_s`: a circling fixed-wing), and
-          u is low (under `stagger_m`), or (landing only) v's descent would go through
-          it: u is below v, or level with it (within `level_band_m`) with a lower id; or
+          `circle_m` while it flies faster than `hover_speed_m_s`: a circling fixed-wing;
+          landing, plus `circle_m` again when v itself circles down: its own loiter
+          circle sweeps that far around P), and u is low (under `stagger_m`), or
+          (landing only) v's descent would go through it: u is below v, or level with
+          it (within `level_band_m`) with a lower id; landing, u counts at its own pad
+          as well while within `approach_m` of it (on its way down there: a VTOL's
+          transition and slow approach begin far out); or
       (b) taking off only: u stands on a neighbouring pad with a lower id and is about
           to take off for a mission too (its sortie PLANNING or PREMISSION).
 
@@ -54,6 +58,10 @@ class PadConfig:
     level_band_m: float = 5.0  # landing: a neighbour within this of our level and a lower id first
     hover_speed_m_s: float = 8.0  # faster than this, a neighbour is in fixed-wing flight
     circle_m: float = 80.0  # ... and counts from this much further (its loiter circle)
+    # landing: a peer this close to its own pad is on its way down there as well (measured
+    # in the demo: a VTOL's transition to hover overshot 170 m from its pad, and it flew
+    # the rest at 5 m/s; a fixed-wing circling down 60 m away swept through it)
+    approach_m: float = 200.0
     hold_alt_rel_m: float = 30.0  # the lowest holding layer over a pad
     layer_m: float = 30.0  # between holding layers (over the avoider's 20 m and its margins)
     hold_near_m: float = 150.0  # pads this close share the holding layers (loiter circles)
@@ -82,11 +90,14 @@ def may_move(
     taking_off: bool,
     config: PadConfig = PadConfig(),
     own_alt_msl_m: float | None = None,
+    own_circles: bool = False,
 ) -> list[Blocker]:
     """Who keeps vehicle `own_id` from climbing off / descending onto `pad` now:
     `peers` are the peers' latest statuses with their pads (homes), None if unknown;
-    `own_alt_msl_m`: where it is (landing)."""
+    `own_alt_msl_m`: where it is (landing); `own_circles`: it flies as a fixed-wing, so
+    its descent circles around the pad (landing)."""
     cfg = config
+    own_reach = cfg.circle_m if own_circles and not taking_off else 0.0
     out: list[Blocker] = []
     for st, their_pad in peers:
         u = st.vehicle_id
@@ -103,10 +114,18 @@ def may_move(
             # a fixed-wing in flight (a VTOL circling its holding layer) sweeps a circle:
             # it counts from further away
             fast = math.hypot(st.vel_north_m_s, st.vel_east_m_s) > cfg.hover_speed_m_s
-            reach = cfg.near_m + (cfg.circle_m if fast else 0.0)
+            reach = cfg.near_m + (cfg.circle_m if fast else 0.0) + own_reach
+            how = "m from the pad"
+            if not taking_off and their_pad is not None and d >= reach:
+                # on its way down to its own pad (a VTOL's slow approach from far out):
+                # it will be there
+                home = distance_m(their_pad.lat_deg, their_pad.lon_deg, st.lat_deg, st.lon_deg)
+                if home < cfg.approach_m:
+                    d = distance_m(pad.lat_deg, pad.lon_deg, their_pad.lat_deg, their_pad.lon_deg)
+                    how = "m to its own pad, on its way down there"
             if d < reach and (low or below):
                 where = "low" if low else "below"
-                out.append(Blocker(u, f"{u} {where} {d:.0f} m from the pad"))
+                out.append(Blocker(u, f"{u} {where} {d:.0f} {how}"))
             continue
         if (
             taking_off

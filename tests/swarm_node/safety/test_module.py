@@ -479,6 +479,57 @@ def test_the_return_lands_on_the_own_pad_at_its_holding_layer() -> None:
     assert isinstance(go, StartMission) and go.first_item == 3
 
 
+def test_a_circling_vtol_does_not_descend_onto_a_neighbour_landing_60_m_away() -> None:
+    """The demo's near-collision (4.78 m, story time 708 s): VTOL 6, holding over its
+    pad, was let down while VTOL 4 (pad 60 m west) flew its slow landing approach 130 m
+    from 6's pad, and circled down through it. Now 6 holds until 4 is down."""
+    m = AvoidanceModule(profile("Albatross 250 VTOL", 6))
+    pad4 = GeoPoint(*at(0.0, -60.0), HOME_MSL)
+    state = ap(mode_name="AUTO", north=800.0)
+    m.tick(T, status(6, state, T), state, pads={4: pad4})
+    m.on_submit(Submit(ReturnToLaunch(request_id=9), Owner.MISSION), state, T)
+    assert m.landing is not None and m.landing.hold_alt_rel_m == 60.0
+    over = ap(mode_name="AUTO", mission_current=2, alt_rel_m=60.0)  # circling its hold
+    approach = status(4, ap(north=126.0, east=-33.0, alt_rel_m=35.0, groundspeed_m_s=5.0,
+                            vel_east_m_s=0.0, vel_north_m_s=-5.0), T)  # fmt: skip
+    out = m.tick(T + 1, status(6, over, T + 1), over, peers=[(approach, pad4)], pads={4: pad4})
+    assert requests(out) == [], "6 descends while 4 lands 60 m from its pad"
+    assert any(isinstance(o, Note) and "4 below" in o.text for o in out)
+    down = status(4, ap(east=-60.0, alt_rel_m=0.0, armed=False, groundspeed_m_s=0.0,
+                        vel_east_m_s=0.0), T + 30)  # fmt: skip
+    out = m.tick(T + 30, status(6, over, T + 30), over, peers=[(down, pad4)], pads={4: pad4})
+    (lower,) = requests(out)
+    assert isinstance(lower, ChangeAltitude) and lower.alt_rel_m == 30.0
+
+
+def test_a_new_mission_on_the_way_home_ends_the_landing_on_the_pad() -> None:
+    """Found in the demo's logs: VTOL 6 was on its way home after the perimeter when the
+    route came; the return's landing was kept, and 3 s into the route (its item 2, the
+    old hold's number) its gate said "landing: on its pad" and sent it down towards
+    30 m (it dipped 4.5 m before the next item). A new mission ends the landing."""
+    m = AvoidanceModule(VTOL)
+    state = ap(mode_name="AUTO", north=800.0)
+    m.tick(T, status(2, state, T), state)
+    home = (*MISSION_ITEMS[:1], Waypoint(ItemKind.RTL, 0.0, 0.0, 0.0))
+    (converted,), _ = m.on_submit(  # type: ignore[misc]
+        Submit(UploadMission(request_id=5, items=home), Owner.MISSION), state, T
+    )
+    # the node passes the converted upload through again (NodeCore._route)
+    assert m.on_submit(converted, state, T) is None
+    assert m.landing is not None and m.landing.hold_seq == 2
+    route = UploadMission(request_id=6, items=MISSION_ITEMS)
+    assert m.on_submit(Submit(route, Owner.MISSION), state, T) is None
+    assert m.landing is None
+    flying = ap(mode_name="AUTO", mission_current=2, alt_rel_m=170.0)  # the route's item 2
+    assert requests(m.tick(T + 3, status(2, flying, T + 3), flying)) == []
+    # the pad return's own upload (its RTL turned into a hold and a landing) keeps it
+    subs, _ = m.on_submit(Submit(ReturnToLaunch(request_id=9), Owner.MISSION), state, T + 4)  # type: ignore[misc]
+    for o in subs:
+        if isinstance(o, Submit):
+            assert m.on_submit(o, state, T + 4) is None
+    assert m.landing is not None
+
+
 def test_a_manoeuvre_during_the_landing_starts_the_descent_again() -> None:
     """A fixed-wing circling down to its pad's lowest layer climbs for a conflict; once
     clear the pad's gate starts the descent again (it circled its layer for good)."""
@@ -522,3 +573,73 @@ def test_a_multirotor_in_its_mission_gives_the_avoider_its_way_ahead() -> None:
     v = AvoidanceModule(VTOL)
     v.on_submit(Submit(UploadMission(items=MISSION_ITEMS), Owner.MISSION), state, T)
     assert v._route(state) == OwnRoute(None)
+
+
+def test_a_land_held_during_a_climb_on_the_way_to_the_pad_does_not_leave_it_in_guided() -> None:
+    """Found in test_retasking (quadcopter 9, after the landing rule's fix shifted its
+    timing): on its way to its pad (the pad mission, AUTO) it climbed for a neighbour
+    (Goto: GUIDED); near home the mission manager asked Land, held; once clear the
+    module gave control back with no resume of its own ("the mission asked for
+    something else meanwhile") and the held Land, passed on, was answered at once by
+    the pad landing ("landing on its pad"): nothing ever sent the quadcopter back to
+    AUTO, and it hovered in GUIDED until its battery failsafe. A held request that
+    will not reach the autopilot does not replace the module's resume."""
+    m = AvoidanceModule(COPTER)
+    state = ap(mode_name="AUTO", north=60.0, groundspeed_m_s=5.0, vel_east_m_s=0.0,
+               vel_north_m_s=-5.0, alt_rel_m=50.0)  # fmt: skip
+    m.tick(T, status(8, state, T), state)
+    subs, _ = m.on_submit(Submit(ReturnToLaunch(request_id=9), Owner.MISSION), state, T)  # type: ignore[misc]
+    for o in subs:
+        if isinstance(o, Submit):
+            assert m.on_submit(o, state, T) is None
+            m.on_result(ApResult(o.request.request_id, True), T)
+    assert m.landing is not None
+    state = msgspec.structs.replace(state, mission_current=1)
+    m.on_peer(status(7, ap(north=40.0, alt_rel_m=45.0, groundspeed_m_s=0.0,
+                           vel_east_m_s=0.0, vel_down_m_s=-2.0), T), T)  # fmt: skip
+    (climb,) = requests(tick(m, state, T + 0.2))
+    assert isinstance(climb, Goto) and m.suspension is not None
+    m.on_result(ApResult(climb.request_id, True), T + 0.2)
+    state = msgspec.structs.replace(state, mode_name="GUIDED")
+    land = Submit(Land(request_id=11), Owner.MISSION)
+    assert m.on_submit(land, state, T + 1.0) == ([], None)  # held
+    m.forget(7, T + 1.2)
+    now, resume = T + 1.2, []
+    while not m.release_due and now < T + 12:
+        now += 0.2
+        out = requests(tick(m, state, now))
+        resume += out
+        for r in out:
+            m.on_result(ApResult(r.request_id, True), now)
+    assert m.release_due
+    assert any(isinstance(r, StartMission) and r.first_item == 1 for r in resume), resume
+    # the held Land goes on after the resume: answered, the pad landing flies on
+    (held,) = m.take_held()
+    subs, answer = m.on_submit(held, state, now)  # type: ignore[misc]
+    assert subs == [] and answer is not None and answer.result.ok
+
+
+def test_a_held_mission_request_the_arbiter_will_refuse_does_not_replace_the_resume() -> None:
+    """The operator held the autopilot (a Goto) when the manoeuvre began: the mission's
+    request held meanwhile will be refused once control goes back to the operator, so
+    the module goes back itself (a Goto over itself at the altitude it left)."""
+    m = AvoidanceModule(COPTER)
+    state = ap(mode_name="GUIDED", groundspeed_m_s=5.0, vel_east_m_s=5.0)
+    m.on_peer(head_on_peer(T, east_m=200.0, vid=7), T)
+    (climb,) = requests(tick(m, state, T, holder=Owner.OPERATOR))
+    assert isinstance(climb, Goto) and m.suspension is not None
+    assert m.suspension.holder == Owner.OPERATOR
+    m.on_result(ApResult(climb.request_id, True), T)
+    held = Submit(StartMission(request_id=3), Owner.MISSION)
+    assert m.on_submit(held, state, T + 0.1) == ([], None)
+    m.forget(7, T + 0.2)
+    now, resume = T, []
+    while not m.release_due and now < T + 12:
+        now += 0.2
+        out = requests(tick(m, state, now, holder=Owner.AVOIDANCE))
+        resume += out
+        for r in out:
+            m.on_result(ApResult(r.request_id, True), now)
+    assert m.release_due and m.restore == Owner.OPERATOR
+    assert any(isinstance(r, Goto) and r.alt_rel_m == 60.0 for r in resume), resume
+    assert m.take_held() == [held]  # still routed: the arbiter answers it (refused)

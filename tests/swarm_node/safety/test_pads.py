@@ -92,6 +92,59 @@ def test_landing_waits_for_a_low_neighbour_and_for_the_layers_below() -> None:
     assert blockers(landed, pad(0.0), 60.0) == []
 
 
+def flying(
+    vid: int, east_m: float, north_m: float, alt_rel_m: float, speed_m_s: float
+) -> VehicleStatus:
+    """An airborne peer at (east, north) of the origin, flying south at `speed_m_s`."""
+    p = pad(east_m, north_m)
+    return VehicleStatus(
+        vehicle_id=vid, time_unix_s=T, lat_deg=p.lat_deg, lon_deg=p.lon_deg,
+        alt_msl_m=10.0 + alt_rel_m, alt_rel_m=alt_rel_m, vel_north_m_s=-speed_m_s,
+        armed=True, mission_state=MissionState.MISSION,
+    )  # fmt: skip
+
+
+def test_a_circling_vtol_waits_for_a_neighbour_on_its_slow_approach_to_a_pad_60_m_away() -> None:
+    """The demo's near-collision (4.78 m, vehicles 4 and 6, story time 708 s), its
+    numbers from the run's flight.csv: 6 (pad at 150 m east) held at 180 m; 4 (pad at
+    90 m east, 60 m from 6's) was on its landing approach, hovering down at 5 m/s from
+    35 m, 130 m from 6's pad. 6 was let down (4 was slow and more than 40 m from its
+    pad) and circled down its hold (out to 179 m from its pad) through 4's approach
+    path: 4.78 m apart at 52 and 47.7 m. Its own circle counts, and a neighbour near its
+    pad counts at its pad too (it is on its way down there): 6 waits."""
+    mine, theirs = pad(150.0), pad(90.0)
+    approaching = flying(4, 117.0, 126.0, alt_rel_m=35.0, speed_m_s=5.0)
+    # 6 circles at 180 m: 4, below it and landing on a pad inside 6's circle, holds it
+    blocked = may_move(6, mine, [(approaching, theirs)], taking_off=False,
+                       own_alt_msl_m=190.0, own_circles=True)  # fmt: skip
+    assert ids(blocked) == [4] and "its own pad" in blocked[0].why
+    # after a climb for 4, at 62 m, 4 74 m from the pad (at 47.7 m): still held
+    closer = flying(4, 83.0, 31.0, alt_rel_m=47.7, speed_m_s=5.0)
+    assert ids(may_move(6, mine, [(closer, theirs)], taking_off=False,
+                        own_alt_msl_m=72.0, own_circles=True)) == [4]  # fmt: skip
+    # 4 down on its pad: 6 goes
+    down = status(4, 90.0, alt_rel_m=0.0, armed=False)
+    assert may_move(6, mine, [(down, theirs)], taking_off=False,
+                    own_alt_msl_m=190.0, own_circles=True) == []  # fmt: skip
+    # a multirotor hovers straight down over its pad: its 40 m band is unchanged
+    assert may_move(6, mine, [(closer, theirs)], taking_off=False, own_alt_msl_m=72.0) == []
+
+
+def test_a_neighbour_far_from_its_pad_does_not_hold_a_landing() -> None:
+    """Below us and its pad next to ours, but out on its mission 500 m away: it is not
+    landing, we go (a lander does not wait for the whole fleet to come home)."""
+    mine, theirs = pad(150.0), pad(120.0)
+    away = flying(5, 120.0, 500.0, alt_rel_m=90.0, speed_m_s=26.0)
+    assert may_move(6, mine, [(away, theirs)], taking_off=False,
+                    own_alt_msl_m=190.0, own_circles=True) == []  # fmt: skip
+    # nearer its pad than `approach_m`, it is on its way down there: it holds us
+    back = flying(5, 120.0, 150.0, alt_rel_m=90.0, speed_m_s=26.0)
+    assert ids(may_move(6, mine, [(back, theirs)], taking_off=False,
+                        own_alt_msl_m=190.0, own_circles=True)) == [5]  # fmt: skip
+    # a take-off is not held by it (the rule is the landing's)
+    assert may_move(6, mine, [(back, theirs)], taking_off=True, own_circles=True) == []
+
+
 @given(st.lists(st.tuples(st.floats(-60, 60), st.floats(0, 120)), min_size=2, max_size=7))
 def test_landings_never_deadlock(spots: list[tuple[float, float]]) -> None:
     """Any number of vehicles waiting over neighbouring pads at any heights: unless one
@@ -106,6 +159,40 @@ def test_landings_never_deadlock(spots: list[tuple[float, float]]) -> None:
         if not may_move(
             v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=False,
             own_alt_msl_m=me.alt_msl_m,
+        )
+    ]  # fmt: skip
+    if all(s.alt_rel_m >= PadConfig().stagger_m for s in peers.values()):
+        assert free
+
+
+
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(-60, 60), st.floats(-250, 250), st.floats(0, 180), st.floats(0, 30),
+            st.booleans(),
+        ),
+        min_size=2, max_size=7,
+    )
+)  # fmt: skip
+def test_landings_never_deadlock_with_circles_and_approaches(
+    spots: list[tuple[float, float, float, float, bool]],
+) -> None:
+    """As above, with vehicles off their pads (on their way in), at any speed, circling
+    or hovering: the own circle and a neighbour counted at its pad only widen the reach,
+    the waits still follow altitude then id, so unless one is low one of them may land."""
+    peers = {
+        v + 1: flying(v + 1, e, n, alt_rel_m=max(2.0, h), speed_m_s=speed)
+        for v, (e, n, h, speed, _c) in enumerate(spots)
+    }
+    pads = {v: pad(spots[v - 1][0]) for v in peers}
+    circles = {v: spots[v - 1][4] for v in peers}
+    free = [
+        v
+        for v, me in peers.items()
+        if not may_move(
+            v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=False,
+            own_alt_msl_m=me.alt_msl_m, own_circles=circles[v],
         )
     ]  # fmt: skip
     if all(s.alt_rel_m >= PadConfig().stagger_m for s in peers.values()):
