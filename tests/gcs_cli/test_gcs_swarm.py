@@ -24,7 +24,6 @@ from swarm_proto.topics import ACK, COMMAND
 from swarm_sim.core import SITL_HOME
 from swarm_sim.runtime import VehicleServer, VehicleSpec
 from swarm_sim.runtime.server import spread_homes
-from tests.conftest import free_tcp_port
 from tests.swarm_node.processes import peers_of, plain_session, start_node, stop, wait_until
 
 pytestmark = pytest.mark.network
@@ -62,10 +61,13 @@ class Swarm:
 def swarm(zenoh_router: str, swarm_db: Path, tmp_path: Path) -> Iterator[Swarm]:
     ids = [*FIRST, *LATE]
     homes = spread_homes(SITL_HOME, len(ids), 40.0)
-    specs = {vid: VehicleSpec(MODEL[vid], port=free_tcp_port(), sysid=vid, home=homes[i])
+    specs = {vid: VehicleSpec(MODEL[vid], port=0, sysid=vid, home=homes[i])
              for i, vid in enumerate(ids)}  # fmt: skip
-    s = Swarm(zenoh_router, f"s{os.getpid()}", tmp_path, {v: sp.tcp_port for v, sp in specs.items()})
-    with VehicleServer(list(specs.values()), SystemClock()):
+    with VehicleServer(list(specs.values()), SystemClock()) as server:
+        # port 0: the kernel's free ports, as bound (ports picked free in turn beforehand
+        # came out equal twice: "two vehicles on one port")
+        s = Swarm(zenoh_router, f"s{os.getpid()}", tmp_path,
+                  dict(zip(specs, server.ports, strict=True)))  # fmt: skip
         try:
             for vid in FIRST:
                 s.start(vid)

@@ -31,7 +31,6 @@ from swarm_proto import (
 )
 from swarm_sim.core import SITL_HOME
 from swarm_sim.runtime import VehicleServer, VehicleSpec, spread_homes
-from tests.conftest import free_tcp_port
 from tests.swarm_node.processes import nodes, peers_of, plain_session, wait_until
 
 pytestmark = pytest.mark.network
@@ -59,11 +58,14 @@ def vehicles(request: pytest.FixtureRequest) -> Iterator[dict[int, str]]:
     models: dict[int, str] = request.param
     homes = spread_homes(SITL_HOME, len(models), 30.0)
     specs = {
-        vid: VehicleSpec(model, instance=i, port=free_tcp_port(), home=homes[i], sysid=vid)
+        vid: VehicleSpec(model, instance=i, port=0, home=homes[i], sysid=vid)
         for i, (vid, model) in enumerate(models.items())
     }
     with VehicleServer(list(specs.values()), SystemClock()) as server:
-        yield {vid: f"tcp:127.0.0.1:{spec.tcp_port}" for vid, spec in specs.items()}
+        # port 0: the kernel's free ports, as bound (ports picked free in turn beforehand
+        # came out equal twice: "two vehicles on one port")
+        ports = dict(zip(specs, server.ports, strict=True))
+        yield {vid: f"tcp:127.0.0.1:{port}" for vid, port in ports.items()}
         server.close()
 
 

@@ -48,11 +48,14 @@ def six_vehicles() -> Iterator[dict[int, str]]:
     """Six simulated vehicles (one process thread, real TCP ports): node id -> MAVLink url."""
     homes = spread_homes(SITL_HOME, len(FLEET), 30.0)
     specs = {
-        vid: VehicleSpec(model, instance=i, port=free_tcp_port(), home=homes[i], sysid=vid)
+        vid: VehicleSpec(model, instance=i, port=0, home=homes[i], sysid=vid)
         for i, (vid, model) in enumerate(FLEET.items())
     }
     with VehicleServer(list(specs.values()), SystemClock()) as server:
-        yield {vid: f"tcp:127.0.0.1:{spec.tcp_port}" for vid, spec in specs.items()}
+        # port 0: the kernel's free ports, as bound (ports picked free in turn beforehand
+        # came out equal twice: "two vehicles on one port")
+        ports = dict(zip(specs, server.ports, strict=True))
+        yield {vid: f"tcp:127.0.0.1:{port}" for vid, port in ports.items()}
         server.close()
 
 
