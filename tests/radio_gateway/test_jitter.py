@@ -10,6 +10,7 @@ the fix, 0-40 ms already changed every table twice a minute, 0-60 ms 13-15 times
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
 
 import pytest
@@ -51,7 +52,7 @@ def _stale_events(f: Fleet, start: float, end: float) -> list[tuple[int, int, fl
             if src == dst:
                 continue
             times = [start, *heard[(dst, src)], end]
-            out += [(dst, src, b - a) for a, b in zip(times, times[1:]) if b - a > STALE_S]
+            out += [(dst, src, b - a) for a, b in itertools.pairwise(times) if b - a > STALE_S]
     return out
 
 
@@ -117,7 +118,8 @@ def test_the_silence_limit_is_bounded_and_grows_with_the_loss(
     m, c = _member_with_history(heard)
     limit = m.silence_limit(1, c)
     assert DEMO_TDM.silent_periods <= limit <= DEMO_TDM.outage_periods
-    worse = [h and not x for h, x in zip(heard, [*extra_misses, *[False] * len(heard)])]
+    misses = [*extra_misses, *[False] * len(heard)][: len(heard)]
+    worse = [h and not x for h, x in zip(heard, misses, strict=True)]
     worse[-1] = True
     m2, c2 = _member_with_history(worse)
     assert m2.silence_limit(1, c2) >= limit
