@@ -281,6 +281,7 @@ class Membership:
         else:
             self.levels = {m: lv for m, lv in self.levels.items() if m in members}
         old_k = self.layout.k
+        self._unsure_since = None  # a new table: whatever the doubt was about is settled
         self.layout = SlotLayout.build(members, self.timing, self.config, self.levels)
         self.tables.append((cycle, self.layout.members))
         del self.tables[:-16]

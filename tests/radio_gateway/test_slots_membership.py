@@ -150,6 +150,12 @@ def test_a_member_told_it_left_rejoins() -> None:
     c = _advance(m, c, 1)
     assert m.phase is Phase.JOINING and m.members == (1, 2)
     assert (Phase.MEMBER, Trigger.REMOVED) in _triggers(m)
+    # doubting with nobody heard is no deadlock: the outage rule ends in a new table
+    m, c = _member()
+    for src in (1, 2):
+        m.on_frame(_frame(src, c, (1, 2, 9), records=(Change(False, 9, c + 2),)))
+    c = _advance(m, c, TDM.outage_periods + TDM.activation_periods + 4)
+    assert m.members == (9,) and m.next_tx(c * TDM.cycle_s, 0) is not None
 
 
 def test_a_contested_leave_that_was_heard_keeps_the_member() -> None:
