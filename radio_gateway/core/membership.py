@@ -34,6 +34,7 @@ air), goes back to LISTENING and re-learns.
 
 from __future__ import annotations
 
+import math
 import random
 from dataclasses import dataclass, field
 from enum import Enum
@@ -117,6 +118,10 @@ class Membership:
     pending_levels: dict[int, tuple[int, int]] = field(default_factory=dict)  # node -> (at, lvl)
     level_request: tuple[int, int] | None = None  # ours (at, level), until a member echoes it
     evidence: dict[int, int] = field(default_factory=dict)  # member -> last cycle alive
+    # member -> periods (of the table in force) with evidence of life, the last
+    # `loss_window_periods`: its loss as every receiver sees it (silence_limit)
+    alive_periods: dict[int, set[int]] = field(default_factory=dict)
+    since: dict[int, int] = field(default_factory=dict)  # member -> period it was adopted in
     direct: dict[int, int] = field(default_factory=dict)  # node -> last cycle heard directly
     heard: dict[int, _Heard] = field(default_factory=dict)  # src -> its latest frame
     transitions: list[Transition] = field(default_factory=list)
@@ -135,6 +140,9 @@ class Membership:
     _join_attempts: int = 0
     _join_pick: float = 0.0  # where in the join window our JOIN goes (0..1)
     _confirmed: int | None = None  # last cycle a member's frame carried our table version
+    _contest_echoed: bool = False  # a member repeated our JOIN contesting a LEAVE of us
+    _leave_carriers: set[int] = field(default_factory=set)  # members that sent a LEAVE of us
+    _unsure_since: int | None = None  # our contest may have gone unheard: quiet until settled
     _rng: random.Random = field(init=False)
 
     def __post_init__(self) -> None:
@@ -153,8 +161,11 @@ class Membership:
     def projected_members(self) -> tuple[int, ...]:
         """The members once every pending change has taken effect."""
         ms = set(self.members)
-        for (join, node), _ in sorted(self.pending.items(), key=lambda kv: kv[1]):
-            (ms.add if join else ms.discard)(node)
+        for join, node in self.pending:
+            if join:
+                ms.add(node)
+            elif (True, node) not in self.pending:  # a JOIN of a node beats a LEAVE of it
+                ms.discard(node)
         return tuple(sorted(ms))
 
     def projected_levels(self) -> dict[int, int]:
@@ -209,7 +220,9 @@ class Membership:
         flight, their order rotated by `rotate` (a frame has room for a few: every
         member repeats them, each starting elsewhere, so each is repeated)."""
         out: list[Change | LevelChange] = [
-            Change(join, node, at) for (join, node), at in sorted(self.pending.items())
+            Change(join, node, at)
+            for (join, node), at in sorted(self.pending.items())
+            if join or node != self.my_id  # our removal is not ours to spread: we contest it
         ]
         if self.level_request is not None:
             out.append(LevelChange(self.my_id, self.level_request[1], self.level_request[0]))
@@ -237,6 +250,7 @@ class Membership:
         self.transitions.append(Transition(cycle, self.phase, new, trigger, self.members))
         self.phase = new
         self._mismatch = self._foreign = 0
+        self._unsure_since = None
         if new is Phase.LISTENING:
             self._listen_since = cycle
             self._last_heard_any = None
@@ -245,6 +259,8 @@ class Membership:
             self.level_request = None
             self.levels.clear()
             self.evidence.clear()
+            self.alive_periods.clear()
+            self.since.clear()
             self.layout = SlotLayout.build((), self.timing, self.config)
         elif new is Phase.JOINING:
             self._join_attempts = 0
@@ -264,14 +280,20 @@ class Membership:
             }
         else:
             self.levels = {m: lv for m, lv in self.levels.items() if m in members}
+        old_k = self.layout.k
+        self._unsure_since = None  # a new table: whatever the doubt was about is settled
         self.layout = SlotLayout.build(members, self.timing, self.config, self.levels)
         self.tables.append((cycle, self.layout.members))
         del self.tables[:-16]
+        if self.layout.k != old_k:  # periods of another length: start the loss history over
+            self.alive_periods.clear()
+            self.since = {m: cycle // self.layout.k for m in self.since}
         for m in self.members:
             self.evidence.setdefault(m, cycle)  # a new member gets the full grace period
-        for m in list(self.evidence):
-            if m not in self.members:
-                del self.evidence[m]
+            self.since.setdefault(m, cycle // self.layout.k)
+        for d in (self.evidence, self.since, self.alive_periods):
+            for m in [m for m in d if m not in self.members]:
+                del d[m]
 
     def _period_of(self, cycle: int) -> int:
         return cycle // self.layout.k
@@ -299,57 +321,57 @@ class Membership:
             # silence told nothing of them; each gets a fresh grace period
             for m in self.evidence:
                 if m != self.my_id:  # ours is what peers report of us
-                    self.evidence[m] = max(self.evidence[m], f.cycle)
+                    self._excuse(m, f.cycle)
         self.direct[f.src] = f.cycle
         if f.src in self.members and f.table_hash == self.table_hash:
             self._confirmed = f.cycle
         if f.src in self.evidence:
-            self.evidence[f.src] = max(self.evidence[f.src], f.cycle)
+            self._note_alive(f.src, f.cycle)
         if self.phase is Phase.LISTENING or f.table_hash != self.table_hash:
             return
         k = self.layout.k
         for i, m in enumerate(self.members):
             if i // 8 < len(f.heard) and f.heard[i // 8] >> (i % 8) & 1 and m in self.evidence:
-                self.evidence[m] = max(self.evidence[m], f.cycle - k)
+                self._note_alive(m, f.cycle - k)
         for r in f.records:
             if isinstance(r, Change):
-                self.on_change(r, f.cycle)
+                self.on_change(r, f.cycle, f.src)
             elif isinstance(r, LevelChange):
                 self.on_level_change(r)
 
-    def on_change(self, c: Change, cycle: int | None = None) -> None:
+    def on_change(self, c: Change, cycle: int | None = None, src: int | None = None) -> None:
+        """A scheduled change, carried in a frame of `src` sent in `cycle`."""
         if self.phase is Phase.LISTENING:
             return
-        if not c.join and cycle is not None and self._alive(c.node, cycle):
+        me = self.my_id
+        if c.node == me and self.phase is Phase.MEMBER:
+            # a LEAVE of us: we are on the air, so we contest it (a JOIN of us at its
+            # cycle: a JOIN beats a LEAVE); we hold it, and decide at its cycle (_apply_due)
+            if not c.join:
+                self._propose(True, me, c.at_cycle)
+                if src is not None:
+                    self._leave_carriers.add(src)
+            elif src is not None:  # a member repeats our contest: it held the LEAVE too
+                self._contest_echoed = True
+        if not c.join and c.node != me and cycle is not None and self._alive(c.node, cycle):
             return  # a stale view (its sender stalled or went deaf): not adopted, not repeated
         key = (c.join, c.node)
         if key in self.pending:
             self.pending[key] = min(self.pending[key], c.at_cycle)
-        elif (c.node in self.members) != c.join:
+        elif (c.node in self.members) != c.join or (c.join and (False, c.node) in self.pending):
+            # (a JOIN of a member with a LEAVE pending: the member contests it; it wins)
             self.pending[key] = c.at_cycle
             self._learned(c.join, c.node, c.at_cycle)
 
     def _alive(self, node: int, cycle: int) -> bool:
-        """We have fresh evidence that `node` is on the air: heard directly in the last
-        `fresh_periods` periods, or (ourselves, whose frames we do not hear) reported in a
-        peer's heard bitmap as recently. A LEAVE of it comes from a sender whose view is
-        older than ours: a gateway whose loop stalled for `silent_periods` finds every
-        peer silent and schedules them all out (`swarm-sim demo --radio` run 5: every
-        gateway adopted LEAVEs of everyone but the stalled one, itself included)."""
+        """We heard `node` directly in the last `fresh_periods` periods: a LEAVE of it
+        comes from a sender whose view is older than ours (a gateway whose loop stalled
+        for `silent_periods` finds every peer silent and schedules them all out:
+        `swarm-sim demo --radio` run 5). A LEAVE of ourselves is contested instead."""
         cfg = self.config  # fresher than the silence that proposes a LEAVE, always
         window = min(cfg.fresh_periods, cfg.silent_periods - 1) * self.layout.k
-        if node == self.my_id:
-            if self.phase is not Phase.MEMBER:
-                return False
-            last = self.evidence.get(node)
-            return last is not None and last > self._adopted_at() and cycle - last <= window
         last = self.direct.get(node)
         return last is not None and cycle - last <= window
-
-    def _adopted_at(self) -> int:
-        """The cycle our table took effect (evidence set before it is a grace period,
-        not a peer's report)."""
-        return self.tables[-1][0] if self.tables else -(10**12)
 
     def on_level_change(self, c: LevelChange) -> None:
         """A member's scheduled need level: merged like membership changes (the earliest
@@ -376,7 +398,50 @@ class Membership:
         key = (join, node)
         if key not in self.pending:
             self._learned(join, node, at)
+            if join and node == self.my_id:
+                self._contest_echoed = False
+                self._leave_carriers = set()
         self.pending[key] = min(self.pending.get(key, at), at)
+
+    def _note_alive(self, m: int, cycle: int) -> None:
+        """Evidence that member `m` was on the air in `cycle` (its frame, or a peer's
+        heard bitmap): its grace period and its loss history."""
+        self.evidence[m] = max(self.evidence[m], cycle)
+        seen = self.alive_periods.setdefault(m, set())
+        p = cycle // self.layout.k
+        seen.add(p)
+        if len(seen) > 2 * self.config.loss_window_periods:
+            low = max(seen) - self.config.loss_window_periods
+            seen.difference_update([x for x in seen if x < low])
+
+    def _excuse(self, m: int, until: int) -> None:
+        """A silence of `m` up to cycle `until` that told nothing of it (our stall, an
+        outage of everyone): a fresh grace period, and no loss in its history."""
+        k = self.layout.k
+        first = max(self.evidence[m] // k + 1, until // k - self.config.loss_window_periods)
+        self.alive_periods.setdefault(m, set()).update(range(first, until // k + 1))
+        self._note_alive(m, until)
+
+    def silence_limit(self, m: int, cycle: int) -> int:
+        """Periods without evidence of life after which member `m` is proposed gone:
+        `silent_periods` for a member heard every period, longer for one that has been
+        missed: the silence whose chance, were it still on the air with the loss it
+        showed over the last `loss_window_periods`, is `leave_confidence` (at most
+        `outage_periods`). A loaded host sends late; a late packet collides with the next
+        slot's and every receiver loses both: loss that the heard bitmaps cannot cover.
+        With no history the estimate leans to a clean channel (a member that died right
+        after joining still leaves after `silent_periods`)."""
+        cfg = self.config
+        k = self.layout.k
+        last = self.evidence.get(m, cycle) // k
+        low = max(last - cfg.loss_window_periods + 1, self.since.get(m, last))
+        total = max(0, last - low + 1)
+        seen = self.alive_periods.get(m, set())
+        heard = sum(1 for p in seen if low <= p <= last)
+        missed = max(0, total - heard)
+        loss = (missed + 0.5) / (total + 5.0)
+        need = math.ceil(math.log(cfg.leave_confidence) / math.log(loss))
+        return max(cfg.silent_periods, min(cfg.outage_periods, need))
 
     def sent(self, slot: TxSlot) -> None:
         """We transmitted in `slot`."""
@@ -393,7 +458,7 @@ class Membership:
         if cycles > 0:
             for m in self.evidence:
                 if m != self.my_id:  # ours is what peers report of us: none came
-                    self.evidence[m] += cycles
+                    self._excuse(m, self.evidence[m] + cycles)
 
     def advance(self, cycle: int) -> None:
         """Called once at the start of every cycle, in order."""
@@ -405,6 +470,8 @@ class Membership:
         if cycle % self.layout.k:
             return
         self._check_votes(cycle)
+        if self.phase is Phase.MEMBER and self._unsure_since is not None:
+            self._settle(cycle)
         if self.phase is Phase.MEMBER:
             self._check_leaves(cycle)
         elif self.phase is Phase.JOINING:
@@ -418,14 +485,35 @@ class Membership:
         changes inside a period)."""
         if cycle % self.layout.k:
             return
-        due = sorted((at, key) for key, at in self.pending.items() if at <= cycle)
+        due = {key: at for key, at in self.pending.items() if at <= cycle}
         due_lv = sorted((at, n, lv) for n, (at, lv) in self.pending_levels.items() if at <= cycle)
         if (not due and not due_lv) or self.phase is Phase.LISTENING:
             return
+        # a JOIN and a LEAVE of one node: the JOIN wins, at the earlier of the two (a
+        # member contests a LEAVE of itself that way; a removed node asks back in)
+        for join, node in list(due):
+            if (not join, node) in self.pending:
+                due[(not join, node)] = self.pending[(not join, node)]
+        me = self.my_id
+        others = len(self.members) - 1
+        if (
+            (True, me) in due
+            and (False, me) in due
+            and not self._contest_echoed
+            and 2 * len(self._leave_carriers) > others
+        ):
+            # most members sent the LEAVE and none repeated our contest before its cycle:
+            # those that heard the contest keep us, the others remove us. We keep our
+            # table but send nothing until the members' frames settle which table holds
+            # (our slot may be someone else's now); outvoted, we re-learn and rejoin.
+            self._unsure_since = cycle
         ms = set(self.members)
-        for _, (join, node) in due:
+        for join, node in due:
             del self.pending[(join, node)]
-            (ms.add if join else ms.discard)(node)
+            if join:
+                ms.add(node)
+            elif (True, node) not in due:
+                ms.discard(node)
         new = tuple(sorted(ms))
         levels = {m: self.levels.get(m, DEFAULT_LEVEL) for m in new}
         for _, node, lv in due_lv:
@@ -460,16 +548,37 @@ class Membership:
         quiet = max(1, min(self.config.fresh_periods, self.config.silent_periods - 1))
         return silence is not None and silence > quiet * self.layout.k
 
+    def _settle(self, cycle: int) -> None:
+        """After a contest of a LEAVE of us that may have gone unheard (we keep our
+        table, quiet): the members' frames since its cycle decide. At least half of the
+        other members on our table: we send again. At least half on another: the LEAVE
+        held, we apply it (REMOVED) and rejoin."""
+        since = self._unsure_since
+        assert since is not None
+        mine = other = 0
+        for src, h in self.heard.items():
+            if src in self.members and src != self.my_id and h.cycle >= since and not h.join:
+                if h.table_hash == self.table_hash:
+                    mine += 1
+                else:
+                    other += 1
+        half = (self.layout.n - 1) / 2
+        if mine > other and mine >= half:
+            self._unsure_since = None
+        elif other > mine and other >= half:
+            self.changes_applied += 1
+            self._adopt(tuple(m for m in self.members if m != self.my_id), cycle)
+            self._go(Trigger.REMOVED, cycle)
+
     def _check_leaves(self, cycle: int) -> None:
         k = self.layout.k
         silence = self._silence(cycle) or 0
         if self._outage(cycle) and silence <= self.config.outage_periods * k:
             return  # no evidence against anyone (a grace period when one is heard again)
-        limit = self.config.silent_periods * k
         for m in self.members:
             if m == self.my_id or (False, m) in self.pending:
                 continue
-            if cycle - self.evidence.get(m, cycle) > limit:
+            if cycle - self.evidence.get(m, cycle) > self.silence_limit(m, cycle) * k:
                 self._propose(False, m, self._activation(cycle))
 
     def _recent(self, cycle: int) -> dict[int, _Heard]:
@@ -586,6 +695,8 @@ class Membership:
                 # of a new table may belong to someone else): stay quiet
                 continue
             if self.phase is Phase.MEMBER:
+                if self._unsure_since is not None:
+                    return None
                 for idx in lay.slots_of(self.my_id, period):
                     start = lay.slot_start(period, idx)
                     cycle = lay.slot_cycle(period, idx)

@@ -59,6 +59,12 @@ class TdmConfig:
     listen_cycles: int = 3  # silence before a node bootstraps a table of its own
     join_backoff: int = 4  # initial random backoff (join windows), doubles per failure
     mismatch_periods: int = 2  # periods a better table must persist before a resync
+    # leave detection under loss: a member is silent only once a silence that long has at
+    # most this chance for a member still on the air, at the loss it showed over the last
+    # `loss_window_periods` (a loaded host's late packets collide: every receiver loses
+    # them at once, and 5 periods of it is no longer rare; membership.silence_limit)
+    leave_confidence: float = 1e-5
+    loss_window_periods: int = 50
 
     def __post_init__(self) -> None:
         if not (self.cycle_s > 0 and 0 <= self.guard_s < self.cycle_s):
@@ -67,6 +73,8 @@ class TdmConfig:
             raise ValueError("silent_periods, activation_periods and join_every must be >= 1")
         if self.outage_periods < self.silent_periods:
             raise ValueError("outage_periods must be >= silent_periods")
+        if not 0 < self.leave_confidence < 1 or self.loss_window_periods < 1:
+            raise ValueError("leave_confidence is in (0, 1) and loss_window_periods >= 1")
 
 
 MAX_LEVEL = 3  # need levels 0..3 (two header bits)

@@ -133,11 +133,68 @@ def _member(members: tuple[int, ...] = (1, 2, 9)) -> tuple[Membership, int]:
 
 
 def test_a_member_told_it_left_rejoins() -> None:
+    """A LEAVE of us is contested (a JOIN of us at its cycle, in our next frame); when
+    most members carried the LEAVE and none repeated the contest before its cycle, we
+    keep quiet until their frames show which table holds: theirs without us, so we
+    apply the LEAVE and rejoin."""
     m, c = _member()
-    m.on_frame(_frame(1, c, (1, 2, 9), records=(Change(False, 9, c + 2),)))
+    for src in (1, 2):
+        m.on_frame(_frame(src, c, (1, 2, 9), records=(Change(False, 9, c + 2),)))
+    assert Change(True, 9, c + 2) in m.change_records()  # our contest
+    assert Change(False, 9, c + 2) not in m.change_records()  # not ours to spread
     c = _advance(m, c, 3)
+    assert m.phase is Phase.MEMBER and m.members == (1, 2, 9)
+    assert m.next_tx(c * TDM.cycle_s, 0) is None  # quiet: our slot may be someone's now
+    for src in (1, 2):
+        m.on_frame(_frame(src, c, (1, 2)))
+    c = _advance(m, c, 1)
     assert m.phase is Phase.JOINING and m.members == (1, 2)
     assert (Phase.MEMBER, Trigger.REMOVED) in _triggers(m)
+    # doubting with nobody heard is no deadlock: the outage rule ends in a new table
+    m, c = _member()
+    for src in (1, 2):
+        m.on_frame(_frame(src, c, (1, 2, 9), records=(Change(False, 9, c + 2),)))
+    c = _advance(m, c, TDM.outage_periods + TDM.activation_periods + 4)
+    assert m.members == (9,) and m.next_tx(c * TDM.cycle_s, 0) is not None
+
+
+def test_a_contested_leave_that_was_heard_keeps_the_member() -> None:
+    """The same LEAVE, but a member repeats our contest (it held the LEAVE and heard
+    us): a JOIN beats a LEAVE, every node that holds both keeps us, no table changes."""
+    m, c = _member()
+    for src in (1, 2):
+        m.on_frame(_frame(src, c, (1, 2, 9), records=(Change(False, 9, c + 2),)))
+    echo = (Change(False, 9, c + 2), Change(True, 9, c + 2))
+    m.on_frame(_frame(1, c + 1, (1, 2, 9), records=echo))
+    c = _advance(m, c, 3)
+    assert m.phase is Phase.MEMBER and m.members == (1, 2, 9)
+    assert not m.pending and m.changes_applied == 0
+    assert m.next_tx(c * TDM.cycle_s, 0) is not None
+    # and a peer that held the LEAVE and hears the contest keeps us too
+    p = _m(1, initial_members=(1, 2, 9))
+    c = _advance(p, C0, TDM.listen_cycles + 1)
+    p.on_frame(_frame(2, c, (1, 2, 9), heard=b"\x00", records=(Change(False, 9, c + 2),)))
+    assert (False, 9) in p.pending
+    p.on_frame(_frame(9, c + 1, (1, 2, 9), records=(Change(True, 9, c + 2),)))
+    assert p.projected_members() == (1, 2, 9)
+    c = _advance(p, c, 3)
+    assert p.members == (1, 2, 9) and not p.pending and p.changes_applied == 0
+
+
+def test_a_leave_of_us_carried_by_one_member_of_many_is_not_applied() -> None:
+    """`swarm-sim demo --radio` r15: vehicle 2 went stale at every node while every
+    table but its own kept it. One member's LEAVE of us, which the others rejected
+    (they heard us), is contested; with no repeat of it by most members, we stay."""
+    fleet7 = (1, 2, 3, 4, 5, 6, 9)
+    m = _m(9, initial_members=fleet7)
+    c = _advance(m, C0, TDM.listen_cycles + 1)
+    m.on_frame(_frame(1, c, fleet7, records=(Change(False, 9, c + 2),)))
+    for _ in range(3):
+        for src in (1, 2, 3, 4, 5, 6):
+            m.on_frame(_frame(src, c, fleet7))
+        c = _advance(m, c, 1)
+    assert m.phase is Phase.MEMBER and m.members == fleet7 and m.changes_applied == 0
+    assert m.next_tx(c * TDM.cycle_s, 0) is not None
 
 
 def test_a_stale_members_leaves_of_peers_we_hear_are_not_adopted() -> None:
