@@ -18,13 +18,13 @@ from pathlib import Path
 import pytest
 
 from gcs_cli.cli import run
-from swarm_proto import Ack, AckReason, AckRef, Command, SystemClock, VehicleInfo, VehicleType
+from swarm_proto import Ack, AckReason, AckRef, Command, VehicleInfo, VehicleType
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import ACK, COMMAND
 from swarm_sim.core import SITL_HOME
-from swarm_sim.runtime import VehicleServer, VehicleSpec
+from swarm_sim.runtime import VehicleSpec
 from swarm_sim.runtime.server import spread_homes
-from tests.swarm_node.processes import peers_of, plain_session, start_node, stop, wait_until
+from tests.swarm_node.processes import peers_of, plain_session, served, start_node, stop, wait_until
 
 pytestmark = pytest.mark.network
 
@@ -63,11 +63,8 @@ def swarm(zenoh_router: str, swarm_db: Path, tmp_path: Path) -> Iterator[Swarm]:
     homes = spread_homes(SITL_HOME, len(ids), 40.0)
     specs = {vid: VehicleSpec(MODEL[vid], port=0, sysid=vid, home=homes[i])
              for i, vid in enumerate(ids)}  # fmt: skip
-    with VehicleServer(list(specs.values()), SystemClock()) as server:
-        # port 0: the kernel's free ports, as bound (ports picked free in turn beforehand
-        # came out equal twice: "two vehicles on one port")
-        s = Swarm(zenoh_router, f"s{os.getpid()}", tmp_path,
-                  dict(zip(specs, server.ports, strict=True)))  # fmt: skip
+    with served(specs) as ports:
+        s = Swarm(zenoh_router, f"s{os.getpid()}", tmp_path, ports)
         try:
             for vid in FIRST:
                 s.start(vid)

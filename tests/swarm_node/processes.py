@@ -15,7 +15,18 @@ from pathlib import Path
 import msgspec
 import zenoh
 
-from swarm_proto import SwarmView
+from swarm_proto import SwarmView, SystemClock
+from swarm_sim.runtime import VehicleServer, VehicleSpec
+
+
+@contextlib.contextmanager
+def served(specs: dict[int, VehicleSpec]) -> Iterator[dict[int, int]]:
+    """Simulated vehicles served on 127.0.0.1 by one thread: node id -> the TCP port
+    each listens on. Give the specs port 0: the kernel picks each port as it binds
+    (ports picked free one after another beforehand came out equal: "two vehicles on
+    one port")."""
+    with VehicleServer(list(specs.values()), SystemClock()) as server:
+        yield dict(zip(specs, server.ports, strict=True))
 
 
 def start_node(

@@ -26,12 +26,11 @@ from swarm_proto import (
     MissionParams,
     MissionState,
     MissionType,
-    SystemClock,
     VehicleStatus,
 )
 from swarm_sim.core import SITL_HOME
-from swarm_sim.runtime import VehicleServer, VehicleSpec, spread_homes
-from tests.swarm_node.processes import nodes, peers_of, plain_session, wait_until
+from swarm_sim.runtime import VehicleSpec, spread_homes
+from tests.swarm_node.processes import nodes, peers_of, plain_session, served, wait_until
 
 pytestmark = pytest.mark.network
 GCS = 900
@@ -61,12 +60,8 @@ def vehicles(request: pytest.FixtureRequest) -> Iterator[dict[int, str]]:
         vid: VehicleSpec(model, instance=i, port=0, home=homes[i], sysid=vid)
         for i, (vid, model) in enumerate(models.items())
     }
-    with VehicleServer(list(specs.values()), SystemClock()) as server:
-        # port 0: the kernel's free ports, as bound (ports picked free in turn beforehand
-        # came out equal twice: "two vehicles on one port")
-        ports = dict(zip(specs, server.ports, strict=True))
+    with served(specs) as ports:
         yield {vid: f"tcp:127.0.0.1:{port}" for vid, port in ports.items()}
-        server.close()
 
 
 class Watch:

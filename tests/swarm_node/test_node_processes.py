@@ -27,7 +27,15 @@ from swarm_proto import (
 from swarm_sim.core import SITL_HOME
 from swarm_sim.runtime import VehicleServer, VehicleSpec, spread_homes
 from tests.conftest import free_tcp_port
-from tests.swarm_node.processes import nodes, peers_of, plain_session, start_node, stop, wait_until
+from tests.swarm_node.processes import (
+    nodes,
+    peers_of,
+    plain_session,
+    served,
+    start_node,
+    stop,
+    wait_until,
+)
 
 pytestmark = pytest.mark.network
 
@@ -51,12 +59,8 @@ def six_vehicles() -> Iterator[dict[int, str]]:
         vid: VehicleSpec(model, instance=i, port=0, home=homes[i], sysid=vid)
         for i, (vid, model) in enumerate(FLEET.items())
     }
-    with VehicleServer(list(specs.values()), SystemClock()) as server:
-        # port 0: the kernel's free ports, as bound (ports picked free in turn beforehand
-        # came out equal twice: "two vehicles on one port")
-        ports = dict(zip(specs, server.ports, strict=True))
+    with served(specs) as ports:
         yield {vid: f"tcp:127.0.0.1:{port}" for vid, port in ports.items()}
-        server.close()
 
 
 def test_nodes_join_lose_and_rejoin(
