@@ -26,8 +26,11 @@ demo: $(STAMP)
 ## test: lint, type check and the test suite (CI runs exactly this)
 test: lint typecheck unit
 
+SOURCES := swarm_proto swarm_node radio_gateway gcs_cli swarm_sim bench tests
+
 lint: $(STAMP)
-	$(BIN)/ruff check swarm_proto swarm_node radio_gateway gcs_cli swarm_sim bench tests
+	$(BIN)/ruff check $(SOURCES)
+	$(BIN)/ruff format --check $(SOURCES)
 
 typecheck: $(STAMP)
 	$(BIN)/mypy

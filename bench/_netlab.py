@@ -83,8 +83,20 @@ class NetLab:
         for i, (subnet, addr) in enumerate(addrs.items()):
             self._veth += 1
             hub_end = f"v{self._veth}"
-            _ip("-n", self.hub, "link", "add", hub_end, "type", "veth", "peer", "name",
-                f"eth{i}", "netns", ns)  # fmt: skip
+            _ip(
+                "-n",
+                self.hub,
+                "link",
+                "add",
+                hub_end,
+                "type",
+                "veth",
+                "peer",
+                "name",
+                f"eth{i}",
+                "netns",
+                ns,
+            )
             _ip("-n", self.hub, "link", "set", hub_end, "master", f"br-{subnet}")
             _ip("-n", self.hub, "link", "set", hub_end, "up")
             _ip("-n", ns, "addr", "add", addr, "dev", f"eth{i}")
@@ -202,10 +214,18 @@ class SwarmLab:
         if self.topology == "a":
             return ["--zenoh-config", str(ZENOH / "scouting-peer.json5")]
         if self.topology == "b":
-            return ["--zenoh-config", str(ZENOH / "client.json5"),
-                    "--connect", f"tcp/{subnet_router}:7447"]  # fmt: skip
-        return ["--zenoh-config", str(self.certs / f"{who}.json5"),
-                "--connect", f"tls/{subnet_router}:7447"]  # fmt: skip
+            return [
+                "--zenoh-config",
+                str(ZENOH / "client.json5"),
+                "--connect",
+                f"tcp/{subnet_router}:7447",
+            ]
+        return [
+            "--zenoh-config",
+            str(self.certs / f"{who}.json5"),
+            "--connect",
+            f"tls/{subnet_router}:7447",
+        ]
 
     def vehicle_router(self) -> str:
         return ROUTER_B if self.topology in ("b", "tls") else ROUTER_A
@@ -225,13 +245,27 @@ class SwarmLab:
 
     def start_vehicle(self, v: int) -> None:
         ns = self.vehicles[v]
-        self.lab.popen(ns, [str(self.bin / "swarm-sim"), "vehicle", "--model", "vtol",
-                            "--sysid", str(v)], f"sim-{v}.log", self.env)  # fmt: skip
+        self.lab.popen(
+            ns,
+            [str(self.bin / "swarm-sim"), "vehicle", "--model", "vtol", "--sysid", str(v)],
+            f"sim-{v}.log",
+            self.env,
+        )
         env = {**self.env, "BANDADA_DB": str(self.lab.logdir / f"swarm-{v}.db")}
-        self.lab.popen(ns, [str(self.bin / "swarm-node"), "run", "--id", str(v),
-                            "--autopilot", "tcp:127.0.0.1:5760",
-                            *self.zenoh_args(f"vehicle-{v}", self.vehicle_router())],
-                       f"node-{v}.log", env)  # fmt: skip
+        self.lab.popen(
+            ns,
+            [
+                str(self.bin / "swarm-node"),
+                "run",
+                "--id",
+                str(v),
+                "--autopilot",
+                "tcp:127.0.0.1:5760",
+                *self.zenoh_args(f"vehicle-{v}", self.vehicle_router()),
+            ],
+            f"node-{v}.log",
+            env,
+        )
 
     def gcs_argv(self, *args: str, who: str = f"gcs-{GCS_ID}") -> list[str]:
         return [str(self.bin / "gcs"), *self.zenoh_args(who, ROUTER_A), *args]

@@ -129,9 +129,16 @@ def synthetic_tracks(count: int = 5, duration_s: float = 120.0, seed: int = 0) -
     for v in range(1, count + 1):
         rng = random.Random(seed * 1000 + v)
         heading = rng.uniform(0, 2 * math.pi)
-        k = Kinematics(0.0, rng.uniform(-500, 500), rng.uniform(-500, 500),
-                       rng.uniform(60, 150), 18.0 * math.cos(heading),
-                       18.0 * math.sin(heading), 0.0, 0.0)  # fmt: skip
+        k = Kinematics(
+            0.0,
+            rng.uniform(-500, 500),
+            rng.uniform(-500, 500),
+            rng.uniform(60, 150),
+            18.0 * math.cos(heading),
+            18.0 * math.sin(heading),
+            0.0,
+            0.0,
+        )
         segs: list[Kinematics] = []
         t, orbit = 0.0, rng.random() < 0.5
         while t < duration_s + 1:

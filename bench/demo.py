@@ -1,4 +1,4 @@
-"""`make demo`'s figures (issue 18): the paper's experiment 1 flown by the real stack, as
+"""`make demo`'s figures: the paper's experiment 1 flown by the real stack, as
 `swarm-sim demo` flies it (six simulated Albatross VTOLs on TCP, one `swarm-node run`
 process each, Zenoh on 127.0.0.1, the ground station's script, 5x real time), measured
 from its report.json:
@@ -35,23 +35,32 @@ from swarm_sim.experiment import DEFAULT_SPEEDUP, EXPERIMENT_FLEET
 from swarm_sim.experiment import run as run_demo
 from swarm_sim.story import StoryPlan
 
-FIGURES = ("wall_s", "sim_s", "coverage", "missions_completed", "missions_total",
-           "load_avg_1min")  # fmt: skip
+FIGURES = ("wall_s", "sim_s", "coverage", "missions_completed", "missions_total", "load_avg_1min")
 
 
 def _figures(report: dict[str, Any]) -> dict[str, Any]:
     sep = report["separation"]
     out = {k: report.get(k) for k in FIGURES}
-    out.update(near=sep["near"], danger=sep["danger"], risk=sep["risk"],
-               min_sep_m=sep["min_sep_m"], ok=report["ok"], failures=report["failures"])  # fmt: skip
+    out.update(
+        near=sep["near"],
+        danger=sep["danger"],
+        risk=sep["risk"],
+        min_sep_m=sep["min_sep_m"],
+        ok=report["ok"],
+        failures=report["failures"],
+    )
     return out
 
 
 def real(out: Path) -> dict[str, Any]:
     import json
 
-    code = run_demo(EXPERIMENT_FLEET, speedup=DEFAULT_SPEEDUP, out=out,
-                    console=Console(file=io.StringIO(), width=140))  # fmt: skip
+    code = run_demo(
+        EXPERIMENT_FLEET,
+        speedup=DEFAULT_SPEEDUP,
+        out=out,
+        console=Console(file=io.StringIO(), width=140),
+    )
     report: dict[str, Any] = json.loads((out / "report.json").read_text())
     return {**_figures(report), "exit_code": code}
 
@@ -69,7 +78,9 @@ def run() -> dict[str, Any]:
         figures = real(Path(tmp) / "real")
         figures["fast_time"] = fast(Path(tmp) / "fast")
         figures["baseline_no_avoidance"] = fast(Path(tmp) / "off", avoidance=False)
-    figures["setup"] = (f"swarm-sim demo: vehicles 1-6 (Albatross 250 VTOL), pads 30 m apart, "
-                        f"{DEFAULT_SPEEDUP:g}x real time, Zenoh on 127.0.0.1; fast_time and the "
-                        "baseline: the same story in FastFleet")  # fmt: skip
+    figures["setup"] = (
+        f"swarm-sim demo: vehicles 1-6 (Albatross 250 VTOL), pads 30 m apart, "
+        f"{DEFAULT_SPEEDUP:g}x real time, Zenoh on 127.0.0.1; fast_time and the "
+        "baseline: the same story in FastFleet"
+    )
     return figures

@@ -128,10 +128,18 @@ def _lab_latency(topology: str, env: dict[str, str]) -> dict[str, float]:
         _wait_line(lab.logdir / "sub.log", "ready")
         r = lab.run(
             s.vehicles[1],
-            [s.py, "-c", PUBLISHER, v_cfg, f"{proto}/{ROUTER_B}:7447", str(SECONDS),
-             str(RATE_HZ), "1"],
+            [
+                s.py,
+                "-c",
+                PUBLISHER,
+                v_cfg,
+                f"{proto}/{ROUTER_B}:7447",
+                str(SECONDS),
+                str(RATE_HZ),
+                "1",
+            ],
             env,
-        )  # fmt: skip
+        )
         if r.returncode != 0:
             raise RuntimeError(r.stderr[-2000:])
         sub.wait(30)

@@ -1,4 +1,4 @@
-"""The fault campaign (issue 16): `make faults` or `make bench BENCH=faults`.
+"""The fault campaign: `make faults` or `make bench BENCH=faults`.
 
 Every fault of `swarm_sim.faults` x every mission in FastFleet (simulated time), and
 the faults that need a real process, clock or file over real processes at 1x

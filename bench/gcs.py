@@ -53,8 +53,9 @@ def _simulated_main(endpoint: str, ids: list[int], stop: Any, ready: Any) -> Non
     from swarm_proto.topics import COMMAND
 
     base = seed_profiles()["Generic Quadcopter"]
-    cores = {i: NodeCore(msgspec.structs.replace(base, vehicle_id=i, user_id=f"SIM{i}"))
-             for i in ids}  # fmt: skip
+    cores = {
+        i: NodeCore(msgspec.structs.replace(base, vehicle_id=i, user_id=f"SIM{i}")) for i in ids
+    }
     bus = SwarmBus.open(ZenohSettings(connect=(endpoint,)), SWARM)
     lock = threading.Lock()
 
@@ -83,9 +84,23 @@ def _start_real(endpoint: str, tmp: str) -> list[subprocess.Popen[bytes]]:
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "BANDADA_DB": os.path.join(tmp, "swarm.db")}
     return [
         subprocess.Popen(
-            [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(i), "--swarm", SWARM,
-             "--connect", endpoint, "--listen", "tcp/127.0.0.1:0"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+            [
+                sys.executable,
+                "-m",
+                "swarm_node.cli",
+                "run",
+                "--id",
+                str(i),
+                "--swarm",
+                SWARM,
+                "--connect",
+                endpoint,
+                "--listen",
+                "tcp/127.0.0.1:0",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
         )
         for i in range(1, REAL + 1)
     ]
@@ -128,8 +143,13 @@ def run() -> dict[str, Any]:
     router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
     tmp = tempfile.mkdtemp(prefix="bandada-bench-gcs-")
     real = _start_real(endpoint, tmp)
-    figures: dict[str, Any] = {"rtl_all_ms": {}, "rtl_all_ms_max": {}, "raw_zenoh_ms": {},
-                               "answers": {}, "nodes": {}}  # fmt: skip
+    figures: dict[str, Any] = {
+        "rtl_all_ms": {},
+        "rtl_all_ms_max": {},
+        "raw_zenoh_ms": {},
+        "answers": {},
+        "nodes": {},
+    }
     try:
         time.sleep(4.0)  # the real nodes start (imports, Zenoh)
         for n in SIZES:
@@ -143,7 +163,9 @@ def run() -> dict[str, Any]:
             with GroundStation(ZenohSettings(connect=(endpoint,)), SWARM, 900) as gs:
                 for _ in range(RUNS):
                     alive = gs.discover()
-                    cmd = Command(900, new_seq(), CommandKind.RTL, Selector(), time_unix_s=time.time())
+                    cmd = Command(
+                        900, new_seq(), CommandKind.RTL, Selector(), time_unix_s=time.time()
+                    )
                     req = Request(AckRef.COMMAND, cmd.seq, 900, Selector(), what="rtl")
                     t0 = time.perf_counter()
                     out = gs.exchange(cmd, req, timeout_s=10.0)

@@ -1,10 +1,10 @@
-"""Mission layer figures (issue 12) that the planning library and FastFleet measure,
+"""Mission layer figures that the planning library and FastFleet measure,
 each beside its baseline measured in the same run.
 
 - `battery_min_pct_at_landing`: the demo's survey (its 300 x 260 m field, 35 m no-fly
   zone, 60 m, 60 % side overlap) flown in FastFleet by the fleet 1, 7, 8 (an Albatross
   VTOL, two quadcopters): the lowest battery any of them lands with. Baseline: the
-  split before issue 12 (`fleet_plan.BASELINE_SPLIT`: no endurance, every vehicle timed
+  older split (`fleet_plan.BASELINE_SPLIT`: no endurance, every vehicle timed
   at constant speed, one split before the flyable stage).
 - `makespan_planned_vs_flown`: from the plan to the last MISSION_COMPLETE (arming,
   take-off, climb, the approach or the PREMISSION the node flies, the share) over the
@@ -81,7 +81,7 @@ INHERIT_FLEET = (1, 2, 3, 4, 5, 6)
 
 @contextmanager
 def baseline_split(on: bool) -> Iterator[None]:
-    """Plan areas with the split before issue 12 while inside (nodes included)."""
+    """Plan areas with the older split while inside (nodes included)."""
     old = fp_module.BASELINE_SPLIT
     fp_module.BASELINE_SPLIT = on
     try:
@@ -154,9 +154,12 @@ def survey(
         ]
         h0 = homes[members[0]]
         plan = plan_fleet(
-            mission, vehicles, zones=[zone], now_unix_s=fleet.now,
+            mission,
+            vehicles,
+            zones=[zone],
+            now_unix_s=fleet.now,
             home_alt_msl_m=h0.alt_msl_m if h0 else 0.0,
-        )  # fmt: skip
+        )
     alerts = fleet.messages(Alert)
     critical = sorted({a.vehicle_id for a in alerts if a.code == AlertCode.BATTERY_CRITICAL})
     flown = {vid: t_done[vid] - t_fly[vid] for vid in members if vid in t_done and vid in t_fly}
@@ -186,7 +189,7 @@ def survey(
         "makespan_planned_vs_flown": (
             round(max(sortie.values()) / plan.makespan_s, 3) if sortie else None
         ),
-        # the shares alone (from the mission start in AUTO), as before issue 12's end
+        # the shares alone (from the mission start in AUTO), as the older split's end
         "makespan_share_planned_vs_flown": (
             round(max(flown.values()) / share_span, 3) if flown else None
         ),
@@ -345,9 +348,13 @@ def premission_flight(
     fleet.run_for(90.0)
     # the fleet's area plan, made at the homes (as every member makes it)
     area = Geometry.polygon(
-        [(la + 0.006, lo - 0.004), (la + 0.006, lo + 0.004), (la + 0.010, lo + 0.004),
-         (la + 0.010, lo - 0.004)]
-    )  # fmt: skip
+        [
+            (la + 0.006, lo - 0.004),
+            (la + 0.006, lo + 0.004),
+            (la + 0.010, lo + 0.004),
+            (la + 0.010, lo - 0.004),
+        ]
+    )
     homes = {vid: fleet.vehicles[vid].link.state.home for vid in members}
     vs = [
         PlanVehicle(profiles[vid], VehiclePose(h.lat_deg, h.lon_deg) if h else None)
@@ -425,8 +432,16 @@ def premission_flight(
             if s.mission_reached >= entry_seq[vid] and (d > 40.0 or vid not in closest):
                 reached[vid] = closest.get(vid, (0.0, fleet.now - t0[vid]))[1]
             if trace is not None and s.lat_deg is not None and s.lon_deg is not None:
-                trace.append((fleet.now - t0[vid], vid, s.lat_deg, s.lon_deg,
-                              s.mission_reached, s.airspeed_m_s))  # fmt: skip
+                trace.append(
+                    (
+                        fleet.now - t0[vid],
+                        vid,
+                        s.lat_deg,
+                        s.lon_deg,
+                        s.mission_reached,
+                        s.airspeed_m_s,
+                    )
+                )
         return len(reached) == len(members)
 
     fleet.run_until(step, timeout_s)

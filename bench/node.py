@@ -1,14 +1,14 @@
 """CPU of one vehicle node as the swarm grows, measured three ways in one run:
 
-- `core_cpu_pct_at_peers` (issue 20): the node core alone (NodeCore, pure, in this
+- `core_cpu_pct_at_peers`: the node core alone (NodeCore, pure, in this
   process) hearing 10, 100 and 1000 peers (VehicleStatus at 5 Hz, VehicleInfo at 1 Hz,
   liveliness tokens, spread over each period as real peers are), with its autopilot
   state polled at 5 Hz and its timers served as the runtime serves them, for 20
   simulated seconds: core CPU seconds per simulated second, in % of one core. Beside
   it, in the same run, `decode_cpu_pct_at_peers`: only decoding the same messages from
   their LAN bytes (what any subscriber pays), and `peer_visits_per_event`: peers the
-  core looked at per input (flat: issue 20).
-- `real_processes_cpu_pct` (issue 20): a real swarm of 10 `swarm-node run` processes,
+  core looked at per input (flat).
+- `real_processes_cpu_pct`: a real swarm of 10 `swarm-node run` processes,
   each linked over MAVLink to its own simulated quadcopter (one simulator process
   serving all ten) on loopback Zenoh through a router, every node hearing the nine
   others: each node process's CPU over the window, in % of one core (mean and max).
@@ -201,8 +201,21 @@ def membership_timings(endpoint: str, lease_ms: int = 2000) -> dict[str, Any]:
     ids = [1, 2, 3, 7, 8, 9]
     tmp = tempfile.mkdtemp(prefix="bandada-bench-")
     env = {**os.environ, "BANDADA_DB": os.path.join(tmp, "swarm.db")}
-    cmd = [sys.executable, "-m", "swarm_node.cli", "run", "--swarm", SWARM, "--connect", endpoint,
-           "--lease-ms", str(lease_ms), "--log-level", "ERROR", "--id"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "swarm_node.cli",
+        "run",
+        "--swarm",
+        SWARM,
+        "--connect",
+        endpoint,
+        "--lease-ms",
+        str(lease_ms),
+        "--log-level",
+        "ERROR",
+        "--id",
+    ]
     watcher = SwarmBus.open(ZenohSettings(connect=(endpoint,)), SWARM)
     t_launch = time.monotonic()
     procs = {i: subprocess.Popen([*cmd, str(i)], env=env) for i in ids}
@@ -304,13 +317,31 @@ def _peer_traffic(peers: int, sim_s: float) -> list[tuple[float, bytes, type]]:
             vid = 1000 + i
             at = 0.2 * k + 0.2 * i / peers  # spread over the period
             a = 2 * math.pi * i / peers + 0.01 * k
-            st = VehicleStatus(vid, at, 37.41 + 0.01 * math.sin(a), -5.99 + 0.01 * math.cos(a),
-                               110.0, 100.0, 12.0, 3.0, 0.0, 45.0, 20.0, 80, 24.5,
-                               GpsFix.FIX_3D, 14, 10, True, FsmState.GO_MISSION)  # fmt: skip
+            st = VehicleStatus(
+                vid,
+                at,
+                37.41 + 0.01 * math.sin(a),
+                -5.99 + 0.01 * math.cos(a),
+                110.0,
+                100.0,
+                12.0,
+                3.0,
+                0.0,
+                45.0,
+                20.0,
+                80,
+                24.5,
+                GpsFix.FIX_3D,
+                14,
+                10,
+                True,
+                FsmState.GO_MISSION,
+            )
             out.append((at, lan.encode(st), VehicleStatus))
             if k % 5 == 0:
-                info = VehicleInfo(vid, VehicleType.VTOL, "Albatross 250 VTOL", f"A{vid}",
-                                   fleet_id=1)  # fmt: skip
+                info = VehicleInfo(
+                    vid, VehicleType.VTOL, "Albatross 250 VTOL", f"A{vid}", fleet_id=1
+                )
                 out.append((at, lan.encode(info), VehicleInfo))
     return out
 
@@ -368,8 +399,10 @@ def _vehicles_main(ports: list[int], stop: Any) -> None:
     from swarm_sim.runtime import VehicleServer, VehicleSpec, spread_homes
 
     homes = spread_homes(SITL_HOME, len(ports), 40.0)
-    specs = [VehicleSpec("copter", home=h, port=p, sysid=i + 1)
-             for i, (h, p) in enumerate(zip(homes, ports, strict=True))]  # fmt: skip
+    specs = [
+        VehicleSpec("copter", home=h, port=p, sysid=i + 1)
+        for i, (h, p) in enumerate(zip(homes, ports, strict=True))
+    ]
     with VehicleServer(specs, SystemClock()):
         stop.wait()
 
@@ -392,10 +425,24 @@ def real_swarm(endpoint: str, n: int = REAL_NODES) -> dict[str, Any]:
         time.sleep(2.0)  # the simulator's ports open
         for vid, port in zip(ids, ports, strict=True):
             procs[vid] = subprocess.Popen(
-                [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid), "--swarm", SWARM,
-                 "--connect", endpoint, "--autopilot", f"tcp:127.0.0.1:{port}",
-                 "--log-level", "ERROR"], env=env,
-            )  # fmt: skip
+                [
+                    sys.executable,
+                    "-m",
+                    "swarm_node.cli",
+                    "run",
+                    "--id",
+                    str(vid),
+                    "--swarm",
+                    SWARM,
+                    "--connect",
+                    endpoint,
+                    "--autopilot",
+                    f"tcp:127.0.0.1:{port}",
+                    "--log-level",
+                    "ERROR",
+                ],
+                env=env,
+            )
         listed = _until(
             lambda: all(_peers(watcher.session, i) == [j for j in ids if j != i] for i in ids), 120
         )

@@ -1,4 +1,4 @@
-"""Planning library figures (issue 5): coverage against the Fields2Cover reference
+"""Planning library figures: coverage against the Fields2Cover reference
 polygons, exact Dubins against OMPL, heterogeneous split makespan, and the issue's
 targets checked on the figures of the same run.
 

@@ -1,4 +1,4 @@
-"""Planning off the node's control loop (issue 12, defect 4): which worker keeps the
+"""Planning off the node's control loop: which worker keeps the
 loop's rate while a 4,000-vertex area mission is planned.
 
 A stand-in for the node's loop ticks every 10 ms (what it needs: 5 Hz status, 5 Hz
@@ -33,9 +33,13 @@ def request(n: int = 4000) -> PlanRequest:
         a = 2 * math.pi * i / n
         r = 150 + 20 * math.sin(7 * a)
         pts.append(geodesy.offset(lat0, lon0, r * math.sin(a), r * math.cos(a)))
-    mission = Mission(1, 900, MissionType.AREA, Geometry.polygon(pts), MissionParams(altitude_rel_m=50.0))
-    members = (Member(profiles[7], GeoPoint(37.4112, -5.9889, 10.0)),
-               Member(profiles[8], GeoPoint(37.4112, -5.9885, 10.0)))  # fmt: skip
+    mission = Mission(
+        1, 900, MissionType.AREA, Geometry.polygon(pts), MissionParams(altitude_rel_m=50.0)
+    )
+    members = (
+        Member(profiles[7], GeoPoint(37.4112, -5.9889, 10.0)),
+        Member(profiles[8], GeoPoint(37.4112, -5.9885, 10.0)),
+    )
     return PlanRequest(1, mission, members, (), 0.0, 10.0)
 
 

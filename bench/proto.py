@@ -118,7 +118,9 @@ SAMPLES: dict[type, Any] = {
     NoFlyZone: NoFlyZone(5, Geometry.circle(37.415, -5.985, 250.0), 0.0, 300.0),
     TargetReport: TargetReport(88, 12, TargetSource.PAYLOAD, NOW, HOME, "vehicle", 0.82),
     PlanLineage: PlanLineage(
-        Mission(7, 900, MissionType.AREA, Geometry.polygon(FIELD), MissionParams(altitude_rel_m=60.0)),
+        Mission(
+            7, 900, MissionType.AREA, Geometry.polygon(FIELD), MissionParams(altitude_rel_m=60.0)
+        ),
         12,
         tuple(LineageHome(v, HOME) for v in (3, 4, 12)),
         (LineageStep((3, 4, 5), tuple(LineageProgress(v, 812.5) for v in (3, 4, 12))),),
@@ -156,9 +158,34 @@ def _hl2() -> Any:
     # every field set (MAVLink 2 trims trailing zero bytes; a real HIGH_LATENCY2 carrying
     # swarm data in custom0..2 uses the full 42-byte payload)
     return mavlink.MAVLink_high_latency2_message(
-        123456, 1, 3, 10, 374112345, -59889123, 412, 500, 325 // 2, 150, 100, 200, 130,
-        26, 3, 7, 2, 4, 71, 5, 9, 1, 0, 0x10, 2, 38, 4,
-    )  # fmt: skip
+        123456,
+        1,
+        3,
+        10,
+        374112345,
+        -59889123,
+        412,
+        500,
+        325 // 2,
+        150,
+        100,
+        200,
+        130,
+        26,
+        3,
+        7,
+        2,
+        4,
+        71,
+        5,
+        9,
+        1,
+        0,
+        0x10,
+        2,
+        38,
+        4,
+    )
 
 
 def _signed_mav() -> mavlink.MAVLink:

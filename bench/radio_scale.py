@@ -1,4 +1,4 @@
-"""Radio at swarm scale (issue 19): 14, 25 and 50 vehicles flying the demo's mission on
+"""Radio at swarm scale: 14, 25 and 50 vehicles flying the demo's mission on
 one 115.2 kbps XTend channel, the gateway as shipped (send on error, adaptive schedule,
 peers predicted) against the fixed 5 Hz TDM, at 0 % and 10 % loss; and the framing
 efficiency of the gateway's real frames.
@@ -109,9 +109,16 @@ def _channel(n: int, loss: float) -> ChannelParams:
 # ---------------------------------------------------------------------------- limits
 def _fits(n: int, tdm: TdmConfig, batched: bool, track: Track) -> tuple[bool, int]:
     f = Fleet(
-        XTEND_DATASHEET, DESIGN, tdm, KEY, max_nodes=n, seed=n, write_jitter_s=5e-4,
-        read_jitter_s=5e-4, latest_keep=2 if batched else 1,
-    )  # fmt: skip
+        XTEND_DATASHEET,
+        DESIGN,
+        tdm,
+        KEY,
+        max_nodes=n,
+        seed=n,
+        write_jitter_s=5e-4,
+        read_jitter_s=5e-4,
+        latest_keep=2 if batched else 1,
+    )
     members = tuple(range(1, n + 1))
     t0 = f.t
 
@@ -123,8 +130,13 @@ def _fits(n: int, tdm: TdmConfig, batched: bool, track: Track) -> tuple[bool, in
         return publish
 
     for v in members:
-        f.add(v, lan=lan(v), produce_every_s=CYCLE_S, initial_members=members,
-              bridge=Bridge("default", v, frozenset({v})))  # fmt: skip
+        f.add(
+            v,
+            lan=lan(v),
+            produce_every_s=CYCLE_S,
+            initial_members=members,
+            bridge=Bridge("default", v, frozenset({v})),
+        )
     f.run(t0 + 1.0)
     base = f.model.counts["collisions"]
     f.run(t0 + 1.0 + LIMIT_SIM_S)
@@ -159,8 +171,17 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
     # acks, answers and schedule changes (the gateway's on_error default)
     min_payload = 2 * (STATUS_BYTES + 4) if gateway else STATUS_BYTES + 2
     tdm = TdmConfig(cycle_s=CYCLE_S, guard_s=GUARD_S, min_payload=min_payload)
-    f = Fleet(_channel(n, loss), DESIGN, tdm, KEY, max_nodes=n + 1, seed=n,
-              write_jitter_s=5e-4, read_jitter_s=5e-4, keep_predictions=False)  # fmt: skip
+    f = Fleet(
+        _channel(n, loss),
+        DESIGN,
+        tdm,
+        KEY,
+        max_nodes=n + 1,
+        seed=n,
+        write_jitter_s=5e-4,
+        read_jitter_s=5e-4,
+        keep_predictions=False,
+    )
     t0 = f.t
     vehicles = tuple(range(1, n + 1))
     members = (*vehicles, GCS)
@@ -194,14 +215,29 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
     heard_cmds: dict[int, set[int]] = {v: set() for v in vehicles}
     for v in vehicles:
         bridges[v] = Bridge(
-            "default", v, frozenset({v}),
+            "default",
+            v,
+            frozenset({v}),
             predictor=PeerPredictor(predict_cfg) if gateway else None,
-        )  # fmt: skip
-        f.add(v, lan=vehicle_lan(v), produce_every_s=0.2, initial_members=members,
-              send_on_error=soe, adaptive=adaptive, bridge=bridges[v])  # fmt: skip
+        )
+        f.add(
+            v,
+            lan=vehicle_lan(v),
+            produce_every_s=0.2,
+            initial_members=members,
+            send_on_error=soe,
+            adaptive=adaptive,
+            bridge=bridges[v],
+        )
     bridges[GCS] = Bridge("default", GCS, frozenset({GCS}))
-    f.add(GCS, lan=gcs_lan, produce_every_s=CMD_EVERY_S, initial_members=members,
-          adaptive=adaptive, bridge=bridges[GCS])  # fmt: skip
+    f.add(
+        GCS,
+        lan=gcs_lan,
+        produce_every_s=CMD_EVERY_S,
+        initial_members=members,
+        adaptive=adaptive,
+        bridge=bridges[GCS],
+    )
 
     # run in 100 ms steps; sample every receiver's belief of every other vehicle
     err: list[float] = []
@@ -304,9 +340,14 @@ def _scale(n: int, loss: float, scheme: str, tracks: dict[int, Track]) -> dict[s
     }
     if gateway:
         row["bound_exceeded"] = round(exceeded / max(1, len(err)), 5)
-        row["levels_at_end"] = dict(sorted(defaultdict(int, {
-            lv: sum(1 for x in levels.values() if x == lv) for lv in set(levels.values())
-        }).items()))  # fmt: skip
+        row["levels_at_end"] = dict(
+            sorted(
+                defaultdict(
+                    int,
+                    {lv: sum(1 for x in levels.values() if x == lv) for lv in set(levels.values())},
+                ).items()
+            )
+        )
         row["level_changes"] = sum(f.node(v).membership.changes_applied for v in (1,))
         reasons: defaultdict[str, int] = defaultdict(int)
         for m in f.members.values():

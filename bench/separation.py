@@ -1,4 +1,4 @@
-"""Separation figures (issue 14), with avoidance on and off, analysed as the paper
+"""Separation figures, with avoidance on and off, analysed as the paper
 does (risk 10-40 m, danger 5-10 m, near-collision < 5 m samples over the whole flight):
 
 - the paper's experiment 1 (`exp1_six_vtol`), experiment 2's simultaneous take-off

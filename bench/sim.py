@@ -188,8 +188,9 @@ def tcp_run(n: int, wall_s: float) -> dict[str, Any]:
     server.start_thread()
     reader = subprocess.Popen(
         [sys.executable, "-c", _READER, ",".join(map(str, ports)), str(wall_s + 4.0)],
-        stdout=subprocess.PIPE, text=True,
-    )  # fmt: skip
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert reader.stdout is not None
         assert reader.stdout.readline().strip() == "connected"

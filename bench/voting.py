@@ -1,4 +1,4 @@
-"""Voting (issue 13): time to agreement, the 200 lossy trials, votes on the radio.
+"""Voting: time to agreement, the 200 lossy trials, votes on the radio.
 
 Simulated time throughout (the ballots are pure cores): `agree_ms` is from the mission
 reaching every voter to the last voter's decision, on a LAN-like bus (1-10 ms per
@@ -78,21 +78,38 @@ def _out(msg: VehicleStatus | Vote) -> OutMessage:
     topic = STATUS if isinstance(msg, VehicleStatus) else VOTE
     p = topic.radio
     return OutMessage(
-        key_of("default", msg), radio.encode(msg), int(p.klass), p.latest_only, p.acked,
+        key_of("default", msg),
+        radio.encode(msg),
+        int(p.klass),
+        p.latest_only,
+        p.acked,
         p.max_rate_hz,
-    )  # fmt: skip
+    )
 
 
 def agree_radio(n: int = 6, seed: int = 1, loss: float = 0.0) -> dict[str, float]:
     """One vote round for n gateways on the emulated TDM channel."""
     tdm = TdmConfig(guard_s=0.002)
-    f = Fleet(ChannelParams(loss=loss, seed=seed), LinkTiming(), tdm, bytes(range(32)),
-              max_nodes=n + 2, seed=seed)  # fmt: skip
+    f = Fleet(
+        ChannelParams(loss=loss, seed=seed),
+        LinkTiming(),
+        tdm,
+        bytes(range(32)),
+        max_nodes=n + 2,
+        seed=seed,
+    )
     for vid in range(1, n + 1):
 
         def producer(t: float, vid: int = vid) -> list[OutMessage]:
-            s = VehicleStatus(vehicle_id=vid, time_unix_s=t, lat_deg=37.41, lon_deg=-5.98,
-                              alt_msl_m=110.0, alt_rel_m=100.0, battery_pct=80)  # fmt: skip
+            s = VehicleStatus(
+                vehicle_id=vid,
+                time_unix_s=t,
+                lat_deg=37.41,
+                lon_deg=-5.98,
+                alt_msl_m=110.0,
+                alt_rel_m=100.0,
+                battery_pct=80,
+            )
             return [_out(s)]
 
         f.add(vid, producer=producer, initial_members=tuple(range(1, n + 1)))
@@ -208,8 +225,14 @@ def node_level() -> dict[str, dict[str, object]]:
 
 
 def vote_bytes(n: int) -> int:
-    v = Vote(2**32 - 1, 65534, tuple(VoteScore(65534 - i, 0.1234) for i in range(n)),
-             round=255, members_hash=0xFFFF, committed=True)  # fmt: skip
+    v = Vote(
+        2**32 - 1,
+        65534,
+        tuple(VoteScore(65534 - i, 0.1234) for i in range(n)),
+        round=255,
+        members_hash=0xFFFF,
+        committed=True,
+    )
     return len(radio.encode(v))
 
 

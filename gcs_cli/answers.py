@@ -22,8 +22,9 @@ err_console = Console(stderr=True)
 
 
 def outcome_table(out: Outcome) -> Table:
-    table = Table(title=out.request.what or None, box=box.SIMPLE_HEAD, pad_edge=False,
-                  title_justify="left")  # fmt: skip
+    table = Table(
+        title=out.request.what or None, box=box.SIMPLE_HEAD, pad_edge=False, title_justify="left"
+    )
     table.add_column("vehicle", justify="right", no_wrap=True)
     table.add_column("answer", no_wrap=True)
     table.add_column("reason", no_wrap=True)
@@ -38,8 +39,13 @@ def outcome_table(out: Outcome) -> Table:
         if notes:
             why = f"{why} ({notes})" if why else notes
         ok = r.verdict == Verdict.ACCEPTED
-        table.add_row(str(r.vehicle_id), "yes" if ok else "NO", r.ack.reason.name, why,
-                      style=None if ok else "red")  # fmt: skip
+        table.add_row(
+            str(r.vehicle_id),
+            "yes" if ok else "NO",
+            r.ack.reason.name,
+            why,
+            style=None if ok else "red",
+        )
     return table
 
 
@@ -89,11 +95,15 @@ def report(out: Outcome, console: Console, *, as_json: bool = False) -> None:
         if out.not_addressed:
             console.print(f"not addressed: {', '.join(map(str, out.not_addressed))}", style="dim")
         if out.absent:
-            console.print("in the swarm database, not alive: "
-                          + ", ".join(map(str, out.absent)), style="dim")  # fmt: skip
+            console.print(
+                "in the swarm database, not alive: " + ", ".join(map(str, out.absent)), style="dim"
+            )
         if out.undetermined:
-            console.print("alive, fleet never heard (may be addressed): "
-                          + ", ".join(map(str, out.undetermined)), style="yellow")  # fmt: skip
+            console.print(
+                "alive, fleet never heard (may be addressed): "
+                + ", ".join(map(str, out.undetermined)),
+                style="yellow",
+            )
         console.print(summary(out), style=None if out.ok else "bold red")
     if not out.ok:
         raise typer.Exit(out.exit_code)

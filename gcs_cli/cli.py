@@ -76,9 +76,9 @@ app.add_typer(db_app, name="db")
 zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
 app.add_typer(zone_app, name="zone")
 app.add_typer(analyze_app, name="analyze")
-app.add_typer(target_app, name="target")  # issue 13: re-tasking, and the vote shown
+app.add_typer(target_app, name="target")  # re-tasking, and the vote shown
 app.command("vote")(show_a_vote)
-app.command(name="declared")(declared_command)  # declared.py (issue 16)
+app.command(name="declared")(declared_command)  # declared.py
 
 
 def _width() -> int | None:
@@ -106,10 +106,9 @@ class Link:
         """A ground station session; exit 2 (one line) when Zenoh cannot be opened
         (a taken --listen port, a certificate), exit 1 when, with `check`, nothing at
         --connect answers
-        (issue 15: an unreachable router looked like an empty swarm, exit 0)."""
+        (an unreachable router looked like an empty swarm, exit 0)."""
         try:
-            gs = GroundStation(self.settings, self.swarm, self.gcs_id,
-                               database_ids=database_ids())  # fmt: skip
+            gs = GroundStation(self.settings, self.swarm, self.gcs_id, database_ids=database_ids())
         except Exception as exc:
             from swarm_proto.session import zenoh_reason as _zenoh_reason
 
@@ -155,8 +154,9 @@ def _endpoints(values: list[str], name: str) -> list[str]:
 def _group(
     ctx: typer.Context,
     connect: list[str] = typer.Option(
-        [], help="Zenoh endpoints to connect to, e.g. tcp/10.0.0.1:7447 (tcp:HOST:PORT and "
-        "HOST:PORT are read the same); default tcp/127.0.0.1:7447, or the file's"
+        [],
+        help="Zenoh endpoints to connect to, e.g. tcp/10.0.0.1:7447 (tcp:HOST:PORT and "
+        "HOST:PORT are read the same); default tcp/127.0.0.1:7447, or the file's",
     ),
     listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
     mode: str = typer.Option("peer", help="Zenoh mode: peer or client"),
@@ -167,8 +167,9 @@ def _group(
         "`swarm-node certs make`); --connect/--listen/--mode override it",
     ),
     swarm: str = typer.Option("default", help="swarm name"),
-    gcs_id: int = typer.Option(DEFAULT_GCS_ID, min=1, max=65534,
-                               help="this ground station's node id"),
+    gcs_id: int = typer.Option(
+        DEFAULT_GCS_ID, min=1, max=65534, help="this ground station's node id"
+    ),
 ) -> None:
     """bandada ground station.
 
@@ -211,9 +212,14 @@ def geometry_from(
 
 
 def selector_from(
-    ids: list[int], fleet: int | None, quantity: int, payload: str, all_: bool = False,
-    *, required: bool = False,
-) -> Selector:  # fmt: skip
+    ids: list[int],
+    fleet: int | None,
+    quantity: int,
+    payload: str,
+    all_: bool = False,
+    *,
+    required: bool = False,
+) -> Selector:
     if not 0 <= quantity <= 255:
         raise typer.BadParameter(f"--count must be 1..255, got {quantity}")
     if payload and not quantity:
@@ -224,8 +230,9 @@ def selector_from(
         raise typer.BadParameter("--count and --all exclude each other")
     try:
         if quantity:
-            return Selector(SelectorKind.QUANTITY, fleet_id=fleet or 0, quantity=quantity,
-                            payload_model=payload)  # fmt: skip
+            return Selector(
+                SelectorKind.QUANTITY, fleet_id=fleet or 0, quantity=quantity, payload_model=payload
+            )
         return selection(ids, fleet, all_, required=required)
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
@@ -314,14 +321,29 @@ def alerts(
     fleets = {v: st.fleet_id for v, st in view.status.items()}
     got = [a for a in view.alerts if shown.addresses(a.vehicle_id, fleets.get(a.vehicle_id, 0))]
     if as_json:
-        typer.echo(json.dumps([{**msgspec.to_builtins(a), "severity": a.severity.name,
-                                "code": a.code.name, "meaning": alert_text(a.code, a.text)}
-                               for a in got], indent=2))  # fmt: skip
+        typer.echo(
+            json.dumps(
+                [
+                    {
+                        **msgspec.to_builtins(a),
+                        "severity": a.severity.name,
+                        "code": a.code.name,
+                        "meaning": alert_text(a.code, a.text),
+                    }
+                    for a in got
+                ],
+                indent=2,
+            )
+        )
         return
     for a in got:
         style = "red" if a.severity >= 2 else ("yellow" if a.severity == 1 else None)
-        console.print(f"{a.vehicle_id:>5} {a.severity.name:<9} {a.code.name:<20} "
-                      f"{alert_text(a.code, a.text)}", style=style, highlight=False)  # fmt: skip
+        console.print(
+            f"{a.vehicle_id:>5} {a.severity.name:<9} {a.code.name:<20} "
+            f"{alert_text(a.code, a.text)}",
+            style=style,
+            highlight=False,
+        )
     if not got:
         console.print(f"no alert in {wait:g} s", style="dim")
 
@@ -353,13 +375,25 @@ def peers(
 # --------------------------------------------------------------------------- commands
 
 #: commands that move or arm vehicles: a selector is required and they are confirmed
-MOVING = frozenset({
-    CommandKind.ARM, CommandKind.DISARM, CommandKind.TAKEOFF, CommandKind.SET_MODE,
-    CommandKind.GOTO, CommandKind.SET_SPEED, CommandKind.SET_ALTITUDE, CommandKind.RTL,
-    CommandKind.LAND, CommandKind.EMERGENCY_LAND, CommandKind.ABORT_LANDING,
-    CommandKind.PARACHUTE, CommandKind.CANCEL_MISSION, CommandKind.JOIN_MISSION,
-    CommandKind.SWAP_MISSION,
-})  # fmt: skip
+MOVING = frozenset(
+    {
+        CommandKind.ARM,
+        CommandKind.DISARM,
+        CommandKind.TAKEOFF,
+        CommandKind.SET_MODE,
+        CommandKind.GOTO,
+        CommandKind.SET_SPEED,
+        CommandKind.SET_ALTITUDE,
+        CommandKind.RTL,
+        CommandKind.LAND,
+        CommandKind.EMERGENCY_LAND,
+        CommandKind.ABORT_LANDING,
+        CommandKind.PARACHUTE,
+        CommandKind.CANCEL_MISSION,
+        CommandKind.JOIN_MISSION,
+        CommandKind.SWAP_MISSION,
+    }
+)
 COMMAND_NAMES = [k.name.lower().replace("_", "-") for k in CommandKind]
 
 
@@ -374,8 +408,11 @@ def ask(gs: GroundStation, what: str, sel: Selector, yes: bool) -> None:
     alive = None
     if sel.kind != SelectorKind.IDS:
         gs.discover()
-        alive = sorted(k.vehicle_id for k in gs.known()
-                       if k.alive and sel.addresses(k.vehicle_id, k.fleet_id or 0))  # fmt: skip
+        alive = sorted(
+            k.vehicle_id
+            for k in gs.known()
+            if k.alive and sel.addresses(k.vehicle_id, k.fleet_id or 0)
+        )
     confirm(f"{what} to {describe(sel, alive)}?", yes)
 
 
@@ -392,10 +429,12 @@ def cmd(
         None, help="LAT,LON[,ALT_MSL] for goto, set-base and emergency-land (where to land)"
     ),
     fleet_id: int = typer.Option(0, min=0, max=255, help="set-fleet: the new fleet id"),
-    mission_id: int = typer.Option(0, min=0, max=2**32 - 1,
-                                   help="cancel-mission / join-mission: the mission"),
-    other_mission_id: int = typer.Option(0, min=0, max=2**32 - 1,
-                                         help="swap-mission: the other fleet's mission"),
+    mission_id: int = typer.Option(
+        0, min=0, max=2**32 - 1, help="cancel-mission / join-mission: the mission"
+    ),
+    other_mission_id: int = typer.Option(
+        0, min=0, max=2**32 - 1, help="swap-mission: the other fleet's mission"
+    ),
     timeout: float = typer.Option(5.0, help="seconds to wait for every answer"),
     yes: YesOption = False,
     as_json: JsonOption = False,
@@ -426,8 +465,14 @@ def cmd(
             param_hint="--point",
         )
     sel = selector_from(ids, fleet, 0, "", all_, required=k in MOVING)
-    args = CommandArgs(point=geo, value=value, text=text, fleet_id=fleet_id, mission_id=mission_id,
-                       other_mission_id=other_mission_id)  # fmt: skip
+    args = CommandArgs(
+        point=geo,
+        value=value,
+        text=text,
+        fleet_id=fleet_id,
+        mission_id=mission_id,
+        other_mission_id=other_mission_id,
+    )
     checked(Command(ctx.obj.gcs_id, 1, k, sel, args))  # everything checked before sending
     name = k.name.lower().replace("_", "-")
     with ctx.obj.open() as gs:
@@ -442,9 +487,12 @@ def cmd(
 def mission(
     ctx: typer.Context,
     mission_type: str = typer.Argument(
-        ..., metavar="TYPE", help="area, target, perimeter, route, objective, autoland, mumt",
-        autocompletion=lambda incomplete: [t.name.lower() for t in MissionType
-                                           if t.name.lower().startswith(incomplete)],
+        ...,
+        metavar="TYPE",
+        help="area, target, perimeter, route, objective, autoland, mumt",
+        autocompletion=lambda incomplete: [
+            t.name.lower() for t in MissionType if t.name.lower().startswith(incomplete)
+        ],
     ),
     polygon: str | None = typer.Option(None, help="'LAT,LON LAT,LON ...' (area, perimeter)"),
     point: str | None = typer.Option(None, help="LAT,LON (target, objective, autoland)"),
@@ -452,8 +500,11 @@ def mission(
     line: str | None = typer.Option(None, help="'LAT,LON LAT,LON ...' (route)"),
     points: str | None = typer.Option(None, help="'LAT,LON ...' (multi-objective)"),
     file: Path | None = typer.Option(
-        None, "--file", help="the geometry from a file: GeoJSON, KML, QGroundControl .plan or "
-        "MAVLink waypoints (docs/ground-station.md, 'Files')", dir_okay=False,
+        None,
+        "--file",
+        help="the geometry from a file: GeoJSON, KML, QGroundControl .plan or "
+        "MAVLink waypoints (docs/ground-station.md, 'Files')",
+        dir_okay=False,
     ),
     feature: str | None = typer.Option(
         None, help="with --file: which feature (its name, or its number from 1)"
@@ -462,7 +513,10 @@ def mission(
     fleet: FleetOption = None,
     all_: AllOption = False,
     quantity: int = typer.Option(
-        0, "--count", "--quantity", help="this many vehicles, chosen by voting (with --fleet: of it)"
+        0,
+        "--count",
+        "--quantity",
+        help="this many vehicles, chosen by voting (with --fleet: of it)",
     ),
     payload: str = typer.Option(
         "", help="with --count: the payload model voting prefers (a swarm database model)"
@@ -478,8 +532,11 @@ def mission(
     mission_id: int = typer.Option(0, min=0, max=2**32 - 1, help="default: a fresh id"),
     timeout: float = typer.Option(5.0, help="seconds to wait for every answer"),
     save: Path | None = typer.Option(
-        None, "--save", help="also write the mission to this file (.geojson, .kml, .plan, "
-        ".waypoints or .json: the format by its extension)", dir_okay=False,
+        None,
+        "--save",
+        help="also write the mission to this file (.geojson, .kml, .plan, "
+        ".waypoints or .json: the format by its extension)",
+        dir_okay=False,
     ),
     dry_run: bool = typer.Option(False, "--dry-run", help="check and --save, send nothing"),
     yes: YesOption = False,
@@ -512,10 +569,14 @@ def mission(
             raise typer.BadParameter(str(exc), param_hint="--file") from None
     else:
         geometry = geometry_from(polygon, point, circle, line, points)
-    for opt, v, lo, hi in (("--alt", alt, 0.0, 8000.0), ("--speed", speed, 0.0, 300.0),
-                           ("--overlap", overlap, 0.0, 0.95), ("--radius", radius, 0.0, 1.0e6),
-                           ("--alt-step", alt_step, 0.0, 8000.0),
-                           ("--duration", duration, 0.0, 1.0e7)):  # fmt: skip
+    for opt, v, lo, hi in (
+        ("--alt", alt, 0.0, 8000.0),
+        ("--speed", speed, 0.0, 300.0),
+        ("--overlap", overlap, 0.0, 0.95),
+        ("--radius", radius, 0.0, 1.0e6),
+        ("--alt-step", alt_step, 0.0, 8000.0),
+        ("--duration", duration, 0.0, 1.0e7),
+    ):
         finite(v, opt, lo, hi)
     if not 0.0 <= vote_wait < 3600.0:
         raise typer.BadParameter("must be in [0, 3600) s", param_hint="--vote-wait")
@@ -534,8 +595,16 @@ def mission(
     sel = selector_from(ids, fleet, quantity, payload, all_, required=not dry_run)
     try:
         params = msgspec.convert(values, MissionParams, strict=False)
-        m = Mission(mission_id or new_seq() or 1, ctx.obj.gcs_id, mtype, geometry, params,
-                    sel, name, time.time())  # fmt: skip
+        m = Mission(
+            mission_id or new_seq() or 1,
+            ctx.obj.gcs_id,
+            mtype,
+            geometry,
+            params,
+            sel,
+            name,
+            time.time(),
+        )
     except (ValueError, msgspec.ValidationError) as exc:
         raise typer.BadParameter(str(exc)) from exc
     checked(m)
@@ -636,9 +705,18 @@ def zone_add(
     timeout_option(timeout)
     now = time.time()
     try:
-        zone = NoFlyZone(zone_id, geometry, floor, ceiling, now,
-                         now + minutes * 60 if minutes else None, True, name, operating_area,
-                         ctx.obj.gcs_id)  # fmt: skip
+        zone = NoFlyZone(
+            zone_id,
+            geometry,
+            floor,
+            ceiling,
+            now,
+            now + minutes * 60 if minutes else None,
+            True,
+            name,
+            operating_area,
+            ctx.obj.gcs_id,
+        )
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
     sel = selector_from(ids, fleet, 0, "", all_)

@@ -417,7 +417,7 @@ def query(
         raise _fail(f"node must be a node id (1..65534) or '*', got {node!r}", 2)
     if not math.isfinite(timeout) or timeout <= 0:
         raise _fail(f"--timeout must be a positive number of seconds, got {timeout:g}", 2)
-    link = ctx.find_root().obj  # gcs's --connect, --zenoh-config and --swarm (issue 15)
+    link = ctx.find_root().obj  # gcs's --connect, --zenoh-config and --swarm
     settings = getattr(link, "settings", None)
     swarm = swarm or str(getattr(link, "swarm", "default"))
     if connect:

@@ -1,5 +1,5 @@
-"""`gcs declared [NODE] [--json]`: what the operator declared, as a node holds it
-(issue 16). Every node keeps every declaration (zones and operating areas, withdrawn
+"""`gcs declared [NODE] [--json]`: what the operator declared, as a node holds it.
+Every node keeps every declaration (zones and operating areas, withdrawn
 ones too; SET_BASE, SET_FLEET and CANCEL_MISSION commands; fleet assignments; the
 missions it accepted) with its stamp, in its database, and nodes exchange them when
 they meet, so any node can be asked: they converge on the newest declarations.
@@ -46,9 +46,13 @@ def declared_tables(state: DeclaredState) -> list[Table]:
             else f"polygon {len(z.geometry.points)} vertices"
         )
         zones.add_row(
-            str(z.zone_id), z.name, "operating area" if z.operating_area else "no-fly zone",
-            shape, "in force" if z.active else "withdrawn", _when(z.time_unix_s),
-        )  # fmt: skip
+            str(z.zone_id),
+            z.name,
+            "operating area" if z.operating_area else "no-fly zone",
+            shape,
+            "in force" if z.active else "withdrawn",
+            _when(z.time_unix_s),
+        )
     cmds = Table(title="bases, fleets and cancellations (commands, oldest first)")
     for col in ("command", "addresses", "value", "declared"):
         cmds.add_column(col)
@@ -60,19 +64,27 @@ def declared_tables(state: DeclaredState) -> list[Table]:
             value = f"fleet {a.fleet_id}"
         else:
             value = f"mission {a.mission_id}"
-        cmds.add_row(c.kind.name.lower().replace("_", "-"), _selector(c), value,
-                     _when(c.time_unix_s))  # fmt: skip
+        cmds.add_row(
+            c.kind.name.lower().replace("_", "-"), _selector(c), value, _when(c.time_unix_s)
+        )
     for f in state.assignments:
-        cmds.add_row("fleet-assignment", ",".join(str(i) for i in f.vehicle_ids),
-                     f"fleet {f.fleet_id}", _when(f.time_unix_s))  # fmt: skip
+        cmds.add_row(
+            "fleet-assignment",
+            ",".join(str(i) for i in f.vehicle_ids),
+            f"fleet {f.fleet_id}",
+            _when(f.time_unix_s),
+        )
     missions = Table(title="missions")
     for col in ("id", "type", "name", "state", "changed"):
         missions.add_column(col)
     for m in state.missions:
         missions.add_row(
-            str(m.mission.mission_id), m.mission.mission_type.name.lower(), m.mission.name,
-            "in force" if m.in_force else "ended", _when(m.changed_unix_s),
-        )  # fmt: skip
+            str(m.mission.mission_id),
+            m.mission.mission_type.name.lower(),
+            m.mission.name,
+            "in force" if m.in_force else "ended",
+            _when(m.changed_unix_s),
+        )
     return [zones, cmds, missions]
 
 

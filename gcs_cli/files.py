@@ -20,7 +20,9 @@ from .geofiles import GeoFileError, save_zones, zone_features
 from .options import AllOption, FleetOption, IdsOption, JsonOption, checked, finite
 
 
-def held_zones(link: Link, timeout_s: float = 2.0) -> tuple[dict[int, NoFlyZone], dict[int, list[int]]]:
+def held_zones(
+    link: Link, timeout_s: float = 2.0
+) -> tuple[dict[int, NoFlyZone], dict[int, list[int]]]:
     """Every zone some vehicle holds (its newest copy: the latest valid_from) and who
     holds each: ({zone id: zone}, {zone id: [vehicle ids]})."""
     with link.open() as gs:
@@ -63,24 +65,43 @@ def zone_list(
     now = time.time()
     shown = [z for z in sorted(zones.values(), key=lambda z: z.zone_id) if withdrawn or z.active]
     if as_json:
-        typer.echo(json.dumps([{**msgspec.to_builtins(z), "in_force": z.in_force(now),
-                                "held_by": holders[z.zone_id]} for z in shown], indent=2))  # fmt: skip
+        typer.echo(
+            json.dumps(
+                [
+                    {
+                        **msgspec.to_builtins(z),
+                        "in_force": z.in_force(now),
+                        "held_by": holders[z.zone_id],
+                    }
+                    for z in shown
+                ],
+                indent=2,
+            )
+        )
         return
     t = Table(title="zones", box=box.SIMPLE_HEAD, title_justify="left")
     for col in ("id", "kind", "name", "where", "floor-ceiling m", "state", "held by"):
         t.add_column(col)
     for z in shown:
         state = "in force" if z.in_force(now) else ("withdrawn" if not z.active else "not in force")
-        t.add_row(str(z.zone_id), "area" if z.operating_area else "no-fly", z.name, _where(z),
-                  "-" if z.operating_area else f"{z.floor_alt_msl_m:g}..{z.ceiling_alt_msl_m:g}",
-                  state, ", ".join(map(str, holders[z.zone_id])))  # fmt: skip
+        t.add_row(
+            str(z.zone_id),
+            "area" if z.operating_area else "no-fly",
+            z.name,
+            _where(z),
+            "-" if z.operating_area else f"{z.floor_alt_msl_m:g}..{z.ceiling_alt_msl_m:g}",
+            state,
+            ", ".join(map(str, holders[z.zone_id])),
+        )
     console.print(t if shown else "no zone held by any vehicle")
 
 
 @zone_app.command("export")
 def zone_export(
     ctx: typer.Context,
-    file: Path = typer.Argument(..., dir_okay=False, help="FILE.geojson, .kml, .plan, .waypoints or .json"),
+    file: Path = typer.Argument(
+        ..., dir_okay=False, help="FILE.geojson, .kml, .plan, .waypoints or .json"
+    ),
     timeout: float = typer.Option(2.0, help="seconds to wait for the vehicles' answers"),
 ) -> None:
     """Write the zones in force that the vehicles hold to a file (GeoJSON, KML,
@@ -99,16 +120,22 @@ def zone_export(
         save_zones(file, active)
     except GeoFileError as exc:
         raise typer.BadParameter(str(exc), param_hint="FILE") from None
-    console.print(f"{len(active)} zone(s) written to {file}: "
-                  + ", ".join(str(z.zone_id) for z in active))  # fmt: skip
+    console.print(
+        f"{len(active)} zone(s) written to {file}: " + ", ".join(str(z.zone_id) for z in active)
+    )
 
 
 @zone_app.command("import")
 def zone_import(
     ctx: typer.Context,
     file: Path = typer.Argument(..., dir_okay=False, help="GeoJSON, KML, .plan, waypoints or JSON"),
-    first_id: int = typer.Option(1, "--first-id", min=1, max=2**32 - 1,
-                                 help="ids from here on, for zones the file does not number"),
+    first_id: int = typer.Option(
+        1,
+        "--first-id",
+        min=1,
+        max=2**32 - 1,
+        help="ids from here on, for zones the file does not number",
+    ),
     floor: float = typer.Option(-1000.0, help="floor, m above mean sea level (no-fly zones)"),
     ceiling: float = typer.Option(8000.0, help="ceiling, m above mean sea level"),
     ids: IdsOption = [],  # noqa: B006
@@ -145,8 +172,13 @@ def zone_import(
         lo = float(f.props.get("floor_alt_msl_m", floor))
         hi = float(f.props.get("ceiling_alt_msl_m", ceiling))
         try:
-            zones.append(checked(NoFlyZone(zid, f.geometry, lo, hi, now, None, True, f.name[:48],
-                                           area, ctx.obj.gcs_id)))  # fmt: skip
+            zones.append(
+                checked(
+                    NoFlyZone(
+                        zid, f.geometry, lo, hi, now, None, True, f.name[:48], area, ctx.obj.gcs_id
+                    )
+                )
+            )
         except ValueError as exc:
             raise typer.BadParameter(f"{file}: {f.describe()}: {exc}", param_hint="FILE") from None
     sel = selector_from(ids, fleet, 0, "", all_)

@@ -35,8 +35,16 @@ NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME = 16, 17, 18, 
 NAV_LAND, NAV_TAKEOFF, NAV_SPLINE_WAYPOINT, NAV_LOITER_TO_ALT = 21, 22, 82, 31
 FENCE_POLY_IN, FENCE_POLY_OUT, FENCE_CIRCLE_IN, FENCE_CIRCLE_OUT = 5001, 5002, 5003, 5004
 RALLY_POINT = 5100
-POSITION_CMDS = {NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME, NAV_LAND,
-                 NAV_TAKEOFF, NAV_SPLINE_WAYPOINT, NAV_LOITER_TO_ALT}  # fmt: skip
+POSITION_CMDS = {
+    NAV_WAYPOINT,
+    NAV_LOITER_UNLIM,
+    NAV_LOITER_TURNS,
+    NAV_LOITER_TIME,
+    NAV_LAND,
+    NAV_TAKEOFF,
+    NAV_SPLINE_WAYPOINT,
+    NAV_LOITER_TO_ALT,
+}
 FRAME_GLOBAL_RELATIVE_ALT = 3
 
 
@@ -107,9 +115,20 @@ def read_features(path: Path | str) -> list[Feature]:
             data = _json(raw)
             if isinstance(data, dict) and "mission_type" in data:
                 m = msgspec.convert(data, Mission)
-                return [Feature(m.name or f"mission {m.mission_id}", m.geometry,
-                                _role_of(m.geometry), props={"mission": m})]  # fmt: skip
-            if isinstance(data, list) and data and isinstance(data[0], dict) and "zone_id" in data[0]:
+                return [
+                    Feature(
+                        m.name or f"mission {m.mission_id}",
+                        m.geometry,
+                        _role_of(m.geometry),
+                        props={"mission": m},
+                    )
+                ]
+            if (
+                isinstance(data, list)
+                and data
+                and isinstance(data[0], dict)
+                and "zone_id" in data[0]
+            ):
                 zones = msgspec.convert(data, list[NoFlyZone])
                 return [_zone_feature(z) for z in zones]
             found = _geojson(data)
@@ -120,8 +139,10 @@ def read_features(path: Path | str) -> list[Feature]:
         elif suffix in (".waypoints", ".txt", ".mission"):
             found = _wpl(p)
         else:
-            raise ValueError(f"unknown format {suffix or '(no extension)'}; use one of "
-                             + ", ".join(MISSION_SUFFIXES))  # fmt: skip
+            raise ValueError(
+                f"unknown format {suffix or '(no extension)'}; use one of "
+                + ", ".join(MISSION_SUFFIXES)
+            )
     except GeoFileError:
         raise
     except (ValueError, KeyError, TypeError, IndexError, msgspec.ValidationError) as exc:
@@ -141,15 +162,24 @@ def _json(raw: bytes) -> Any:
 
 
 def _role_of(g: Geometry) -> str:
-    return {GeometryKind.POLYGON: "area", GeometryKind.POLYLINE: "route",
-            GeometryKind.POINTS: "waypoints"}.get(g.kind, "point")  # fmt: skip
+    return {
+        GeometryKind.POLYGON: "area",
+        GeometryKind.POLYLINE: "route",
+        GeometryKind.POINTS: "waypoints",
+    }.get(g.kind, "point")
 
 
 def _zone_feature(z: NoFlyZone) -> Feature:
-    return Feature(z.name or f"zone {z.zone_id}", z.geometry,
-                   "inclusion" if z.operating_area else "exclusion",
-                   props={"zone_id": z.zone_id, "floor_alt_msl_m": z.floor_alt_msl_m,
-                          "ceiling_alt_msl_m": z.ceiling_alt_msl_m})  # fmt: skip
+    return Feature(
+        z.name or f"zone {z.zone_id}",
+        z.geometry,
+        "inclusion" if z.operating_area else "exclusion",
+        props={
+            "zone_id": z.zone_id,
+            "floor_alt_msl_m": z.floor_alt_msl_m,
+            "ceiling_alt_msl_m": z.ceiling_alt_msl_m,
+        },
+    )
 
 
 def _geojson(data: Any) -> list[Feature]:
@@ -157,10 +187,18 @@ def _geojson(data: Any) -> list[Feature]:
 
     obj = geojson.GeoJSON.to_instance(data, strict=True)
     if not getattr(obj, "is_valid", True):
-        raise ValueError(f"invalid GeoJSON: {'; '.join(obj.errors()) if hasattr(obj, 'errors') else ''}")
-    feats = obj["features"] if obj.get("type") == "FeatureCollection" else (
-        [obj] if obj.get("type") == "Feature" else [{"type": "Feature", "geometry": obj,
-                                                     "properties": {}}])  # fmt: skip
+        raise ValueError(
+            f"invalid GeoJSON: {'; '.join(obj.errors()) if hasattr(obj, 'errors') else ''}"
+        )
+    feats = (
+        obj["features"]
+        if obj.get("type") == "FeatureCollection"
+        else (
+            [obj]
+            if obj.get("type") == "Feature"
+            else [{"type": "Feature", "geometry": obj, "properties": {}}]
+        )
+    )
     out: list[Feature] = []
     for i, f in enumerate(feats, 1):
         props = dict(f.get("properties") or {})
@@ -195,24 +233,54 @@ def _from_geojson_geometry(g: Any, name: str, props: dict[str, Any]) -> list[Fea
         return [Feature(name, polygon(rings[0], rings[1:]), _geo_role(props, "area"), props=props)]
     if kind == "MultiPolygon":
         return [
-            Feature(f"{name} {j}", polygon([ll(c) for c in poly[0]], [[ll(c) for c in r] for r in poly[1:]]),
-                    _geo_role(props, "area"), props=props)
+            Feature(
+                f"{name} {j}",
+                polygon([ll(c) for c in poly[0]], [[ll(c) for c in r] for r in poly[1:]]),
+                _geo_role(props, "area"),
+                props=props,
+            )
             for j, poly in enumerate(coords, 1)
-        ]  # fmt: skip
+        ]
     if kind == "LineString":
-        return [Feature(name, Geometry(GeometryKind.POLYLINE, tuple(ll(c) for c in coords)),
-                        _geo_role(props, "route"), props=props)]  # fmt: skip
+        return [
+            Feature(
+                name,
+                Geometry(GeometryKind.POLYLINE, tuple(ll(c) for c in coords)),
+                _geo_role(props, "route"),
+                props=props,
+            )
+        ]
     if kind == "Point":
         radius = props.get("radius_m")
         if radius is not None:
             p = ll(coords)
-            return [Feature(name, Geometry.circle(p.lat_deg, p.lon_deg, _num(radius, "radius_m")),
-                            _geo_role(props, "exclusion"), alt(coords), props)]  # fmt: skip
-        return [Feature(name, Geometry(GeometryKind.POINT, (ll(coords),)), _geo_role(props, "point"),
-                        alt(coords), props)]  # fmt: skip
+            return [
+                Feature(
+                    name,
+                    Geometry.circle(p.lat_deg, p.lon_deg, _num(radius, "radius_m")),
+                    _geo_role(props, "exclusion"),
+                    alt(coords),
+                    props,
+                )
+            ]
+        return [
+            Feature(
+                name,
+                Geometry(GeometryKind.POINT, (ll(coords),)),
+                _geo_role(props, "point"),
+                alt(coords),
+                props,
+            )
+        ]
     if kind == "MultiPoint":
-        return [Feature(name, Geometry(GeometryKind.POINTS, tuple(ll(c) for c in coords)),
-                        _geo_role(props, "waypoints"), props=props)]  # fmt: skip
+        return [
+            Feature(
+                name,
+                Geometry(GeometryKind.POINTS, tuple(ll(c) for c in coords)),
+                _geo_role(props, "waypoints"),
+                props=props,
+            )
+        ]
     if kind == "GeometryCollection":
         return [f for sub in g["geometries"] for f in _from_geojson_geometry(sub, name, props)]
     raise ValueError(f"{name}: GeoJSON {kind} is not used")
@@ -254,17 +322,37 @@ def _from_kml_placemark(pm: Any, i: int) -> list[Feature]:
             holes = [[ll(c) for c in r.coords] for r in geom.interiors]
             return [Feature(name, polygon(shell, holes), _geo_role(props, "area"), props=props)]
         if t == "LineString":
-            return [Feature(name, Geometry(GeometryKind.POLYLINE, tuple(ll(c) for c in geom.coords)),
-                            _geo_role(props, "route"), props=props)]  # fmt: skip
+            return [
+                Feature(
+                    name,
+                    Geometry(GeometryKind.POLYLINE, tuple(ll(c) for c in geom.coords)),
+                    _geo_role(props, "route"),
+                    props=props,
+                )
+            ]
         if t == "Point":
             c = geom.coords[0]
             p = ll(c)
             altitude = _num(c[2], "altitude") if len(c) > 2 else None
             if props.get("radius_m") is not None:
-                return [Feature(name, Geometry.circle(p.lat_deg, p.lon_deg, _num(props["radius_m"], "radius_m")),
-                                _geo_role(props, "exclusion"), altitude, props)]  # fmt: skip
-            return [Feature(name, Geometry(GeometryKind.POINT, (p,)), _geo_role(props, "point"),
-                            altitude, props)]  # fmt: skip
+                return [
+                    Feature(
+                        name,
+                        Geometry.circle(p.lat_deg, p.lon_deg, _num(props["radius_m"], "radius_m")),
+                        _geo_role(props, "exclusion"),
+                        altitude,
+                        props,
+                    )
+                ]
+            return [
+                Feature(
+                    name,
+                    Geometry(GeometryKind.POINT, (p,)),
+                    _geo_role(props, "point"),
+                    altitude,
+                    props,
+                )
+            ]
         if hasattr(geom, "geoms"):
             return [f for sub in geom.geoms for f in one(sub)]
         raise ValueError(f"{name}: KML {t} is not used")
@@ -279,18 +367,38 @@ def _plan(data: Any) -> list[Feature]:
     mission = data.get("mission") or {}
     home = mission.get("plannedHomePosition")
     if home:
-        out.append(Feature("home", Geometry(GeometryKind.POINT, (_ll(home[0], home[1]),)), "home",
-                           _num(home[2], "altitude") if len(home) > 2 and home[2] is not None else None))  # fmt: skip
+        out.append(
+            Feature(
+                "home",
+                Geometry(GeometryKind.POINT, (_ll(home[0], home[1]),)),
+                "home",
+                _num(home[2], "altitude") if len(home) > 2 and home[2] is not None else None,
+            )
+        )
     waypoints: list[LatLon] = []
     for i, item in enumerate(mission.get("items") or [], 1):
         if item.get("type") == "ComplexItem":
             ctype = str(item.get("complexItemType", "")).lower()
             if ctype == "survey" or "polygon" in item:
-                out.append(Feature(f"survey {i}", polygon([_ll(a, b) for a, b in item["polygon"]]),
-                                   "area", props=item))  # fmt: skip
+                out.append(
+                    Feature(
+                        f"survey {i}",
+                        polygon([_ll(a, b) for a, b in item["polygon"]]),
+                        "area",
+                        props=item,
+                    )
+                )
             elif "polyline" in item:
-                out.append(Feature(f"corridor {i}", Geometry(GeometryKind.POLYLINE, tuple(
-                    _ll(a, b) for a, b in item["polyline"])), "route", props=item))  # fmt: skip
+                out.append(
+                    Feature(
+                        f"corridor {i}",
+                        Geometry(
+                            GeometryKind.POLYLINE, tuple(_ll(a, b) for a, b in item["polyline"])
+                        ),
+                        "route",
+                        props=item,
+                    )
+                )
         elif item.get("type") == "SimpleItem" and int(item.get("command", 0)) in POSITION_CMDS:
             params = item.get("params") or []
             given = len(params) >= 7 and params[4] is not None and params[5] is not None
@@ -298,23 +406,40 @@ def _plan(data: Any) -> list[Feature]:
                 waypoints.append(_ll(params[4], params[5]))
     if waypoints:
         kind = GeometryKind.POLYLINE if len(waypoints) >= 2 else GeometryKind.POINT
-        out.append(Feature("waypoints", Geometry(kind, tuple(waypoints)),
-                           "route" if len(waypoints) >= 2 else "point"))  # fmt: skip
+        out.append(
+            Feature(
+                "waypoints",
+                Geometry(kind, tuple(waypoints)),
+                "route" if len(waypoints) >= 2 else "point",
+            )
+        )
     fence = data.get("geoFence") or {}
     for i, poly in enumerate(fence.get("polygons") or [], 1):
         role = "inclusion" if poly.get("inclusion") else "exclusion"
-        out.append(Feature(f"fence polygon {i}", polygon([_ll(a, b) for a, b in poly["polygon"]]),
-                           role))  # fmt: skip
+        out.append(
+            Feature(f"fence polygon {i}", polygon([_ll(a, b) for a, b in poly["polygon"]]), role)
+        )
     for i, circ in enumerate(fence.get("circles") or [], 1):
         c = circ["circle"]
         role = "inclusion" if circ.get("inclusion") else "exclusion"
         centre = _ll(*c["center"][:2])
-        out.append(Feature(f"fence circle {i}", Geometry.circle(
-            centre.lat_deg, centre.lon_deg, _num(c["radius"], "radius")), role))  # fmt: skip
+        out.append(
+            Feature(
+                f"fence circle {i}",
+                Geometry.circle(centre.lat_deg, centre.lon_deg, _num(c["radius"], "radius")),
+                role,
+            )
+        )
     rally = (data.get("rallyPoints") or {}).get("points") or []
     for i, r in enumerate(rally, 1):
-        out.append(Feature(f"rally {i}", Geometry(GeometryKind.POINT, (_ll(r[0], r[1]),)), "rally",
-                           _num(r[2], "altitude") if len(r) > 2 else None))  # fmt: skip
+        out.append(
+            Feature(
+                f"rally {i}",
+                Geometry(GeometryKind.POINT, (_ll(r[0], r[1]),)),
+                "rally",
+                _num(r[2], "altitude") if len(r) > 2 else None,
+            )
+        )
     return out
 
 
@@ -336,8 +461,11 @@ def _wpl(path: Path) -> list[Feature]:
         lat, lon = float(it.x), float(it.y)
         if i == 0 and cmd == NAV_WAYPOINT:  # item 0: the home position
             if not (lat == 0 and lon == 0):
-                out.append(Feature("home", Geometry(GeometryKind.POINT, (_ll(lat, lon),)), "home",
-                                   float(it.z)))  # fmt: skip
+                out.append(
+                    Feature(
+                        "home", Geometry(GeometryKind.POINT, (_ll(lat, lon),)), "home", float(it.z)
+                    )
+                )
             continue
         if cmd in POSITION_CMDS:
             if not (lat == 0 and lon == 0):
@@ -353,17 +481,33 @@ def _wpl(path: Path) -> list[Feature]:
         elif cmd in (FENCE_CIRCLE_IN, FENCE_CIRCLE_OUT):
             role = "inclusion" if cmd == FENCE_CIRCLE_IN else "exclusion"
             centre = _ll(lat, lon)
-            out.append(Feature(f"fence circle {len(out) + 1}", Geometry.circle(
-                centre.lat_deg, centre.lon_deg, _num(it.param1, "radius")), role))  # fmt: skip
+            out.append(
+                Feature(
+                    f"fence circle {len(out) + 1}",
+                    Geometry.circle(centre.lat_deg, centre.lon_deg, _num(it.param1, "radius")),
+                    role,
+                )
+            )
         elif cmd == RALLY_POINT:
-            out.append(Feature(f"rally {len(out) + 1}", Geometry(GeometryKind.POINT, (_ll(lat, lon),)),
-                               "rally", float(it.z)))  # fmt: skip
+            out.append(
+                Feature(
+                    f"rally {len(out) + 1}",
+                    Geometry(GeometryKind.POINT, (_ll(lat, lon),)),
+                    "rally",
+                    float(it.z),
+                )
+            )
     if fence_ring:
         raise ValueError(f"a fence polygon has {len(fence_ring)} vertices, fewer than it says")
     if waypoints:
         kind = GeometryKind.POLYLINE if len(waypoints) >= 2 else GeometryKind.POINT
-        out.append(Feature("waypoints", Geometry(kind, tuple(waypoints)),
-                           "route" if len(waypoints) >= 2 else "point"))  # fmt: skip
+        out.append(
+            Feature(
+                "waypoints",
+                Geometry(kind, tuple(waypoints)),
+                "route" if len(waypoints) >= 2 else "point",
+            )
+        )
     return out
 
 
@@ -414,7 +558,9 @@ def mission_geometry(path: Path | str, mtype: MissionType, feature: str | None =
     # waypoints can stand for what is wanted: a polygon's vertices, points
     for f in ranked:
         if f.role in ("route", "waypoints", "point") and f.geometry.kind in (
-            GeometryKind.POLYLINE, GeometryKind.POINTS):  # fmt: skip
+            GeometryKind.POLYLINE,
+            GeometryKind.POINTS,
+        ):
             try:
                 return _as(f.geometry, wants, mtype, path, f.describe())
             except GeoFileError:
@@ -423,8 +569,9 @@ def mission_geometry(path: Path | str, mtype: MissionType, feature: str | None =
     raise _fail(path, f"nothing for a {mtype.name.lower()} mission (it has {has})")
 
 
-def _as(g: Geometry, wants: tuple[GeometryKind, ...], mtype: MissionType, path: Path | str,
-        what: str) -> Geometry:  # fmt: skip
+def _as(
+    g: Geometry, wants: tuple[GeometryKind, ...], mtype: MissionType, path: Path | str, what: str
+) -> Geometry:
     if g.kind in wants:
         return g
     try:
@@ -445,11 +592,17 @@ def zone_features(path: Path | str) -> list[Feature]:
     not a zone)."""
     feats = read_features(path)
     zones = [
-        (f if f.role in ("exclusion", "inclusion") else Feature(
-            f.name, f.geometry, "exclusion", f.alt_m, f.props))
+        (
+            f
+            if f.role in ("exclusion", "inclusion")
+            else Feature(f.name, f.geometry, "exclusion", f.alt_m, f.props)
+        )
         for f in feats
         if f.geometry.kind in (GeometryKind.POLYGON, GeometryKind.CIRCLE)
-        and (f.role in ("exclusion", "inclusion") or Path(path).suffix.lower() in (".geojson", ".json", ".kml"))
+        and (
+            f.role in ("exclusion", "inclusion")
+            or Path(path).suffix.lower() in (".geojson", ".json", ".kml")
+        )
     ]
     if not zones:
         has = ", ".join(f.describe() for f in feats[:8])
@@ -466,8 +619,10 @@ def zone_features(path: Path | str) -> list[Feature]:
 def _suffix(path: Path) -> str:
     s = path.suffix.lower()
     if s not in MISSION_SUFFIXES:
-        raise _fail(path, f"unknown format {s or '(no extension)'}; use one of "
-                    + ", ".join(MISSION_SUFFIXES))  # fmt: skip
+        raise _fail(
+            path,
+            f"unknown format {s or '(no extension)'}; use one of " + ", ".join(MISSION_SUFFIXES),
+        )
     return s
 
 
@@ -520,8 +675,10 @@ def kml_text(title: str, items: Sequence[tuple[str, Geometry, dict[str, Any]]]) 
     for name, g, props in items:
         extra: dict[str, Any] = dict(props)
         if g.kind == GeometryKind.POLYGON:
-            shape: Any = pg.Polygon([(p.lon_deg, p.lat_deg) for p in g.points],
-                                    [[(p.lon_deg, p.lat_deg) for p in h] for h in g.holes])  # fmt: skip
+            shape: Any = pg.Polygon(
+                [(p.lon_deg, p.lat_deg) for p in g.points],
+                [[(p.lon_deg, p.lat_deg) for p in h] for h in g.holes],
+            )
         elif g.kind == GeometryKind.POLYLINE:
             shape = pg.LineString([(p.lon_deg, p.lat_deg) for p in g.points])
         elif g.kind == GeometryKind.POINTS:
@@ -531,8 +688,9 @@ def kml_text(title: str, items: Sequence[tuple[str, Geometry, dict[str, Any]]]) 
             shape = pg.Point(p.lon_deg, p.lat_deg)
             if g.kind == GeometryKind.CIRCLE:
                 extra["radius_m"] = g.radius_m
-        ed = data.ExtendedData(elements=[data.Data(name=k, value=str(v)) for k, v in extra.items()
-                                         if v is not None])  # fmt: skip
+        ed = data.ExtendedData(
+            elements=[data.Data(name=k, value=str(v)) for k, v in extra.items() if v is not None]
+        )
         marks.append(features.Placemark(name=name, geometry=shape, extended_data=ed))
     doc = kml.KML(features=[containers.Document(name=title, features=marks)])
     return str(doc.to_string(prettyprint=True))
@@ -553,21 +711,37 @@ def plan_text(
         g, prm = mission.geometry, mission.params
         alt = prm.altitude_rel_m
         if g.kind == GeometryKind.POLYGON and mission.mission_type in (MissionType.AREA,):
-            items.append({
-                "type": "ComplexItem", "complexItemType": "survey", "version": 5,
-                "polygon": [[p.lat_deg, p.lon_deg] for p in g.points],
-                "angle": 0, "entryLocation": 0, "flyAlternateTransects": False,
-                "splitConcavePolygons": False,
-                "TransectStyleComplexItem": {
-                    "version": 2, "Items": [], "VisualTransectPoints": [], "CameraShots": 0,
-                    "CameraTriggerInTurnAround": True, "HoverAndCapture": False,
-                    "Refly90Degrees": False, "TurnAroundDistance": 10,
-                    "CameraCalc": {"version": 2, "CameraName": "Manual (no camera specs)",
-                                   "DistanceToSurface": alt, "DistanceMode": 1,
-                                   "SideOverlap": round(prm.side_overlap * 100, 1),
-                                   "FrontalOverlap": 70, "ValueSetIsDistance": True},
-                },
-            })  # fmt: skip
+            items.append(
+                {
+                    "type": "ComplexItem",
+                    "complexItemType": "survey",
+                    "version": 5,
+                    "polygon": [[p.lat_deg, p.lon_deg] for p in g.points],
+                    "angle": 0,
+                    "entryLocation": 0,
+                    "flyAlternateTransects": False,
+                    "splitConcavePolygons": False,
+                    "TransectStyleComplexItem": {
+                        "version": 2,
+                        "Items": [],
+                        "VisualTransectPoints": [],
+                        "CameraShots": 0,
+                        "CameraTriggerInTurnAround": True,
+                        "HoverAndCapture": False,
+                        "Refly90Degrees": False,
+                        "TurnAroundDistance": 10,
+                        "CameraCalc": {
+                            "version": 2,
+                            "CameraName": "Manual (no camera specs)",
+                            "DistanceToSurface": alt,
+                            "DistanceMode": 1,
+                            "SideOverlap": round(prm.side_overlap * 100, 1),
+                            "FrontalOverlap": 70,
+                            "ValueSetIsDistance": True,
+                        },
+                    },
+                }
+            )
         else:
             pts = list(g.points)
             if g.kind == GeometryKind.POLYGON:
@@ -575,30 +749,61 @@ def plan_text(
             for p in pts:
                 cmd = NAV_LOITER_UNLIM if g.kind == GeometryKind.CIRCLE else NAV_WAYPOINT
                 r = g.radius_m or 0.0
-                items.append({"type": "SimpleItem", "command": cmd, "frame": FRAME_GLOBAL_RELATIVE_ALT,
-                              "autoContinue": True, "doJumpId": len(items) + 1,
-                              "params": [0, 0, r, None, p.lat_deg, p.lon_deg, alt]})  # fmt: skip
-    centre = mission.geometry.points[0] if mission is not None else (
-        zones[0].geometry.points[0] if zones else None)  # fmt: skip
-    planned_home = list(home) if home else ([centre.lat_deg, centre.lon_deg, 0] if centre else [0, 0, 0])
+                items.append(
+                    {
+                        "type": "SimpleItem",
+                        "command": cmd,
+                        "frame": FRAME_GLOBAL_RELATIVE_ALT,
+                        "autoContinue": True,
+                        "doJumpId": len(items) + 1,
+                        "params": [0, 0, r, None, p.lat_deg, p.lon_deg, alt],
+                    }
+                )
+    centre = (
+        mission.geometry.points[0]
+        if mission is not None
+        else (zones[0].geometry.points[0] if zones else None)
+    )
+    planned_home = (
+        list(home) if home else ([centre.lat_deg, centre.lon_deg, 0] if centre else [0, 0, 0])
+    )
     fence: dict[str, Any] = {"version": 2, "polygons": [], "circles": []}
     for z in zones:
         if not z.active:
             continue
         if z.geometry.kind == GeometryKind.CIRCLE:
             c = z.geometry.points[0]
-            fence["circles"].append({"version": 1, "inclusion": z.operating_area, "circle": {
-                "center": [c.lat_deg, c.lon_deg], "radius": z.geometry.radius_m}})  # fmt: skip
+            fence["circles"].append(
+                {
+                    "version": 1,
+                    "inclusion": z.operating_area,
+                    "circle": {"center": [c.lat_deg, c.lon_deg], "radius": z.geometry.radius_m},
+                }
+            )
         else:
-            fence["polygons"].append({"version": 1, "inclusion": z.operating_area,
-                                      "polygon": [[p.lat_deg, p.lon_deg] for p in z.geometry.points]})  # fmt: skip
+            fence["polygons"].append(
+                {
+                    "version": 1,
+                    "inclusion": z.operating_area,
+                    "polygon": [[p.lat_deg, p.lon_deg] for p in z.geometry.points],
+                }
+            )
     plan = {
-        "fileType": "Plan", "version": 1, "groundStation": "bandada",
-        "mission": {"version": 2, "firmwareType": 3, "vehicleType": 2, "cruiseSpeed": 15,
-                    "hoverSpeed": 5, "plannedHomePosition": planned_home, "items": items},
+        "fileType": "Plan",
+        "version": 1,
+        "groundStation": "bandada",
+        "mission": {
+            "version": 2,
+            "firmwareType": 3,
+            "vehicleType": 2,
+            "cruiseSpeed": 15,
+            "hoverSpeed": 5,
+            "plannedHomePosition": planned_home,
+            "items": items,
+        },
         "geoFence": fence,
         "rallyPoints": {"version": 2, "points": [list(r) for r in rally]},
-    }  # fmt: skip
+    }
     return json.dumps(plan, indent=2) + "\n"
 
 
@@ -614,14 +819,26 @@ def wpl_text(
     link = mavutil.mavlink
     loader = mavwp.MAVWPLoader()
 
-    def add(cmd: int, lat: float, lon: float, alt: float, p1: float = 0.0,
-            frame: int = FRAME_GLOBAL_RELATIVE_ALT) -> None:  # fmt: skip
+    def add(
+        cmd: int,
+        lat: float,
+        lon: float,
+        alt: float,
+        p1: float = 0.0,
+        frame: int = FRAME_GLOBAL_RELATIVE_ALT,
+    ) -> None:
         seq = loader.count()
-        loader.add(link.MAVLink_mission_item_message(
-            0, 0, seq, frame, cmd, 1 if seq == 0 else 0, 1, p1, 0, 0, 0, lat, lon, alt))  # fmt: skip
+        loader.add(
+            link.MAVLink_mission_item_message(
+                0, 0, seq, frame, cmd, 1 if seq == 0 else 0, 1, p1, 0, 0, 0, lat, lon, alt
+            )
+        )
 
-    first = mission.geometry.points[0] if mission is not None else (
-        zones[0].geometry.points[0] if zones else LatLon(0.0, 0.0))  # fmt: skip
+    first = (
+        mission.geometry.points[0]
+        if mission is not None
+        else (zones[0].geometry.points[0] if zones else LatLon(0.0, 0.0))
+    )
     h = home or (first.lat_deg, first.lon_deg, 0.0)
     add(NAV_WAYPOINT, h[0], h[1], h[2], frame=0)  # MAV_FRAME_GLOBAL: home
     if mission is not None:
@@ -638,18 +855,44 @@ def wpl_text(
         g = z.geometry
         if g.kind == GeometryKind.CIRCLE:
             c = g.points[0]
-            add(FENCE_CIRCLE_IN if z.operating_area else FENCE_CIRCLE_OUT, c.lat_deg, c.lon_deg,
-                0.0, float(g.radius_m or 0.0))  # fmt: skip
+            add(
+                FENCE_CIRCLE_IN if z.operating_area else FENCE_CIRCLE_OUT,
+                c.lat_deg,
+                c.lon_deg,
+                0.0,
+                float(g.radius_m or 0.0),
+            )
         else:
             for p in g.points:
-                add(FENCE_POLY_IN if z.operating_area else FENCE_POLY_OUT, p.lat_deg, p.lon_deg,
-                    0.0, float(len(g.points)))  # fmt: skip
+                add(
+                    FENCE_POLY_IN if z.operating_area else FENCE_POLY_OUT,
+                    p.lat_deg,
+                    p.lon_deg,
+                    0.0,
+                    float(len(g.points)),
+                )
     lines = ["QGC WPL 110"]
     for i in range(loader.count()):
         w = loader.wp(i)
-        lines.append("\t".join(str(x) for x in (
-            w.seq, w.current, w.frame, w.command, w.param1, w.param2, w.param3, w.param4,
-            f"{w.x:.8f}", f"{w.y:.8f}", f"{w.z:.3f}", w.autocontinue)))  # fmt: skip
+        lines.append(
+            "\t".join(
+                str(x)
+                for x in (
+                    w.seq,
+                    w.current,
+                    w.frame,
+                    w.command,
+                    w.param1,
+                    w.param2,
+                    w.param3,
+                    w.param4,
+                    f"{w.x:.8f}",
+                    f"{w.y:.8f}",
+                    f"{w.z:.3f}",
+                    w.autocontinue,
+                )
+            )
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -657,8 +900,11 @@ def save_mission(path: Path | str, mission: Mission) -> None:
     p = Path(path)
     s = _suffix(p)
     name = mission.name or f"mission {mission.mission_id}"
-    props = {"mission_id": mission.mission_id, "mission_type": mission.mission_type.name.lower(),
-             **{k: v for k, v in msgspec.to_builtins(mission.params).items() if v is not None}}  # fmt: skip
+    props = {
+        "mission_id": mission.mission_id,
+        "mission_type": mission.mission_type.name.lower(),
+        **{k: v for k, v in msgspec.to_builtins(mission.params).items() if v is not None},
+    }
     try:
         if s == ".json":
             text = msgspec.json.format(msgspec.json.encode(mission), indent=2).decode() + "\n"
@@ -680,12 +926,24 @@ def save_zones(path: Path | str, zones: Sequence[NoFlyZone]) -> None:
     s = _suffix(p)
     active = [z for z in zones if z.active]
     items = [
-        (z.name or f"zone {z.zone_id}", z.geometry,
-         {"zone_id": z.zone_id, "role": "inclusion" if z.operating_area else "exclusion",
-          **({} if z.operating_area else {"floor_alt_msl_m": z.floor_alt_msl_m,
-                                            "ceiling_alt_msl_m": z.ceiling_alt_msl_m})})
+        (
+            z.name or f"zone {z.zone_id}",
+            z.geometry,
+            {
+                "zone_id": z.zone_id,
+                "role": "inclusion" if z.operating_area else "exclusion",
+                **(
+                    {}
+                    if z.operating_area
+                    else {
+                        "floor_alt_msl_m": z.floor_alt_msl_m,
+                        "ceiling_alt_msl_m": z.ceiling_alt_msl_m,
+                    }
+                ),
+            },
+        )
         for z in active
-    ]  # fmt: skip
+    ]
     if s == ".json":
         text = msgspec.json.format(msgspec.json.encode(list(active)), indent=2).decode() + "\n"
     elif s == ".geojson":

@@ -239,8 +239,11 @@ class GroundStation:
             fleets.update({i: info.fleet_id for i, info in v.info.items() if i not in fleets})
             ground = {i for i in v.info if v.type_of(i) == VehicleType.GCS}
         db = set(self.database_ids or ()) - ground
-        return [k for k in known_from(alive, fleets, db) if k.vehicle_id not in ground
-                and k.vehicle_id != self.gcs_id]  # fmt: skip
+        return [
+            k
+            for k in known_from(alive, fleets, db)
+            if k.vehicle_id not in ground and k.vehicle_id != self.gcs_id
+        ]
 
     # ------------------------------------------------------------------ sending
     def exchange(
@@ -258,8 +261,14 @@ class GroundStation:
             cursor = len(self.view.acks)
         now = time.monotonic()
         known = {k.vehicle_id: k for k in self.known()}
-        ex = Exchange(request, known.values(), now, timeout_s=timeout_s, repeat_s=self.repeat_s,
-                      database_known=self.database_ids is not None)  # fmt: skip
+        ex = Exchange(
+            request,
+            known.values(),
+            now,
+            timeout_s=timeout_s,
+            repeat_s=self.repeat_s,
+            database_known=self.database_ids is not None,
+        )
         while True:
             now = time.monotonic()
             outs = ex.on_timer(now)
@@ -296,13 +305,24 @@ class GroundStation:
         timeout_s: float = 5.0,
         progress: Callable[[Exchange, float], None] | None = None,
     ) -> Outcome:
-        cmd = Command(self.gcs_id, new_seq(), kind, target or Selector(), args or CommandArgs(),
-                      max(0.0, time.time()))  # fmt: skip
+        cmd = Command(
+            self.gcs_id,
+            new_seq(),
+            kind,
+            target or Selector(),
+            args or CommandArgs(),
+            max(0.0, time.time()),
+        )
         validate(cmd)
         if cmd.target.kind != SelectorKind.IDS:
             self.discover()
-        request = Request(AckRef.COMMAND, cmd.seq, self.gcs_id, cmd.target,
-                          what=kind.name.lower().replace("_", "-"))  # fmt: skip
+        request = Request(
+            AckRef.COMMAND,
+            cmd.seq,
+            self.gcs_id,
+            cmd.target,
+            what=kind.name.lower().replace("_", "-"),
+        )
         return self.exchange(cmd, request, timeout_s, progress)
 
     def send_mission(
@@ -317,8 +337,14 @@ class GroundStation:
         if mission.selection.kind != SelectorKind.IDS:
             self.discover()
         what = f"mission {mission.mission_id} ({mission.mission_type.name.lower()})"
-        request = Request(AckRef.MISSION, mission.mission_id, mission.issuer_id,
-                          mission.selection, everyone_answers=True, what=what)  # fmt: skip
+        request = Request(
+            AckRef.MISSION,
+            mission.mission_id,
+            mission.issuer_id,
+            mission.selection,
+            everyone_answers=True,
+            what=what,
+        )
         return self.exchange(mission, request, timeout_s, progress)
 
     def send_zone(
@@ -339,8 +365,14 @@ class GroundStation:
         if target.kind != SelectorKind.IDS:
             self.discover()
         kind = "operating area" if zone.operating_area else "zone"
-        request = Request(AckRef.ZONE, zone.zone_id, self.gcs_id, target, everyone_answers=True,
-                          what=f"{kind} {zone.zone_id}")  # fmt: skip
+        request = Request(
+            AckRef.ZONE,
+            zone.zone_id,
+            self.gcs_id,
+            target,
+            everyone_answers=True,
+            what=f"{kind} {zone.zone_id}",
+        )
         return self.exchange(zone, request, timeout_s, progress)
 
     # the library's older calls (the demo, sitl-check): the acks, first one per vehicle
@@ -473,7 +505,7 @@ class GroundStation:
     def reachable(self, timeout_s: float = 3.0) -> bool:
         """Whether this session reached any other Zenoh node (a router or a peer)
         within `timeout_s`: an unreachable --connect must not look like an empty
-        swarm (issue 15)."""
+        swarm."""
         end = time.monotonic() + timeout_s
         while True:
             info = self.bus.session.info
@@ -492,8 +524,9 @@ class GroundStation:
         """Every vehicle's accepted missions, as their missions queryables answer."""
         return self._held(MISSIONS.key(self.swarm), MISSIONS, "mission_id", Mission, timeout_s)
 
-    def _held(self, key: str, topic: Any, id_name: str, kind: type[T], timeout_s: float
-              ) -> dict[int, dict[int, T]]:  # fmt: skip
+    def _held(
+        self, key: str, topic: Any, id_name: str, kind: type[T], timeout_s: float
+    ) -> dict[int, dict[int, T]]:
         """Every vehicle's replies on a queryable. A fresh session learns the peers'
         queryables within a moment: asked again (every 0.2 s) until every vehicle alive
         has answered, or `timeout_s`."""
@@ -508,8 +541,16 @@ class GroundStation:
                 return held
             time.sleep(0.2)
 
-    def _held_once(self, key: str, topic: Any, id_name: str, kind: type[T], timeout_s: float,
-                   held: dict[int, dict[int, T]], answered: set[int]) -> None:  # fmt: skip
+    def _held_once(
+        self,
+        key: str,
+        topic: Any,
+        id_name: str,
+        kind: type[T],
+        timeout_s: float,
+        held: dict[int, dict[int, T]],
+        answered: set[int],
+    ) -> None:
         try:
             replies = list(self.bus.session.get(key, timeout=timeout_s))
         except Exception:  # a closed session
@@ -529,7 +570,7 @@ class GroundStation:
 
     def declared_state(self, node_id: int, timeout_s: float = 3.0) -> DeclaredState | None:
         """What the operator declared, as node `node_id` holds it (its DECLARED
-        queryable; issue 16). None: it did not answer."""
+        queryable). None: it did not answer."""
         return self._ask_one(DECLARED.key(self.swarm, vehicle_id=node_id), DeclaredState, timeout_s)
 
     def peers_of(self, node_id: int, timeout_s: float = 2.0) -> SwarmView | None:

@@ -31,12 +31,14 @@ def watch_screen(view: FleetView, swarm: str, shown: Selector | None) -> Group:
     """The live table and, below it, the latest alerts with their full meaning."""
     now = time.time()
     lines = [
-        Text(f"{time.strftime('%H:%M:%S', time.gmtime(a.time_unix_s))} {a.vehicle_id:>5} "
-             f"{a.severity.name:<9} {alert_text(a.code, a.text)}",
-             style="red" if a.severity >= 2 else ("yellow" if a.severity == 1 else ""))
+        Text(
+            f"{time.strftime('%H:%M:%S', time.gmtime(a.time_unix_s))} {a.vehicle_id:>5} "
+            f"{a.severity.name:<9} {alert_text(a.code, a.text)}",
+            style="red" if a.severity >= 2 else ("yellow" if a.severity == 1 else ""),
+        )
         for a in list(view.alerts)[-ALERT_LINES:]
         if shown is None or shown.addresses(a.vehicle_id, _fleet(view, a.vehicle_id))
-    ]  # fmt: skip
+    ]
     title = f"swarm {swarm}  {time.strftime('%H:%M:%S', time.gmtime(now))} UTC  (Ctrl-C quits)"
     alerts = lines or [Text("no alert yet", style="dim")]
     return Group(fleet_table(view, title=title, shown=shown, rates=True), Text("alerts:"), *alerts)
@@ -48,12 +50,20 @@ def _fleet(view: FleetView, vid: int) -> int:
 
 
 def live_watch(
-    gs: GroundStation, out: Console, shown: Selector | None, *, period_s: float = 0.5,
+    gs: GroundStation,
+    out: Console,
+    shown: Selector | None,
+    *,
+    period_s: float = 0.5,
     duration_s: float | None = None,
-) -> None:  # fmt: skip
+) -> None:
     end = None if duration_s is None else time.monotonic() + duration_s
-    with Live(watch_screen(gs.snapshot(), gs.swarm, shown), console=out,
-              refresh_per_second=4, screen=False) as live:  # fmt: skip
+    with Live(
+        watch_screen(gs.snapshot(), gs.swarm, shown),
+        console=out,
+        refresh_per_second=4,
+        screen=False,
+    ) as live:
         try:
             while end is None or time.monotonic() < end:
                 time.sleep(period_s)
@@ -106,9 +116,13 @@ def watch(
 
 # MAV_SYS_STATUS_SENSOR bits the flight display shows (what calibration makes healthy)
 SENSORS = {
-    "gyro": 1 << 0, "accel": 1 << 1, "compass": 1 << 2, "baro": 1 << 3, "airspeed": 1 << 4,
+    "gyro": 1 << 0,
+    "accel": 1 << 1,
+    "compass": 1 << 2,
+    "baro": 1 << 3,
+    "airspeed": 1 << 4,
     "gps": 1 << 5,
-}  # fmt: skip
+}
 
 
 def pfd(view: FleetView, vid: int) -> dict[str, Any]:
@@ -118,44 +132,74 @@ def pfd(view: FleetView, vid: int) -> dict[str, Any]:
     out: dict[str, Any] = {"id": vid}
     if info is not None:
         out.update(
-            model=info.model, user_id=info.user_id, type=vt.name, fleet=info.fleet_id,
-            mission_id=info.mission_id, fsm=info.fsm_state.name,
-            roll_deg=round(info.roll_deg, 1), pitch_deg=round(info.pitch_deg, 1),
-            payload=info.payload_model, cruise_speed_m_s=info.cruise_speed_m_s,
-            home=_point(info.home), base=_point(info.base),
+            model=info.model,
+            user_id=info.user_id,
+            type=vt.name,
+            fleet=info.fleet_id,
+            mission_id=info.mission_id,
+            fsm=info.fsm_state.name,
+            roll_deg=round(info.roll_deg, 1),
+            pitch_deg=round(info.pitch_deg, 1),
+            payload=info.payload_model,
+            cruise_speed_m_s=info.cruise_speed_m_s,
+            home=_point(info.home),
+            base=_point(info.base),
             errors=[c.name for c in info.errors],
             autopilot_mav_type=info.mav_type,
             autopilot_mismatch=autopilot_mismatch(vt, info.mav_type),
             sensors={
-                name: ("absent" if not info.sensors_present & bit
-                       else "ok" if info.sensors_health & bit else "NOT HEALTHY")
+                name: (
+                    "absent"
+                    if not info.sensors_present & bit
+                    else "ok"
+                    if info.sensors_health & bit
+                    else "NOT HEALTHY"
+                )
                 for name, bit in SENSORS.items()
-            } if info.sensors_present else {},
-        )  # fmt: skip
+            }
+            if info.sensors_present
+            else {},
+        )
     if st is not None:
         out.update(
-            heading_deg=round(st.heading_deg, 1), groundspeed_m_s=round(st.groundspeed_m_s, 1),
-            airspeed_m_s=round(st.airspeed_m_s, 1), climb_m_s=round(-st.vel_down_m_s, 1),
-            alt_rel_m=round(st.alt_rel_m, 1), alt_msl_m=round(st.alt_msl_m, 1),
-            lat=round(st.lat_deg, 7), lon=round(st.lon_deg, 7),
-            battery_pct=st.battery_pct, battery_v=round(st.battery_v, 2),
-            gps_fix=st.gps_fix.name, gps_sats=st.gps_sats, armed=st.armed,
-            mode=mode_name(vt, st.ap_mode), mission_state=st.mission_state.name,
+            heading_deg=round(st.heading_deg, 1),
+            groundspeed_m_s=round(st.groundspeed_m_s, 1),
+            airspeed_m_s=round(st.airspeed_m_s, 1),
+            climb_m_s=round(-st.vel_down_m_s, 1),
+            alt_rel_m=round(st.alt_rel_m, 1),
+            alt_msl_m=round(st.alt_msl_m, 1),
+            lat=round(st.lat_deg, 7),
+            lon=round(st.lon_deg, 7),
+            battery_pct=st.battery_pct,
+            battery_v=round(st.battery_v, 2),
+            gps_fix=st.gps_fix.name,
+            gps_sats=st.gps_sats,
+            armed=st.armed,
+            mode=mode_name(vt, st.ap_mode),
+            mission_state=st.mission_state.name,
             mission_progress_pct=st.mission_progress_pct,
             alerts=[f.name for f in type(st.alerts) if f and f in st.alerts],
-        )  # fmt: skip
+        )
     return out
 
 
 def _point(p: Any) -> dict[str, float] | None:
     if p is None:
         return None
-    return {"lat": round(p.lat_deg, 7), "lon": round(p.lon_deg, 7), "alt_msl_m": round(p.alt_msl_m, 1)}
+    return {
+        "lat": round(p.lat_deg, 7),
+        "lon": round(p.lon_deg, 7),
+        "alt_msl_m": round(p.alt_msl_m, 1),
+    }
 
 
 def pfd_table(d: dict[str, Any]) -> Table:
-    t = Table(title=f"vehicle {d['id']}  {d.get('model', '')}  {d.get('user_id', '')}",
-              box=box.SIMPLE_HEAD, show_header=False, title_justify="left")  # fmt: skip
+    t = Table(
+        title=f"vehicle {d['id']}  {d.get('model', '')}  {d.get('user_id', '')}",
+        box=box.SIMPLE_HEAD,
+        show_header=False,
+        title_justify="left",
+    )
     t.add_column(style="bold")
     t.add_column()
     t.add_column(style="bold")
@@ -167,19 +211,39 @@ def pfd_table(d: dict[str, Any]) -> Table:
     base = d.get("base")
     sensors = d.get("sensors") or {}
     rows = [
-        ("attitude", f"roll {v('roll_deg')}°  pitch {v('pitch_deg')}°  hdg {v('heading_deg')}°",
-         "state", f"{v('fsm')} / {v('mission_state')} {v('mission_progress_pct')}%"),
-        ("ground speed", v("groundspeed_m_s", "{} m/s"), "altitude",
-         f"{v('alt_rel_m')} m above home ({v('alt_msl_m')} m MSL)"),
+        (
+            "attitude",
+            f"roll {v('roll_deg')}°  pitch {v('pitch_deg')}°  hdg {v('heading_deg')}°",
+            "state",
+            f"{v('fsm')} / {v('mission_state')} {v('mission_progress_pct')}%",
+        ),
+        (
+            "ground speed",
+            v("groundspeed_m_s", "{} m/s"),
+            "altitude",
+            f"{v('alt_rel_m')} m above home ({v('alt_msl_m')} m MSL)",
+        ),
         ("airspeed", v("airspeed_m_s", "{} m/s"), "climb", v("climb_m_s", "{} m/s")),
-        ("mode", f"{v('mode')} {'ARMED' if d.get('armed') else 'disarmed'}", "battery",
-         f"{v('battery_pct')} %  {v('battery_v')} V"),
+        (
+            "mode",
+            f"{v('mode')} {'ARMED' if d.get('armed') else 'disarmed'}",
+            "battery",
+            f"{v('battery_pct')} %  {v('battery_v')} V",
+        ),
         ("position", f"{v('lat')}, {v('lon')}", "GPS", f"{v('gps_fix')} {v('gps_sats')} sats"),
-        ("base", f"{base['lat']}, {base['lon']} ({base['alt_msl_m']} m)" if base else "not set",
-         "fleet", f"{v('fleet')}  mission {v('mission_id')}"),
-        ("sensors", "  ".join(f"{k} {s}" for k, s in sensors.items()) or "-", "alerts",
-         ", ".join(d.get("alerts") or []) or "-"),
-    ]  # fmt: skip
+        (
+            "base",
+            f"{base['lat']}, {base['lon']} ({base['alt_msl_m']} m)" if base else "not set",
+            "fleet",
+            f"{v('fleet')}  mission {v('mission_id')}",
+        ),
+        (
+            "sensors",
+            "  ".join(f"{k} {s}" for k, s in sensors.items()) or "-",
+            "alerts",
+            ", ".join(d.get("alerts") or []) or "-",
+        ),
+    ]
     for r in rows:
         t.add_row(*r)
     if d.get("autopilot_mismatch"):
@@ -250,7 +314,11 @@ def fleets(
     for col in ("fleet", "vehicles", "types", "states", "missions"):
         t.add_column(col)
     for d in data:
-        t.add_row(str(d["fleet"]) if d["fleet"] else "none", ", ".join(map(str, d["vehicles"])),
-                  ", ".join(d["types"]), ", ".join(d["states"]),
-                  ", ".join(map(str, d["missions"])) or "-")  # fmt: skip
+        t.add_row(
+            str(d["fleet"]) if d["fleet"] else "none",
+            ", ".join(map(str, d["vehicles"])),
+            ", ".join(d["types"]),
+            ", ".join(d["states"]),
+            ", ".join(map(str, d["missions"])) or "-",
+        )
     console.print(t if data else "no vehicle heard")

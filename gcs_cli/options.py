@@ -38,8 +38,11 @@ def selection(ids: list[int], fleet: int | None, all_: bool, *, required: bool) 
     """The vehicles a command addresses. `--id`, `--fleet` and `--all` exclude each
     other; with none, commands that move or arm vehicles refuse (`required`), the
     others address every vehicle."""
-    given = [name for name, on in (("--id", bool(ids)), ("--fleet", fleet is not None),
-                                   ("--all", all_)) if on]  # fmt: skip
+    given = [
+        name
+        for name, on in (("--id", bool(ids)), ("--fleet", fleet is not None), ("--all", all_))
+        if on
+    ]
     if len(given) > 1:
         raise typer.BadParameter(f"{' and '.join(given)} exclude each other: give one")
     if not given and required:
@@ -75,8 +78,9 @@ def confirm(question: str, yes: bool) -> None:
     if yes:
         return
     if not sys.stdin.isatty():
-        raise typer.BadParameter(f"{question}: add --yes to confirm (no terminal to ask)",
-                                 param_hint="--yes")  # fmt: skip
+        raise typer.BadParameter(
+            f"{question}: add --yes to confirm (no terminal to ask)", param_hint="--yes"
+        )
     if not typer.confirm(question, default=False):
         typer.echo("gcs: not sent")
         raise typer.Exit(1)
@@ -99,7 +103,9 @@ def _number(text: str, what: str, name: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise typer.BadParameter(f"{what} {text.strip()!r} is not a number", param_hint=name) from None
+        raise typer.BadParameter(
+            f"{what} {text.strip()!r} is not a number", param_hint=name
+        ) from None
     if not math.isfinite(v):
         raise typer.BadParameter(f"{what} is {text.strip()}", param_hint=name)
     return v

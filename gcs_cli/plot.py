@@ -66,10 +66,17 @@ def plan_shares(state: SwarmState, mission: Mission) -> dict[int, list[tuple[flo
         members = [Member(db.vehicle_profile(vid), homes.get(vid)) for vid in ids]
     first_home = next((h for h in (homes.get(v) for v in ids) if h is not None), None)
     zones = [z for z in state.zones if z.active and not z.operating_area]
-    plan = plan_fleet(mission, members, zones, state.saved_unix_s or time.time(),
-                      first_home.alt_msl_m if first_home else 0.0)  # fmt: skip
-    return {vid: [(w.lat_deg, w.lon_deg) for w in share.waypoints if w.lat_deg or w.lon_deg]
-            for vid, share in plan.shares.items()}  # fmt: skip
+    plan = plan_fleet(
+        mission,
+        members,
+        zones,
+        state.saved_unix_s or time.time(),
+        first_home.alt_msl_m if first_home else 0.0,
+    )
+    return {
+        vid: [(w.lat_deg, w.lon_deg) for w in share.waypoints if w.lat_deg or w.lon_deg]
+        for vid, share in plan.shares.items()
+    }
 
 
 def draw(
@@ -106,8 +113,11 @@ def draw(
     if not pts:
         raise ValueError("nothing to draw")
     frame = Frame(sum(p[0] for p in pts) / len(pts), sum(p[1] for p in pts) / len(pts))
-    ids = sorted(set(shares) | set(track.vehicles if track is not None else [])
-                 | {v.vehicle_id for v in (state.vehicles if state else [])})  # fmt: skip
+    ids = sorted(
+        set(shares)
+        | set(track.vehicles if track is not None else [])
+        | {v.vehicle_id for v in (state.vehicles if state else [])}
+    )
     colors = vehicle_colors(ids)
     fig, ax = plt.subplots(figsize=(8, 8), dpi=100)
     drawn = {"zones": 0, "missions": 0, "shares": 0, "tracks": 0}
@@ -116,11 +126,30 @@ def draw(
         xy = [frame.xy(p.lat_deg, p.lon_deg) for p in g.points]
         label = f"mission {m.mission_id} ({m.mission_type.name.lower()})"
         if g.kind == GeometryKind.POLYGON:
-            ax.add_patch(Polygon(xy, closed=True, facecolor=(0.85, 0.85, 0.85), edgecolor="black",
-                                 linestyle="--", linewidth=1.0, zorder=1, label=label))  # fmt: skip
+            ax.add_patch(
+                Polygon(
+                    xy,
+                    closed=True,
+                    facecolor=(0.85, 0.85, 0.85),
+                    edgecolor="black",
+                    linestyle="--",
+                    linewidth=1.0,
+                    zorder=1,
+                    label=label,
+                )
+            )
         elif g.kind == GeometryKind.CIRCLE:
-            ax.add_patch(Circle(xy[0], g.radius_m or 0.0, fill=False, edgecolor="black",
-                                linestyle="--", zorder=1, label=label))  # fmt: skip
+            ax.add_patch(
+                Circle(
+                    xy[0],
+                    g.radius_m or 0.0,
+                    fill=False,
+                    edgecolor="black",
+                    linestyle="--",
+                    zorder=1,
+                    label=label,
+                )
+            )
         else:
             ax.plot(*zip(*xy, strict=True), "k--", marker="x", zorder=1, label=label)
         drawn["missions"] += 1
@@ -129,37 +158,71 @@ def draw(
             continue
         g = z.geometry
         area = z.operating_area
-        style = dict(facecolor="none" if area else (0.9, 0.1, 0.1, 0.35),
-                     edgecolor=(0.1, 0.6, 0.1) if area else (0.8, 0.0, 0.0),
-                     linestyle="--" if area else "-", linewidth=2.0, zorder=2,
-                     label=f"{'operating area' if area else 'no-fly zone'} {z.zone_id}")  # fmt: skip
+        style = dict(
+            facecolor="none" if area else (0.9, 0.1, 0.1, 0.35),
+            edgecolor=(0.1, 0.6, 0.1) if area else (0.8, 0.0, 0.0),
+            linestyle="--" if area else "-",
+            linewidth=2.0,
+            zorder=2,
+            label=f"{'operating area' if area else 'no-fly zone'} {z.zone_id}",
+        )
         if g.kind == GeometryKind.CIRCLE:
-            ax.add_patch(Circle(frame.xy(g.points[0].lat_deg, g.points[0].lon_deg), g.radius_m or 0.0, **style))
+            ax.add_patch(
+                Circle(
+                    frame.xy(g.points[0].lat_deg, g.points[0].lon_deg), g.radius_m or 0.0, **style
+                )
+            )
         else:
-            ax.add_patch(Polygon([frame.xy(p.lat_deg, p.lon_deg) for p in g.points], closed=True, **style))
+            ax.add_patch(
+                Polygon([frame.xy(p.lat_deg, p.lon_deg) for p in g.points], closed=True, **style)
+            )
         drawn["zones"] += 1
     for vid, s in sorted(shares.items()):
         if len(s) < 1:
             continue
         xs, ys = zip(*(frame.xy(a, b) for a, b in s), strict=True)
-        ax.plot(xs, ys, color=colors[vid], linestyle=(0, (4, 2)), linewidth=1.5, zorder=3,
-                label=f"vehicle {vid} plan")  # fmt: skip
+        ax.plot(
+            xs,
+            ys,
+            color=colors[vid],
+            linestyle=(0, (4, 2)),
+            linewidth=1.5,
+            zorder=3,
+            label=f"vehicle {vid} plan",
+        )
         drawn["shares"] += 1
     if track is not None:
         for vid in track.vehicles:
             sel = track.vehicle == vid
-            xs, ys = zip(*(frame.xy(a, b) for a, b in zip(track.lat[sel], track.lon[sel], strict=True)),
-                         strict=True)  # fmt: skip
-            ax.plot(xs, ys, color=colors[vid], linewidth=2.5, zorder=4, label=f"vehicle {vid} flown")
+            xs, ys = zip(
+                *(frame.xy(a, b) for a, b in zip(track.lat[sel], track.lon[sel], strict=True)),
+                strict=True,
+            )
+            ax.plot(
+                xs, ys, color=colors[vid], linewidth=2.5, zorder=4, label=f"vehicle {vid} flown"
+            )
             drawn["tracks"] += 1
     if state is not None:
         for v in state.vehicles:
             if v.home:
-                ax.plot(*frame.xy(v.home.lat_deg, v.home.lon_deg), marker="^", markersize=9,
-                        color=colors.get(v.vehicle_id, "black"), markeredgecolor="black", zorder=5)  # fmt: skip
+                ax.plot(
+                    *frame.xy(v.home.lat_deg, v.home.lon_deg),
+                    marker="^",
+                    markersize=9,
+                    color=colors.get(v.vehicle_id, "black"),
+                    markeredgecolor="black",
+                    zorder=5,
+                )
         if state.base:
-            ax.plot(*frame.xy(state.base.lat_deg, state.base.lon_deg), marker="*", markersize=18,
-                    color="gold", markeredgecolor="black", zorder=6, label="base")  # fmt: skip
+            ax.plot(
+                *frame.xy(state.base.lat_deg, state.base.lon_deg),
+                marker="*",
+                markersize=18,
+                color="gold",
+                markeredgecolor="black",
+                zorder=6,
+                label="base",
+            )
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.set_xlabel(f"east of {frame.lat0:.5f}, {frame.lon0:.5f} (m)")
@@ -182,11 +245,14 @@ def _georeference(fig: Any, ax: Any, frame: Frame) -> str:
     fig.canvas.draw()  # the final layout (equal aspect, tight layout) before reading it
     box = ax.get_window_extent()
     height = fig.get_size_inches()[1] * fig.dpi
-    return json.dumps({
-        "frame_lat_lon": [frame.lat0, frame.lon0],
-        "xlim_m": list(ax.get_xlim()), "ylim_m": list(ax.get_ylim()),
-        "axes_px": [box.x0, height - box.y1, box.x1, height - box.y0],
-    })  # fmt: skip
+    return json.dumps(
+        {
+            "frame_lat_lon": [frame.lat0, frame.lon0],
+            "xlim_m": list(ax.get_xlim()),
+            "ylim_m": list(ax.get_ylim()),
+            "axes_px": [box.x0, height - box.y1, box.x1, height - box.y0],
+        }
+    )
 
 
 def read_georeference(png: Path) -> tuple[Frame, Callable[[float, float], tuple[float, float]]]:
@@ -218,7 +284,10 @@ def plot(
         None, "--state", dir_okay=False, help="a `gcs save` file (default: ask the swarm now)"
     ),
     track: Path | None = typer.Option(
-        None, "--track", dir_okay=False, help="a flight recorder CSV (gcs record, swarm-node "
+        None,
+        "--track",
+        dir_okay=False,
+        help="a flight recorder CSV (gcs record, swarm-node "
         "run --record, the simulator) to draw the flown tracks",
     ),
     no_plan: bool = typer.Option(False, "--no-plan", help="do not compute the shares"),
@@ -262,25 +331,47 @@ def plot(
         drawn = draw(out, state, trajectory, shares=shares)
     except (ValueError, OSError) as exc:
         raise typer.BadParameter(f"{out}: {exc}", param_hint="--out") from None
-    console.print(f"{out}: {drawn['missions']} mission(s), {drawn['shares']} share(s), "
-                  f"{drawn['zones']} zone(s), {drawn['tracks']} track(s)")  # fmt: skip
+    console.print(
+        f"{out}: {drawn['missions']} mission(s), {drawn['shares']} share(s), "
+        f"{drawn['zones']} zone(s), {drawn['tracks']} track(s)"
+    )
 
 
-EXTRA = ("alt_rel_m", "groundspeed_m_s", "heading_deg", "battery_pct", "fsm", "mission",
-         "progress_pct")  # fmt: skip
+EXTRA = (
+    "alt_rel_m",
+    "groundspeed_m_s",
+    "heading_deg",
+    "battery_pct",
+    "fsm",
+    "mission",
+    "progress_pct",
+)
 
 
 def write_status(w: TrajectoryWriter, s: VehicleStatus) -> None:
-    w.write(s.time_unix_s, s.vehicle_id, s.lat_deg, s.lon_deg, s.alt_msl_m,
-            f"{s.alt_rel_m:.2f}", f"{s.groundspeed_m_s:.2f}", f"{s.heading_deg:.1f}",
-            s.battery_pct, s.fsm_state.name, s.mission_state.name, s.mission_progress_pct)  # fmt: skip
+    w.write(
+        s.time_unix_s,
+        s.vehicle_id,
+        s.lat_deg,
+        s.lon_deg,
+        s.alt_msl_m,
+        f"{s.alt_rel_m:.2f}",
+        f"{s.groundspeed_m_s:.2f}",
+        f"{s.heading_deg:.1f}",
+        s.battery_pct,
+        s.fsm_state.name,
+        s.mission_state.name,
+        s.mission_progress_pct,
+    )
 
 
 @app.command()
 def record(
     ctx: typer.Context,
     out: Path = typer.Argument(..., dir_okay=False, help="the flight CSV to write"),
-    duration: float | None = typer.Option(None, help="stop after this many seconds (default: Ctrl-C)"),
+    duration: float | None = typer.Option(
+        None, help="stop after this many seconds (default: Ctrl-C)"
+    ),
     ids: IdsOption = [],  # noqa: B006
     fleet: FleetOption = None,
     all_: AllOption = False,
@@ -305,8 +396,10 @@ def record(
     with writer, ctx.obj.open() as gs:
         statuses = gs.status_feed()
         end = None if duration is None else time.monotonic() + duration
-        console.print(f"recording to {out} ({'Ctrl-C stops' if end is None else f'{duration:g} s'})",
-                      style="dim")  # fmt: skip
+        console.print(
+            f"recording to {out} ({'Ctrl-C stops' if end is None else f'{duration:g} s'})",
+            style="dim",
+        )
         try:
             while end is None or time.monotonic() < end:
                 left = 0.5 if end is None else max(0.0, min(0.5, end - time.monotonic()))
@@ -323,6 +416,8 @@ def record(
                 rows += 1
         except KeyboardInterrupt:
             pass
-    console.print(f"{out}: {rows} row(s) from vehicle(s) {', '.join(map(str, sorted(last))) or 'none'}")
+    console.print(
+        f"{out}: {rows} row(s) from vehicle(s) {', '.join(map(str, sorted(last))) or 'none'}"
+    )
     if not rows:
         raise typer.Exit(1)

@@ -71,7 +71,9 @@ def read_state(path: Path) -> SwarmState:
     try:
         state = msgspec.json.decode(raw, type=SwarmState)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError) as exc:
-        raise StateFileError(f"{path}: not a swarm state file: {' '.join(str(exc).split())}") from None
+        raise StateFileError(
+            f"{path}: not a swarm state file: {' '.join(str(exc).split())}"
+        ) from None
     if state.format != FORMAT:
         raise StateFileError(f"{path}: format {state.format!r}, expected {FORMAT!r}")
     return state
@@ -92,18 +94,33 @@ def collect(gs: GroundStation, timeout_s: float = 2.0) -> tuple[SwarmState, list
         if info is None:
             continue
         pos = GeoPoint(st.lat_deg, st.lon_deg, st.alt_msl_m) if st else None
-        vehicles.append(VehicleState(vid, info.vehicle_type, info.model, info.home, info.base,
-                                     info.fleet_id, info.mission_id, info.fsm_state, pos))  # fmt: skip
+        vehicles.append(
+            VehicleState(
+                vid,
+                info.vehicle_type,
+                info.model,
+                info.home,
+                info.base,
+                info.fleet_id,
+                info.mission_id,
+                info.fsm_state,
+                pos,
+            )
+        )
     bases = Counter(v.base for v in vehicles if v.base is not None)
     base = bases.most_common(1)[0][0] if bases else None
     if len(bases) > 1:
-        warnings.append("the vehicles disagree on the base: "
-                        + "; ".join(f"{b.lat_deg:.6f},{b.lon_deg:.6f} by {n}" for b, n in bases.items()))  # fmt: skip
+        warnings.append(
+            "the vehicles disagree on the base: "
+            + "; ".join(f"{b.lat_deg:.6f},{b.lon_deg:.6f} by {n}" for b, n in bases.items())
+        )
     now = time.time()
     zones: dict[int, NoFlyZone] = {}
     for zs in gs.all_zones(timeout_s).values():
         for zid, z in zs.items():
-            if z.in_force(now) and (zid not in zones or z.valid_from_unix_s > zones[zid].valid_from_unix_s):
+            if z.in_force(now) and (
+                zid not in zones or z.valid_from_unix_s > zones[zid].valid_from_unix_s
+            ):
                 zones[zid] = z
     in_force = {v.mission_id for v in vehicles if v.mission_id}
     missions: dict[int, Mission] = {}
@@ -113,9 +130,16 @@ def collect(gs: GroundStation, timeout_s: float = 2.0) -> tuple[SwarmState, list
                 missions.setdefault(mid, m)
     for mid in sorted(in_force - set(missions)):
         warnings.append(f"mission {mid} is flown but no vehicle served it (missions queryable)")
-    state = SwarmState(FORMAT, 1, round(now, 3), gs.swarm, base,
-                       sorted(zones.values(), key=lambda z: z.zone_id),
-                       sorted(missions.values(), key=lambda m: m.mission_id), vehicles)  # fmt: skip
+    state = SwarmState(
+        FORMAT,
+        1,
+        round(now, 3),
+        gs.swarm,
+        base,
+        sorted(zones.values(), key=lambda z: z.zone_id),
+        sorted(missions.values(), key=lambda m: m.mission_id),
+        vehicles,
+    )
     return state, warnings
 
 
@@ -159,9 +183,13 @@ def load(
     ids: IdsOption = [],  # noqa: B006
     fleet: FleetOption = None,
     all_: AllOption = False,
-    keep_ids: bool = typer.Option(False, "--keep-ids", help="send the missions with their ids "
-                                  "(default: fresh ids, so vehicles that answered them before "
-                                  "take them again)"),
+    keep_ids: bool = typer.Option(
+        False,
+        "--keep-ids",
+        help="send the missions with their ids "
+        "(default: fresh ids, so vehicles that answered them before "
+        "take them again)",
+    ),
     timeout: float = typer.Option(10.0, help="seconds to wait for each step's answers"),
     yes: YesOption = False,
     as_json: JsonOption = False,
@@ -185,8 +213,13 @@ def load(
     missions: list[Mission] = []
     for m in state.missions:
         mid = m.mission_id if keep_ids else (new_seq() or 1) + len(missions)
-        missions.append(checked(msgspec.structs.replace(m, mission_id=mid, issuer_id=link.gcs_id,
-                                                        time_unix_s=time.time())))  # fmt: skip
+        missions.append(
+            checked(
+                msgspec.structs.replace(
+                    m, mission_id=mid, issuer_id=link.gcs_id, time_unix_s=time.time()
+                )
+            )
+        )
     if state.base is not None:
         checked(state.base)
     failed = False
@@ -195,8 +228,13 @@ def load(
             ask(gs, f"load {len(missions)} mission(s) from {file.name}", sel, yes)
         if state.base is not None:
             with progress(not as_json) as show:
-                out = gs.send_command(CommandKind.SET_BASE, sel, CommandArgs(point=state.base),
-                                      timeout_s=timeout, progress=show)  # fmt: skip
+                out = gs.send_command(
+                    CommandKind.SET_BASE,
+                    sel,
+                    CommandArgs(point=state.base),
+                    timeout_s=timeout,
+                    progress=show,
+                )
             failed |= _step(out, as_json)
         for z in zones:
             with progress(not as_json) as show:

@@ -23,9 +23,9 @@ def flag_names(flags: AlertFlag) -> str:
 def data_age_s(status: VehicleStatus, now_unix_s: float) -> float:
     """How old the autopilot data in a status is: its `time_unix_s` is the time of the
     autopilot's sample (GPS time), and after an autopilot link loss the node keeps
-    sending the last one (issue 11): `age s` says when the ground station last heard the
+    sending the last one: `age s` says when the ground station last heard the
     node, `data s` how old what it says is. Clamped at 0 (a vehicle clock ahead). A radio
-    peer's status predicted by its gateway (issue 19) is `predicted_s` older than its
+    peer's status predicted by its gateway is `predicted_s` older than its
     time says."""
     return round(max(0.0, now_unix_s - status.time_unix_s) + status.predicted_s, 1)
 
@@ -94,22 +94,52 @@ COLUMNS = [  # (row key, header) of the 100-column table
     ("data_age_s", "data"),
     # the active conditions: a line under the table per vehicle (the row in red)
 ]
-TYPE_SHORT = {"VTOL": "VTOL", "PLANE": "PLN", "COPTER": "COPT", "ROVER": "ROVR", "BOAT": "BOAT",
-              "OTHER": "?", "GCS": "GCS", "MANNED": "MAN"}  # fmt: skip
+TYPE_SHORT = {
+    "VTOL": "VTOL",
+    "PLANE": "PLN",
+    "COPTER": "COPT",
+    "ROVER": "ROVR",
+    "BOAT": "BOAT",
+    "OTHER": "?",
+    "GCS": "GCS",
+    "MANNED": "MAN",
+}
 FSM_SHORT = {"INACTIVE": "INACT", "PLAN": "PLAN", "GO_MISSION": "GO", "EMERGENCY": "EMERG"}
-MISSION_SHORT = {"IDLE": "-", "PLANNING": "plan", "VOTING": "vote", "PREMISSION": "pre",
-                 "MISSION": "msn", "PARACHUTE": "chute", "SENDING_MISSION": "send",
-                 "WAITING_MISSION": "wait", "REPLAN": "replan"}  # fmt: skip
-GPS_SHORT = {"NO_GPS": "none", "NO_FIX": "nofix", "FIX_2D": "2D", "FIX_3D": "3D",
-             "DGPS": "DGPS", "RTK_FLOAT": "RTKf", "RTK_FIXED": "RTK", "STATIC": "stat"}  # fmt: skip
+MISSION_SHORT = {
+    "IDLE": "-",
+    "PLANNING": "plan",
+    "VOTING": "vote",
+    "PREMISSION": "pre",
+    "MISSION": "msn",
+    "PARACHUTE": "chute",
+    "SENDING_MISSION": "send",
+    "WAITING_MISSION": "wait",
+    "REPLAN": "replan",
+}
+GPS_SHORT = {
+    "NO_GPS": "none",
+    "NO_FIX": "nofix",
+    "FIX_2D": "2D",
+    "FIX_3D": "3D",
+    "DGPS": "DGPS",
+    "RTK_FLOAT": "RTKf",
+    "RTK_FIXED": "RTK",
+    "STATIC": "stat",
+}
 #: the alert flags as the table shows them (docs/ground-station.md has the legend)
 FLAG_SHORT = {
-    AlertFlag.BATTERY_LOW: "batt", AlertFlag.BATTERY_CRITICAL: "BATT!", AlertFlag.GPS_LOSS: "gps",
-    AlertFlag.EKF_FAILURE: "ekf", AlertFlag.AUTOPILOT_LINK_LOSS: "aplink",
-    AlertFlag.GEOFENCE_BREACH: "fence", AlertFlag.ATTITUDE_ABNORMAL: "att",
-    AlertFlag.COLLISION_RISK: "coll", AlertFlag.SWARM_LINK_LOSS: "swarm",
-    AlertFlag.NO_FLY_ZONE: "nfz", AlertFlag.AUTOPILOT_MISMATCH: "AP≠type",
-}  # fmt: skip
+    AlertFlag.BATTERY_LOW: "batt",
+    AlertFlag.BATTERY_CRITICAL: "BATT!",
+    AlertFlag.GPS_LOSS: "gps",
+    AlertFlag.EKF_FAILURE: "ekf",
+    AlertFlag.AUTOPILOT_LINK_LOSS: "aplink",
+    AlertFlag.GEOFENCE_BREACH: "fence",
+    AlertFlag.ATTITUDE_ABNORMAL: "att",
+    AlertFlag.COLLISION_RISK: "coll",
+    AlertFlag.SWARM_LINK_LOSS: "swarm",
+    AlertFlag.NO_FLY_ZONE: "nfz",
+    AlertFlag.AUTOPILOT_MISMATCH: "AP≠type",
+}
 
 
 def _short_flags(flags: AlertFlag) -> str:
@@ -118,6 +148,7 @@ def _short_flags(flags: AlertFlag) -> str:
 
 def _cells(row: dict[str, Any]) -> list[str]:
     """A JSON row as the table's cells."""
+
     def g(key: str) -> Any:
         return row.get(key)
 
@@ -138,18 +169,20 @@ def _cells(row: dict[str, Any]) -> list[str]:
         "mode": (g("mode") or "")[:9],
         "armed": "" if g("armed") is None else ("A" if g("armed") else "-"),
         "fleet": "" if g("fleet") is None else str(g("fleet")),
-        "battery_pct": "" if g("battery_pct") is None else (
-            "?" if g("battery_pct") < 0 else str(g("battery_pct"))),
+        "battery_pct": ""
+        if g("battery_pct") is None
+        else ("?" if g("battery_pct") < 0 else str(g("battery_pct"))),
         "gps": "" if g("gps") is None else g("gps_short"),
         "position": "" if lat is None else f"{lat:.5f},{lon:.5f}",
         "alt_rel_m": "" if g("alt_rel_m") is None else f"{g('alt_rel_m'):.0f}",
         "groundspeed_m_s": "" if g("groundspeed_m_s") is None else f"{g('groundspeed_m_s'):.0f}",
         "heading_deg": "" if g("heading_deg") is None else str(g("heading_deg")),
         "alert_names": alerts,
-        "age_s": "" if g("age_s") is None else (
-            f"{g('age_s'):.1f}" if g("age_s") < 10 else f"{g('age_s'):.0f}"),
+        "age_s": ""
+        if g("age_s") is None
+        else (f"{g('age_s'):.1f}" if g("age_s") < 10 else f"{g('age_s'):.0f}"),
         "data_age_s": "" if data is None else (f"{data:.0f}" if data >= 10 else f"{data:.1f}"),
-    }  # fmt: skip
+    }
     return [cells[k] for k, _ in COLUMNS] + [cells["alert_names"]]
 
 
@@ -159,11 +192,20 @@ def fleet_table(
     """The fleet, one line per vehicle, in 100 columns (with `rates`, the packets per
     second heard from each vehicle too: `gcs watch`), and under it one line per vehicle
     with active conditions (flags: FLAG_SHORT)."""
-    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 0),
-                  title_justify="left")  # fmt: skip
+    table = Table(
+        title=title, box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 0), title_justify="left"
+    )
     for key, header in COLUMNS:
-        right = key in ("id", "battery_pct", "alt_rel_m", "groundspeed_m_s", "heading_deg",
-                        "age_s", "data_age_s", "fleet")  # fmt: skip
+        right = key in (
+            "id",
+            "battery_pct",
+            "alt_rel_m",
+            "groundspeed_m_s",
+            "heading_deg",
+            "age_s",
+            "data_age_s",
+            "fleet",
+        )
         table.add_column(header, justify="right" if right else "left", no_wrap=True)
     if rates:
         table.add_column("pkt/s", justify="right", no_wrap=True)

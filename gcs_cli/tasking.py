@@ -1,4 +1,4 @@
-"""Voting and re-tasking from the ground (issue 13): `gcs target report` publishes a
+"""Voting and re-tasking from the ground: `gcs target report` publishes a
 target as a payload or the operator would, `gcs vote MISSION` shows a vote (who took
 part, every score, who went), and `gcs mission ... --count N` shows its vote after the
 acks (`VoteWatch`, hooked in cli.py).
@@ -29,7 +29,9 @@ from .ground import FleetView, GroundStation
 from .render import ack_table
 
 console = Console()
-app = typer.Typer(help="Targets: report one (re-tasking by the swarm's rules).", no_args_is_help=True)
+app = typer.Typer(
+    help="Targets: report one (re-tasking by the swarm's rules).", no_args_is_help=True
+)
 
 
 # --------------------------------------------------------------------------- votes
@@ -248,5 +250,3 @@ def report(
         r = show_vote(gs, watch, mid, voters, None, vote_wait)
     if not r.decided:
         raise typer.Exit(1)
-
-

@@ -164,9 +164,15 @@ class BallotFleet:
                     continue
                 if ev is None:
                     self.ballots[vid] = Ballot(
-                        self.mission_id, vid, self.electorate, self.quantity,
-                        self.scores[vid], now, self.config, lost=set(known_lost[vid]),
-                    )  # fmt: skip
+                        self.mission_id,
+                        vid,
+                        self.electorate,
+                        self.quantity,
+                        self.scores[vid],
+                        now,
+                        self.config,
+                        lost=set(known_lost[vid]),
+                    )
                     continue
                 if isinstance(ev, VoterLost):
                     known_lost[vid].add(ev.vehicle_id)  # the node's liveliness knows it
@@ -207,7 +213,12 @@ def lossy_trial(seed: int, encoding: str = "lan") -> tuple[BallotFleet, TrialRes
     death = {r.choice(ids): r.uniform(0.0, 1.0)} if r.random() < 0.8 else {}
     start = {v: r.uniform(0.0, 2.0) if r.random() < 0.3 else 0.0 for v in ids}
     f = BallotFleet(
-        scores, r.randint(1, n - 1), seed=seed, loss=0.2, start_s=start, death_s=death,
+        scores,
+        r.randint(1, n - 1),
+        seed=seed,
+        loss=0.2,
+        start_s=start,
+        death_s=death,
         encoding=encoding,
-    )  # fmt: skip
+    )
     return f, f.run()

@@ -74,7 +74,7 @@ def run(
     logging.basicConfig(
         level=log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
-    try:  # one endpoint syntax: Zenoh's and MAVLink's spellings both read (issue 15)
+    try:  # one endpoint syntax: Zenoh's and MAVLink's spellings both read
         from swarm_proto.endpoints import mavlink_endpoint, zenoh_endpoint
 
         connect = [zenoh_endpoint(e) for e in connect]
@@ -112,7 +112,7 @@ def run(
             raise typer.Exit(2) from exc
     stop = stop_event()
     try:
-        node = build_node(cfg, steady(clock_from_env()))  # never steps (issue 16)
+        node = build_node(cfg, steady(clock_from_env()))  # never steps
     except (ValueError, OSError) as exc:
         typer.echo(f"swarm-node: {exc}", err=True)
         raise typer.Exit(2) from exc

@@ -7,7 +7,7 @@
   simulated time without talking to each other.
 - `ManualClock`: tests and single-process fast-time harnesses; time moves only when
   told (`advance`, `set`, or `sleep`, which jumps instead of waiting).
-- `SteadyClock`: what a node runs on (issue 16): UNIX time read once at start, then
+- `SteadyClock`: what a node runs on: UNIX time read once at start, then
   advanced by the monotonic clock only, so a step of the system clock (NTP, a GPS time
   set, an operator's `date`) never makes a node's timers fire early or hang; the step
   is measured (`step_s`) and reported. `steady(clock)` wraps the system clock.

@@ -1,7 +1,7 @@
 """Endpoints as operators write them. Zenoh writes `tcp/127.0.0.1:7447`, MAVLink tools
 (pymavlink, MAVProxy) write `tcp:127.0.0.1:5760`; operators mix them up. Each reader
 here accepts the other's spelling and a bare `HOST:PORT`, and refuses anything else
-with a one-line message that shows the right form (issue 15)."""
+with a one-line message that shows the right form."""
 
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ def zenoh_endpoint(text: str) -> str:
         if t.startswith(p + ":"):
             m = _HOST_PORT.match(t[len(p) + 1 :])
             if m and _port_ok(m.group(2)):
-                return f"{p}/{t[len(p) + 1:]}"
+                return f"{p}/{t[len(p) + 1 :]}"
             raise ValueError(hint)
     m = _HOST_PORT.match(t)
     if m and _port_ok(m.group(2)):
@@ -50,8 +50,10 @@ def mavlink_endpoint(text: str) -> str:
     `udpout:`, a serial device `/dev/ttyACM0[,BAUD]`); Zenoh's `tcp/HOST:PORT`
     becomes `tcp:HOST:PORT`. ValueError (with the forms) otherwise."""
     t = text.strip()
-    hint = (f"{text!r} is not a MAVLink connection: write tcp:HOST:PORT, udpin:HOST:PORT, "
-            "udpout:HOST:PORT or a serial device such as /dev/ttyACM0,115200")  # fmt: skip
+    hint = (
+        f"{text!r} is not a MAVLink connection: write tcp:HOST:PORT, udpin:HOST:PORT, "
+        "udpout:HOST:PORT or a serial device such as /dev/ttyACM0,115200"
+    )
     if t.startswith("tcp/"):
         t = "tcp:" + t[4:]
     for p in ("tcp:", "tcpin:", "udp:", "udpin:", "udpout:", "udpbcast:"):

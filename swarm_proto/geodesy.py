@@ -3,7 +3,7 @@
 Monitoring, fences, the planners' zone geometry, the mission manager, collision
 avoidance, the separation analysis and the simulator's scenario set-up all use these
 functions, so a vehicle that one module says is 30 m from a zone is 30 m from it for
-every other module. Before issue 14 there were three formulas (a spherical haversine,
+every other module. Before there were three formulas (a spherical haversine,
 a flat-earth 111,320 m per degree, and pymap3d); the flat-earth one is off by 0.3 %
 north-south at 37 degrees of latitude (0.9 m in 300 m).
 

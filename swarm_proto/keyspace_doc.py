@@ -336,7 +336,11 @@ def render() -> str:
             f"{m.name} = {int(m.value)}" + (f" ({notes[m.name]})" if m.name in notes else "")
             for m in e.__members__.values()
         )
-        doc = f" {inspect.cleandoc(e.__doc__)}" if e.__doc__ and e.__doc__ != enum.Enum.__doc__ else ""
+        doc = (
+            f" {inspect.cleandoc(e.__doc__)}"
+            if e.__doc__ and e.__doc__ != enum.Enum.__doc__
+            else ""
+        )
         out.append(f"- **{e.__name__}**:{doc} {values}")
     out.append("")
     return "\n".join(out)

@@ -215,7 +215,7 @@ class VehicleStatus(Struct, frozen=True):
     mission_progress_pct: Percent = 0
     fleet_id: FleetId = 0
     alerts: Annotated[AlertFlag, Meta(description="active AlertFlag bits")] = AlertFlag.NONE
-    # appended (issue 19): a radio gateway republishes a radio peer's status predicted to
+    # appended: a radio gateway republishes a radio peer's status predicted to
     # `time_unix_s` from the last one it heard (dead reckoning, send on error): the
     # position is then within `position_error_m` of the truth, and `predicted_s` is how
     # far it was carried forward (the autopilot data is `predicted_s` older than
@@ -257,22 +257,22 @@ class VehicleInfo(Struct, frozen=True):
     mission_id: MissionId = 0  # current mission, 0 = none
     fsm_state: FsmState = FsmState.INACTIVE
     errors: tuple[AlertCode, ...] = ()  # active error conditions
-    # appended (issue 12): the mission's roster hash (swarm_node roster.py; 0 = none) and
+    # appended: the mission's roster hash (swarm_node roster.py; 0 = none) and
     # how far along its planned path this vehicle is
     members_hash: Annotated[int, Meta(ge=0, le=0xFFFF, description="roster hash, 0 = none")] = 0
     mission_progress_m: DistanceM = 0.0  # metres of this vehicle's share flown
     mission_path_m: DistanceM = 0.0  # length of this vehicle's share
-    # appended (issue 15): the ground station's flight display (`gcs vehicle ID`, the
+    # appended: the ground station's flight display (`gcs vehicle ID`, the
     # paper's PFD) and the autopilot the node is paired with, as its HEARTBEAT says
     roll_deg: AngleDeg = 0.0
     pitch_deg: AngleDeg = 0.0
     sensors_present: Annotated[int, Meta(ge=0, le=2**32 - 1, description="SYS_STATUS bits")] = 0
     sensors_health: Annotated[int, Meta(ge=0, le=2**32 - 1, description="SYS_STATUS bits")] = 0
     mav_type: Uint8 = 0  # the autopilot's HEARTBEAT type (MAV_TYPE), 0 = not heard
-    # appended (issue 12, PREMISSION): the earliest time this vehicle can be at its
+    # appended (PREMISSION): the earliest time this vehicle can be at its
     # share's entry point (swarm_node mission/fleet_sync.py; 0 = not flying a PREMISSION)
     entry_unix_s: UnixTimeS = 0.0
-    # appended (issue 12): the battery now; what a member published on entering PLAN for
+    # appended: the battery now; what a member published on entering PLAN for
     # a mission is what every node plans its share with (swarm_node roster.py)
     battery_pct: Annotated[int, Meta(ge=-1, le=100, description="remaining %, -1 unknown")] = -1
 
@@ -421,7 +421,7 @@ class Vote(Struct, frozen=True):
     voter_id: VehicleId
     scores: tuple[VoteScore, ...]
     round: Uint8 = 0
-    # appended (issue 13): the roster hash of the electorate the voter votes in
+    # appended: the roster hash of the electorate the voter votes in
     # (swarm_node.core.mission.voting; 0 = none); votes with another hash are not counted
     members_hash: Annotated[int, Meta(ge=0, le=0xFFFF, description="roster hash, 0 = none")] = 0
     committed: bool = False  # the voter has decided (it stops re-sending once all have)
@@ -454,10 +454,10 @@ class NoFlyZone(Struct, frozen=True):
     active: bool = True
     name: Name = ""
     operating_area: bool = False  # True: keep in (an operating area), not keep out
-    # appended (issue 15): who declared it; each vehicle acknowledges the zone to it
+    # appended: who declared it; each vehicle acknowledges the zone to it
     # (Ack ref ZONE, ref_id the zone id); 0 = nobody to answer (e.g. an older sender)
     issuer_id: OptVehicleId = 0
-    # appended (issue 16): when the operator declared it, the ground station's clock;
+    # appended: when the operator declared it, the ground station's clock;
     # the newest declaration of a zone id wins everywhere, so a withdrawal (active=False)
     # stays withdrawn when a node that missed it rejoins (0: unknown, the receiver's time)
     time_unix_s: UnixTimeS = 0.0
@@ -523,7 +523,7 @@ class DeclaredMission(Struct, frozen=True):
 
 class DeclaredState(Struct, frozen=True):
     """What the operator declared, as one node holds it (answer to a query on
-    vehicle/<id>/declared; LAN only; issue 16): every zone and operating area (withdrawn
+    vehicle/<id>/declared; LAN only): every zone and operating area (withdrawn
     ones too, each with the stamp that orders it), the SET_BASE, SET_FLEET and
     CANCEL_MISSION commands in force (newest last) and fleet assignments, from which any
     vehicle's base and fleet follow, the missions it holds, and this node's own base,
@@ -607,9 +607,7 @@ class LineageBattery(Struct, frozen=True, array_like=True):
     gave it no more work than)."""
 
     vehicle_id: VehicleId
-    battery_pct: Annotated[
-        float, Meta(ge=0.0, le=100.0, description="remaining %"), Fixed(0.01)
-    ]
+    battery_pct: Annotated[float, Meta(ge=0.0, le=100.0, description="remaining %"), Fixed(0.01)]
 
 
 class LineageProgress(Struct, frozen=True, array_like=True):

@@ -702,7 +702,10 @@ def on_air(cls: type[msgspec.Struct], name: str, value: Any) -> Any:
         codec = next((c for n, c, _r in _plan(cls).fields if n == name), None)
         if codec is None:
             raise EncodeError(f"{cls.__name__} has no field {name!r}")
-        known = _ON_AIR[(cls, name)] = (codec, typing.get_type_hints(cls, include_extras=True)[name])
+        known = _ON_AIR[(cls, name)] = (
+            codec,
+            typing.get_type_hints(cls, include_extras=True)[name],
+        )
     codec, hint = known
     try:
         return msgspec.convert(codec.dec(codec.enc(value)), hint)

@@ -254,7 +254,7 @@ DECLARED = Topic(
     DeclaredState,
     "Queryable: what the operator declared, as the node holds it (zones, bases, fleets, "
     "missions, each with its stamp; the newest wins). A (re)started node asks each peer "
-    "that comes alive and merges; `gcs declared` asks any node. LAN only (issue 16).",
+    "that comes alive and merges; `gcs declared` asks any node. LAN only.",
 )
 DATABASE = Topic(
     "database",

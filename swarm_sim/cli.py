@@ -21,7 +21,9 @@ def _group() -> None:
 @app.command()
 def demo(
     vehicle_ids: str | None = typer.Option(
-        None, "--vehicles", help="seed database ids (default 1-6: the six Albatross VTOLs; "
+        None,
+        "--vehicles",
+        help="seed database ids (default 1-6: the six Albatross VTOLs; "
         "7-9 quadcopters, 10-11 rovers, 12-13 boats); at least 4",
     ),
     mixed: bool = typer.Option(
@@ -35,9 +37,7 @@ def demo(
     radio: bool = typer.Option(
         False, "--radio", help="vehicles and ground station talk only over the emulated radio"
     ),
-    out: Path = typer.Option(
-        DEMO_OUT, "--out", file_okay=False, help="the report's directory"
-    ),
+    out: Path = typer.Option(DEMO_OUT, "--out", file_okay=False, help="the report's directory"),
     avoidance: bool = typer.Option(
         True,
         "--avoidance/--no-avoidance",
@@ -78,8 +78,15 @@ def demo(
         # TDM slots are a few milliseconds of wall time at high speed-ups; a shared
         # laptop cannot write the serial ports that precisely
         typer.echo(f"warning: --radio at {speedup:g}x leaves the slots little margin", err=True)
-    code = run_demo(members, speedup=speedup, timeout_s=timeout, keep=keep, radio=radio,
-                    out=out, avoidance=avoidance)  # fmt: skip
+    code = run_demo(
+        members,
+        speedup=speedup,
+        timeout_s=timeout,
+        keep=keep,
+        radio=radio,
+        out=out,
+        avoidance=avoidance,
+    )
     raise typer.Exit(code)
 
 

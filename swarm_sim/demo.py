@@ -124,8 +124,13 @@ def demo_area() -> tuple[Geometry, NoFlyZone]:
     lat0, lon0 = offset(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 200.0, 0.0)
     corners = [offset(lat0, lon0, n, e) for n, e in ((0, -150), (0, 150), (260, 150), (260, -150))]
     zlat, zlon = offset(lat0, lon0, 130.0, 40.0)
-    zone = NoFlyZone(ZONE_ID, Geometry.circle(zlat, zlon, 35.0), floor_alt_msl_m=-100.0,
-                     ceiling_alt_msl_m=500.0, name="demo zone")  # fmt: skip
+    zone = NoFlyZone(
+        ZONE_ID,
+        Geometry.circle(zlat, zlon, 35.0),
+        floor_alt_msl_m=-100.0,
+        ceiling_alt_msl_m=500.0,
+        name="demo zone",
+    )
     return Geometry.polygon(corners), zone
 
 
@@ -189,19 +194,37 @@ def start_radio(
     for port, nid in zip(channel.ports, ids, strict=True):
         endpoints[nid] = f"tcp/127.0.0.1:{free_tcp_port()}"
         gateways[nid] = _spawn(
-            [sys.executable, "-m", "radio_gateway.cli", "run", "--node-id", str(nid),
-             "--port", port, "--key-file", str(key), "--listen", endpoints[nid],
-             "--members", ",".join(map(str, ids)), "--configure"],
+            [
+                sys.executable,
+                "-m",
+                "radio_gateway.cli",
+                "run",
+                "--node-id",
+                str(nid),
+                "--port",
+                port,
+                "--key-file",
+                str(key),
+                "--listen",
+                endpoints[nid],
+                "--members",
+                ",".join(map(str, ids)),
+                "--configure",
+            ],
             tmp / f"radio-{nid}.log",
             env,
-        )  # fmt: skip
+        )
     return channel, endpoints, gateways
 
 
 def serve_vehicles(
-    specs: list[VehicleSpec], clock_spec: str, stop: threading.Event, nice: int = 0,
-    crashes: Any = None, bound: Any = None,
-) -> None:  # fmt: skip
+    specs: list[VehicleSpec],
+    clock_spec: str,
+    stop: threading.Event,
+    nice: int = 0,
+    crashes: Any = None,
+    bound: Any = None,
+) -> None:
     """The simulated vehicles, in a process of their own (spawned): the ground station
     and Zenoh in the demo process must not slow the vehicles' clock-driven loop.
     `crashes`: a queue of system ids whose aircraft are taken away; `bound`: a queue
@@ -269,10 +292,9 @@ def start(
     bound = ctx.Queue()
     simulator = ctx.Process(
         target=serve_vehicles,
-        args=(specs, clock.spec(), stop_simulator, YIELD_TO_RADIO if radio else 0, crashes,
-              bound),
+        args=(specs, clock.spec(), stop_simulator, YIELD_TO_RADIO if radio else 0, crashes, bound),
         name="vehicles",
-    )  # fmt: skip
+    )
     simulator.start()
     specs = [
         dataclasses.replace(spec, port=port)
@@ -296,15 +318,28 @@ def start(
     nodes = {}
     for spec, vid in zip(specs, members, strict=True):
         nodes[vid] = _spawn(
-            [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid),
-             "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}", "--connect", lans[vid],
-             *zenoh_role(radio), "--link-timeout", str(link_timeout_s(speedup)),
-             "--plan-timeout", str(plan_timeout_s(speedup, len(members))),
-             "--avoidance" if avoidance else "--no-avoidance"],
+            [
+                sys.executable,
+                "-m",
+                "swarm_node.cli",
+                "run",
+                "--id",
+                str(vid),
+                "--autopilot",
+                f"tcp:127.0.0.1:{spec.tcp_port}",
+                "--connect",
+                lans[vid],
+                *zenoh_role(radio),
+                "--link-timeout",
+                str(link_timeout_s(speedup)),
+                "--plan-timeout",
+                str(plan_timeout_s(speedup, len(members))),
+                "--avoidance" if avoidance else "--no-avoidance",
+            ],
             tmp / f"node-{vid}.log",
             env,
             nice=YIELD_TO_RADIO if radio else 0,
-        )  # fmt: skip
+        )
     for spec, vid in zip(specs, members, strict=True):
         console.print(
             f"  vehicle {vid}: {profiles[vid].model} ({profiles[vid].user_id}), simulated on tcp:127.0.0.1:{spec.tcp_port}"
@@ -315,9 +350,18 @@ def start(
             "(115.2 kbps, 200 ms TDM cycle), one gateway per node"
         )
     return Fleet(
-        tmp, router, simulator, stop_simulator, nodes, lans[GCS_ID], gateways, channel,
-        clock.spec(), crashes, lans,
-    )  # fmt: skip
+        tmp,
+        router,
+        simulator,
+        stop_simulator,
+        nodes,
+        lans[GCS_ID],
+        gateways,
+        channel,
+        clock.spec(),
+        crashes,
+        lans,
+    )
 
 
 def zenoh_role(radio: bool) -> tuple[str, ...]:
@@ -372,8 +416,15 @@ def run_demo(
     are on (the nodes' default), as in the paper's experiment."""
     from .experiment import EXPERIMENT_FLEET, run
 
-    return run(members or EXPERIMENT_FLEET, speedup=speedup, timeout_s=timeout_s, keep=keep,
-               radio=radio, out=out, avoidance=avoidance)  # fmt: skip
+    return run(
+        members or EXPERIMENT_FLEET,
+        speedup=speedup,
+        timeout_s=timeout_s,
+        keep=keep,
+        radio=radio,
+        out=out,
+        avoidance=avoidance,
+    )
 
 
 def _radio_up(

@@ -48,8 +48,17 @@ from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter
 
 from .story import AREA_ID, PERIMETER_ID, ROUTE_ID, Record, StoryPlan
 
-FLIGHT_COLUMNS = ("alt_rel_m", "groundspeed_m_s", "heading_deg", "battery_pct", "fsm",
-                  "mission", "progress_pct", "armed", "mission_id")  # fmt: skip
+FLIGHT_COLUMNS = (
+    "alt_rel_m",
+    "groundspeed_m_s",
+    "heading_deg",
+    "battery_pct",
+    "fsm",
+    "mission",
+    "progress_pct",
+    "armed",
+    "mission_id",
+)
 AIRBORNE_M = 1.0
 MIN_COVERAGE = 0.99
 GRID_S = 0.2  # separation grid (the statuses' 5 Hz)
@@ -79,11 +88,21 @@ class FlightRecorder:
             self._last[msg.vehicle_id] = msg.time_unix_s
             s = msg
             self.writer.write(
-                s.time_unix_s, s.vehicle_id, s.lat_deg, s.lon_deg, s.alt_msl_m,
-                f"{s.alt_rel_m:.2f}", f"{s.groundspeed_m_s:.2f}", f"{s.heading_deg:.1f}",
-                s.battery_pct, s.fsm_state.name, s.mission_state.name, s.mission_progress_pct,
-                int(s.armed), self.mission.get(s.vehicle_id, 0),
-            )  # fmt: skip
+                s.time_unix_s,
+                s.vehicle_id,
+                s.lat_deg,
+                s.lon_deg,
+                s.alt_msl_m,
+                f"{s.alt_rel_m:.2f}",
+                f"{s.groundspeed_m_s:.2f}",
+                f"{s.heading_deg:.1f}",
+                s.battery_pct,
+                s.fsm_state.name,
+                s.mission_state.name,
+                s.mission_progress_pct,
+                int(s.armed),
+                self.mission.get(s.vehicle_id, 0),
+            )
 
     def close(self) -> None:
         self.writer.close()
@@ -185,7 +204,9 @@ def survey_runs(
         breaks = np.flatnonzero(np.diff(t) > GAP_S) + 1
         for part in np.split(sel, breaks):
             if len(part) > 1:
-                out.setdefault(vid, []).append(np.column_stack([flight.lat[part], flight.lon[part]]))
+                out.setdefault(vid, []).append(
+                    np.column_stack([flight.lat[part], flight.lon[part]])
+                )
     return out
 
 
@@ -227,8 +248,13 @@ def first_plan(
     try:
         members = [Member(profiles[v], homes.get(v)) for v in plan.members]
         first = homes.get(plan.members[0])
-        return plan_fleet(plan.area_mission(0.0), members, list(plan.zones), 0.0,
-                          first.alt_msl_m if first else 0.0)  # fmt: skip
+        return plan_fleet(
+            plan.area_mission(0.0),
+            members,
+            list(plan.zones),
+            0.0,
+            first.alt_msl_m if first else 0.0,
+        )
     except Exception:
         return None
 
@@ -251,8 +277,7 @@ def _sep_dict(rep: SeparationReport | None, t0: float) -> dict[str, Any] | None:
             p["min_time_s"] = round(p["min_time_s"] - t0, 2)
     if d["min_time_s"] is not None:
         d["min_time_s"] = round(d["min_time_s"] - t0, 2)
-    d.update({"risk": tot["risk"], "danger": tot["danger"], "near": tot["near"],
-              "grid_s": GRID_S})  # fmt: skip
+    d.update({"risk": tot["risk"], "danger": tot["danger"], "near": tot["near"], "grid_s": GRID_S})
     return d
 
 
@@ -260,8 +285,12 @@ def _sep_dict(rep: SeparationReport | None, t0: float) -> dict[str, Any] | None:
 
 
 def mission_rows(plan: StoryPlan, record: Record) -> list[dict[str, Any]]:
-    kinds = {AREA_ID: "area", PERIMETER_ID: "perimeter", ROUTE_ID: "route",
-             plan.target_mission_id: "target"}  # fmt: skip
+    kinds = {
+        AREA_ID: "area",
+        PERIMETER_ID: "perimeter",
+        ROUTE_ID: "route",
+        plan.target_mission_id: "target",
+    }
     failed = set(record.failed)
     rows = []
     for mid in (AREA_ID, plan.target_mission_id, PERIMETER_ID, ROUTE_ID):
@@ -269,18 +298,20 @@ def mission_rows(plan: StoryPlan, record: Record) -> list[dict[str, Any]]:
         if rec is None:
             rows.append({"mission_id": mid, "kind": kinds[mid], "sent": False, "completed": False})
             continue
-        rows.append({
-            "mission_id": mid,
-            "kind": kinds[mid],
-            "sent": True,
-            "sent_at_s": rec.sent_at,
-            "flown_by": sorted(rec.flew),
-            "left_for_another": sorted(rec.left),
-            "failed": sorted(failed & rec.flew),
-            "completed_by": sorted(rec.completed),
-            "completed_at_s": {str(v): round(t, 1) for v, t in sorted(rec.completed.items())},
-            "completed": rec.done(failed),
-        })  # fmt: skip
+        rows.append(
+            {
+                "mission_id": mid,
+                "kind": kinds[mid],
+                "sent": True,
+                "sent_at_s": rec.sent_at,
+                "flown_by": sorted(rec.flew),
+                "left_for_another": sorted(rec.left),
+                "failed": sorted(failed & rec.flew),
+                "completed_by": sorted(rec.completed),
+                "completed_at_s": {str(v): round(t, 1) for v, t in sorted(rec.completed.items())},
+                "completed": rec.done(failed),
+            }
+        )
     return rows
 
 
@@ -291,15 +322,17 @@ def vote_rows(plan: StoryPlan, record: Record) -> list[dict[str, Any]]:
     for mid, votes in sorted(record.votes.items()):
         went = set(record.chosen.get(mid, {}))
         r = result_of(mid, votes, 2 if mid == plan.target_mission_id else None, went)
-        out.append({
-            "mission_id": mid,
-            "voters": sorted(r.voters),
-            "scores": {str(v): round(s, 4) for v, s in sorted(r.scores.items())},
-            "decided": r.decided,
-            "winners": list(r.winners) if r.winners is not None else sorted(went),
-            "said_chosen": sorted(went),
-            "chosen_alerts": {str(v): t for v, t in sorted(record.chosen.get(mid, {}).items())},
-        })  # fmt: skip
+        out.append(
+            {
+                "mission_id": mid,
+                "voters": sorted(r.voters),
+                "scores": {str(v): round(s, 4) for v, s in sorted(r.scores.items())},
+                "decided": r.decided,
+                "winners": list(r.winners) if r.winners is not None else sorted(went),
+                "said_chosen": sorted(went),
+                "chosen_alerts": {str(v): t for v, t in sorted(record.chosen.get(mid, {}).items())},
+            }
+        )
     return out
 
 
@@ -324,8 +357,10 @@ def replan_rows(record: Record) -> list[dict[str, Any]]:
             cause, why = "other", "a member of its fleet was lost (or in an emergency)"
         elif phase in ("vote", "replan", "fail"):
             cause = "vote"
-            why = (f"vehicles {', '.join(map(str, record.winners))} voted out to the target: "
-                   "the others re-split what is left")  # fmt: skip
+            why = (
+                f"vehicles {', '.join(map(str, record.winners))} voted out to the target: "
+                "the others re-split what is left"
+            )
         elif phase in ("inherit", "finish") and victim is not None:
             cause = "lost"
             why = f"vehicle {victim} lost: the survivors share out the rest of its share"
@@ -335,8 +370,16 @@ def replan_rows(record: Record) -> list[dict[str, Any]]:
         if last is not None and last["cause"] == cause and t - last["t_s"] < 30.0:
             last["vehicles"].append(vid)
             continue
-        events.append({"t_s": round(t, 1), "mission_id": mid, "phase": phase, "cause": cause,
-                       "vehicles": [vid], "why": why})  # fmt: skip
+        events.append(
+            {
+                "t_s": round(t, 1),
+                "mission_id": mid,
+                "phase": phase,
+                "cause": cause,
+                "vehicles": [vid],
+                "why": why,
+            }
+        )
     for e in events:
         e["vehicles"] = sorted(set(e["vehicles"]))
     return events
@@ -345,9 +388,16 @@ def replan_rows(record: Record) -> list[dict[str, Any]]:
 # --------------------------------------------------------------------------- pictures
 
 
-def draw_top(out: Path, plan: StoryPlan, flight: Flight, profiles: Mapping[int, VehicleProfile],
-             homes: Mapping[int, GeoPoint], base: GeoPoint | None, record: Record,
-             first: FleetPlan | None) -> dict[str, int]:  # fmt: skip
+def draw_top(
+    out: Path,
+    plan: StoryPlan,
+    flight: Flight,
+    profiles: Mapping[int, VehicleProfile],
+    homes: Mapping[int, GeoPoint],
+    base: GeoPoint | None,
+    record: Record,
+    first: FleetPlan | None,
+) -> dict[str, int]:
     """Plans, zones and flown tracks from above (`gcs plot`'s drawing): the survey's
     first plan as each vehicle planned it (dashed), every mission's geometry, the
     tracks while airborne."""
@@ -356,20 +406,40 @@ def draw_top(out: Path, plan: StoryPlan, flight: Flight, profiles: Mapping[int, 
     from swarm_proto import Geometry, Mission, MissionParams, MissionType, Selector
 
     pair = record.winners or plan.members[:2]
-    missions = [plan.area_mission(0.0), plan.perimeter_mission(pair, 0.0),
-                plan.route_mission(pair, 0.0),
-                Mission(plan.target_mission_id, 900, MissionType.TARGET,
-                        Geometry.point(*plan.target), MissionParams(), Selector(), "target")]  # fmt: skip
-    vehicles = [VehicleState(v, profiles[v].vehicle_type, profiles[v].model, homes.get(v))
-                for v in plan.members if v in profiles]  # fmt: skip
+    missions = [
+        plan.area_mission(0.0),
+        plan.perimeter_mission(pair, 0.0),
+        plan.route_mission(pair, 0.0),
+        Mission(
+            plan.target_mission_id,
+            900,
+            MissionType.TARGET,
+            Geometry.point(*plan.target),
+            MissionParams(),
+            Selector(),
+            "target",
+        ),
+    ]
+    vehicles = [
+        VehicleState(v, profiles[v].vehicle_type, profiles[v].model, homes.get(v))
+        for v in plan.members
+        if v in profiles
+    ]
     state = SwarmState(base=base, zones=list(plan.zones), missions=missions, vehicles=vehicles)
     shares: dict[int, list[tuple[float, float]]] = {}
     if first is not None:
-        shares = {vid: [(w.lat_deg, w.lon_deg) for w in s.waypoints if w.lat_deg or w.lon_deg]
-                  for vid, s in first.shares.items()}  # fmt: skip
+        shares = {
+            vid: [(w.lat_deg, w.lon_deg) for w in s.waypoints if w.lat_deg or w.lon_deg]
+            for vid, s in first.shares.items()
+        }
     track = flight.trajectory(flight.airborne())
-    return draw(out, state, track if len(track.time_s) else None, shares=shares,
-                title="experiment 1: survey plan (dashed), missions, zones and flown tracks")  # fmt: skip
+    return draw(
+        out,
+        state,
+        track if len(track.time_s) else None,
+        shares=shares,
+        title="experiment 1: survey plan (dashed), missions, zones and flown tracks",
+    )
 
 
 def draw_altitude(out: Path, flight: Flight, record: Record, t0: float) -> None:
@@ -387,20 +457,45 @@ def draw_altitude(out: Path, flight: Flight, record: Record, t0: float) -> None:
         sel = flight.vehicle == vid
         order = np.argsort(flight.t[sel], kind="stable")
         t = (flight.t[sel][order] - t0) / 60.0
-        ax.plot(t, flight.alt_rel_m[sel][order], color=colors[vid], linewidth=1.2,
-                label=f"vehicle {vid}")  # fmt: skip
+        ax.plot(
+            t,
+            flight.alt_rel_m[sel][order],
+            color=colors[vid],
+            linewidth=1.2,
+            label=f"vehicle {vid}",
+        )
         if vid in record.failed:
-            ax.plot(t[-1], flight.alt_rel_m[sel][order][-1], marker="X", markersize=12,
-                    color="red", markeredgecolor="black", zorder=5)  # fmt: skip
-    marks = {"survey": "survey", "vote": "target reported", "fail": "replanned",
-             "inherit": "vehicle lost", "finish": "inherited", "home": "all missions flown"}  # fmt: skip
+            ax.plot(
+                t[-1],
+                flight.alt_rel_m[sel][order][-1],
+                marker="X",
+                markersize=12,
+                color="red",
+                markeredgecolor="black",
+                zorder=5,
+            )
+    marks = {
+        "survey": "survey",
+        "vote": "target reported",
+        "fail": "replanned",
+        "inherit": "vehicle lost",
+        "finish": "inherited",
+        "home": "all missions flown",
+    }
     top = max(float(flight.alt_rel_m.max()) if len(flight.alt_rel_m) else 100.0, 50.0)
     k = 0
     for t, step in record.steps:
         if step in marks:
             ax.axvline(t / 60.0, color="grey", linestyle=":", linewidth=0.8)
-            ax.text(t / 60.0, top * (1.02 + 0.07 * (k % 4)), f" {marks[step]}", fontsize=7,
-                    va="bottom", ha="left", color="dimgrey")  # fmt: skip
+            ax.text(
+                t / 60.0,
+                top * (1.02 + 0.07 * (k % 4)),
+                f" {marks[step]}",
+                fontsize=7,
+                va="bottom",
+                ha="left",
+                color="dimgrey",
+            )
             k += 1
     ax.set_xlabel("time since the base was set, min")
     ax.set_ylabel("height above home, m")
@@ -418,8 +513,10 @@ def draw_separation(out: Path, rep: SeparationReport, t0: float) -> None:
 
     from gcs_cli.analyze import draw
 
-    pairs = tuple(dataclasses.replace(p, times_s=p.times_s - t0, min_time_s=p.min_time_s - t0)
-                  for p in rep.pairs)  # fmt: skip
+    pairs = tuple(
+        dataclasses.replace(p, times_s=p.times_s - t0, min_time_s=p.min_time_s - t0)
+        for p in rep.pairs
+    )
     draw(dataclasses.replace(rep, pairs=pairs), out)
 
 
@@ -564,8 +661,19 @@ def fast_report(
         run = fly_fast(plan, profiles, on_message=heard, settings=settings, over_air=over_air)
     finally:
         recorder.close()
-    meta = {"fast_time": True, "wall_s": round(time.perf_counter() - wall0, 1),
-            "sim_s": round(run.duration_s, 1)}  # fmt: skip
-    return build(out, plan=plan, record=run.story.record, flight_csv=out / "flight.csv",
-                 profiles=profiles, homes=homes, base=base[0] if base else None, meta=meta,
-                 pictures=pictures)  # fmt: skip
+    meta = {
+        "fast_time": True,
+        "wall_s": round(time.perf_counter() - wall0, 1),
+        "sim_s": round(run.duration_s, 1),
+    }
+    return build(
+        out,
+        plan=plan,
+        record=run.story.record,
+        flight_csv=out / "flight.csv",
+        profiles=profiles,
+        homes=homes,
+        base=base[0] if base else None,
+        meta=meta,
+        pictures=pictures,
+    )

@@ -67,8 +67,20 @@ PAD_SPACING_M = 30.0  # the paper's pads
 # there, 5 of 5 passed at 3x (docs/benchmarks.md, "demo")
 DEFAULT_SPEEDUP = 3.0
 TICK_S = 0.1  # wall seconds between the story's timers when nothing is heard
-COLORS = ("cyan", "green", "yellow", "magenta", "blue", "bright_red", "bright_green",
-          "bright_yellow", "bright_magenta", "bright_cyan", "white", "bright_blue")  # fmt: skip
+COLORS = (
+    "cyan",
+    "green",
+    "yellow",
+    "magenta",
+    "blue",
+    "bright_red",
+    "bright_green",
+    "bright_yellow",
+    "bright_magenta",
+    "bright_cyan",
+    "white",
+    "bright_blue",
+)
 
 
 def _clock_now(spec: str) -> Callable[[], float]:
@@ -134,8 +146,10 @@ def run(
     """Fly the story with `members`; write the report to `out`; 0 when it passed."""
     console = console or (Console() if sys.stdout.isatty() else Console(width=140))
     if len(members) < 4:
-        console.print("[red]the story needs at least 4 vehicles (2 to the target, one "
-                      "that fails, one to inherit)[/]")  # fmt: skip
+        console.print(
+            "[red]the story needs at least 4 vehicles (2 to the target, one "
+            "that fails, one to inherit)[/]"
+        )
         return 2
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -145,11 +159,14 @@ def run(
     tmp = Path(tempfile.mkdtemp(prefix="bandada-demo-"))
     link = "the emulated 900 MHz TDM radio" if radio else "Zenoh on 127.0.0.1"
     console.rule("[bold]bandada demo: the paper's experiment 1")
-    console.print(f"{len(members)} simulated vehicles, {speedup:g}x real time, {link}; "
-                  f"report in {out}/, logs in {tmp}")  # fmt: skip
+    console.print(
+        f"{len(members)} simulated vehicles, {speedup:g}x real time, {link}; "
+        f"report in {out}/, logs in {tmp}"
+    )
     wall0 = time.monotonic()
-    fleet = demo.start(members, speedup, tmp, console, radio=radio, avoidance=avoidance,
-                       spacing_m=PAD_SPACING_M)  # fmt: skip
+    fleet = demo.start(
+        members, speedup, tmp, console, radio=radio, avoidance=avoidance, spacing_m=PAD_SPACING_M
+    )
     clock = ScaledClock(speedup)
     now = _clock_now(fleet.clock_spec) if fleet.clock_spec else clock.now
     # on the LAN a client of the demo's router, as the nodes are (demo.zenoh_role)
@@ -161,13 +178,20 @@ def run(
         stats_bus = SwarmBus.open(ZenohSettings(connect=(fleet.endpoint,)))
         stats_bus.subscribe(RADIO_STATS, lambda m, k: radio_stats.__setitem__(m.node_id, m))
     plan = StoryPlan.experiment_one(
-        members, (SITL_HOME.lat_deg, SITL_HOME.lon_deg), repeat_s=max(1.0, speedup),
-        planning_s=demo.plan_timeout_s(speedup, len(members)), **(plan_kw or {}),
-    )  # fmt: skip
+        members,
+        (SITL_HOME.lat_deg, SITL_HOME.lon_deg),
+        repeat_s=max(1.0, speedup),
+        planning_s=demo.plan_timeout_s(speedup, len(members)),
+        **(plan_kw or {}),
+    )
     recorder = FlightRecorder(out / "flight.csv")
     story = Story(plan, now())
-    names = {AREA_ID: "the survey", plan.target_mission_id: "the target",
-             PERIMETER_ID: "the perimeter", ROUTE_ID: "the route"}  # fmt: skip
+    names = {
+        AREA_ID: "the survey",
+        plan.target_mission_id: "the target",
+        PERIMETER_ID: "the perimeter",
+        ROUTE_ID: "the route",
+    }
     narrator = Narrator(now(), names)
     colors = {v: COLORS[i % len(COLORS)] for i, v in enumerate(members)}
     homes: dict[int, GeoPoint] = {}
@@ -188,8 +212,12 @@ def run(
         if console.is_terminal:
             from rich.live import Live
 
-            live = Live(fleet_table(shell.gs.snapshot()), console=console, refresh_per_second=2,
-                        transient=True)  # fmt: skip
+            live = Live(
+                fleet_table(shell.gs.snapshot()),
+                console=console,
+                refresh_per_second=2,
+                transient=True,
+            )
             live.start()
         last_table = 0.0
         try:
@@ -239,8 +267,13 @@ def run(
             story.record.outcome = f"{story.phase.value}: the demo's {timeout_s:g} s wall timeout"
             console.print(f"[red]{story.record.outcome}[/]")
         elif finished.ok:
-            _say(console, now() - sim0, "operator", "every vehicle is down: the story is over",
-                 "bold cyan")  # fmt: skip
+            _say(
+                console,
+                now() - sim0,
+                "operator",
+                "every vehicle is down: the story is over",
+                "bold cyan",
+            )
         else:
             console.print(f"[red]the story stopped: {finished.why}[/]")
         console.print(fleet_table(shell.gs.snapshot(), title="fleet at the end"))
@@ -260,8 +293,10 @@ def run(
         shell.close()
         demo.stop(fleet)
     wall_s = time.monotonic() - wall0
-    console.print(f"[dim]flown: {sim_s / 60:.1f} simulated minutes in {wall_s:.0f} s; "
-                  "measuring the flight ...[/]")  # fmt: skip
+    console.print(
+        f"[dim]flown: {sim_s / 60:.1f} simulated minutes in {wall_s:.0f} s; "
+        "measuring the flight ...[/]"
+    )
     with SwarmDatabase.open(tmp / "swarm.db") as db:
         profiles = {v: db.vehicle_profile(v) for v in members}
     meta = {
@@ -273,9 +308,17 @@ def run(
         "cpus": os.cpu_count(),
         "load_avg_1min": round(os.getloadavg()[0], 2),
     }
-    report = build(out, plan=plan, record=story.record, flight_csv=out / "flight.csv",
-                   profiles=profiles, homes=homes, base=base, meta=meta,
-                   radio=radio_report)  # fmt: skip
+    report = build(
+        out,
+        plan=plan,
+        record=story.record,
+        flight_csv=out / "flight.csv",
+        profiles=profiles,
+        homes=homes,
+        base=base,
+        meta=meta,
+        radio=radio_report,
+    )
     _summary(console, report, out)
     if keep or not report["ok"]:
         console.print(f"node logs kept in {tmp}")
@@ -306,9 +349,14 @@ def _radio_figures(
             "slot_ms": round(stats.slot_s * 1000.0, 2),
             "dropped_forged": stats.dropped_forged,
             "dropped_corrupt": stats.dropped_corrupt,
-            "peers": {str(p.node_id): {"packets_per_s": round(p.packets_per_s, 2),
-                                       "loss": round(p.loss, 4)} for p in stats.peers},
-        }  # fmt: skip
+            "peers": {
+                str(p.node_id): {
+                    "packets_per_s": round(p.packets_per_s, 2),
+                    "loss": round(p.loss, 4),
+                }
+                for p in stats.peers
+            },
+        }
     out["collisions"] = int(channel.get("collisions", 0))
     return out
 
@@ -321,18 +369,26 @@ def _summary(console: Console, r: dict[str, Any], out: Path) -> None:
     t.add_column("flown by")
     t.add_column("completed")
     for m in r["missions"]:
-        t.add_row(f"{m['kind']} {m['mission_id']}", ", ".join(map(str, m.get("flown_by", []))),
-                  "yes" if m["completed"] else "[red]NO[/]")  # fmt: skip
+        t.add_row(
+            f"{m['kind']} {m['mission_id']}",
+            ", ".join(map(str, m.get("flown_by", []))),
+            "yes" if m["completed"] else "[red]NO[/]",
+        )
     console.print(t)
     sep = r["separation"]
     for v in r["votes"]:
-        scores = ", ".join(f"{k}: {s:.3f}" for k, s in sorted(v["scores"].items(),
-                                                              key=lambda kv: -kv[1]))  # fmt: skip
-        console.print(f"vote for mission {v['mission_id']}: {scores}; winners "
-                      f"{', '.join(map(str, v['winners']))}")  # fmt: skip
+        scores = ", ".join(
+            f"{k}: {s:.3f}" for k, s in sorted(v["scores"].items(), key=lambda kv: -kv[1])
+        )
+        console.print(
+            f"vote for mission {v['mission_id']}: {scores}; winners "
+            f"{', '.join(map(str, v['winners']))}"
+        )
     for e in r["replans"]:
-        console.print(f"replan of mission {e['mission_id']} at {e['t_s']:.0f} s by "
-                      f"{', '.join(map(str, e['vehicles']))}: {e['why']}")  # fmt: skip
+        console.print(
+            f"replan of mission {e['mission_id']} at {e['t_s']:.0f} s by "
+            f"{', '.join(map(str, e['vehicles']))}: {e['why']}"
+        )
     console.print(
         f"coverage {r['coverage']:.1%} of the coverable area "
         f"({r['coverage_detail']['of_whole_area']:.1%} of the whole field); separation once "
@@ -342,7 +398,9 @@ def _summary(console: Console, r: dict[str, Any], out: Path) -> None:
     files = ", ".join(str(out / f) for f in r["files"].values())
     console.print(f"report: {out / 'report.json'}; {files}")
     if r["ok"]:
-        console.print("[bold green]demo passed: every mission completed, no near-collision, "
-                      "the area covered[/]")  # fmt: skip
+        console.print(
+            "[bold green]demo passed: every mission completed, no near-collision, "
+            "the area covered[/]"
+        )
     else:
         console.print("[bold red]demo failed:[/] " + "; ".join(r["failures"]))

@@ -104,7 +104,7 @@ class SimVehicle:
     stalled_until: float = float("-inf")  # the node's process is stopped until then
     backlog: bytearray = field(default_factory=bytearray)  # MAVLink waiting in its socket
     down: bool = False  # the node's process is dead (kill -9); the vehicle flies on
-    store: MemoryStore = field(default_factory=MemoryStore)  # its database (issue 16)
+    store: MemoryStore = field(default_factory=MemoryStore)  # its database
     # its link's, autopilot poll's and simulator's next deadline at its last scheduling
     # (None: ask them again): a node input with no output moves only the node's
     others_due: float | None = None
@@ -162,7 +162,7 @@ class FastFleet:
         self.batches_heard = 0  # batches the nodes took together (_hear_together)
         self.heard_messages = 0  # swarm messages handed to nodes (one per hearer)
         self._scans: dict[tuple[type, int | None], tuple[int, object, list]] = {}
-        # one global deadline heap (issue 20): each vehicle's earliest deadline (its
+        # one global deadline heap: each vehicle's earliest deadline (its
         # endpoint, link, poll and node), pushed again whenever the vehicle was touched;
         # entries that no longer match `_due` are stale and skipped
         self._timers: list[tuple[float, int, int]] = []
@@ -207,14 +207,22 @@ class FastFleet:
                 LinkSettings(vehicle_type=profile.vehicle_type, link_timeout_s=0.6), start_unix_s
             )
             node = NodeCore(
-                profile, settings or NodeSettings(), now=start_unix_s, fleet_profiles=profiles,
-                tasking_settings=tasking or seed_tasking(), mission_defaults=mission_defaults or {},
-            )  # fmt: skip
+                profile,
+                settings or NodeSettings(),
+                now=start_unix_s,
+                fleet_profiles=profiles,
+                tasking_settings=tasking or seed_tasking(),
+                mission_defaults=mission_defaults or {},
+            )
             vehicles[vid] = SimVehicle(node, link, endpoint, next_poll=start_unix_s)
         return cls(
-            vehicles, start_unix_s, profiles=profiles, settings=settings, tasking=tasking,
+            vehicles,
+            start_unix_s,
+            profiles=profiles,
+            settings=settings,
+            tasking=tasking,
             mission_defaults=mission_defaults,
-        )  # fmt: skip
+        )
 
     # ------------------------------------------------------------------ inputs
     def broadcast(self, msg: msgspec.Struct, to: Sequence[int] | None = None) -> None:
@@ -558,7 +566,7 @@ class FastFleet:
     def _resume(self, vid: int, v: SimVehicle) -> None:
         """A stopped node process runs again, in the worst order for it: its timers
         first (the link's silence timer and the node's tick run late), then what waited
-        in its socket meanwhile (issue 16)."""
+        in its socket meanwhile."""
         self._link_out(vid, v.link.on_timer(self.now))
         self._node_out(vid, v.node.handle(AutopilotUpdate(v.link.state), self.now))
         self._node_out(vid, v.node.on_timer(self.now))
@@ -591,11 +599,13 @@ class FastFleet:
         if not keep_database:
             v.store = MemoryStore(full=v.store.full)
         v.node = NodeCore(
-            profile, self.settings or NodeSettings(), now=self.now,
+            profile,
+            self.settings or NodeSettings(),
+            now=self.now,
             fleet_profiles=self.profiles or {profile.vehicle_id: profile},
             tasking_settings=self.tasking or seed_tasking(),
             mission_defaults=self.mission_defaults or {},
-        )  # fmt: skip
+        )
         v.link = LinkCore(
             LinkSettings(vehicle_type=profile.vehicle_type, link_timeout_s=0.6), self.now
         )
@@ -627,7 +637,7 @@ class FastFleet:
 
     def reboot_autopilot(self, vid: int, *, keep_stores: bool = False) -> None:
         """Power-cycle vehicle `vid`'s autopilot where it stands: it boots again, by
-        default with empty mission, fence and rally stores (issue 16); the node's link
+        default with empty mission, fence and rally stores; the node's link
         sees its time since boot go back."""
         self.vehicles[vid].endpoint.reboot(self.now, keep_stores=keep_stores)
         self._dirty.add(vid)

@@ -1,4 +1,4 @@
-"""The fault campaign over real processes (issue 16; faults.py has the FastFleet part):
+"""The fault campaign over real processes (faults.py has the FastFleet part):
 `swarm-node` processes flying simulated quadcopters (MAVLink on TCP, the simulator in
 this process), Zenoh on 127.0.0.1 through a router, a ground station, in real time.
 
@@ -28,6 +28,7 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from shapely.geometry import LineString, Polygon
 from shapely.ops import unary_union
@@ -173,10 +174,12 @@ class Rig:
 
     def landed(self) -> bool:
         return all(
-            (s := self.status(v)) is not None and not s.armed and s.alt_rel_m < 2.0
+            (s := self.status(v)) is not None
+            and not s.armed
+            and s.alt_rel_m < 2.0
             and s.mission_state == MissionState.IDLE
             for v in MEMBERS
-        )  # fmt: skip
+        )
 
     def coverage(self) -> float:
         cam = seed_profiles()["Generic Quadcopter"].camera
@@ -226,8 +229,11 @@ def fill_a_disk(where: Path, db: Path) -> Path:
     makes to its database then fails as on a full disk (ENOSPC, SQLITE_FULL)."""
     where.mkdir(exist_ok=True)
     size = db.stat().st_size + 256 * 1024
-    subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)],
-                   check=True, capture_output=True)  # fmt: skip
+    subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)],
+        check=True,
+        capture_output=True,
+    )
     target = where / db.name
     shutil.copyfile(db, target)
     fd = os.open(where / "filler", os.O_WRONLY | os.O_CREAT)
@@ -253,27 +259,54 @@ def unmount(where: Path) -> None:
             subprocess.run(["umount", "-l", str(where)], check=False, capture_output=True)
 
 
-def _node(vid: int, rig_tmp: Path, swarm: str, endpoint: str, port: int, env: dict[str, str],
-          db: Path | None = None) -> Node:  # fmt: skip
+def _node(
+    vid: int,
+    rig_tmp: Path,
+    swarm: str,
+    endpoint: str,
+    port: int,
+    env: dict[str, str],
+    db: Path | None = None,
+) -> Node:
     # a client of the rig's router, as in the demo (demo.zenoh_role)
-    args = [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(vid), "--swarm", swarm,
-            "--autopilot", f"tcp:127.0.0.1:{port}", "--connect", endpoint,
-            "--mode", "client"]  # fmt: skip
+    args = [
+        sys.executable,
+        "-m",
+        "swarm_node.cli",
+        "run",
+        "--id",
+        str(vid),
+        "--swarm",
+        swarm,
+        "--autopilot",
+        f"tcp:127.0.0.1:{port}",
+        "--connect",
+        endpoint,
+        "--mode",
+        "client",
+    ]
     if db is not None:
         args += ["--db", str(db)]
     return Node(vid, args, env, rig_tmp / f"node-{vid}.log")
 
 
-def start_rig(tmp: Path, *, victim_env: dict[str, str] | None = None,
-              victim_db: bool = False, victim_limit: bool = False) -> Rig:  # fmt: skip
+def start_rig(
+    tmp: Path,
+    *,
+    victim_env: dict[str, str] | None = None,
+    victim_db: bool = False,
+    victim_limit: bool = False,
+) -> Rig:
     from gcs_cli.ground import GroundStation
 
     swarm = f"f{os.getpid()}{int(time.time()) % 10000}"
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
     homes = spread_homes(SITL_HOME, len(MEMBERS), 30.0)
-    specs = [VehicleSpec("copter", instance=i, port=_free_port(), home=homes[i], sysid=vid)
-             for i, vid in enumerate(MEMBERS)]  # fmt: skip
+    specs = [
+        VehicleSpec("copter", instance=i, port=_free_port(), home=homes[i], sysid=vid)
+        for i, vid in enumerate(MEMBERS)
+    ]
     server = VehicleServer(specs, SystemClock())
     server.start_thread()
     shared = tmp / "swarm.db"
@@ -295,9 +328,19 @@ def start_rig(tmp: Path, *, victim_env: dict[str, str] | None = None,
     bus = SwarmBus.open(ZenohSettings(mode="client", connect=(endpoint,)), swarm)
     gs = GroundStation(ZenohSettings(mode="client", connect=(endpoint,)), swarm, GCS_ID)
     area = square(SITL_HOME.lat_deg + 0.0012, SITL_HOME.lon_deg, HALF_M)
-    rig = Rig(tmp, swarm, endpoint, router, server, nodes, bus, gs, area,
-              LocalFrame.at(list(area.points)),
-              GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m))  # fmt: skip
+    rig = Rig(
+        tmp,
+        swarm,
+        endpoint,
+        router,
+        server,
+        nodes,
+        bus,
+        gs,
+        area,
+        LocalFrame.at(list(area.points)),
+        GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m),
+    )
 
     def keep(into: list, msg: object, key: str) -> None:
         with rig.lock:
@@ -311,18 +354,35 @@ def start_rig(tmp: Path, *, victim_env: dict[str, str] | None = None,
 
 def declare_all(rig: Rig) -> None:
     gs = rig.gs
-    ok = gs.wait_for(lambda v: all(i in v.status and v.status[i].gps_fix >= 3 and i in v.info  # type: ignore[attr-defined]
-                                   and v.info[i].home is not None for i in MEMBERS), 120)  # fmt: skip
+    ok = gs.wait_for(  # type: ignore[attr-defined]
+        lambda v: all(
+            i in v.status
+            and v.status[i].gps_fix >= 3
+            and i in v.info
+            and v.info[i].home is not None
+            for i in MEMBERS
+        ),
+        120,
+    )
     if not ok:
         raise RuntimeError("vehicles never got a position")
     gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=rig.base), timeout_s=15.0)  # type: ignore[attr-defined]
-    gs.command(CommandKind.SET_FLEET, Selector(SelectorKind.IDS, MEMBERS),  # type: ignore[attr-defined]
-               CommandArgs(fleet_id=4), timeout_s=15.0)  # fmt: skip
+    gs.command(  # type: ignore[attr-defined]
+        CommandKind.SET_FLEET,
+        Selector(SelectorKind.IDS, MEMBERS),
+        CommandArgs(fleet_id=4),
+        timeout_s=15.0,
+    )
     rig.fleets = dict.fromkeys(MEMBERS, 4)
-    tower = NoFlyZone(1, Geometry.circle(SITL_HOME.lat_deg - 0.002, SITL_HOME.lon_deg + 0.002,
-                                         30.0), name="tower")  # fmt: skip
-    field_ = NoFlyZone(2, Geometry.circle(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 2500.0),
-                       name="field", operating_area=True)  # fmt: skip
+    tower = NoFlyZone(
+        1, Geometry.circle(SITL_HOME.lat_deg - 0.002, SITL_HOME.lon_deg + 0.002, 30.0), name="tower"
+    )
+    field_ = NoFlyZone(
+        2,
+        Geometry.circle(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 2500.0),
+        name="field",
+        operating_area=True,
+    )
     for z in (tower, field_):
         gs.declare_zone(z, timeout_s=15.0)  # type: ignore[attr-defined]
     # as the nodes hold them (the ground station stamped them)
@@ -334,8 +394,15 @@ def declare_all(rig: Rig) -> None:
 
 
 def send_mission(rig: Rig) -> float:
-    m = Mission(MISSION_ID, GCS_ID, MissionType.AREA, rig.area,
-                MissionParams(altitude_rel_m=ALT_M), Selector.fleet(4), time_unix_s=time.time())  # fmt: skip
+    m = Mission(
+        MISSION_ID,
+        GCS_ID,
+        MissionType.AREA,
+        rig.area,
+        MissionParams(altitude_rel_m=ALT_M),
+        Selector.fleet(4),
+        time_unix_s=time.time(),
+    )
     rig.gs.mission(m, timeout_s=15.0)  # type: ignore[attr-defined]
     return time.monotonic()
 
@@ -367,10 +434,14 @@ def p_kill(rig: Rig) -> Outcome:
     time.sleep(5.0)
     n.start()
     ok = rig.wait(lambda: "reattached:" in n.log.read_text(errors="replace"), 90)
-    line = next((ln for ln in n.log.read_text(errors="replace").splitlines()
-                 if "reattached:" in ln), "")  # fmt: skip
-    return Outcome(time.monotonic() - t0 if ok else None,
-                   "restarted 5 s later: " + line.split("node 8: ")[-1][:120], ok)  # fmt: skip
+    line = next(
+        (ln for ln in n.log.read_text(errors="replace").splitlines() if "reattached:" in ln), ""
+    )
+    return Outcome(
+        time.monotonic() - t0 if ok else None,
+        "restarted 5 s later: " + line.split("node 8: ")[-1][:120],
+        ok,
+    )
 
 
 def p_sigstop(rig: Rig) -> Outcome:
@@ -384,9 +455,12 @@ def p_sigstop(rig: Rig) -> Outcome:
 
     def agreed() -> bool:
         a, b = rig.info(7), rig.info(8)
-        return a is not None and b is not None and (
-            a.members_hash == b.members_hash or b.mission_id != MISSION_ID
-        ) and time.monotonic() - t0 > 3.5  # fmt: skip
+        return (
+            a is not None
+            and b is not None
+            and (a.members_hash == b.members_hash or b.mission_id != MISSION_ID)
+            and time.monotonic() - t0 > 3.5
+        )
 
     ok = rig.wait(agreed, 60)
     recover = time.monotonic() - t0
@@ -397,27 +471,33 @@ def p_sigstop(rig: Rig) -> Outcome:
 
     rig.wait(lambda: bool(reported()), 10)  # reported a second after the stall
     stalled = reported()
-    return Outcome(recover if ok else None,
-                   f"stopped 3 s: {stalled[0] if stalled else 'no stall report'}", ok)  # fmt: skip
+    return Outcome(
+        recover if ok else None, f"stopped 3 s: {stalled[0] if stalled else 'no stall report'}", ok
+    )
 
 
 def p_autopilot(rig: Rig) -> Outcome:
-    sim_of = lambda: next(e.autopilot for e in rig.server.endpoints  # noqa: E731
-                          if e.autopilot.sysid == VICTIM)  # fmt: skip
+    def sim_of() -> Any:
+        return next(e.autopilot for e in rig.server.endpoints if e.autopilot.sysid == VICTIM)
 
     def stores() -> tuple[list[tuple[int, int, int, float]], list[tuple[int, int, float]]]:
         sim = sim_of()
-        return ([(i.command, i.x, i.y, i.param1) for i in sim.fence_items],
-                [(i.x, i.y, i.z) for i in sim.rally_items])  # fmt: skip
+        return (
+            [(i.command, i.x, i.y, i.param1) for i in sim.fence_items],
+            [(i.x, i.y, i.z) for i in sim.rally_items],
+        )
 
     # the node's uploads done first (a reboot in the middle of one is another story):
     # both zones fenced (the tower, the field), the rally point, the fence enabled
     def uploaded() -> bool:
         fence, rally = stores()
         sim = sim_of()
-        return len(fence) == len(rig.zones) and bool(rally) and sim.fence_present() and (
-            sim.params["FENCE_ENABLE"][0] == 1.0
-        )  # fmt: skip
+        return (
+            len(fence) == len(rig.zones)
+            and bool(rally)
+            and sim.fence_present()
+            and (sim.params["FENCE_ENABLE"][0] == 1.0)
+        )
 
     if not rig.wait(uploaded, 60):
         return Outcome(None, "the fence and rally point never reached the autopilot", ok=False)
@@ -428,16 +508,29 @@ def p_autopilot(rig: Rig) -> Outcome:
     rig.wait(lambda: not stores()[0], 10)
     ok = rig.wait(lambda: stores() == before and sim_of().fence_present(), 90)
     dt = time.monotonic() - t0
-    rig.wait(lambda: sum("restored and verified" in a.text for a in list(rig.alerts)
-                         if a.vehicle_id == VICTIM) >= 2, 20)  # fmt: skip
+    rig.wait(
+        lambda: (
+            sum(
+                "restored and verified" in a.text
+                for a in list(rig.alerts)
+                if a.vehicle_id == VICTIM
+            )
+            >= 2
+        ),
+        20,
+    )
     with rig.lock:
-        said = sorted({a.text for a in rig.alerts if a.vehicle_id == VICTIM
-                       and "verified" in a.text})  # fmt: skip
+        said = sorted(
+            {a.text for a in rig.alerts if a.vehicle_id == VICTIM and "verified" in a.text}
+        )
     rig.gs.wait_for(lambda v: v.fsm_state(VICTIM) == FsmState.GO_MISSION, 60)  # type: ignore[attr-defined]
     send_mission(rig)
-    return Outcome(dt if ok else None, f"before the mission, on the ground: fence "
-                   f"{len(before[0])} items, rally {len(before[1])} back; {'; '.join(said)}",
-                   ok and bool(said))  # fmt: skip
+    return Outcome(
+        dt if ok else None,
+        f"before the mission, on the ground: fence "
+        f"{len(before[0])} items, rally {len(before[1])} back; {'; '.join(said)}",
+        ok and bool(said),
+    )
 
 
 def p_clock(rig: Rig) -> Outcome:
@@ -451,16 +544,20 @@ def p_clock(rig: Rig) -> Outcome:
             return any(a.vehicle_id == VICTIM and "clock stepped" in a.text for a in rig.alerts)
 
     ok = rig.wait(reported, 120)
-    return Outcome(time.monotonic() - t0 if ok else None,
-                   "system clock +3600 s: the node kept steady time and reported it", ok)  # fmt: skip
+    return Outcome(
+        time.monotonic() - t0 if ok else None,
+        "system clock +3600 s: the node kept steady time and reported it",
+        ok,
+    )
 
 
 def p_disk_full(rig: Rig) -> Outcome:
     if not _at(rig, 0.3):
         return Outcome(None, "never reached 30 %", ok=False)
     gs = rig.gs
-    mast = NoFlyZone(3, Geometry.circle(SITL_HOME.lat_deg - 0.003, SITL_HOME.lon_deg - 0.003,
-                                        25.0), name="mast")  # fmt: skip
+    mast = NoFlyZone(
+        3, Geometry.circle(SITL_HOME.lat_deg - 0.003, SITL_HOME.lon_deg - 0.003, 25.0), name="mast"
+    )
     gs.declare_zone(mast, timeout_s=10.0)  # type: ignore[attr-defined]
     held = gs.zones_held(3, timeout_s=2.0)  # type: ignore[attr-defined]
     rig.zones[3] = next(iter(held.values()))
@@ -478,9 +575,11 @@ def p_disk_full(rig: Rig) -> Outcome:
         return st is not None and any(z.zone_id == 3 for z in st.zones)
 
     ok = rig.wait(has_mast, 60, period_s=0.5)
-    return Outcome(time.monotonic() - t0 if ok else None,
-                   f"{full[0] if full else 'no store failure alerted'}; restarted, zone 3 "
-                   "back from its peers", ok and bool(full))  # fmt: skip
+    return Outcome(
+        time.monotonic() - t0 if ok else None,
+        f"{full[0] if full else 'no store failure alerted'}; restarted, zone 3 back from its peers",
+        ok and bool(full),
+    )
 
 
 def p_corrupt(rig: Rig) -> Outcome:
@@ -505,9 +604,12 @@ def p_corrupt(rig: Rig) -> Outcome:
         return st is not None and st.base == rig.base and len(st.zones) == len(rig.zones)
 
     ok = rig.wait(learned, 60, period_s=0.5)
-    return Outcome(time.monotonic() - t0 if ok else None,
-                   f"refused (exit {code}: {refused.split(': ', 1)[-1][:90]}); on a new file "
-                   "it learned base and zones from its peer", ok and code == 2)  # fmt: skip
+    return Outcome(
+        time.monotonic() - t0 if ok else None,
+        f"refused (exit {code}: {refused.split(': ', 1)[-1][:90]}); on a new file "
+        "it learned base and zones from its peer",
+        ok and code == 2,
+    )
 
 
 PROCESS_FAULTS: dict[str, Callable[[Rig], Outcome]] = {
@@ -530,8 +632,18 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
         kw["victim_env"] = {"BANDADA_CLOCK": f"stepping:{time.time() + 60.0!r}:3600.0"}
     if name.startswith("disk full"):
         if os.geteuid() != 0:
-            return FaultRow(name, MISSION_NAME, "processes", False, None, 0.0, False, 0, 0,
-                            note="skipped: a full filesystem needs root to mount")  # fmt: skip
+            return FaultRow(
+                name,
+                MISSION_NAME,
+                "processes",
+                False,
+                None,
+                0.0,
+                False,
+                0,
+                0,
+                note="skipped: a full filesystem needs root to mount",
+            )
         kw["victim_limit"] = True
     if name.startswith("corrupted"):
         kw["victim_db"] = True
@@ -541,6 +653,7 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
     try:
         declare_all(rig)
         outcome = PROCESS_FAULTS[name](rig)
+
         def flown() -> bool:  # the survey was flown (or began), and everyone is down
             with rig.lock:
                 began = any(st.mission_state == MissionState.MISSION for st in rig.statuses)
@@ -550,37 +663,60 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
         with rig.lock:
             alerts = list(rig.alerts)
             infos = list(rig.infos)
-        completed = any(a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {MISSION_ID}"
-                        for a in alerts)  # fmt: skip
+        completed = any(
+            a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {MISSION_ID}"
+            for a in alerts
+        )
         coverage = rig.coverage()
         lost = rig.declared_lost()
-        emerg = Counter(f"{i.fsm_state.name} (vehicle {i.vehicle_id})" for i in infos
-                        if i.fsm_state == FsmState.EMERGENCY)  # fmt: skip
-        false = sum(1 for a in alerts if a.code == AlertCode.AUTOPILOT_LINK_LOSS
-                    and a.severity >= Severity.CRITICAL)  # fmt: skip
+        emerg = Counter(
+            f"{i.fsm_state.name} (vehicle {i.vehicle_id})"
+            for i in infos
+            if i.fsm_state == FsmState.EMERGENCY
+        )
+        false = sum(
+            1
+            for a in alerts
+            if a.code == AlertCode.AUTOPILOT_LINK_LOSS and a.severity >= Severity.CRITICAL
+        )
         note = outcome.note + ("" if finished else "; not all landed in time")
-        counts = Counter(f"{a.severity.name} {a.code.name}" for a in alerts
-                         if a.severity >= Severity.WARNING)  # fmt: skip
+        counts = Counter(
+            f"{a.severity.name} {a.code.name}" for a in alerts if a.severity >= Severity.WARNING
+        )
     except Exception as exc:  # a row that breaks is reported, the campaign goes on
         note, counts, finished = f"{outcome.note}; failed: {exc}", Counter(), False
     finally:
         rig.close()
         unmount(tmp / "full-disk")
         if keep is not None:
-            shutil.copytree(tmp, keep / name.replace(" ", "_").replace("/", "_"),
-                            dirs_exist_ok=True)  # fmt: skip
+            shutil.copytree(
+                tmp, keep / name.replace(" ", "_").replace("/", "_"), dirs_exist_ok=True
+            )
         shutil.rmtree(tmp, ignore_errors=True)
     recovered = (
-        outcome.ok and outcome.recover_s is not None and finished and completed
-        and coverage >= 0.95 and lost == 0 and false == 0
-    )  # fmt: skip
+        outcome.ok
+        and outcome.recover_s is not None
+        and finished
+        and completed
+        and coverage >= 0.95
+        and lost == 0
+        and false == 0
+    )
     return FaultRow(
-        fault=name, mission=MISSION_NAME, env="processes", recovered=recovered,
+        fault=name,
+        mission=MISSION_NAME,
+        env="processes",
+        recovered=recovered,
         recover_s=None if outcome.recover_s is None else round(outcome.recover_s, 2),
-        coverage=round(coverage, 4), mission_completed=completed, declared_state_lost=lost,
-        false_emergencies=false, emergencies=dict(emerg), alerts=dict(sorted(counts.items())),
-        note=note, wall_s=round(time.perf_counter() - t_wall, 2),
-    )  # fmt: skip
+        coverage=round(coverage, 4),
+        mission_completed=completed,
+        declared_state_lost=lost,
+        false_emergencies=false,
+        emergencies=dict(emerg),
+        alerts=dict(sorted(counts.items())),
+        note=note,
+        wall_s=round(time.perf_counter() - t_wall, 2),
+    )
 
 
 def campaign_processes(faults: list[str] | None = None) -> list[FaultRow]:

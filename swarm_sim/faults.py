@@ -1,4 +1,4 @@
-"""The fault campaign (issue 16): a table of faults x missions, each flown start to
+"""The fault campaign: a table of faults x missions, each flown start to
 finish with one fault injected, measured the same way every time.
 
     make faults                     # both parts, writes bench/results/faults.json
@@ -92,7 +92,9 @@ class FaultRow:
     mission_completed: bool
     declared_state_lost: int
     false_emergencies: int  # emergencies whose condition did not hold (a link loss judged)
-    emergencies: dict[str, int] = field(default_factory=dict)  # every STATE_EMERGENCY: code (vehicle)
+    emergencies: dict[str, int] = field(
+        default_factory=dict
+    )  # every STATE_EMERGENCY: code (vehicle)
     alerts: dict[str, int] = field(default_factory=dict)  # "SEVERITY CODE" -> count
     note: str = ""
     wall_s: float = 0.0
@@ -204,33 +206,57 @@ def start_run(profiles: Mapping[int, VehicleProfile], spec: MissionSpec, *, seed
     fleet = FastFleet.build(list(spec.members), profiles, spacing_m=60.0)
     fleet.seed = seed
     area = square(SITL_HOME.lat_deg + 0.005, SITL_HOME.lon_deg, spec.half_m)
-    run = Run(fleet, spec, area, LocalFrame.at(list(area.points)),
-              GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m), {}, {})  # fmt: skip
+    run = Run(
+        fleet,
+        spec,
+        area,
+        LocalFrame.at(list(area.points)),
+        GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m),
+        {},
+        {},
+    )
     assert run.run_until(
-        lambda: all(v.link.state.ekf_has_position and v.link.state.home
-                    for v in fleet.vehicles.values()), 60)  # fmt: skip
+        lambda: all(
+            v.link.state.ekf_has_position and v.link.state.home for v in fleet.vehicles.values()
+        ),
+        60,
+    )
     declare(run, Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=run.base)))
     ids = spec.members[:2]
-    declare(run, Command(GCS, 2, CommandKind.SET_FLEET, Selector(SelectorKind.IDS, ids),
-                         CommandArgs(fleet_id=4)))  # fmt: skip
+    declare(
+        run,
+        Command(
+            GCS, 2, CommandKind.SET_FLEET, Selector(SelectorKind.IDS, ids), CommandArgs(fleet_id=4)
+        ),
+    )
     run.fleets = dict.fromkeys(ids, 4)
     # a tower outside the field (a fence in every autopilot), and the field's operating area
     tlat, tlon = SITL_HOME.lat_deg - 0.002, SITL_HOME.lon_deg + 0.002
     zone = declare(run, NoFlyZone(1, Geometry.circle(tlat, tlon, 30.0), name="tower"))
-    oa = declare(run, NoFlyZone(2, Geometry.circle(SITL_HOME.lat_deg + 0.003, SITL_HOME.lon_deg,
-                                                   2500.0), name="field", operating_area=True))  # fmt: skip
+    oa = declare(
+        run,
+        NoFlyZone(
+            2,
+            Geometry.circle(SITL_HOME.lat_deg + 0.003, SITL_HOME.lon_deg, 2500.0),
+            name="field",
+            operating_area=True,
+        ),
+    )
     assert isinstance(zone, NoFlyZone) and isinstance(oa, NoFlyZone)
     run.zones = {1: zone, 2: oa}
     assert run.run_until(
-        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30)
+        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
+    )
     run.run_for(3.0)
     return run
 
 
 def send_mission(run: Run) -> None:
     """The operator sends the survey (every fault calls it where it belongs)."""
-    declare(run, Mission(MISSION_ID, GCS, MissionType.AREA, run.area,
-                         MissionParams(altitude_rel_m=ALT_M)))  # fmt: skip
+    declare(
+        run,
+        Mission(MISSION_ID, GCS, MissionType.AREA, run.area, MissionParams(altitude_rel_m=ALT_M)),
+    )
     run.mission_sent_at = run.fleet.now
 
 
@@ -250,8 +276,11 @@ def _at_progress(run: Run, fraction: float = 0.4, *, send: bool = True) -> bool:
 
 
 def _hashes_agree(run: Run) -> bool:
-    hs = {v.node.roster.members_hash for v in run.fleet.vehicles.values()
-          if not v.down and v.node.fsm.mission_id == MISSION_ID}  # fmt: skip
+    hs = {
+        v.node.roster.members_hash
+        for v in run.fleet.vehicles.values()
+        if not v.down and v.node.fsm.mission_id == MISSION_ID
+    }
     return len(hs) <= 1
 
 
@@ -271,9 +300,11 @@ def fault_kill(run: Run, send: bool = True) -> Injected:
     node = run.fleet.restart_node(vid)
     ok = run.run_until(lambda: node.reattach.decision is not None, 60)
     d = node.reattach.decision
-    return Injected(run.fleet.now - t0 if ok else None,
-                    f"restarted 5 s later: {d.value if d else 'no decision'} ({node.reattach.why})",
-                    ok=ok)  # fmt: skip
+    return Injected(
+        run.fleet.now - t0 if ok else None,
+        f"restarted 5 s later: {d.value if d else 'no decision'} ({node.reattach.why})",
+        ok=ok,
+    )
 
 
 def fault_sigstop(run: Run) -> Injected:
@@ -286,9 +317,12 @@ def fault_sigstop(run: Run) -> Injected:
     run.run_for(3.5)
     ok = run.run_until(lambda: _hashes_agree(run), 120)
     v = run.fleet.vehicles[vid]
-    return Injected(run.fleet.now - t0 if ok else None,
-                    f"stall seen {v.node.stalls.max_s:.1f} s by the node, "
-                    f"{v.link.state.host_stalls} late read(s) by its link", ok=ok)  # fmt: skip
+    return Injected(
+        run.fleet.now - t0 if ok else None,
+        f"stall seen {v.node.stalls.max_s:.1f} s by the node, "
+        f"{v.link.state.host_stalls} late read(s) by its link",
+        ok=ok,
+    )
 
 
 def fault_autopilot_restart(run: Run) -> Injected:
@@ -301,15 +335,21 @@ def fault_autopilot_restart(run: Run) -> Injected:
 
     def restored() -> bool:
         sim = v.endpoint.autopilot
-        return (v.node.backstop.restored >= 2 and not v.node.backstop.checks
-                and bool(sim.rally_items) and sim.fence_present())  # fmt: skip
+        return (
+            v.node.backstop.restored >= 2
+            and not v.node.backstop.checks
+            and bool(sim.rally_items)
+            and sim.fence_present()
+        )
 
     ok = run.run_until(restored, 120)
     recover = run.fleet.now - t0
     run.run_until(lambda: v.node.monitor.ready and v.node.fsm.state == FsmState.GO_MISSION, 60)
     sim = v.endpoint.autopilot
-    note = (f"fence {len(sim.fence_items)} items, rally {len(sim.rally_items)} point(s) "
-            f"restored and verified by download ({v.node.backstop.restored} stores)")  # fmt: skip
+    note = (
+        f"fence {len(sim.fence_items)} items, rally {len(sim.rally_items)} point(s) "
+        f"restored and verified by download ({v.node.backstop.restored} stores)"
+    )
     send_mission(run)
     return Injected(recover if ok else None, note, ok=ok)
 
@@ -342,10 +382,13 @@ def fault_partition(run: Run) -> Injected:
         )
 
     ok = run.run_until(all_see_all, 60)
-    return Injected(run.fleet.now - t0 if ok else None,
-                    f"cut {sorted(m for m, g in groups.items() if g == 0)} | "
-                    f"{sorted(m for m, g in groups.items() if g == 1)} for 20 s; "
-                    f"every node saw every other {run.fleet.now - heal:.1f} s after", ok=ok)  # fmt: skip
+    return Injected(
+        run.fleet.now - t0 if ok else None,
+        f"cut {sorted(m for m, g in groups.items() if g == 0)} | "
+        f"{sorted(m for m, g in groups.items() if g == 1)} for 20 s; "
+        f"every node saw every other {run.fleet.now - heal:.1f} s after",
+        ok=ok,
+    )
 
 
 def fault_disk_full(run: Run) -> Injected:
@@ -356,8 +399,14 @@ def fault_disk_full(run: Run) -> Injected:
     v.store.full = True
     if not _at_progress(run, 0.3):
         return Injected(None, "never reached 30 %", ok=False)
-    zone = declare(run, NoFlyZone(3, Geometry.circle(SITL_HOME.lat_deg - 0.003,
-                                                     SITL_HOME.lon_deg - 0.003, 25.0), name="mast"))  # fmt: skip
+    zone = declare(
+        run,
+        NoFlyZone(
+            3,
+            Geometry.circle(SITL_HOME.lat_deg - 0.003, SITL_HOME.lon_deg - 0.003, 25.0),
+            name="mast",
+        ),
+    )
     assert isinstance(zone, NoFlyZone)
     run.zones[3] = zone
     run.run_for(2.0)
@@ -366,9 +415,11 @@ def fault_disk_full(run: Run) -> Injected:
     run.run_for(2.0)
     node = run.fleet.restart_node(vid)
     ok = run.run_until(lambda: node.monitor.zones.get(3) == zone, 30)
-    return Injected(run.fleet.now - t0 if ok else None,
-                    f"{v.store.failures} failed stores; the restarted node learned zone 3 from its peers",
-                    ok=ok)  # fmt: skip
+    return Injected(
+        run.fleet.now - t0 if ok else None,
+        f"{v.store.failures} failed stores; the restarted node learned zone 3 from its peers",
+        ok=ok,
+    )
 
 
 def fault_new_database(run: Run) -> Injected:
@@ -383,9 +434,12 @@ def fault_new_database(run: Run) -> Injected:
     node = run.fleet.restart_node(vid, keep_database=False)
     ok = run.run_until(lambda: node.base == run.base and node.monitor.zones == run.zones, 30)
     d = node.reattach.decision
-    return Injected(run.fleet.now - t0 if ok else None,
-                    f"new empty database: base, zones and fleet from the peers; "
-                    f"{d.value if d else 'no decision yet'}", ok=ok)  # fmt: skip
+    return Injected(
+        run.fleet.now - t0 if ok else None,
+        f"new empty database: base, zones and fleet from the peers; "
+        f"{d.value if d else 'no decision yet'}",
+        ok=ok,
+    )
 
 
 def fault_ground_station_lost(run: Run) -> Injected:
@@ -399,8 +453,11 @@ def fault_ground_station_lost(run: Run) -> Injected:
     for vid in run.fleet.vehicles:
         run.fleet._deliver(vid, PeerAlive(GCS, False), run.fleet.now)
     injected = fault_kill(run, send=False)
-    return Injected(injected.recover_s, "ground station gone after the mission was sent; "
-                    + injected.note, ok=injected.ok)  # fmt: skip
+    return Injected(
+        injected.recover_s,
+        "ground station gone after the mission was sent; " + injected.note,
+        ok=injected.ok,
+    )
 
 
 FAST_FAULTS: dict[str, Callable[[Run], Injected]] = {
@@ -424,8 +481,10 @@ def run_fast(
     injected = FAST_FAULTS[name](run)
     sent = run.mission_sent_at if run.mission_sent_at is not None else run.fleet.now
     finished = run.run_until(lambda: run.landed() and run.fleet.now - sent > 30.0, 3000)
-    completed = any(a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {MISSION_ID}"
-                    for a in run.fleet.messages(Alert))  # fmt: skip
+    completed = any(
+        a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {MISSION_ID}"
+        for a in run.fleet.messages(Alert)
+    )
     coverage = run.coverage(profiles)
     alerts = Counter(
         f"{a.severity.name} {a.code.name}"
@@ -435,23 +494,36 @@ def run_fast(
     emergencies = Counter(f"{code} (vehicle {vid})" for vid, code in sorted(run.emergencies))
     # no fault here silences an autopilot for the 5 s a link-loss emergency takes
     false = sum(1 for _, code in run.emergencies if code == "AUTOPILOT_LINK_LOSS") + sum(
-        1 for a in run.fleet.messages(Alert)
+        1
+        for a in run.fleet.messages(Alert)
         if a.code == AlertCode.AUTOPILOT_LINK_LOSS and a.severity >= Severity.CRITICAL
     )
     lost = run.declared_lost()
     recovered = (
-        injected.ok and injected.recover_s is not None and finished and completed
-        and coverage >= 0.95 and lost == 0 and false == 0
-    )  # fmt: skip
+        injected.ok
+        and injected.recover_s is not None
+        and finished
+        and completed
+        and coverage >= 0.95
+        and lost == 0
+        and false == 0
+    )
     note = injected.note + ("" if finished else "; not all landed in time")
     return FaultRow(
-        fault=name, mission=spec.name, env="fast", recovered=recovered,
+        fault=name,
+        mission=spec.name,
+        env="fast",
+        recovered=recovered,
         recover_s=None if injected.recover_s is None else round(injected.recover_s, 2),
-        coverage=round(coverage, 4), mission_completed=completed, declared_state_lost=lost,
-        false_emergencies=false, emergencies=dict(sorted(emergencies.items())),
-        alerts=dict(sorted(alerts.items())), note=note,
+        coverage=round(coverage, 4),
+        mission_completed=completed,
+        declared_state_lost=lost,
+        false_emergencies=false,
+        emergencies=dict(sorted(emergencies.items())),
+        alerts=dict(sorted(alerts.items())),
+        note=note,
         wall_s=round(time.perf_counter() - t_wall, 2),
-    )  # fmt: skip
+    )
 
 
 def campaign_fast(
@@ -471,7 +543,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from .fault_processes import PROCESS_FAULTS, run_process_fault
 
-    ap = argparse.ArgumentParser(prog="python -m swarm_sim.faults", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m swarm_sim.faults", description=__doc__.split("\n")[0]
+    )
     ap.add_argument("--env", choices=("fast", "processes", "all"), default="fast")
     ap.add_argument("--only", action="append", default=[], help="a fault's name (repeat)")
     args = ap.parse_args(argv)
@@ -496,8 +570,10 @@ if __name__ == "__main__":
 
 def markdown(rows: Sequence[dict[str, object]]) -> str:
     """The fault table of docs/reliability.md from bench/results/faults.json's rows."""
-    head = ("| fault | mission | where | recovered | recover s | coverage | declared lost "
-            "| false emergencies | emergencies | alerts (WARNING+) |")  # fmt: skip
+    head = (
+        "| fault | mission | where | recovered | recover s | coverage | declared lost "
+        "| false emergencies | emergencies | alerts (WARNING+) |"
+    )
     lines = [head, "|" + "---|" * 10]
     for r in rows:
         alerts = ", ".join(f"{k} x{v}" for k, v in dict(r["alerts"]).items()) or "-"  # type: ignore[call-overload]

@@ -150,14 +150,23 @@ class Narrator:
                 v.quarter = 0
             v.doing = doing
             v.mission_id = mid if mid else v.mission_id
-            out.append(Line(t, s.vehicle_id, self._words(doing, v, s),
-                            2 if doing == Doing.EMERGENCY else 0))  # fmt: skip
+            out.append(
+                Line(
+                    t, s.vehicle_id, self._words(doing, v, s), 2 if doing == Doing.EMERGENCY else 0
+                )
+            )
         if doing == Doing.SHARE:
             q = s.mission_progress_pct // 25
             if q > v.quarter and q < 4:
                 v.quarter = q
-                out.append(Line(t, s.vehicle_id, f"{self.mission(mid)}: {s.mission_progress_pct}% "
-                                f"of its share flown, {s.battery_pct}% battery"))  # fmt: skip
+                out.append(
+                    Line(
+                        t,
+                        s.vehicle_id,
+                        f"{self.mission(mid)}: {s.mission_progress_pct}% "
+                        f"of its share flown, {s.battery_pct}% battery",
+                    )
+                )
         return out
 
     def _words(self, doing: Doing, v: _Vehicle, s: VehicleStatus) -> str:
@@ -202,9 +211,15 @@ class Narrator:
             v.completed.add(mid)
             m = self.mission(mid) if mid else a.text
             if not v.flew:  # the fleet's plan gave it nothing to fly
-                return [Line(t, a.vehicle_id, f"{m}: the plan gives it no share (beyond its "
-                             "battery, or nothing its speed adds): it stays on its pad "
-                             "(MISSION_COMPLETE)")]  # fmt: skip
+                return [
+                    Line(
+                        t,
+                        a.vehicle_id,
+                        f"{m}: the plan gives it no share (beyond its "
+                        "battery, or nothing its speed adds): it stays on its pad "
+                        "(MISSION_COMPLETE)",
+                    )
+                ]
             return [Line(t, a.vehicle_id, f"{m}: its share is flown (MISSION_COMPLETE)")]
         if a.text.startswith("chosen for mission "):
             mid = _mission_of(a.text, 3)
@@ -214,8 +229,14 @@ class Narrator:
                 gone = " and ".join(map(str, self.chosen[left]))
                 self.context[left] = f"{gone} voted out to {self.mission(mid)}"
             score = a.text.rsplit(" ", 1)[-1]
-            return [Line(t, a.vehicle_id, f"chosen by the vote for {self.mission(mid)} "
-                         f"(score {score}): leaves its fleet", 1)]  # fmt: skip
+            return [
+                Line(
+                    t,
+                    a.vehicle_id,
+                    f"chosen by the vote for {self.mission(mid)} (score {score}): leaves its fleet",
+                    1,
+                )
+            ]
         if a.code == AlertCode.CONDITION_CLEARED or a.severity < Severity.WARNING:
             return []
         sev = 2 if a.severity >= Severity.CRITICAL else 1
@@ -229,8 +250,14 @@ class Narrator:
         if own is None:
             return []
         v.voted.add(vote.mission_id)
-        return [Line(t, vote.voter_id, f"votes for {self.mission(vote.mission_id)}: scores "
-                     f"itself {own:.3f} (payload, arrival time, battery)")]  # fmt: skip
+        return [
+            Line(
+                t,
+                vote.voter_id,
+                f"votes for {self.mission(vote.mission_id)}: scores "
+                f"itself {own:.3f} (payload, arrival time, battery)",
+            )
+        ]
 
 
 def _mission_of(text: str, index: int = 1) -> int:

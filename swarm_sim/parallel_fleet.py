@@ -14,7 +14,7 @@ another can be due; each part runs its window alone, then the parts exchange wha
 published (LAN bytes, with the time they are heard) and the next window starts, when
 something is first due in any part (each part says when its next deadline is): windows
 with nothing in them are not run (one exchange per window, and most of the wall time is
-the exchanges: issue 20), the same run as back-to-back windows (`skip_idle=False`,
+the exchanges); the same run as back-to-back windows (`skip_idle=False`,
 tests/swarm_node/test_scaling.py). Every run with the same split is the same; in one process with the same latency, messages
 heard at the same time interleave in publishing order, here a part's own first.
 
@@ -122,19 +122,27 @@ class ParallelFleet:
             mine, theirs = ctx.Pipe()
             proc = ctx.Process(
                 target=_part_main,
-                args=(theirs, share, {v: profiles[v] for v in share},
-                      homes[k * size : k * size + len(share)], start_unix_s, latency_s,
-                      ids if liveliness else None),
+                args=(
+                    theirs,
+                    share,
+                    {v: profiles[v] for v in share},
+                    homes[k * size : k * size + len(share)],
+                    start_unix_s,
+                    latency_s,
+                    ids if liveliness else None,
+                ),
                 daemon=True,
-            )  # fmt: skip
+            )
             proc.start()
             self.workers.append((proc, mine))
         # the first part runs here, beside the others: one process per core, no idle
         # coordinator
         self.local = FastFleet.build(
-            shares[0], {v: profiles[v] for v in shares[0]}, homes=homes[: len(shares[0])],
+            shares[0],
+            {v: profiles[v] for v in shares[0]},
+            homes=homes[: len(shares[0])],
             start_unix_s=start_unix_s,
-        )  # fmt: skip
+        )
         self.local.export, self.local.latency_s = [], latency_s
         if liveliness:
             self.local.hold_tokens(ids)

@@ -56,9 +56,12 @@ def coverage(tracks: Tracks, area: Geometry, profile: VehicleProfile, alt_m: flo
     swath = 2.0 * alt_m * math.tan(math.radians(camera.hfov_deg) / 2.0)
     poly = Polygon([tracks.frame.to_local(p.lat_deg, p.lon_deg) for p in area.points])
     flown = unary_union(
-        [LineString([(p[0], p[1]) for p in pts]).buffer(swath / 2.0)
-         for pts in tracks.points.values() if len(pts) > 1]
-    )  # fmt: skip
+        [
+            LineString([(p[0], p[1]) for p in pts]).buffer(swath / 2.0)
+            for pts in tracks.points.values()
+            if len(pts) > 1
+        ]
+    )
     return float(flown.intersection(poly).area / poly.area)
 
 
@@ -115,15 +118,25 @@ def retasking(
 
     def surveyed() -> bool:
         step()
-        done = [v.node.manager.share_progress_m() / v.node.manager.share.length_m
-                for v in fleet.vehicles.values() if v.node.manager.share is not None]  # fmt: skip
+        done = [
+            v.node.manager.share_progress_m() / v.node.manager.share.length_m
+            for v in fleet.vehicles.values()
+            if v.node.manager.share is not None
+        ]
         return len(done) == len(members) and min(done) >= at_progress
 
     assert fleet.run_until(surveyed, 900), fleet.notes[-10:]
     # the target: on the area's east edge, as a camera looking down would see it
     lat, lon = frame.to_geodetic(half_m, 0.0)
-    report = TargetReport(1, source, TargetSource.PAYLOAD, fleet.now,
-                          GeoPoint(lat, lon, SITL_HOME.alt_m), target_class, 0.93)  # fmt: skip
+    report = TargetReport(
+        1,
+        source,
+        TargetSource.PAYLOAD,
+        fleet.now,
+        GeoPoint(lat, lon, SITL_HOME.alt_m),
+        target_class,
+        0.93,
+    )
     mid = target_mission_id(source, 1)
     reported = fleet.now
     fleet.broadcast(report)
@@ -145,7 +158,9 @@ def retasking(
     def flying(vid: int, mission_id: int) -> bool:  # PREMISSION: on its way to the meet
         n = fleet.vehicles[vid].node
         return n.fsm.mission_id == mission_id and n.manager.mission_state in (
-            MissionState.PREMISSION, MissionState.MISSION)
+            MissionState.PREMISSION,
+            MissionState.MISSION,
+        )
 
     flying_s = replanned_s = None
     while flying_s is None or replanned_s is None:
@@ -163,8 +178,19 @@ def retasking(
         plan = fleet.vehicles[m].node.manager.fleet_plan
         assert plan is not None
         plans.add(tuple(sorted((v, s.waypoints) for v, s in plan.shares.items())))
-    result = Retasking(mid, (lat, lon), outcome, scored, winners, stayers, decided_s, flying_s, replanned_s,
-                       0.0, same_plan=len(plans) == 1)  # fmt: skip
+    result = Retasking(
+        mid,
+        (lat, lon),
+        outcome,
+        scored,
+        winners,
+        stayers,
+        decided_s,
+        flying_s,
+        replanned_s,
+        0.0,
+        same_plan=len(plans) == 1,
+    )
     if not to_the_end:
         result.notes = list(fleet.notes)
         return result
@@ -183,8 +209,9 @@ def retasking(
             m = int(a.text.split()[-1])
             result.completed.setdefault(m, set()).add(a.vehicle_id)
     result.landed = frozenset(
-        vid for vid, v in fleet.vehicles.items() if not v.link.state.armed
-        and (v.link.state.alt_rel_m or 0.0) < 2.0
-    )  # fmt: skip
+        vid
+        for vid, v in fleet.vehicles.items()
+        if not v.link.state.armed and (v.link.state.alt_rel_m or 0.0) < 2.0
+    )
     result.notes = list(fleet.notes)
     return result

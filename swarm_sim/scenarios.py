@@ -72,8 +72,12 @@ class Tracks:
             return False
         cached = self._lanes.get(vid)
         if cached is None or cached[0] is not plan:
-            lanes = [ln for a in plan.detail.split.assignments if a.vehicle_id == vid
-                     for ln in a.path.lanes]  # fmt: skip
+            lanes = [
+                ln
+                for a in plan.detail.split.assignments
+                if a.vehicle_id == vid
+                for ln in a.path.lanes
+            ]
             arr = np.array([(*ln.a, *ln.b) for ln in lanes], dtype=float).reshape(-1, 4)
             cached = (plan, plan.detail.frame, arr)
             self._lanes[vid] = cached
@@ -109,9 +113,11 @@ class Tracks:
 
 
 def lane_runs(
-    pts: Sequence[tuple[float, float, float, bool]], axis_deg: float, min_len_m: float = 30.0,
+    pts: Sequence[tuple[float, float, float, bool]],
+    axis_deg: float,
+    min_len_m: float = 30.0,
     width_m: float = 6.0,
-) -> list[LineString]:  # fmt: skip
+) -> list[LineString]:
     """Straight runs along the lane axis on the vehicle's own lanes: consecutive
     samples on a lane of its share whose cross-track coordinate stays within `width_m`
     over at least `min_len_m`."""
@@ -220,11 +226,17 @@ def inheritance(
 
     assert fleet.run_until(replanned, 120), fleet.notes[-20:]
     agree_s = fleet.now - killed_at
-    noticed_s = min(
-        (t for t, _v, text in fleet.notes
-         if t >= killed_at and text.startswith(f"mission 70: member {victim} lost")),
-        default=fleet.now,
-    ) - killed_at  # fmt: skip
+    noticed_s = (
+        min(
+            (
+                t
+                for t, _v, text in fleet.notes
+                if t >= killed_at and text.startswith(f"mission 70: member {victim} lost")
+            ),
+            default=fleet.now,
+        )
+        - killed_at
+    )
     hashes = len({fleet.vehicles[m].node.roster.members_hash for m in survivors})
     survivor_plans = [fleet.vehicles[m].node.manager.fleet_plan for m in survivors]
     plans = {
@@ -245,9 +257,12 @@ def inheritance(
     swath = 2.0 * alt_m * math.tan(math.radians(hfov) / 2.0)
     poly = Polygon([frame.to_local(p.lat_deg, p.lon_deg) for p in area.points])
     flown = unary_union(
-        [LineString([(x, y) for x, y, _h, _lane in pts]).buffer(swath / 2.0)
-         for pts in tracks.points.values() if len(pts) > 1]
-    )  # fmt: skip
+        [
+            LineString([(x, y) for x, y, _h, _lane in pts]).buffer(swath / 2.0)
+            for pts in tracks.points.values()
+            if len(pts) > 1
+        ]
+    )
     spacing = swath * (1.0 - side_overlap)
     along = {
         # flat ends: two runs meeting where a split cut a lane do not overlap
@@ -491,8 +506,15 @@ def autoland_flight(
     mission to a base 110 m south of the first home."""
     fleet = _ready(members, profiles)
     target = Geometry.point(SITL_HOME.lat_deg + 0.008, SITL_HOME.lon_deg + 0.004)
-    fleet.broadcast(Mission(20, GCS, MissionType.TARGET, target,
-                            MissionParams(altitude_rel_m=70.0, altitude_step_m=10.0)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            20,
+            GCS,
+            MissionType.TARGET,
+            target,
+            MissionParams(altitude_rel_m=70.0, altitude_step_m=10.0),
+        )
+    )
     assert fleet.run_until(
         lambda: all(v.node.manager.phase.value == "flying" for v in fleet.vehicles.values()), 200
     )
@@ -550,8 +572,11 @@ def mumt_flight(
     fleet = _ready([*followers, lead], profiles)
     la, lo = SITL_HOME.lat_deg, SITL_HOME.lon_deg
     line = Geometry(GeometryKind.POLYLINE, (LatLon(la + 0.003, lo), LatLon(la + 0.04, lo + 0.01)))
-    fleet.broadcast(Mission(30, GCS, MissionType.ROUTE, line, MissionParams(altitude_rel_m=60.0),
-                            Selector.ids(lead)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            30, GCS, MissionType.ROUTE, line, MissionParams(altitude_rel_m=60.0), Selector.ids(lead)
+        )
+    )
     fleet.run_for(1.0)
     params = MissionParams(altitude_rel_m=60.0, lead_vehicle_id=lead, duration_s=duration_s)
     fleet.broadcast(Mission(31, GCS, MissionType.MUMT, Geometry.point(la, lo), params))

@@ -13,7 +13,7 @@ the paper does (`gcs analyze separation` on the flight recorder's trajectory).
                              route through its centre to the opposite side at one
                              altitude, all in the same instant: head-on at one point
 
-Voting is not wired into the node yet (issue 13): experiment 1's re-tasking is a
+Voting is not wired into the node yet: experiment 1's re-tasking is a
 sequence of missions addressed to listed vehicles (`Selector.ids`), not QUANTITY
 missions voted on.
 
@@ -107,10 +107,17 @@ def _r(x: float) -> float | None:
 def plane_profile(vid: int, like: VehicleProfile) -> VehicleProfile:
     """A fixed-wing aircraft flown by the simulator's generic plane (22 m/s cruise)."""
     return msgspec.structs.replace(
-        like, vehicle_id=vid, user_id=f"FW-{vid:02d}", model="generic fixed-wing",
-        vehicle_type=VehicleType.PLANE, cruise_speed_m_s=22.0, min_speed_m_s=12.0,
-        max_speed_m_s=30.0, loiter_radius_m=60.0, hover_current_a=0.0,
-    )  # fmt: skip
+        like,
+        vehicle_id=vid,
+        user_id=f"FW-{vid:02d}",
+        model="generic fixed-wing",
+        vehicle_type=VehicleType.PLANE,
+        cruise_speed_m_s=22.0,
+        min_speed_m_s=12.0,
+        max_speed_m_s=30.0,
+        loiter_radius_m=60.0,
+        hover_current_a=0.0,
+    )
 
 
 def _polyline(*pts: tuple[float, float]) -> Geometry:
@@ -245,13 +252,20 @@ def exp2_takeoff_three_vtol(
     members = [1, 2, 3]
     fleet = FastFleet.build(members, profiles, spacing_m=8.0, settings=_settings(avoid))
     route = Mission(
-        201, GCS, MissionType.ROUTE, _polyline(_at(400.0, -300.0), _at(900.0, 300.0)),
+        201,
+        GCS,
+        MissionType.ROUTE,
+        _polyline(_at(400.0, -300.0), _at(900.0, 300.0)),
         MissionParams(altitude_rel_m=60.0),
-    )  # fmt: skip
+    )
     return _fly(
-        "exp2_takeoff_three_vtol", fleet, [(lambda f: True, _send(route))],
-        avoid=avoid, timeout_s=timeout_s, record=record,
-    )  # fmt: skip
+        "exp2_takeoff_three_vtol",
+        fleet,
+        [(lambda f: True, _send(route))],
+        avoid=avoid,
+        timeout_s=timeout_s,
+        record=record,
+    )
 
 
 def exp1_six_vtol(
@@ -268,21 +282,36 @@ def exp1_six_vtol(
     fleet = FastFleet.build(members, profiles, spacing_m=30.0, settings=_settings(avoid))
     alt = 60.0
     area = Mission(
-        101, GCS, MissionType.AREA, _square(*_at(800.0, 75.0), 200.0),
+        101,
+        GCS,
+        MissionType.AREA,
+        _square(*_at(800.0, 75.0), 200.0),
         MissionParams(altitude_rel_m=alt),
-    )  # fmt: skip
+    )
     target = Mission(
-        102, GCS, MissionType.TARGET, Geometry.point(*_at(1000.0, 500.0)),
-        MissionParams(altitude_rel_m=alt, duration_s=90.0), Selector.ids(1),
-    )  # fmt: skip
+        102,
+        GCS,
+        MissionType.TARGET,
+        Geometry.point(*_at(1000.0, 500.0)),
+        MissionParams(altitude_rel_m=alt, duration_s=90.0),
+        Selector.ids(1),
+    )
     perimeter = Mission(
-        103, GCS, MissionType.PERIMETER, _square(*_at(700.0, -700.0), 200.0),
-        MissionParams(altitude_rel_m=alt, loops=1), Selector.ids(2, 3),
-    )  # fmt: skip
+        103,
+        GCS,
+        MissionType.PERIMETER,
+        _square(*_at(700.0, -700.0), 200.0),
+        MissionParams(altitude_rel_m=alt, loops=1),
+        Selector.ids(2, 3),
+    )
     route = Mission(
-        104, GCS, MissionType.ROUTE, _polyline(_at(300.0, 600.0), _at(1400.0, 900.0)),
-        MissionParams(altitude_rel_m=alt), Selector.ids(4),
-    )  # fmt: skip
+        104,
+        GCS,
+        MissionType.ROUTE,
+        _polyline(_at(300.0, 600.0), _at(1400.0, 900.0)),
+        MissionParams(altitude_rel_m=alt),
+        Selector.ids(4),
+    )
     since: dict[str, float] = {}
     steps: list[Step] = [
         (lambda f: True, _send(area)),
@@ -358,9 +387,14 @@ def stress_eight_headon(
         return flown >= set(members)
 
     return _fly(
-        "stress_eight_headon", fleet, [(lambda f: True, send_all)],
-        avoid=avoid, timeout_s=timeout_s, record=record, done=routes_flown,
-    )  # fmt: skip
+        "stress_eight_headon",
+        fleet,
+        [(lambda f: True, send_all)],
+        avoid=avoid,
+        timeout_s=timeout_s,
+        record=record,
+        done=routes_flown,
+    )
 
 
 RUNS: dict[str, Callable[..., SeparationRun]] = {

@@ -195,8 +195,9 @@ class Observer:
                     self.mode = int(msg.custom_mode)
                     self.armed = bool(msg.base_mode & 128)
                 elif kind == "GLOBAL_POSITION_INT":
-                    self.track.append(Sample(now, msg.lat / 1e7, msg.lon / 1e7,
-                                             msg.relative_alt / 1000.0))  # fmt: skip
+                    self.track.append(
+                        Sample(now, msg.lat / 1e7, msg.lon / 1e7, msg.relative_alt / 1000.0)
+                    )
                 elif kind == "SYS_STATUS":
                     on = bool(msg.onboard_control_sensors_enabled & GEOFENCE_BIT)
                     if on and not self.fence_enabled:
@@ -207,8 +208,10 @@ class Observer:
                     kinds = {0: "dev", 64: "alpha", 128: "beta", 192: "rc", 255: "official"}
                     raw = bytes(msg.flight_custom_version)
                     git = raw.decode("ascii") if raw.isascii() and raw.isalnum() else raw.hex()
-                    self.version = (f"{v >> 24 & 255}.{v >> 16 & 255}.{v >> 8 & 255}-"
-                                    f"{kinds.get(v & 255, v & 255)} ({git})")  # fmt: skip
+                    self.version = (
+                        f"{v >> 24 & 255}.{v >> 16 & 255}.{v >> 8 & 255}-"
+                        f"{kinds.get(v & 255, v & 255)} ({git})"
+                    )
                 elif kind == "STATUSTEXT":
                     text = str(msg.text)
                     self.texts.append((now, text))
@@ -338,8 +341,14 @@ class Harness:
         out = open(self.tmp / f"{name}.log", "ab")  # noqa: SIM115
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         env.pop("BANDADA_CLOCK", None)
-        p = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, cwd=cwd or self.tmp,
-                             env=env, start_new_session=True)  # fmt: skip
+        p = subprocess.Popen(
+            cmd,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            cwd=cwd or self.tmp,
+            env=env,
+            start_new_session=True,
+        )
         self.procs.append(p)
         return p
 
@@ -353,10 +362,20 @@ class Harness:
         lat, lon = offset(HOME[0], HOME[1], 0.0, spec.home_east_m)
         home = f"{lat:.7f},{lon:.7f},{HOME[2]:g},{HOME[3]:g}"
         if self.args.sim:
-            cmd = [sys.executable, "-c", "from swarm_sim.cli import main; main()", "vehicle",
-                   "--model", spec.sim_model,
-                   "--instance", str(spec.instance), "--speedup", str(self.args.speedup),
-                   "--home", home]  # fmt: skip
+            cmd = [
+                sys.executable,
+                "-c",
+                "from swarm_sim.cli import main; main()",
+                "vehicle",
+                "--model",
+                spec.sim_model,
+                "--instance",
+                str(spec.instance),
+                "--speedup",
+                str(self.args.speedup),
+                "--home",
+                home,
+            ]
             proc = self._spawn(cmd, f"sim-{spec.kind}")
         else:
             binary = Path(self.args.bin) / spec.binary
@@ -373,8 +392,19 @@ class Harness:
                 defaults.append(str(path))
             wd = self.tmp / f"sitl-{spec.kind}"
             wd.mkdir(exist_ok=True)
-            cmd = [str(binary), "--model", spec.model, "--speedup", str(self.args.speedup),
-                   f"-I{spec.instance}", "-w", "--defaults", ",".join(defaults), "--home", home]  # fmt: skip
+            cmd = [
+                str(binary),
+                "--model",
+                spec.model,
+                "--speedup",
+                str(self.args.speedup),
+                f"-I{spec.instance}",
+                "-w",
+                "--defaults",
+                ",".join(defaults),
+                "--home",
+                home,
+            ]
             proc = self._spawn(cmd, f"sitl-{spec.kind}", cwd=wd)
         run = Run(spec, proc, home=(lat, lon))
         self.runs.append(run)
@@ -383,8 +413,10 @@ class Harness:
     def start(self) -> None:
         py = sys.executable
         self.log(f"router on tcp/127.0.0.1:{self.router_port}; logs in {self.tmp}")
-        self._spawn([py, "-m", "swarm_node.cli", "router", "--listen",
-                     f"tcp/127.0.0.1:{self.router_port}"], "router")  # fmt: skip
+        self._spawn(
+            [py, "-m", "swarm_node.cli", "router", "--listen", f"tcp/127.0.0.1:{self.router_port}"],
+            "router",
+        )
         for base in VEHICLES:
             spec = dataclasses.replace(base, instance=base.instance + self.args.first_instance)
             what = f"swarm-sim {spec.sim_model}" if self.args.sim else f"SITL {spec.binary}"
@@ -395,11 +427,27 @@ class Harness:
             s = run.spec
             url = f"tcp:127.0.0.1:{s.port}"
             self._match_battery(self.tmp / f"node{s.node_id}.db", s)
-            run.node = self._spawn([py, "-m", "swarm_node.cli", "run", "--id", str(s.node_id),
-                                    "--autopilot", url, "--swarm", SWARM, "--db",
-                                    str(self.tmp / f"node{s.node_id}.db"), "--connect",
-                                    f"tcp/127.0.0.1:{self.router_port}", "--mode",
-                                    "client"], f"node{s.node_id}")  # fmt: skip
+            run.node = self._spawn(
+                [
+                    py,
+                    "-m",
+                    "swarm_node.cli",
+                    "run",
+                    "--id",
+                    str(s.node_id),
+                    "--autopilot",
+                    url,
+                    "--swarm",
+                    SWARM,
+                    "--db",
+                    str(self.tmp / f"node{s.node_id}.db"),
+                    "--connect",
+                    f"tcp/127.0.0.1:{self.router_port}",
+                    "--mode",
+                    "client",
+                ],
+                f"node{s.node_id}",
+            )
         time.sleep(1.0)
         for run in self.runs:
             p = run.spec.port
@@ -450,12 +498,16 @@ class Harness:
 
     def alerts(self, vid: int, code: AlertCode, since_unix: float) -> list[Any]:
         view = self.ground.snapshot()
-        return [a for a in view.alerts
-                if a.vehicle_id == vid and a.code == code and a.time_unix_s >= since_unix]  # fmt: skip
+        return [
+            a
+            for a in view.alerts
+            if a.vehicle_id == vid and a.code == code and a.time_unix_s >= since_unix
+        ]
 
     def command(self, kind: CommandKind, run: Run, **args: Any) -> tuple[bool, str]:
-        acks = self.ground.command(kind, Selector.ids(run.spec.node_id), CommandArgs(**args),
-                                   timeout_s=15.0)  # fmt: skip
+        acks = self.ground.command(
+            kind, Selector.ids(run.spec.node_id), CommandArgs(**args), timeout_s=15.0
+        )
         if not acks:
             return False, f"{kind.name}: no answer"
         a = acks[0]
@@ -468,8 +520,13 @@ class Harness:
 
         def ready() -> bool:
             v = self.ground.snapshot()
-            return all(i in v.status and v.status[i].gps_fix >= 3 and i in v.info
-                       and v.info[i].home is not None for i in ids)  # fmt: skip
+            return all(
+                i in v.status
+                and v.status[i].gps_fix >= 3
+                and i in v.info
+                and v.info[i].home is not None
+                for i in ids
+            )
 
         up = self.wait(ready, self.args.boot_timeout)
         view = self.ground.snapshot()
@@ -492,16 +549,20 @@ class Harness:
                 problems.append("armed differs")
             if d > 5.0:
                 problems.append(f"position {d:.1f} m off")
-            run.result.set("status", not problems,
-                           "; ".join(problems) or f"{info.vehicle_type.name}, mode {st.ap_mode}, "
-                           f"position within {d:.1f} m")  # fmt: skip
+            run.result.set(
+                "status",
+                not problems,
+                "; ".join(problems)
+                or f"{info.vehicle_type.name}, mode {st.ap_mode}, position within {d:.1f} m",
+            )
         return up
 
     def check_rally(self) -> None:
         base = GeoPoint(HOME[0], HOME[1], HOME[2])
         self.log(f"set the base at {base.lat_deg}, {base.lon_deg}, {base.alt_msl_m} m MSL")
-        acks = self.ground.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=base),
-                                   timeout_s=15.0)  # fmt: skip
+        acks = self.ground.command(
+            CommandKind.SET_BASE, Selector(), CommandArgs(point=base), timeout_s=15.0
+        )
         answered = {a.vehicle_id: a for a in acks}
         time.sleep(3.0)  # the node uploads the rally point
         for run in self.runs:
@@ -526,15 +587,21 @@ class Harness:
             d = distance_m(item.x / 1e7, item.y / 1e7, base.lat_deg, base.lon_deg)
             run.result.figures["rally_alt_rel_m"] = round(alt, 2)
             ok = d < 2.0 and alt >= SAFE_RALLY_ALT_M
-            run.result.set("rally", ok, f"{len(items)} item(s), {d:.1f} m from the base, "
-                           f"{alt:.1f} m above home (safe: >= {SAFE_RALLY_ALT_M:g})")  # fmt: skip
+            run.result.set(
+                "rally",
+                ok,
+                f"{len(items)} item(s), {d:.1f} m from the base, "
+                f"{alt:.1f} m above home (safe: >= {SAFE_RALLY_ALT_M:g})",
+            )
 
     def check_fence(self, zone: NoFlyZone) -> None:
         self.log("declare the no-fly zone (35 m circle) in the survey field")
         t0, t0_unix = time.monotonic(), time.time()
         held = self.ground.declare_zone(zone, timeout_s=15.0)
-        self.wait(lambda: all(r.observer is not None and r.observer.fence_enabled
-                              for r in self.runs), 30.0)  # fmt: skip
+        self.wait(
+            lambda: all(r.observer is not None and r.observer.fence_enabled for r in self.runs),
+            30.0,
+        )
         time.sleep(2.0)  # a late failed enable would be reported by now
         for run in self.runs:
             obs, dl = run.observer, run.downloader
@@ -544,13 +611,23 @@ class Harness:
             enabled_at = obs.fence_enabled_at
             after = None if enabled_at is None or enabled_at < t0 else enabled_at - t0
             run.result.figures["fence_enabled_after_s"] = None if after is None else round(after, 2)
-            refused = [a for a in self.alerts(run.spec.node_id, AlertCode.NO_FLY_ZONE, t0_unix)
-                       if "fence" in a.text]  # fmt: skip
-            ok = (run.spec.node_id in held and len(circles) == 1 and abs(circles[0].param1 - 35.0)
-                  < 0.5 and after is not None and not refused)  # fmt: skip
-            detail = (f"held: {run.spec.node_id in held}; fence items {len(items)} "
-                      f"({len(circles)} exclusion circle); enabled "
-                      f"{_opt(after, 'after {:.1f} s', 'never')}")  # fmt: skip
+            refused = [
+                a
+                for a in self.alerts(run.spec.node_id, AlertCode.NO_FLY_ZONE, t0_unix)
+                if "fence" in a.text
+            ]
+            ok = (
+                run.spec.node_id in held
+                and len(circles) == 1
+                and abs(circles[0].param1 - 35.0) < 0.5
+                and after is not None
+                and not refused
+            )
+            detail = (
+                f"held: {run.spec.node_id in held}; fence items {len(items)} "
+                f"({len(circles)} exclusion circle); enabled "
+                f"{_opt(after, 'after {:.1f} s', 'never')}"
+            )
             if refused:
                 detail += f"; node alert: {refused[0].text}"
             run.result.set("fence", ok, detail)
@@ -579,9 +656,16 @@ class Harness:
         for run in self.runs:
             vid = run.spec.node_id
             alt = SURVEY_ALT_M[run.spec.kind]
-            mission = Mission(4200 + vid, self.ground.gcs_id, MissionType.AREA, area,
-                              MissionParams(altitude_rel_m=alt, side_overlap=0.6),
-                              Selector.ids(vid), f"sitl-check {run.spec.kind}", time.time())  # fmt: skip
+            mission = Mission(
+                4200 + vid,
+                self.ground.gcs_id,
+                MissionType.AREA,
+                area,
+                MissionParams(altitude_rel_m=alt, side_overlap=0.6),
+                Selector.ids(vid),
+                f"sitl-check {run.spec.kind}",
+                time.time(),
+            )
             self.log(f"{run.spec.kind}: area survey around the zone, {alt:g} m above home")
             for answer in self.ground.mission(mission, timeout_s=15.0):
                 if answer.vehicle_id == vid:  # the others answer NOT_ADDRESSED
@@ -634,12 +718,21 @@ class Harness:
             breaches = self.alerts(vid, AlertCode.GEOFENCE_BREACH, t0_unix)
             fence_texts = [t for tt, t in obs.texts if tt >= t0 and "ence" in t and "reach" in t]
             complete = self.alerts(vid, AlertCode.MISSION_COMPLETE, t0_unix)
-            ok = (a is not None and a.accepted and clearance is not None and clearance > 0
-                  and not breaches and not fence_texts and bool(complete))  # fmt: skip
-            detail = (f"ack {a.reason.name if a else 'none'}; least clearance "
-                      f"{_opt(clearance, '{:.1f} m', '-')}; "
-                      f"{len(breaches)} breach alerts; "
-                      f"{'complete' if complete else 'not complete'}")  # fmt: skip
+            ok = (
+                a is not None
+                and a.accepted
+                and clearance is not None
+                and clearance > 0
+                and not breaches
+                and not fence_texts
+                and bool(complete)
+            )
+            detail = (
+                f"ack {a.reason.name if a else 'none'}; least clearance "
+                f"{_opt(clearance, '{:.1f} m', '-')}; "
+                f"{len(breaches)} breach alerts; "
+                f"{'complete' if complete else 'not complete'}"
+            )
             if fence_texts:
                 detail += f"; ArduPilot: {fence_texts[0]}"
             run.result.set("survey", ok, detail)
@@ -662,10 +755,13 @@ class Harness:
             here = obs.here()
             at_home = here is not None and distance_m(here.lat, here.lon, *run.home) < 100.0
             landed = down(run)
-            run.result.set("way home", started is not None and landed and at_home,
-                           f"halfway home {_opt(started, 'after {:.1f} s', 'never')}; "
-                           f"{'landed and disarmed' if landed else 'not landed/disarmed'}"
-                           f"{' near home' if at_home else ' away from home'}")  # fmt: skip
+            run.result.set(
+                "way home",
+                started is not None and landed and at_home,
+                f"halfway home {_opt(started, 'after {:.1f} s', 'never')}; "
+                f"{'landed and disarmed' if landed else 'not landed/disarmed'}"
+                f"{' near home' if at_home else ' away from home'}",
+            )
 
     def check_rtl_land(self, run: Run) -> None:
         obs = run.observer
@@ -682,8 +778,11 @@ class Harness:
                     nums.add(mode_number(vt, n))
             return lambda: obs.mode in nums
 
-        for kind, args in ((CommandKind.SET_MODE, {"text": "GUIDED"}), (CommandKind.ARM, {}),
-                           (CommandKind.TAKEOFF, {"value": 30.0})):  # fmt: skip
+        for kind, args in (
+            (CommandKind.SET_MODE, {"text": "GUIDED"}),
+            (CommandKind.ARM, {}),
+            (CommandKind.TAKEOFF, {"value": 30.0}),
+        ):
             ok, text = self.command(kind, run, **args)
             steps.append(text)
             if not ok:
@@ -699,16 +798,18 @@ class Harness:
         land = ok and self.wait(mode_is("LAND", "QLAND"), 15.0)
         disarmed = self.wait(lambda: not obs.armed, 240.0, 1.0)
         good = climbed and rtl and land and disarmed
-        run.result.set("rtl/land", good, f"climbed {climbed}, RTL {rtl}, LAND {land}, "
-                       f"disarmed {disarmed}")  # fmt: skip
+        run.result.set(
+            "rtl/land", good, f"climbed {climbed}, RTL {rtl}, LAND {land}, disarmed {disarmed}"
+        )
 
     def check_link_loss(self, run: Run) -> None:
         vid = run.spec.node_id
         t0_unix = time.time()
         os.kill(run.proc.pid, signal.SIGSTOP)
         try:
-            lost = self.wait(lambda: bool(self.alerts(vid, AlertCode.AUTOPILOT_LINK_LOSS,
-                                                      t0_unix)), 10.0)  # fmt: skip
+            lost = self.wait(
+                lambda: bool(self.alerts(vid, AlertCode.AUTOPILOT_LINK_LOSS, t0_unix)), 10.0
+            )
         finally:
             os.kill(run.proc.pid, signal.SIGCONT)
         t1 = time.monotonic()
@@ -808,12 +909,19 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m swarm_sim.sitl_check", description=__doc__.split("\n")[0]
     )
-    p.add_argument("--bin", default=os.environ.get("ARDUPILOT_SITL_BIN", ""),
-                   help="directory with arducopter and arduplane (default $ARDUPILOT_SITL_BIN)")  # fmt: skip
+    p.add_argument(
+        "--bin",
+        default=os.environ.get("ARDUPILOT_SITL_BIN", ""),
+        help="directory with arducopter and arduplane (default $ARDUPILOT_SITL_BIN)",
+    )
     p.add_argument("--sim", action="store_true", help="swarm-sim vehicles instead of SITL")
     p.add_argument("--speedup", type=float, default=5.0)
-    p.add_argument("--first-instance", type=int, default=0,
-                   help="SITL -I of the copter (the QuadPlane is the next); ports 5760+10*I")  # fmt: skip
+    p.add_argument(
+        "--first-instance",
+        type=int,
+        default=0,
+        help="SITL -I of the copter (the QuadPlane is the next); ports 5760+10*I",
+    )
     p.add_argument("--boot-timeout", type=float, default=180.0)
     p.add_argument("--survey-timeout", type=float, default=900.0)
     p.add_argument("--out", default=str(RESULTS))

@@ -122,9 +122,13 @@ class StoryPlan:
 
     @classmethod
     def experiment_one(
-        cls, members: Sequence[int], origin: tuple[float, float], *, scale: float = 1.0,
+        cls,
+        members: Sequence[int],
+        origin: tuple[float, float],
+        *,
+        scale: float = 1.0,
         **kw: object,
-    ) -> StoryPlan:  # fmt: skip
+    ) -> StoryPlan:
         """The places, north of pads going east from `origin`: a 1000 x 700 m field
         1 km north with a no-fly zone in it, the target 250 m east of the field, a
         400 m square perimeter west of it and a route north of it past a second zone
@@ -138,10 +142,20 @@ class StoryPlan:
             return Geometry.polygon([at(e, n) for e, n in pts])
 
         area = poly((-425, 650), (575, 650), (575, 1350), (-425, 1350))
-        zone1 = NoFlyZone(1, Geometry.circle(*at(250, 1050), 60.0 * scale), floor_alt_msl_m=-100.0,
-                          ceiling_alt_msl_m=1000.0, name="field zone")  # fmt: skip
-        zone2 = NoFlyZone(2, Geometry.circle(*at(75, 1760), 80.0 * scale), floor_alt_msl_m=-100.0,
-                          ceiling_alt_msl_m=1000.0, name="route zone")  # fmt: skip
+        zone1 = NoFlyZone(
+            1,
+            Geometry.circle(*at(250, 1050), 60.0 * scale),
+            floor_alt_msl_m=-100.0,
+            ceiling_alt_msl_m=1000.0,
+            name="field zone",
+        )
+        zone2 = NoFlyZone(
+            2,
+            Geometry.circle(*at(75, 1760), 80.0 * scale),
+            floor_alt_msl_m=-100.0,
+            ceiling_alt_msl_m=1000.0,
+            name="route zone",
+        )
         perimeter = poly((-1150, 800), (-750, 800), (-750, 1200), (-1150, 1200))
         route = Geometry(
             GeometryKind.POLYLINE,
@@ -149,29 +163,56 @@ class StoryPlan:
         )
         members = tuple(members)
         kw.setdefault("reporter", members[len(members) // 2])
-        return cls(members, origin, area, (zone1, zone2), at(825, 1000), perimeter, route,
-                   **kw)  # type: ignore[arg-type]  # fmt: skip
+        return cls(members, origin, area, (zone1, zone2), at(825, 1000), perimeter, route, **kw)  # type: ignore[arg-type]
 
     @property
     def target_mission_id(self) -> int:
         return target_mission_id(self.reporter, TARGET_ID)
 
     def area_mission(self, now: float) -> Mission:
-        params = MissionParams(altitude_rel_m=self.area_alt_m, side_overlap=self.side_overlap,
-                               altitude_step_m=self.area_layer_m)  # fmt: skip
-        return Mission(AREA_ID, GCS_ID, MissionType.AREA, self.area, params,
-                       Selector.ids(*self.members), "survey", max(0.0, now))  # fmt: skip
+        params = MissionParams(
+            altitude_rel_m=self.area_alt_m,
+            side_overlap=self.side_overlap,
+            altitude_step_m=self.area_layer_m,
+        )
+        return Mission(
+            AREA_ID,
+            GCS_ID,
+            MissionType.AREA,
+            self.area,
+            params,
+            Selector.ids(*self.members),
+            "survey",
+            max(0.0, now),
+        )
 
     def perimeter_mission(self, ids: Sequence[int], now: float) -> Mission:
-        params = MissionParams(altitude_rel_m=self.perimeter_alt_m, loops=1,
-                               altitude_step_m=self.layer_m)  # fmt: skip
-        return Mission(PERIMETER_ID, GCS_ID, MissionType.PERIMETER, self.perimeter, params,
-                       Selector.ids(*ids), "perimeter", max(0.0, now))  # fmt: skip
+        params = MissionParams(
+            altitude_rel_m=self.perimeter_alt_m, loops=1, altitude_step_m=self.layer_m
+        )
+        return Mission(
+            PERIMETER_ID,
+            GCS_ID,
+            MissionType.PERIMETER,
+            self.perimeter,
+            params,
+            Selector.ids(*ids),
+            "perimeter",
+            max(0.0, now),
+        )
 
     def route_mission(self, ids: Sequence[int], now: float) -> Mission:
         params = MissionParams(altitude_rel_m=self.route_alt_m, altitude_step_m=self.layer_m)
-        return Mission(ROUTE_ID, GCS_ID, MissionType.ROUTE, self.route, params,
-                       Selector.ids(*ids), "route", max(0.0, now))  # fmt: skip
+        return Mission(
+            ROUTE_ID,
+            GCS_ID,
+            MissionType.ROUTE,
+            self.route,
+            params,
+            Selector.ids(*ids),
+            "route",
+            max(0.0, now),
+        )
 
 
 # --------------------------------------------------------------------------- actions
@@ -265,7 +306,9 @@ class Record:
     missions: dict[int, MissionRecord] = field(default_factory=dict)
     votes: dict[int, dict[int, Vote]] = field(default_factory=dict)  # mission -> voter -> vote
     chosen: dict[int, dict[int, str]] = field(default_factory=dict)  # mission -> winner -> text
-    replans: list[tuple[float, int, int, str]] = field(default_factory=list)  # t, mission, vid, phase
+    replans: list[tuple[float, int, int, str]] = field(
+        default_factory=list
+    )  # t, mission, vid, phase
     failed: dict[int, float] = field(default_factory=dict)
     alerts: list[tuple[float, Alert]] = field(default_factory=list)
     winners: tuple[int, ...] = ()
@@ -419,12 +462,15 @@ class Story:
             self.record.chosen.setdefault(mid, {})[a.vehicle_id] = a.text
 
     # ------------------------------------------------------------------ sending
-    def _send(self, msg: msgspec.Struct, ref: AckRef, ref_id: int, addressed: Sequence[int],
-              now: float) -> list[Action]:  # fmt: skip
+    def _send(
+        self, msg: msgspec.Struct, ref: AckRef, ref_id: int, addressed: Sequence[int], now: float
+    ) -> list[Action]:
         self.outstanding.append(_Outstanding(msg, ref, ref_id, frozenset(addressed), now))
         return [Send(msg)]
 
-    def _answered(self, ref: AckRef, ref_id: int, ids: Sequence[int], accepted: bool = True) -> bool:
+    def _answered(
+        self, ref: AckRef, ref_id: int, ids: Sequence[int], accepted: bool = True
+    ) -> bool:
         got = self.acks.get((ref, ref_id), {})
         return all(v in got and (got[v].accepted or not accepted) for v in ids)
 
@@ -487,8 +533,10 @@ class Story:
                 late.append(f"{v}: not heard")
             else:
                 mid = i.mission_id if i else 0
-                late.append(f"{v}: {s.fsm_state.name}/{s.mission_state.name} mission {mid} "
-                            f"{s.mission_progress_pct}% {s.alt_rel_m:.0f} m")  # fmt: skip
+                late.append(
+                    f"{v}: {s.fsm_state.name}/{s.mission_state.name} mission {mid} "
+                    f"{s.mission_progress_pct}% {s.alt_rel_m:.0f} m"
+                )
         return "timed out; " + "; ".join(late)
 
     # ------------------------------------------------------------------ the script
@@ -498,17 +546,29 @@ class Story:
             for v in self.alive:  # the experiment has failed: say why now, not at a timeout
                 s = self.status.get(v)
                 if s is not None and s.fsm_state == FsmState.EMERGENCY:
-                    why = next((a.text for _, a in reversed(rec.alerts) if a.vehicle_id == v
-                                and a.severity >= Severity.CRITICAL), "")  # fmt: skip
-                    return self._finish(False, f"{self.phase.value}: vehicle {v} in an "
-                                        f"emergency{': ' + why if why else ''}", now)  # fmt: skip
+                    why = next(
+                        (
+                            a.text
+                            for _, a in reversed(rec.alerts)
+                            if a.vehicle_id == v and a.severity >= Severity.CRITICAL
+                        ),
+                        "",
+                    )
+                    return self._finish(
+                        False,
+                        f"{self.phase.value}: vehicle {v} in an "
+                        f"emergency{': ' + why if why else ''}",
+                        now,
+                    )
         match self.phase:
             case Phase.UP:
                 up = all(
-                    v in self.status and self.status[v].gps_fix >= 3
-                    and v in self.info and self.info[v].home is not None
+                    v in self.status
+                    and self.status[v].gps_fix >= 3
+                    and v in self.info
+                    and self.info[v].home is not None
                     for v in self.members
-                )  # fmt: skip
+                )
                 if not up:
                     return []
                 rec.t0 = now
@@ -516,13 +576,21 @@ class Story:
                 assert home is not None
                 base = GeoPoint(home.lat_deg, home.lon_deg, home.alt_msl_m)
                 self._go(Phase.BASE, now)
-                cmd = Command(GCS_ID, self._base_seq, CommandKind.SET_BASE, Selector(),
-                              CommandArgs(point=base), max(0.0, now))  # fmt: skip
+                cmd = Command(
+                    GCS_ID,
+                    self._base_seq,
+                    CommandKind.SET_BASE,
+                    Selector(),
+                    CommandArgs(point=base),
+                    max(0.0, now),
+                )
                 return [
-                    Say(f"set the base at vehicle {self.members[0]}'s pad "
-                        f"({base.lat_deg:.5f}, {base.lon_deg:.5f}): every vehicle activates"),
+                    Say(
+                        f"set the base at vehicle {self.members[0]}'s pad "
+                        f"({base.lat_deg:.5f}, {base.lon_deg:.5f}): every vehicle activates"
+                    ),
                     *self._send(cmd, AckRef.COMMAND, cmd.seq, self.members, now),
-                ]  # fmt: skip
+                ]
             case Phase.BASE:
                 if not (
                     self._answered(AckRef.COMMAND, self._base_seq, self.members)
@@ -530,13 +598,22 @@ class Story:
                 ):
                     return []
                 self._go(Phase.ZONES, now)
-                out: list[Action] = [Say(
-                    "declare the no-fly zones: " + "; ".join(
-                        f"{z.name} ({z.geometry.radius_m or 0:.0f} m circle)" for z in p.zones)
-                )]  # fmt: skip
+                out: list[Action] = [
+                    Say(
+                        "declare the no-fly zones: "
+                        + "; ".join(
+                            f"{z.name} ({z.geometry.radius_m or 0:.0f} m circle)" for z in p.zones
+                        )
+                    )
+                ]
                 for z in p.zones:
-                    out += self._send(msgspec.structs.replace(z, issuer_id=GCS_ID), AckRef.ZONE,
-                                      z.zone_id, self.members, now)  # fmt: skip
+                    out += self._send(
+                        msgspec.structs.replace(z, issuer_id=GCS_ID),
+                        AckRef.ZONE,
+                        z.zone_id,
+                        self.members,
+                        now,
+                    )
                 return out
             case Phase.ZONES:
                 if not all(self._answered(AckRef.ZONE, z.zone_id, self.members) for z in p.zones):
@@ -545,10 +622,12 @@ class Story:
                 m = plan.area_mission(now)
                 self._mission(AREA_ID, "area").sent_at = rec.rel(now)
                 return [
-                    Say(f"send the area survey to vehicles {list(self.members)} "
-                        f"({p.area_alt_m:.0f} m above home, {p.side_overlap:.0%} side overlap)"),
+                    Say(
+                        f"send the area survey to vehicles {list(self.members)} "
+                        f"({p.area_alt_m:.0f} m above home, {p.side_overlap:.0%} side overlap)"
+                    ),
                     *self._send(m, AckRef.MISSION, AREA_ID, self.members, now),
-                ]  # fmt: skip
+                ]
             case Phase.AREA:
                 if not self._answered(AckRef.MISSION, AREA_ID, self.members):
                     got = self.acks.get((AckRef.MISSION, AREA_ID), {})
@@ -561,45 +640,66 @@ class Story:
                 return [Say("the fleet plans the survey together and takes off")]
             case Phase.LAUNCH:
                 if not all(
-                    self._stood_by(v) or (
+                    self._stood_by(v)
+                    or (
                         self._flying_share(v, AREA_ID)
                         and self.status[v].mission_state == MissionState.MISSION
                     )
                     for v in self.members
-                ):  # fmt: skip
+                ):
                     return []
                 self._go(Phase.SURVEY, now)
                 down = [v for v in self.members if self._stood_by(v)]
                 if not down:
                     return [Say(f"all {len(self.members)} vehicles fly their shares of the survey")]
-                return [Say(f"{len(self.surveyors)} vehicles fly their shares of the survey; the "
-                            f"plan gave {', '.join(map(str, down))} none (beyond their battery "
-                            "or adding nothing at their speed): they stay down")]  # fmt: skip
+                return [
+                    Say(
+                        f"{len(self.surveyors)} vehicles fly their shares of the survey; the "
+                        f"plan gave {', '.join(map(str, down))} none (beyond their battery "
+                        "or adding nothing at their speed): they stay down"
+                    )
+                ]
             case Phase.SURVEY:
                 progress = [self.status[v].mission_progress_pct for v in self.surveyors]
                 if min(progress) < p.target_at_pct:
                     return []
                 self._go(Phase.VOTE, now)
                 lat, lon = p.target
-                report = TargetReport(TARGET_ID, p.reporter, TargetSource.PAYLOAD, max(0.0, now),
-                                      GeoPoint(lat, lon, 0.0), p.target_class, 0.93)  # fmt: skip
+                report = TargetReport(
+                    TARGET_ID,
+                    p.reporter,
+                    TargetSource.PAYLOAD,
+                    max(0.0, now),
+                    GeoPoint(lat, lon, 0.0),
+                    p.target_class,
+                    0.93,
+                )
                 self._mission(p.target_mission_id, "target").sent_at = rec.rel(now)
                 return [
-                    Say(f"vehicle {p.reporter}'s camera reports a {p.target_class} at "
-                        f"{lat:.5f}, {lon:.5f} (confidence 0.93): the swarm's rule sends 2"),
+                    Say(
+                        f"vehicle {p.reporter}'s camera reports a {p.target_class} at "
+                        f"{lat:.5f}, {lon:.5f} (confidence 0.93): the swarm's rule sends 2"
+                    ),
                     *self._send(report, AckRef.MISSION, p.target_mission_id, self.members, now),
-                ]  # fmt: skip
+                ]
             case Phase.VOTE:
                 tmid = p.target_mission_id
-                going = sorted(v for v in self.alive if self.info.get(v) is not None
-                               and self.info[v].mission_id == tmid)  # fmt: skip
+                going = sorted(
+                    v
+                    for v in self.alive
+                    if self.info.get(v) is not None and self.info[v].mission_id == tmid
+                )
                 if len(going) < 2 and not (going and now - self.since > 60.0):
                     return []
                 rec.winners = tuple(going)
                 rec.stayers = tuple(v for v in self.surveyors if v not in going)
                 self._go(Phase.REPLAN, now)
-                return [Say(f"voted out to the target: {', '.join(map(str, going))}; "
-                            f"{', '.join(map(str, rec.stayers))} re-split the area")]  # fmt: skip
+                return [
+                    Say(
+                        f"voted out to the target: {', '.join(map(str, going))}; "
+                        f"{', '.join(map(str, rec.stayers))} re-split the area"
+                    )
+                ]
             case Phase.REPLAN:
                 if not self._replanned(rec.stayers, rec.steps[-1][0]):
                     return []
@@ -614,10 +714,12 @@ class Story:
                 rec.survivors = tuple(v for v in rec.stayers if v != victim)
                 self._go(Phase.INHERIT, now)
                 return [
-                    Say(f"vehicle {victim} fails: its companion computer and aircraft are "
-                        f"lost; {', '.join(map(str, rec.survivors))} inherit its share"),
+                    Say(
+                        f"vehicle {victim} fails: its companion computer and aircraft are "
+                        f"lost; {', '.join(map(str, rec.survivors))} inherit its share"
+                    ),
                     Fail(victim),
-                ]  # fmt: skip
+                ]
             case Phase.INHERIT:
                 if not self._replanned(rec.survivors, rec.steps[-1][0]):
                     return []
@@ -671,14 +773,24 @@ class Story:
         if PERIMETER_ID not in self._finish_sent and self._target_watched(now):
             self._finish_sent.add(PERIMETER_ID)
             self._mission(PERIMETER_ID, "perimeter").sent_at = rec.rel(now)
-            out += [Say(f"target watched: {', '.join(map(str, pair))} patrol the perimeter west "
-                        "of the field (they meet at their entry points)")]  # fmt: skip
-            out += self._send(p.perimeter_mission(pair, now), AckRef.MISSION, PERIMETER_ID, pair, now)
+            out += [
+                Say(
+                    f"target watched: {', '.join(map(str, pair))} patrol the perimeter west "
+                    "of the field (they meet at their entry points)"
+                )
+            ]
+            out += self._send(
+                p.perimeter_mission(pair, now), AckRef.MISSION, PERIMETER_ID, pair, now
+            )
         if ROUTE_ID not in self._finish_sent and self._completed(PERIMETER_ID, pair):
             self._finish_sent.add(ROUTE_ID)
             self._mission(ROUTE_ID, "route").sent_at = rec.rel(now)
-            out += [Say(f"perimeter patrolled: {', '.join(map(str, crew))} fly the route north "
-                        "past the second zone (they meet at their entry points)")]  # fmt: skip
+            out += [
+                Say(
+                    f"perimeter patrolled: {', '.join(map(str, crew))} fly the route north "
+                    "past the second zone (they meet at their entry points)"
+                )
+            ]
             out += self._send(p.route_mission(crew, now), AckRef.MISSION, ROUTE_ID, crew, now)
         for mid, ids in ((PERIMETER_ID, pair), (ROUTE_ID, crew)):
             got = self.acks.get((AckRef.MISSION, mid), {})
@@ -738,8 +850,13 @@ def fly_fast(
     # the nodes' defaults (a 60 s plan timeout: the close pads' take-off queue is not
     # counted in it, state_machine.Facts.launch_queued)
     settings = settings or NodeSettings()
-    fleet = FastFleet.build(list(plan.members), profiles, spacing_m=spacing_m,  # type: ignore[arg-type]
-                            settings=settings, mission_defaults=seed_mission_defaults())  # type: ignore[arg-type]  # fmt: skip
+    fleet = FastFleet.build(
+        list(plan.members),
+        profiles,  # type: ignore[arg-type]
+        spacing_m=spacing_m,
+        settings=settings,  # type: ignore[arg-type]
+        mission_defaults=seed_mission_defaults(),
+    )
     fleet.over_air = over_air
     t_start = fleet.now
     story = Story(plan, fleet.now)

@@ -13,25 +13,41 @@ import pytest
 from tests.conftest import REPO
 
 FORBIDDEN = {
-    "zenoh", "serial", "asyncio", "socket", "time", "threading", "sqlite3", "subprocess",
-    "signal", "datetime", "multiprocessing", "concurrent", "os", "selectors",
-}  # fmt: skip
+    "zenoh",
+    "serial",
+    "asyncio",
+    "socket",
+    "time",
+    "threading",
+    "sqlite3",
+    "subprocess",
+    "signal",
+    "datetime",
+    "multiprocessing",
+    "concurrent",
+    "os",
+    "selectors",
+}
 FORBIDDEN_FROM = {
     "pymavlink.mavutil",  # the MAVLink parser (pymavlink.dialects) is pure
     # the shells and the database: a core is fed by them, never calls them
-    "swarm_node.runtime", "swarm_node.database", "swarm_node.cli",
-    "radio_gateway.runtime", "swarm_sim.runtime", "gcs_cli.runtime",
-    "swarm_proto.session", "swarm_proto.clock", "swarm_proto.shutdown",
-}  # fmt: skip
+    "swarm_node.runtime",
+    "swarm_node.database",
+    "swarm_node.cli",
+    "radio_gateway.runtime",
+    "swarm_sim.runtime",
+    "gcs_cli.runtime",
+    "swarm_proto.session",
+    "swarm_proto.clock",
+    "swarm_proto.shutdown",
+}
 
 #: swarm_proto modules that do I/O (everything else in swarm_proto must be pure)
 SHELL_PROTO = {"__init__", "clock", "session", "shutdown"}
 
 
 def pure_files() -> list[Path]:
-    files = [
-        f for f in sorted((REPO / "swarm_proto").glob("*.py")) if f.stem not in SHELL_PROTO
-    ]
+    files = [f for f in sorted((REPO / "swarm_proto").glob("*.py")) if f.stem not in SHELL_PROTO]
     for pkg in ("swarm_node", "radio_gateway", "swarm_sim", "gcs_cli"):
         core = REPO / pkg / "core"
         if core.is_dir():
@@ -73,8 +89,12 @@ def test_the_rules_catch_a_core_importing_a_shell(tmp_path: Path) -> None:
     core = REPO / "swarm_node" / "core" / "_probe_.py"
     try:
         core.write_text("from ..runtime import node\nfrom ..database import SwarmDatabase\n")
-        assert violations(core) == {"swarm_node.runtime", "swarm_node.runtime.node",
-                                    "swarm_node.database", "swarm_node.database.SwarmDatabase"}
+        assert violations(core) == {
+            "swarm_node.runtime",
+            "swarm_node.runtime.node",
+            "swarm_node.database",
+            "swarm_node.database.SwarmDatabase",
+        }
     finally:
         core.unlink()
 
@@ -83,7 +103,8 @@ def violations(path: Path) -> set[str]:
     return {
         n
         for n in imported(path)
-        if n.split(".")[0] in FORBIDDEN or any(n == f or n.startswith(f + ".") for f in FORBIDDEN_FROM)
+        if n.split(".")[0] in FORBIDDEN
+        or any(n == f or n.startswith(f + ".") for f in FORBIDDEN_FROM)
     }
 
 

@@ -224,7 +224,7 @@ def test_results_directory_is_the_one_bench_writes() -> None:
 
 
 def test_separation_figures_show_what_avoidance_changes() -> None:
-    """Issue 14's checks on the FastFleet figures: with avoidance on, no danger or near
+    """Checks on the FastFleet figures: with avoidance on, no danger or near
     sample once airborne in all three scenarios and no near sample at all in the
     take-off case; with it off, the stress case has conflicts."""
     data = _load("separation")
@@ -232,7 +232,10 @@ def test_separation_figures_show_what_avoidance_changes() -> None:
         on = data[name]["on"]["airborne"]
         assert on["near"] == 0 and on["danger"] == 0, name
     assert data["exp2_takeoff_three_vtol"]["on"]["near"] == 0
-    assert data["stress_eight_headon"]["off"]["near"] + data["stress_eight_headon"]["off"]["danger"] > 0
+    assert (
+        data["stress_eight_headon"]["off"]["near"] + data["stress_eight_headon"]["off"]["danger"]
+        > 0
+    )
     pointmass = data["stress_eight_headon_pointmass"]
     assert pointmass["on"]["near"] == 0 and pointmass["off"]["near"] > 0
 
@@ -247,16 +250,21 @@ def test_radio_scale_rows_have_no_collisions() -> None:
 
 
 def test_fault_campaign_rows() -> None:
-    """Issue 16: one row per fault (and mission) with the named figures; nothing declared
+    """One row per fault (and mission) with the named figures; nothing declared
     is lost and no emergency is false in any row."""
     data = _load("faults")
     rows = data["rows"]
     assert {r["fault"] for r in rows} >= {
-        "none", "kill -9 a node (restarted after 5 s)", "SIGSTOP a node 3 s",
-        "restart an autopilot (empty stores)", "drop 30 % of swarm messages",
-        "partition the swarm in two for 20 s", "clock jump +1 h on one node",
-        "disk full on the database", "corrupted database at start (new one)",
-    }  # fmt: skip
+        "none",
+        "kill -9 a node (restarted after 5 s)",
+        "SIGSTOP a node 3 s",
+        "restart an autopilot (empty stores)",
+        "drop 30 % of swarm messages",
+        "partition the swarm in two for 20 s",
+        "clock jump +1 h on one node",
+        "disk full on the database",
+        "corrupted database at start (new one)",
+    }
     assert {r["env"] for r in rows} == {"fast", "processes"}
     for row in rows:
         assert all(k in row for k in FAULT_ROW), row
@@ -266,7 +274,7 @@ def test_fault_campaign_rows() -> None:
 
 
 def test_the_demo_figures_are_a_passing_run() -> None:
-    """Issue 18: the demo's figures come from a run that passed (every mission, no
+    """The demo's figures come from a run that passed (every mission, no
     near-collision, the area covered), beside the fast-time flight of the same story."""
     data = _load("demo")
     assert data["ok"] and data["exit_code"] == 0, data["failures"]

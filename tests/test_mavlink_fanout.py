@@ -91,8 +91,18 @@ def test_the_node_and_the_radio_gateway_share_the_autopilot(tmp_path: Path) -> N
     link = gps = None
     try:
         log = (tmp_path / "sim.log").open("wb")
-        sim = [str(BIN / "swarm-sim"), "vehicle", "--model", "copter", "--instance",
-               str(instance), "--sysid", "1", "--speedup", "2"]  # fmt: skip
+        sim = [
+            str(BIN / "swarm-sim"),
+            "vehicle",
+            "--model",
+            "copter",
+            "--instance",
+            str(instance),
+            "--sysid",
+            "1",
+            "--speedup",
+            "2",
+        ]
         procs.append(
             subprocess.Popen(sim, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         )

@@ -131,9 +131,18 @@ def test_tls_only_the_ground_station_commands(tls_lab: SwarmLab) -> None:
     other = s.lab.logdir / "other"
     make_swarm_certs(other, "default", [1], [900], ["10.77.1.1"])
     argv = [
-        str(s.bin / "gcs"), "--zenoh-config", str(other / "gcs-900.json5"),
-        "--connect", "tls/10.77.1.1:7447", "cmd", "set-fleet", "--fleet-id", "5", "--id", "1",
-    ]  # fmt: skip
+        str(s.bin / "gcs"),
+        "--zenoh-config",
+        str(other / "gcs-900.json5"),
+        "--connect",
+        "tls/10.77.1.1:7447",
+        "cmd",
+        "set-fleet",
+        "--fleet-id",
+        "5",
+        "--id",
+        "1",
+    ]
     r = s.lab.run(s.gcs, argv, s.env)
     assert r.returncode == 2 and "cannot open Zenoh" in r.stderr, r.stdout + r.stderr
     time.sleep(0.5)

@@ -12,7 +12,7 @@ again, when it is over and what each addressed vehicle answered:
     ex.next_deadline()    -> when to call on_timer again (None when finished)
 
 Whom it addresses comes from membership AND the swarm database, not only from what
-the ground station has heard (issue 15: `set-base` listed 2 of 4 acks; `mission --id
+the ground station has heard (`set-base` listed 2 of 4 acks; `mission --id
 8` said "addresses none" because 8 was not heard yet):
 
 - listed ids (`--id`): exactly those, heard or not;
@@ -273,7 +273,9 @@ class Exchange:
 
     # ------------------------------------------------------------------ outcome
     def _complete(self) -> bool:
-        return bool(self.expected) and self.expected <= set(self.answers) and not self.undetermined()
+        return (
+            bool(self.expected) and self.expected <= set(self.answers) and not self.undetermined()
+        )
 
     def _check(self, now: float) -> list[Output]:
         if self.copies == 0:
@@ -299,10 +301,12 @@ class Exchange:
                 sorted(
                     v
                     for v, k in self._known.items()
-                    if k.in_database and not k.alive and v not in self.expected
+                    if k.in_database
+                    and not k.alive
+                    and v not in self.expected
                     and v not in self.not_addressed
                 )
-            )  # fmt: skip
+            )
         return Outcome(
             self.request,
             tuple(rows),

@@ -22,7 +22,7 @@ duplicate-free.
   know each other from their RadioStats; the one with the lowest node id republishes at
   once, the others hold what they heard for `holdoff_s` and republish only what the first
   did not (it may have missed the frame).
-- Send on error (`predictor` set, issue 19): the local vehicle's own VehicleStatus does
+- Send on error (`predictor` set): the local vehicle's own VehicleStatus does
   not go to the outbox; `from_lan` hands it back as `OwnStatus` for the radio node, which
   puts it on air when its peers' dead reckoning of it would be off (`telemetry.py`).
   Every status heard on air is published as heard and then, every 1 / republish_hz,

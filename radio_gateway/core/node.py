@@ -51,7 +51,7 @@ class NodeConfig:
     # latest-only telemetry kept per key between slots (see Outbox): 2 with 400 ms cycles
     # carries every 5 Hz status, two to a frame
     latest_keep: int = 1
-    # send on error (issue 19): our own vehicle's status goes on air only when the peers'
+    # send on error: our own vehicle's status goes on air only when the peers'
     # dead reckoning of it would be off (telemetry.OwnTelemetry); None: as queued
     send_on_error: SendOnErrorConfig | None = None
     # the adaptive schedule: ask for a slot share that follows our need level
@@ -366,9 +366,15 @@ class RadioNode:
     # ------------------------------------------------------------------ transmit
     def _next_slot(self, t: float) -> TxSlot | None:
         m = self.membership
-        key = (m.phase, m.table_hash, tuple(sorted(m.pending.items())),
-               tuple(sorted(m.pending_levels.items())), self._last_tx_cycle,
-               m._join_cycle, m._join_sent)  # fmt: skip
+        key = (
+            m.phase,
+            m.table_hash,
+            tuple(sorted(m.pending.items())),
+            tuple(sorted(m.pending_levels.items())),
+            self._last_tx_cycle,
+            m._join_cycle,
+            m._join_sent,
+        )
         if self._slot is not None and key == self._slot_key and self._slot.air_start >= t:
             return self._slot
         self._slot = m.next_tx(t, self._last_tx_cycle + 1)

@@ -16,7 +16,7 @@ instead of slots colliding; `over_limit` says so. When no join slot fits, every
 A lone member (n = 1) sends at a pseudo-random offset within its slot, so that two nodes
 that bootstrapped alone at the same time do not collide forever and can find each other.
 
-**Shares by need (the adaptive schedule, issue 19).** Each member has a need *level*
+**Shares by need (the adaptive schedule).** Each member has a need *level*
 (0 parked, 1 flying: the default, 2 avoiding or control traffic, 3 spare), agreed like the members
 themselves (scheduled changes, `membership.py`) and carried in every frame's header. A
 member of level l gets w = 2^(l - lowest level) slots per period, evenly spaced: the

@@ -53,7 +53,7 @@ class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     sync_s: float = 0.006  # the module's per-packet preamble
     min_payload: int = 42  # with send on error at least 88: a status (+ turn rate) and room
     latest_keep: int = 1  # 2 with cycle_s 0.4, min_payload 84: 5 Hz statuses, two a frame
-    # issue 19: "on_error" (send on error, peers predicted on the LAN) or "every" (each
+    # "on_error" (send on error, peers predicted on the LAN) or "every" (each
     # status queued, latest only, at most 5 Hz)
     status_mode: str = "on_error"
     threshold_m: float = 5.0  # send when the peers' prediction would be this far off
@@ -258,8 +258,10 @@ def run_gateway(config: GatewayConfig, stop: threading.Event, clock: Clock | Non
         if problems:
             for p in problems:
                 log.error("radio %s: %s", config.port, p)
-            log.error("refusing to run: the radio is not set up for bandada "
-                      "(run `radio-gateway configure` or pass --configure)")  # fmt: skip
+            log.error(
+                "refusing to run: the radio is not set up for bandada "
+                "(run `radio-gateway configure` or pass --configure)"
+            )
             return 3
     source = time_source_from_spec(config.time_source, clock)
     port = serial.Serial(config.port, settings.serial_baud, timeout=0.05)

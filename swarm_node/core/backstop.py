@@ -1,4 +1,4 @@
-"""The autopilot's backstop kept true (issue 16): the fence (no-fly zones and operating
+"""The autopilot's backstop kept true: the fence (no-fly zones and operating
 areas, fences.py) and the rally point (the base) the node loads into ArduPilot must be
 there if the companion computer fails; an autopilot that reboots or reconnects may come
 back with an empty or different store.
@@ -74,7 +74,10 @@ def same_items(kind: MissionKind, held: tuple[MissionItem, ...], want: list[Miss
     for h, w in zip(held, want, strict=True):
         if h.command != w.command:
             return False
-        if abs(h.lat_deg - w.lat_deg) > _LATLON_TOL_DEG or abs(h.lon_deg - w.lon_deg) > _LATLON_TOL_DEG:
+        if (
+            abs(h.lat_deg - w.lat_deg) > _LATLON_TOL_DEG
+            or abs(h.lon_deg - w.lon_deg) > _LATLON_TOL_DEG
+        ):
             return False
         if kind == MissionKind.FENCE and abs(h.param1 - w.param1) > _PARAM_TOL:
             return False
@@ -150,8 +153,10 @@ class BackstopKeeper:
             return self._next(ap, now)
         if not result.ok:
             check.due = now + self.retry_s  # link down, timeout: again later
-            return [Note(logging.INFO, f"{_NAME[kind]} check: {result.reason}; retrying"),
-                    *self._next(ap, now)]  # fmt: skip
+            return [
+                Note(logging.INFO, f"{_NAME[kind]} check: {result.reason}; retrying"),
+                *self._next(ap, now),
+            ]
         if check.stage == Stage.RESTORE:  # our rally upload went through: read it back
             check.stage, check.due = Stage.REVERIFY, now
             return self._next(ap, now)
@@ -206,7 +211,9 @@ class BackstopKeeper:
             return self._submit(kind, DownloadMission(kind=kind))
         return []
 
-    def _submit(self, kind: MissionKind, request: DownloadMission | UploadRally) -> list[ModuleOutput]:
+    def _submit(
+        self, kind: MissionKind, request: DownloadMission | UploadRally
+    ) -> list[ModuleOutput]:
         rid = next(self._ids)
         self._in_flight = (kind, rid)
         return [Submit(msgspec.structs.replace(request, request_id=rid), Owner.FENCE)]
@@ -237,14 +244,18 @@ class BackstopKeeper:
             else:
                 out.append(Note(logging.INFO, f"{name} verified on the autopilot ({check.why})"))
             if check.failed:
-                out.append(self._alert(now, Severity.INFO, kind, f"{name} on the autopilot right again"))
+                out.append(
+                    self._alert(now, Severity.INFO, kind, f"{name} on the autopilot right again")
+                )
             return out + self._next(ap, now)
         detail = f"{len(held)} items, {len(want)} wanted"
         if check.stage == Stage.VERIFY:
             if check.why in ATTACHED:
                 text = f"autopilot {name} lost or changed ({check.why}): restoring"
-                out += [Note(logging.WARNING, f"{text}; {detail}"),
-                        self._alert(now, Severity.WARNING, kind, text)]  # fmt: skip
+                out += [
+                    Note(logging.WARNING, f"{text}; {detail}"),
+                    self._alert(now, Severity.WARNING, kind, text),
+                ]
             else:  # a new base: the rally point is uploaded for it
                 out.append(Note(logging.INFO, f"{name} for the new base: uploading ({detail})"))
         else:

@@ -158,7 +158,7 @@ def _land_request(profile: VehicleProfile) -> tuple[ApRequest, ...]:
     return (Land(),)
 
 
-#: Lowest rally point altitude above home per vehicle type (issue 11): ArduPlane's RTL
+#: Lowest rally point altitude above home per vehicle type: ArduPlane's RTL
 #: flies to a rally point at the rally point's own altitude (RTL_ALTITUDE is no floor:
 #: recorded, a QuadPlane sent to a rally point at 0 m flew into the ground) and circles it
 #: there; ArduCopter climbs to max(rally altitude, RTL_ALT) and lands below it.
@@ -171,7 +171,7 @@ SAFE_RALLY_ALT_REL_M: dict[VehicleType, float] = {
 
 def rally_alt_rel_m(vehicle_type: VehicleType, base_alt_rel_m: float) -> float:
     """The rally point's altitude above home for the base: the operator's base altitude,
-    never below home (issue 16: a base given without an altitude is 0 m above sea
+    never below home (a base given without an altitude is 0 m above sea
     level, `gcs cmd set-base --point LAT,LON`; with home 10 m above sea level a rover's
     rally point went to -10 m) and never below the vehicle type's safe floor."""
     rel = max(base_alt_rel_m, 0.0) if math.isfinite(base_alt_rel_m) else 0.0
@@ -470,4 +470,6 @@ class CommandTracker:
         return min(r.deadline for r in self._running.values())
 
     def _ack(self, cmd: Command, ok: bool, reason: AckReason, text: str) -> Ack:
-        return Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, short_text(text))
+        return Ack(
+            self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, short_text(text)
+        )

@@ -1,5 +1,5 @@
-"""What the operator declared, held by every node so that none of it is silently lost
-(issue 16): zones and operating areas, bases, fleets and missions.
+"""What the operator declared, held by every node so that none of it is silently lost:
+zones and operating areas, bases, fleets and missions.
 
 A declaration carries a stamp, the ground station's clock when the operator made it
 (`time_unix_s` of the NoFlyZone, Command, FleetAssignment, Mission): a node that gets a

@@ -1,4 +1,4 @@
-"""An emergency return that does not cross a no-fly zone (issue 11, defect 2).
+"""An emergency return that does not cross a no-fly zone.
 
 ArduPilot's RTL flies a straight line to the rally point (or home). Against SITL a
 copter that breached a zone was sent to RTL and flew straight through it (13.8 m from
@@ -59,11 +59,20 @@ def zone_safe_emergency(
     margin = max(TRANSIT_MARGIN_M, 2.0 * radius)
     try:
         if profile.is_fixed_wing:
-            legs = fixed_wing_transit(start, ap.heading_deg, there, alt, zones, radius_m=radius,
-                                      now=now, home_alt_msl_m=home.alt_msl_m)  # fmt: skip
+            legs = fixed_wing_transit(
+                start,
+                ap.heading_deg,
+                there,
+                alt,
+                zones,
+                radius_m=radius,
+                now=now,
+                home_alt_msl_m=home.alt_msl_m,
+            )
         else:
-            legs = safe_transit(start, there, alt, zones, now=now, home_alt_msl_m=home.alt_msl_m,
-                                margin_m=margin)  # fmt: skip
+            legs = safe_transit(
+                start, there, alt, zones, now=now, home_alt_msl_m=home.alt_msl_m, margin_m=margin
+            )
     except (PlanningError, ValueError) as exc:
         return requests, f"no zone-safe way home ({exc}): plain RTL"
     if len(legs) <= 1:

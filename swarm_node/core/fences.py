@@ -1,5 +1,5 @@
 """No-fly zones and operating areas loaded into the autopilot as ArduPilot fences: the
-backstop if the companion computer fails (issue 3).
+backstop if the companion computer fails.
 
 `plan_fence` decides what the autopilot's fence holds; `FenceKeeper` uploads it (one
 request at a time) whenever that changes, and retries after a failure.
@@ -232,7 +232,7 @@ class FenceKeeper:
 
     def forget(self) -> None:
         """The autopilot may no longer hold what was uploaded (it rebooted, or its store
-        was found different: backstop.py, issue 16): upload it again, FENCE_TYPE first."""
+        was found different: backstop.py): upload it again, FENCE_TYPE first."""
         self.held = None
         self.type_set = False
         self._retry_at = None

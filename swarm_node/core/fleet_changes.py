@@ -1,5 +1,5 @@
 """What the node does when its fleet changes by a vote, a target report, a join or a
-swap (issue 13): it carries out what `mission/tasking.py` (QUANTITY missions, the
+swap: it carries out what `mission/tasking.py` (QUANTITY missions, the
 ballot, re-tasking) and `swarm/regroup.py` (add and swap) return, with the node's own
 parts: acks, the roster, the state machine's events, the mission manager. NodeCore
 routes to it (node.py: `Mission` of a QUANTITY selector, `Vote`, `TargetReport`,
@@ -58,19 +58,29 @@ class FleetChanges:
         reason, text = check_mission(mission, self.node.view()), ""
         st: Standing | None = None
         if reason == AckReason.OK:
-            mission = with_defaults(mission, self.node.mission_defaults.get(mission.mission_type, {}))
+            mission = with_defaults(
+                mission, self.node.mission_defaults.get(mission.mission_type, {})
+            )
             st = self.standing()
             reason, text = self.node.tasking.answer(mission, st)
         ok = reason == AckReason.OK
-        ack = Ack(self.node.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok,
-                  reason, text[:64])  # fmt: skip
+        ack = Ack(
+            self.node.self_id,
+            mission.issuer_id,
+            AckRef.MISSION,
+            mission.mission_id,
+            ok,
+            reason,
+            text[:64],
+        )
         out: list[ModuleOutput] = self.node._answer([ack]) if ok else [Publish(ack)]
         if not ok or st is None:
             return out
         if st.flying is not None:
             electorate, lost = self.node.tasking.electorate(mission, st)
-            start = self.node.tasking.start(mission, electorate, lost, st.me, now,
-                                            home=st.flying, lead=self.lead(mission))  # fmt: skip
+            start = self.node.tasking.start(
+                mission, electorate, lost, st.me, now, home=st.flying, lead=self.lead(mission)
+            )
             return out + self.tasked(start, now)
         self.node.missions[mission.mission_id] = mission
         self.node.fsm.post(fsm.NewMission(mission.mission_id))
@@ -98,9 +108,13 @@ class FleetChanges:
         ):
             flying = r.mission_id
             replanning = f.state != FsmState.GO_MISSION or self.node.manager.mission_state not in (
-                MissionState.PREMISSION, MissionState.MISSION)  # fmt: skip
+                MissionState.PREMISSION,
+                MissionState.MISSION,
+            )
         present = {
-            v: p for v, p in self.node.members.peers.items() if p.present and not p.is_ground_station
+            v: p
+            for v, p in self.node.members.peers.items()
+            if p.present and not p.is_ground_station
         }
         return Standing(
             self.node.self_id,
@@ -157,11 +171,14 @@ class FleetChanges:
             self.node.manager.elected()
             members, unknown = self.node._members()
             if unknown:
-                self.node.fsm.post(fsm.PlanFailed(mid, f"no profile for fleet members {unknown}"[:64]))
+                self.node.fsm.post(
+                    fsm.PlanFailed(mid, f"no profile for fleet members {unknown}"[:64])
+                )
                 return []
             self.node.regroup.founded(e.mission, members)
-            return self.node.manager.release(e.mission, members, self.node.planning_zones(now),
-                                        self.node.autopilot, now)  # fmt: skip
+            return self.node.manager.release(
+                e.mission, members, self.node.planning_zones(now), self.node.autopilot, now
+            )
         if e.goes:
             if self.node.fsm.mission_id == e.home:
                 self.node.missions.pop(e.home, None)  # left for the new mission, not completed
@@ -172,8 +189,17 @@ class FleetChanges:
             ]
             if not e.outcome.stayers and self.node.self_id == min(winners):
                 text = f"mission {e.home} left unfinished: its fleet went to {mid}"
-                out.append(Publish(Alert(self.node.self_id, max(0.0, now), Severity.WARNING,
-                                         AlertCode.MISSION_FAILED, text[:64])))  # fmt: skip
+                out.append(
+                    Publish(
+                        Alert(
+                            self.node.self_id,
+                            max(0.0, now),
+                            Severity.WARNING,
+                            AlertCode.MISSION_FAILED,
+                            text[:64],
+                        )
+                    )
+                )
             return out
         if self.node.roster.mission_id == e.home:
             return self.node._roster_events(self.node.roster.voted_out(winners))
@@ -187,7 +213,9 @@ class FleetChanges:
         if cmd.target.kind == SelectorKind.QUANTITY or not cmd.target.addresses(
             self.node.self_id, self.node.fleet_id
         ):
-            plan = plan_command(cmd, self.node.view())  # not addressed: no answer; QUANTITY: refused
+            plan = plan_command(
+                cmd, self.node.view()
+            )  # not addressed: no answer; QUANTITY: refused
             return self.node._answer([plan.ack]) if plan is not None and plan.ack else []
         self.node.answers.taken(answer_key(cmd))
         view = self.node.view()
@@ -208,8 +236,10 @@ class FleetChanges:
         out = self.node._answer([ack])
         if not ok:
             return out
-        mission = with_defaults(self.node.regroup.heard[to], self.node.mission_defaults.get(
-            self.node.regroup.heard[to].mission_type, {}))  # fmt: skip
+        mission = with_defaults(
+            self.node.regroup.heard[to],
+            self.node.mission_defaults.get(self.node.regroup.heard[to].mission_type, {}),
+        )
         if st.flying is not None:
             if cmd.kind == CommandKind.SWAP_MISSION and self.emptied(cmd, st.flying, to):
                 out += self.hand_over(st.flying, to)
@@ -237,11 +267,15 @@ class FleetChanges:
             return [Note(logging.WARNING, f"mission {ours}: no plan to hand over")]
         last = Lineage(lineage.mission, lineage.first, list(lineage.steps))
         self.node.regroup.replanned(ours, (), self.node._progress_now()[0])  # the hand-over step
-        msg = self.node.regroup.lineages[ours].message(self.node.self_id, self.node.roster.members_hash, theirs)
+        msg = self.node.regroup.lineages[ours].message(
+            self.node.self_id, self.node.roster.members_hash, theirs
+        )
         self.node.regroup.lineages[ours] = last
         self.node.regroup.on_lineage(msg)  # we go to their fleet: we take it up with them
-        return [Note(logging.INFO, f"mission {ours}: emptied, handed to mission {theirs}'s fleet"),
-                Publish(msg)]  # fmt: skip
+        return [
+            Note(logging.INFO, f"mission {ours}: emptied, handed to mission {theirs}'s fleet"),
+            Publish(msg),
+        ]
 
     def take_over_handed(self, ours: int) -> None:
         """Our mission is flown: take up an emptied fleet's mission handed to ours (the
@@ -282,6 +316,11 @@ class FleetChanges:
             self.node.regroup.lineages[mid] = lineage
         self.node.missions[mid] = msg.mission
         self.node.roster.adopt(mid, lineage.everyone, lineage.members, len(lineage.steps))
-        return self.node.manager.release(msg.mission, replay.first, self.node.planning_zones(now),
-                                    self.node.autopilot, now, lineage=replay)  # fmt: skip
-
+        return self.node.manager.release(
+            msg.mission,
+            replay.first,
+            self.node.planning_zones(now),
+            self.node.autopilot,
+            now,
+            lineage=replay,
+        )

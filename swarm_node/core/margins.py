@@ -1,6 +1,6 @@
 """How far from its planned path ArduPilot really flies, per vehicle type: the margin
-plans keep from no-fly zones, and the zone-safe way home in an emergency (issue 11,
-defect 2).
+plans keep from no-fly zones, and the zone-safe way home in an emergency.
+
 
 - **ArduCopter** (and multirotor-like ground vehicles) accepts a waypoint within
   WPNAV_RADIUS (default 200 cm) and rounds each corner on its inside: the recorded

@@ -26,7 +26,7 @@ is heard again every one gets a fresh `stale_after_s`. A `swarm-sim demo --radio
 load 10-20 replanned three times at launch, "the fleet changed", for such gaps. A single
 telemetry peer's silence is taken at its word, as a LAN peer's withdrawn token is.
 
-Cost per event does not grow with the swarm (issue 20): the peers that can go stale
+Cost per event does not grow with the swarm: the peers that can go stale
 (present, no liveliness token) are kept in two lists, one per staleness rule, least
 recently heard first. Hearing a peer moves it to the end of its list; the next deadline
 is the first peer of each list; the timer looks only at peers whose time has come
@@ -153,8 +153,10 @@ class SwarmMembership:
             peer = peers.get(vid)
             if peer is None or not peer.alive_token:
                 self._feed_heard(now)
-            if isinstance(msg, VehicleStatus) and not self.behind_radio and (
-                msg.predicted_s > 0.0 or msg.position_error_m > 0.0
+            if (
+                isinstance(msg, VehicleStatus)
+                and not self.behind_radio
+                and (msg.predicted_s > 0.0 or msg.position_error_m > 0.0)
             ):
                 self.behind_radio = True  # a gateway's prediction: our peers are radio peers
             if peer is None or not peer.present:

@@ -209,7 +209,9 @@ class MissionManager:
     # an airborne share's approach: planned from where the vehicle was; planned again if
     # it has moved on by the time its upload is done (held, slow link): (share waypoints,
     # zones, home altitude, lat, lon, times planned again)
-    _approach: tuple[tuple[Waypoint, ...], tuple[NoFlyZone, ...], float, float, float, int] | None = None
+    _approach: (
+        tuple[tuple[Waypoint, ...], tuple[NoFlyZone, ...], float, float, float, int] | None
+    ) = None
     _ap: AutopilotState | None = None  # the autopilot as last seen
 
     def __post_init__(self) -> None:
@@ -262,8 +264,9 @@ class MissionManager:
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         self._job += 1
         self._planning = (mission, tuple(zones))
-        req = PlanRequest(self._job, mission, tuple(members), tuple(zones), now, home_alt,
-                          lineage=lineage)  # fmt: skip
+        req = PlanRequest(
+            self._job, mission, tuple(members), tuple(zones), now, home_alt, lineage=lineage
+        )
         fleet_ids = sorted(m.profile.vehicle_id for m in members)
         return [Log(f"mission {mission.mission_id}: planning for fleet {fleet_ids}"), PlanJob(req)]
 
@@ -278,9 +281,11 @@ class MissionManager:
         if self.sortie.state == MissionState.REPLAN:
             if outcome.plan is not None and fleet is not None:
                 self._held = outcome
-                note = Log(f"mission {self._planning[0].mission_id}: replanned for "
-                           f"{list(outcome.plan.roster)} (plan {outcome.plan.digest()}); "
-                           "flown once they all agree")  # fmt: skip
+                note = Log(
+                    f"mission {self._planning[0].mission_id}: replanned for "
+                    f"{list(outcome.plan.roster)} (plan {outcome.plan.digest()}); "
+                    "flown once they all agree"
+                )
                 return [note, *self._agree(ap, now, fleet)]  # maybe at once
             if fleet is not None:  # no replan: fly on, with the roster every member flies
                 fleet.rollback()
@@ -292,8 +297,9 @@ class MissionManager:
         re-synchronise on a mismatch; fly on without it when no agreement comes
         (mission/agreement.py)."""
         self.agreement.begin(now)
-        verdict = self.agreement.verdict(fleet, now, held=self._held is not None,
-                                         planning=self._planning is not None)  # fmt: skip
+        verdict = self.agreement.verdict(
+            fleet, now, held=self._held is not None, planning=self._planning is not None
+        )
         if verdict == Verdict.WAIT:
             return []
         if verdict == Verdict.AGREED:
@@ -305,8 +311,10 @@ class MissionManager:
             if unflown > 0.0:  # the batteries fly only part of the lost members' rest
                 mid = self.mission_id if self.mission_id is not None else 0
                 text = f"mission {mid}: {unflown:.0%} of the lost member's rest left (battery)"
-                out += [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now,
-                                                                 AlertCode.MISSION_FAILED)]  # fmt: skip
+                out += [
+                    Note(logging.WARNING, text),
+                    self._alert(Severity.WARNING, text, now, AlertCode.MISSION_FAILED),
+                ]
             return out
         mid = self.mission_id if self.mission_id is not None else 0
         others = ", ".join(f"{v} with {h:#06x}" for v, h in self.agreement.others)
@@ -315,13 +323,19 @@ class MissionManager:
         if verdict == Verdict.MISMATCH:
             text = f"mission {mid}: replan roster {others}, ours {fleet.members_hash:#06x}"
             note = f"{text}; planning again from the roster all flew"
-            return [Note(logging.WARNING, note), self._alert(Severity.WARNING, text, now),
-                    Post(fsm.Replan(mid))]  # fmt: skip
+            return [
+                Note(logging.WARNING, note),
+                self._alert(Severity.WARNING, text, now),
+                Post(fsm.Replan(mid)),
+            ]
         self.agreement.end()
         why = f"different rosters ({others})" if others else "no answer in time"
         text = f"mission {mid}: no replan agreed, {why}; flying on"
-        return [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now),
-                *self._resume(mid)]  # fmt: skip
+        return [
+            Note(logging.WARNING, text),
+            self._alert(Severity.WARNING, text, now),
+            *self._resume(mid),
+        ]
 
     def _alert(
         self, severity: Severity, text: str, now: float, code: AlertCode = AlertCode.ROSTER_MISMATCH
@@ -340,9 +354,11 @@ class MissionManager:
         if outcome.plan is None:
             if replan:  # keep flying the share we have: the lost rest stays unflown
                 text = f"mission {mid}: no replan ({outcome.error}); flying on"
-                return [Note(logging.WARNING, text),
-                        self._alert(Severity.WARNING, text, now, AlertCode.MISSION_FAILED),
-                        *self._resume(mid)]  # fmt: skip
+                return [
+                    Note(logging.WARNING, text),
+                    self._alert(Severity.WARNING, text, now, AlertCode.MISSION_FAILED),
+                    *self._resume(mid),
+                ]
             return self._failed(mid, outcome.error)
         old = self.share
         self.fleet_plan = outcome.plan
@@ -398,9 +414,11 @@ class MissionManager:
         self.sortie.go(Trigger.RELEASED)
         if sync:  # PREMISSION: launch, climb, then our leg to the fleet's meet time
             group = list(self.sync.group)
-            note = Log(f"mission {mid}: planned for fleet {fleet_ids}; PREMISSION with {group}, "
-                       f"at our entry by {self.sync.eta_unix_s:.1f} at the earliest "
-                       f"(plan {outcome.plan.digest()})")  # fmt: skip
+            note = Log(
+                f"mission {mid}: planned for fleet {fleet_ids}; PREMISSION with {group}, "
+                f"at our entry by {self.sync.eta_unix_s:.1f} at the earliest "
+                f"(plan {outcome.plan.digest()})"
+            )
             if ap.armed:
                 self.phase = Phase.MEETING
                 return [note, *self._confirm(mid)]
@@ -448,8 +466,10 @@ class MissionManager:
         self.items, self.last_item = 0, 0
         self.sortie.path_m, self.sortie.progress_m = 1.0, 0.0
         self.sortie.go(Trigger.RELEASED)
-        note = Log(f"mission {mid}: following lead {follow.lead_id} in slot {follow.slot} "
-                   f"of {len(follow.offsets)}")  # fmt: skip
+        note = Log(
+            f"mission {mid}: following lead {follow.lead_id} in slot {follow.slot} "
+            f"of {len(follow.offsets)}"
+        )
         if ap.armed:
             self.phase = Phase.FOLLOWING
             self.sortie.go(Trigger.STARTED)
@@ -472,7 +492,9 @@ class MissionManager:
             return [Log(f"mission {mid}: {why}"), Post(fsm.MissionComplete(mid))]
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         return [
-            Submit(msgspec.structs.replace(r, request_id=next(self._ids)), self.owner, Owner.MISSION)
+            Submit(
+                msgspec.structs.replace(r, request_id=next(self._ids)), self.owner, Owner.MISSION
+            )
             for r in follow.step(ap, now, self.zones, home_alt)
         ]
 
@@ -553,9 +575,11 @@ class MissionManager:
             waypoints = sync.plan_leg(ap, self.zones, now, home_alt, t)
             leg = sync.leg
             assert leg is not None
-            note = Log(f"mission {self.mission_id}: PREMISSION leg {leg.flown_m:.0f} m at "
-                       f"{leg.speed_m_s:.1f} m/s, leaving in {sync.depart_unix_s - now:.1f} s, "
-                       f"at our entry at {sync.meet_unix_s:.1f} ({sync.meet_unix_s - now:.1f} s)")  # fmt: skip
+            note = Log(
+                f"mission {self.mission_id}: PREMISSION leg {leg.flown_m:.0f} m at "
+                f"{leg.speed_m_s:.1f} m/s, leaving in {sync.depart_unix_s - now:.1f} s, "
+                f"at our entry at {sync.meet_unix_s:.1f} ({sync.meet_unix_s - now:.1f} s)"
+            )
             self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap))]
         except (PlanningError, ValueError) as exc:  # fly the share as planned
             sync.stop()
@@ -590,7 +614,7 @@ class MissionManager:
     ) -> None:
         """After the node restarted: the autopilot flies the share this node uploaded
         before (`items`, completed at `last_item`); watch it again to its end, without
-        a request (issue 16, reattach.py). Progress in metres resumes from `progress_m`."""
+        a request (reattach.py). Progress in metres resumes from `progress_m`."""
         self.stop()
         self.sortie.begin(keep_progress=False)
         self.sortie.go(Trigger.RELEASED)
@@ -636,13 +660,23 @@ class MissionManager:
         self._job += 1
         self._planning = (mission, tuple(zones))
         self.replanned_from = dict(progress_m)
-        req = PlanRequest(self._job, mission, tuple(survivors), tuple(zones), now, home_alt,
-                          base=base, progress_m=dict(progress_m),
-                          battery_pct=dict(battery_pct or {}))  # fmt: skip
+        req = PlanRequest(
+            self._job,
+            mission,
+            tuple(survivors),
+            tuple(zones),
+            now,
+            home_alt,
+            base=base,
+            progress_m=dict(progress_m),
+            battery_pct=dict(battery_pct or {}),
+        )
         ids = sorted(m.profile.vehicle_id for m in survivors)
         done = {v: round(p) for v, p in sorted(progress_m.items())}
-        return [Log(f"mission {mission.mission_id}: replanning for {ids} from {done} m"),
-                PlanJob(req)]  # fmt: skip
+        return [
+            Log(f"mission {mission.mission_id}: replanning for {ids} from {done} m"),
+            PlanJob(req),
+        ]
 
     def _resume(self, mid: int) -> list[Out]:
         if self.sortie.state == MissionState.REPLAN:
@@ -726,9 +760,14 @@ class MissionManager:
         out = (*lead, *leg, *waypoints)
         free = frozenset(range(len(lead) + len(leg))) | {len(lead) + len(leg) + first_at}
         return fly_corners(
-            out, self.profile, zones, start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
-            free=free, now=now, home_alt_msl_m=home_alt,
-        )  # fmt: skip
+            out,
+            self.profile,
+            zones,
+            start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
+            free=free,
+            now=now,
+            home_alt_msl_m=home_alt,
+        )
 
     def _transit(
         self,
@@ -746,10 +785,15 @@ class MissionManager:
         (`flown_turn_radius_m`)."""
         if self.profile.is_fixed_wing:
             return fixed_wing_transit(
-                start, heading_deg, end, alt_rel_m, zones,
-                radius_m=flown_turn_radius_m(self.profile, speed_m_s), now=now,
+                start,
+                heading_deg,
+                end,
+                alt_rel_m,
+                zones,
+                radius_m=flown_turn_radius_m(self.profile, speed_m_s),
+                now=now,
                 home_alt_msl_m=home_alt,
-            )  # fmt: skip
+            )
         return safe_transit(
             start,
             end,
@@ -834,9 +878,15 @@ class MissionManager:
         assert ap.lat_deg is not None and ap.lon_deg is not None
         alt = max(ap.alt_rel_m or 0.0, 30.0)
         return self._transit(
-            (ap.lat_deg, ap.lon_deg), ap.heading_deg, there, alt, zones, now, home_alt,
+            (ap.lat_deg, ap.lon_deg),
+            ap.heading_deg,
+            there,
+            alt,
+            zones,
+            now,
+            home_alt,
             speed_m_s=flown_speed_m_s(ap),
-        )  # fmt: skip
+        )
 
     def _flyable_leg(
         self,
@@ -851,10 +901,15 @@ class MissionManager:
         if ap.lat_deg is None or ap.lon_deg is None:
             return tuple(leg)
         return fly_corners(
-            leg, self.profile, zones, start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
-            free=frozenset(range(len(leg) - 1)), now=now, home_alt_msl_m=home_alt,
+            leg,
+            self.profile,
+            zones,
+            start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
+            free=frozenset(range(len(leg) - 1)),
+            now=now,
+            home_alt_msl_m=home_alt,
             speed_m_s=flown_speed_m_s(ap),
-        )  # fmt: skip
+        )
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
@@ -916,7 +971,11 @@ class MissionManager:
                 return self._abandon(f"autopilot: {result.reason}")
             self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
-        if isinstance(done, UploadMission) and self._steps and isinstance(self._steps[0], StartMission):
+        if (
+            isinstance(done, UploadMission)
+            and self._steps
+            and isinstance(self._steps[0], StartMission)
+        ):
             again = self._approach_again(now)
             if again:
                 return again
@@ -957,8 +1016,13 @@ class MissionManager:
         self._approach = (base, zones, home_alt, ap.lat_deg, ap.lon_deg, tries + 1)
         self._steps = [UploadMission(items=self._load(waypoints, ap)), StartMission()]
         mid = self.mission_id if self.mission_id is not None else 0
-        return [Log(f"mission {mid}: moved {moved:.0f} m while uploading; approach planned "
-                    "again from here"), *self._next()]  # fmt: skip
+        return [
+            Log(
+                f"mission {mid}: moved {moved:.0f} m while uploading; approach planned "
+                "again from here"
+            ),
+            *self._next(),
+        ]
 
     def _approach_slack_m(self) -> float:
         """How far the vehicle may move between planning its approach and starting it:
@@ -1036,9 +1100,7 @@ class MissionManager:
             return out
         if self.share is not None and self._share_index:
             k = self._share_index[min(reached, len(self._share_index) - 1)] if reached else -1
-            self.sortie.advance(
-                self._offset + self.share.progress_m(k, ap.lat_deg, ap.lon_deg)
-            )
+            self.sortie.advance(self._offset + self.share.progress_m(k, ap.lat_deg, ap.lon_deg))
         if self.lands:
             return out + self._landing(ap, now, fleet)
         done = reached >= self.last_item and self.hold_seq == 0
@@ -1066,7 +1128,7 @@ class MissionManager:
         StartMission sets the first one, and may report that item (deep in a replanned
         share) reached: a demo survivor's progress jumped 1,500 m down its new share,
         the field's top lane, the second it started it; lost soon after, its inheritors
-        took that lane as flown and nobody flew it (issue 18). A state read between a
+        took that lane as flown and nobody flew it. A state read between a
         MISSION_ITEM_REACHED and the MISSION_CURRENT after it keeps the item before."""
         self._fresh_reached |= ap.mission_reached != self._stale[0]
         if self._fresh_reached and not 0 < ap.mission_current <= ap.mission_reached:
@@ -1102,13 +1164,22 @@ class MissionManager:
         if late is not None and self._in_flight is None and not self._steps:
             return self._leg_overdue(ap, now, late)
         speed = sync.control(
-            ap, now, reached, self.share_progress_m(), meet,
-            fleet.progress if fleet is not None else {}, gone,
-        )  # fmt: skip
+            ap,
+            now,
+            reached,
+            self.share_progress_m(),
+            meet,
+            fleet.progress if fleet is not None else {},
+            gone,
+        )
         out: list[Out] = []
         if sync.arrived_at is not None and self.sortie.state == MissionState.PREMISSION:
             self.sortie.go(Trigger.STARTED)
-            out.append(Log(f"mission {self.mission_id}: at our entry, {now - meet:+.1f} s from the meet time"))
+            out.append(
+                Log(
+                    f"mission {self.mission_id}: at our entry, {now - meet:+.1f} s from the meet time"
+                )
+            )
         if speed is not None:
             req = ChangeSpeed(request_id=next(self._ids), speed_m_s=speed)
             out.append(Submit(req, self.owner, Owner.MISSION))
@@ -1119,8 +1190,11 @@ class MissionManager:
         entry; the meet is given up and the share flown from here, with an alert."""
         text = f"mission {self.mission_id}: PREMISSION leg not at its entry {late_s:.0f} s after the meet"
         self.sync.stop()
-        return [Note(logging.WARNING, text), self._alert(Severity.WARNING, text, now, AlertCode.GENERIC),
-                *self._fly_share_from_here(ap, now, "the PREMISSION leg overdue")]  # fmt: skip
+        return [
+            Note(logging.WARNING, text),
+            self._alert(Severity.WARNING, text, now, AlertCode.GENERIC),
+            *self._fly_share_from_here(ap, now, "the PREMISSION leg overdue"),
+        ]
 
     def _on_station(self, ap: AutopilotState) -> bool:
         """Within the hold's loiter circle (its radius plus a turn radius)."""
@@ -1181,9 +1255,11 @@ def share_index_of_items(
     for w in uploaded:
         for j in range(k + 1, len(share)):
             sw = share[j]
-            if sw.kind == w.kind and abs(sw.lat_deg - w.lat_deg) < 1e-6 and abs(
-                sw.lon_deg - w.lon_deg
-            ) < 1e-6:
+            if (
+                sw.kind == w.kind
+                and abs(sw.lat_deg - w.lat_deg) < 1e-6
+                and abs(sw.lon_deg - w.lon_deg) < 1e-6
+            ):
                 k = j
                 break
         out.append(k)
@@ -1205,7 +1281,9 @@ def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float
     at = (ap.lat_deg, ap.lon_deg) if ap.lat_deg is not None and ap.lon_deg is not None else None
     total = 0.0
     for w in waypoints:
-        if w.kind in (ItemKind.CHANGE_SPEED, ItemKind.RTL) or (w.lat_deg == 0.0 and w.lon_deg == 0.0):
+        if w.kind in (ItemKind.CHANGE_SPEED, ItemKind.RTL) or (
+            w.lat_deg == 0.0 and w.lon_deg == 0.0
+        ):
             out.append(total)
             continue
         if at is not None:

@@ -10,11 +10,11 @@ Each condition has hysteresis in time: it is raised after holding for `raise_aft
 and cleared after being absent for `clear_after_s`, so a voltage sag or one late
 packet does not flap alerts. Autopilot link loss is raised at once (the link itself
 already waited its timeout), as a WARNING: it becomes an EMERGENCY (CRITICAL on the
-ground) only when the loss lasts `link_emergency_after_s` (issue 11: on a loaded host
+ground) only when the loss lasts `link_emergency_after_s` (on a loaded host
 one 0.8 s gap, back 0.4 s later, ended a mission ArduPilot was flying fine). That is
 5 s, ArduPilot's own convention for a lost ground link (Copter FS_GCS_TIMEOUT, Plane
 FS_LONG_TIMEOUT: both 5 s by default; docs/reliability.md), and the node's own stalls
-(`note_stall`: its loop not served, a loaded host) do not count toward it (issue 16).
+(`note_stall`: its loop not served, a loaded host) do not count toward it.
 A link that never came up is not a loss: "no autopilot yet" is a WARNING after
 `link_grace_s`, never an emergency (a slow start on a loaded host raised it CRITICAL
 91 ms after the link opened).
@@ -54,7 +54,7 @@ class Thresholds:
     clear_after_s: float = 3.0
     link_grace_s: float = 10.0  # at start, the autopilot link may take this long to come up
     # a link loss lasting this long is an emergency: ArduPilot's FS_GCS_TIMEOUT (Copter)
-    # and FS_LONG_TIMEOUT (Plane) default, 5 s (issue 16; it was 2 s)
+    # and FS_LONG_TIMEOUT (Plane) default, 5 s (it was 2 s)
     link_emergency_after_s: float = 5.0
 
     @classmethod
@@ -239,9 +239,7 @@ class VehicleMonitor:
                 code == AlertCode.AUTOPILOT_LINK_LOSS
                 and code in seen
                 and (
-                    self._never_up
-                    or tr.since is None
-                    or now - tr.since < t.link_emergency_after_s
+                    self._never_up or tr.since is None or now - tr.since < t.link_emergency_after_s
                 )
             ):
                 severity = Severity.WARNING  # a short gap (or none yet): the mission goes on
@@ -288,8 +286,11 @@ class VehicleMonitor:
             return "EKF estimate not good yet"
         if s.home is None:
             return "autopilot has no home yet"
-        critical = [c.name for c, tr in self._tracked.items()
-                    if tr.active and tr.severity >= Severity.CRITICAL]  # fmt: skip
+        critical = [
+            c.name
+            for c, tr in self._tracked.items()
+            if tr.active and tr.severity >= Severity.CRITICAL
+        ]
         return f"critical: {', '.join(critical)}" if critical else ""
 
     def _alert(self, now: float, severity: Severity, code: AlertCode, text: str) -> Alert:

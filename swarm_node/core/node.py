@@ -189,7 +189,7 @@ class PlanDone:
 @dataclass(frozen=True)
 class Learned:
     """Declared state from the node's own database at start (`sortie`: the share it
-    was flying) or from a peer (issue 16): merged, the newest stamp wins."""
+    was flying) or from a peer: merged, the newest stamp wins."""
 
     state: DeclaredState
     sortie: SortieRecord | None = None
@@ -205,18 +205,39 @@ class StoreResult:
 
 
 Input = (
-    AutopilotUpdate | AutopilotResult | PeerAlive | Received | BadInput | PlanDone | Learned
+    AutopilotUpdate
+    | AutopilotResult
+    | PeerAlive
+    | Received
+    | BadInput
+    | PlanDone
+    | Learned
     | StoreResult
-)  # fmt: skip
+)
 
 
 # what the shell carries out (Post stays inside)
 Output = Publish | Submit | Note | PlanJob | Persist
 __all__ = [  # noqa: RUF022 (inputs, outputs, the core)
-    "AutopilotResult", "AutopilotUpdate", "BadInput", "Input", "Learned", "PeerAlive",
-    "PlanDone", "Received", "StoreResult", "Note", "Output", "Persist", "PlanJob", "Post",
-    "Publish", "Submit", "NodeCore", "NodeSettings",
-]  # fmt: skip
+    "AutopilotResult",
+    "AutopilotUpdate",
+    "BadInput",
+    "Input",
+    "Learned",
+    "PeerAlive",
+    "PlanDone",
+    "Received",
+    "StoreResult",
+    "Note",
+    "Output",
+    "Persist",
+    "PlanJob",
+    "Post",
+    "Publish",
+    "Submit",
+    "NodeCore",
+    "NodeSettings",
+]
 
 
 @dataclass(frozen=True)
@@ -250,9 +271,10 @@ class NodeCore:
         self.self_id = vid
         self.autopilot = AutopilotState()
         self.monitor = VehicleMonitor(
-            vid, self.settings.thresholds or Thresholds.from_profile(self.profile),
+            vid,
+            self.settings.thresholds or Thresholds.from_profile(self.profile),
             vehicle_type=self.profile.vehicle_type,  # an autopilot of another type is flagged
-        )  # fmt: skip
+        )
         self.members = SwarmMembership(
             vid,
             stale_after_s=self.settings.stale_after_s,
@@ -274,7 +296,7 @@ class NodeCore:
         self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
         self.arbiter = AutopilotArbiter()
         self.fence = FenceKeeper()  # zones -> the autopilot's fence (fences.py)
-        # the fence and rally point checked on the autopilot (backstop.py, issue 16)
+        # the fence and rally point checked on the autopilot (backstop.py)
         self.backstop = BackstopKeeper(vid, self.fence)
         self.fence_plan: FencePlan | None = None
         # its first tick at once: now, not at time 0 (a deadline of 0 reads as a stall)
@@ -343,8 +365,9 @@ class NodeCore:
     def info(self) -> VehicleInfo:
         p = self.profile
         mid = self.fsm.mission_id
-        progress_m, path_m = published_progress(self.manager.sortie.progress_m,
-                                                self.manager.sortie.path_m)  # fmt: skip
+        progress_m, path_m = published_progress(
+            self.manager.sortie.progress_m, self.manager.sortie.path_m
+        )
         return VehicleInfo(
             vehicle_id=self.self_id,
             vehicle_type=p.vehicle_type,
@@ -522,9 +545,12 @@ class NodeCore:
         """What the operator declared, as this node holds it (the DECLARED queryable)."""
         mid = self.fsm.mission_id
         return self.declared.snapshot(
-            self.self_id, now, base=self.base, fleet_id=self.fleet_id,
+            self.self_id,
+            now,
+            base=self.base,
+            fleet_id=self.fleet_id,
             mission_id=mid if mid is not None and mid > 0 else 0,
-        )  # fmt: skip
+        )
 
     def _learn(
         self, state: DeclaredState, sortie: SortieRecord | None, source: str, now: float
@@ -557,11 +583,18 @@ class NodeCore:
         if self.sortie_record is None and m.phase.value != "flying":
             return  # no share flown, none recorded: nothing to keep (most inputs)
         rec = sortie_record(
-            mission_id=m.mission_id, flying=m.phase.value == "flying", members=r.members,
-            planned=r.planned, generation=r.generation, members_hash_=r.members_hash,
-            items=m.items, last_item=m.last_item, path_m=m.sortie.path_m,
-            progress_m=m.sortie.progress_m, now=now,
-        )  # fmt: skip
+            mission_id=m.mission_id,
+            flying=m.phase.value == "flying",
+            members=r.members,
+            planned=r.planned,
+            generation=r.generation,
+            members_hash_=r.members_hash,
+            items=m.items,
+            last_item=m.last_item,
+            path_m=m.sortie.path_m,
+            progress_m=m.sortie.progress_m,
+            now=now,
+        )
         if not same_share(rec, self.sortie_record):
             self.sortie_record = rec
             self._dirty = True
@@ -595,8 +628,12 @@ class NodeCore:
         out: list[ModuleOutput] = []
         if base is not None and base_at > self._base_stamp:
             self.base, self._base_stamp = base, base_at
-            out.append(Note(logging.INFO, f"base {base.lat_deg:.6f},{base.lon_deg:.6f} "
-                                          f"learned from {source}"))  # fmt: skip
+            out.append(
+                Note(
+                    logging.INFO,
+                    f"base {base.lat_deg:.6f},{base.lon_deg:.6f} learned from {source}",
+                )
+            )
         if fleet_at > self._fleet_stamp:
             if fleet != self.fleet_id:
                 out.append(Note(logging.INFO, f"fleet {fleet} learned from {source}"))
@@ -613,9 +650,10 @@ class NodeCore:
         text = f"declared state not stored: {error}"
         return [
             Note(logging.WARNING, f"{text} (held in memory and by the peers; retried)"),
-            Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC,
-                          text[:64])),
-        ]  # fmt: skip
+            Publish(
+                Alert(self.self_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC, text[:64])
+            ),
+        ]
 
     def _stalled(self, now: float) -> list[ModuleOutput]:
         """The node's own stall (served later than its declared deadline): not counted
@@ -634,9 +672,10 @@ class NodeCore:
         text = f"node stalled {stall:.1f} s (host busy), not a link loss"
         return [
             Note(logging.WARNING, text),
-            Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC,
-                          text[:64])),
-        ]  # fmt: skip
+            Publish(
+                Alert(self.self_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC, text[:64])
+            ),
+        ]
 
     def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
         """Posts to the state machine, requests through the arbiter (a refusal goes
@@ -683,9 +722,16 @@ class NodeCore:
                 text = f"emergency procedure refused: {result.reason}"
                 return [
                     Note(logging.ERROR, text),
-                    Publish(Alert(self.self_id, max(0.0, now), Severity.CRITICAL,
-                                  AlertCode.GENERIC, short_text(text))),
-                ]  # fmt: skip
+                    Publish(
+                        Alert(
+                            self.self_id,
+                            max(0.0, now),
+                            Severity.CRITICAL,
+                            AlertCode.GENERIC,
+                            short_text(text),
+                        )
+                    ),
+                ]
             case Owner.AVOIDANCE:
                 return self._avoided(self.avoid.on_result(result, now))
             case _:
@@ -815,8 +861,15 @@ class NodeCore:
                         effect.point, self.autopilot, self.planning_zones(now), now
                     )
                 except (PlanningError, ValueError) as exc:
-                    ack = Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, False,
-                              AckReason.INVALID, short_text(f"no landing route: {exc}"))  # fmt: skip
+                    ack = Ack(
+                        self.self_id,
+                        cmd.issuer_id,
+                        AckRef.COMMAND,
+                        cmd.seq,
+                        False,
+                        AckReason.INVALID,
+                        short_text(f"no landing route: {exc}"),
+                    )
                     return self._answer([ack])
         for effect in plan.effects:
             self._apply(effect)
@@ -858,8 +911,15 @@ class NodeCore:
         why = self._not_ready_text() if reason == AckReason.NOT_READY else ""
         if reason == AckReason.BUSY and self.manager.touching_down:
             why = "landing: activate it once landed, then send it again"
-        ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mission.mission_id, ok, reason,
-                  short_text(why))  # fmt: skip
+        ack = Ack(
+            self.self_id,
+            mission.issuer_id,
+            AckRef.MISSION,
+            mission.mission_id,
+            ok,
+            reason,
+            short_text(why),
+        )
         # only an acceptance is remembered: a rejected mission sent again is checked again
         # (the operator may have fixed what was wrong, e.g. set the base; a vehicle may
         # have joined the fleet the mission addresses)
@@ -927,9 +987,16 @@ class NodeCore:
             text = f"fence full: zones {ids} not in the autopilot"
             out += [
                 Note(logging.WARNING, text),
-                Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
-                              AlertCode.NO_FLY_ZONE, short_text(text))),
-            ]  # fmt: skip
+                Publish(
+                    Alert(
+                        self.self_id,
+                        max(0.0, now),
+                        Severity.WARNING,
+                        AlertCode.NO_FLY_ZONE,
+                        short_text(text),
+                    )
+                ),
+            ]
         return out + [Submit(r, Owner.FENCE) for r in self.fence.update(plan.request, now)]
 
     def _fence_result(self, result: ApResult, now: float) -> list[ModuleOutput]:
@@ -942,9 +1009,16 @@ class NodeCore:
         if problem is not None and self.fence.failures == 1:  # once per run of failures
             out += [
                 Note(logging.WARNING, f"{problem}; retrying every {self.fence.retry_s:g} s"),
-                Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
-                              AlertCode.NO_FLY_ZONE, short_text(problem))),
-            ]  # fmt: skip
+                Publish(
+                    Alert(
+                        self.self_id,
+                        max(0.0, now),
+                        Severity.WARNING,
+                        AlertCode.NO_FLY_ZONE,
+                        short_text(problem),
+                    )
+                ),
+            ]
         return out
 
     def planning_zones(self, now: float) -> list[NoFlyZone]:
@@ -956,7 +1030,7 @@ class NodeCore:
         """Peers joined and left. A peer that leaves just after this node's own long
         stall (its Zenoh session dropped by the lease, its peers' news late) is only a
         suspect until `own_stall_grace_s` has passed: it is lost then if it did not come
-        back (issue 16: a node stopped 3 s otherwise took every member for lost and
+        back (a node stopped 3 s otherwise took every member for lost and
         replanned their shares alone)."""
         out: list[ModuleOutput] = []
         for ev in events:
@@ -990,9 +1064,14 @@ class NodeCore:
                 self.lost_members.append(ev)
                 del self.lost_members[:-20]
                 out.append(
-                    Note(logging.WARNING, f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})")
+                    Note(
+                        logging.WARNING,
+                        f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})",
+                    )
                 )
-                out += self.changes.tasked(self.tasking.handle(VoterLost(ev.vehicle_id), self.now), self.now)
+                out += self.changes.tasked(
+                    self.tasking.handle(VoterLost(ev.vehicle_id), self.now), self.now
+                )
                 if (
                     self.roster.frozen
                     and self.fsm.mission_id == ev.mission_id
@@ -1010,7 +1089,9 @@ class NodeCore:
                 ):
                     self.roster.join(ev.vehicle_id)
                     out += [
-                        Note(logging.INFO, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} joins"),
+                        Note(
+                            logging.INFO, f"mission {ev.mission_id}: vehicle {ev.vehicle_id} joins"
+                        ),
                         Post(fsm.Replan(ev.mission_id)),  # share what is left with it
                     ]
             elif isinstance(ev, RosterMismatch):  # an alert, once per member and hash
@@ -1021,16 +1102,30 @@ class NodeCore:
                     and self.fsm.mission_id == ev.mission_id
                 ):  # the fleet replanned our share away while we were stopped
                     out.append(Post(fsm.LeftFleet("the fleet replanned without this vehicle")))
-                    out.append(Note(logging.WARNING, f"mission {ev.mission_id}: the fleet "
-                                    "replanned without us; handing the share on"))  # fmt: skip
+                    out.append(
+                        Note(
+                            logging.WARNING,
+                            f"mission {ev.mission_id}: the fleet "
+                            "replanned without us; handing the share on",
+                        )
+                    )
                     continue
-                text = (f"mission {ev.mission_id}: vehicle {ev.vehicle_id} flies roster "
-                        f"{ev.theirs:#06x}, ours {ev.ours:#06x}")  # fmt: skip
+                text = (
+                    f"mission {ev.mission_id}: vehicle {ev.vehicle_id} flies roster "
+                    f"{ev.theirs:#06x}, ours {ev.ours:#06x}"
+                )
                 out += [
                     Note(logging.ERROR, text),
-                    Publish(Alert(self.self_id, max(0.0, self.now), Severity.WARNING,
-                                  AlertCode.ROSTER_MISMATCH, text[:64])),
-                ]  # fmt: skip
+                    Publish(
+                        Alert(
+                            self.self_id,
+                            max(0.0, self.now),
+                            Severity.WARNING,
+                            AlertCode.ROSTER_MISMATCH,
+                            text[:64],
+                        )
+                    ),
+                ]
         return out
 
     # ------------------------------------------------------------------ time
@@ -1082,7 +1177,7 @@ class NodeCore:
             if decision is not None:
                 out += self._reattached(decision, now)
         if now >= self.fsm.next_deadline():
-            # issue 11: alerts that escalate with time (a lasting link loss) are
+            # alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state
             out += [Publish(a) for a in self.monitor.update(self.autopilot, now)]
             out += self._tick_fsm(now)
@@ -1104,16 +1199,24 @@ class NodeCore:
             return []
         climbing = self.manager.phase == Phase.CLIMBING
         out = self.avoid.tick(
-            now, self.status(now), self.autopilot, zones=self.monitor.zones,
+            now,
+            self.status(now),
+            self.autopilot,
+            zones=self.monitor.zones,
             climb_target_rel_m=self.manager.takeoff_alt_m if climbing else None,
-            holder=self.arbiter.holder, pads=self._pads, peers=self._peer_homes,
-        )  # fmt: skip
+            holder=self.arbiter.holder,
+            pads=self._pads,
+            peers=self._peer_homes,
+        )
         return self._avoided(out)
 
     def _peer_homes(self) -> list[tuple[VehicleStatus, GeoPoint | None]]:
         """The live peers' latest statuses with their homes (the pad rules')."""
-        return [(p.status, p.info.home if p.info else None)
-                for p in self.members.peers.values() if p.present and p.status is not None]  # fmt: skip
+        return [
+            (p.status, p.info.home if p.info else None)
+            for p in self.members.peers.values()
+            if p.present and p.status is not None
+        ]
 
     def _pads(self) -> dict[int, GeoPoint]:
         """Every known vehicle's home (VehicleInfo), ours included: the pads."""
@@ -1179,7 +1282,9 @@ class NodeCore:
 
     def _carry_out(self, o: fsm.Output, now: float) -> list[ModuleOutput]:
         if isinstance(o, fsm.RaiseAlert):
-            return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, short_text(o.text)))]
+            return [
+                Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, short_text(o.text)))
+            ]
         if isinstance(o, fsm.StartEmergency):
             self.manager.stop()
             alert = Alert(
@@ -1188,9 +1293,13 @@ class NodeCore:
             out: list[ModuleOutput] = [Publish(alert)]
             self.arbiter.take(Owner.EMERGENCY)
             requests, why = zone_safe_emergency(
-                emergency_requests(o.code, self.profile), self.autopilot, self.base,
-                self.planning_zones(now), self.profile, now,
-            )  # fmt: skip
+                emergency_requests(o.code, self.profile),
+                self.autopilot,
+                self.base,
+                self.planning_zones(now),
+                self.profile,
+                now,
+            )
             if why:
                 out.append(Note(logging.WARNING, f"emergency: {why}"))
             return out + [Submit(r, Owner.EMERGENCY) for r in requests]
@@ -1272,8 +1381,15 @@ class NodeCore:
         if mission.selection.kind == SelectorKind.QUANTITY:  # idle candidates: vote first
             electorate = self.roster.freeze(self.members.peers)
             self.manager.vote()
-            start = self.tasking.start(mission, electorate, (), self.changes.candidate(), now,
-                                       home=None, lead=self.changes.lead(mission))  # fmt: skip
+            start = self.tasking.start(
+                mission,
+                electorate,
+                (),
+                self.changes.candidate(),
+                now,
+                home=None,
+                lead=self.changes.lead(mission),
+            )
             return self.changes.tasked(start, now)
         self.roster.freeze(self.members.peers)
         members, unknown = self._members()
@@ -1301,8 +1417,13 @@ class NodeCore:
             profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
             if profile is None:
                 continue
-            members.append(Member(profile, pose_on(base, vid, progress) if base else None,
-                                  heading_deg=heading_on(base, vid, progress) if base else None))  # fmt: skip
+            members.append(
+                Member(
+                    profile,
+                    pose_on(base, vid, progress) if base else None,
+                    heading_deg=heading_on(base, vid, progress) if base else None,
+                )
+            )
         self.roster.replanned(survivors)
         battery = lineage_battery(  # on the lineage's grid: a joiner replays it exactly
             replan_battery(base, members, progress, flown, mission.params.altitude_rel_m)

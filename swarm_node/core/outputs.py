@@ -80,7 +80,7 @@ class PlanJob:
 @dataclass(frozen=True)
 class Persist:
     """What the operator declared as this node holds it, and the share it flies, for
-    the shell to store in the node's database (issue 16: restored at start; a store
+    the shell to store in the node's database (restored at start; a store
     that fails comes back as the node input `StoreResult`)."""
 
     state: DeclaredState

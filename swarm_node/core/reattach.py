@@ -1,4 +1,4 @@
-"""A node that starts while its vehicle flies (issue 16): the node process restarted
+"""A node that starts while its vehicle flies: the node process restarted
 (a crash, kill -9, a watchdog), the vehicle flew on under ArduPilot with the share the
 node had uploaded. The node reattaches without sending the vehicle anywhere and
 without arming anything:
@@ -14,7 +14,7 @@ without arming anything:
      mission manager's `reattach`), completes it and flies home as usual; a share
      already flown (the autopilot past its last item) completes at once;
    - HAND_ON: a peer flies the mission with a newer roster without this vehicle (they
-     noticed its loss and inherited its share, issue 12), or the vehicle left AUTO:
+     noticed its loss and inherited its share), or the vehicle left AUTO:
      it leaves the fleet and flies the zone-safe way home (`LeftFleet`);
    - with no share on record (a new database, a disk that was full), a share of ours
      on the autopilot (it ends on the unlimited loiter every share ends on) in AUTO
@@ -90,8 +90,13 @@ def decide(
     if record is None:
         # no share on record (a new database, a full disk): a share of ours in AUTO
         # while peers fly a mission means they have taken it over since we vanished
-        flying = [i.vehicle_id for i in peers if i.vehicle_id != self_id and i.mission_id
-                  and i.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)]  # fmt: skip
+        flying = [
+            i.vehicle_id
+            for i in peers
+            if i.vehicle_id != self_id
+            and i.mission_id
+            and i.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)
+        ]
         if ap.mode_name in AUTO_MODES and ends_on_a_loiter(held) and flying:
             return Decision.HAND_ON, (
                 f"no share on record; its share's signature on the autopilot while "
@@ -232,9 +237,17 @@ def sortie_record(
     if not flying or mission_id is None or mission_id <= 0 or items <= 1:
         return None
     return SortieRecord(
-        mission_id, members, planned, generation, members_hash_, items, last_item,
-        path_m, progress_m, max(0.0, now),
-    )  # fmt: skip
+        mission_id,
+        members,
+        planned,
+        generation,
+        members_hash_,
+        items,
+        last_item,
+        path_m,
+        progress_m,
+        max(0.0, now),
+    )
 
 
 def same_share(a: SortieRecord | None, b: SortieRecord | None) -> bool:

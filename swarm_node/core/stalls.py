@@ -1,4 +1,4 @@
-"""The node's own stalls, measured apart from the autopilot link (issue 16).
+"""The node's own stalls, measured apart from the autopilot link.
 
 A core declares when it next needs to run (`next_deadline`); a shell that serves it late
 (the process stopped, a loaded host, a long garbage collection) shows up as lateness:

@@ -140,7 +140,7 @@ class Unassigned:
 @dataclass(frozen=True)
 class Reattached:
     """The node restarted while its vehicle flew its share of `mission_id`, and no peer
-    took it over: it continues it (reattach.py, issue 16)."""
+    took it over: it continues it (reattach.py)."""
 
     mission_id: int
 
@@ -312,7 +312,7 @@ def _is_current(c: Context) -> bool:
 
 
 def _link_back(c: Context) -> bool:
-    """An autopilot link loss drove the emergency and it is over (issue 16: before, a
+    """An autopilot link loss drove the emergency and it is over (before, a
     loss longer than 2 s ended the mission for good, though ArduPilot flew on)."""
     e = c.emergency
     return (
@@ -388,8 +388,11 @@ RULES: tuple[Rule, ...] = (
         guard=_link_back,
         outputs=lambda c: (
             LeaveFleet("autopilot link back: the others took the share"),
-            RaiseAlert(AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING,
-                       "autopilot link back: returning to base"),
+            RaiseAlert(
+                AlertCode.AUTOPILOT_LINK_LOSS,
+                Severity.WARNING,
+                "autopilot link back: returning to base",
+            ),
             BeginPlan(RETURN_MISSION),
         ),
     ),
@@ -609,7 +612,9 @@ class StateMachine:
         """Time in STATE_PLAN, less the take-off queue's wait."""
         if self.state != FsmState.PLAN:
             return 0.0
-        queued = self._queued_s + (now - self._queued_since if self._queued_since is not None else 0.0)
+        queued = self._queued_s + (
+            now - self._queued_since if self._queued_since is not None else 0.0
+        )
         return now - self.entered_at - queued
 
     def _context(self, now: float, facts: Facts, event: Event | None) -> Context:

@@ -498,7 +498,7 @@ class SwarmDatabase:
     # ------------------------------------------------------------------ node state
     def node_state_rows(self, node_id: int) -> list[tuple[str, str, float, bytes]]:
         """Node `node_id`'s stored declared state: (kind, key, stamp, payload) rows
-        (`state.py` decodes them; issue 16)."""
+        (`state.py` decodes them)."""
         with self._reading():
             rows = self._conn.execute(
                 "SELECT kind, key, stamp_unix_s, payload FROM node_declared WHERE node_id = ? "
@@ -507,9 +507,7 @@ class SwarmDatabase:
             ).fetchall()
         return [(r["kind"], r["key"], float(r["stamp_unix_s"]), bytes(r["payload"])) for r in rows]
 
-    def write_node_state(
-        self, node_id: int, rows: Sequence[tuple[str, str, float, bytes]]
-    ) -> None:
+    def write_node_state(self, node_id: int, rows: Sequence[tuple[str, str, float, bytes]]) -> None:
         """Replace node `node_id`'s stored declared state with `rows`, in one transaction
         (all or nothing: a full disk leaves the previous state whole; StorageError)."""
         with self._write() as conn:

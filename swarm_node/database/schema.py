@@ -377,7 +377,7 @@ ALTER TABLE system_model_params ADD COLUMN accel_m_s2 REAL NOT NULL DEFAULT 0
 """
 
 _V4 = """
--- What the operator declared, as this node holds it, and the share it flies (issue 16):
+-- What the operator declared, as this node holds it, and the share it flies:
 -- restored at start, so a restarted node forgets nothing (swarm_node/database/state.py).
 -- One row per declaration and node (a simulation's nodes may share one file);
 -- payload is the message in swarm_proto's LAN encoding (MessagePack); stamp_unix_s is
@@ -404,7 +404,7 @@ MIGRATIONS: tuple[Migration, ...] = (
         _V2,
     ),
     Migration(3, "model battery capacity, cruise and hover current, acceleration", _V3),
-    Migration(4, "the node's declared state and sortie, restored at start (issue 16)", _V4),
+    Migration(4, "the node's declared state and sortie, restored at start", _V4),
 )
 LATEST_VERSION = MIGRATIONS[-1].version
 

@@ -1,4 +1,4 @@
-"""The node's declared state in its swarm database (issue 16): what the operator
+"""The node's declared state in its swarm database: what the operator
 declared (zones, SET_BASE / SET_FLEET / CANCEL_MISSION commands, fleet assignments,
 missions) and the share the node flies, one row of `node_declared` per declaration,
 restored when the node starts.

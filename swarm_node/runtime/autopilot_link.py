@@ -262,8 +262,9 @@ class AutopilotLink:
             try:
                 out += self._core.submit(token, request, now)
             except InvalidRequest as exc:  # the vehicle type became known meanwhile
-                self._resolve(token, ApResult(request.request_id, False, str(exc),
-                                              error=ApError.DENIED))  # fmt: skip
+                self._resolve(
+                    token, ApResult(request.request_id, False, str(exc), error=ApError.DENIED)
+                )
         if now >= self._core.next_deadline():
             out += self._core.on_timer(now)
         self._execute(out)
@@ -312,12 +313,19 @@ class AutopilotLink:
                 if isinstance(ev, LinkLost):
                     log.warning("%s: link lost (%.2f s silent)", self.name, ev.silent_s)
                 elif isinstance(ev, LinkRestored):
-                    log.info("%s: link restored after %.2f s (the autopilot's own clock: "
-                             "%.2f s)", self.name, ev.down_s, ev.autopilot_gap_s)  # fmt: skip
+                    log.info(
+                        "%s: link restored after %.2f s (the autopilot's own clock: %.2f s)",
+                        self.name,
+                        ev.down_s,
+                        ev.autopilot_gap_s,
+                    )
                 elif isinstance(ev, HostStalled):  # a second or more is worth a warning
-                    log.log(logging.WARNING if ev.stall_s >= 1.0 else logging.DEBUG,
-                            "%s: read %.2f s late (this host stalled, not the link)",
-                            self.name, ev.stall_s)  # fmt: skip
+                    log.log(
+                        logging.WARNING if ev.stall_s >= 1.0 else logging.DEBUG,
+                        "%s: read %.2f s late (this host stalled, not the link)",
+                        self.name,
+                        ev.stall_s,
+                    )
                 self._deliver(ev)
             elif isinstance(o, Complete):
                 self._resolve(o.token, o.result)

@@ -15,9 +15,9 @@ they would slow the loop), whose outcome comes back through the inbox as `PlanDo
 
 Only the loop thread touches the core. The queryables (peers, zones, declared state)
 answer from a snapshot the loop refreshes at 5 Hz, so a Zenoh callback never waits for
-the loop (issue 16: a node starting its first plan job left `gcs peers` unanswered).
+the loop (a node starting its first plan job left `gcs peers` unanswered).
 
-Declared state (issue 16): restored from the node's database at start (`Learned` from
+Declared state: restored from the node's database at start (`Learned` from
 "database"), asked of every peer that comes alive (its DECLARED queryable), stored on
 every change by `StateWriter` off the loop.
 """
@@ -133,9 +133,7 @@ def tasking_settings_of(database: SwarmDatabase) -> TaskingSettings:
         except ProfileError:
             return {}
 
-    return TaskingSettings(
-        params(VOTING_MODULE), params(RETASK_MODULE), database.payload_classes()
-    )
+    return TaskingSettings(params(VOTING_MODULE), params(RETASK_MODULE), database.payload_classes())
 
 
 class AutopilotPort(Protocol):
@@ -276,9 +274,7 @@ class NodeRuntime:
         self._asker: threading.Thread | None = None
         self.database = database
         self._db_server: DatabaseQueryable | None = None
-        self.store = (
-            NodeStateStore(database, profile.vehicle_id) if database is not None else None
-        )
+        self.store = NodeStateStore(database, profile.vehicle_id) if database is not None else None
         self.writer = (
             StateWriter(self.store, self.inbox.put, name=f"state-{profile.vehicle_id}")
             if self.store is not None
@@ -345,8 +341,9 @@ class NodeRuntime:
     def _answer_missions(self, query: zenoh.Query) -> None:
         """Every mission this node accepted, one reply per mission key (gcs save)."""
         for m in self._snap.missions:
-            key = MISSIONS.key(self.config.swarm, vehicle_id=self.core.self_id,
-                               mission_id=m.mission_id)  # fmt: skip
+            key = MISSIONS.key(
+                self.config.swarm, vehicle_id=self.core.self_id, mission_id=m.mission_id
+            )
             if zenoh.KeyExpr(key).intersects(query.key_expr):
                 query.reply(key, lan.encode(m))
 
@@ -389,22 +386,30 @@ class NodeRuntime:
         try:
             state, sortie, bad = self.store.load(self.clock.now())
         except Exception as exc:  # an unreadable table: start empty, learn from peers
-            log.error("node %d: stored declared state unreadable (%s): starting from the "
-                      "peers'", self.core.self_id, exc)  # fmt: skip
+            log.error(
+                "node %d: stored declared state unreadable (%s): starting from the peers'",
+                self.core.self_id,
+                exc,
+            )
             return
         if bad:
-            log.warning("node %d: %d stored declarations did not decode (skipped)",
-                        self.core.self_id, bad)  # fmt: skip
+            log.warning(
+                "node %d: %d stored declarations did not decode (skipped)", self.core.self_id, bad
+            )
         log.info(
             "node %d: restored %d zones, %d commands, %d fleet assignments, %d missions%s",
-            self.core.self_id, len(state.zones), len(state.commands), len(state.assignments),
-            len(state.missions), " and the share it was flying" if sortie else "",
-        )  # fmt: skip
+            self.core.self_id,
+            len(state.zones),
+            len(state.commands),
+            len(state.assignments),
+            len(state.missions),
+            " and the share it was flying" if sortie else "",
+        )
         self.inbox.put(Learned(state, sortie, "database"))
 
     def _check_clock(self, now: float) -> None:
         """A step of the system clock (the node runs on a SteadyClock: it does not follow
-        it) is reported once per step (issue 16)."""
+        it) is reported once per step."""
         clock = self.clock
         wall = time.monotonic()
         if not isinstance(clock, SteadyClock) or wall - self._clock_checked < 1.0:
@@ -416,8 +421,19 @@ class NodeRuntime:
         self._clock_step_s = step
         text = f"system clock stepped {step:+.0f} s; node time kept steady"
         log.warning("node %d: %s", self.core.self_id, text)
-        self._execute([Publish(Alert(self.core.self_id, max(0.0, now), Severity.WARNING,
-                                     AlertCode.GENERIC, text[:64]))])  # fmt: skip
+        self._execute(
+            [
+                Publish(
+                    Alert(
+                        self.core.self_id,
+                        max(0.0, now),
+                        Severity.WARNING,
+                        AlertCode.GENERIC,
+                        text[:64],
+                    )
+                )
+            ]
+        )
 
     def _answer_peers(self, query: zenoh.Query) -> None:
         now = self.clock.now()
@@ -564,8 +580,12 @@ class NodeRuntime:
             self._ask_peers.put(None)
             self._asker.join(3.0)
             self._asker = None
-        for q in (self._queryable, self._zones_queryable, self._declared_queryable,
-                  self._missions_queryable):
+        for q in (
+            self._queryable,
+            self._zones_queryable,
+            self._declared_queryable,
+            self._missions_queryable,
+        ):
             if q is not None:
                 try:
                     q.undeclare()

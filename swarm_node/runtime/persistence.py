@@ -1,4 +1,4 @@
-"""Stores the node's declared state in its database off the control loop (issue 16).
+"""Stores the node's declared state in its database off the control loop.
 
 The node core emits `Persist(state, sortie)` whenever what the operator declared (or
 the share it flies) changes; `StateWriter` keeps only the newest one and writes it in

@@ -2,7 +2,7 @@
 VehicleStatus heard on the swarm, its own included, appended to a trajectory CSV
 (`time_s,vehicle,lat,lon,alt_m,...`, see swarm_proto/trajectory.py) at the sample's GPS
 time. Several nodes recording the same swarm write the same rows; one is enough. A
-radio peer's status predicted by its gateway (`predicted_s > 0`, issue 19) is a belief,
+radio peer's status predicted by its gateway (`predicted_s > 0`) is a belief,
 not a sample: it is not recorded."""
 
 from __future__ import annotations

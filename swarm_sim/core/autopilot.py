@@ -283,15 +283,20 @@ class SimAutopilot:
         changed = self._items_changed
         self.transfers: dict[int, ItemTransfer] = {
             MISSION: ItemTransfer(
-                MISSION, self.mission_items, home_item=self._home_item,
-                current_seq=lambda: self.mission_seq, on_change=changed,
+                MISSION,
+                self.mission_items,
+                home_item=self._home_item,
+                current_seq=lambda: self.mission_seq,
+                on_change=changed,
                 statustext=self._statustext,
             ),
-            FENCE: ItemTransfer(FENCE, self.fence_items, on_change=changed,
-                                statustext=self._statustext),
-            RALLY: ItemTransfer(RALLY, self.rally_items, on_change=changed,
-                                statustext=self._statustext),
-        }  # fmt: skip
+            FENCE: ItemTransfer(
+                FENCE, self.fence_items, on_change=changed, statustext=self._statustext
+            ),
+            RALLY: ItemTransfer(
+                RALLY, self.rally_items, on_change=changed, statustext=self._statustext
+            ),
+        }
 
         self.streams = S.StreamScheduler(now, self.options.stream_defaults)
         self._out: list[Any] = []
@@ -339,7 +344,7 @@ class SimAutopilot:
         return t
 
     def rebooted(self, now: float, *, keep_stores: bool = False) -> SimAutopilot:
-        """The same vehicle after a power cycle at `now` (issue 16): it boots again where
+        """The same vehicle after a power cycle at `now`: it boots again where
         it stands (on the ground: a reboot in flight is not modelled), with its time since
         boot from 0, no fix yet, disarmed, its parameters kept (ArduPilot's EEPROM) but
         the runtime fence enable lost, and by default empty mission, fence and rally

@@ -66,20 +66,35 @@ COMMAND_LONG_FRAME = {22: 3, 84: 3, 179: 0}
 
 def on_command_long(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
     cmd = Cmd(
-        command=int(msg.command), p1=msg.param1, p2=msg.param2, p3=msg.param3, p4=msg.param4,
-        x=msg.param5, y=msg.param6, z=msg.param7, frame=COMMAND_LONG_FRAME.get(int(msg.command), 3),
-        is_int=False, src=src,
-    )  # fmt: skip
+        command=int(msg.command),
+        p1=msg.param1,
+        p2=msg.param2,
+        p3=msg.param3,
+        p4=msg.param4,
+        x=msg.param5,
+        y=msg.param6,
+        z=msg.param7,
+        frame=COMMAND_LONG_FRAME.get(int(msg.command), 3),
+        is_int=False,
+        src=src,
+    )
     run_command(ap, cmd)
 
 
 def on_command_int(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
     cmd = Cmd(
-        command=int(msg.command), p1=msg.param1, p2=msg.param2, p3=msg.param3, p4=msg.param4,
+        command=int(msg.command),
+        p1=msg.param1,
+        p2=msg.param2,
+        p3=msg.param3,
+        p4=msg.param4,
         x=msg.x * 1e-7 if msg.frame in GLOBAL_FRAMES else float(msg.x),
         y=msg.y * 1e-7 if msg.frame in GLOBAL_FRAMES else float(msg.y),
-        z=msg.z, frame=int(msg.frame), is_int=True, src=src,
-    )  # fmt: skip
+        z=msg.z,
+        frame=int(msg.frame),
+        is_int=True,
+        src=src,
+    )
     run_command(ap, cmd)
 
 
@@ -316,7 +331,7 @@ def cmd_fence_enable(ap: SimAutopilot, cmd: Cmd) -> int:
         return FAILED
     if action == 1 and not ap.fence_present():
         # GCS_MAVLINK::handle_command_do_fence_enable: FAILED unless AC_Fence::present()
-        # (FENCE_TYPE polygon-only and the uploaded fence not loaded yet: issue 11)
+        # (FENCE_TYPE polygon-only and the uploaded fence not loaded yet, as real SITL does)
         return FAILED
     ap.params["FENCE_ENABLE"] = (1.0 if action == 1 else 0.0, 2)
     return ACCEPTED

@@ -144,8 +144,11 @@ def guided_mission_item(ap: SimAutopilot, msg: Any) -> None:
     """MISSION_ITEM(_INT) with current=2 (guided goto) or 3 (change altitude)."""
     item = MissionItem.from_message(msg)
     if validate_item(item) != 0 or item.frame not in GLOBAL_FRAMES:
-        ap._out.append(mavlink.MAVLink_mission_ack_message(
-            msg.get_srcSystem(), msg.get_srcComponent(), 1, MISSION))  # fmt: skip
+        ap._out.append(
+            mavlink.MAVLink_mission_ack_message(
+                msg.get_srcSystem(), msg.get_srcComponent(), 1, MISSION
+            )
+        )
         return
     if int(msg.current) == 3:
         ap._change_alt(mission_runner.item_alt(ap, item))
@@ -155,8 +158,11 @@ def guided_mission_item(ap: SimAutopilot, msg: Any) -> None:
     else:
         ap._guided_goto(item.lat_deg, item.lon_deg, mission_runner.item_alt(ap, item))
         result = 0
-    ap._out.append(mavlink.MAVLink_mission_ack_message(
-        msg.get_srcSystem(), msg.get_srcComponent(), result, MISSION))  # fmt: skip
+    ap._out.append(
+        mavlink.MAVLink_mission_ack_message(
+            msg.get_srcSystem(), msg.get_srcComponent(), result, MISSION
+        )
+    )
 
 
 def on_mission_request(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
@@ -302,11 +308,25 @@ HANDLERS: dict[str, Callable[[SimAutopilot, Any, Peer, float], None]] = {
 # Received and deliberately ignored (a GCS heartbeat, acks of our own messages, ...)
 IGNORED = frozenset(
     {
-        "HEARTBEAT", "MISSION_ACK", "COMMAND_ACK", "SYSTEM_TIME", "RC_CHANNELS_OVERRIDE",
-        "MANUAL_CONTROL", "RADIO_STATUS", "RADIO", "GPS_RTCM_DATA", "GPS_INJECT_DATA",
-        "STATUSTEXT", "PING", "SET_ATTITUDE_TARGET", "LOG_REQUEST_LIST",
-        "TERRAIN_DATA", "TERRAIN_CHECK", "REQUEST_AUTOPILOT_CAPABILITIES", "SETUP_SIGNING",
+        "HEARTBEAT",
+        "MISSION_ACK",
+        "COMMAND_ACK",
+        "SYSTEM_TIME",
+        "RC_CHANNELS_OVERRIDE",
+        "MANUAL_CONTROL",
+        "RADIO_STATUS",
+        "RADIO",
+        "GPS_RTCM_DATA",
+        "GPS_INJECT_DATA",
+        "STATUSTEXT",
+        "PING",
+        "SET_ATTITUDE_TARGET",
+        "LOG_REQUEST_LIST",
+        "TERRAIN_DATA",
+        "TERRAIN_CHECK",
+        "REQUEST_AUTOPILOT_CAPABILITIES",
+        "SETUP_SIGNING",
     }
-)  # fmt: skip
+)
 # messages whose target_component may be anything (they are for the whole system)
 ANY_COMPONENT = frozenset({"REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST", "PARAM_REQUEST_LIST"})

@@ -389,8 +389,11 @@ class FixedWingModel:
         if kind == Guide.IDLE:
             return self._glide(body, dt, events)
         # desired course, airspeed and altitude
-        speed_want = _clamp(target.speed if target.speed > 0 else p.cruise_speed_m_s,
-                            p.min_airspeed_m_s, p.max_speed_m_s)  # fmt: skip
+        speed_want = _clamp(
+            target.speed if target.speed > 0 else p.cruise_speed_m_s,
+            p.min_airspeed_m_s,
+            p.max_speed_m_s,
+        )
         alt_want = target.alt
         sink = target.sink_rate if target.sink_rate > 0 else p.sink_rate_m_s
         climb = target.climb_rate if target.climb_rate > 0 else p.climb_rate_m_s

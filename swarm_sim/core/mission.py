@@ -112,10 +112,22 @@ class MissionItem:
 
     def to_int_message(self, target_system: int, target_component: int) -> Any:
         return mavlink.MAVLink_mission_item_int_message(
-            target_system, target_component, self.seq, self.frame, self.command, self.current,
-            self.autocontinue, self.param1, self.param2, self.param3, self.param4, self.x,
-            self.y, self.z, self.mission_type,
-        )  # fmt: skip
+            target_system,
+            target_component,
+            self.seq,
+            self.frame,
+            self.command,
+            self.current,
+            self.autocontinue,
+            self.param1,
+            self.param2,
+            self.param3,
+            self.param4,
+            self.x,
+            self.y,
+            self.z,
+            self.mission_type,
+        )
 
     def to_float_message(self, target_system: int, target_component: int) -> Any:
         if self.frame in GLOBAL_FRAMES:
@@ -123,10 +135,22 @@ class MissionItem:
         else:
             x, y = float(self.x), float(self.y)
         return mavlink.MAVLink_mission_item_message(
-            target_system, target_component, self.seq, self.frame, self.command, self.current,
-            self.autocontinue, self.param1, self.param2, self.param3, self.param4, x, y, self.z,
+            target_system,
+            target_component,
+            self.seq,
+            self.frame,
+            self.command,
+            self.current,
+            self.autocontinue,
+            self.param1,
+            self.param2,
+            self.param3,
+            self.param4,
+            x,
+            y,
+            self.z,
             self.mission_type,
-        )  # fmt: skip
+        )
 
 
 def _deg_e7(value: float) -> int:

@@ -132,15 +132,25 @@ def start_nav_item(ap: SimAutopilot, item: MissionItem) -> str:
         hold = 0.0 if fw == Firmware.PLANE else max(0.0, item.param1)
         prev = ap.nav.destination if isinstance(ap._leaf_task(), FlyTo) else None
         origin = (prev[0], prev[1]) if prev is not None else None  # the leg is flown as a line
-        task = FlyTo(n, e, alt, accept_m=accept, hold_s=hold, stop=not ap.fixed_wing, origin=origin,
-                     next_ne=_next_waypoint(ap) if fw == Firmware.COPTER else None)  # fmt: skip
+        task = FlyTo(
+            n,
+            e,
+            alt,
+            accept_m=accept,
+            hold_s=hold,
+            stop=not ap.fixed_wing,
+            origin=origin,
+            next_ne=_next_waypoint(ap) if fw == Firmware.COPTER else None,
+        )
         ap._set_nav(task, Purpose.MISSION)
     elif cmd in (17, 18, 19, 31):  # LOITER_UNLIM, _TURNS, _TIME, _TO_ALT
         radius = abs(item.param3) if cmd != 31 else abs(item.param2)
         turns = item.param1 if cmd == 18 else None
         time_s = item.param1 if cmd == 19 else (0.0 if cmd == 31 else None)
-        ap._set_nav(Loiter(n, e, alt, radius=radius, ccw=item.param3 < 0, turns=turns, time_s=time_s),
-                      Purpose.MISSION)  # fmt: skip
+        ap._set_nav(
+            Loiter(n, e, alt, radius=radius, ccw=item.param3 < 0, turns=turns, time_s=time_s),
+            Purpose.MISSION,
+        )
     elif cmd == 20:  # RETURN_TO_LAUNCH
         if fw == Firmware.PLANE:
             ap._set_mode(mode_number(fw, "RTL"))

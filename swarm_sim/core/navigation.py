@@ -96,8 +96,15 @@ class Hold(NavTask):
     name = "hold"
 
     def target(self, ctx: NavContext) -> Target:
-        return Target(Guide.HOLD, self.n, self.e, self.alt, radius=self.radius, ccw=self.ccw,
-                      fixed_wing=not self.vtol)  # fmt: skip
+        return Target(
+            Guide.HOLD,
+            self.n,
+            self.e,
+            self.alt,
+            radius=self.radius,
+            ccw=self.ccw,
+            fixed_wing=not self.vtol,
+        )
 
     def update(self, ctx: NavContext, dt: float) -> bool:
         self.elapsed_s += dt
@@ -120,7 +127,7 @@ class FlyTo(NavTask):
     uploaded in AUTO restarts its current index, then DO_SET_MISSION_CURRENT starts it
     once more. Without a track the point could only be reached within `accept_m`, and an
     aircraft that had flown past it, its turn circle wider than that, circled it for
-    ever (issue 18: a demo VTOL until BATTERY_LOW)."""
+    ever (a demo VTOL until BATTERY_LOW)."""
 
     n: float
     e: float
@@ -156,8 +163,16 @@ class FlyTo(NavTask):
         corner = self._corner(ctx, speed)
         if corner is not None:
             return corner
-        return Target(Guide.GOTO, self.n, self.e, self.alt, speed=speed, stop=self.stop,
-                      fixed_wing=not self.vtol, track_from=self.origin)  # fmt: skip
+        return Target(
+            Guide.GOTO,
+            self.n,
+            self.e,
+            self.alt,
+            speed=speed,
+            stop=self.stop,
+            fixed_wing=not self.vtol,
+            track_from=self.origin,
+        )
 
     def _corner(self, ctx: NavContext, speed: float) -> Target | None:
         """A multirotor in AUTO with another waypoint after this one does not stop at
@@ -180,13 +195,29 @@ class FlyTo(NavTask):
         tangent = min(COPTER_CORNER_RADIUS_M * math.tan(turn / 2.0), 0.5 * len_in, 0.5 * len_out)
         left = ((self.n - b.n) * in_n + (self.e - b.e) * in_e) / len_in  # along, to the corner
         if left <= tangent:  # in the turn: follow the next leg
-            return Target(Guide.GOTO, self.next_ne[0], self.next_ne[1], self.alt, speed=speed,
-                          stop=False, fixed_wing=False, track_from=(self.n, self.e))  # fmt: skip
+            return Target(
+                Guide.GOTO,
+                self.next_ne[0],
+                self.next_ne[1],
+                self.alt,
+                speed=speed,
+                stop=False,
+                fixed_wing=False,
+                track_from=(self.n, self.e),
+            )
         # brake to the turn's speed at the start of the turn
         v_turn = math.sqrt(accel * COPTER_CORNER_RADIUS_M)
         v = min(speed, math.sqrt(v_turn * v_turn + 2.0 * accel * (left - tangent)))
-        return Target(Guide.GOTO, self.n, self.e, self.alt, speed=v, stop=False,
-                      fixed_wing=False, track_from=self.origin)  # fmt: skip
+        return Target(
+            Guide.GOTO,
+            self.n,
+            self.e,
+            self.alt,
+            speed=v,
+            stop=False,
+            fixed_wing=False,
+            track_from=self.origin,
+        )
 
     def update(self, ctx: NavContext, dt: float) -> bool:
         b = ctx.body
@@ -246,11 +277,26 @@ class Loiter(NavTask):
         if ctx.fixed_wing and not self.vtol:
             radius = self.radius if self.radius > 0 else ctx.loiter_radius
             # ArduPlane loiters at the target airspeed DO_CHANGE_SPEED set, as it flies legs
-            return Target(Guide.LOITER, self.n, self.e, self.alt, speed=ctx.wp_speed,
-                          radius=radius, ccw=self.ccw)  # fmt: skip
+            return Target(
+                Guide.LOITER,
+                self.n,
+                self.e,
+                self.alt,
+                speed=ctx.wp_speed,
+                radius=radius,
+                ccw=self.ccw,
+            )
         kind = Guide.LOITER if self.radius > 0.5 else Guide.HOLD
-        return Target(kind, self.n, self.e, self.alt, speed=min(ctx.wp_speed, 5.0),
-                      radius=self.radius, ccw=self.ccw, fixed_wing=not self.vtol)  # fmt: skip
+        return Target(
+            kind,
+            self.n,
+            self.e,
+            self.alt,
+            speed=min(ctx.wp_speed, 5.0),
+            radius=self.radius,
+            ccw=self.ccw,
+            fixed_wing=not self.vtol,
+        )
 
     def update(self, ctx: NavContext, dt: float) -> bool:
         b = ctx.body

@@ -28,11 +28,25 @@ FENCE_STATUS = 162
 # What the simulator can stream.
 STREAMABLE: frozenset[int] = frozenset(
     {
-        HEARTBEAT, SYS_STATUS, SYSTEM_TIME, GPS_RAW_INT, ATTITUDE, GLOBAL_POSITION_INT,
-        MISSION_CURRENT, NAV_CONTROLLER_OUTPUT, VFR_HUD, BATTERY_STATUS, EKF_STATUS_REPORT,
-        HOME_POSITION, EXTENDED_SYS_STATE, GPS_GLOBAL_ORIGIN, WIND, TIMESYNC, FENCE_STATUS,
+        HEARTBEAT,
+        SYS_STATUS,
+        SYSTEM_TIME,
+        GPS_RAW_INT,
+        ATTITUDE,
+        GLOBAL_POSITION_INT,
+        MISSION_CURRENT,
+        NAV_CONTROLLER_OUTPUT,
+        VFR_HUD,
+        BATTERY_STATUS,
+        EKF_STATUS_REPORT,
+        HOME_POSITION,
+        EXTENDED_SYS_STATE,
+        GPS_GLOBAL_ORIGIN,
+        WIND,
+        TIMESYNC,
+        FENCE_STATUS,
     }
-)  # fmt: skip
+)
 
 # Intervals (s) before anyone asks. ArduPilot's defaults come from the SRn_ parameters
 # (all 0 on a copter's SERIAL0); the simulator streams the core telemetry at modest rates

@@ -22,9 +22,23 @@ _GYRO, _ACCEL, _MAG, _ABS_PRESSURE, _DIFF_PRESSURE, _GPS = 1, 2, 4, 8, 16, 32
 _RATE_CONTROL, _ATTITUDE, _YAW_POSITION, _Z_ALTITUDE, _XY_POSITION = 1024, 2048, 4096, 8192, 16384
 _MOTOR_OUTPUTS, _RC_RECEIVER, _AHRS, _TERRAIN, _BATTERY = 32768, 65536, 2097152, 4194304, 33554432
 _LOGGING, _PREARM, _GEOFENCE = 16777216, 268435456, 1048576
-_BASE_SENSORS = (_GYRO | _ACCEL | _MAG | _ABS_PRESSURE | _GPS | _RATE_CONTROL | _ATTITUDE
-                 | _YAW_POSITION | _Z_ALTITUDE | _XY_POSITION | _MOTOR_OUTPUTS | _AHRS
-                 | _BATTERY | _LOGGING | _PREARM)  # fmt: skip
+_BASE_SENSORS = (
+    _GYRO
+    | _ACCEL
+    | _MAG
+    | _ABS_PRESSURE
+    | _GPS
+    | _RATE_CONTROL
+    | _ATTITUDE
+    | _YAW_POSITION
+    | _Z_ALTITUDE
+    | _XY_POSITION
+    | _MOTOR_OUTPUTS
+    | _AHRS
+    | _BATTERY
+    | _LOGGING
+    | _PREARM
+)
 
 # EKF_STATUS_REPORT flags (EKF_STATUS_FLAGS)
 EKF_UNINITIALIZED = 1024
@@ -94,9 +108,13 @@ def attitude(ap: SimAutopilot, now: float) -> Any:
 def vfr_hud(ap: SimAutopilot) -> Any:
     b = ap.body
     return mavlink.MAVLink_vfr_hud_message(
-        b.airspeed, b.groundspeed, round(b.heading_deg) % 360, round(b.throttle_pct),
-        b.alt if ap.ekf_position else 0.0, b.climb_rate,
-    )  # fmt: skip
+        b.airspeed,
+        b.groundspeed,
+        round(b.heading_deg) % 360,
+        round(b.throttle_pct),
+        b.alt if ap.ekf_position else 0.0,
+        b.climb_rate,
+    )
 
 
 def gps_raw_int(ap: SimAutopilot, now: float) -> Any:
@@ -109,10 +127,23 @@ def gps_raw_int(ap: SimAutopilot, now: float) -> Any:
     lat, lon = ap.latlon
     cog = round(b.course_deg * 100) % 36000 if b.groundspeed > 0.5 else 0
     return mavlink.MAVLink_gps_raw_int_message(
-        int((now - ap.boot_time) * 1e6), ap.options.gps_fix_type, _deg_e7(lat), _deg_e7(lon),
-        _i32(b.alt * 1000), 121, 200, min(65535, round(b.groundspeed * 100)), cog,
-        ap.options.satellites, _i32(b.alt * 1000), 300, 300, 40, 0, 0,
-    )  # fmt: skip
+        int((now - ap.boot_time) * 1e6),
+        ap.options.gps_fix_type,
+        _deg_e7(lat),
+        _deg_e7(lon),
+        _i32(b.alt * 1000),
+        121,
+        200,
+        min(65535, round(b.groundspeed * 100)),
+        cog,
+        ap.options.satellites,
+        _i32(b.alt * 1000),
+        300,
+        300,
+        40,
+        0,
+        0,
+    )
 
 
 def sys_status(ap: SimAutopilot) -> Any:
@@ -143,9 +174,23 @@ def sys_status(ap: SimAutopilot) -> Any:
         health &= ~_PREARM
     bat = ap.battery
     return mavlink.MAVLink_sys_status_message(
-        present, enabled, health, 0, round(bat.voltage * 1000), round(bat.current_a * 100),
-        bat.remaining_pct, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-    )  # fmt: skip
+        present,
+        enabled,
+        health,
+        0,
+        round(bat.voltage * 1000),
+        round(bat.current_a * 100),
+        bat.remaining_pct,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+    )
 
 
 def battery_status(ap: SimAutopilot) -> Any:
@@ -154,9 +199,21 @@ def battery_status(ap: SimAutopilot) -> Any:
     charge_state = 1 if pct >= 30 else 2 if pct >= 15 else 3
     voltages = [min(65534, round(bat.voltage * 1000))] + [65535] * 9
     return mavlink.MAVLink_battery_status_message(
-        0, 0, 0, 32767, voltages, round(bat.current_a * 100), int(bat.consumed_mah),
-        int(bat.energy_wh * 36), pct, 0, charge_state, [0, 0, 0, 0], 0, 0,
-    )  # fmt: skip
+        0,
+        0,
+        0,
+        32767,
+        voltages,
+        round(bat.current_a * 100),
+        int(bat.consumed_mah),
+        int(bat.energy_wh * 36),
+        pct,
+        0,
+        charge_state,
+        [0, 0, 0, 0],
+        0,
+        0,
+    )
 
 
 def system_time(ap: SimAutopilot, now: float) -> Any:
@@ -176,8 +233,9 @@ def ekf_status_report(ap: SimAutopilot, now: float) -> Any:
         flags, pos_var = EKF_ATTITUDE_ONLY, 0.0
     else:
         flags, pos_var = EKF_UNINITIALIZED, 0.0
-    return mavlink.MAVLink_ekf_status_report_message(flags, 0.01 if ap.ekf_position else 0.0,
-                                                     pos_var, 0.005, 0.0002, 0.0, 0.0)  # fmt: skip
+    return mavlink.MAVLink_ekf_status_report_message(
+        flags, 0.01 if ap.ekf_position else 0.0, pos_var, 0.005, 0.0002, 0.0, 0.0
+    )
 
 
 def home_position(ap: SimAutopilot, now: float) -> Any:
@@ -185,9 +243,18 @@ def home_position(ap: SimAutopilot, now: float) -> Any:
     hn, he = ap.home_ne
     nan = float("nan")
     return mavlink.MAVLink_home_position_message(
-        _deg_e7(lat), _deg_e7(lon), _i32(alt * 1000), hn, he, -(alt - ap.origin_alt),
-        [nan, nan, nan, nan], 0.0, 0.0, 0.0, int((now - ap.boot_time) * 1e6),
-    )  # fmt: skip
+        _deg_e7(lat),
+        _deg_e7(lon),
+        _i32(alt * 1000),
+        hn,
+        he,
+        -(alt - ap.origin_alt),
+        [nan, nan, nan, nan],
+        0.0,
+        0.0,
+        0.0,
+        int((now - ap.boot_time) * 1e6),
+    )
 
 
 def gps_global_origin(ap: SimAutopilot, now: float) -> Any:
@@ -232,9 +299,15 @@ def nav_controller_output(ap: SimAutopilot) -> Any:
     dist = math.hypot(n - b.n, e - b.e)
     bearing = round(wrap_360(math.degrees(math.atan2(e - b.e, n - b.n))))
     return mavlink.MAVLink_nav_controller_output_message(
-        math.degrees(b.roll_rad), math.degrees(b.pitch_rad), bearing, bearing,
-        min(65535, int(dist)), alt - b.alt if alt else 0.0, 0.0, 0.0,
-    )  # fmt: skip
+        math.degrees(b.roll_rad),
+        math.degrees(b.pitch_rad),
+        bearing,
+        bearing,
+        min(65535, int(dist)),
+        alt - b.alt if alt else 0.0,
+        0.0,
+        0.0,
+    )
 
 
 def wind(ap: SimAutopilot) -> Any:

@@ -120,9 +120,13 @@ class VehicleServer:
                     endpoint = self._given[k]
                 else:
                     endpoint = VehicleEndpoint.create(
-                        spec.model, home=spec.home, now=now, sysid=spec.system_id,
-                        airframe=spec.airframe, options=spec.options,
-                    )  # fmt: skip
+                        spec.model,
+                        home=spec.home,
+                        now=now,
+                        sysid=spec.system_id,
+                        airframe=spec.airframe,
+                        options=spec.options,
+                    )
                 vehicle = _Vehicle(spec, endpoint, listener)
                 self.vehicles.append(vehicle)
                 self._sel.register(listener, selectors.EVENT_READ, vehicle)
@@ -199,7 +203,7 @@ class VehicleServer:
         return [v.endpoint for v in self.vehicles]
 
     def reboot(self, sysid: int, *, keep_stores: bool = False) -> None:
-        """Power-cycle vehicle `sysid` (issue 16): its clients are disconnected, as a real
+        """Power-cycle vehicle `sysid`: its clients are disconnected, as a real
         reboot drops the USB or TCP link, and it boots again where it stands, by default
         with empty mission, fence and rally stores. Safe from any thread."""
 

@@ -895,7 +895,10 @@ def test_a_read_only_filesystem(tmp_path: Path, read_only_mount: list[str]) -> N
 @pytest.mark.parametrize(
     ("args", "match"),
     [
-        (["5", "--connect", "nonsense"], "'nonsense' is not a Zenoh endpoint: write PROTOCOL/HOST:PORT"),
+        (
+            ["5", "--connect", "nonsense"],
+            "'nonsense' is not a Zenoh endpoint: write PROTOCOL/HOST:PORT",
+        ),
         (["5", "--timeout", "nan"], "--timeout must be a positive number of seconds, got nan"),
         (["5", "--timeout", "-1"], "--timeout must be a positive number"),
         (["a/b"], "node must be a node id (1..65534) or '*', got 'a/b'"),

@@ -103,15 +103,35 @@ def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
     assert r.exit_code == 2 and "Self-intersection" in r.stdout + str(r.stderr)  # type: ignore[attr-defined]
 
     # every vehicle answers a mission; a vehicle addressed that is not there is silent
-    # (issue 15: it said "addresses none" and named no one)
-    r = gcs(router, swarm, "mission", "target", "--point", "37.4125,-5.9889", "--id", "8",
-            "--timeout", "2", "--yes")  # fmt: skip
+    # (it said "addresses none" and named no one)
+    r = gcs(
+        router,
+        swarm,
+        "mission",
+        "target",
+        "--point",
+        "37.4125,-5.9889",
+        "--id",
+        "8",
+        "--timeout",
+        "2",
+        "--yes",
+    )
     out = r.stdout  # type: ignore[attr-defined]
     assert r.exit_code == 1 and "not addressed: 7" in out, out  # type: ignore[attr-defined]
     assert "silent" in out and "not alive when sent" in out, out
 
     r = gcs(
-        router, swarm, "mission", "target", "--point", "37.4125,-5.9889", "--id", "7", "--alt", "30",
+        router,
+        swarm,
+        "mission",
+        "target",
+        "--point",
+        "37.4125,-5.9889",
+        "--id",
+        "7",
+        "--alt",
+        "30",
         "--yes",
     )
     assert r.exit_code == 0, r.stdout  # type: ignore[attr-defined]
@@ -130,14 +150,15 @@ def test_status_commands_missions_and_zones(node7: tuple[str, str]) -> None:
         # the node has just started planning the target mission (its planner process
         # starts with the first plan job): in the full suite one 3 s query went
         # unanswered twice in a row while the loop held the core's lock starting it. The
-        # queryables answer from the loop's snapshot now, never waiting for it (issue 16)
+        # queryables answer from the loop's snapshot now, never waiting for it
         r = gcs(router, swarm, "peers", "7")
         assert r.exit_code == 0 and "GCS" in r.stdout  # type: ignore[attr-defined]
 
         # an operating area the vehicle is not in: the running node raises a geofence
         # breach (and loads the area into its autopilot as an inclusion fence)
-        r = gcs(router, swarm, "zone", "add", "5", "--circle", "37.50,-5.90,300",
-                "--operating-area")  # fmt: skip
+        r = gcs(
+            router, swarm, "zone", "add", "5", "--circle", "37.50,-5.90,300", "--operating-area"
+        )
         assert r.exit_code == 0 and "operating area 5: 1 accepted" in r.stdout  # type: ignore[attr-defined]
 
         def breach(view: FleetView) -> bool:
@@ -162,7 +183,7 @@ def test_emergency_land_asks_for_the_landing_point() -> None:
 
 
 def test_status_shows_how_old_the_autopilot_data_is() -> None:
-    """Issue 11, defect 9: after an autopilot link loss the node keeps sending its last
+    """After an autopilot link loss the node keeps sending its last
     state; `gcs status` showed it heard 0.1 s ago, as fresh. The `data s` column is the
     age of the autopilot's sample (VehicleStatus.time_unix_s), with the link-loss flag."""
     import time as _time
@@ -173,9 +194,15 @@ def test_status_shows_how_old_the_autopilot_data_is() -> None:
     view = FleetView()
     now = _time.time()
     view.status[7] = VehicleStatus(
-        7, now - 30.0, 37.4, -5.9, 70.0, 60.0, armed=True,
+        7,
+        now - 30.0,
+        37.4,
+        -5.9,
+        70.0,
+        60.0,
+        armed=True,
         alerts=AlertFlag.AUTOPILOT_LINK_LOSS,
-    )  # fmt: skip
+    )
     view.heard_at[7] = _time.monotonic()
     (row,) = fleet_rows(view)
     assert row["age_s"] is not None and row["age_s"] < 1.0  # heard just now...

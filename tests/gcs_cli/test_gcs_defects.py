@@ -1,4 +1,4 @@
-"""Issue 15's defects, each with its regression test: bad input is one line on stderr
+"""Defects, each with its regression test: bad input is one line on stderr
 and exit 2 with nothing sent (a subscriber on the router counts what arrives), `cmd
 arm` with no selector refuses, a command that moves vehicles is not sent unconfirmed,
 an unreachable --connect exits 1, `db query` uses the global --connect, endpoints in
@@ -31,7 +31,7 @@ BAD = [
     (["cmd", "rtl", "--id", "0"], "--id"),
     (["cmd", "rtl", "--fleet", "0"], "--fleet"),
     (["cmd", "rtl", "--id", "3", "--all"], "exclude each other"),
-    (["cmd", "arm"], "say which vehicles"),  # issue 15: it armed the whole swarm
+    (["cmd", "arm"], "say which vehicles"),  # it armed the whole swarm
     (["cmd", "warp-drive", "--all"], "unknown command 'warp-drive'"),
     (["cmd", "rtl", "--all", "--timeout", "nan"], "--timeout"),
     (["cmd", "rtl", "--all", "--timeout", "-1"], "--timeout"),
@@ -40,13 +40,23 @@ BAD = [
     (["zone", "add", "3", "--circle", "37,-5,-5"], "radius -5 m must be > 0"),
     (["zone", "add", "3", "--polygon", "37,-5 37.1,-5"], "at least 3 vertices"),
     (["zone", "add", "3", "--circle", "37,-5,50", "--floor", "nan"], "--floor"),
-    (["zone", "add", "3", "--circle", "37,-5,50", "--floor", "300", "--ceiling", "100"],
-     "floor must be below its ceiling"),
+    (
+        ["zone", "add", "3", "--circle", "37,-5,50", "--floor", "300", "--ceiling", "100"],
+        "floor must be below its ceiling",
+    ),
     (["zone", "add", "0", "--circle", "37,-5,50"], "zone_id"),
     (["zone", "remove", "0"], "zone_id"),
     (["mission", "area", "--polygon", "nan,0 1,1 1,0", "--all"], "latitude is nan"),  # GEOS
-    (["mission", "area", "--polygon", "37.41,-5.99 37.42,-5.98 37.41,-5.98 37.42,-5.99",
-      "--all"], "Self-intersection"),
+    (
+        [
+            "mission",
+            "area",
+            "--polygon",
+            "37.41,-5.99 37.42,-5.98 37.41,-5.98 37.42,-5.99",
+            "--all",
+        ],
+        "Self-intersection",
+    ),
     (["mission", "target", "--circle", "37,-5,nan", "--all"], "radius is nan"),
     (["mission", "target", "--point", "37,-5", "--alt", "nan", "--all"], "--alt"),
     (["mission", "target", "--point", "37,-5", "--overlap", "2", "--all"], "--overlap"),
@@ -62,7 +72,7 @@ BAD = [
     (["plot", "--out", "x.jpg", "--offline"], "the picture is a .png"),
     (["plot", "--out", "x.png", "--offline"], "nothing to draw"),
     (["load", "/nonexistent/state.json", "--yes"], "cannot read"),
-]  # fmt: skip
+]
 
 
 @pytest.fixture
@@ -100,7 +110,7 @@ def test_bad_input_is_one_line_exit_2_and_nothing_sent(
 def test_a_command_that_moves_vehicles_is_not_sent_unconfirmed(
     zenoh_router: str, listener: list[object], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Issue 15: `gcs cmd arm` armed the whole swarm without asking. With no terminal
+    """`gcs cmd arm` armed the whole swarm without asking. With no terminal
     to ask on and no --yes it refuses (exit 2) and sends nothing."""
     code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "arm", "--all"])
     err = capsys.readouterr().err
@@ -109,7 +119,7 @@ def test_a_command_that_moves_vehicles_is_not_sent_unconfirmed(
 
 
 def test_an_unreachable_router_exits_1(capsys: pytest.CaptureFixture[str]) -> None:
-    """Issue 15: an unreachable --connect printed an empty table and exited 0."""
+    """An unreachable --connect printed an empty table and exited 0."""
     port = free_tcp_port()
     assert run(["--connect", f"tcp/127.0.0.1:{port}", "status", "--wait", "0"]) == 1
     err = capsys.readouterr().err
@@ -128,7 +138,7 @@ def test_a_taken_router_port_is_one_line(
 def test_db_query_takes_the_global_connect(
     zenoh_router: str, swarm_db: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Issue 15: `gcs --connect R db query ...` ignored R (and found no node)."""
+    """`gcs --connect R db query ...` ignored R (and found no node)."""
     from swarm_node.database import SwarmDatabase
     from swarm_node.database.queryable import DatabaseQueryable
     from swarm_proto.session import open_session
@@ -137,8 +147,9 @@ def test_db_query_takes_the_global_connect(
     db = SwarmDatabase.open(swarm_db)
     try:
         with DatabaseQueryable(session, db, 7, "dbq"):
-            code = run(["--connect", zenoh_router, "--swarm", "dbq", "db", "query", "7",
-                        "--timeout", "5"])  # fmt: skip
+            code = run(
+                ["--connect", zenoh_router, "--swarm", "dbq", "db", "query", "7", "--timeout", "5"]
+            )
             out = capsys.readouterr().out
     finally:
         db.close()
@@ -196,14 +207,18 @@ def test_shell_completion_is_offered() -> None:
     assert gcs is not None and bash is not None
     # from bash, as a user types it (Typer detects the shell from the parent process)
     # ('; exit': bash would exec a lone command in its place, and the parent be make's sh)
-    done = subprocess.run([bash, "-c", f"'{gcs}' --show-completion; exit $?"],
-                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    done = subprocess.run(
+        [bash, "-c", f"'{gcs}' --show-completion; exit $?"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert done.returncode == 0, done.stderr
     assert "complete" in done.stdout
 
 
 def test_status_fits_100_columns_with_positions() -> None:
-    """Issue 15: `gcs status` needed ~150 columns and showed no position. Worst-case rows
+    """`gcs status` needed ~150 columns and showed no position. Worst-case rows
     (long mode names, every alert, a 3-digit fleet, negative coordinates) fit 100
     columns with every cell whole; the alerts wrap within their column."""
     import time as _time
@@ -226,12 +241,26 @@ def test_status_fits_100_columns_with_positions() -> None:
     now = _time.time()
     for vid, vt, mode in ((65534, VehicleType.VTOL, 25), (7, VehicleType.COPTER, 21)):
         view.status[vid] = VehicleStatus(
-            vid, now - 31.0, -37.4123456, -125.9876543, 7999.0, 4321.0, 29.9, -29.9,
-            heading_deg=359.4, battery_pct=100, gps_fix=GpsFix.RTK_FIXED, gps_sats=31,
-            ap_mode=mode, armed=True, fsm_state=FsmState.EMERGENCY,
-            mission_state=MissionState.REPLAN, mission_progress_pct=100, fleet_id=255,
+            vid,
+            now - 31.0,
+            -37.4123456,
+            -125.9876543,
+            7999.0,
+            4321.0,
+            29.9,
+            -29.9,
+            heading_deg=359.4,
+            battery_pct=100,
+            gps_fix=GpsFix.RTK_FIXED,
+            gps_sats=31,
+            ap_mode=mode,
+            armed=True,
+            fsm_state=FsmState.EMERGENCY,
+            mission_state=MissionState.REPLAN,
+            mission_progress_pct=100,
+            fleet_id=255,
             alerts=AlertFlag(0x7FF),
-        )  # fmt: skip
+        )
         view.info[vid] = VehicleInfo(vid, vt, "Albatross 250 VTOL", "U", mav_type=2)
         view.heard_at[vid] = _time.monotonic() - 123.4
     console = Console(width=100, record=True)

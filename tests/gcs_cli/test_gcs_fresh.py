@@ -1,4 +1,4 @@
-"""A fresh `gcs` process against node processes already running (issue 11, defects 5
+"""A fresh `gcs` process against node processes already running (defects 5
 and 6), over real Zenoh on 127.0.0.1: a mission for one listed vehicle waits for that
 vehicle, and zones are durable (every vehicle confirms, a node started later learns
 them)."""
@@ -66,8 +66,19 @@ def test_mission_for_one_id_waits_for_that_vehicle(
     resume = threading.Timer(3.0, lambda: os.kill(seven.pid, signal.SIGCONT))
     resume.start()
     try:
-        r = gcs(zenoh_router, swarm, "mission", "target", "--point", "37.4125,-5.9889",
-                "--id", "7", "--timeout", "20", "--yes")  # fmt: skip
+        r = gcs(
+            zenoh_router,
+            swarm,
+            "mission",
+            "target",
+            "--point",
+            "37.4125,-5.9889",
+            "--id",
+            "7",
+            "--timeout",
+            "20",
+            "--yes",
+        )
     finally:
         resume.join()
         os.kill(seven.pid, signal.SIGCONT)
@@ -79,13 +90,27 @@ def test_mission_for_one_id_waits_for_that_vehicle(
 
 
 def test_zone_confirmed_and_learned_by_a_node_started_later(
-    zenoh_router: str, swarm: str, swarm_db: Path, tmp_path: Path,
+    zenoh_router: str,
+    swarm: str,
+    swarm_db: Path,
+    tmp_path: Path,
     two_nodes: dict[int, subprocess.Popen[bytes]],
-) -> None:  # fmt: skip
+) -> None:
     """Defect 5: `gcs zone add` says which vehicles hold the zone; a node started after
     the zone was declared holds it too (it asks its peers' zones queryables)."""
-    r = gcs(zenoh_router, swarm, "zone", "add", "3", "--circle", "37.43,-5.98,50",
-            "--floor", "0", "--ceiling", "300")  # fmt: skip
+    r = gcs(
+        zenoh_router,
+        swarm,
+        "zone",
+        "add",
+        "3",
+        "--circle",
+        "37.43,-5.98,50",
+        "--floor",
+        "0",
+        "--ceiling",
+        "300",
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     assert "zone 3: 2 accepted of 2 addressed" in r.stdout, r.stdout
 
@@ -116,7 +141,6 @@ def test_zone_confirmed_and_learned_by_a_node_started_later(
 
 
 def test_zone_add_with_no_vehicle_says_so(zenoh_router: str, swarm: str) -> None:
-    r = gcs(zenoh_router, swarm, "zone", "add", "4", "--circle", "37.43,-5.98,50",
-            "--timeout", "1")  # fmt: skip
+    r = gcs(zenoh_router, swarm, "zone", "add", "4", "--circle", "37.43,-5.98,50", "--timeout", "1")
     assert r.returncode == 1
     assert "zone 4: no vehicle addressed answered or is alive" in r.stdout, r.stdout

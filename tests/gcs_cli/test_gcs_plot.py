@@ -38,22 +38,32 @@ IDS = (7, 8)
 
 
 @pytest.fixture(scope="module")
-def flight(tmp_path_factory: pytest.TempPathFactory, fleet_profiles: dict) -> tuple[Path, Path, dict]:
+def flight(
+    tmp_path_factory: pytest.TempPathFactory, fleet_profiles: dict
+) -> tuple[Path, Path, dict]:
     tmp = tmp_path_factory.mktemp("plot")
     fleet = FastFleet.build(list(IDS), fleet_profiles)
     assert fleet.run_until(lambda: all(v.link.state.home for v in fleet.vehicles.values()), 60)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, Selector(), CommandArgs(point=base)))
     assert fleet.run_until(
-        lambda: all(v.node.fsm.state != FsmState.INACTIVE for v in fleet.vehicles.values()), 60)
+        lambda: all(v.node.fsm.state != FsmState.INACTIVE for v in fleet.vehicles.values()), 60
+    )
     lat0, lon0 = offset(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 60.0, 0.0)
-    field = Geometry.polygon([offset(lat0, lon0, n, e) for n, e in
-                              ((0, -60), (0, 60), (100, 60), (100, -60))])  # fmt: skip
+    field = Geometry.polygon(
+        [offset(lat0, lon0, n, e) for n, e in ((0, -60), (0, 60), (100, 60), (100, -60))]
+    )
     zlat, zlon = offset(lat0, lon0, 50.0, 0.0)
     zone = NoFlyZone(3, Geometry.circle(zlat, zlon, 15.0), -100.0, 500.0, issuer_id=GCS)
     fleet.broadcast(zone)
-    mission = Mission(21, GCS, MissionType.AREA, field,
-                      MissionParams(altitude_rel_m=30.0, side_overlap=0.3), Selector.ids(*IDS))  # fmt: skip
+    mission = Mission(
+        21,
+        GCS,
+        MissionType.AREA,
+        field,
+        MissionParams(altitude_rel_m=30.0, side_overlap=0.3),
+        Selector.ids(*IDS),
+    )
     fleet.broadcast(mission)
     fleet.run_for(150.0)  # simulated seconds: planned, took off, flew part of the survey
     v7 = fleet.vehicles[7]
@@ -62,15 +72,32 @@ def flight(tmp_path_factory: pytest.TempPathFactory, fleet_profiles: dict) -> tu
     assert write_trajectory(status_rows(fleet.published, t0=fleet.now - 150.0), track) > 100
     held = v7.node.manager.fleet_plan.mission  # as the nodes planned it (defaults filled)
     state = SwarmState(
-        base=base, zones=[zone], missions=[held], saved_unix_s=fleet.now,
-        vehicles=[VehicleState(vid, v.node.profile.vehicle_type, v.node.profile.model,
-                               home=v.node.autopilot.home, base=base, mission_id=21)
-                  for vid, v in fleet.vehicles.items()],
-    )  # fmt: skip
+        base=base,
+        zones=[zone],
+        missions=[held],
+        saved_unix_s=fleet.now,
+        vehicles=[
+            VehicleState(
+                vid,
+                v.node.profile.vehicle_type,
+                v.node.profile.model,
+                home=v.node.autopilot.home,
+                base=base,
+                mission_id=21,
+            )
+            for vid, v in fleet.vehicles.items()
+        ],
+    )
     state_file = tmp / "state.json"
     state_file.write_bytes(msgspec.json.encode(state))
-    nodes = {vid: [(w.lat_deg, w.lon_deg) for w in v.node.manager.fleet_plan.share(vid).waypoints  # type: ignore[union-attr]
-                   if w.lat_deg or w.lon_deg] for vid, v in fleet.vehicles.items()}  # fmt: skip
+    nodes = {
+        vid: [
+            (w.lat_deg, w.lon_deg)
+            for w in v.node.manager.fleet_plan.share(vid).waypoints  # type: ignore[union-attr]
+            if w.lat_deg or w.lon_deg
+        ]
+        for vid, v in fleet.vehicles.items()
+    }
     return state_file, track, nodes
 
 
@@ -96,14 +123,29 @@ def test_the_shares_drawn_are_what_the_nodes_planned(
 
 
 def test_the_png_shows_plan_zone_base_and_tracks(
-    flight: tuple[Path, Path, dict], swarm_db: Path, tmp_path: Path,
+    flight: tuple[Path, Path, dict],
+    swarm_db: Path,
+    tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
-) -> None:  # fmt: skip
+) -> None:
     state_file, track, _ = flight
     plan_png, flown_png = tmp_path / "plan.png", tmp_path / "flown.png"
     assert run(["plot", "--offline", "--state", str(state_file), "--out", str(plan_png)]) == 0
-    assert run(["plot", "--offline", "--state", str(state_file), "--track", str(track),
-                "--out", str(flown_png)]) == 0  # fmt: skip
+    assert (
+        run(
+            [
+                "plot",
+                "--offline",
+                "--state",
+                str(state_file),
+                "--track",
+                str(track),
+                "--out",
+                str(flown_png),
+            ]
+        )
+        == 0
+    )
     out = " ".join(capsys.readouterr().out.split())
     assert "1 mission(s), 2 share(s), 1 zone(s), 2 track(s)" in out, out
     colors = vehicle_colors(IDS)

@@ -1,5 +1,5 @@
 """The ground station against six simulated vehicles and their node processes on
-127.0.0.1 (issue 15's check): every command reaches the vehicles it names (--all,
+127.0.0.1: every command reaches the vehicles it names (--all,
 --fleet, --id) and reports each one's answer, vehicles that start after `gcs` too;
 zones are acknowledged, listed, exported and withdrawn; save / load; the monitoring
 commands' JSON. Each `gcs` here is the command line as an operator runs it
@@ -39,15 +39,24 @@ class Swarm:
         self.procs: dict[int, subprocess.Popen[bytes]] = {}
 
     def start(self, vid: int) -> subprocess.Popen[bytes]:
-        p = start_node(vid, self.router, self.swarm, "--autopilot",
-                       f"tcp:127.0.0.1:{self.ports[vid]}", log=self.tmp / f"node{vid}.log")  # fmt: skip
+        p = start_node(
+            vid,
+            self.router,
+            self.swarm,
+            "--autopilot",
+            f"tcp:127.0.0.1:{self.ports[vid]}",
+            log=self.tmp / f"node{vid}.log",
+        )
         self.procs[vid] = p
         return p
 
     def alive(self, vid: int, timeout: float = 40.0) -> bool:
         watcher = plain_session(self.router)
         try:
-            return wait_until(lambda: peers_of(watcher, self.swarm, vid) is not None, timeout) is not None
+            return (
+                wait_until(lambda: peers_of(watcher, self.swarm, vid) is not None, timeout)
+                is not None
+            )
         finally:
             watcher.close()
 
@@ -61,8 +70,9 @@ class Swarm:
 def swarm(zenoh_router: str, swarm_db: Path, tmp_path: Path) -> Iterator[Swarm]:
     ids = [*FIRST, *LATE]
     homes = spread_homes(SITL_HOME, len(ids), 40.0)
-    specs = {vid: VehicleSpec(MODEL[vid], port=0, sysid=vid, home=homes[i])
-             for i, vid in enumerate(ids)}  # fmt: skip
+    specs = {
+        vid: VehicleSpec(MODEL[vid], port=0, sysid=vid, home=homes[i]) for i, vid in enumerate(ids)
+    }
     with served(specs) as ports:
         s = Swarm(zenoh_router, f"s{os.getpid()}", tmp_path, ports)
         try:
@@ -77,7 +87,10 @@ def swarm(zenoh_router: str, swarm_db: Path, tmp_path: Path) -> Iterator[Swarm]:
                 os.kill(p.pid, signal.SIGCONT)
                 codes[vid] = stop(p)
             for vid in s.procs:
-                print(f"--- node {vid}\n" + (tmp_path / f"node{vid}.log").read_text(errors="replace")[-3000:])
+                print(
+                    f"--- node {vid}\n"
+                    + (tmp_path / f"node{vid}.log").read_text(errors="replace")[-3000:]
+                )
             assert all(c == 0 for c in codes.values()), codes
 
 
@@ -93,8 +106,9 @@ def test_six_vehicles_every_command_and_answer(
     for _ in range(40):
         code, out, _ = s.gcs(capsys, "status", "--json", "--wait", "1.2")
         got = {r["id"]: r for r in json.loads(out)}
-        if set(FIRST) <= set(got) and all(got[v].get("lat") and got[v]["type"] != "OTHER"
-                                          for v in FIRST):  # fmt: skip
+        if set(FIRST) <= set(got) and all(
+            got[v].get("lat") and got[v]["type"] != "OTHER" for v in FIRST
+        ):
             break
     assert set(FIRST) <= set(got) and got[1]["type"] == "VTOL" and got[7]["type"] == "COPTER"
 
@@ -104,9 +118,25 @@ def test_six_vehicles_every_command_and_answer(
     bus.subscribe(COMMAND, lambda c, k: sent.set() if isinstance(c, Command) else None)
     try:
         result: dict[str, object] = {}
-        t = threading.Thread(target=lambda: result.update(
-            r=run(["--connect", s.router, "--swarm", s.swarm, "cmd", "activate", "--id", "8",
-                   "--timeout", "30", "--json"])))  # fmt: skip
+        t = threading.Thread(
+            target=lambda: result.update(
+                r=run(
+                    [
+                        "--connect",
+                        s.router,
+                        "--swarm",
+                        s.swarm,
+                        "cmd",
+                        "activate",
+                        "--id",
+                        "8",
+                        "--timeout",
+                        "30",
+                        "--json",
+                    ]
+                )
+            )
+        )
         t.start()
         assert sent.wait(20)
         s.start(8)  # only now
@@ -127,15 +157,40 @@ def test_six_vehicles_every_command_and_answer(
 
         def late_no(a: Ack, key: str) -> None:  # 60 refuses once 9 has answered
             if a.vehicle_id == 9 and a.ref == AckRef.COMMAND and a.ref_id in seqs:
-                mute.publish(Ack(60, a.issuer_id, AckRef.COMMAND, a.ref_id, False,
-                                 AckReason.BUSY, "busy with a test"))  # fmt: skip
+                mute.publish(
+                    Ack(
+                        60,
+                        a.issuer_id,
+                        AckRef.COMMAND,
+                        a.ref_id,
+                        False,
+                        AckReason.BUSY,
+                        "busy with a test",
+                    )
+                )
 
         mute.subscribe(ACK, late_no)
         try:
-            t = threading.Thread(target=lambda: result.update(
-                r=run(["--connect", s.router, "--swarm", s.swarm, "cmd", "set-base", "--all",
-                       "--point", f"{SITL_HOME.lat_deg},{SITL_HOME.lon_deg},{SITL_HOME.alt_m}",
-                       "--timeout", "25", "--json"])))  # fmt: skip
+            t = threading.Thread(
+                target=lambda: result.update(
+                    r=run(
+                        [
+                            "--connect",
+                            s.router,
+                            "--swarm",
+                            s.swarm,
+                            "cmd",
+                            "set-base",
+                            "--all",
+                            "--point",
+                            f"{SITL_HOME.lat_deg},{SITL_HOME.lon_deg},{SITL_HOME.alt_m}",
+                            "--timeout",
+                            "25",
+                            "--json",
+                        ]
+                    )
+                )
+            )
             t.start()
             assert sent.wait(20)
             s.start(9)
@@ -191,8 +246,9 @@ def test_six_vehicles_every_command_and_answer(
     assert len(answers) == 6
 
     # a mission to the fleet: its members answer, the others are listed apart
-    code, out, _ = s.gcs(capsys, "mission", "target", "--point", "37.41,-5.98", "--fleet", "2",
-                         "--yes", "--json")  # fmt: skip
+    code, out, _ = s.gcs(
+        capsys, "mission", "target", "--point", "37.41,-5.98", "--fleet", "2", "--yes", "--json"
+    )
     data = json.loads(out)
     assert {r["id"] for r in data["vehicles"]} == {1, 7}, out
     assert set(data["not_addressed"]) <= {2, 3, 8, 9}, out  # those heard before it was over

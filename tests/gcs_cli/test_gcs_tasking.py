@@ -45,10 +45,10 @@ def test_the_vote_table_ranks_as_the_vehicles_do() -> None:
     r = result_of(77, votes(), 2, went={7, 8})
     assert r.decided and r.winners == (7, 8)  # a tie at 0.96 goes to the lower id
     text = "\n".join(
-        str(row) for row in vote_table(r).columns[2]._cells  # the decision column
+        str(row)
+        for row in vote_table(r).columns[2]._cells  # the decision column
     )
     assert text.count("goes") == 2 and text.count("stays") == 2
     undecided = result_of(77, votes(committed=False), None, went=set())
     assert not undecided.decided and undecided.winners is None
     assert set(undecided.scores) == {1, 7, 8, 9}
-

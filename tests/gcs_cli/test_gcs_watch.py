@@ -36,18 +36,39 @@ def test_watch_on_a_terminal(zenoh_router: str) -> None:
     stream = pyte.ByteStream(screen)
     master, slave = pty.openpty()
     os.set_blocking(master, False)
-    env = {**os.environ, "COLUMNS": str(COLS), "LINES": str(ROWS), "TERM": "xterm-256color",
-           "PYTHONUNBUFFERED": "1"}  # fmt: skip
+    env = {
+        **os.environ,
+        "COLUMNS": str(COLS),
+        "LINES": str(ROWS),
+        "TERM": "xterm-256color",
+        "PYTHONUNBUFFERED": "1",
+    }
     import fcntl
     import struct
     import termios
 
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", ROWS, COLS, 0, 0))
     proc = subprocess.Popen(
-        [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm", "watch",
-         "watch", "--duration", "60", "--period", "0.3"],
-        stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "gcs_cli.cli",
+            "--connect",
+            zenoh_router,
+            "--swarm",
+            "watch",
+            "watch",
+            "--duration",
+            "60",
+            "--period",
+            "0.3",
+        ],
+        stdin=slave,
+        stdout=slave,
+        stderr=slave,
+        env=env,
+        close_fds=True,
+    )
     os.close(slave)
     stop = threading.Event()
     bus = SwarmBus.open(ZenohSettings(mode="client", connect=(zenoh_router,)), "watch")
@@ -58,13 +79,27 @@ def test_watch_on_a_terminal(zenoh_router: str) -> None:
         bus.declare_alive(4)
         while not stop.wait(0.2):
             now = time.time()
-            bus.publish(VehicleStatus(4, now, 37.4123456, -5.9876543, 150.0, 120.0,
-                                      battery_pct=77, gps_fix=GpsFix.FIX_3D, gps_sats=14))  # fmt: skip
+            bus.publish(
+                VehicleStatus(
+                    4,
+                    now,
+                    37.4123456,
+                    -5.9876543,
+                    150.0,
+                    120.0,
+                    battery_pct=77,
+                    gps_fix=GpsFix.FIX_3D,
+                    gps_sats=14,
+                )
+            )
             if int(now * 5) % 5 == 0:
                 bus.publish(VehicleInfo(4, VehicleType.PLANE, "Plane", "P4"))
             if not alerted and time.monotonic() - t0 > 3.0:
-                bus.publish(Alert(4, now, Severity.CRITICAL, AlertCode.BATTERY_CRITICAL,
-                                  "battery 12% 13.1 V"))  # fmt: skip
+                bus.publish(
+                    Alert(
+                        4, now, Severity.CRITICAL, AlertCode.BATTERY_CRITICAL, "battery 12% 13.1 V"
+                    )
+                )
                 alerted = True
 
     t = threading.Thread(target=vehicle, daemon=True)
@@ -125,11 +160,29 @@ def test_a_command_shows_its_progress_on_a_terminal(zenoh_router: str) -> None:
     stream = pyte.ByteStream(screen)
     master, slave = pty.openpty()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm", "prog",
-         "cmd", "set-base", "--point", "37.41,-5.98", "--id", "99", "--timeout", "4"],
-        stdin=slave, stdout=slave, stderr=slave, close_fds=True,
+        [
+            sys.executable,
+            "-m",
+            "gcs_cli.cli",
+            "--connect",
+            zenoh_router,
+            "--swarm",
+            "prog",
+            "cmd",
+            "set-base",
+            "--point",
+            "37.41,-5.98",
+            "--id",
+            "99",
+            "--timeout",
+            "4",
+        ],
+        stdin=slave,
+        stdout=slave,
+        stderr=slave,
+        close_fds=True,
         env={**os.environ, "COLUMNS": str(COLS), "TERM": "xterm-256color"},
-    )  # fmt: skip
+    )
     os.close(slave)
     seen = ""
     end = time.monotonic() + 30
@@ -177,15 +230,39 @@ def test_record_writes_the_flight_csv(zenoh_router: str, tmp_path: object) -> No
             k += 1
             t = 1.8e9 + k * 0.2
             for vid in (5, 6):
-                bus.publish(VehicleStatus(vid, t, 37.41 + 1e-5 * k, -5.98, 100.0 + vid, 90.0,
-                                          battery_pct=80, fleet_id=vid - 4))  # fmt: skip
-            bus.publish(VehicleStatus(5, t, 37.41 + 1e-5 * k, -5.98, 105.0, 90.0, fleet_id=1))  # again
+                bus.publish(
+                    VehicleStatus(
+                        vid,
+                        t,
+                        37.41 + 1e-5 * k,
+                        -5.98,
+                        100.0 + vid,
+                        90.0,
+                        battery_pct=80,
+                        fleet_id=vid - 4,
+                    )
+                )
+            bus.publish(
+                VehicleStatus(5, t, 37.41 + 1e-5 * k, -5.98, 105.0, 90.0, fleet_id=1)
+            )  # again
 
     t = threading.Thread(target=vehicles, daemon=True)
     t.start()
     try:
-        code = run(["--connect", zenoh_router, "--swarm", "rec", "record", str(out),
-                    "--duration", "3", "--fleet", "1"])  # fmt: skip
+        code = run(
+            [
+                "--connect",
+                zenoh_router,
+                "--swarm",
+                "rec",
+                "record",
+                str(out),
+                "--duration",
+                "3",
+                "--fleet",
+                "1",
+            ]
+        )
     finally:
         stop.set()
         t.join(2)
@@ -195,5 +272,7 @@ def test_record_writes_the_flight_csv(zenoh_router: str, tmp_path: object) -> No
     assert traj.vehicles == [5]  # --fleet 1 only
     assert len(set(traj.time_s.tolist())) == len(traj.time_s) >= 5  # each sample once
     header = out.read_text().splitlines()[0]
-    assert header == ("time_s,vehicle,lat,lon,alt_m,alt_rel_m,groundspeed_m_s,heading_deg,"
-                      "battery_pct,fsm,mission,progress_pct")  # fmt: skip
+    assert header == (
+        "time_s,vehicle,lat,lon,alt_m,alt_rel_m,groundspeed_m_s,heading_deg,"
+        "battery_pct,fsm,mission,progress_pct"
+    )

@@ -30,11 +30,22 @@ from swarm_proto import (
 
 FIELD = [(37.410, -5.990), (37.410, -5.980), (37.418, -5.980), (37.418, -5.990)]
 HOLE = [(37.412, -5.987), (37.412, -5.985), (37.414, -5.985)]
-AREA = Mission(12, 900, MissionType.AREA, Geometry.polygon(FIELD, [HOLE]),
-               MissionParams(altitude_rel_m=60.0, side_overlap=0.6), name="field")  # fmt: skip
-ROUTE = Mission(13, 900, MissionType.ROUTE,
-                Geometry(GeometryKind.POLYLINE, (LatLon(37.41, -5.99), LatLon(37.42, -5.98),
-                                                 LatLon(37.43, -5.99))))  # fmt: skip
+AREA = Mission(
+    12,
+    900,
+    MissionType.AREA,
+    Geometry.polygon(FIELD, [HOLE]),
+    MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
+    name="field",
+)
+ROUTE = Mission(
+    13,
+    900,
+    MissionType.ROUTE,
+    Geometry(
+        GeometryKind.POLYLINE, (LatLon(37.41, -5.99), LatLon(37.42, -5.98), LatLon(37.43, -5.99))
+    ),
+)
 ZONES = [
     NoFlyZone(3, Geometry.circle(37.414, -5.986, 35.0), 0.0, 300.0, name="tower"),
     NoFlyZone(4, Geometry.polygon(HOLE), 0.0, 500.0),
@@ -46,9 +57,14 @@ FORMATS = (".geojson", ".kml", ".plan", ".waypoints", ".json")
 def close(a: Geometry, b: Geometry) -> bool:
     pa = [(p.lat_deg, p.lon_deg) for p in a.points]
     pb = [(p.lat_deg, p.lon_deg) for p in b.points]
-    return a.kind == b.kind and len(pa) == len(pb) and all(
-        abs(x - u) < 1e-7 and abs(y - v) < 1e-7 for (x, y), (u, v) in zip(pa, pb, strict=True)
-    ) and (a.radius_m or 0) == pytest.approx(b.radius_m or 0)
+    return (
+        a.kind == b.kind
+        and len(pa) == len(pb)
+        and all(
+            abs(x - u) < 1e-7 and abs(y - v) < 1e-7 for (x, y), (u, v) in zip(pa, pb, strict=True)
+        )
+        and (a.radius_m or 0) == pytest.approx(b.radius_m or 0)
+    )
 
 
 @pytest.mark.parametrize("suffix", FORMATS)
@@ -69,6 +85,7 @@ def test_a_mission_round_trips(tmp_path: Path, suffix: str) -> None:
 def test_zones_round_trip(tmp_path: Path, suffix: str) -> None:
     path = tmp_path / f"zones{suffix}"
     save_zones(path, ZONES)
+
     def key(g: Geometry) -> tuple:
         return (g.kind, g.points[0].lat_deg, g.points[0].lon_deg)
 
@@ -83,28 +100,70 @@ def test_a_plan_as_qgroundcontrol_writes_it(tmp_path: Path) -> None:
     """A survey, waypoints, an inclusion fence polygon, an exclusion circle, rally
     points and the planned home, in QGroundControl's own layout."""
     plan = {
-        "fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
-        "mission": {"version": 2, "firmwareType": 3, "vehicleType": 2, "cruiseSpeed": 15,
-                    "hoverSpeed": 5, "plannedHomePosition": [37.409, -5.991, 12.5],
-                    "items": [
-                        {"type": "SimpleItem", "command": 22, "frame": 3, "autoContinue": True,
-                         "doJumpId": 1, "params": [0, 0, 0, None, 37.4095, -5.9905, 30]},
-                        {"type": "ComplexItem", "complexItemType": "survey", "version": 5,
-                         "polygon": [list(p) for p in FIELD], "angle": 90,
-                         "TransectStyleComplexItem": {"Items": [], "CameraCalc": {}}},
-                        {"type": "SimpleItem", "command": 16, "frame": 3, "autoContinue": True,
-                         "doJumpId": 8, "params": [0, 0, 0, None, 37.42, -5.98, 40]},
-                        {"type": "SimpleItem", "command": 20, "frame": 2, "autoContinue": True,
-                         "doJumpId": 9, "params": [0, 0, 0, 0, 0, 0, 0]},
-                    ]},
-        "geoFence": {"version": 2,
-                     "polygons": [{"inclusion": True, "version": 1,
-                                   "polygon": [[37.40, -6.00], [37.40, -5.97], [37.43, -5.97],
-                                               [37.43, -6.00]]}],
-                     "circles": [{"inclusion": False, "version": 1,
-                                  "circle": {"center": [37.414, -5.986], "radius": 35}}]},
+        "fileType": "Plan",
+        "version": 1,
+        "groundStation": "QGroundControl",
+        "mission": {
+            "version": 2,
+            "firmwareType": 3,
+            "vehicleType": 2,
+            "cruiseSpeed": 15,
+            "hoverSpeed": 5,
+            "plannedHomePosition": [37.409, -5.991, 12.5],
+            "items": [
+                {
+                    "type": "SimpleItem",
+                    "command": 22,
+                    "frame": 3,
+                    "autoContinue": True,
+                    "doJumpId": 1,
+                    "params": [0, 0, 0, None, 37.4095, -5.9905, 30],
+                },
+                {
+                    "type": "ComplexItem",
+                    "complexItemType": "survey",
+                    "version": 5,
+                    "polygon": [list(p) for p in FIELD],
+                    "angle": 90,
+                    "TransectStyleComplexItem": {"Items": [], "CameraCalc": {}},
+                },
+                {
+                    "type": "SimpleItem",
+                    "command": 16,
+                    "frame": 3,
+                    "autoContinue": True,
+                    "doJumpId": 8,
+                    "params": [0, 0, 0, None, 37.42, -5.98, 40],
+                },
+                {
+                    "type": "SimpleItem",
+                    "command": 20,
+                    "frame": 2,
+                    "autoContinue": True,
+                    "doJumpId": 9,
+                    "params": [0, 0, 0, 0, 0, 0, 0],
+                },
+            ],
+        },
+        "geoFence": {
+            "version": 2,
+            "polygons": [
+                {
+                    "inclusion": True,
+                    "version": 1,
+                    "polygon": [[37.40, -6.00], [37.40, -5.97], [37.43, -5.97], [37.43, -6.00]],
+                }
+            ],
+            "circles": [
+                {
+                    "inclusion": False,
+                    "version": 1,
+                    "circle": {"center": [37.414, -5.986], "radius": 35},
+                }
+            ],
+        },
         "rallyPoints": {"version": 2, "points": [[37.409, -5.991, 40.0]]},
-    }  # fmt: skip
+    }
     path = tmp_path / "qgc.plan"
     path.write_text(json.dumps(plan))
     roles = [f.role for f in read_features(path)]
@@ -136,16 +195,33 @@ BAD_FILES = {
     "garbage.geojson": "{not json",
     "nan.geojson": '{"type": "Polygon", "coordinates": [[[NaN, 0], [1, 1], [1, 0], [NaN, 0]]]}',
     "far.geojson": '{"type": "Point", "coordinates": [0, 95]}',
-    "crossed.geojson": json.dumps({"type": "Polygon", "coordinates": [[
-        [-5.99, 37.41], [-5.98, 37.42], [-5.98, 37.41], [-5.99, 37.42], [-5.99, 37.41]]]}),
+    "crossed.geojson": json.dumps(
+        {
+            "type": "Polygon",
+            "coordinates": [
+                [[-5.99, 37.41], [-5.98, 37.42], [-5.98, 37.41], [-5.99, 37.42], [-5.99, 37.41]]
+            ],
+        }
+    ),
     "broken.kml": "<kml><Document><Placemark>",
     "notplan.plan": '{"fileType": "Something"}',
-    "nan.plan": json.dumps({"fileType": "Plan", "mission": {"items": [{
-        "type": "ComplexItem", "complexItemType": "survey",
-        "polygon": [[37.41, -5.99], [37.41, -5.98], ["x", -5.98]]}]}}),
+    "nan.plan": json.dumps(
+        {
+            "fileType": "Plan",
+            "mission": {
+                "items": [
+                    {
+                        "type": "ComplexItem",
+                        "complexItemType": "survey",
+                        "polygon": [[37.41, -5.99], [37.41, -5.98], ["x", -5.98]],
+                    }
+                ]
+            },
+        }
+    ),
     "bad.waypoints": "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\tabc\t-5.9\t10\t1\n",
     "field.shp": "whatever",
-}  # fmt: skip
+}
 
 
 def test_bad_files_are_one_line_exit_2_nothing_sent(
@@ -154,8 +230,10 @@ def test_bad_files_are_one_line_exit_2_nothing_sent(
     for name, text in BAD_FILES.items():
         path = tmp_path / name
         path.write_text(text)
-        for args in (["mission", "area", "--file", str(path), "--all", "--dry-run"],
-                     ["zone", "import", str(path)]):  # fmt: skip
+        for args in (
+            ["mission", "area", "--file", str(path), "--all", "--dry-run"],
+            ["zone", "import", str(path)],
+        ):
             # an unreachable router: had anything been sent, it would say so (exit 1)
             code = run(["--connect", "tcp/127.0.0.1:9", *args])
             err = capsys.readouterr().err
@@ -168,10 +246,28 @@ def test_mission_file_in_and_save_out(tmp_path: Path, capsys: pytest.CaptureFixt
     save_mission(src, AREA)
     for suffix in FORMATS:
         out = tmp_path / f"saved{suffix}"
-        code = run(["--connect", "tcp/127.0.0.1:9", "mission", "area", "--file", str(src),
-                    "--all", "--alt", "45", "--dry-run", "--save", str(out)])  # fmt: skip
+        code = run(
+            [
+                "--connect",
+                "tcp/127.0.0.1:9",
+                "mission",
+                "area",
+                "--file",
+                str(src),
+                "--all",
+                "--alt",
+                "45",
+                "--dry-run",
+                "--save",
+                str(out),
+            ]
+        )
         assert code == 0, capsys.readouterr()
-        assert close(Geometry.polygon(FIELD), mission_geometry(out, MissionType.AREA).__class__(
-            GeometryKind.POLYGON, mission_geometry(out, MissionType.AREA).points))
+        assert close(
+            Geometry.polygon(FIELD),
+            mission_geometry(out, MissionType.AREA).__class__(
+                GeometryKind.POLYGON, mission_geometry(out, MissionType.AREA).points
+            ),
+        )
     saved = json.loads((tmp_path / "saved.json").read_text())
     assert saved["params"]["altitude_rel_m"] == 45.0 and saved["mission_type"] == 1

@@ -68,8 +68,9 @@ def test_a_mission_waits_for_the_addressed_vehicles_not_the_others(zenoh_router:
 
         def on_mission(m: Mission, key: str) -> None:
             copies.append(m)
-            vehicles.publish(Ack(6, m.issuer_id, AckRef.MISSION, m.mission_id, False,
-                                 AckReason.NOT_ADDRESSED))  # fmt: skip
+            vehicles.publish(
+                Ack(6, m.issuer_id, AckRef.MISSION, m.mission_id, False, AckReason.NOT_ADDRESSED)
+            )
             if len(copies) >= 2:
                 vehicles.publish(Ack(5, m.issuer_id, AckRef.MISSION, m.mission_id, True))
 
@@ -80,8 +81,13 @@ def test_a_mission_waits_for_the_addressed_vehicles_not_the_others(zenoh_router:
             for vid in (5, 6):
                 vehicles.publish(VehicleInfo(vid, VehicleType.COPTER, "Generic Quad", f"U{vid}"))
             assert gs.wait_for(lambda v: {5, 6} <= set(v.vehicle_ids()), 10.0)
-            mission = Mission(77, gs.gcs_id, MissionType.OBJECTIVE, Geometry.point(37.4, -6.0),
-                              selection=Selector.ids(5))  # fmt: skip
+            mission = Mission(
+                77,
+                gs.gcs_id,
+                MissionType.OBJECTIVE,
+                Geometry.point(37.4, -6.0),
+                selection=Selector.ids(5),
+            )
             acks = gs.mission(mission, timeout_s=10.0)
         finally:
             gs.close()

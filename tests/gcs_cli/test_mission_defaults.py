@@ -20,9 +20,7 @@ pytestmark = pytest.mark.network
 runner = CliRunner()
 
 
-def send_mission(
-    router: str, swarm: str, *args: str, announce: bool = True
-) -> tuple[Mission, str]:
+def send_mission(router: str, swarm: str, *args: str, announce: bool = True) -> tuple[Mission, str]:
     """Run `gcs mission ...` against a vehicle 5 that answers OK (and, with `announce`,
     says what it is); what it received."""
     got: list[Mission] = []
@@ -44,8 +42,9 @@ def send_mission(
         t = threading.Thread(target=announcer, daemon=True)
         t.start()
         try:
-            r = runner.invoke(app, ["--connect", router, "--swarm", swarm, "mission", *args,
-                                   "--yes"])  # fmt: skip
+            r = runner.invoke(
+                app, ["--connect", router, "--swarm", swarm, "mission", *args, "--yes"]
+            )
         finally:
             stop.set()
             t.join()
@@ -57,8 +56,19 @@ def test_unset_parameters_come_from_the_database(zenoh_router: str, swarm_db: Pa
     m, _ = send_mission(zenoh_router, "md1", "target", "--point", "37.41,-5.99", "--id", "5")
     p = m.params
     assert (p.altitude_rel_m, p.radius_m, p.altitude_step_m) == (100.0, 150.0, 10.0)  # seed
-    m, _ = send_mission(zenoh_router, "md2", "target", "--point", "37.41,-5.99", "--id", "5",
-                        "--alt", "40", "--radius", "60")  # fmt: skip
+    m, _ = send_mission(
+        zenoh_router,
+        "md2",
+        "target",
+        "--point",
+        "37.41,-5.99",
+        "--id",
+        "5",
+        "--alt",
+        "40",
+        "--radius",
+        "60",
+    )
     assert (m.params.altitude_rel_m, m.params.radius_m, m.params.altitude_step_m) == (
         40.0,
         60.0,
@@ -70,10 +80,13 @@ def test_unset_parameters_come_from_the_database(zenoh_router: str, swarm_db: Pa
     # the database changed: the ground station follows it
     with SwarmDatabase.open(swarm_db) as db:
         db.remove("swarm.mission-params", "area", "side_overlap")
-        db.add("swarm.mission-params", {"mission": "area", "name": "side_overlap",
-                                        "value": 0.55, "unit": ""})  # fmt: skip
-    m, _ = send_mission(zenoh_router, "md4", "area", "--polygon",
-                        "37.41,-5.99 37.41,-5.98 37.42,-5.98", "--id", "5")  # fmt: skip
+        db.add(
+            "swarm.mission-params",
+            {"mission": "area", "name": "side_overlap", "value": 0.55, "unit": ""},
+        )
+    m, _ = send_mission(
+        zenoh_router, "md4", "area", "--polygon", "37.41,-5.99 37.41,-5.98 37.42,-5.98", "--id", "5"
+    )
     assert (m.params.altitude_rel_m, m.params.side_overlap) == (100.0, 0.55)
 
 
@@ -84,18 +97,46 @@ def test_count_and_payload_set_the_quantity_selector(zenoh_router: str, swarm_db
     is not addressed: nobody would be), so the ground station knows nobody it must wait
     for and listens for its whole --timeout: 1 s here (what is sent is checked, not the
     waiting)."""
-    m, _ = send_mission(zenoh_router, "md5", "target", "--point", "37.41,-5.99",
-                        "--count", "2", "--payload", "EO 1080p 2-axis gimbal",
-                        "--timeout", "1", announce=False)  # fmt: skip
+    m, _ = send_mission(
+        zenoh_router,
+        "md5",
+        "target",
+        "--point",
+        "37.41,-5.99",
+        "--count",
+        "2",
+        "--payload",
+        "EO 1080p 2-axis gimbal",
+        "--timeout",
+        "1",
+        announce=False,
+    )
     sel = m.selection
     assert (sel.kind, sel.quantity, sel.payload_model, sel.fleet_id) == (
-        SelectorKind.QUANTITY, 2, "EO 1080p 2-axis gimbal", 0,
-    )  # fmt: skip
-    m, _ = send_mission(zenoh_router, "md6", "target", "--point", "37.41,-5.99",
-                        "--quantity", "1", "--fleet", "3", "--timeout", "1", announce=False)  # fmt: skip
+        SelectorKind.QUANTITY,
+        2,
+        "EO 1080p 2-axis gimbal",
+        0,
+    )
+    m, _ = send_mission(
+        zenoh_router,
+        "md6",
+        "target",
+        "--point",
+        "37.41,-5.99",
+        "--quantity",
+        "1",
+        "--fleet",
+        "3",
+        "--timeout",
+        "1",
+        announce=False,
+    )
     assert (m.selection.kind, m.selection.quantity, m.selection.fleet_id) == (
-        SelectorKind.QUANTITY, 1, 3,
-    )  # fmt: skip
+        SelectorKind.QUANTITY,
+        1,
+        3,
+    )
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""The adaptive schedule (issue 19): slot shares follow the members' need levels, the
+"""The adaptive schedule: slot shares follow the members' need levels, the
 table stays a pure function of shared state (members, levels), level changes are agreed
 like joins, and past capacity every rate falls in proportion, never into collisions."""
 
@@ -115,8 +115,14 @@ def _member(me: int, ms: tuple[int, ...]) -> Membership:
 
 def _frame_of(m: Membership, cycle: int) -> Frame:
     n = len(m.members)
-    return Frame(src=m.my_id, cycle=cycle, table_hash=m.table_hash, n_members=n,
-                 heard=b"\xff" * heard_bytes(n), records=tuple(m.change_records()))  # fmt: skip
+    return Frame(
+        src=m.my_id,
+        cycle=cycle,
+        table_hash=m.table_hash,
+        n_members=n,
+        heard=b"\xff" * heard_bytes(n),
+        records=tuple(m.change_records()),
+    )
 
 
 def test_a_level_change_spreads_like_a_join_and_takes_effect_on_one_cycle() -> None:
@@ -182,8 +188,16 @@ def test_a_fleet_changing_shares_agrees_and_never_collides(loss: float) -> None:
     no two packets ever overlap, and raised members send more."""
     n = 14
     params = ChannelParams(**{**XTEND_DATASHEET.__dict__, "loss": loss, "seed": 5})
-    f = Fleet(params, TIMING.__class__(sync_s=XTEND_DATASHEET.sync_s), TDM, KEY,
-              max_nodes=n, seed=5, write_jitter_s=5e-4, read_jitter_s=5e-4)  # fmt: skip
+    f = Fleet(
+        params,
+        TIMING.__class__(sync_s=XTEND_DATASHEET.sync_s),
+        TDM,
+        KEY,
+        max_nodes=n,
+        seed=5,
+        write_jitter_s=5e-4,
+        read_jitter_s=5e-4,
+    )
     ms = tuple(range(1, n + 1))
     for v in ms:
         f.add(v, producer=status_producer(v), initial_members=ms)
@@ -219,12 +233,27 @@ def test_a_node_asks_its_share_from_its_vehicle_up_at_once_down_after_5_s() -> N
 
     def vehicle(t: float) -> list[VehicleStatus]:
         a = armed[0]
-        return [VehicleStatus(vehicle_id=1, time_unix_s=t, lat_deg=37.4, lon_deg=-5.9,
-                              alt_msl_m=150.0, alt_rel_m=100.0 if a else 0.0,
-                              vel_north_m_s=18.0 if a else 0.0, armed=a)]  # fmt: skip
+        return [
+            VehicleStatus(
+                vehicle_id=1,
+                time_unix_s=t,
+                lat_deg=37.4,
+                lon_deg=-5.9,
+                alt_msl_m=150.0,
+                alt_rel_m=100.0 if a else 0.0,
+                vel_north_m_s=18.0 if a else 0.0,
+                armed=a,
+            )
+        ]
 
-    f.add(1, lan=vehicle, initial_members=ms, adaptive=True, send_on_error=SendOnErrorConfig(),
-          bridge=Bridge("default", 1, frozenset({1}), predictor=PeerPredictor()))  # fmt: skip
+    f.add(
+        1,
+        lan=vehicle,
+        initial_members=ms,
+        adaptive=True,
+        send_on_error=SendOnErrorConfig(),
+        bridge=Bridge("default", 1, frozenset({1}), predictor=PeerPredictor()),
+    )
     for v in ms[1:]:
         f.add(v, producer=status_producer(v), initial_members=ms, adaptive=True)
 

@@ -29,9 +29,15 @@ rate = st.floats(-0.4, 0.4, allow_nan=False)
 @st.composite
 def states(draw: st.DrawFn) -> Kinematics:
     return Kinematics(
-        draw(st.floats(0, 1e4)), draw(finite), draw(finite), draw(finite),
-        draw(speed), draw(speed), draw(st.floats(-5, 5)), draw(rate),
-    )  # fmt: skip
+        draw(st.floats(0, 1e4)),
+        draw(finite),
+        draw(finite),
+        draw(finite),
+        draw(speed),
+        draw(speed),
+        draw(st.floats(-5, 5)),
+        draw(rate),
+    )
 
 
 def test_a_straight_leg_is_predicted_exactly() -> None:

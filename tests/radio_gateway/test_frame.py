@@ -109,8 +109,15 @@ def test_a_long_frame_full_of_zeros_fits_its_budget() -> None:
     """Found by hypothesis: past 254 bytes COBS spares a byte when there are zeros, so
     the budget is a bound, not the size."""
     frag = fr.Frag(0, 20, 0, bytes(48), False)
-    f = fr.Frame(src=1, cycle=CYCLE, table_hash=0, n_members=0, heard=b"", stratum=0,
-                 records=(fr.Msg(bytes(20)), frag, frag, frag, frag))  # fmt: skip
+    f = fr.Frame(
+        src=1,
+        cycle=CYCLE,
+        table_hash=0,
+        n_members=0,
+        heard=b"",
+        stratum=0,
+        records=(fr.Msg(bytes(20)), frag, frag, frag, frag),
+    )
     wire = fr.encode(f, KEY)
     assert len(wire) == fr.max_wire_size(f) - 1
     assert fr.decode(wire[:-1], KEY, CYCLE) == f

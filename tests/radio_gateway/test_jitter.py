@@ -1,5 +1,4 @@
-"""Slot tables under a loaded host's I/O jitter (issue 18's `swarm-sim demo --radio` on a
-loaded 2-core machine: 65-71 table changes per gateway, peers stale, fleets broken up).
+"""Slot tables under a loaded host's I/O jitter.
 
 The demo's radio: 7 gateways (6 vehicles and the ground station), 5 ms guards, 25 ms
 slots, on the emulated channel in simulated time, every serial write and read delayed
@@ -32,9 +31,15 @@ STALE_S = 3.0  # a gateway stops predicting a peer it has not heard this long
 
 def _jittered(jitter_s: float, seed: int = 1) -> Fleet:
     f = Fleet(
-        ChannelParams(seed=seed), LinkTiming(), DEMO_TDM, KEY, max_nodes=N + 2, seed=seed,
-        write_jitter_s=jitter_s, read_jitter_s=jitter_s,
-    )  # fmt: skip
+        ChannelParams(seed=seed),
+        LinkTiming(),
+        DEMO_TDM,
+        KEY,
+        max_nodes=N + 2,
+        seed=seed,
+        write_jitter_s=jitter_s,
+        read_jitter_s=jitter_s,
+    )
     for vid in range(1, N + 1):
         f.add(vid, producer=status_producer(vid), initial_members=tuple(range(1, N + 1)))
     return f

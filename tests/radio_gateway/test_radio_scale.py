@@ -1,4 +1,4 @@
-"""Issue 19: less framing per byte of news, checked on the datasheet channel (not on the
+"""Less framing per byte of news, checked on the datasheet channel (not on the
 timing the slots were sized with), and send-on-error on a fleet of node cores."""
 
 from __future__ import annotations
@@ -38,8 +38,17 @@ def test_two_statuses_per_frame_carry_more_vehicles_at_5_hz_than_bare_packets() 
     two = TdmConfig(cycle_s=0.4, guard_s=0.005, min_payload=84)
     assert physical_limit(DESIGN, one) < BARE_LIMIT < 16 <= physical_limit(DESIGN, two)
     n = 16
-    f = Fleet(XTEND_DATASHEET, DESIGN, two, KEY, max_nodes=n, seed=3, write_jitter_s=5e-4,
-              read_jitter_s=5e-4, latest_keep=2)  # fmt: skip
+    f = Fleet(
+        XTEND_DATASHEET,
+        DESIGN,
+        two,
+        KEY,
+        max_nodes=n,
+        seed=3,
+        write_jitter_s=5e-4,
+        read_jitter_s=5e-4,
+        latest_keep=2,
+    )
     members = tuple(range(1, n + 1))
     for v in members:
         f.add(v, producer=_producer(v), produce_every_s=0.2, initial_members=members)

@@ -257,7 +257,7 @@ def test_a_table_change_in_a_full_cycle_never_collides() -> None:
     """13 nodes at 5 ms guards: slots of 15 ms, shorter than the 20 ms a frame is built
     before its slot. When the lowest id leaves, every slot moves: a frame built before
     the change for a slot after it, under the old table, collided with the new table's
-    owner of that time (issue 19, the table-change collision; also what a gateway
+    owner of that time (the table-change collision; also what a gateway
     stalled on a loaded machine, declared gone and back, runs into). Now no frame is
     built under a table for a slot the next table governs."""
     tdm = TdmConfig(guard_s=0.005)

@@ -89,8 +89,13 @@ def test_a_straight_leg_sends_only_heartbeats_a_new_manoeuvre_sends_at_once_twic
             s = _at(18.0 * t, 0.0, 18.0, 0.0, T0 + t)
         else:  # then a 60 m radius turn to the left
             a = 18.0 / 60.0 * (t - 10.0)
-            s = _at(180.0 + 60.0 * math.sin(a), 60.0 - 60.0 * math.cos(a),
-                    18.0 * math.cos(a), 18.0 * math.sin(a), T0 + t)  # fmt: skip
+            s = _at(
+                180.0 + 60.0 * math.sin(a),
+                60.0 - 60.0 * math.cos(a),
+                18.0 * math.cos(a),
+                18.0 * math.sin(a),
+                T0 + t,
+            )
         own.update(s, T0 + t)
         if abs(t / 0.4 - round(t / 0.4)) < 1e-6:  # a transmit opportunity every 400 ms
             c = own.candidate(T0 + t, horizon_s=0.45)

@@ -32,8 +32,21 @@ def served(specs: dict[int, VehicleSpec]) -> Iterator[dict[int, int]]:
 def start_node(
     node_id: int, router: str, swarm: str, *args: str, log: Path | None = None
 ) -> subprocess.Popen[bytes]:
-    cmd = [sys.executable, "-m", "swarm_node.cli", "run", "--id", str(node_id), "--swarm", swarm,
-           "--connect", router, "--listen", "tcp/127.0.0.1:0", *args]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "swarm_node.cli",
+        "run",
+        "--id",
+        str(node_id),
+        "--swarm",
+        swarm,
+        "--connect",
+        router,
+        "--listen",
+        "tcp/127.0.0.1:0",
+        *args,
+    ]
     out = open(log, "ab") if log else subprocess.DEVNULL  # noqa: SIM115
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}  # BANDADA_DB: the test's database
     return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env)

@@ -1,5 +1,5 @@
 """A fixed-wing's approach to its share is flown clear of the no-fly zones with the
-autopilot's real turns, not only as planned (issue 18: a `make demo` run's VTOL 4 flew
+autopilot's real turns, not only as planned (a `make demo` run's VTOL 4 flew
 into the field zone right after the vote replan, GEOFENCE_BREACH).
 
 The breach, reconstructed from its logs (the fleet plan cc65b4c7 made again from the
@@ -42,9 +42,23 @@ NOW = 1795682506.0
 #: vehicle 4's replanned share, metres east/north of the zone's centre: the end of its
 #: lane-end turn (where its progress put it), then the next lane west (the first 15
 #: waypoints of the 83; 110 m above home)
-SHARE_XY = ((-234.9, 126.8), (-222.2, 171.2), (-189.1, 203.4), (-144.3, 214.8), (-99.8, 202.4),
-            (-67.4, 169.5), (-55.7, 124.7), (-67.9, 80.1), (-100.7, 47.6), (-145.3, 35.6),
-            (-675.0, 35.6), (-718.7, 47.0), (-751.3, 78.2), (-764.5, 121.4), (-755.1, 165.5))  # fmt: skip
+SHARE_XY = (
+    (-234.9, 126.8),
+    (-222.2, 171.2),
+    (-189.1, 203.4),
+    (-144.3, 214.8),
+    (-99.8, 202.4),
+    (-67.4, 169.5),
+    (-55.7, 124.7),
+    (-67.9, 80.1),
+    (-100.7, 47.6),
+    (-145.3, 35.6),
+    (-675.0, 35.6),
+    (-718.7, 47.0),
+    (-751.3, 78.2),
+    (-764.5, 121.4),
+    (-755.1, 165.5),
+)
 #: where the vehicle was when the approach was planned (east, north, heading), and where
 #: the autopilot started flying it (0.4 s later, still turning right at 19 deg/s)
 PLANNED_AT = (-122.0, 223.3, 101.8)
@@ -57,8 +71,13 @@ def _frame() -> LocalFrame:
 
 
 def _zone() -> NoFlyZone:
-    return NoFlyZone(1, Geometry.circle(*ZONE_AT, ZONE_R_M), floor_alt_msl_m=-100.0,
-                     ceiling_alt_msl_m=1000.0, name="field zone")  # fmt: skip
+    return NoFlyZone(
+        1,
+        Geometry.circle(*ZONE_AT, ZONE_R_M),
+        floor_alt_msl_m=-100.0,
+        ceiling_alt_msl_m=1000.0,
+        name="field zone",
+    )
 
 
 def _share() -> tuple[Waypoint, ...]:
@@ -72,8 +91,14 @@ def _share() -> tuple[Waypoint, ...]:
 def _uploaded(speed_m_s: float = FLOWN_M_S) -> tuple[Waypoint, ...]:
     """The items the mission manager uploads for the share from the breach's pose."""
     lat, lon = _frame().to_geodetic(PLANNED_AT[0], PLANNED_AT[1])
-    ap = flying(lat_deg=lat, lon_deg=lon, heading_deg=PLANNED_AT[2], airspeed_m_s=speed_m_s,
-                groundspeed_m_s=speed_m_s, home=GeoPoint(37.4112, -5.98788, HOME_ALT_MSL_M))  # fmt: skip
+    ap = flying(
+        lat_deg=lat,
+        lon_deg=lon,
+        heading_deg=PLANNED_AT[2],
+        airspeed_m_s=speed_m_s,
+        groundspeed_m_s=speed_m_s,
+        home=GeoPoint(37.4112, -5.98788, HOME_ALT_MSL_M),
+    )
     manager = MissionManager(profile(4, VTOL))
     return manager._tight(manager._with_approach(_share(), ap, [_zone()], NOW, HOME_ALT_MSL_M))
 
@@ -108,8 +133,7 @@ def _fly(
     path: list[tuple[float, float]] = []
     origin: tuple[float, float] | None = None
     for e, n in pts:
-        task = FlyTo(n, e, 120.0, accept_m=FIXED_WING_ACCEPT_M, stop=False,
-                     origin=origin)  # fmt: skip
+        task = FlyTo(n, e, 120.0, accept_m=FIXED_WING_ACCEPT_M, stop=False, origin=origin)
         while t < t_max_s and not task.update(ctx, dt):
             model.step(body, task.target(ctx), dt)
             path.append((body.e, body.n))
@@ -164,9 +188,15 @@ def test_the_way_home_of_a_fixed_wing_faster_than_cruise_is_flown_clear_of_the_z
     the 69 m cruise minimum and flown 32 m and 20 m into the zone)."""
     x, y, hdg, speed = pose
     lat, lon = _frame().to_geodetic(x, y)
-    ap = flying(lat_deg=lat, lon_deg=lon, heading_deg=hdg, airspeed_m_s=speed,
-                groundspeed_m_s=speed, alt_rel_m=110.0,
-                home=GeoPoint(37.4112, -5.98788, HOME_ALT_MSL_M))  # fmt: skip
+    ap = flying(
+        lat_deg=lat,
+        lon_deg=lon,
+        heading_deg=hdg,
+        airspeed_m_s=speed,
+        groundspeed_m_s=speed,
+        alt_rel_m=110.0,
+        home=GeoPoint(37.4112, -5.98788, HOME_ALT_MSL_M),
+    )
     outs = MissionManager(profile(4, VTOL)).start_return(ap, [_zone()], NOW)
     (up,) = [
         o.request for o in outs if isinstance(o, Submit) and isinstance(o.request, UploadMission)

@@ -1,4 +1,4 @@
-"""Issue 16, link loss vs a busy host, in fast time (FastFleet: the real link core, the
+"""link loss vs a busy host, in fast time (FastFleet: the real link core, the
 node core and a simulated ArduPilot exchanging MAVLink bytes):
 
 - the node's process stops for 2-3 s (SIGSTOP, a loaded host) while ArduPilot flies on:
@@ -41,7 +41,7 @@ def test_a_stalled_node_does_not_take_its_stall_for_link_loss(
 def test_three_seconds_of_autopilot_silence_is_a_warning_not_an_emergency(
     fleet_profiles: dict, vid: int
 ) -> None:
-    """Before issue 16 a loss lasting 2 s put the vehicle in STATE_EMERGENCY for good."""
+    """Before a loss lasting 2 s put the vehicle in STATE_EMERGENCY for good."""
     fleet = flying_fleet(fleet_profiles, vid)
     v = fleet.vehicles[vid]
     alive, t0 = v.endpoint, fleet.now
@@ -53,7 +53,8 @@ def test_three_seconds_of_autopilot_silence_is_a_warning_not_an_emergency(
     lost = [
         (a.code, a.severity)
         for a in fleet.messages(Alert, sender=vid)
-        if a.time_unix_s >= t0 and a.code in (AlertCode.AUTOPILOT_LINK_LOSS, AlertCode.CONDITION_CLEARED)
+        if a.time_unix_s >= t0
+        and a.code in (AlertCode.AUTOPILOT_LINK_LOSS, AlertCode.CONDITION_CLEARED)
     ]
     assert lost == [
         (AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING),
@@ -64,7 +65,7 @@ def test_three_seconds_of_autopilot_silence_is_a_warning_not_an_emergency(
 
 
 def test_a_link_loss_emergency_ends_when_the_link_is_back(fleet_profiles: dict) -> None:
-    """Issue 16 (the README's "not there yet"): a loss longer than the escalation put the
+    """A loss longer than the escalation put the
     vehicle in STATE_EMERGENCY for good, though ArduPilot flew on and the link came
     back. Now the emergency ends with the link: the vehicle leaves its fleet (the
     others took its share) and flies home by itself."""

@@ -56,6 +56,7 @@ ROVER, BOAT = SEED["Generic Rover"], SEED["Generic Boat"]
 # rightly climb them apart, is off here (its own tests: tests/swarm_node/safety)
 SETTINGS = NodeSettings(plan_timeout_s=20.0, avoidance=False)
 
+
 def as_vehicle(p: VehicleProfile, vid: int) -> VehicleProfile:
     return msgspec.structs.replace(p, vehicle_id=vid)
 
@@ -63,10 +64,7 @@ def as_vehicle(p: VehicleProfile, vid: int) -> VehicleProfile:
 def fleet_of(*models: VehicleProfile) -> Fleet:
     """Vehicles 1..n of these seed models, flying at 100 m, each in GO_MISSION."""
     profiles = {i: as_vehicle(p, i) for i, p in enumerate(models, start=1)}
-    nodes = {
-        i: NodeCore(p, SETTINGS, fleet_profiles=profiles)
-        for i, p in profiles.items()
-    }
+    nodes = {i: NodeCore(p, SETTINGS, fleet_profiles=profiles) for i, p in profiles.items()}
     f = Fleet(nodes)
     for i in nodes:
         f.set_autopilot(i, flying())
@@ -80,8 +78,14 @@ def fleet_of(*models: VehicleProfile) -> Fleet:
 def on_mission(f: Fleet, mid: int = 50) -> None:
     """Every vehicle flies mission `mid` (objectives north of home): in GO_MISSION, flying."""
     target = Geometry.point(HOME.lat_deg + 0.004, HOME.lon_deg)
-    m = Mission(mid, GCS, MissionType.OBJECTIVE, target, MissionParams(altitude_rel_m=60.0),
-                Selector.ids(*f.nodes))  # fmt: skip
+    m = Mission(
+        mid,
+        GCS,
+        MissionType.OBJECTIVE,
+        target,
+        MissionParams(altitude_rel_m=60.0),
+        Selector.ids(*f.nodes),
+    )
     send(f, m)
     f.run_until(f.now + 3.0)
     for n in f.nodes.values():
@@ -262,8 +266,12 @@ def test_calibrate_only_on_the_ground_and_off_mission() -> None:
     assert acks(f, 81)[1].accepted and acks(f, 83)[1].accepted
     assert acks(f, 82)[1].reason == AckReason.INVALID
     assert [r.what for r in requests(f, 1, 0.0, Calibrate)] == ["baro", "gyro"]  # type: ignore[attr-defined]
-    send(f, Mission(84, GCS, MissionType.OBJECTIVE, Geometry.point(37.42, -5.98),
-                    selection=Selector.ids(1)))  # fmt: skip
+    send(
+        f,
+        Mission(
+            84, GCS, MissionType.OBJECTIVE, Geometry.point(37.42, -5.98), selection=Selector.ids(1)
+        ),
+    )
     f.run_until(f.now + 0.5)
     send(f, command(85, CommandKind.CALIBRATE, text="baro"))
     f.run_until(f.now + 0.5)

@@ -31,8 +31,16 @@ def flying_a_mission(fleet_profiles: dict, vid: int) -> tuple[FastFleet, Operato
     assert op(CommandKind.SET_BASE, point=base).accepted
     assert fleet.run_until(lambda: v.node.fsm.state == FsmState.GO_MISSION, 30)
     far = Geometry.point(*north(1500.0))
-    fleet.broadcast(Mission(9, GCS, MissionType.OBJECTIVE, far,
-                            MissionParams(altitude_rel_m=50.0), Selector.ids(vid)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            9,
+            GCS,
+            MissionType.OBJECTIVE,
+            far,
+            MissionParams(altitude_rel_m=50.0),
+            Selector.ids(vid),
+        )
+    )
     assert fleet.run_until(lambda: v.node.manager.phase.value == "flying", 300)
     assert fleet.run_until(lambda: (v.link.state.alt_rel_m or 0.0) > 45.0, 120)
     return fleet, op

@@ -1,4 +1,4 @@
-"""Issue 20: after a peer's telemetry that changed nothing, NodeCore.next_deadline asks
+"""After a peer's telemetry that changed nothing, NodeCore.next_deadline asks
 the membership alone and takes every other module's deadline as last computed. That is
 only right if such an input moves no other deadline: checked here on whole missions
 (take-off, avoidance, survey, peers lost and stale), the cached answer against the one

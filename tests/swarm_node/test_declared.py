@@ -1,4 +1,4 @@
-"""The declared book (core/declared.py, issue 16): the newest stamp wins wherever a
+"""The declared book (core/declared.py): the newest stamp wins wherever a
 declaration comes from, so nodes that hear the same declarations in any order, or
 learn them from each other, converge; a withdrawal stays withdrawn; a vehicle's base
 and fleet follow from the commands in stamp order."""
@@ -35,13 +35,25 @@ def zone(zid: int, stamp: float, active: bool = True, r: float = 50.0) -> NoFlyZ
 
 
 def set_base(stamp: float, lat: float, target: Selector | None = None) -> Command:
-    return Command(GCS, int(stamp) % 100000, CommandKind.SET_BASE, target or Selector(),
-                   CommandArgs(point=GeoPoint(lat, -5.99, 10.0)), stamp)  # fmt: skip
+    return Command(
+        GCS,
+        int(stamp) % 100000,
+        CommandKind.SET_BASE,
+        target or Selector(),
+        CommandArgs(point=GeoPoint(lat, -5.99, 10.0)),
+        stamp,
+    )
 
 
 def set_fleet(stamp: float, fleet: int, ids: tuple[int, ...]) -> Command:
-    return Command(GCS, int(stamp) % 100000 + 1, CommandKind.SET_FLEET,
-                   Selector(SelectorKind.IDS, ids), CommandArgs(fleet_id=fleet), stamp)  # fmt: skip
+    return Command(
+        GCS,
+        int(stamp) % 100000 + 1,
+        CommandKind.SET_FLEET,
+        Selector(SelectorKind.IDS, ids),
+        CommandArgs(fleet_id=fleet),
+        stamp,
+    )
 
 
 def test_the_newest_zone_wins_and_a_withdrawal_stays_withdrawn() -> None:
@@ -99,13 +111,26 @@ def test_a_mission_withdrawn_never_comes_back_in_force() -> None:
 # ---------------------------------------------------------------- convergence
 
 declaration = st.one_of(
-    st.builds(zone, st.integers(1, 4), st.integers(1, 30).map(lambda k: T + k), st.booleans(),
-              st.sampled_from([20.0, 50.0])),
-    st.builds(set_base, st.integers(1, 30).map(lambda k: T + k), st.sampled_from([37.1, 37.2]),
-              st.sampled_from([None, Selector(SelectorKind.IDS, (7,))])),
-    st.builds(set_fleet, st.integers(1, 30).map(lambda k: T + k), st.integers(1, 3),
-              st.sampled_from([(7,), (7, 8), (8,)])),
-)  # fmt: skip
+    st.builds(
+        zone,
+        st.integers(1, 4),
+        st.integers(1, 30).map(lambda k: T + k),
+        st.booleans(),
+        st.sampled_from([20.0, 50.0]),
+    ),
+    st.builds(
+        set_base,
+        st.integers(1, 30).map(lambda k: T + k),
+        st.sampled_from([37.1, 37.2]),
+        st.sampled_from([None, Selector(SelectorKind.IDS, (7,))]),
+    ),
+    st.builds(
+        set_fleet,
+        st.integers(1, 30).map(lambda k: T + k),
+        st.integers(1, 3),
+        st.sampled_from([(7,), (7, 8), (8,)]),
+    ),
+)
 
 
 def offer(book: DeclaredBook, d: object) -> None:

@@ -1,4 +1,4 @@
-"""Issue 16 over real node processes (Zenoh on 127.0.0.1, the swarm database file):
+"""over real node processes (Zenoh on 127.0.0.1, the swarm database file):
 a node killed and started again holds the base and zones the operator declared (from
 its database), a zone withdrawn while it was down is withdrawn for it too (its peers
 tell it), and `gcs declared` reads any node's declared state."""
@@ -33,6 +33,7 @@ def test_a_restarted_node_keeps_what_was_declared_and_gcs_reads_it(
     watcher = plain_session(zenoh_router)
     gs = GroundStation(ZenohSettings(connect=(zenoh_router,)), swarm)
     try:
+
         def sees(i: int, j: int) -> bool:
             return j in (peers_of(watcher, swarm, i) or [])
 
@@ -57,8 +58,9 @@ def test_a_restarted_node_keeps_what_was_declared_and_gcs_reads_it(
         seen: list[dict] = []
 
         def holds() -> bool:
-            r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm,
-                                    "declared", "2", "--json"])  # fmt: skip
+            r = runner.invoke(
+                app, ["--connect", zenoh_router, "--swarm", swarm, "declared", "2", "--json"]
+            )
             if r.exit_code != 0:
                 return False
             doc = json.loads(r.stdout)
@@ -68,23 +70,29 @@ def test_a_restarted_node_keeps_what_was_declared_and_gcs_reads_it(
 
         assert wait_until(holds, 15, period=0.5) is not None, seen[-1:]
         doc = seen[-1]
-        assert doc["base"] == {"lat_deg": BASE.lat_deg, "lon_deg": BASE.lon_deg,
-                               "alt_msl_m": BASE.alt_msl_m}, doc  # fmt: skip
+        assert doc["base"] == {
+            "lat_deg": BASE.lat_deg,
+            "lon_deg": BASE.lon_deg,
+            "alt_msl_m": BASE.alt_msl_m,
+        }, doc
         assert {z["zone_id"] for z in doc["zones"]} == {3, 4}, doc
         # node 1 holds the same declarations
         one = gs.declared_state(1)
         assert one is not None, "node 1 did not answer"
         assert {(z.zone_id, z.active) for z in one.zones} == {(3, False), (4, True)}, one
         # the table form, asking whichever vehicle answers first
-        r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm, "declared"],
-                          env={"COLUMNS": "200"})  # fmt: skip
+        r = runner.invoke(
+            app, ["--connect", zenoh_router, "--swarm", swarm, "declared"], env={"COLUMNS": "200"}
+        )
         assert r.exit_code == 0, r.stdout
         assert "withdrawn" in r.stdout and "operating" in r.stdout, r.stdout
-        r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm, "declared", "77",
-                                "--timeout", "0.5"])  # fmt: skip
+        r = runner.invoke(
+            app, ["--connect", zenoh_router, "--swarm", swarm, "declared", "77", "--timeout", "0.5"]
+        )
         assert r.exit_code == 1 and "did not answer" in r.stdout, r.stdout
-        r = runner.invoke(app, ["--connect", zenoh_router, "--swarm", swarm, "declared", "1",
-                                "--timeout", "0"])  # fmt: skip
+        r = runner.invoke(
+            app, ["--connect", zenoh_router, "--swarm", swarm, "declared", "1", "--timeout", "0"]
+        )
         assert r.exit_code == 2, r.stdout
     finally:
         gs.close()

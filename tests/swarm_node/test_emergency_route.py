@@ -1,4 +1,4 @@
-"""An emergency return does not cross a no-fly zone (issue 11, defect 2): ArduPilot's
+"""An emergency return does not cross a no-fly zone: ArduPilot's
 RTL flies straight to the rally point; against SITL a copter sent to RTL in EMERGENCY
 flew straight through the zone. In fast time (FastFleet: node core, the real autopilot
 link, a simulated ArduCopter, real MAVLink bytes): a quadcopter beyond a zone, with
@@ -37,8 +37,13 @@ def test_rtl_across_a_zone_becomes_a_zone_safe_way_home(fleet_profiles: dict) ->
     quad = fleet_profiles[7]
     home = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     zone = NoFlyZone(1, Geometry.circle(*offset(home.lat_deg, home.lon_deg, 150.0, 0.0), 40.0))
-    beyond = AutopilotState(armed=True, lat_deg=offset(home.lat_deg, home.lon_deg, 300.0, 0.0)[0],
-                            lon_deg=home.lon_deg, alt_rel_m=20.0, home=home)  # fmt: skip
+    beyond = AutopilotState(
+        armed=True,
+        lat_deg=offset(home.lat_deg, home.lon_deg, 300.0, 0.0)[0],
+        lon_deg=home.lon_deg,
+        alt_rel_m=20.0,
+        home=home,
+    )
     reqs, why = zone_safe_emergency((ReturnToLaunch(),), beyond, home, [zone], quad, 0.0)
     assert why.startswith("RTL would cross a no-fly zone")
     assert isinstance(reqs[0], UploadMission) and isinstance(reqs[1], StartMission)
@@ -80,8 +85,13 @@ def test_emergency_return_flies_around_the_zone(fleet_profiles: dict) -> None:
     # zone A, further out, only below 25 m above home: a companion-computer zone the
     # copter is flown into at 20 m, which raises the emergency (GEOFENCE_BREACH -> RTL)
     zb = NoFlyZone(1, Geometry.circle(*offset(*h, 150.0, 0.0), 40.0), name="B")
-    za = NoFlyZone(2, Geometry.circle(*offset(*h, 300.0, 0.0), 30.0),
-                   floor_alt_msl_m=-100.0, ceiling_alt_msl_m=home.alt_msl_m + 25.0, name="A")  # fmt: skip
+    za = NoFlyZone(
+        2,
+        Geometry.circle(*offset(*h, 300.0, 0.0), 30.0),
+        floor_alt_msl_m=-100.0,
+        ceiling_alt_msl_m=home.alt_msl_m + 25.0,
+        name="A",
+    )
     op = Operator(fleet)
     assert op(CommandKind.SET_BASE, point=home).accepted
     fleet.broadcast(zb)

@@ -282,8 +282,14 @@ def test_the_fence_ceiling_follows_the_highest_mission() -> None:
     base = Command(900, 1, CommandKind.SET_BASE, args=CommandArgs(point=HOME))
     answer_all(node, node.handle(Received(base), T0), T0)
     node.on_timer(T0 + 0.2)  # activates
-    high = Mission(5, 900, MissionType.OBJECTIVE, Geometry.point(*offset(500, 0)),
-                   MissionParams(altitude_rel_m=150.0), Selector.ids(node.self_id))  # fmt: skip
+    high = Mission(
+        5,
+        900,
+        MissionType.OBJECTIVE,
+        Geometry.point(*offset(500, 0)),
+        MissionParams(altitude_rel_m=150.0),
+        Selector.ids(node.self_id),
+    )
     answer_all(node, node.handle(Received(high), T0 + 0.3), T0 + 0.3)
     assert node.fly_ceiling_rel_m() == 150.0
     sent = answer_all(node, node.on_timer(T0 + 0.4), T0 + 0.4)

@@ -62,36 +62,60 @@ def test_fleet_missions_split_fly_again_and_inherit_quickly(tmp_path: Path, swar
     gs = GroundStation(ZenohSettings(connect=(fleet.endpoint,)), gcs_id=GCS_ID)
     try:
         assert gs.wait_for(
-            lambda v: all(i in v.info and v.info[i].home is not None and i in v.status
-                          and v.status[i].gps_fix >= 3 for i in members), 120
-        )  # fmt: skip
+            lambda v: all(
+                i in v.info
+                and v.info[i].home is not None
+                and i in v.status
+                and v.status[i].gps_fix >= 3
+                for i in members
+            ),
+            120,
+        )
         base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
         gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=base), timeout_s=10.0)
-        assert gs.wait_for(lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in members), 60)
-        acks = gs.command(CommandKind.SET_FLEET, Selector.ids(7, 8), CommandArgs(fleet_id=3),
-                          timeout_s=10.0)  # fmt: skip
+        assert gs.wait_for(
+            lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in members), 60
+        )
+        acks = gs.command(
+            CommandKind.SET_FLEET, Selector.ids(7, 8), CommandArgs(fleet_id=3), timeout_s=10.0
+        )
         assert sorted(a.vehicle_id for a in acks if a.accepted) == [7, 8]
         time.sleep(1.0)
         area = square(SITL_HOME.lat_deg + 0.0012, SITL_HOME.lon_deg, 45.0)
         params = MissionParams(altitude_rel_m=20.0)
-        acks = gs.mission(Mission(91, GCS_ID, MissionType.AREA, area, params, Selector.fleet(3)),
-                          timeout_s=10.0)  # fmt: skip
+        acks = gs.mission(
+            Mission(91, GCS_ID, MissionType.AREA, area, params, Selector.fleet(3)), timeout_s=10.0
+        )
         assert sorted(a.vehicle_id for a in acks if a.accepted) == [7, 8]
-        assert gs.wait_for(lambda v: all(v.status[i].mission_state == MissionState.MISSION
-                                         and info_of(v, i, 91) for i in members), 90)  # fmt: skip
+        assert gs.wait_for(
+            lambda v: all(
+                v.status[i].mission_state == MissionState.MISSION and info_of(v, i, 91)
+                for i in members
+            ),
+            90,
+        )
         view = gs.snapshot()
         assert view.info[7].members_hash == view.info[8].members_hash != 0
         for vid in members:
-            assert "mission 91: planned for fleet [7, 8]" in (tmp_path / f"node-{vid}.log").read_text()
+            assert (
+                "mission 91: planned for fleet [7, 8]" in (tmp_path / f"node-{vid}.log").read_text()
+            )
         # a second mission, no selector, on the same nodes while they fly the first
         acks = gs.mission(Mission(92, GCS_ID, MissionType.AREA, area, params), timeout_s=10.0)
         assert sorted(a.vehicle_id for a in acks if a.accepted) == [7, 8]
         assert gs.wait_for(
-            lambda v: all(info_of(v, i, 92) and v.status[i].mission_state == MissionState.MISSION
-                          and v.status[i].mission_progress_pct >= 10 for i in members), 120
-        )  # fmt: skip
+            lambda v: all(
+                info_of(v, i, 92)
+                and v.status[i].mission_state == MissionState.MISSION
+                and v.status[i].mission_progress_pct >= 10
+                for i in members
+            ),
+            120,
+        )
         for vid in members:
-            assert "mission 92: planned for fleet [7, 8]" in (tmp_path / f"node-{vid}.log").read_text()
+            assert (
+                "mission 92: planned for fleet [7, 8]" in (tmp_path / f"node-{vid}.log").read_text()
+            )
         path_before = gs.snapshot().info[7].mission_path_m
         fleet.nodes[8].send_signal(signal.SIGKILL)
         assert gs.wait_for(lambda v: v.info[7].mission_path_m > path_before + 1.0, 60)
@@ -111,21 +135,31 @@ def test_fleet_missions_split_fly_again_and_inherit(tmp_path: Path, swarm_db: Pa
     gs = GroundStation(ZenohSettings(connect=(fleet.endpoint,)), gcs_id=GCS_ID)
     try:
         assert gs.wait_for(
-            lambda v: all(i in v.info and v.info[i].home is not None and i in v.status
-                          and v.status[i].gps_fix >= 3 for i in members), 120
-        )  # fmt: skip
+            lambda v: all(
+                i in v.info
+                and v.info[i].home is not None
+                and i in v.status
+                and v.status[i].gps_fix >= 3
+                for i in members
+            ),
+            120,
+        )
         base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
         gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=base), timeout_s=10.0)
-        assert gs.wait_for(lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in members), 60)
-        acks = gs.command(CommandKind.SET_FLEET, Selector.ids(7, 8), CommandArgs(fleet_id=2),
-                          timeout_s=10.0)  # fmt: skip
+        assert gs.wait_for(
+            lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in members), 60
+        )
+        acks = gs.command(
+            CommandKind.SET_FLEET, Selector.ids(7, 8), CommandArgs(fleet_id=2), timeout_s=10.0
+        )
         assert sorted(a.vehicle_id for a in acks if a.accepted) == [7, 8]
         time.sleep(1.0)
         area = square(SITL_HOME.lat_deg + 0.0012, SITL_HOME.lon_deg, 45.0)
         params = MissionParams(altitude_rel_m=25.0)
         # 1: a mission to fleet 2 is split between 7 and 8 (9 is not addressed)
-        acks = gs.mission(Mission(81, GCS_ID, MissionType.AREA, area, params, Selector.fleet(2)),
-                          timeout_s=10.0)  # fmt: skip
+        acks = gs.mission(
+            Mission(81, GCS_ID, MissionType.AREA, area, params, Selector.fleet(2)), timeout_s=10.0
+        )
         answers = {a.vehicle_id: a.reason for a in acks}
         assert answers[7] == answers[8] == AckReason.OK, answers
         # 9's NOT_ADDRESSED may come after the addressed vehicles' answers were in
@@ -143,14 +177,19 @@ def test_fleet_missions_split_fly_again_and_inherit(tmp_path: Path, swarm_db: Pa
         assert gs.wait_for(lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in (7, 8)), 60)
         # no fresh batteries: a smaller field, so that 7 has the charge to take on 8's rest
         small = square(SITL_HOME.lat_deg + 0.0012, SITL_HOME.lon_deg, 30.0)
-        acks = gs.mission(Mission(82, GCS_ID, MissionType.AREA, small, params, Selector.fleet(2)),
-                          timeout_s=10.0)  # fmt: skip
+        acks = gs.mission(
+            Mission(82, GCS_ID, MissionType.AREA, small, params, Selector.fleet(2)), timeout_s=10.0
+        )
         assert sorted(a.vehicle_id for a in acks if a.accepted) == [7, 8]
         # 3: node 8 is SIGKILLed mid-mission: 7 replans and flies 8's share too
         assert gs.wait_for(
-            lambda v: all(v.status[i].mission_state == MissionState.MISSION
-                          and v.status[i].mission_progress_pct >= 25 for i in (7, 8)), 240
-        )  # fmt: skip
+            lambda v: all(
+                v.status[i].mission_state == MissionState.MISSION
+                and v.status[i].mission_progress_pct >= 25
+                for i in (7, 8)
+            ),
+            240,
+        )
         path_before = gs.snapshot().info[7].mission_path_m
         fleet.nodes[8].send_signal(signal.SIGKILL)
         seen_replan = gs.wait_for(lambda v: v.status[7].mission_state == MissionState.REPLAN, 60)

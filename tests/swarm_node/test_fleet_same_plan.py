@@ -1,4 +1,4 @@
-"""Issue 12's property: every node of a fleet, given the same inputs in any order,
+"""Property: every node of a fleet, given the same inputs in any order,
 computes the same roster and the same plan (and the same replan after a loss). Each
 node hears the answers in its own order, then plans with the members in its own order
 (`mission.share.plan_fleet`, what the node's plan job runs)."""
@@ -30,8 +30,12 @@ LA, LO = 37.4120, -5.9889
 SEED_IDS = (1, 2, 3, 7, 8, 10)
 GEOMETRY = {
     MissionType.AREA: Geometry.polygon(
-        [(LA + 0.002, LO - 0.002), (LA + 0.002, LO + 0.002), (LA + 0.004, LO + 0.002),
-         (LA + 0.004, LO - 0.002)]
+        [
+            (LA + 0.002, LO - 0.002),
+            (LA + 0.002, LO + 0.002),
+            (LA + 0.004, LO + 0.002),
+            (LA + 0.004, LO - 0.002),
+        ]
     ),
     MissionType.TARGET: Geometry.point(LA + 0.004, LO),
     MissionType.PERIMETER: Geometry.circle(LA + 0.004, LO, 150.0),
@@ -96,8 +100,11 @@ def test_every_node_computes_the_same_roster_plan_and_replan(
             except PlanningError:  # nothing to fly (a rover given no lanes): at home
                 posed.append(Member(fleet_profiles[v], homes[v]))
         progress_in_order = dict(rnd.sample(sorted(progress.items()), len(progress)))
-        out = run_plan(PlanRequest(2, mission, tuple(posed), (), 0.0, 0.0, base=plan,
-                                   progress_m=progress_in_order))  # fmt: skip
+        out = run_plan(
+            PlanRequest(
+                2, mission, tuple(posed), (), 0.0, 0.0, base=plan, progress_m=progress_in_order
+            )
+        )
         replans.add(
             (out.error,)
             if out.plan is None

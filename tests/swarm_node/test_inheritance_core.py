@@ -64,8 +64,10 @@ def test_a_replan_gives_the_survivors_the_battery_the_model_says_they_have_left(
     from swarm_proto import GeoPoint, Mission, MissionParams, MissionType
     from tests.swarm_node.test_mission_defects import square
 
-    members = [Member(fleet_profiles[v], GeoPoint(37.4120, -5.9889 + 0.0005 * i, 0.0))
-               for i, v in enumerate((7, 8))]  # fmt: skip
+    members = [
+        Member(fleet_profiles[v], GeoPoint(37.4120, -5.9889 + 0.0005 * i, 0.0))
+        for i, v in enumerate((7, 8))
+    ]
     mission = Mission(9, 900, MissionType.AREA, square(60.0), MissionParams(altitude_rel_m=40.0))
     base = plan_fleet(mission, members, [], 0.0, 0.0)
     s7 = base.share(7)
@@ -91,8 +93,10 @@ def test_a_survivor_inherits_what_its_battery_flies_and_the_rest_is_reported(
     from swarm_proto import GeoPoint, Mission, MissionParams, MissionType
     from tests.swarm_node.test_mission_defects import square
 
-    members = [Member(fleet_profiles[v], GeoPoint(37.4120, -5.9889 + 0.0005 * i, 0.0))
-               for i, v in enumerate((7, 8))]  # fmt: skip
+    members = [
+        Member(fleet_profiles[v], GeoPoint(37.4120, -5.9889 + 0.0005 * i, 0.0))
+        for i, v in enumerate((7, 8))
+    ]
     mission = Mission(9, 900, MissionType.AREA, square(35.0), MissionParams(altitude_rel_m=20.0))
     base = plan_fleet(mission, members, [], 0.0, 0.0)
     progress = {7: 0.1 * base.share(7).length_m, 8: 0.1 * base.share(8).length_m}
@@ -126,8 +130,13 @@ def test_a_vehicle_that_flew_before_is_planned_with_the_battery_it_has(
 
     homes = [GeoPoint(37.4120, -5.9889 + 0.0005 * i, 0.0) for i in range(2)]
     mission = Mission(9, 900, MissionType.AREA, square(40.0), MissionParams(altitude_rel_m=25.0))
-    full = plan_fleet(mission, [Member(fleet_profiles[v], h) for v, h in zip((7, 8), homes, strict=True)],
-                      [], 0.0, 0.0)  # fmt: skip
+    full = plan_fleet(
+        mission,
+        [Member(fleet_profiles[v], h) for v, h in zip((7, 8), homes, strict=True)],
+        [],
+        0.0,
+        0.0,
+    )
     used = [Member(fleet_profiles[7], homes[0], 55.0), Member(fleet_profiles[8], homes[1], 100.0)]
     part = plan_fleet(mission, used, [], 0.0, 0.0)
     assert part.launch_battery_pct == {7: 55.0, 8: 100.0}
@@ -145,8 +154,9 @@ def test_the_roster_keeps_the_battery_each_member_published_entering_plan() -> N
     r.open(5, Selector())
 
     def info(pct: int, state: FsmState) -> VehicleInfo:
-        return VehicleInfo(2, VehicleType.COPTER, "q", "U2", mission_id=5, fsm_state=state,
-                           battery_pct=pct)  # fmt: skip
+        return VehicleInfo(
+            2, VehicleType.COPTER, "q", "U2", mission_id=5, fsm_state=state, battery_pct=pct
+        )
 
     r.on_info(info(80, FsmState.PLAN))
     r.on_info(info(79, FsmState.PLAN))  # a later one: the first is what everyone planned with

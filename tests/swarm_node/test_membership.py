@@ -137,14 +137,17 @@ _Heard = list[tuple[str, int, int]]  # (what: status / info / alive / dead, peer
 
 @given(
     st.lists(
-        st.tuples(st.sampled_from(["status", "info", "alive", "dead"]),
-                  st.integers(2, 6), st.integers(0, 3)),
+        st.tuples(
+            st.sampled_from(["status", "info", "alive", "dead"]),
+            st.integers(2, 6),
+            st.integers(0, 3),
+        ),
         max_size=40,
     ),
     st.lists(st.tuples(st.sampled_from(["status", "info"]), st.integers(1, 7)), max_size=12),
-)  # fmt: skip
+)
 def test_a_run_heard_again_at_once_is_the_same_as_one_by_one(before: _Heard, run: list) -> None:
-    """`heard_again` (a node hearing a batch, issue 20) takes a run of statuses and infos
+    """`heard_again` (a node hearing a batch) takes a run of statuses and infos
     from known peers heard again as `on_status` / `on_info` take each, and stops,
     untouched, at the first message that would take another path."""
 

@@ -1,4 +1,4 @@
-"""Regression tests for the mission-layer defects of issue 12 (each failed on the code
+"""Regression tests for the mission-layer defects (each failed on the code
 before the fix): fleet missions shared, a second mission flown, mission_state in PLAN,
 progress kept on the way home, a cancelled mission not reported as failed."""
 
@@ -29,16 +29,24 @@ def square(half_m: float = 80.0, lat: float = 37.4130, lon: float = -5.9889) -> 
     dlat = half_m / 111_320.0
     dlon = half_m / (111_320.0 * math.cos(math.radians(lat)))
     return Geometry.polygon(
-        [(lat - dlat, lon - dlon), (lat - dlat, lon + dlon), (lat + dlat, lon + dlon),
-         (lat + dlat, lon - dlon)]
-    )  # fmt: skip
+        [
+            (lat - dlat, lon - dlon),
+            (lat - dlat, lon + dlon),
+            (lat + dlat, lon + dlon),
+            (lat + dlat, lon - dlon),
+        ]
+    )
 
 
 def area(mid: int, selection: Selector | None = None, half_m: float = 80.0) -> Mission:
     return Mission(
-        mid, GCS, MissionType.AREA, square(half_m), MissionParams(altitude_rel_m=50.0),
+        mid,
+        GCS,
+        MissionType.AREA,
+        square(half_m),
+        MissionParams(altitude_rel_m=50.0),
         selection=selection or Selector(),
-    )  # fmt: skip
+    )
 
 
 def uploads(f: Fleet, vid: int) -> list[UploadMission]:
@@ -73,7 +81,9 @@ def test_a_mission_to_all_is_shared_by_the_fleet() -> None:
     shares = {i: lanes(u[0]) for i, u in ups.items()}
     # three different shares, no waypoint flown by two vehicles
     assert shares[1] and shares[2] and shares[3]
-    assert not (shares[1] & shares[2]) and not (shares[2] & shares[3]) and not (shares[1] & shares[3])
+    assert (
+        not (shares[1] & shares[2]) and not (shares[2] & shares[3]) and not (shares[1] & shares[3])
+    )
     for i in (1, 2, 3):
         assert f.nodes[i].roster.members == (1, 2, 3)
 

@@ -1,6 +1,5 @@
 """The mission layer over real node processes on loopback Zenoh, each flying a
-simulated vehicle over MAVLink: planning runs off the control loop (issue 12,
-defect 4)."""
+simulated vehicle over MAVLink: planning runs off the control loop."""
 
 from __future__ import annotations
 
@@ -42,8 +41,12 @@ def wavy_area(n: int, lat0: float, lon0: float, radius_m: float = 150.0) -> Geom
     for i in range(n):
         a = 2 * math.pi * i / n
         r = radius_m + 0.13 * radius_m * math.sin(7 * a)
-        pts.append((lat0 + r * math.sin(a) / 111_320.0,
-                    lon0 + r * math.cos(a) / (111_320.0 * math.cos(math.radians(lat0)))))  # fmt: skip
+        pts.append(
+            (
+                lat0 + r * math.sin(a) / 111_320.0,
+                lon0 + r * math.cos(a) / (111_320.0 * math.cos(math.radians(lat0))),
+            )
+        )
     return Geometry.polygon(pts)
 
 
@@ -120,15 +123,18 @@ def test_planning_does_not_stall_status_or_commands(
     """A valid 4,000-vertex area mission for a VTOL (its fixed-wing turns made flyable)
     takes a second or more to plan; meanwhile the node keeps publishing its 5 Hz status
     and answers a command (it used to stop for 4.9 s). Since the planner became fast
-    (issue 20) a quadcopter's 150 m field plans in 0.1-0.4 s, too short to measure."""
+    a quadcopter's 150 m field plans in 0.1-0.4 s, too short to measure."""
     client = plain_session(zenoh_router)
     watch = Watch(client, swarm)
     try:
         with nodes([1], zenoh_router, swarm, autopilots=vehicles):
             activate(client, swarm, watch, [1])
             area = wavy_area(4000, SITL_HOME.lat_deg + 0.004, SITL_HOME.lon_deg, 300.0)
-            send(client, swarm, Mission(50, GCS, MissionType.AREA, area,
-                                        MissionParams(altitude_rel_m=25.0)))  # fmt: skip
+            send(
+                client,
+                swarm,
+                Mission(50, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=25.0)),
+            )
             planning: list[float] = []  # arrival times of statuses while PLANNING
             acked_while_planning = False
             sent_command = False
@@ -141,8 +147,11 @@ def test_planning_does_not_stall_status_or_commands(
                 if st.mission_state == MissionState.PLANNING:
                     planning.append(t)
                     if not sent_command:
-                        send(client, swarm, Command(GCS, 60, CommandKind.SET_FLEET,
-                                                    args=CommandArgs(fleet_id=3)))  # fmt: skip
+                        send(
+                            client,
+                            swarm,
+                            Command(GCS, 60, CommandKind.SET_FLEET, args=CommandArgs(fleet_id=3)),
+                        )
                         sent_command = True
                 elif planning and st.mission_state in (
                     MissionState.PREMISSION,

@@ -119,7 +119,7 @@ def test_link_loss_is_a_warning_at_once_and_an_emergency_when_it_lasts() -> None
 
 
 def test_a_short_link_gap_is_no_emergency() -> None:
-    """Issue 11, defect 7: on a loaded host the link was silent 0.8 s and back 0.4 s
+    """On a loaded host the link was silent 0.8 s and back 0.4 s
     later; that made an EMERGENCY and ended a mission ArduPilot flew fine."""
     mon = VehicleMonitor(3)
     mon.update(healthy(), 0.0)
@@ -130,7 +130,7 @@ def test_a_short_link_gap_is_no_emergency() -> None:
 
 
 def test_no_link_at_start_is_not_a_loss_until_the_grace_period() -> None:
-    """Issue 16: a link that never came up is "no autopilot yet", a WARNING after the
+    """A link that never came up is "no autopilot yet", a WARNING after the
     grace period and never worse (a slow start on a loaded host raised a CRITICAL link
     loss on the ground 91 ms after the link opened); a link lost after it was up is a
     loss, CRITICAL on the ground once it lasts 5 s."""
@@ -148,7 +148,7 @@ def test_no_link_at_start_is_not_a_loss_until_the_grace_period() -> None:
 
 
 def test_the_nodes_own_stall_does_not_count_toward_a_link_loss() -> None:
-    """Issue 16: 1 s of real link gap, then the node itself stalls 3 s (its loop not
+    """1 s of real link gap, then the node itself stalls 3 s (its loop not
     served: a loaded host): the loss has lasted 1 s of the link's time, not 4 s."""
     mon = VehicleMonitor(3)
     mon.update(healthy(), 0.0)
@@ -228,8 +228,15 @@ def test_leaving_the_operating_area() -> None:
 
 
 def test_thresholds_from_a_profile() -> None:
-    p = VehicleProfile(1, "U1", "m", VehicleType.ROVER, battery_low_pct=25,
-                       battery_critical_pct=10, max_tilt_deg=35.0)  # fmt: skip
+    p = VehicleProfile(
+        1,
+        "U1",
+        "m",
+        VehicleType.ROVER,
+        battery_low_pct=25,
+        battery_critical_pct=10,
+        max_tilt_deg=35.0,
+    )
     t = Thresholds.from_profile(p)
     assert (t.battery_low_pct, t.battery_critical_pct, t.max_tilt_deg) == (25, 10, 35.0)
     assert (t.min_sats, t.raise_after_s, t.clear_after_s) == (6, 1.0, 3.0)  # not per model

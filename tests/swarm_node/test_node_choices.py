@@ -80,7 +80,7 @@ def test_set_base_uploads_the_base_as_the_rally_point_and_answers_after_it() -> 
 def test_the_rally_point_is_never_below_a_safe_altitude(
     model: str, base_above_home_m: float, rally_m: float
 ) -> None:
-    """Issue 11, defect 1: SET_BASE uploaded base - home altitude, 0 m when the operator
+    """SET_BASE uploaded base - home altitude, 0 m when the operator
     gave none; ArduPlane's RTL flew the QuadPlane into the ground at that rally point."""
     node = NodeCore(seed_profiles()[model], now=0.0)
     node.handle(AutopilotUpdate(flying()), 0.0)
@@ -94,13 +94,17 @@ def test_the_rally_point_is_never_below_a_safe_altitude(
 
 @pytest.mark.parametrize(
     ("model", "rally_m"),
-    [("Generic Rover", 0.0), ("Generic Boat", 0.0), ("Generic Quadcopter", 15.0),
-     ("Albatross 250 VTOL", 40.0)],
-)  # fmt: skip
+    [
+        ("Generic Rover", 0.0),
+        ("Generic Boat", 0.0),
+        ("Generic Quadcopter", 15.0),
+        ("Albatross 250 VTOL", 40.0),
+    ],
+)
 def test_set_base_without_an_altitude_never_puts_the_rally_point_below_home(
     model: str, rally_m: float
 ) -> None:
-    """Issue 16: `gcs cmd set-base --point LAT,LON` sends the base at 0 m above sea
+    """`gcs cmd set-base --point LAT,LON` sends the base at 0 m above sea
     level; with home 10 m above sea level the rally point went to -10 m relative."""
     node = NodeCore(seed_profiles()[model], now=0.0)
     home = GeoPoint(HOME.lat_deg, HOME.lon_deg, 10.0)
@@ -137,8 +141,6 @@ def test_a_mission_ends_on_an_unlimited_loiter_over_its_last_waypoint() -> None:
     assert node.fsm.mission_id == -1  # mission complete: the return home began
 
 
-
-
 def test_the_simulated_autopilot_holds_the_base_and_the_final_loiter(fleet_profiles: dict) -> None:
     fleet = FastFleet.build([1], fleet_profiles)  # a seed Albatross VTOL
     v = fleet.vehicles[1]
@@ -148,13 +150,21 @@ def test_the_simulated_autopilot_holds_the_base_and_the_final_loiter(fleet_profi
     base = GeoPoint(*north(30.0), SITL_HOME.alt_m)
     assert op(CommandKind.SET_BASE, point=base).accepted
     # the base at home's altitude: the rally point at the VTOL's safe floor, 40 m above
-    # home (at 0 m ArduPlane's RTL flies into the ground: issue 11)
+    # home (at 0 m ArduPlane's RTL flies into the ground)
     assert [(it.command, round(it.z, 3)) for it in sim.rally_items] == [(NAV_RALLY_POINT, 40.0)]
     rally = sim.rally_items[0]
     assert math.isclose(rally.lat_deg, base.lat_deg, abs_tol=1e-7)
     assert fleet.run_until(lambda: v.node.fsm.state == FsmState.GO_MISSION, 30)
     target = Geometry.point(*north(800.0))
-    fleet.broadcast(Mission(5, GCS, MissionType.OBJECTIVE, target,
-                            MissionParams(altitude_rel_m=60.0), Selector.ids(1)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            5,
+            GCS,
+            MissionType.OBJECTIVE,
+            target,
+            MissionParams(altitude_rel_m=60.0),
+            Selector.ids(1),
+        )
+    )
     assert fleet.run_until(lambda: v.node.manager.phase.value == "flying", 300)
     assert sim.mission_items[-1].command == NAV_LOITER_UNLIM

@@ -119,8 +119,9 @@ def test_a_vehicle_with_a_base_but_not_ready_rejects_a_mission(
     spec = VehicleSpec("copter", port=free_tcp_port(), sysid=7)
     server = VehicleServer([spec], SystemClock())
     server.start_thread()
-    proc = start_node(7, zenoh_router, swarm, "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}",
-                      log=log)  # fmt: skip
+    proc = start_node(
+        7, zenoh_router, swarm, "--autopilot", f"tcp:127.0.0.1:{spec.tcp_port}", log=log
+    )
     client = plain_session(zenoh_router)
     heard: queue.Queue[object] = queue.Queue()
     subs = [

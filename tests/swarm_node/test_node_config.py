@@ -245,7 +245,7 @@ def test_the_demo_gives_planning_its_wall_time() -> None:
 
 
 def test_avoidance_is_on_by_default_and_can_be_switched_off(tmp_path: Path) -> None:
-    """Issue 14: `--avoidance/--no-avoidance` and `avoidance = false` in the TOML reach
+    """`--avoidance/--no-avoidance` and `avoidance = false` in the TOML reach
     the core (NodeSettings.avoidance); a value that is not a boolean is refused."""
     from typer.testing import CliRunner
 
@@ -270,10 +270,22 @@ def test_a_client_whose_router_is_not_there_gets_a_clear_error(swarm_db: Path) -
     """`--mode client` with the router down: exit 2 and a sentence, no traceback (the
     service unit restarts the node until the router is up)."""
     r = subprocess.run(
-        node_cmd("run", "--id", "1", "--mode", "client", "--connect", "tcp/127.0.0.1:9",
-                 "--autopilot", "tcp:127.0.0.1:9"),
-        capture_output=True, text=True, timeout=60, check=False,
-    )  # fmt: skip
+        node_cmd(
+            "run",
+            "--id",
+            "1",
+            "--mode",
+            "client",
+            "--connect",
+            "tcp/127.0.0.1:9",
+            "--autopilot",
+            "tcp:127.0.0.1:9",
+        ),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert r.returncode == 2, r.stderr
     assert "cannot open Zenoh" in r.stderr and "router" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr + r.stdout

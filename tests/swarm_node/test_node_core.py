@@ -50,6 +50,7 @@ GCS = 900
 # rightly climb them apart, is off here (its own tests: tests/swarm_node/safety)
 SETTINGS = NodeSettings(plan_timeout_s=20.0, avoidance=False)
 
+
 def profile(vid: int, model: str = "Generic Quadcopter") -> VehicleProfile:
     """Vehicle `vid` with the parameters of a seed model (the swarm database's seed data,
     never constants of the tests' own)."""
@@ -79,10 +80,7 @@ def flying(**kw: object) -> AutopilotState:
 
 def fleet(n: int = 3, **kw: object) -> Fleet:
     profiles = {i: profile(i) for i in range(1, n + 1)}
-    nodes = {
-        i: NodeCore(profiles[i], SETTINGS, fleet_profiles=profiles)
-        for i in profiles
-    }
+    nodes = {i: NodeCore(profiles[i], SETTINGS, fleet_profiles=profiles) for i in profiles}
     f = Fleet(nodes, **kw)  # type: ignore[arg-type]
     for i in nodes:
         f.set_autopilot(i, flying())
@@ -251,7 +249,7 @@ def test_mission_acceptance_checks_in_the_papers_order() -> None:
     # an emergency comes before "not ready"; vehicle 1 is not addressed: NOT_ADDRESSED,
     # although it has no home either
     f.set_autopilot(4, flying(link_ok=False))
-    f.run_until(8.5)  # a link loss is an emergency once it lasts 5 s (issues 11, 16)
+    f.run_until(8.5)  # a link loss is an emergency once it lasts 5 s (16)
     assert f.nodes[4].fsm.state == FsmState.EMERGENCY
     send(f, mission(7, (4,)))
     f.run_until(9.5)
@@ -333,7 +331,7 @@ def test_link_loss_drives_emergency_when_it_lasts_five_seconds() -> None:
     f.set_autopilot(1, flying(link_ok=False))
     f.run_until(t_loss + 4.0)
     node = f.nodes[1]
-    assert node.fsm.state != FsmState.EMERGENCY  # a WARNING first (issues 11, 16)
+    assert node.fsm.state != FsmState.EMERGENCY  # a WARNING first (16)
     f.run_until(t_loss + 6.0)
     assert node.fsm.state == FsmState.EMERGENCY
     t_emergency = next(t for t, n, text in f.notes if "-> EMERGENCY" in text)
@@ -370,8 +368,10 @@ def test_unset_mission_parameters_come_from_the_database() -> None:
     with SwarmDatabase.memory() as db:
         defaults = mission_defaults_of(db)
         db.remove("swarm.mission-params", "target", "radius_m")
-        db.add("swarm.mission-params", {"mission": "target", "name": "radius_m",
-                                        "value": 175.0, "unit": "m"})  # fmt: skip
+        db.add(
+            "swarm.mission-params",
+            {"mission": "target", "name": "radius_m", "value": 175.0, "unit": "m"},
+        )
         changed = mission_defaults_of(db)
     assert defaults[MissionType.TARGET] == {
         "altitude_rel_m": 100.0,
@@ -379,15 +379,21 @@ def test_unset_mission_parameters_come_from_the_database() -> None:
         "altitude_step_m": 10.0,
     }
     profiles = {i: profile(i) for i in (1, 2)}
-    f = Fleet({i: NodeCore(p, fleet_profiles=profiles, mission_defaults=changed)
-               for i, p in profiles.items()})  # fmt: skip
+    f = Fleet(
+        {
+            i: NodeCore(p, fleet_profiles=profiles, mission_defaults=changed)
+            for i, p in profiles.items()
+        }
+    )
     for i in f.nodes:
         f.set_autopilot(i, flying())
     activate(f)
     point, circle = Geometry.point(37.42, -5.98), Geometry.circle(37.42, -5.98, 60.0)
     send(f, Mission(90, GCS, MissionType.TARGET, point, selection=Selector.ids(1)))
-    send(f, Mission(91, GCS, MissionType.TARGET, point, MissionParams(radius_m=80.0),
-                    Selector.ids(2)))  # fmt: skip
+    send(
+        f,
+        Mission(91, GCS, MissionType.TARGET, point, MissionParams(radius_m=80.0), Selector.ids(2)),
+    )
     f.run_until(f.now + 0.5)
     assert f.nodes[1].missions[90].params.radius_m == 175.0  # unset: the database's
     assert f.nodes[2].missions[91].params.radius_m == 80.0  # the operator's
@@ -416,13 +422,20 @@ def test_a_target_mission_derived_from_a_report_gets_the_database_altitude_step(
     step = defaults[MissionType.TARGET]["altitude_step_m"]
     assert step > 0
     profiles = {i: profile(i) for i in (1, 2, 3)}
-    f = Fleet({i: NodeCore(p, fleet_profiles=profiles, mission_defaults=defaults,
-                           tasking_settings=tasking) for i, p in profiles.items()})  # fmt: skip
+    f = Fleet(
+        {
+            i: NodeCore(
+                p, fleet_profiles=profiles, mission_defaults=defaults, tasking_settings=tasking
+            )
+            for i, p in profiles.items()
+        }
+    )
     for i in f.nodes:
         f.set_autopilot(i, flying())
     activate(f)
-    report = TargetReport(7, GCS, TargetSource.OPERATOR, f.now, GeoPoint(37.42, -5.98, 0.0),
-                          "person", 0.95)  # fmt: skip
+    report = TargetReport(
+        7, GCS, TargetSource.OPERATOR, f.now, GeoPoint(37.42, -5.98, 0.0), "person", 0.95
+    )
     send(f, report)
     f.run_until(f.now + 1.0)
     mid = target_mission_id(GCS, 7)
@@ -430,7 +443,16 @@ def test_a_target_mission_derived_from_a_report_gets_the_database_altitude_step(
     assert held, "no vehicle took the target mission up"
     assert all(m.params.altitude_step_m == step for m in held)
     # an operator's step is the operator's
-    send(f, Mission(95, GCS, MissionType.TARGET, Geometry.point(37.42, -5.98),
-                    MissionParams(altitude_step_m=25.0), Selector.ids(1)))  # fmt: skip
+    send(
+        f,
+        Mission(
+            95,
+            GCS,
+            MissionType.TARGET,
+            Geometry.point(37.42, -5.98),
+            MissionParams(altitude_step_m=25.0),
+            Selector.ids(1),
+        ),
+    )
     f.run_until(f.now + 0.5)
     assert f.nodes[1].missions[95].params.altitude_step_m == 25.0

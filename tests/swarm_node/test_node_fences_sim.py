@@ -28,8 +28,6 @@ INCLUSION_CIRCLE = 5003  # MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION
 EXCLUSION_CIRCLE = 5004  # MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
 
 
-
-
 def north(m: float) -> tuple[float, float]:
     return SITL_HOME.lat_deg + m / 111_320.0, SITL_HOME.lon_deg
 
@@ -52,7 +50,9 @@ class Operator:
         return next(a for a in self.fleet.messages(Ack) if a.ref_id == seq)
 
 
-def test_a_zone_becomes_the_autopilots_fence_and_turns_the_vehicle_back(fleet_profiles: dict) -> None:
+def test_a_zone_becomes_the_autopilots_fence_and_turns_the_vehicle_back(
+    fleet_profiles: dict,
+) -> None:
     fleet = FastFleet.build([7], fleet_profiles)  # a seed quadcopter
     v = fleet.vehicles[7]
     sim = v.endpoint.autopilot
@@ -67,7 +67,7 @@ def test_a_zone_becomes_the_autopilots_fence_and_turns_the_vehicle_back(fleet_pr
     assert sim.fence_items[0].lat_deg == pytest.approx(zlat, abs=1e-7)
     assert sim.params["FENCE_ENABLE"][0] == 1.0
     assert sim.params["FENCE_TYPE"][0] == 4.0  # polygon/circle fences only, not ALT/CIRCLE
-    # issue 11, defect 4: enabled at the first try (real SITL refused the enable sent at
+    # enabled at the first try (real SITL refused the enable sent at
     # once after the upload, ArduPilot not having loaded the fence yet; the simulator now
     # does the same): no "fence upload failed" warning, one DO_FENCE_ENABLE
     assert not [a for a in fleet.messages(Alert, sender=7) if a.code == AlertCode.NO_FLY_ZONE]

@@ -1,4 +1,4 @@
-"""What a node tells the operator (issue 15): it acknowledges every zone to whoever
+"""What a node tells the operator: it acknowledges every zone to whoever
 declared it (AckRef.ZONE was never sent), says why it is not ready when it refuses a
 mission (the text was empty), flags an autopilot of another type than the swarm
 database says (a quadcopter's node on a QuadPlane), and fits long reasons into the
@@ -52,7 +52,7 @@ def test_a_zone_is_acknowledged_to_its_issuer() -> None:
 
 
 def test_withdrawing_a_zone_never_held_is_not_found() -> None:
-    """Issue 15: `gcs zone remove 99` said "withdrawn" for a zone nobody held."""
+    """`gcs zone remove 99` said "withdrawn" for a zone nobody held."""
     node = NodeCore(profile(7))
     gone = NoFlyZone(99, Geometry.circle(0.0, 0.0, 1.0), active=False, issuer_id=GCS)
     (ack,) = acks_of(node.handle(Received(gone), 1.0))
@@ -68,12 +68,13 @@ def test_a_zone_from_an_older_sender_is_not_acknowledged() -> None:
 
 
 def test_a_refused_mission_says_why_it_is_not_ready() -> None:
-    """Issue 15: NOT_READY came with an empty text."""
+    """NOT_READY came with an empty text."""
     node = NodeCore(profile(7))
     node.handle(Received(_base_cmd()), 0.5)
     node.handle(_update(flying(armed=False, ekf_ok=False)), 1.0)
-    mission = Mission(5, GCS, MissionType.TARGET, Geometry.point(37.41, -5.98),
-                      selection=Selector.ids(7))  # fmt: skip
+    mission = Mission(
+        5, GCS, MissionType.TARGET, Geometry.point(37.41, -5.98), selection=Selector.ids(7)
+    )
     (ack,) = acks_of(node.handle(Received(mission), 2.0))
     assert ack.reason == AckReason.NOT_READY and ack.text == "EKF estimate not good yet"
 
@@ -90,7 +91,7 @@ def test_the_mismatch_table() -> None:
 
 
 def test_a_quadcopter_node_on_a_quadplane_is_flagged() -> None:
-    """Issue 15: a node whose identity says quadcopter, paired with an autopilot whose
+    """A node whose identity says quadcopter, paired with an autopilot whose
     HEARTBEAT says fixed wing (a QuadPlane), was flagged nowhere. Real MAVLink bytes
     from a simulated QuadPlane: an alert with both types, the status flag, the error
     in VehicleInfo, the HEARTBEAT type in VehicleInfo, and every mission refused with
@@ -100,15 +101,19 @@ def test_a_quadcopter_node_on_a_quadplane_is_flagged() -> None:
     v.endpoint = VehicleEndpoint.create("vtol", home=SITL_HOME, now=fleet.now, sysid=7)
     got = fleet.run_until(lambda: v.node.monitor.flags & AlertFlag.AUTOPILOT_MISMATCH, 30.0)
     assert got
-    (alert,) = [m for _, _, m in fleet.published
-                if isinstance(m, Alert) and m.code == AlertCode.AUTOPILOT_MISMATCH]  # fmt: skip
+    (alert,) = [
+        m
+        for _, _, m in fleet.published
+        if isinstance(m, Alert) and m.code == AlertCode.AUTOPILOT_MISMATCH
+    ]
     assert alert.text == "autopilot is PLANE (MAV_TYPE 1), identity COPTER"
     info = v.node.info()
     assert AlertCode.AUTOPILOT_MISMATCH in info.errors and info.mav_type == 1
     fleet.run_for(20.0)  # GPS, EKF and home come: still not ready
     fleet.broadcast(_base_cmd())
-    mission = Mission(5, GCS, MissionType.TARGET, Geometry.point(37.41, -5.98),
-                      selection=Selector.ids(7))  # fmt: skip
+    mission = Mission(
+        5, GCS, MissionType.TARGET, Geometry.point(37.41, -5.98), selection=Selector.ids(7)
+    )
     fleet.broadcast(mission)
     fleet.run_for(1.0)
     (ack,) = [m for _, _, m in fleet.published if isinstance(m, Ack) and m.ref == AckRef.MISSION]
@@ -145,5 +150,10 @@ def _update(state: object) -> object:
 def _base_cmd() -> object:
     from swarm_proto import Command, CommandArgs, CommandKind, GeoPoint
 
-    return Command(GCS, 1, CommandKind.SET_BASE, Selector(),
-                   CommandArgs(point=GeoPoint(37.4112, -5.9889, 10.0)))  # fmt: skip
+    return Command(
+        GCS,
+        1,
+        CommandKind.SET_BASE,
+        Selector(),
+        CommandArgs(point=GeoPoint(37.4112, -5.9889, 10.0)),
+    )

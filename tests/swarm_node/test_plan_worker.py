@@ -34,8 +34,9 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
 def test_worker_exits_when_its_node_is_sigkilled() -> None:
-    node = subprocess.Popen([sys.executable, "-c", NODE], stdin=subprocess.PIPE,
-                            stdout=subprocess.PIPE, text=True)  # fmt: skip
+    node = subprocess.Popen(
+        [sys.executable, "-c", NODE], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
     try:
         assert node.stdout is not None
         worker = int(node.stdout.readline())

@@ -6,7 +6,7 @@ StartMission sets the first item: meanwhile the autopilot may report that item (
 the new share) reached. A `make demo` survivor of the vote (vehicle 5) counted such a
 report: its progress jumped 1,500 m down its new share (the field's whole top lane) in
 the second it started flying it; lost 20 s later, the inheritance replan took that lane
-as flown and nobody flew it (coverage 97.4 %, issue 18)."""
+as flown and nobody flew it (coverage 97.4 %)."""
 
 from __future__ import annotations
 
@@ -91,8 +91,10 @@ def test_the_simulator_reports_an_item_of_a_mission_uploaded_in_auto_before_it_s
     ready(f)
 
     def wps(*points: tuple[float, float]) -> tuple[Waypoint, ...]:
-        return tuple(Waypoint(lat_deg=p[0], lon_deg=p[1], alt_rel_m=80.0) for p in
-                     (offset(n, e) for n, e in points))  # fmt: skip
+        return tuple(
+            Waypoint(lat_deg=p[0], lon_deg=p[1], alt_rel_m=80.0)
+            for p in (offset(n, e) for n, e in points)
+        )
 
     assert f.do(UploadMission(items=wps((600, 0), (1600, 0), (2600, 0)))).ok
     assert f.do(Arm()).ok and f.do(Takeoff(alt_rel_m=60.0)).ok

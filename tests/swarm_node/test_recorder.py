@@ -74,7 +74,7 @@ def test_record_to_an_unwritable_path_is_a_one_line_error(tmp_path: Path) -> Non
 
 
 def test_a_predicted_status_is_not_recorded(tmp_path: Path) -> None:
-    """A radio gateway's prediction of a peer (issue 19) is a belief, not a sample."""
+    """A radio gateway's prediction of a peer is a belief, not a sample."""
     import msgspec
 
     path = tmp_path / "rec.csv"

@@ -22,7 +22,7 @@ from tests.swarm_node.test_tasking_node import poll as poll_with
 from tests.swarm_node.test_tasking_node import tasking_fleet
 
 UNDER_WAY = dict(mission_reached=4, mission_current=5)
-FULL = {v: 99 for v in range(1, 7)}  # no share cut short by its battery (issue 12's replan)
+FULL = {v: 99 for v in range(1, 7)}  # no share cut short by its battery
 
 
 def poll(f: Fleet, seconds: float, **kw: object) -> None:
@@ -32,10 +32,12 @@ def poll(f: Fleet, seconds: float, **kw: object) -> None:
 def area(mid: int, ids: tuple[int, ...], north_m: float = 0.0, half_m: float = 100.0) -> Mission:
     geometry: Geometry = square(half_m)
     if north_m:
-        geometry = Geometry.polygon([(p.lat_deg + north_m / 111_320.0, p.lon_deg)
-                                     for p in geometry.points])  # fmt: skip
-    return Mission(mid, GCS, MissionType.AREA, geometry, MissionParams(altitude_rel_m=50.0),
-                   Selector.ids(*ids))  # fmt: skip
+        geometry = Geometry.polygon(
+            [(p.lat_deg + north_m / 111_320.0, p.lon_deg) for p in geometry.points]
+        )
+    return Mission(
+        mid, GCS, MissionType.AREA, geometry, MissionParams(altitude_rel_m=50.0), Selector.ids(*ids)
+    )
 
 
 def fly(f: Fleet, *missions: Mission) -> None:
@@ -55,8 +57,10 @@ def same_fleet(f: Fleet, mid: int, ids: tuple[int, ...]) -> None:
     assert all(n.fsm.mission_id == mid and n.fsm.state == FsmState.GO_MISSION for n in nodes)
     assert {n.roster.planned for n in nodes} == {tuple(sorted(ids))}
     assert len({n.roster.members_hash for n in nodes}) == 1
-    plans = {tuple(sorted((v, s.waypoints) for v, s in n.manager.fleet_plan.shares.items()))  # type: ignore[union-attr]
-             for n in nodes}  # fmt: skip
+    plans = {
+        tuple(sorted((v, s.waypoints) for v, s in n.manager.fleet_plan.shares.items()))  # type: ignore[union-attr]
+        for n in nodes
+    }
     assert len(plans) == 1
 
 
@@ -79,8 +83,10 @@ def test_join_refusals() -> None:
     fly(f, area(41, (1, 2, 3)))
     send(f, command(71, CommandKind.JOIN_MISSION, Selector.ids(4), mission_id=99))
     send(f, command(72, CommandKind.JOIN_MISSION, Selector.ids(1), mission_id=41))
-    send(f, command(73, CommandKind.SWAP_MISSION, Selector.ids(4), mission_id=41,
-                    other_mission_id=42))  # fmt: skip
+    send(
+        f,
+        command(73, CommandKind.SWAP_MISSION, Selector.ids(4), mission_id=41, other_mission_id=42),
+    )
     poll(f, 1.0, **UNDER_WAY)
     assert acks(f, 71)[4].reason == AckReason.NOT_FOUND and "99" in acks(f, 71)[4].text
     assert acks(f, 72)[1].reason == AckReason.DUPLICATE
@@ -91,8 +97,12 @@ def test_join_refusals() -> None:
 def test_two_fleets_swap_vehicles() -> None:
     f = tasking_fleet(4)
     fly(f, area(41, (1, 2), half_m=60.0), area(42, (3, 4), north_m=250.0, half_m=60.0))
-    send(f, command(74, CommandKind.SWAP_MISSION, Selector.ids(2, 3), mission_id=41,
-                    other_mission_id=42))  # fmt: skip
+    send(
+        f,
+        command(
+            74, CommandKind.SWAP_MISSION, Selector.ids(2, 3), mission_id=41, other_mission_id=42
+        ),
+    )
     poll(f, 10.0, **UNDER_WAY)
     assert acks(f, 74)[2].accepted and acks(f, 74)[3].accepted
     same_fleet(f, 41, (1, 3))
@@ -102,8 +112,10 @@ def test_two_fleets_swap_vehicles() -> None:
 def test_a_fleet_emptied_by_a_swap_hands_its_mission_to_the_other() -> None:
     f = tasking_fleet(3)
     fly(f, area(41, (1,), half_m=50.0), area(42, (2, 3), north_m=250.0, half_m=60.0))
-    send(f, command(75, CommandKind.SWAP_MISSION, Selector.ids(1), mission_id=41,
-                    other_mission_id=42))  # fmt: skip
+    send(
+        f,
+        command(75, CommandKind.SWAP_MISSION, Selector.ids(1), mission_id=41, other_mission_id=42),
+    )
     poll(f, 8.0, **UNDER_WAY)
     same_fleet(f, 42, (1, 2, 3))
     handed = [m for m in f.messages(PlanLineage) if m.handed_to == 42]

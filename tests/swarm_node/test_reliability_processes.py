@@ -1,4 +1,4 @@
-"""Issue 16 over a real node process flying a simulated quadcopter (MAVLink on TCP,
+"""over a real node process flying a simulated quadcopter (MAVLink on TCP,
 Zenoh on 127.0.0.1):
 
 - the node's process is stopped (SIGSTOP) for 3 s while ArduPilot flies on:
@@ -55,8 +55,9 @@ class Rig:
         self.spec = VehicleSpec("copter", port=free_tcp_port(), sysid=7)
         self.server = VehicleServer([self.spec], SystemClock())
         self.server.start_thread()
-        self.proc = start_node(7, router, swarm, "--autopilot",
-                               f"tcp:127.0.0.1:{self.spec.tcp_port}", log=log)  # fmt: skip
+        self.proc = start_node(
+            7, router, swarm, "--autopilot", f"tcp:127.0.0.1:{self.spec.tcp_port}", log=log
+        )
         self.log = log
         self.watch = plain_session(router)
         self.alerts: queue.SimpleQueue[Alert] = queue.SimpleQueue()
@@ -137,24 +138,46 @@ def test_after_an_autopilot_reboot_its_fence_and_rally_point_are_back(rig: Rig) 
     rig.command(CommandKind.SET_BASE, point=BASE)
     zone = NoFlyZone(3, Geometry.circle(SITL_HOME.lat_deg + 0.0015, SITL_HOME.lon_deg, 40.0))
     assert rig.gs.declare_zone(zone, timeout_s=15) == {7}
-    assert wait_until(lambda: rig.sim.fence_items and rig.sim.rally_items
-                      and rig.sim.params["FENCE_ENABLE"][0] == 1.0, 30) is not None  # fmt: skip
+    assert (
+        wait_until(
+            lambda: (
+                rig.sim.fence_items
+                and rig.sim.rally_items
+                and rig.sim.params["FENCE_ENABLE"][0] == 1.0
+            ),
+            30,
+        )
+        is not None
+    )
     time.sleep(2.5)  # the backstop's own check of the new base's rally point done
     fence = [(i.command, i.x, i.y, i.param1) for i in rig.sim.fence_items]
     rally = [(i.x, i.y, i.z) for i in rig.sim.rally_items]
     rig.drain()
     rig.server.reboot(7)  # the stores come back empty, the TCP link drops
     assert wait_until(lambda: rig.server.counters["reboots"] == 1, 5) is not None
-    assert wait_until(
-        lambda: [(i.command, i.x, i.y, i.param1) for i in rig.sim.fence_items] == fence
-        and [(i.x, i.y, i.z) for i in rig.sim.rally_items] == rally,
-        60,
-    ) is not None
+    assert (
+        wait_until(
+            lambda: (
+                [(i.command, i.x, i.y, i.param1) for i in rig.sim.fence_items] == fence
+                and [(i.x, i.y, i.z) for i in rig.sim.rally_items] == rally
+            ),
+            60,
+        )
+        is not None
+    )
     assert wait_until(lambda: rig.sim.fence_present(), 10) is not None
     texts = []
-    assert wait_until(
-        lambda: texts.extend(a.text for a in rig.drain())
-        or {"fence restored and verified (autopilot rebooted)",
-            "rally point restored and verified (autopilot rebooted)"} <= set(texts),
-        30,
-    ) is not None, texts  # fmt: skip
+    assert (
+        wait_until(
+            lambda: (
+                texts.extend(a.text for a in rig.drain())
+                or {
+                    "fence restored and verified (autopilot rebooted)",
+                    "rally point restored and verified (autopilot rebooted)",
+                }
+                <= set(texts)
+            ),
+            30,
+        )
+        is not None
+    ), texts

@@ -39,9 +39,11 @@ def test_a_replan_is_flown_once_every_survivor_published_the_same_roster() -> No
     replanned = members_hash(41, (1, 2), 1)  # the roster hash of the replan for 1 and 2
     blocked = [True]
     f.drop = lambda s, r, m: (  # type: ignore[attr-defined]
-        blocked[0] and (s, r) == (2, 1) and isinstance(m, VehicleInfo)
+        blocked[0]
+        and (s, r) == (2, 1)
+        and isinstance(m, VehicleInfo)
         and m.members_hash == replanned
-    )  # fmt: skip
+    )
     keep_polling(f, 5.0, **UNDER_WAY)
     n1, n2 = f.nodes[1], f.nodes[2]  # type: ignore[attr-defined]
     assert n2.roster.generation == n1.roster.generation == 1

@@ -1,5 +1,5 @@
-"""Survivors behind the radio replan from the same inputs to the bit (issue 18's
-`--radio` demo: 98.2 % coverage).
+"""Survivors behind the radio replan from the same inputs to the bit (a `--radio`
+demo covered 98.2 % before).
 
 Each node used its own progress at full precision and its peers' as the radio carries
 them (0.01 m): the inputs of the survivors' replans differed by millimetres, the area

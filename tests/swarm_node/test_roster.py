@@ -22,10 +22,24 @@ from swarm_proto import VehicleInfo as Info
 MID = 77
 
 
-def info(vid: int, *, mid: int = MID, state: FsmState = FsmState.PLAN, fleet: int = 0,
-         members_hash: int = 0) -> VehicleInfo:  # fmt: skip
-    return Info(vid, VehicleType.COPTER, "q", f"U{vid}", fleet_id=fleet, mission_id=mid,
-                fsm_state=state, members_hash=members_hash)  # fmt: skip
+def info(
+    vid: int,
+    *,
+    mid: int = MID,
+    state: FsmState = FsmState.PLAN,
+    fleet: int = 0,
+    members_hash: int = 0,
+) -> VehicleInfo:
+    return Info(
+        vid,
+        VehicleType.COPTER,
+        "q",
+        f"U{vid}",
+        fleet_id=fleet,
+        mission_id=mid,
+        fsm_state=state,
+        members_hash=members_hash,
+    )
 
 
 def peers_of(ids: list[int], infos: dict[int, VehicleInfo] | None = None) -> dict[int, Peer]:
@@ -167,13 +181,16 @@ def test_a_fleet_agrees_on_its_roster_and_reports_a_lost_member() -> None:
 def test_the_members_hash_and_progress_travel_on_both_encodings() -> None:
     from swarm_proto import lan, radio
 
-    msg = msgspec_replace(info(5, members_hash=0xBEEF), mission_progress_m=1234.56,
-                          mission_path_m=5000.0)  # fmt: skip
+    msg = msgspec_replace(
+        info(5, members_hash=0xBEEF), mission_progress_m=1234.56, mission_path_m=5000.0
+    )
     assert lan.decode(lan.encode(msg), VehicleInfo) == msg
     back = radio.decode(radio.encode(msg), now_unix_s=1.8e9)
     assert isinstance(back, VehicleInfo)
     assert (back.members_hash, back.mission_progress_m, back.mission_path_m) == (
-        0xBEEF, 1234.56, 5000.0
+        0xBEEF,
+        1234.56,
+        5000.0,
     )
 
 
@@ -185,11 +202,13 @@ def msgspec_replace(m: VehicleInfo, **kw: float) -> VehicleInfo:
 
 def test_a_member_that_finished_its_share_is_not_lost() -> None:
     r = frozen_with_2_and_3()
-    home = msgspec_replace(info(2, mid=0, state=FsmState.GO_MISSION), mission_progress_m=900.0,
-                           mission_path_m=900.0)  # fmt: skip
+    home = msgspec_replace(
+        info(2, mid=0, state=FsmState.GO_MISSION), mission_progress_m=900.0, mission_path_m=900.0
+    )
     assert r.on_info(home) == [] and r.finished == {2}
-    recalled = msgspec_replace(info(3, mid=0, state=FsmState.GO_MISSION), mission_progress_m=300.0,
-                               mission_path_m=900.0)  # fmt: skip
+    recalled = msgspec_replace(
+        info(3, mid=0, state=FsmState.GO_MISSION), mission_progress_m=300.0, mission_path_m=900.0
+    )
     assert r.on_info(recalled) == [MemberLost(MID, 3, "left the mission")]
     assert r.flying == (1,)
 
@@ -213,7 +232,6 @@ def test_mission_ids_past_2_31_hash_and_earlier_hashes_are_unchanged() -> None:
     crashed the node's VehicleInfo (OverflowError). The hash of every id below 2^31 (and
     of the return mission, -1) is what it was."""
     from swarm_node.core.mission.voting import members_hash as ballot_hash
-
 
     assert members_hash(3_000_000_000, (1, 2)) == ballot_hash(3_000_000_000, (1, 2)) > 0
     assert members_hash(2**32 - 1, (1,)) == members_hash(-1, (1,))  # the same 4 bytes

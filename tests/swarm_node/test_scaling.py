@@ -1,4 +1,4 @@
-"""Issue 20: a node's and the fast-time harness's cost per event does not grow with the
+"""A node's and the fast-time harness's cost per event does not grow with the
 swarm. Counted, never timed: peers a node core looks at per input (its staleness
 deadlines, its timer, and any module walking the peer table), and vehicle deadlines the
 fast-time harness evaluates per event."""
@@ -58,8 +58,13 @@ def _node(
         t = k * STATUS_S
         for i, vid in enumerate(ids):
             at = t + STATUS_S * i / peers  # spread over the period, as real peers are
-            events.append((at, vid, VehicleStatus(vid, at, 37.41, -5.99, 60.0, 50.0,
-                                                  fsm_state=FsmState.GO_MISSION)))  # fmt: skip
+            events.append(
+                (
+                    at,
+                    vid,
+                    VehicleStatus(vid, at, 37.41, -5.99, 60.0, 50.0, fsm_state=FsmState.GO_MISSION),
+                )
+            )
             if k % int(INFO_S / STATUS_S) == 0:
                 events.append((at, vid, VehicleInfo(vid, VehicleType.VTOL, "Albatross", "A")))
     events.sort(key=lambda e: (e[0], e[1]))
@@ -95,7 +100,7 @@ def test_peers_looked_at_per_event_do_not_grow_with_the_swarm(
         assert isinstance(table, CountingPeers)
         visits = getattr(core.members, "visits", 0) + table.walked
         per_event[peers] = visits / handled
-    # before issue 20 the staleness deadline alone walked every peer at every call:
+    # before the staleness deadline alone walked every peer at every call:
     # about `peers` visits per event; now a couple, whatever the swarm's size
     assert max(per_event.values()) <= 3.0, per_event
     assert per_event[1000] <= 1.2 * per_event[10] + 0.1, per_event
@@ -149,9 +154,7 @@ def test_the_fast_time_harness_evaluates_deadlines_per_event_not_per_vehicle(
     ratio = {}
     for n in (3, 24):
         ids = [(1, 7, 8, 10, 12)[i % 5] for i in range(n)]
-        profiles = {
-            i + 1: _renumbered(fleet_profiles[vid], i + 1) for i, vid in enumerate(ids)
-        }
+        profiles = {i + 1: _renumbered(fleet_profiles[vid], i + 1) for i, vid in enumerate(ids)}
         fleet = FastFleet.build(list(profiles), profiles)
         fleet.run_for(2.0)  # up and talking
         calls = 0
@@ -203,7 +206,7 @@ def test_a_fleet_split_over_two_processes_is_one_swarm(fleet_profiles: dict) -> 
 
 
 def test_a_split_fleet_skips_idle_windows_and_runs_the_same(fleet_profiles: dict) -> None:
-    """A window starts when something is first due in either part (issue 20: the sim
+    """A window starts when something is first due in either part (the sim
     bench's wall time is mostly the exchanges): fewer exchanges than back-to-back
     windows, and the same swarm, message for message, as with them."""
     from swarm_sim.parallel_fleet import ParallelFleet

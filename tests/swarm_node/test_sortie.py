@@ -91,7 +91,7 @@ def test_a_mission_started_while_a_replan_runs_stays_in_replan() -> None:
 
 
 def test_a_mission_started_while_a_replan_began_does_not_crash_the_node() -> None:
-    """Issue 16 (found flying the demo on a loaded host): a member was lost while this
+    """A member was lost while this
     vehicle's StartMission was in flight; the sortie went REPLAN, then the StartMission
     result raised IllegalMove (REPLAN on started) and the node process died."""
     from swarm_node.core.autopilot.requests import ApResult, StartMission

@@ -1,7 +1,7 @@
 """A share's approach is planned from where the vehicle is; when its upload takes long
 (held under an avoidance manoeuvre, a slow link, a loaded host) a fixed-wing has flown
 on, and started on the old approach it turns back to it, through whatever the approach
-went around (issue 18's demo: a replanned VTOL crossed the field's no-fly zone). The
+went around. The
 mission manager plans the approach again from where the vehicle is before starting it."""
 
 from __future__ import annotations

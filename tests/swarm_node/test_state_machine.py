@@ -171,14 +171,25 @@ CASES = [
         expect=P,
         outputs=(ReleaseMission,),
     ),
-    # issue 16: an autopilot link-loss emergency ends when the link is back
-    Case("link back", E, facts=Facts(True, True, True, armed=True), emergency=LINK, expect=P,
-         outputs=(LeaveFleet, RaiseAlert, BeginPlan)),
-    Case("link back on the ground", E, emergency=LINK, expect=G,
-         outputs=(LeaveFleet, RaiseAlert)),
-    Case("reattached", G, events=[Reattached(7)], mission=None, expect=G,
-         outputs=(Resume, MissionStarted)),
-]  # fmt: skip
+    # an autopilot link-loss emergency ends when the link is back
+    Case(
+        "link back",
+        E,
+        facts=Facts(True, True, True, armed=True),
+        emergency=LINK,
+        expect=P,
+        outputs=(LeaveFleet, RaiseAlert, BeginPlan),
+    ),
+    Case("link back on the ground", E, emergency=LINK, expect=G, outputs=(LeaveFleet, RaiseAlert)),
+    Case(
+        "reattached",
+        G,
+        events=[Reattached(7)],
+        mission=None,
+        expect=G,
+        outputs=(Resume, MissionStarted),
+    ),
+]
 
 
 def test_an_emergency_other_than_link_loss_does_not_end_when_it_clears() -> None:

@@ -213,10 +213,18 @@ def test_an_idle_vehicle_is_not_a_candidate_while_a_fleet_flies() -> None:
 # ---------------------------------------------------------------------- target re-tasking
 
 
-def report(target_id: int, source: int = 2, conf: float = 0.9, klass: str = "person",
-           dlat: float = 0.0) -> TargetReport:  # fmt: skip
-    return TargetReport(target_id, source, TargetSource.PAYLOAD, 1000.0,
-                        GeoPoint(37.4132 + dlat, -5.9889, 10.0), klass, conf)  # fmt: skip
+def report(
+    target_id: int, source: int = 2, conf: float = 0.9, klass: str = "person", dlat: float = 0.0
+) -> TargetReport:
+    return TargetReport(
+        target_id,
+        source,
+        TargetSource.PAYLOAD,
+        1000.0,
+        GeoPoint(37.4132 + dlat, -5.9889, 10.0),
+        klass,
+        conf,
+    )
 
 
 def test_a_target_report_tasks_the_rules_count_once() -> None:
@@ -266,8 +274,14 @@ def test_retask_rules_from_the_database_and_bad_ones() -> None:
     assert rules.rule("person") == (2, 0.8) and rules.rule("animal")[0] == 0
     r = RetaskRules.from_params({"count": 1, "count.fire": 3, "min_confidence.fire": 0.5})
     assert r.rule("fire") == (3, 0.5) and r.rule("boat") == (1, 1.0)
-    for bad in ({"count": 1.5}, {"count": -1}, {"min_confidence": 2.0},
-                {"speed.person": 1.0}, {"colour": 1.0}, {"hold_s": float("nan")}):  # fmt: skip
+    for bad in (
+        {"count": 1.5},
+        {"count": -1},
+        {"min_confidence": 2.0},
+        {"speed.person": 1.0},
+        {"colour": 1.0},
+        {"hold_s": float("nan")},
+    ):
         with pytest.raises(RetaskError):
             RetaskRules.from_params(bad)
 

@@ -47,13 +47,42 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
         with nodes(ids, zenoh_router, swarm, autopilots=vehicles):
             activate(client, swarm, watch, ids)
             target = f"{SITL_HOME.lat_deg + 0.002},{SITL_HOME.lon_deg}"
-            gcs = [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm",
-                   swarm, "mission", "target", "--point", target, "--count", "2", "--payload",
-                   PAYLOAD, "--alt", "30", "--duration", "30", "--mission-id", "77",
-                   "--timeout", "15", "--vote-wait", "20", "--yes"]  # fmt: skip
+            gcs = [
+                sys.executable,
+                "-m",
+                "gcs_cli.cli",
+                "--connect",
+                zenoh_router,
+                "--swarm",
+                swarm,
+                "mission",
+                "target",
+                "--point",
+                target,
+                "--count",
+                "2",
+                "--payload",
+                PAYLOAD,
+                "--alt",
+                "30",
+                "--duration",
+                "30",
+                "--mission-id",
+                "77",
+                "--timeout",
+                "15",
+                "--vote-wait",
+                "20",
+                "--yes",
+            ]
             t0 = time.monotonic()
-            done = subprocess.run(gcs, capture_output=True, text=True, timeout=90,
-                                  env={**os.environ, "COLUMNS": "120"})  # fmt: skip
+            done = subprocess.run(
+                gcs,
+                capture_output=True,
+                text=True,
+                timeout=90,
+                env={**os.environ, "COLUMNS": "120"},
+            )
             took = time.monotonic() - t0
             out = done.stdout + done.stderr
             assert done.returncode == 0, out
@@ -79,20 +108,37 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
             print(f"gcs mission --count 2: answered, voted and shown in {took:.1f} s")
             # add: vehicle 1 (stood down) joins the winners' fleet; they replan with it
             # and send it their plan's lineage (over Zenoh), it flies its share of it
-            join = [sys.executable, "-m", "gcs_cli.cli", "--connect", zenoh_router, "--swarm",
-                    swarm, "cmd", "join-mission", "--id", "1", "--mission-id", "77", "--yes"]  # fmt: skip
+            join = [
+                sys.executable,
+                "-m",
+                "gcs_cli.cli",
+                "--connect",
+                zenoh_router,
+                "--swarm",
+                swarm,
+                "cmd",
+                "join-mission",
+                "--id",
+                "1",
+                "--mission-id",
+                "77",
+                "--yes",
+            ]
             done = subprocess.run(join, capture_output=True, text=True, timeout=60)
             assert done.returncode == 0, done.stdout + done.stderr
             joined = wait_until(
-                lambda: all(
-                    infos[v].mission_id == 77 and infos[v].fsm_state == FsmState.GO_MISSION
-                    for v in (1, 7, 8)
-                )
-                and len({infos[v].members_hash for v in (1, 7, 8)}) == 1,
+                lambda: (
+                    all(
+                        infos[v].mission_id == 77 and infos[v].fsm_state == FsmState.GO_MISSION
+                        for v in (1, 7, 8)
+                    )
+                    and len({infos[v].members_hash for v in (1, 7, 8)}) == 1
+                ),
                 30,
             )
-            assert joined is not None, {v: (i.mission_id, i.fsm_state, i.members_hash)
-                                        for v, i in infos.items()}  # fmt: skip
+            assert joined is not None, {
+                v: (i.mission_id, i.fsm_state, i.members_hash) for v, i in infos.items()
+            }
             print(f"join-mission: vehicle 1 flies mission 77 with 7 and 8 after {joined:.1f} s")
     finally:
         sub.undeclare()

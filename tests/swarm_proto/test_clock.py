@@ -45,7 +45,7 @@ def test_clock_from_env(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def test_a_steady_clock_does_not_follow_a_step_of_the_system_clock() -> None:
-    """Issue 16: a node runs on a SteadyClock; the system clock stepping an hour (NTP, a
+    """A node runs on a SteadyClock; the system clock stepping an hour (NTP, a
     GPS time set) neither fires its timers early nor hangs them, and is measured."""
     import time as _time
 

@@ -139,7 +139,7 @@ def test_radio_status_is_40_bytes(msg: VehicleStatus) -> None:
 
 
 def test_a_predicted_status_is_lan_only() -> None:
-    """A gateway's prediction (issue 19) keeps its error bound and horizon on the LAN;
+    """A gateway's prediction keeps its error bound and horizon on the LAN;
     the radio layout has no room for them (statuses on air are measured: both 0)."""
     s = msgspec.structs.replace(_status(), position_error_m=7.25, predicted_s=0.8)
     assert lan.decode(lan.encode(s), VehicleStatus) == s
@@ -249,12 +249,12 @@ def test_an_operating_area_survives_both_encodings_and_older_senders() -> None:
     # a sender from before the field existed: its zones are no-fly zones
     raw = msgspec.msgpack.decode(radio.encode(area)[2:])
     header = bytes((radio.RADIO_SCHEMA_VERSION, radio.TAG_OF[NoFlyZone]))
-    # (operating_area was the last field until issue 15 appended issuer_id, and issue 16
+    # (operating_area was the last field until issuer_id was appended, and later
     # time_unix_s after it)
     older = radio.decode(header + msgspec.msgpack.encode(raw[:-3]), now_unix_s=NOW)
     assert isinstance(older, NoFlyZone) and not older.operating_area and older.name == "field"
     assert older.issuer_id == 0  # and nobody to acknowledge it to
-    # a sender from before zones were stamped (issue 16): stamp 0, the receiver stamps it
+    # a sender from before zones were stamped: stamp 0, the receiver stamps it
     unstamped = radio.decode(header + msgspec.msgpack.encode(raw[:-1]), now_unix_s=NOW)
     assert isinstance(unstamped, NoFlyZone) and unstamped.operating_area
     assert unstamped.time_unix_s == 0.0
@@ -347,8 +347,9 @@ def test_a_field_on_air_is_what_receivers_decode_and_stays_there(msg: Any) -> No
         mine = radio.on_air(type(msg), name, getattr(msg, name))
         assert mine == getattr(heard, name)
         assert radio.on_air(type(msg), name, mine) == mine
-    again = radio.quantized(msgspec.structs.replace(
-        msg, mission_progress_m=heard.mission_progress_m, home=heard.home))  # fmt: skip
+    again = radio.quantized(
+        msgspec.structs.replace(msg, mission_progress_m=heard.mission_progress_m, home=heard.home)
+    )
     assert again.mission_progress_m == heard.mission_progress_m and again.home == heard.home
 
 

@@ -1,5 +1,5 @@
 """The one geodesy (swarm_proto.geodesy) against pyproj's WGS84 geodesic (Karney), and
-every safety module measuring with it (issue 14, part 1)."""
+every safety module measuring with it (part 1)."""
 
 from __future__ import annotations
 

@@ -33,8 +33,10 @@ def _links_to(port: int) -> set[tuple[int, int]]:
     """Established loopback TCP connections to `port`: (client port, port)."""
     out = subprocess.run(
         ["ss", "-tnH", "state", "established", f"( dport = :{port} )"],
-        capture_output=True, text=True, check=False,
-    ).stdout  # fmt: skip
+        capture_output=True,
+        text=True,
+        check=False,
+    ).stdout
     links = set()
     for line in out.splitlines():
         fields = line.split()
@@ -51,8 +53,10 @@ def _cut(links: set[tuple[int, int]]) -> bool:
         for src, dst in ((a, b), (b, a)):
             r = subprocess.run(
                 ["ss", "-K", "src", f"127.0.0.1:{src}", "dst", f"127.0.0.1:{dst}"],
-                capture_output=True, text=True, check=False,
-            )  # fmt: skip
+                capture_output=True,
+                text=True,
+                check=False,
+            )
             killed += r.stdout.count("ESTAB")
     return killed > 0
 
@@ -202,9 +206,14 @@ def test_peers_that_scout_by_multicast_remake_a_dropped_link(swarm) -> None:
             + f"{here}::{test_peers_that_scout_by_multicast_remake_a_dropped_link.__name__}"
         )
         r = subprocess.run(
-            ["unshare", "-n", "sh", "-c", script], capture_output=True, text=True, timeout=120,
-            cwd=here.parents[2], env={**os.environ, NETNS_ENV: "1"}, check=False,
-        )  # fmt: skip
+            ["unshare", "-n", "sh", "-c", script],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            cwd=here.parents[2],
+            env={**os.environ, NETNS_ENV: "1"},
+            check=False,
+        )
         if r.returncode != 0 and "unshare" in r.stderr and "Operation not permitted" in r.stderr:
             pytest.skip("cannot make a network namespace")
         assert r.returncode == 0 and "1 passed" in r.stdout, r.stdout[-3000:] + r.stderr[-2000:]

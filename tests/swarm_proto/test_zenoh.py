@@ -142,7 +142,9 @@ def test_a_loopback_simulation_listens_on_loopback_only() -> None:
     assert "127.0.0.1" in sim.get_json("listen/endpoints")
     field = zenoh_config(ZenohSettings(connect=("tcp/192.168.1.10:7447",)))
     assert "127.0.0.1" not in field.get_json("listen/endpoints")
-    explicit = zenoh_config(ZenohSettings(connect=("tcp/127.0.0.1:7447",), listen=("tcp/0.0.0.0:7448",)))
+    explicit = zenoh_config(
+        ZenohSettings(connect=("tcp/127.0.0.1:7447",), listen=("tcp/0.0.0.0:7448",))
+    )
     assert "0.0.0.0:7448" in explicit.get_json("listen/endpoints")
 
 
@@ -175,9 +177,13 @@ def test_the_keyspace_doc_example_runs_as_written(zenoh_router: str, tmp_path) -
     bus = SwarmBus.open(ZenohSettings(connect=(zenoh_router,)))
     try:
         status = VehicleStatus(
-            vehicle_id=42, time_unix_s=1.75e9, lat_deg=37.4112, lon_deg=-5.9889,
-            alt_msl_m=110.0, alt_rel_m=100.0,
-        )  # fmt: skip
+            vehicle_id=42,
+            time_unix_s=1.75e9,
+            lat_deg=37.4112,
+            lon_deg=-5.9889,
+            alt_msl_m=110.0,
+            alt_rel_m=100.0,
+        )
         line = ""
         for _ in range(150):  # the example's start-up and discovery take a moment
             bus.publish(status)
@@ -187,7 +193,12 @@ def test_the_keyspace_doc_example_runs_as_written(zenoh_router: str, tmp_path) -
             except queue.Empty:
                 assert proc.poll() is None, proc.stderr.read()  # type: ignore[union-attr]
         printed = line[line.index("bandada/") :]  # after input()'s prompt, if it shares the line
-        assert printed.split() == ["bandada/default/vehicle/42/status", "37.4112", "-5.9889", "110.0"]
+        assert printed.split() == [
+            "bandada/default/vehicle/42/status",
+            "37.4112",
+            "-5.9889",
+            "110.0",
+        ]
         proc.stdin.write("\n")  # type: ignore[union-attr]
         proc.stdin.flush()  # type: ignore[union-attr]
         assert proc.wait(timeout=30) == 0  # and it exits cleanly: no hang at close

@@ -61,8 +61,11 @@ class Pilot:
             raw.append((cmd, frame, (0.0, 0.0, 0.0, 0.0), x, y, z))
         return self.upload_raw(raw, mission_type)
 
-    def upload_raw(self, items: list[tuple[int, int, tuple[float, float, float, float], int, int, float]],
-                   mission_type: int = 0) -> Any:  # fmt: skip
+    def upload_raw(
+        self,
+        items: list[tuple[int, int, tuple[float, float, float, float], int, int, float]],
+        mission_type: int = 0,
+    ) -> Any:
         self.c.mav.mission_count_send(self.ap.sysid, 1, len(items), mission_type)
         while True:
             msg = self.h.wait_for(

@@ -1,4 +1,4 @@
-"""AUTOLAND and MUM-T missions flown by the mission manager (issue 12, deliver 7), in
+"""AUTOLAND and MUM-T missions flown by the mission manager (deliver 7), in
 fast time over real MAVLink bytes (`swarm_sim.scenarios.autoland_flight`,
 `mumt_flight`, which `make bench BENCH=mission` measures too): a fleet lands at one
 base in turns, each on its own pad; followers hold their slots in a vee around a lead

@@ -25,8 +25,16 @@ def airborne_copter(alt: float = 20.0) -> Pilot:
     return p
 
 
-@pytest.mark.parametrize(("model", "mode"), [("copter", "GUIDED"), ("vtol", "AUTO"), ("plane", "GUIDED"),
-                                             ("rover", "GUIDED"), ("boat", "AUTO")])  # fmt: skip
+@pytest.mark.parametrize(
+    ("model", "mode"),
+    [
+        ("copter", "GUIDED"),
+        ("vtol", "AUTO"),
+        ("plane", "GUIDED"),
+        ("rover", "GUIDED"),
+        ("boat", "AUTO"),
+    ],
+)
 def test_position_modes_and_arming_refused_until_the_ekf_has_a_position(
     model: str, mode: str
 ) -> None:
@@ -108,9 +116,13 @@ def test_disarm_in_flight_is_refused_unless_forced() -> None:
 
 @pytest.mark.parametrize(
     ("model", "mode", "frame_long", "result"),
-    [("copter", "STABILIZE", None, FAILED), ("rover", "GUIDED", None, UNSUPPORTED),
-     ("plane", "GUIDED", None, FAILED), ("vtol", "FBWA", None, FAILED)],
-)  # fmt: skip
+    [
+        ("copter", "STABILIZE", None, FAILED),
+        ("rover", "GUIDED", None, UNSUPPORTED),
+        ("plane", "GUIDED", None, FAILED),
+        ("vtol", "FBWA", None, FAILED),
+    ],
+)
 def test_takeoff_refused(model: str, mode: str, frame_long: None, result: int) -> None:
     p = make_pilot(model)
     p.wait_ready()

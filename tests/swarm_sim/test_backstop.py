@@ -1,4 +1,4 @@
-"""Issue 16, the autopilot backstop restored: after an autopilot reboot (empty stores,
+"""the autopilot backstop restored: after an autopilot reboot (empty stores,
 the simulator's `reboot`) the node puts the fence and the rally point back and verifies
 them by download; an autopilot that does not keep what it is given is a CRITICAL alert.
 In fast time (FastFleet: node core, link core and simulated ArduPilot on MAVLink)."""
@@ -34,15 +34,18 @@ def backstopped(fleet_profiles: dict, vid: int = 7) -> FastFleet:
 
 
 def alerts_since(fleet: FastFleet, t0: float, vid: int = 7) -> list[tuple[Severity, str]]:
-    return [(a.severity, a.text) for a in fleet.messages(Alert, sender=vid)
-            if a.time_unix_s >= t0 and a.code in (AlertCode.NO_FLY_ZONE, AlertCode.GENERIC)]  # fmt: skip
+    return [
+        (a.severity, a.text)
+        for a in fleet.messages(Alert, sender=vid)
+        if a.time_unix_s >= t0 and a.code in (AlertCode.NO_FLY_ZONE, AlertCode.GENERIC)
+    ]
 
 
 @pytest.mark.parametrize("vid", [7, 1])  # a quadcopter, an Albatross VTOL
 def test_after_an_autopilot_reboot_the_fence_and_rally_point_are_back(
     fleet_profiles: dict, vid: int
 ) -> None:
-    """Before issue 16 the autopilot stayed with 0 fence items and 0 rally points."""
+    """Before the autopilot stayed with 0 fence items and 0 rally points."""
     fleet = backstopped(fleet_profiles, vid)
     v = fleet.vehicles[vid]
     fence_before = list(v.endpoint.autopilot.fence_items)

@@ -155,12 +155,41 @@ FLOATS = st.floats(allow_nan=True, allow_infinity=True, width=32)
 
 @settings(max_examples=150, deadline=None)
 @given(
-    st.sampled_from([176, 400, 22, 84, 192, 178, 186, 20, 21, 17, 300, 208, 179, 224, 207, 3000, 511,
-                     510, 512, 520, 410, 205, 1000, 241, 99, 0, 65535]),
+    st.sampled_from(
+        [
+            176,
+            400,
+            22,
+            84,
+            192,
+            178,
+            186,
+            20,
+            21,
+            17,
+            300,
+            208,
+            179,
+            224,
+            207,
+            3000,
+            511,
+            510,
+            512,
+            520,
+            410,
+            205,
+            1000,
+            241,
+            99,
+            0,
+            65535,
+        ]
+    ),
     st.lists(FLOATS, min_size=7, max_size=7),
     st.integers(0, 40),
     st.booleans(),
-)  # fmt: skip
+)
 def test_random_commands_never_raise(
     command: int, params: list[float], frame_id: int, as_int: bool
 ) -> None:

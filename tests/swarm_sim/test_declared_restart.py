@@ -1,4 +1,4 @@
-"""Issue 16, declared state that survives restarts, in fast time (FastFleet: the node
+"""declared state that survives restarts, in fast time (FastFleet: the node
 cores, their autopilot links and simulated ArduPilots; each node's database is the last
 state it stored): a node restarted on its database, or on a new one, holds the base,
 zones, operating area and fleet the operator declared; a zone withdrawn while it was
@@ -36,8 +36,9 @@ class Declarer:
 
     def __call__(self, msg: msgspec.Struct, to: list[int] | None = None) -> msgspec.Struct:
         msg = msgspec.structs.replace(msg, time_unix_s=self.fleet.now)
-        self.fleet.broadcast(msg, to=[v for v in (to or self.fleet.vehicles) if
-                                      not self.fleet.vehicles[v].down])  # fmt: skip
+        self.fleet.broadcast(
+            msg, to=[v for v in (to or self.fleet.vehicles) if not self.fleet.vehicles[v].down]
+        )
         self.fleet.run_for(1.0)
         return msg
 
@@ -55,15 +56,24 @@ BASE = GeoPoint(SITL_HOME.lat_deg + 0.0005, SITL_HOME.lon_deg, SITL_HOME.alt_m)
 def declared_fleet(fleet_profiles: dict) -> tuple[FastFleet, Declarer, NoFlyZone, NoFlyZone]:
     fleet = FastFleet.build(MEMBERS, fleet_profiles)
     assert fleet.run_until(
-        lambda: all(v.link.state.ekf_has_position and v.link.state.home
-                    for v in fleet.vehicles.values()), 60)  # fmt: skip
+        lambda: all(
+            v.link.state.ekf_has_position and v.link.state.home for v in fleet.vehicles.values()
+        ),
+        60,
+    )
     gs = Declarer(fleet)
     gs.command(CommandKind.SET_BASE, point=BASE)
     gs.command(CommandKind.SET_FLEET, Selector(SelectorKind.IDS, (7, 8)), fleet_id=2)
     zlat, zlon = north(200.0)
     zone = gs(NoFlyZone(3, Geometry.circle(zlat, zlon, 30.0), name="tower"))
-    area = gs(NoFlyZone(4, Geometry.circle(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 2000.0),
-                        name="field", operating_area=True))  # fmt: skip
+    area = gs(
+        NoFlyZone(
+            4,
+            Geometry.circle(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 2000.0),
+            name="field",
+            operating_area=True,
+        )
+    )
     fleet.run_for(3.0)
     assert isinstance(zone, NoFlyZone) and isinstance(area, NoFlyZone)
     return fleet, gs, zone, area
@@ -75,7 +85,7 @@ def holds(fleet: FastFleet, vid: int, zones: dict[int, NoFlyZone], fleet_id: int
 
 
 def test_a_restarted_node_holds_what_was_declared(fleet_profiles: dict) -> None:
-    """Before issue 16 a restarted node forgot the base, zones and fleet: it stayed
+    """Before a restarted node forgot the base, zones and fleet: it stayed
     INACTIVE, nothing re-sent them and its peers did not tell it."""
     fleet, _, zone, area = declared_fleet(fleet_profiles)
     zones = {3: zone, 4: area}

@@ -1,4 +1,4 @@
-"""Issue 18's `--radio` demo in fast time: the paper's experiment 1 flown by FastFleet
+"""The `--radio` demo in fast time: the paper's experiment 1 flown by FastFleet
 with every message heard as the radio carries it (`FastFleet.over_air`: floats at the
 radio's resolution), the way each node hears the others behind its own gateway.
 
@@ -43,9 +43,17 @@ def test_the_story_over_the_air_holds_one_plan_per_replan_and_covers_the_survey(
         run = fly_fast(plan, profiles, on_message=heard, over_air=True)
     finally:
         recorder.close()
-    report = dr.build(tmp_path, plan=plan, record=run.story.record,
-                      flight_csv=tmp_path / "flight.csv", profiles=profiles, homes=homes,
-                      base=None, meta={"fast_time": True}, pictures=False)  # fmt: skip
+    report = dr.build(
+        tmp_path,
+        plan=plan,
+        record=run.story.record,
+        flight_csv=tmp_path / "flight.csv",
+        profiles=profiles,
+        homes=homes,
+        base=None,
+        meta={"fast_time": True},
+        pictures=False,
+    )
     digests: dict[tuple[str, str], dict[int, str]] = defaultdict(dict)
     for _t, vid, text in run.fleet.notes:  # type: ignore[attr-defined]
         m = PLAN_LOG.search(text)

@@ -79,8 +79,14 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
         # a gateway sends only what its own node originated) and every vehicle votes
         shell = Shell(fleet.endpoint, fleet.lans)
         try:
-            report = TargetReport(1, MEMBERS[0], TargetSource.PAYLOAD, time.time(),
-                                  GeoPoint(home.lat_deg + 0.002, home.lon_deg, 0.0), "person")  # fmt: skip
+            report = TargetReport(
+                1,
+                MEMBERS[0],
+                TargetSource.PAYLOAD,
+                time.time(),
+                GeoPoint(home.lat_deg + 0.002, home.lon_deg, 0.0),
+                "person",
+            )
             tmid = target_mission_id(MEMBERS[0], 1)
             voted: set[int] = set()
             deadline = time.monotonic() + 30

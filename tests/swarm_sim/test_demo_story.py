@@ -1,4 +1,4 @@
-"""Issue 18's checks: the paper's experiment 1 as `make demo` flies it (swarm_sim/story.py,
+"""Checks: the paper's experiment 1 as `make demo` flies it (swarm_sim/story.py,
 narrator.py, demo_report.py).
 
 The default run flies the story (`StoryPlan.experiment_one`, the demo's distances) end
@@ -43,8 +43,20 @@ from swarm_sim.story import AREA_ID, Record, StoryPlan
 
 MEMBERS = (1, 2, 3, 4, 5, 6)  # the seed database's six Albatross 250 VTOLs
 SCALE = 0.7
-STEPS = ["base", "zones", "area", "launch", "survey", "vote", "replan", "fail", "inherit",
-         "finish", "home", "done"]  # fmt: skip
+STEPS = [
+    "base",
+    "zones",
+    "area",
+    "launch",
+    "survey",
+    "vote",
+    "replan",
+    "fail",
+    "inherit",
+    "finish",
+    "home",
+    "done",
+]
 
 
 FAST_SCALE = 1.0  # the fast-time story: the demo's own distances (see the xfail below)
@@ -101,8 +113,12 @@ def _check_report(report: dict[str, Any]) -> None:
 def test_the_shortened_story_is_flown_end_to_end(flown: tuple[Path, dict]) -> None:
     out, report = flown
     _check_report(report)
-    assert report["files"] == {"flight": "flight.csv", "top": "top.png",
-                               "altitude": "altitude.png", "separation": "separation.png"}  # fmt: skip
+    assert report["files"] == {
+        "flight": "flight.csv",
+        "top": "top.png",
+        "altitude": "altitude.png",
+        "separation": "separation.png",
+    }
     for name in report["files"].values():
         assert (out / name).stat().st_size > 1000, name
     header = (out / "flight.csv").read_text().splitlines()[0]
@@ -148,7 +164,9 @@ def test_the_top_view_has_the_tracks_inside_the_area_and_the_zone(flown: tuple[P
     assert inside[disc].all()  # the zone is in the field
     reddish = (img[:, :, 0] - img[:, :, 1] > 0.2) & (img[:, :, 1] - img[:, :, 2] < 0.05)
     assert reddish[disc].mean() > 0.6, reddish[disc].mean()
-    ring = ((cols + 0.5 - c) ** 2 + (rows + 0.5 - r) ** 2 - radius_px**2) ** 2 < (2 * radius_px) ** 2
+    ring = ((cols + 0.5 - c) ** 2 + (rows + 0.5 - r) ** 2 - radius_px**2) ** 2 < (
+        2 * radius_px
+    ) ** 2
     assert _near(img, (0.8, 0.0, 0.0), 0.1)[ring].sum() > 20  # its edge
     for vid in MEMBERS:  # no track across the zone (vehicle 4's red is not the zone's)
         assert _near(img, colors[vid], 0.04)[disc].sum() < 10, vid
@@ -169,13 +187,22 @@ def test_replans_are_grouped_by_cause_not_by_the_story_step() -> None:
     """The stayers enter REPLAN within a second of each other while the story moves
     from VOTE to REPLAN: one event. A replan of another mission is not the vote's."""
     rec = Record(winners=(3, 6), failed={5: 280.0})
-    rec.replans = [(253.7, AREA_ID, 1, "vote"), (253.7, AREA_ID, 4, "vote"),
-                   (253.8, AREA_ID, 2, "replan"), (253.8, AREA_ID, 5, "replan"),
-                   (282.9, AREA_ID, 1, "inherit"), (283.0, AREA_ID, 2, "inherit"),
-                   (283.0, AREA_ID, 4, "inherit"), (290.0, 77, 6, "inherit")]  # fmt: skip
+    rec.replans = [
+        (253.7, AREA_ID, 1, "vote"),
+        (253.7, AREA_ID, 4, "vote"),
+        (253.8, AREA_ID, 2, "replan"),
+        (253.8, AREA_ID, 5, "replan"),
+        (282.9, AREA_ID, 1, "inherit"),
+        (283.0, AREA_ID, 2, "inherit"),
+        (283.0, AREA_ID, 4, "inherit"),
+        (290.0, 77, 6, "inherit"),
+    ]
     events = replan_rows(rec)
     assert [(e["cause"], e["vehicles"]) for e in events] == [
-        ("vote", [1, 2, 4, 5]), ("lost", [1, 2, 4]), ("other", [6])]  # fmt: skip
+        ("vote", [1, 2, 4, 5]),
+        ("lost", [1, 2, 4]),
+        ("other", [6]),
+    ]
     assert "3, 6 voted out" in events[0]["why"] and "vehicle 5 lost" in events[1]["why"]
 
 
@@ -190,8 +217,18 @@ def test_the_clock_never_reads_60_seconds() -> None:
 
 
 def _status(state: MissionState, fsm: FsmState, alt: float, armed: bool = True) -> VehicleStatus:
-    return VehicleStatus(4, 1.8e9, 37.4, -5.98, 10.0 + alt, alt, armed=armed, fsm_state=fsm,
-                         mission_state=state, battery_pct=88)  # fmt: skip
+    return VehicleStatus(
+        4,
+        1.8e9,
+        37.4,
+        -5.98,
+        10.0 + alt,
+        alt,
+        armed=armed,
+        fsm_state=fsm,
+        mission_state=state,
+        battery_pct=88,
+    )
 
 
 def _info(mission_id: int) -> VehicleInfo:
@@ -228,8 +265,14 @@ def test_the_shortened_story_through_the_real_processes(tmp_path: Path) -> None:
     from swarm_sim.experiment import DEFAULT_SPEEDUP, run
 
     out = tmp_path / "demo-out"
-    code = run(MEMBERS, speedup=DEFAULT_SPEEDUP, timeout_s=900.0, out=out,
-               console=Console(file=io.StringIO(), width=140), plan_kw={"scale": SCALE})  # fmt: skip
+    code = run(
+        MEMBERS,
+        speedup=DEFAULT_SPEEDUP,
+        timeout_s=900.0,
+        out=out,
+        console=Console(file=io.StringIO(), width=140),
+        plan_kw={"scale": SCALE},
+    )
     report = json.loads((out / "report.json").read_text())
     assert code == 0, report["failures"]
     _check_report(report)
@@ -294,18 +337,42 @@ def test_a_vehicle_in_an_emergency_ends_the_story_at_once_with_its_alert() -> No
     home = Point(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 10.0)
     actions: list[object] = []
     for v in MEMBERS:
-        story.handle(VehicleInfo(v, VehicleType.VTOL, "Albatross 250 VTOL", f"ALB-0{v}",
-                                 home=home), 1.0)  # fmt: skip
-        actions += story.handle(VehicleStatus(v, 1.8e9, home.lat_deg, home.lon_deg, 10.0, 0.0,
-                                              gps_fix=GpsFix.FIX_3D), 1.0)  # fmt: skip
+        story.handle(
+            VehicleInfo(v, VehicleType.VTOL, "Albatross 250 VTOL", f"ALB-0{v}", home=home), 1.0
+        )
+        actions += story.handle(
+            VehicleStatus(v, 1.8e9, home.lat_deg, home.lon_deg, 10.0, 0.0, gps_fix=GpsFix.FIX_3D),
+            1.0,
+        )
     assert story.phase == Phase.BASE and any(isinstance(a, Send) for a in actions)
-    story.handle(Alert(4, 1.8e9, Severity.CRITICAL, AlertCode.GEOFENCE_BREACH,
-                       "in no-fly zone 1 at 37.420525,-5.985487 89 m"), 2.0)  # fmt: skip
-    out = story.handle(VehicleStatus(4, 1.8e9, home.lat_deg, home.lon_deg, 99.0, 89.0,
-                                     armed=True, fsm_state=FsmState.EMERGENCY), 2.1)  # fmt: skip
+    story.handle(
+        Alert(
+            4,
+            1.8e9,
+            Severity.CRITICAL,
+            AlertCode.GEOFENCE_BREACH,
+            "in no-fly zone 1 at 37.420525,-5.985487 89 m",
+        ),
+        2.0,
+    )
+    out = story.handle(
+        VehicleStatus(
+            4,
+            1.8e9,
+            home.lat_deg,
+            home.lon_deg,
+            99.0,
+            89.0,
+            armed=True,
+            fsm_state=FsmState.EMERGENCY,
+        ),
+        2.1,
+    )
     (done,) = [a for a in out if isinstance(a, Finished)]
     assert not done.ok and story.phase == Phase.DONE
-    assert done.why == "base: vehicle 4 in an emergency: in no-fly zone 1 at 37.420525,-5.985487 89 m"
+    assert (
+        done.why == "base: vehicle 4 in an emergency: in no-fly zone 1 at 37.420525,-5.985487 89 m"
+    )
     assert story.record.outcome == done.why
 
 
@@ -359,6 +426,7 @@ def test_the_shortened_story_keeps_5_m_between_a_returning_vtol_and_a_turning_on
     the closest, 1-2 at take-off, in the run that lifted the xfail): the weakness
     itself, a turning aircraft predicted straight on, remains (docs/avoidance.md, known
     limits); this keeps the shortened story's 5 m."""
-    report = fast_report(_plan(0.7), {v: fleet_profiles[v] for v in MEMBERS}, tmp_path,
-                         pictures=False)  # fmt: skip
+    report = fast_report(
+        _plan(0.7), {v: fleet_profiles[v] for v in MEMBERS}, tmp_path, pictures=False
+    )
     assert report["separation"]["near"] == 0, report["separation"]["min_sep_m"]

@@ -2,7 +2,7 @@
 simulated vehicle drains flying the same sortie (swarm_sim.core: the quadcopter of the
 seed database, in fast time, real MAVLink): the planner must never count a multirotor's
 sortie cheaper than it flies, or it gives it more work than its battery flies with
-reserve (issue 18's mixed demo).
+reserve.
 
 Measured (climb to 140 m, the mixed demo's quadcopter layers; 400 m out and back; RTL
 and land): the simulator drains 646 mAh in the climb against the model's 467 (the model
@@ -36,8 +36,14 @@ def test_a_quadcopter_sortie_costs_no_more_than_the_planner_counts() -> None:
     e = Endurance.of(profile, ALT_M)
     p = make_pilot("copter")
     p.wait_ready()
-    p.upload([(WP, 0, 0, 0, 0), (TAKEOFF, REL, 0, 0, ALT_M), (WP, REL, OUT_M, 0, ALT_M),
-              (RTL, REL, 0, 0, 0)])  # fmt: skip
+    p.upload(
+        [
+            (WP, 0, 0, 0, 0),
+            (TAKEOFF, REL, 0, 0, ALT_M),
+            (WP, REL, OUT_M, 0, ALT_M),
+            (RTL, REL, 0, 0, 0),
+        ]
+    )
     assert p.set_mode("GUIDED") == 0 and p.arm() == 0
     assert p.command(22, 0, 0, 0, 0, 0, 0, ALT_M) == 0
     battery = p.ap.battery
@@ -48,7 +54,9 @@ def test_a_quadcopter_sortie_costs_no_more_than_the_planner_counts() -> None:
     assert p.h.run_until(lambda: not p.ap.armed, 900)
     total = battery.consumed_mah - before
     cruise_s = 2 * leg_s(OUT_M, profile.cruise_speed_m_s, profile.accel_m_s2)
-    model_total = e.used_pct(cruise_s, profile.battery_capacity_mah) * profile.battery_capacity_mah / 100.0
+    model_total = (
+        e.used_pct(cruise_s, profile.battery_capacity_mah) * profile.battery_capacity_mah / 100.0
+    )
     model_climb = e.hover_a * e.climb_s / 3.6
     assert 0.99 * climbed <= model_climb, (climbed, model_climb)
     assert 0.98 * total <= model_total, (total, model_total)

@@ -97,8 +97,16 @@ def _fly_demo_survey(
     fleet.run_for(2.0)
     area, zone = demo_area()
     fleet.broadcast(zone)
-    fleet.broadcast(Mission(7, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
-                            Selector.ids(*members)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            7,
+            GCS,
+            MissionType.AREA,
+            area,
+            MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
+            Selector.ids(*members),
+        )
+    )
     centre, radius = zone.geometry.points[0], zone.geometry.radius_m or 0.0
     closest = {vid: math.inf for vid in members}
     t0 = fleet.now
@@ -151,10 +159,12 @@ def test_one_albatross_with_many_lanes_flies_around_the_demo_zone(fleet_profiles
     fleet, closest, radius = _fly_demo_survey(
         fleet_profiles,
         members,
-        lambda f: all(not v.link.state.armed and (v.link.state.alt_rel_m or 0.0) < 1.0
-                      for v in f.vehicles.values()),
+        lambda f: all(
+            not v.link.state.armed and (v.link.state.alt_rel_m or 0.0) < 1.0
+            for v in f.vehicles.values()
+        ),
         900,
-    )  # fmt: skip
+    )
     assert min(closest.values()) > radius, closest
     assert closest[1] > radius + 10.0, closest
     assert not [a for a in fleet.messages(Alert) if a.code == AlertCode.GEOFENCE_BREACH]
@@ -186,7 +196,7 @@ def _mission_run(
 
 
 def test_nodes_hearing_a_batch_together_give_the_same_run(fleet_profiles: dict) -> None:
-    """FastFleet hands each node what it hears at one time in one call (issue 20): the
+    """FastFleet hands each node what it hears at one time in one call: the
     same messages published at the same times, the same notes and autopilot requests
     as hearing entry by entry, in one process (latency 0) and in a split fleet's
     windows (10 ms), with peers known by their telemetry and (the sim bench's LAN swarm)
@@ -206,7 +216,7 @@ def test_nodes_hearing_a_batch_together_give_the_same_run(fleet_profiles: dict) 
 
 
 def test_a_lan_swarm_knows_its_peers_by_liveliness_token(fleet_profiles: dict) -> None:
-    """FastFleet.hold_tokens (issue 20, the sim bench's LAN swarm): every node knows
+    """FastFleet.hold_tokens (the sim bench's LAN swarm): every node knows
     every peer by its liveliness token (none is watched for staleness); a vanished
     vehicle's token goes a lease later; a partition withdraws the tokens across it a
     lease later and a healed one shows them again at once."""
@@ -252,8 +262,16 @@ def test_a_member_the_split_gives_nothing_stays_on_its_pad(fleet_profiles: dict)
         lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
     )
     area = square(SITL_HOME.lat_deg + 1200.0 / 111_320.0, SITL_HOME.lon_deg, 150.0)
-    fleet.broadcast(Mission(43, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=60.0),
-                            Selector.ids(*members)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            43,
+            GCS,
+            MissionType.AREA,
+            area,
+            MissionParams(altitude_rel_m=60.0),
+            Selector.ids(*members),
+        )
+    )
     done = fleet.run_until(
         lambda: all(v.node.fsm.state == FsmState.INACTIVE for v in fleet.vehicles.values()), 1800
     )

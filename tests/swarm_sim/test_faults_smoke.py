@@ -1,9 +1,9 @@
-"""The fault campaign's smoke subset (issue 16; the whole campaign is `make faults`,
+"""The fault campaign's smoke subset (the whole campaign is `make faults`,
 docs/reliability.md): three faults on a short survey by two VTOLs in FastFleet, each
 flown to the landing: the swarm recovers, the area is covered, nothing declared is
 lost and no emergency is raised. "ground station lost": the ground station goes once
 the mission is sent and a node restarts mid-mission; every vehicle still finishes and
-lands at its base by itself (issue 16: before, the restarted node had no base and its
+lands at its base by itself (before, the restarted node had no base and its
 vehicle loitered at the end of its share)."""
 
 from __future__ import annotations
@@ -17,9 +17,12 @@ SHORT = MissionSpec("survey, 2 VTOLs (smoke)", (1, 2), 150.0, 2)
 
 @pytest.mark.parametrize(
     "fault",
-    ["kill -9 a node (restarted after 5 s)", "restart an autopilot (empty stores)",
-     "ground station lost"],  # a SIGSTOP: test_busy_host.py, test_reliability_processes.py
-)  # fmt: skip
+    [
+        "kill -9 a node (restarted after 5 s)",
+        "restart an autopilot (empty stores)",
+        "ground station lost",
+    ],  # a SIGSTOP: test_busy_host.py, test_reliability_processes.py
+)
 def test_smoke(fleet_profiles: dict, fault: str) -> None:
     row = run_fast(fault, SHORT, fleet_profiles)
     print(row)

@@ -1,4 +1,4 @@
-"""Flown as planned (issue 12, deliver 6): the demo's survey flown in fast time by the
+"""Flown as planned (deliver 6): the demo's survey flown in fast time by the
 fleet 1, 7, 8 (an Albatross VTOL and two 3.3 Ah quadcopters). The split knows each
 vehicle's endurance and what its waypoints and turns cost, so nobody reaches
 BATTERY_CRITICAL on the way home (before, the quadcopter given more lanes did) and the

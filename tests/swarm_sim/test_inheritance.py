@@ -15,8 +15,10 @@ from swarm_sim.scenarios import inheritance
 @pytest.mark.soak  # about a minute; `make bench BENCH=mission` measures the same
 def test_six_vtols_inherit_the_share_of_one_killed_at_40_percent(fleet_profiles: dict) -> None:
     r = inheritance(fleet_profiles, (1, 2, 3, 4, 5, 6), victim=3, at_fraction=0.4)
-    print(f"coverage {r.coverage:.4f}, double flown {r.double_flown:.4f} (lane runs cover "
-          f"{r.lanes_cover:.2f}), replan agreed {r.agree_s:.1f} s after the loss")  # fmt: skip
+    print(
+        f"coverage {r.coverage:.4f}, double flown {r.double_flown:.4f} (lane runs cover "
+        f"{r.lanes_cover:.2f}), replan agreed {r.agree_s:.1f} s after the loss"
+    )
     assert r.replan_seen and r.same_plan and r.hashes == 1
     assert r.completed == set(r.survivors)
     assert r.lanes_cover > 0.7  # the runs found are the lanes: the measure means something
@@ -27,8 +29,7 @@ def test_six_vtols_inherit_the_share_of_one_killed_at_40_percent(fleet_profiles:
 NO_RESERVE = pytest.mark.xfail(
     strict=True,
     reason="on the 160 m field the first split gives rover 10 no lanes: a member given "
-    "nothing now stays on its pad and leaves the mission (issue 18's --mixed: before, an "
-    "aircraft with an empty share took off and hovered until BATTERY_CRITICAL), so it is "
+    "nothing now stays on its pad and leaves the mission, so it is "
     "no reserve the survivors' replan can hand the lost member's rest to",
 )
 
@@ -40,8 +41,15 @@ def test_two_quadcopters_and_a_rover_with_shares_inherit_the_share_of_a_quadcopt
     each of the three a share: quadcopter 8 killed at 40 % of its share, quadcopter 7 and
     the rover cover the field (as on the 160 m field before members given nothing stayed
     on their pads: test_two_quadcopters_and_a_rover_inherit_the_share_of_one_killed_at_40_percent)."""
-    r = inheritance(fleet_profiles, (7, 8, 10), victim=8, at_fraction=0.4, half_m=100.0,
-                    alt_m=40.0, north_m=150.0)  # fmt: skip
+    r = inheritance(
+        fleet_profiles,
+        (7, 8, 10),
+        victim=8,
+        at_fraction=0.4,
+        half_m=100.0,
+        alt_m=40.0,
+        north_m=150.0,
+    )
     assert r.replan_seen and r.same_plan and r.hashes == 1
     assert r.completed == set(r.survivors) == {7, 10}
     assert r.lanes_cover > 0.7
@@ -52,9 +60,11 @@ def test_two_quadcopters_and_a_rover_with_shares_inherit_the_share_of_a_quadcopt
 
 @pytest.mark.parametrize(
     "victim",
-    [pytest.param(8, marks=[pytest.mark.soak, NO_RESERVE]),
-     pytest.param(10, marks=[pytest.mark.soak, NO_RESERVE])],
-)  # fmt: skip
+    [
+        pytest.param(8, marks=[pytest.mark.soak, NO_RESERVE]),
+        pytest.param(10, marks=[pytest.mark.soak, NO_RESERVE]),
+    ],
+)
 def test_two_quadcopters_and_a_rover_inherit_the_share_of_one_killed_at_40_percent(
     fleet_profiles: dict, victim: int
 ) -> None:
@@ -66,10 +76,19 @@ def test_two_quadcopters_and_a_rover_inherit_the_share_of_one_killed_at_40_perce
     inherits lanes gets no more than its battery flies home (by the model every node
     computes alike: before, the surviving quadcopter on a 240 m field ran into
     BATTERY_CRITICAL)."""
-    r = inheritance(fleet_profiles, (7, 8, 10), victim=victim, at_fraction=0.4, half_m=80.0,
-                    alt_m=40.0, north_m=150.0)  # fmt: skip
-    print(f"coverage {r.coverage:.4f}, double flown {r.double_flown:.4f} {r.pairs}, "
-          f"agreed {r.agree_s:.1f} s after the loss")  # fmt: skip
+    r = inheritance(
+        fleet_profiles,
+        (7, 8, 10),
+        victim=victim,
+        at_fraction=0.4,
+        half_m=80.0,
+        alt_m=40.0,
+        north_m=150.0,
+    )
+    print(
+        f"coverage {r.coverage:.4f}, double flown {r.double_flown:.4f} {r.pairs}, "
+        f"agreed {r.agree_s:.1f} s after the loss"
+    )
     assert r.replan_seen and r.same_plan and r.hashes == 1
     assert r.completed == set(r.survivors)
     assert r.lanes_cover > 0.7
@@ -82,8 +101,15 @@ def test_two_quadcopters_and_a_rover_inherit_the_share_of_one_killed_at_40_perce
 def test_a_quadcopter_inherits_no_more_than_its_battery_flies(fleet_profiles: dict) -> None:
     """On a 240 m field the quadcopter left would need more than its charge for the
     lost one's lanes: the replan gives the rest to the rover."""
-    r = inheritance(fleet_profiles, (7, 8, 10), victim=8, at_fraction=0.4, half_m=120.0,
-                    alt_m=40.0, north_m=200.0)  # fmt: skip
+    r = inheritance(
+        fleet_profiles,
+        (7, 8, 10),
+        victim=8,
+        at_fraction=0.4,
+        half_m=120.0,
+        alt_m=40.0,
+        north_m=200.0,
+    )
     assert r.battery_critical == ()
     assert r.completed == {7, 10}
     assert r.coverage >= 0.99

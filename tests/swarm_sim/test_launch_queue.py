@@ -74,7 +74,9 @@ def test_a_member_lost_while_another_waits_for_the_meet_is_replanned_without_it(
         v.node.manager.phase == Phase.MEETING for v in fleet.vehicles.values()
     )
     assert fleet.run_until(meeting, 300)
-    waiting = next(vid for vid, v in fleet.vehicles.items() if v.node.manager.phase == Phase.MEETING)
+    waiting = next(
+        vid for vid, v in fleet.vehicles.items() if v.node.manager.phase == Phase.MEETING
+    )
     victim = max(set(members) - {waiting})
     fleet.kill(victim)
     survivors = [vid for vid in members if vid != victim]

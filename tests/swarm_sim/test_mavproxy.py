@@ -48,9 +48,20 @@ def test_mavproxy_reads_position_and_switches_mode(tmp_path: Path) -> None:
     ap = server.endpoints[0].autopilot
     lines: list[str] = []
     proc = subprocess.Popen(
-        [sys.executable, exe, "--master", f"tcp:127.0.0.1:{port}", "--state-basedir", str(tmp_path)],
-        cwd=tmp_path, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )  # fmt: skip
+        [
+            sys.executable,
+            exe,
+            "--master",
+            f"tcp:127.0.0.1:{port}",
+            "--state-basedir",
+            str(tmp_path),
+        ],
+        cwd=tmp_path,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     assert proc.stdin is not None and proc.stdout is not None
     reader = threading.Thread(
         target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True

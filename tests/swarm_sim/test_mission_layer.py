@@ -80,17 +80,27 @@ def test_two_missions_with_no_selector_in_a_row_on_the_same_nodes(fleet_profiles
     fleet = ready_fleet([7, 8], fleet_profiles)
     area = square(SITL_HOME.lat_deg + 0.0012, SITL_HOME.lon_deg, 40.0)
     for mid in (41, 42):
-        fleet.broadcast(Mission(mid, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=25.0)))
+        fleet.broadcast(
+            Mission(mid, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=25.0))
+        )
         assert fleet.run_until(lambda: landed(fleet), 900), fleet.notes[-10:]
-        done = {a.vehicle_id for a in fleet.messages(Alert)
-                if a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {mid}"}  # fmt: skip
+        done = {
+            a.vehicle_id
+            for a in fleet.messages(Alert)
+            if a.code == AlertCode.MISSION_COMPLETE and a.text == f"mission {mid}"
+        }
         assert done == {7, 8}, (mid, done)
-        planned = [t for _t, _v, t in fleet.notes if t.startswith(f"mission {mid}: planned for fleet [7, 8]")]
+        planned = [
+            t
+            for _t, _v, t in fleet.notes
+            if t.startswith(f"mission {mid}: planned for fleet [7, 8]")
+        ]
         assert len(planned) == 2, planned
         progress = [s.mission_progress_pct for s in fleet.messages(VehicleStatus, sender=7)]
         assert progress[-1] == 100
         fleet.broadcast(Command(GCS, 200 + mid, CommandKind.ACTIVATE))
         assert fleet.run_until(
-            lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
+            lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()),
+            30,
         )
     assert [a.reason for a in fleet.messages(Ack) if a.ref_id == 42]

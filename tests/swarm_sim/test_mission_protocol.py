@@ -29,8 +29,12 @@ def simple_mission(p: Pilot, n: int = 4) -> list[tuple[int, int, float, float, f
 def test_upload_asks_with_mission_request_for_every_type(p: Pilot) -> None:
     assert p.upload(simple_mission(p)).type == 0
     fence = [(5001, REL, 0, 0, 0), (5001, REL, 0, 0, 0), (5001, REL, 0, 0, 0)]
-    raw = [(c, f, (3.0, 0, 0, 0), *p.latlon(n, e), z) for (c, f, n, e, z), (n, e) in
-           zip(fence, [(-500, -500), (-500, 500), (500, 0)], strict=True)]  # fmt: skip
+    raw = [
+        (c, f, (3.0, 0, 0, 0), *p.latlon(n, e), z)
+        for (c, f, n, e, z), (n, e) in zip(
+            fence, [(-500, -500), (-500, 500), (500, 0)], strict=True
+        )
+    ]
     assert p.upload_raw(raw, FENCE).type == 0
     rally = [(5100, REL, (0, 0, 0, 0), *p.latlon(100, 100), 30)]
     assert p.upload_raw(rally, RALLY).type == 0

@@ -37,8 +37,11 @@ def test_a_vtol_landing_answers_a_new_mission_busy_and_lands(fleet_profiles: dic
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
     assert fleet.run_until(lambda: v.node.fsm.state == FsmState.GO_MISSION, 30)
     point = Geometry.point(SITL_HOME.lat_deg + 0.004, SITL_HOME.lon_deg)
-    fleet.broadcast(Mission(41, GCS, MissionType.TARGET, point,
-                            MissionParams(altitude_rel_m=40.0, duration_s=10.0)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            41, GCS, MissionType.TARGET, point, MissionParams(altitude_rel_m=40.0, duration_s=10.0)
+        )
+    )
     assert fleet.run_until(lambda: v.node.manager.phase == Phase.LANDING, 900), fleet.notes[-10:]
     assert v.link.state.armed
     fleet.broadcast(Mission(42, GCS, MissionType.TARGET, point, MissionParams(altitude_rel_m=40.0)))

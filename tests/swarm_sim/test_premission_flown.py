@@ -1,4 +1,4 @@
-"""PREMISSION flown by the nodes (paper section 2.3.5, issue 12 deliver 5) in fast time
+"""PREMISSION flown by the nodes (paper section 2.3.5) in fast time
 over real MAVLink bytes: three Albatross VTOLs on the ground get a mission to ALL; each
 predicts and publishes when it can be at its share's entry, they meet at the latest
 one, and each flies its Dubins leg from where it climbed to, leaving in time and

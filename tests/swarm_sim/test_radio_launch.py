@@ -1,4 +1,4 @@
-"""Issue 18: a `swarm-sim demo --radio` at load 10-20 replanned three times at launch,
+"""A `swarm-sim demo --radio` at load 10-20 replanned three times at launch,
 "the fleet changed", and flew 0 of 4 missions: peers behind the radio went stale for a
 moment. Behind the radio a node knows its peers only by the telemetry its own gateway
 republishes (5 Hz: what it heard, and its predictions between); when that gateway's

@@ -1,7 +1,7 @@
-"""Issue 16, a node restarted while its vehicle flies (kill -9, then a new process on the
+"""a node restarted while its vehicle flies (kill -9, then a new process on the
 same database), in fast time: it reattaches without sending the vehicle home and
 without arming anything; alone on its mission it continues its share and completes it,
-in a fleet whose survivors already took its share over (issue 12's inheritance) it
+in a fleet whose survivors already took its share over it
 hands it on and flies home."""
 
 from __future__ import annotations
@@ -32,14 +32,25 @@ BASE = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
 def on_mission(profiles: dict, members: list[int], half_m: float) -> FastFleet:
     fleet = FastFleet.build(members, profiles, spacing_m=60.0)
     assert fleet.run_until(
-        lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
-    fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=BASE),
-                            time_unix_s=fleet.now))  # fmt: skip
+        lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60
+    )
+    fleet.broadcast(
+        Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=BASE), time_unix_s=fleet.now)
+    )
     assert fleet.run_until(
-        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30)
+        lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
+    )
     area = square(SITL_HOME.lat_deg + 0.004, SITL_HOME.lon_deg, half_m)
-    fleet.broadcast(Mission(70, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=60.0),
-                            time_unix_s=fleet.now))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            70,
+            GCS,
+            MissionType.AREA,
+            area,
+            MissionParams(altitude_rel_m=60.0),
+            time_unix_s=fleet.now,
+        )
+    )
     return fleet
 
 
@@ -95,5 +106,7 @@ def test_in_a_fleet_that_took_its_share_it_hands_it_on(fleet_profiles: dict) -> 
     assert fleet.run_until(lambda: not v.endpoint.autopilot.armed, 900)  # home and down
     sent = after(fleet, 3, t)
     assert "Arm" not in sent and "Takeoff" not in sent
-    assert fleet.run_until(lambda: any(a.code == AlertCode.MISSION_COMPLETE
-                                       for a in fleet.messages(Alert, sender=1)), 900)  # fmt: skip
+    assert fleet.run_until(
+        lambda: any(a.code == AlertCode.MISSION_COMPLETE for a in fleet.messages(Alert, sender=1)),
+        900,
+    )

@@ -19,25 +19,67 @@ from tests.swarm_sim.conftest import Pilot, make_pilot
 REL = 3
 # What the recording script asked for (the copter stream has exactly these periodic
 # messages; their rates at SITL speed-up 4 give the sim-time intervals).
-INTERVALS_US = {33: 200_000, 30: 200_000, 74: 200_000, 24: 500_000, 1: 1_000_000,
-                147: 1_000_000, 2: 1_000_000, 42: 1_000_000, 193: 1_000_000, 242: 2_000_000}  # fmt: skip
-PROTOCOL = {"COMMAND_ACK", "MISSION_ACK", "MISSION_REQUEST", "MISSION_ITEM_REACHED", "STATUSTEXT",
-            "HEARTBEAT", "PARAM_VALUE", "GPS_GLOBAL_ORIGIN", "TIMESYNC", "HOME_POSITION"}  # fmt: skip
+INTERVALS_US = {
+    33: 200_000,
+    30: 200_000,
+    74: 200_000,
+    24: 500_000,
+    1: 1_000_000,
+    147: 1_000_000,
+    2: 1_000_000,
+    42: 1_000_000,
+    193: 1_000_000,
+    242: 2_000_000,
+}
+PROTOCOL = {
+    "COMMAND_ACK",
+    "MISSION_ACK",
+    "MISSION_REQUEST",
+    "MISSION_ITEM_REACHED",
+    "STATUSTEXT",
+    "HEARTBEAT",
+    "PARAM_VALUE",
+    "GPS_GLOBAL_ORIGIN",
+    "TIMESYNC",
+    "HOME_POSITION",
+}
 # The simulator's additions to a stream (documented in docs/simulator.md)
 SIM_EXTRAS = {"EXTENDED_SYS_STATE"}
 # The recorded QuadPlane had no battery monitor (SYS_STATUS voltage 0, remaining -1), so
 # it sent no BATTERY_STATUS; the simulated Albatross has a battery.
 PLANE_EXTRAS = SIM_EXTRAS | {"BATTERY_STATUS"}
 # ArduPlane SITL's SR0_ default streams and sensor/SITL-physics messages: not emulated
-PLANE_SITL_ONLY = {"AHRS", "AHRS2", "AIRSPEED", "AOA_SSA", "ESC_TELEMETRY_1_TO_4",
-                   "ESC_TELEMETRY_5_TO_8", "LOCAL_POSITION_NED", "MEMINFO", "NAV_CONTROLLER_OUTPUT",
-                   "POSITION_TARGET_GLOBAL_INT", "POWER_STATUS", "RAW_IMU", "RC_CHANNELS",
-                   "SCALED_IMU2", "SCALED_IMU3", "SCALED_PRESSURE", "SCALED_PRESSURE2",
-                   "SERVO_OUTPUT_RAW", "SIMSTATE", "TERRAIN_REPORT", "TERRAIN_REQUEST", "VIBRATION",
-                   "WIND"}  # fmt: skip
+PLANE_SITL_ONLY = {
+    "AHRS",
+    "AHRS2",
+    "AIRSPEED",
+    "AOA_SSA",
+    "ESC_TELEMETRY_1_TO_4",
+    "ESC_TELEMETRY_5_TO_8",
+    "LOCAL_POSITION_NED",
+    "MEMINFO",
+    "NAV_CONTROLLER_OUTPUT",
+    "POSITION_TARGET_GLOBAL_INT",
+    "POWER_STATUS",
+    "RAW_IMU",
+    "RC_CHANNELS",
+    "SCALED_IMU2",
+    "SCALED_IMU3",
+    "SCALED_PRESSURE",
+    "SCALED_PRESSURE2",
+    "SERVO_OUTPUT_RAW",
+    "SIMSTATE",
+    "TERRAIN_REPORT",
+    "TERRAIN_REQUEST",
+    "VIBRATION",
+    "WIND",
+}
 # Texts from SITL's simulated sensors and RC that have no counterpart in the simulator
-SITL_ONLY_TEXTS = {"RC7: SaveWaypoint LOW", "EKF3 IMU0 MAG0 in-flight yaw alignment complete",
-                   "EKF3 IMU1 MAG0 in-flight yaw alignment complete"}  # fmt: skip
+SITL_ONLY_TEXTS = {
+    "RC7: SaveWaypoint LOW",
+    "EKF3 IMU0 MAG0 in-flight yaw alignment complete",
+    "EKF3 IMU1 MAG0 in-flight yaw alignment complete",
+}
 
 
 def read_tlog(path: Path) -> list[Any]:
@@ -126,9 +168,15 @@ def sim_copter() -> list[Any]:
     p = make_pilot("copter")
     start_like_the_script(p)
     ack = p.upload(
-        [(16, 0, 0, 0, 0), (22, REL, 0, 0, 30), (16, REL, 167, 0, 30), (16, REL, 167, 133, 30),
-         (16, REL, 0, 133, 30), (20, REL, 0, 0, 0)],
-    )  # fmt: skip
+        [
+            (16, 0, 0, 0, 0),
+            (22, REL, 0, 0, 30),
+            (16, REL, 167, 0, 30),
+            (16, REL, 167, 133, 30),
+            (16, REL, 0, 133, 30),
+            (20, REL, 0, 0, 0),
+        ],
+    )
     assert ack is not None and ack.type == 0
     p.wait_ready()
     assert p.set_mode("GUIDED") == 0
@@ -158,9 +206,15 @@ def sim_plane() -> list[Any]:
     p = make_pilot("vtol")
     start_like_the_script(p)
     ack = p.upload(
-        [(16, 0, 0, 0, 0), (84, REL, 0, 0, 40), (16, REL, 500, 300, 50), (16, REL, 500, 800, 50),
-         (16, REL, 0, 800, 50), (20, REL, 0, 0, 0)],
-    )  # fmt: skip
+        [
+            (16, 0, 0, 0, 0),
+            (84, REL, 0, 0, 40),
+            (16, REL, 500, 300, 50),
+            (16, REL, 500, 800, 50),
+            (16, REL, 0, 800, 50),
+            (20, REL, 0, 0, 0),
+        ],
+    )
     assert ack is not None and ack.type == 0
     p.wait_ready()
     assert p.set_mode("AUTO") == 0
@@ -238,8 +292,14 @@ def test_copter_texts(recorded_copter: list[Any], sim_copter: list[Any]) -> None
     rec = {shape(t) for t in texts(recorded_copter)} - {shape(t) for t in SITL_ONLY_TEXTS}
     sim = {shape(t) for t in texts(sim_copter)}
     assert rec <= sim, sorted(rec - sim)
-    order = ["Arming motors", "Mission: 1 Takeoff", "Reached command #2", "Mission: 5 RTL",
-             "SIM Hit ground at", "Disarming motors"]  # fmt: skip
+    order = [
+        "Arming motors",
+        "Mission: 1 Takeoff",
+        "Reached command #2",
+        "Mission: 5 RTL",
+        "SIM Hit ground at",
+        "Disarming motors",
+    ]
     for stream in (texts(recorded_copter), texts(sim_copter)):
         idx = [next(i for i, t in enumerate(stream) if t.startswith(o)) for o in order]
         assert idx == sorted(idx)
@@ -271,8 +331,16 @@ def test_plane_message_set(recorded_plane: list[Any], sim_plane: list[Any]) -> N
 def test_plane_heartbeats(recorded_plane: list[Any], sim_plane: list[Any]) -> None:
     rec_pairs, sim_pairs = heartbeat_pairs(recorded_plane), heartbeat_pairs(sim_plane)
     assert sim_pairs <= rec_pairs, sorted(sim_pairs - rec_pairs)
-    assert {(1, 3, 16, 17), (1, 3, 5, 81), (1, 3, 10, 89), (1, 3, 10, 217), (1, 3, 11, 217),
-            (1, 3, 15, 217), (1, 3, 20, 209), (1, 3, 20, 81)} <= sim_pairs  # fmt: skip
+    assert {
+        (1, 3, 16, 17),
+        (1, 3, 5, 81),
+        (1, 3, 10, 89),
+        (1, 3, 10, 217),
+        (1, 3, 11, 217),
+        (1, 3, 15, 217),
+        (1, 3, 20, 209),
+        (1, 3, 20, 81),
+    } <= sim_pairs
     assert (
         mode_sequence(recorded_plane) == mode_sequence(sim_plane) == [16, 0, 5, 10, 11, 15, 11, 20]
     )
@@ -294,10 +362,21 @@ def test_plane_texts(recorded_plane: list[Any], sim_plane: list[Any]) -> None:
     rec = {shape(t) for t in texts(recorded_plane)} - {shape(t) for t in SITL_ONLY_TEXTS}
     sim = {shape(t) for t in texts(sim_plane)}
     assert rec <= sim, sorted(rec - sim)
-    order = ["Mission: 1 VTOLTakeoff", "Throttle armed", "Mission: 2 WP", "Transition started airspeed",
-             "Transition airspeed reached", "Transition done", "Reached waypoint #2 dist", "Mission: 5 RTL",
-             "Set airspeed 20 m/s", "SIM Hit ground at", "Land complete", "Throttle disarmed",
-             "PreArm: QLAND mode not armable"]  # fmt: skip
+    order = [
+        "Mission: 1 VTOLTakeoff",
+        "Throttle armed",
+        "Mission: 2 WP",
+        "Transition started airspeed",
+        "Transition airspeed reached",
+        "Transition done",
+        "Reached waypoint #2 dist",
+        "Mission: 5 RTL",
+        "Set airspeed 20 m/s",
+        "SIM Hit ground at",
+        "Land complete",
+        "Throttle disarmed",
+        "PreArm: QLAND mode not armable",
+    ]
     for stream in (texts(recorded_plane), texts(sim_plane)):
         idx = [next(i for i, t in enumerate(stream) if t.startswith(o)) for o in order]
         assert idx == sorted(idx), stream

@@ -1,4 +1,4 @@
-"""The simulator against the behaviour recordings of issue 11 (real ArduPilot SITL,
+"""The simulator against the behaviour recordings (real ArduPilot SITL,
 `../shared/data/ardupilot-sitl/behaviours.md`): each recorded script flown in the
 simulator, its numbers compared with the recorded ones.
 
@@ -81,9 +81,13 @@ def fly_rally_script(rally_alt_m: float) -> tuple[Pilot, list[tuple[float, float
     ack = p.upload([(NAV_RALLY_POINT, REL, 0, 300, rally_alt_m)], mission_type=RALLY)
     assert ack is not None and ack.type == 0
     ack = p.upload(
-        [(NAV_WAYPOINT, 0, 0, 0, 0), (NAV_VTOL_TAKEOFF, REL, 0, 0, 40),
-         (NAV_WAYPOINT, REL, 400, 0, 60), (NAV_LOITER_UNLIM, REL, 400, 0, 60)],
-    )  # fmt: skip
+        [
+            (NAV_WAYPOINT, 0, 0, 0, 0),
+            (NAV_VTOL_TAKEOFF, REL, 0, 0, 40),
+            (NAV_WAYPOINT, REL, 400, 0, 60),
+            (NAV_LOITER_UNLIM, REL, 400, 0, 60),
+        ],
+    )
     assert ack is not None and ack.type == 0
     assert p.set_mode("AUTO") == ACCEPTED
     assert p.arm() == ACCEPTED
@@ -162,10 +166,15 @@ def fly_to_the_final_loiter() -> tuple[Pilot, list[str]]:
     p = make_pilot("copter")
     p.wait_ready()
     ack = p.upload(
-        [(NAV_WAYPOINT, 0, 0, 0, 0), (NAV_TAKEOFF, REL, 0, 0, 20), (NAV_WAYPOINT, REL, 100, 0, 20),
-         (NAV_WAYPOINT, REL, 200, 0, 20), (NAV_WAYPOINT, REL, 300, 0, 20),
-         (NAV_LOITER_UNLIM, REL, 300, 0, 20)],
-    )  # fmt: skip
+        [
+            (NAV_WAYPOINT, 0, 0, 0, 0),
+            (NAV_TAKEOFF, REL, 0, 0, 20),
+            (NAV_WAYPOINT, REL, 100, 0, 20),
+            (NAV_WAYPOINT, REL, 200, 0, 20),
+            (NAV_WAYPOINT, REL, 300, 0, 20),
+            (NAV_LOITER_UNLIM, REL, 300, 0, 20),
+        ],
+    )
     assert ack is not None and ack.type == 0
     assert p.set_mode("GUIDED") == ACCEPTED
     assert p.arm() == ACCEPTED
@@ -174,9 +183,13 @@ def fly_to_the_final_loiter() -> tuple[Pilot, list[str]]:
     assert p.h.run_until(lambda: p.ap.mission_seq == 5 and abs(where(p)[0] - 300) < 3, 300)
     before = len(p.c.seen("STATUSTEXT"))
     ack = p.upload(
-        [(NAV_WAYPOINT, 0, 0, 0, 0), (NAV_WAYPOINT, REL, 200, 30, 20),
-         (NAV_WAYPOINT, REL, 100, 30, 20), (NAV_LAND, REL, 0, 0, 0)],
-    )  # fmt: skip
+        [
+            (NAV_WAYPOINT, 0, 0, 0, 0),
+            (NAV_WAYPOINT, REL, 200, 30, 20),
+            (NAV_WAYPOINT, REL, 100, 30, 20),
+            (NAV_LAND, REL, 0, 0, 0),
+        ],
+    )
     assert ack is not None and ack.type == 0
     p.h.run_until(lambda: False, 0.5)
     return p, [str(m.text) for m in p.c.seen("STATUSTEXT")[before:]]

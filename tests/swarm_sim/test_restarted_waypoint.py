@@ -1,4 +1,4 @@
-"""A waypoint started again while a fixed-wing is already past it (issue 18: a demo
+"""A waypoint started again while a fixed-wing is already past it (a demo
 VTOL circled its PREMISSION leg's first waypoint for 50 minutes, until BATTERY_LOW).
 
 The node uploads a leg in AUTO; the autopilot restarts its current index in the new
@@ -26,9 +26,13 @@ ACCEPT_M = 15.0  # the node's fixed-wing waypoint acceptance (planning.flight)
 
 
 def _item(
-    p: Pilot, cmd: int, north: float, east: float, alt: float,
+    p: Pilot,
+    cmd: int,
+    north: float,
+    east: float,
+    alt: float,
     params: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
-) -> tuple[Any, ...]:  # fmt: skip
+) -> tuple[Any, ...]:
     x, y = p.latlon(north, east) if (north or east) else (0, 0)
     return (cmd, REL if (north or east) else 0, params, x, y, alt)
 
@@ -38,8 +42,13 @@ def _cruising_north() -> Pilot:
     p = make_pilot("vtol")
     p.wait_ready()
     wp = (0.0, ACCEPT_M, 0.0, 0.0)
-    ack = p.upload_raw([_item(p, NAV_WAYPOINT, 0, 0, 0), _item(p, NAV_VTOL_TAKEOFF, 0, 0, 80),
-                        _item(p, NAV_WAYPOINT, 5000, 0, 80, wp)])  # fmt: skip
+    ack = p.upload_raw(
+        [
+            _item(p, NAV_WAYPOINT, 0, 0, 0),
+            _item(p, NAV_VTOL_TAKEOFF, 0, 0, 80),
+            _item(p, NAV_WAYPOINT, 5000, 0, 80, wp),
+        ]
+    )
     assert ack is not None and ack.type == 0
     assert p.set_mode("GUIDED") == ACCEPTED and p.arm() == ACCEPTED
     assert p.set_mode("AUTO") == ACCEPTED and p.command(MISSION_START) == ACCEPTED
@@ -52,12 +61,14 @@ def test_a_waypoint_started_again_behind_a_fixed_wing_is_flown_from_where_it_is(
     b = p.ap.body
     behind = (b.n - 25.0, b.e + 40.0)  # flown past 25 m ago, 40 m aside: inside its turn circle
     wp = (0.0, ACCEPT_M, 0.0, 0.0)
-    ack = p.upload_raw([
-        _item(p, NAV_WAYPOINT, 0, 0, 0),
-        _item(p, DO_CHANGE_SPEED, 0, 0, 0, (0.0, 30.0, -1.0, 0.0)),  # the leg's speed
-        _item(p, NAV_WAYPOINT, *behind, 80, wp),
-        _item(p, NAV_WAYPOINT, b.n, b.e - 1500.0, 80, wp),
-    ])  # fmt: skip
+    ack = p.upload_raw(
+        [
+            _item(p, NAV_WAYPOINT, 0, 0, 0),
+            _item(p, DO_CHANGE_SPEED, 0, 0, 0, (0.0, 30.0, -1.0, 0.0)),  # the leg's speed
+            _item(p, NAV_WAYPOINT, *behind, 80, wp),
+            _item(p, NAV_WAYPOINT, b.n, b.e - 1500.0, 80, wp),
+        ]
+    )
     assert ack is not None and ack.type == 0
     assert p.ap.mission_seq == 2  # the upload in AUTO restarted item 2: the waypoint behind
     assert p.command(DO_SET_MISSION_CURRENT, 1) == ACCEPTED  # StartMission

@@ -30,8 +30,15 @@ def paper_score(
         p = db.module_params("voting")
     total = p["weight_payload"] + p["weight_time"] + p["weight_battery"]
     have = profile.payload_class
-    vp = (0.0 if have.model == want.model else 0.5 if have.subtype == want.subtype
-          else 0.75 if have.type == want.type else 1.0)  # fmt: skip
+    vp = (
+        0.0
+        if have.model == want.model
+        else 0.5
+        if have.subtype == want.subtype
+        else 0.75
+        if have.type == want.type
+        else 1.0
+    )
     assert ap.lat_deg is not None and ap.lon_deg is not None
     la1, lo1, la2, lo2 = map(math.radians, (ap.lat_deg, ap.lon_deg, *target))
     h = (
@@ -65,8 +72,9 @@ def test_three_vtols_send_two_to_a_reported_person_and_the_third_replans(
     fleet_profiles: dict,
 ) -> None:
     members = (1, 2, 3)
-    r = retasking(fleet_profiles, members, source=2, at_progress=0.05, half_m=200.0,
-                  to_the_end=False)  # fmt: skip
+    r = retasking(
+        fleet_profiles, members, source=2, at_progress=0.05, half_m=200.0, to_the_end=False
+    )
     check_the_vote(r, fleet_profiles, members, 2)
     assert len(r.winners) == 2 and len(r.stayers) == 1
     # decided within a second of the report; the winners flying the target soon after
@@ -82,9 +90,11 @@ def test_six_vtols_two_retasked_the_other_four_finish_the_area_and_all_land(
     members = (1, 2, 3, 4, 5, 6)
     r = retasking(fleet_profiles, members, source=3)
     check_the_vote(r, fleet_profiles, members, 3)
-    print(f"winners {r.winners}, decided {r.report_to_decided_s:.2f} s, flying "
-          f"{r.report_to_flying_s:.1f} s, replanned {r.report_to_replanned_s:.1f} s after the "
-          f"report; coverage {r.coverage:.4f}")  # fmt: skip
+    print(
+        f"winners {r.winners}, decided {r.report_to_decided_s:.2f} s, flying "
+        f"{r.report_to_flying_s:.1f} s, replanned {r.report_to_replanned_s:.1f} s after the "
+        f"report; coverage {r.coverage:.4f}"
+    )
     assert len(r.winners) == 2
     assert r.same_plan
     assert r.completed.get(AREA_ID) == set(r.stayers)
@@ -122,11 +132,15 @@ def test_a_vtol_whose_home_is_far_from_the_base_lands_at_the_base(fleet_profiles
     area = square(SITL_HOME.lat_deg + 0.003, SITL_HOME.lon_deg - west, 80.0)
     fleet.broadcast(Mission(5, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=50.0)))
     landed = fleet.run_until(
-        lambda: all(v.node.fsm.state == FsmState.INACTIVE and not v.link.state.armed
-                    for v in fleet.vehicles.values()),
+        lambda: all(
+            v.node.fsm.state == FsmState.INACTIVE and not v.link.state.armed
+            for v in fleet.vehicles.values()
+        ),
         1800,
-    )  # fmt: skip
-    assert landed, [(v, x.node.manager.phase, x.link.state.mode_name) for v, x in fleet.vehicles.items()]
+    )
+    assert landed, [
+        (v, x.node.manager.phase, x.link.state.mode_name) for v, x in fleet.vehicles.items()
+    ]
 
 
 def test_a_quadcopter_joins_a_surveying_fleet_and_the_area_is_covered(fleet_profiles: dict) -> None:
@@ -159,8 +173,11 @@ def test_a_quadcopter_joins_a_surveying_fleet_and_the_area_is_covered(fleet_prof
     )
     alt = 30.0
     area = square(SITL_HOME.lat_deg + 0.0015, SITL_HOME.lon_deg, 70.0)
-    fleet.broadcast(Mission(80, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=alt),
-                            Selector.ids(7, 8)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            80, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=alt), Selector.ids(7, 8)
+        )
+    )
     tracks = Tracks(LocalFrame.at(list(area.points)), alt)
 
     def third() -> bool:
@@ -169,17 +186,20 @@ def test_a_quadcopter_joins_a_surveying_fleet_and_the_area_is_covered(fleet_prof
         return all(m.share is not None and m.share_progress_m() > m.share.length_m / 3 for m in ms)
 
     assert fleet.run_until(third, 600), fleet.notes[-10:]
-    fleet.broadcast(Command(GCS, 2, CommandKind.JOIN_MISSION, Selector.ids(9),
-                            CommandArgs(mission_id=80)))  # fmt: skip
+    fleet.broadcast(
+        Command(GCS, 2, CommandKind.JOIN_MISSION, Selector.ids(9), CommandArgs(mission_id=80))
+    )
 
     def joined() -> bool:
         tracks.sample(fleet)
         nodes = [fleet.vehicles[v].node for v in (7, 8, 9)]
         return all(
-            n.fsm.state == FsmState.GO_MISSION and n.fsm.mission_id == 80
-            and n.manager.fleet_plan is not None and n.manager.fleet_plan.roster == (7, 8, 9)
+            n.fsm.state == FsmState.GO_MISSION
+            and n.fsm.mission_id == 80
+            and n.manager.fleet_plan is not None
+            and n.manager.fleet_plan.roster == (7, 8, 9)
             for n in nodes
-        )  # fmt: skip
+        )
 
     assert fleet.run_until(joined, 120), fleet.notes[-20:]
     hashes = {fleet.vehicles[v].node.roster.members_hash for v in (7, 8, 9)}
@@ -192,8 +212,10 @@ def test_a_quadcopter_joins_a_surveying_fleet_and_the_area_is_covered(fleet_prof
 
     def landed() -> bool:
         tracks.sample(fleet)
-        return all(v.node.fsm.state == FsmState.INACTIVE and not v.link.state.armed
-                   for v in fleet.vehicles.values())  # fmt: skip
+        return all(
+            v.node.fsm.state == FsmState.INACTIVE and not v.link.state.armed
+            for v in fleet.vehicles.values()
+        )
 
     assert fleet.run_until(landed, 1800), fleet.notes[-20:]
     assert 9 in tracks.points  # it flew lanes of the area

@@ -79,8 +79,9 @@ def test_vehicles_on_port_0_get_free_ports_and_say_which() -> None:
     finally:
         server.close()
     with pytest.raises(ValueError, match="one port"):
-        VehicleServer([VehicleSpec("copter", port=7), VehicleSpec("vtol", port=7)],
-                      ScaledClock(SPEEDUP))  # fmt: skip
+        VehicleServer(
+            [VehicleSpec("copter", port=7), VehicleSpec("vtol", port=7)], ScaledClock(SPEEDUP)
+        )
 
 
 def test_pymavlink_client_sees_two_vehicles_in_one_process(
@@ -153,10 +154,22 @@ def test_cli_vehicle_uses_the_shared_clock_from_the_environment() -> None:
     clock = ScaledClock(SPEEDUP, start_unix_s=1_800_000_000.0)
     env = {**os.environ, "BANDADA_CLOCK": clock.spec()}
     proc = subprocess.Popen(
-        [str(Path(sys.executable).parent / "swarm-sim"), "vehicle", "--model", "rover,boat",
-         "--instance", str(instance), "--count", "2"],
-        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+        [
+            str(Path(sys.executable).parent / "swarm-sim"),
+            "vehicle",
+            "--model",
+            "rover,boat",
+            "--instance",
+            str(instance),
+            "--count",
+            "2",
+        ],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         m = connect(port)
         try:
@@ -198,11 +211,24 @@ def test_cli_vehicle_home_and_speedup() -> None:
     port = sitl_port(instance)
     env = {k: v for k, v in os.environ.items() if k != "BANDADA_CLOCK"}
     proc = subprocess.Popen(
-        [str(Path(sys.executable).parent / "swarm-sim"), "vehicle", "--model", "copter",
-         "--instance", str(instance), "--home", "-35.363261,149.165230,584,270",
-         "--speedup", "4"],
-        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+        [
+            str(Path(sys.executable).parent / "swarm-sim"),
+            "vehicle",
+            "--model",
+            "copter",
+            "--instance",
+            str(instance),
+            "--home",
+            "-35.363261,149.165230,584,270",
+            "--speedup",
+            "4",
+        ],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         m = connect(port)
         try:

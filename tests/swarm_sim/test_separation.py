@@ -1,6 +1,6 @@
 """Collision avoidance and pad sequencing in the node, flown in fast time by FastFleet
 (simulated ArduPilot vehicles, the real autopilot link and node cores, real MAVLink
-bytes), measured by the flight recorder and `gcs analyze separation` (issue 14).
+bytes), measured by the flight recorder and `gcs analyze separation`.
 
 Default run: one short check per scenario kind (a head-on convergence, a simultaneous
 take-off from close pads, six VTOLs taking off from the paper's 30 m pads), the
@@ -75,8 +75,9 @@ def test_three_vtols_on_pads_8_m_apart_take_off_in_turn(fleet_profiles: dict) ->
     pads 8 m apart; they climb off in id order, each when the one before is 30 m up,
     and no two airborne come within 10 m (the flight is cut once all three fly their
     route; the whole flight with its landings is the soak test)."""
-    fleet = FastFleet.build([1, 2, 3], fleet_profiles, spacing_m=8.0,
-                            settings=NodeSettings(plan_timeout_s=120.0))  # fmt: skip
+    fleet = FastFleet.build(
+        [1, 2, 3], fleet_profiles, spacing_m=8.0, settings=NodeSettings(plan_timeout_s=120.0)
+    )
     fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
@@ -84,8 +85,13 @@ def test_three_vtols_on_pads_8_m_apart_take_off_in_turn(fleet_profiles: dict) ->
         lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
     )
     t0 = fleet.now
-    route = Mission(201, GCS, MissionType.ROUTE, _polyline(_at(400, -300), _at(900, 300)),
-                    MissionParams(altitude_rel_m=60.0))  # fmt: skip
+    route = Mission(
+        201,
+        GCS,
+        MissionType.ROUTE,
+        _polyline(_at(400, -300), _at(900, 300)),
+        MissionParams(altitude_rel_m=60.0),
+    )
     fleet.broadcast(route)
     assert fleet.run_until(
         lambda: all(v.node.manager.phase.value == "flying" for v in fleet.vehicles.values()), 150
@@ -126,8 +132,12 @@ def test_six_vtols_on_30_m_pads_take_off_in_turn_and_keep_clear(fleet_profiles: 
     40 m risk band: neighbours) released for one route at once take off in id order,
     and no two airborne come within 10 m until all fly it (the whole experiment, area
     and re-tasking: the soak test)."""
-    fleet = FastFleet.build([1, 2, 3, 4, 5, 6], fleet_profiles, spacing_m=30.0,
-                            settings=NodeSettings(plan_timeout_s=180.0))  # fmt: skip
+    fleet = FastFleet.build(
+        [1, 2, 3, 4, 5, 6],
+        fleet_profiles,
+        spacing_m=30.0,
+        settings=NodeSettings(plan_timeout_s=180.0),
+    )
     fleet.run_until(lambda: all(v.link.state.ekf_has_position for v in fleet.vehicles.values()), 60)
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
@@ -135,8 +145,13 @@ def test_six_vtols_on_30_m_pads_take_off_in_turn_and_keep_clear(fleet_profiles: 
         lambda: all(v.node.fsm.state == FsmState.GO_MISSION for v in fleet.vehicles.values()), 30
     )
     t0 = fleet.now
-    route = Mission(101, GCS, MissionType.ROUTE, _polyline(_at(500, -200), _at(1000, 400)),
-                    MissionParams(altitude_rel_m=60.0))  # fmt: skip
+    route = Mission(
+        101,
+        GCS,
+        MissionType.ROUTE,
+        _polyline(_at(500, -200), _at(1000, 400)),
+        MissionParams(altitude_rel_m=60.0),
+    )
     fleet.broadcast(route)
     flown: set[int] = set()
 
@@ -165,8 +180,15 @@ def test_avoidance_keeps_its_5_hz_while_the_fleet_plans(fleet_profiles: dict) ->
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
     fleet.run_until(lambda: fleet.vehicles[1].node.fsm.state == FsmState.GO_MISSION, 30)
-    fleet.broadcast(Mission(5, GCS, MissionType.AREA, _square(*_at(600.0, 0.0), 150.0),
-                            MissionParams(altitude_rel_m=60.0)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            5,
+            GCS,
+            MissionType.AREA,
+            _square(*_at(600.0, 0.0), 150.0),
+            MissionParams(altitude_rel_m=60.0),
+        )
+    )
     node = fleet.vehicles[1].node
     assert fleet.run_until(lambda: node.manager.mission_state == MissionState.PLANNING, 10)
     fleet.run_until(lambda: node.manager._planning is not None, 10)  # the plan job is out
@@ -177,13 +199,25 @@ def test_avoidance_keeps_its_5_hz_while_the_fleet_plans(fleet_profiles: dict) ->
     assert rate == pytest.approx(5.0, abs=0.2)
 
 
-def adsb_bytes(vid: int, icao: int, lat: float, lon: float, alt_msl: float, heading: float,
-               speed: float) -> bytes:  # fmt: skip
+def adsb_bytes(
+    vid: int, icao: int, lat: float, lon: float, alt_msl: float, heading: float, speed: float
+) -> bytes:
     mav = mavlink.MAVLink(None, srcSystem=vid, srcComponent=1)
     msg = mavlink.MAVLink_adsb_vehicle_message(
-        icao, round(lat * 1e7), round(lon * 1e7), 0, round(alt_msl * 1000),
-        round(heading * 100) % 36000, round(speed * 100), 0, b"INTRUDER", 1, 0, 1 | 2 | 4 | 8, 0,
-    )  # fmt: skip
+        icao,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        0,
+        round(alt_msl * 1000),
+        round(heading * 100) % 36000,
+        round(speed * 100),
+        0,
+        b"INTRUDER",
+        1,
+        0,
+        1 | 2 | 4 | 8,
+        0,
+    )
     return bytes(msg.pack(mav))
 
 
@@ -198,8 +232,15 @@ def test_an_adsb_intruder_heard_by_the_autopilot_is_climbed_over(fleet_profiles:
     base = GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m)
     fleet.broadcast(Command(GCS, 1, CommandKind.SET_BASE, args=CommandArgs(point=base)))
     fleet.run_until(lambda: v.node.fsm.state == FsmState.GO_MISSION, 30)
-    fleet.broadcast(Mission(7, GCS, MissionType.ROUTE, _polyline(_at(300, 0), _at(3300, 0)),
-                            MissionParams(altitude_rel_m=60.0)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            7,
+            GCS,
+            MissionType.ROUTE,
+            _polyline(_at(300, 0), _at(3300, 0)),
+            MissionParams(altitude_rel_m=60.0),
+        )
+    )
     assert fleet.run_until(lambda: v.node.manager.phase.value == "flying", 120)
     assert fleet.run_until(lambda: (v.link.state.alt_rel_m or 0.0) > 59.0, 60)
     s0 = v.link.state
@@ -250,7 +291,7 @@ def test_an_adsb_intruder_heard_by_the_autopilot_is_climbed_over(fleet_profiles:
     "run", [exp1_six_vtol, exp2_takeoff_three_vtol, stress_eight_headon], ids=lambda f: f.__name__
 )
 def test_the_papers_experiments_and_the_stress_case(fleet_profiles: dict, run) -> None:  # type: ignore[no-untyped-def]
-    """Issue 14's checks on whole flights: with avoidance on, 0 near and 0 danger
+    """Checks on whole flights: with avoidance on, 0 near and 0 danger
     samples once airborne, and 0 near samples at all in the take-off case; every
     vehicle finishes its mission (and, but for the planes left circling the base, is
     back on its pad); with avoidance off the stress case has conflicts."""

@@ -30,9 +30,15 @@ def test_copter_sortie_like_the_recording() -> None:
     p.wait_ready()
     fly_mission(
         p,
-        [(WP, 0, 0, 0, 0), (TAKEOFF, REL, 0, 0, 30), (WP, REL, 150, 0, 30),
-         (WP, REL, 150, 130, 30), (WP, REL, 0, 130, 30), (RTL, REL, 0, 0, 0)],
-    )  # fmt: skip
+        [
+            (WP, 0, 0, 0, 0),
+            (TAKEOFF, REL, 0, 0, 30),
+            (WP, REL, 150, 0, 30),
+            (WP, REL, 150, 130, 30),
+            (WP, REL, 0, 130, 30),
+            (RTL, REL, 0, 0, 0),
+        ],
+    )
     assert p.set_mode("GUIDED") == 0
     assert p.arm() == 0
     assert p.command(22, 0, 0, 0, 0, 0, 0, 30) == 0
@@ -44,8 +50,13 @@ def test_copter_sortie_like_the_recording() -> None:
     reached = [m.seq for m in p.c.seen("MISSION_ITEM_REACHED")]
     assert reached == [1, 2, 3, 4, 5]
     texts = p.c.texts()
-    for text in ("Arming motors", "Mission: 1 Takeoff", "Reached command #2", "Mission: 5 RTL",
-                 "Disarming motors"):  # fmt: skip
+    for text in (
+        "Arming motors",
+        "Mission: 1 Takeoff",
+        "Reached command #2",
+        "Mission: 5 RTL",
+        "Disarming motors",
+    ):
         assert text in texts
     assert texts.index("Mission: 5 RTL") < texts.index("Disarming motors")
 
@@ -55,15 +66,27 @@ def test_vtol_sortie_vertical_takeoff_transition_rtl_qland() -> None:
     p.wait_ready()
     fly_mission(
         p,
-        [(WP, 0, 0, 0, 0), (VTOL_TAKEOFF, REL, 0, 0, 40), (WP, REL, 600, 0, 60),
-         (WP, REL, 600, 600, 60), (WP, REL, 0, 600, 60), (RTL, REL, 0, 0, 0)],
-    )  # fmt: skip
+        [
+            (WP, 0, 0, 0, 0),
+            (VTOL_TAKEOFF, REL, 0, 0, 40),
+            (WP, REL, 600, 0, 60),
+            (WP, REL, 600, 600, 60),
+            (WP, REL, 0, 600, 60),
+            (RTL, REL, 0, 0, 0),
+        ],
+    )
     assert p.set_mode("AUTO") == 0
     assert p.arm() == 0
     assert p.h.run_until(lambda: p.ap.mode_name == "RTL", 600)
     texts = p.c.texts()
-    order = ["Mission: 1 VTOLTakeoff", "Throttle armed", "Mission: 2 WP", "Transition done",
-             "Reached waypoint #2 dist", "Mission: 5 RTL"]  # fmt: skip
+    order = [
+        "Mission: 1 VTOLTakeoff",
+        "Throttle armed",
+        "Mission: 2 WP",
+        "Transition done",
+        "Reached waypoint #2 dist",
+        "Mission: 5 RTL",
+    ]
     positions = [next(i for i, t in enumerate(texts) if t.startswith(o)) for o in order]
     assert positions == sorted(positions)
     assert any(t.startswith("Transition started airspeed") for t in texts)
@@ -82,9 +105,15 @@ def test_plane_sortie_takeoff_mission_and_landing() -> None:
     p.wait_ready()
     fly_mission(
         p,
-        [(WP, 0, 0, 0, 0), (TAKEOFF, REL, 0, 0, 40), (WP, REL, 800, 0, 80),
-         (WP, REL, 800, 800, 80), (WP, REL, -600, 0, 40), (LAND, REL, 0.5, 0, 0)],
-    )  # fmt: skip
+        [
+            (WP, 0, 0, 0, 0),
+            (TAKEOFF, REL, 0, 0, 40),
+            (WP, REL, 800, 0, 80),
+            (WP, REL, 800, 800, 80),
+            (WP, REL, -600, 0, 40),
+            (LAND, REL, 0.5, 0, 0),
+        ],
+    )
     assert p.set_mode("AUTO") == 0
     assert p.arm() == 0
     assert p.h.run_until(lambda: not p.ap.armed, 900)
@@ -117,9 +146,14 @@ def test_ground_vehicle_sortie(model: str) -> None:
     p.wait_ready()
     fly_mission(
         p,
-        [(WP, 0, 0, 0, 0), (WP, REL, 60, 0, 0), (WP, REL, 60, 60, 0), (WP, REL, 0, 60, 0),
-         (RTL, REL, 0, 0, 0)],
-    )  # fmt: skip
+        [
+            (WP, 0, 0, 0, 0),
+            (WP, REL, 60, 0, 0),
+            (WP, REL, 60, 60, 0),
+            (WP, REL, 0, 60, 0),
+            (RTL, REL, 0, 0, 0),
+        ],
+    )
     assert p.set_mode("AUTO") == 0
     assert p.arm() == 0
     assert p.h.run_until(lambda: "Mission Complete" in p.c.texts(), 900)
@@ -139,9 +173,16 @@ def test_plane_rtl_then_land_via_do_land_start() -> None:
     p.c.mav.param_set_send(1, 1, b"RTL_AUTOLAND", 1, 2)
     fly_mission(
         p,
-        [(WP, 0, 0, 0, 0), (TAKEOFF, REL, 0, 0, 40), (WP, REL, 1500, 0, 80), (WP, REL, 1500, 1500, 80),
-         (189, REL, 0, 0, 0), (WP, REL, -700, 0, 40), (LAND, REL, 0.5, 0, 0)],
-    )  # fmt: skip
+        [
+            (WP, 0, 0, 0, 0),
+            (TAKEOFF, REL, 0, 0, 40),
+            (WP, REL, 1500, 0, 80),
+            (WP, REL, 1500, 1500, 80),
+            (189, REL, 0, 0, 0),
+            (WP, REL, -700, 0, 40),
+            (LAND, REL, 0.5, 0, 0),
+        ],
+    )
     assert p.set_mode("AUTO") == 0 and p.arm() == 0
     assert p.h.run_until(lambda: p.ap.mission_seq == 3, 300)
     assert p.set_mode("RTL") == 0  # before the end of the mission
@@ -160,9 +201,13 @@ def test_vtol_mission_ends_with_a_vertical_landing() -> None:
     p.wait_ready()
     fly_mission(
         p,
-        [(WP, 0, 0, 0, 0), (VTOL_TAKEOFF, REL, 0, 0, 40), (WP, REL, 1000, 0, 60),
-         (VTOL_LAND, REL, 1000, 800, 0)],
-    )  # fmt: skip
+        [
+            (WP, 0, 0, 0, 0),
+            (VTOL_TAKEOFF, REL, 0, 0, 40),
+            (WP, REL, 1000, 0, 60),
+            (VTOL_LAND, REL, 1000, 800, 0),
+        ],
+    )
     assert p.set_mode("AUTO") == 0 and p.arm() == 0
     assert p.h.run_until(lambda: not p.ap.armed, 900)
     b = p.ap.body
@@ -192,9 +237,16 @@ def test_mission_loiters_speed_change_and_jumps() -> None:
     p.wait_ready()
     fly_mission(
         p,
-        [(WP, 0, 0, 0, 0), (TAKEOFF, REL, 0, 0, 20), (178, 0, 0, 0, 0), (19, REL, 50, 0, 20),
-         (WP, REL, 250, 0, 20), (177, 0, 0, 0, 0), (RTL, REL, 0, 0, 0)],
-    )  # fmt: skip
+        [
+            (WP, 0, 0, 0, 0),
+            (TAKEOFF, REL, 0, 0, 20),
+            (178, 0, 0, 0, 0),
+            (19, REL, 50, 0, 20),
+            (WP, REL, 250, 0, 20),
+            (177, 0, 0, 0, 0),
+            (RTL, REL, 0, 0, 0),
+        ],
+    )
     # set the params the simple upload helper leaves at 0
     items = p.ap.mission_items
     from dataclasses import replace

@@ -1,4 +1,4 @@
-"""Plans keep a margin that covers how ArduPilot flies them (issue 11, defect 2).
+"""Plans keep a margin that covers how ArduPilot flies them.
 
 Real ArduCopter rounds every corner of an AUTO mission on its inside, about 1.2 m from
 the corner point and 0.8-0.9 m off the planned lines (the recorded
@@ -41,8 +41,9 @@ def field_with_zone() -> tuple[Geometry, NoFlyZone]:
     lat0, lon0 = offset(SITL_HOME.lat_deg, SITL_HOME.lon_deg, 150.0, 0.0)
     corners = [offset(lat0, lon0, n, e) for n, e in ((0, -100), (0, 100), (160, 100), (160, -100))]
     zlat, zlon = offset(lat0, lon0, 80.0, 20.0)
-    zone = NoFlyZone(1, Geometry.circle(zlat, zlon, 35.0), floor_alt_msl_m=-100.0,
-                     ceiling_alt_msl_m=500.0)  # fmt: skip
+    zone = NoFlyZone(
+        1, Geometry.circle(zlat, zlon, 35.0), floor_alt_msl_m=-100.0, ceiling_alt_msl_m=500.0
+    )
     return Geometry.polygon(corners), zone
 
 
@@ -55,11 +56,21 @@ def test_copters_survey_around_a_zone_with_clearance(fleet_profiles: dict) -> No
     fleet.run_for(2.0)
     area, zone = field_with_zone()
     fleet.broadcast(zone)
-    fleet.broadcast(Mission(7, GCS, MissionType.AREA, area, MissionParams(altitude_rel_m=50.0, side_overlap=0.6),
-                            Selector.ids(*members)))  # fmt: skip
+    fleet.broadcast(
+        Mission(
+            7,
+            GCS,
+            MissionType.AREA,
+            area,
+            MissionParams(altitude_rel_m=50.0, side_overlap=0.6),
+            Selector.ids(*members),
+        )
+    )
     centre, radius = zone.geometry.points[0], zone.geometry.radius_m or 0.0
-    zc = {vid: v.endpoint.autopilot.frame.to_ne(centre.lat_deg, centre.lon_deg)
-          for vid, v in fleet.vehicles.items()}  # fmt: skip
+    zc = {
+        vid: v.endpoint.autopilot.frame.to_ne(centre.lat_deg, centre.lon_deg)
+        for vid, v in fleet.vehicles.items()
+    }
     clearance = {vid: math.inf for vid in members}
     t0 = fleet.now
 

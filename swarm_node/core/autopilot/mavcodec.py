@@ -9,7 +9,7 @@ pymavlink's path, which also gives pymavlink's errors.
 What pymavlink does per frame and this does not: build and pack a header object, copy
 the buffer three times and run a CRC object (pack); check the signing and length again,
 and reorder the fields through a generic loop (unpack). A fleet in fast time packs and
-parses about 21 of these per vehicle and simulated second (issue 20).
+parses about 21 of these per vehicle and simulated second.
 """
 
 from __future__ import annotations

@@ -267,7 +267,7 @@ class MissionUpload(_Transfer):
                 # an item it did not ask for (our late answer to a request it sent again:
                 # a loaded host, a slow link): ArduPilot says so and keeps waiting for the
                 # one it asked for (MissionItemProtocol::handle_mission_item); the upload
-                # goes on, its timeouts still end one that never completes (issue 16)
+                # goes on, its timeouts still end one that never completes
                 self.out_of_sequence += 1
                 return []
             return self._fail(

@@ -344,7 +344,7 @@ def plan_request(request: ApRequest, ctx: PlanContext) -> Plan | ApResult:
             return _done(r, False, f"{vt.name} has no parachute", ApError.NOT_APPLICABLE)
         return Plan((_long(MavCmd.DO_PARACHUTE, name, PARACHUTE_RELEASE),))
     if isinstance(r, rq.StartMission):
-        # issue 11: MISSION_START alone does nothing in AUTO while a mission runs
+        # MISSION_START alone does nothing in AUTO while a mission runs
         first = max(1, r.first_item)
         return Plan(
             (

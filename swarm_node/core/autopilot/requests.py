@@ -130,7 +130,7 @@ class ApError(IntEnum):
     NOT_APPLICABLE = 10  # the vehicle type cannot do this (e.g. a rover's parachute)
     UNKNOWN_VEHICLE = 11  # vehicle type not configured and not known from a HEARTBEAT
     IN_PROGRESS = 12  # still MAV_RESULT_IN_PROGRESS when the time ran out
-    NOT_STARTED = 13  # accepted, but the autopilot did not start the mission (issue 11)
+    NOT_STARTED = 13  # accepted, but the autopilot did not start the mission
 
 
 class ApResult(msgspec.Struct, frozen=True):

@@ -14,7 +14,7 @@ spent. A FAILED mode change while the EKF has no position reports NO_POSITION.
 A STATUSTEXT of severity WARNING or worse seen during the step is quoted in the reason
 (ArduPilot explains refusals that way: "PreArm: ...", "Mode change to GUIDED failed").
 
-Issue 11 (real ArduPilot SITL): a command may wait for a SYS_STATUS sensor bit before it
+Real ArduPilot SITL: a command may wait for a SYS_STATUS sensor bit before it
 is sent (DO_FENCE_ENABLE waits for the fence to be loaded) and retry FAILED answers; a
 `VerifySpec` step waits for MISSION_CURRENT to report an item (StartMission); a transfer
 waits (at most `ready_wait_s`) until the autopilot has booted ("ArduPilot Ready"), since

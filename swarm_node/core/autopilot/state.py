@@ -57,7 +57,7 @@ class AutopilotState(msgspec.Struct, frozen=True):
     mission_reached: int = -1  # last MISSION_ITEM_REACHED.seq
     landed: bool | None = None  # EXTENDED_SYS_STATE landed state, when sent
     bad_packets: int = 0  # garbage or invalid messages seen on the link
-    # appended by the autopilot link (issue 3)
+    # appended by the autopilot link
     compid: int = 0  # the autopilot's MAVLink component id
     mav_type: int = 0  # HEARTBEAT type (a QuadPlane reports 1, fixed wing)
     system_status: int = 0  # HEARTBEAT system_status (MAV_STATE: 3 standby, 4 active, 5 critical)
@@ -70,15 +70,15 @@ class AutopilotState(msgspec.Struct, frozen=True):
     last_message_s: float | None = None  # clock time of the last valid message from it
     link_losses: int = 0  # how many times the link was lost
     foreign_packets: int = 0  # valid MAVLink from other systems/components, ignored
-    # appended for issue 11 (real ArduPilot SITL)
+    # appended for real ArduPilot SITL
     sensors_present: int = 0  # SYS_STATUS onboard_control_sensors_present (MAV_SYS_STATUS_SENSOR)
     sensors_enabled: int = 0  # SYS_STATUS onboard_control_sensors_enabled
     sensors_health: int = 0  # SYS_STATUS onboard_control_sensors_health
     autopilot_ready: bool = False  # booted: "ArduPilot Ready" or a HEARTBEAT in STANDBY or later
     position_trusted: bool = False  # a GPS fix (2-D or better) or an EKF absolute position was seen
-    # appended for issue 14 (collision avoidance)
+    # appended for collision avoidance
     traffic: tuple[AdsbReport, ...] = ()  # ADSB_VEHICLE: the latest report per aircraft
-    # appended for issue 16 (link loss judged from the autopilot's own data)
+    # appended for link loss judged from the autopilot's own data
     reboots: int = 0  # autopilot reboots seen (its time since boot went back)
     link_gap_s: float = 0.0  # the last link loss as the autopilot's own clock shows it
     host_stalls: int = 0  # times the node read the link late (its own stall, not the link's)

@@ -45,7 +45,7 @@ def to_vehicle_status(
     `time_unix_s` is the GPS time of the position sample (SYSTEM_TIME and the sample's
     time since boot) when the autopilot has GPS time, else `now_unix_s`; while the link
     is down without GPS time, the time of the last message from the autopilot (the link
-    clock, which is the node's): the data's age shows, it never looks fresh (issue 11).
+    clock, which is the node's): the data's age shows, it never looks fresh.
     `mission_progress` None = computed from the autopilot's mission (see above).
     """
     if state.lat_deg is None or state.lon_deg is None:

@@ -66,7 +66,7 @@ MAV_STATE_STANDBY = 3  # HEARTBEAT system_status: BOOT (1) / CALIBRATING (2) unt
 GPS_FIX_2D = 2
 READY_TEXT = "ArduPilot Ready"
 #: A link timer served this late (or a message read this much later than the autopilot's
-#: own time since boot says it was sent) means the node stalled, not the link (issue 16).
+#: own time since boot says it was sent) means the node stalled, not the link.
 LATE_TOLERANCE_S = 0.25
 #: After a late timer, bytes may be waiting to be read: the loss is decided this later.
 DRAIN_S = 0.2
@@ -111,7 +111,7 @@ class StateTracker:
         self._locked = False
         self._gps_offset_s: float | None = None  # GPS UNIX time minus time since boot
         self._text_chunks: dict[int, tuple[int, list[str]]] = {}
-        # issue 16: link loss judged from the autopilot's own time, apart from our stalls
+        # link loss judged from the autopilot's own time, apart from our stalls
         self._recheck_at: float | None = None  # a late timer: decide the loss then
         self._ap_boot_ms: int | None = None  # the latest time since boot received ...
         self._ap_rx_s = 0.0  # ... and when (our clock)
@@ -203,9 +203,7 @@ class StateTracker:
                 changes["link_gap_s"] = gap
             events.insert(
                 0,
-                LinkRestored(
-                    time_s=now, down_s=now - last if last else 0.0, autopilot_gap_s=gap
-                ),
+                LinkRestored(time_s=now, down_s=now - last if last else 0.0, autopilot_gap_s=gap),
             )
         elif self._gap_pending and "boot_time_ms" in changes:
             gap = self._autopilot_gap()
@@ -293,7 +291,7 @@ class StateTracker:
         if boot_ms + _REBOOT_BACKSTEP_MS < self._state.boot_time_ms:
             self._gps_offset_s = None
             changes["position_time_unix_s"] = None
-            # a rebooted autopilot boots again and has no fix yet (issue 11)
+            # a rebooted autopilot boots again and has no fix yet
             changes.update(
                 autopilot_ready=False, position_trusted=False, reboots=self._state.reboots + 1
             )
@@ -359,7 +357,7 @@ class StateTracker:
             armed=armed,
             system_status=int(msg.system_status),
             last_heartbeat_s=now,
-            # real ArduPilot refuses uploads until booted (issue 11): BOOT / CALIBRATING before
+            # real ArduPilot refuses uploads until booted: BOOT / CALIBRATING before
             # "ArduPilot Ready", STANDBY or later after it
             autopilot_ready=int(msg.system_status) >= MAV_STATE_STANDBY,
         )
@@ -388,7 +386,7 @@ class StateTracker:
         if (lat == 0 and lon == 0) or not trusted:
             # ArduPilot sends zeros, or a drifting estimate near (0, 0) (0.0003, 0.00002:
             # recorded, fix NO_GPS, EKF uninitialised), until it has a position: "no
-            # position" until a 2-D fix or an EKF absolute position was seen (issue 11)
+            # position" until a 2-D fix or an EKF absolute position was seen
             changes.update(lat_deg=None, lon_deg=None, alt_msl_m=None, alt_rel_m=None)
         else:
             changes.update(lat_deg=lat / 1e7, lon_deg=lon / 1e7, alt_msl_m=alt_m, alt_rel_m=rel_m)
@@ -616,6 +614,7 @@ PROTOCOL: frozenset[str] = frozenset(
         "PARAM_VALUE",
     }
 )
+
 
 #: Sent by ArduPilot (default streams of SITL and real boards) and deliberately unused.
 def parse_adsb(report: Mapping[str, Any], *, received_s: float) -> AdsbReport:

@@ -1,4 +1,4 @@
-"""A replan is flown only once the survivors agree on it (issue 12: "a member lost ...
+"""A replan is flown only once the survivors agree on it ("a member lost ...
 is an event"; a roster hash mismatch is one too).
 
 Every survivor replans alone from the inputs they all have (the last plan they all
@@ -70,9 +70,7 @@ class ReplanAgreement:
         self.started, self.resyncs, self.seen, self.others = None, 0, set(), ()
         self.held_at = None
 
-    def verdict(
-        self, roster: Roster, now: float, *, held: bool, planning: bool = False
-    ) -> Verdict:
+    def verdict(self, roster: Roster, now: float, *, held: bool, planning: bool = False) -> Verdict:
         """`held`: our replanned share is made and waits for the others; `planning`:
         our plan job runs (the window does not: the plan timeout bounds it)."""
         if self.started is None:

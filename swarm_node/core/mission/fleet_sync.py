@@ -25,7 +25,7 @@ Watchdog: a member still on its leg well past the meet time (`overdue`: LEG_OVER
 or LEG_OVERDUE_FRACTION of the leg's planned time if longer) gives up the meet and flies
 its share from where it is, with an alert: an autopilot circling a waypoint it cannot
 reach, or a leg started on items it had flown past while they were uploaded, would
-otherwise fly until its battery is low, the node silent (issue 18).
+otherwise fly until its battery is low, the node silent.
 
 MISSION: past the entry, every member's lateness is measured against its share's
 planned schedule from T (`Share.planned_s_at`, from the entry on); `sync_speed` speeds
@@ -80,7 +80,7 @@ ETA_MARGIN = 0.02  # of the predicted time, for what the model misses ...
 ETA_MARGIN_S = 2.0  # ... and a fixed part (an arming retry, a slow upload)
 META_WAIT_S = 15.0  # climbed: wait at most this long for the others' ETAs
 #: the PREMISSION watchdog: a leg not at its entry this long after the meet time (or
-#: this fraction of the leg's planned time, if longer) makes no progress (issue 18: a
+#: this fraction of the leg's planned time, if longer) makes no progress (a
 #: demo VTOL circled its leg's first waypoint until BATTERY_LOW): the share is flown
 #: from where the vehicle is, with an alert
 LEG_OVERDUE_S = 30.0
@@ -179,9 +179,12 @@ class FleetSync:
         alt = plan.share(self.self_id).waypoints[entry_index(plan, self.self_id)].alt_rel_m
         try:
             pm = premission(
-                plan, [PlanVehicle(self.profile, _pose(ap, alt))], zones=zones,
-                now_unix_s=now, home_alt_msl_m=home_alt_msl_m,
-            )  # fmt: skip
+                plan,
+                [PlanVehicle(self.profile, _pose(ap, alt))],
+                zones=zones,
+                now_unix_s=now,
+                home_alt_msl_m=home_alt_msl_m,
+            )
             along = {vid: plan.share(vid).along_m[entry_index(plan, vid)] for vid in group}
         except (PlanningError, ValueError):
             return False

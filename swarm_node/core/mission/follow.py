@@ -82,8 +82,15 @@ class Follow:
         if mine is None:
             return None
         p = plan.mission.params
-        return cls(profile.vehicle_id, profile, p.lead_vehicle_id, mine.index, vee[1], p,
-                   p.duration_s or None)  # fmt: skip
+        return cls(
+            profile.vehicle_id,
+            profile,
+            p.lead_vehicle_id,
+            mine.index,
+            vee[1],
+            p,
+            p.duration_s or None,
+        )
 
     def on_status(self, status: VehicleStatus, now: float) -> None:
         """The lead's telemetry (others' are ignored; a malformed one is counted)."""
@@ -121,13 +128,17 @@ class Follow:
         self._next = now + UPDATE_S
         me = PlanVehicle(
             self.profile,
-            VehiclePose(ap.lat_deg, ap.lon_deg, ap.alt_rel_m or 0.0, ap.heading_deg,
-                        ap.groundspeed_m_s),
-        )  # fmt: skip
+            VehiclePose(
+                ap.lat_deg, ap.lon_deg, ap.alt_rel_m or 0.0, ap.heading_deg, ap.groundspeed_m_s
+            ),
+        )
         kw: dict[str, Any] = {
-            "now_s": now, "previous": {self.vehicle_id: self.slot}, "offsets": self.offsets,
-            "zones": zones, "home_alt_msl_m": home_alt_msl_m,
-        }  # fmt: skip
+            "now_s": now,
+            "previous": {self.vehicle_id: self.slot},
+            "offsets": self.offsets,
+            "zones": zones,
+            "home_alt_msl_m": home_alt_msl_m,
+        }
         try:  # steer for the slot where the lead will be, close on where it is now
             plan = plan_mumt(self.lead, [me], self.params, lookahead_s=LOOKAHEAD_S, **kw)
             now_plan = plan_mumt(self.lead, [me], self.params, lookahead_s=0.0, **kw)

@@ -69,9 +69,7 @@ class LandingTurn:
         if self.ready_at is None:
             if self.before is None:
                 self.ready_at = now - self.wait_s
-            elif fleet is not None and (
-                self.before in fleet.finished or self.before in fleet.lost
-            ):
+            elif fleet is not None and (self.before in fleet.finished or self.before in fleet.lost):
                 self.ready_at = now
         if current_seq < self.hold_seq or self.ready_at is None:
             return False

@@ -73,5 +73,10 @@ def lineage_battery(battery_pct: Mapping[int, float]) -> dict[int, float]:
     }
 
 
-__all__ = ["MAX_DISTANCE_M", "along_share", "lineage_battery", "published_home",
-           "published_progress"]
+__all__ = [
+    "MAX_DISTANCE_M",
+    "along_share",
+    "lineage_battery",
+    "published_home",
+    "published_progress",
+]

@@ -54,9 +54,12 @@ class Candidate:
     ) -> Candidate:
         """A vehicle's candidate from its database profile and its latest status."""
         return cls(
-            profile.vehicle_id, profile.payload_class, position, profile.cruise_speed_m_s,
+            profile.vehicle_id,
+            profile.payload_class,
+            position,
+            profile.cruise_speed_m_s,
             battery_pct,
-        )  # fmt: skip
+        )
 
 
 @dataclass(frozen=True, slots=True)

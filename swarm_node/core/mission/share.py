@@ -28,8 +28,21 @@ from ..planning.fleet_plan import plan_fleet as plan_whole_fleet
 from ..planning.geo import LocalFrame
 from ..profile import VehicleProfile
 
-__all__ = ["PLANNERS", "FleetPlan", "Member", "PlanOutcome", "PlanRequest", "Replay", "Share",
-           "heading_on", "plan_fleet", "pose_on", "replay", "run_plan", "warm"]  # fmt: skip
+__all__ = [
+    "PLANNERS",
+    "FleetPlan",
+    "Member",
+    "PlanOutcome",
+    "PlanRequest",
+    "Replay",
+    "Share",
+    "heading_on",
+    "plan_fleet",
+    "pose_on",
+    "replay",
+    "run_plan",
+    "warm",
+]
 
 
 @dataclass(frozen=True)
@@ -71,9 +84,7 @@ def pose_on(base: FleetPlan, vehicle_id: int, progress_m: Mapping[int, float]) -
     return GeoPoint(lat, lon, 0.0)
 
 
-def heading_on(
-    base: FleetPlan, vehicle_id: int, progress_m: Mapping[int, float]
-) -> float | None:
+def heading_on(base: FleetPlan, vehicle_id: int, progress_m: Mapping[int, float]) -> float | None:
     """The heading (degrees from north) of a member's share where its progress puts it:
     along the leg it is on (how a replan heads the survivors: a fixed-wing's first turn
     depends on it; the same on every node). None: no share, or no leg there."""
@@ -85,10 +96,13 @@ def heading_on(
     except (PlanningError, ValueError):
         return None
     ahead = next(
-        (w for w in share.waypoints[k + 1 :] if w.kind == ItemKind.WAYPOINT
-         and (w.lat_deg, w.lon_deg) != (lat, lon)),
+        (
+            w
+            for w in share.waypoints[k + 1 :]
+            if w.kind == ItemKind.WAYPOINT and (w.lat_deg, w.lon_deg) != (lat, lon)
+        ),
         None,
-    )  # fmt: skip
+    )
     if ahead is None:
         return None
     x, y = LocalFrame(lat, lon).to_local(ahead.lat_deg, ahead.lon_deg)
@@ -120,9 +134,13 @@ def replay(
     for profiles, progress, battery in lineage.steps:
         members = [Member(p, pose_on(plan, p.vehicle_id, progress)) for p in profiles]
         plan = plan.replan(
-            progress, _vehicles(members), zones=zones, now_unix_s=now,
-            home_alt_msl_m=home_alt_msl_m, battery_pct=dict(battery) or None,
-        )  # fmt: skip
+            progress,
+            _vehicles(members),
+            zones=zones,
+            now_unix_s=now,
+            home_alt_msl_m=home_alt_msl_m,
+            battery_pct=dict(battery) or None,
+        )
     return plan
 
 
@@ -164,9 +182,13 @@ def plan_fleet(
     posed at their homes, inputs every member sees the same)."""
     battery = {m.profile.vehicle_id: m.battery_pct for m in members if m.battery_pct is not None}
     return plan_whole_fleet(
-        mission, _vehicles(members), zones=zones, now_unix_s=now, home_alt_msl_m=home_alt_msl_m,
+        mission,
+        _vehicles(members),
+        zones=zones,
+        now_unix_s=now,
+        home_alt_msl_m=home_alt_msl_m,
         battery_pct=battery or None,
-    )  # fmt: skip
+    )
 
 
 def warm() -> bool:
@@ -184,10 +206,13 @@ def run_plan(req: PlanRequest) -> PlanOutcome:
             plan = plan_fleet(req.mission, req.members, req.zones, req.now, req.home_alt_msl_m)
         else:
             plan = req.base.replan(
-                req.progress_m, _vehicles(req.members), zones=req.zones,
-                now_unix_s=req.now, home_alt_msl_m=req.home_alt_msl_m,
+                req.progress_m,
+                _vehicles(req.members),
+                zones=req.zones,
+                now_unix_s=req.now,
+                home_alt_msl_m=req.home_alt_msl_m,
                 battery_pct=dict(req.battery_pct) or None,
-            )  # fmt: skip
+            )
     except (PlanningError, ValueError) as exc:
         return PlanOutcome(req.job_id, None, f"planning: {exc}")
     return PlanOutcome(req.job_id, plan)

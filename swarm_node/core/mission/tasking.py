@@ -139,8 +139,10 @@ class RetaskRules:
             key, _, klass = name.partition(".")
             if klass:
                 if key not in ("count", "min_confidence"):
-                    raise RetaskError(f"target re-tasking: {name}: only count.<class> and "
-                                      "min_confidence.<class> are set per class")  # fmt: skip
+                    raise RetaskError(
+                        f"target re-tasking: {name}: only count.<class> and "
+                        "min_confidence.<class> are set per class"
+                    )
                 count, conf = per_class.get(klass, (None, None))
                 if key == "count":
                     count = _count(name, value)
@@ -152,8 +154,14 @@ class RetaskRules:
         unknown = set(plain) - {f for f in cls.__dataclass_fields__ if f != "per_class"}
         if unknown:
             raise RetaskError(f"target re-tasking: unknown parameter(s) {sorted(unknown)}")
-        for name in ("duration_s", "radius_m", "altitude_rel_m", "dedup_radius_m", "hold_s",
-                     "keep_s"):  # fmt: skip
+        for name in (
+            "duration_s",
+            "radius_m",
+            "altitude_rel_m",
+            "dedup_radius_m",
+            "hold_s",
+            "keep_s",
+        ):
             if plain.get(name, 0.0) < 0.0:
                 raise RetaskError(f"target re-tasking: {name} must be >= 0")
         return cls(
@@ -458,23 +466,41 @@ class Tasking:
                     self.outcomes.popitem(last=False)
                 goes = oc.goes(self.self_id)
                 scores = ", ".join(f"{s.vehicle_id}: {s.score:.4f}" for s in oc.scores)
-                out.append(Note(logging.INFO, f"mission {mid}: vote decided, winners "
-                                f"{list(oc.winners)} ({scores})"))  # fmt: skip
+                out.append(
+                    Note(
+                        logging.INFO,
+                        f"mission {mid}: vote decided, winners {list(oc.winners)} ({scores})",
+                    )
+                )
                 if goes:
-                    out.append(Publish(Alert(self.self_id, max(0.0, now), Severity.INFO,
-                                             AlertCode.GENERIC,
-                                             f"chosen for mission {mid}, score "
-                                             f"{r.terms.score:.4f}"[:64])))  # fmt: skip
+                    out.append(
+                        Publish(
+                            Alert(
+                                self.self_id,
+                                max(0.0, now),
+                                Severity.INFO,
+                                AlertCode.GENERIC,
+                                f"chosen for mission {mid}, score {r.terms.score:.4f}"[:64],
+                            )
+                        )
+                    )
                 flown = msgspec.structs.replace(r.mission, selection=Selector.ids(*oc.winners))
                 out.append(Elected(flown, oc, r.home, goes))
             elif isinstance(o, Failed):
                 text = f"vote for mission {mid} failed: {o.reason}"
                 out += [
                     Note(logging.WARNING, text),
-                    Publish(Alert(self.self_id, max(0.0, now), Severity.WARNING,
-                                  AlertCode.MISSION_FAILED, text[:64])),
+                    Publish(
+                        Alert(
+                            self.self_id,
+                            max(0.0, now),
+                            Severity.WARNING,
+                            AlertCode.MISSION_FAILED,
+                            text[:64],
+                        )
+                    ),
                     VoteFailed(mid, r.home, o.reason),
-                ]  # fmt: skip
+                ]
         return out
 
     def cancel(self, mission_id: int) -> None:
@@ -512,12 +538,22 @@ class Tasking:
                 other.due_s = None
                 other.until_s = now + rules.keep_s
                 self.targets[mid] = here
-                return [Note(logging.INFO, f"target report {report.source_id}/{report.target_id}"
-                             f" replaces {other.report.source_id}/{other.report.target_id}")]  # fmt: skip
+                return [
+                    Note(
+                        logging.INFO,
+                        f"target report {report.source_id}/{report.target_id}"
+                        f" replaces {other.report.source_id}/{other.report.target_id}",
+                    )
+                ]
             here.due_s = None  # remembered as a duplicate (a repeat stays one)
             self.targets[mid] = here
-            return [Note(logging.INFO, f"target report {report.source_id}/{report.target_id} "
-                         f"is a duplicate of mission {other.mission_id}")]  # fmt: skip
+            return [
+                Note(
+                    logging.INFO,
+                    f"target report {report.source_id}/{report.target_id} "
+                    f"is a duplicate of mission {other.mission_id}",
+                )
+            ]
         self.targets[mid] = here
         return []
 
@@ -543,8 +579,13 @@ class Tasking:
                 t.due_s = None
                 count, _ = self.settings.rules.rule(t.report.target_class)
                 mission = target_mission(t.report, self.settings.rules, self.profiles, count)
-                out.append(Note(logging.INFO, f"target {t.report.target_class!r} reported by "
-                                f"{t.report.source_id}: mission {mission.mission_id} for {count}"))  # fmt: skip
+                out.append(
+                    Note(
+                        logging.INFO,
+                        f"target {t.report.target_class!r} reported by "
+                        f"{t.report.source_id}: mission {mission.mission_id} for {count}",
+                    )
+                )
                 out.append(Derived(mission))
         for mid in [m for m, t in self.targets.items() if t.due_s is None and t.until_s <= now]:
             del self.targets[mid]

@@ -49,7 +49,7 @@ SCORE_RESOLUTION = 10_000  # VoteScore.score's radio resolution, 1e-4
 
 def members_hash(mission_id: int, members: Iterable[int]) -> int:
     """16 bits of BLAKE2s of the mission id (uint32) and the sorted members, never 0: the same
-    function as the fleet roster's (swarm/roster.py, issue 12), so a ballot can be
+    function as the fleet roster's (swarm/roster.py), so a ballot can be
     given the roster's hash or compute it."""
     data = (mission_id & 0xFFFF_FFFF).to_bytes(4, "little") + b"".join(
         m.to_bytes(2, "little") for m in sorted(set(members))

@@ -76,7 +76,9 @@ def _workers(
             e = Endurance.of(v.profile, altitudes[v.vehicle_id])
             if battery_pct is None:
                 launch = (launch_pct or {}).get(v.vehicle_id)
-                budget = e.cruise_budget_s if launch is None else e.ground_budget_s(launch, v.profile)
+                budget = (
+                    e.cruise_budget_s if launch is None else e.ground_budget_s(launch, v.profile)
+                )
             elif v.vehicle_id in battery_pct:
                 budget = e.airborne_budget_s(battery_pct[v.vehicle_id], v.profile)
         out.append(
@@ -163,7 +165,7 @@ def plan_area(
     allows (`endurance.Endurance`; `InfeasibleTimingError` if the fleet cannot
     cover the area). `extra_s`: seconds a vehicle's block is known to take beyond its
     path (the turns the flyable stage adds, see `fleet_plan`). `legacy_split`: the
-    split before issue 12 (every vehicle timed at constant speed, one turn allowance
+    older split (every vehicle timed at constant speed, one turn allowance
     for all from the widest turn radius), the benchmark's baseline. A field the vehicles
     together would take over `max_flight_s` to fly (estimated before planning) is refused:
     FieldTooBigError with the estimate."""

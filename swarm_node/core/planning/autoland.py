@@ -200,7 +200,11 @@ def plan_autoland(
         if hold_until_released:
             wps.append(
                 Waypoint(
-                    ItemKind.LOITER_UNLIMITED, lat_f, lon_f, alt, loiter_radius_m=-r if r > 0 else None
+                    ItemKind.LOITER_UNLIMITED,
+                    lat_f,
+                    lon_f,
+                    alt,
+                    loiter_radius_m=-r if r > 0 else None,
                 )
             )
         elif hold > 0.0:

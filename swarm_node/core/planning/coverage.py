@@ -518,7 +518,10 @@ def _pair_costs(turns: TurnModel, ends: FloatArray, starts: FloatArray) -> Float
     if isinstance(turns, PointTurns):
         return np.hypot(starts[:, 0] - ends[:, 0], starts[:, 1] - ends[:, 1])
     return np.array(
-        [turns.cost_matrix(e[None, :], s_[None, :])[0, 0] for e, s_ in zip(ends, starts, strict=True)]
+        [
+            turns.cost_matrix(e[None, :], s_[None, :])[0, 0]
+            for e, s_ in zip(ends, starts, strict=True)
+        ]
     )
 
 
@@ -629,9 +632,7 @@ def clear_caches() -> None:
     _cached_transition.cache_clear()
 
 
-def _padded(
-    cm: FloatArray, first: FloatArray | None, last: FloatArray | None = None
-) -> FloatArray:
+def _padded(cm: FloatArray, first: FloatArray | None, last: FloatArray | None = None) -> FloatArray:
     """The transition matrix with a virtual start S (row 2n: the start pose, or free)
     and a virtual end E (column 2n+1: the way on from each lane end, or free), so every
     move is an interior one."""
@@ -805,7 +806,7 @@ def order_cost(
 
 
 # The order's local search (`_improve`, 2-opt and or-opt moves over all transitions)
-# never moved before issue 20 (the virtual start's and end's reversed links made every
+# never moved before (the virtual start's and end's reversed links made every
 # move NaN). Fixed, it shortens paths (irregular6: 24312 -> 24208 m) and runs where its
 # cost is paid once: the single-vehicle path of `plan_lanes` and each vehicle's final
 # share (`split_lanes`), each kept only if it is better than the seed pattern it starts
@@ -1321,9 +1322,12 @@ def plan_lanes(
     if _LOCAL_SEARCH:
         # the chosen lanes' order improved, kept if shorter as connected (improving every
         # candidate's would find irregular6's 24231 m path, 80 m shorter, for some 20 ms
-        # more of a 50-80 ms plan; issue 20's budget is 100 ms)
+        # more of a 50-80 ms plan; the planning budget is 100 ms)
         better = connect(
-            order(best.lanes, turns, start, restarts=4, improve=True), turns, region.obstacles, start
+            order(best.lanes, turns, start, restarts=4, improve=True),
+            turns,
+            region.obstacles,
+            start,
         )
         if better.length_m < path.length_m - 1e-9:
             path = better

@@ -148,9 +148,13 @@ class Share:
     def of(cls, vp: VehiclePlan, launch_s: float = 0.0) -> Share:
         along = along_metres(vp.waypoints)
         return cls(
-            vp.vehicle_id, tuple(vp.waypoints), along, along[-1] if along else 0.0, vp.time_s,
+            vp.vehicle_id,
+            tuple(vp.waypoints),
+            along,
+            along[-1] if along else 0.0,
+            vp.time_s,
             launch_s,
-        )  # fmt: skip
+        )
 
     @property
     def sortie_s(self) -> float:
@@ -280,9 +284,13 @@ class FleetPlan:
             if not math.isfinite(m):
                 raise InvalidParameterError(f"vehicle {vid}: progress {m} m is not finite")
         new = self._replan(
-            progress_m, vehicles, zones=zones, now_unix_s=now_unix_s,
-            home_alt_msl_m=home_alt_msl_m, battery_pct=battery_pct,
-        )  # fmt: skip
+            progress_m,
+            vehicles,
+            zones=zones,
+            now_unix_s=now_unix_s,
+            home_alt_msl_m=home_alt_msl_m,
+            battery_pct=battery_pct,
+        )
         return dataclasses.replace(new, launch_battery_pct=self.launch_battery_pct)
 
     def _replan(
@@ -359,8 +367,14 @@ class FleetPlan:
                 vid: x if vid in alive else x + extra * (100.0 - x)
                 for vid, x in sorted(pct.items())
             }
-            return replan_area(self.detail, p, vehicles, params,  # type: ignore[arg-type]
-                               battery_pct=battery_pct, homes=homes)  # fmt: skip
+            return replan_area(
+                self.detail,  # type: ignore[arg-type]
+                p,
+                vehicles,
+                params,
+                battery_pct=battery_pct,
+                homes=homes,
+            )
 
         alive = {v.vehicle_id for v in vehicles}
         try:
@@ -437,9 +451,12 @@ class FleetPlan:
         detail: object = self.detail
         if joiners:
             joined = _plan(
-                self.mission, joiners, zones=zones, now_unix_s=now_unix_s,
+                self.mission,
+                joiners,
+                zones=zones,
+                now_unix_s=now_unix_s,
                 home_alt_msl_m=home_alt_msl_m,
-            )  # fmt: skip
+            )
             shares.update(joined.shares)
             detail = (self.detail, joined.detail)
         ordered = {vid: shares[vid] for vid in sorted(shares)}
@@ -559,9 +576,13 @@ def _plan(
         raise PlanningError(f"{mission.mission_type.name} missions are not planned yet")
     if mission.mission_type == MissionType.AREA:
         return _plan_area(
-            mission, vehicles, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m,
+            mission,
+            vehicles,
+            zones=zones,
+            now_unix_s=now_unix_s,
+            home_alt_msl_m=home_alt_msl_m,
             battery_pct=battery_pct,
-        )  # fmt: skip
+        )
     extra: dict[str, object] = {}
     if mission.mission_type == MissionType.AUTOLAND:
         extra = {"hold_until_released": True, "pad_spacing_m": LANDING_PAD_SPACING_M}
@@ -602,17 +623,20 @@ def _plan_mumt(
     p = mission.geometry.points[0]
     lead = LeadState(p.lat_deg, p.lon_deg, 0.0, mission.params.heading_deg or 0.0, 0.0)
     detail = plan_mumt(
-        lead, followers, mission.params, zones=zones, home_alt_msl_m=home_alt_msl_m,
+        lead,
+        followers,
+        mission.params,
+        zones=zones,
+        home_alt_msl_m=home_alt_msl_m,
         zone_margin_m=zone_margin_m(followers),
-    )  # fmt: skip
+    )
     return _fleet_plan(mission, followers, detail)
 
 
 def zone_margin_m(vehicles: Sequence[PlanVehicle]) -> float:
     """How far a plan keeps from the zones: the widest planned turn radius of a
     fixed-wing (`vehicles` are already `flyable`), or what ArduPilot flies off a
-    multirotor's or ground vehicle's legs around its corners (`margins.track_margin_m`,
-    issue 11)."""
+    multirotor's or ground vehicle's legs around its corners (`margins.track_margin_m`)."""
     return max(
         (max(v.profile.turn_radius_m(), track_margin_m(v.profile)) for v in vehicles),
         default=0.0,
@@ -621,7 +645,7 @@ def zone_margin_m(vehicles: Sequence[PlanVehicle]) -> float:
 
 #: rounds of the area split fed with the time the flyable stage added to each share
 FLYABLE_ROUNDS = 3
-#: plan areas as before issue 12 (no endurance, no waypoint stops, one split): only for
+#: plan areas as before (no endurance, no waypoint stops, one split): only for
 #: the benchmark's baseline (bench/mission.py)
 BASELINE_SPLIT = False
 
@@ -652,10 +676,18 @@ def _plan_area(
     rounds = FLYABLE_ROUNDS if aware and any(v.profile.is_fixed_wing for v in vehicles) else 1
     for _ in range(rounds):
         raw = plan_area(
-            mission.geometry, vehicles, mission.params, zones=zones, now_unix_s=now_unix_s,
-            home_alt_msl_m=home_alt_msl_m, zone_margin_m=margin, endurance=aware, extra_s=extra,
-            legacy_split=not aware, battery_pct=battery_pct if aware else None,
-        )  # fmt: skip
+            mission.geometry,
+            vehicles,
+            mission.params,
+            zones=zones,
+            now_unix_s=now_unix_s,
+            home_alt_msl_m=home_alt_msl_m,
+            zone_margin_m=margin,
+            endurance=aware,
+            extra_s=extra,
+            legacy_split=not aware,
+            battery_pct=battery_pct if aware else None,
+        )
         detail = flyable_plan(
             raw, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
         )

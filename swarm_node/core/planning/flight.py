@@ -58,7 +58,7 @@ FIXED_WING_ACCEPT_M = 15.0
 #: Least clearance from a zone of the turns this stage adds. ArduPlane does not fly
 #: them as planned: a SITL QuadPlane (quadplane.parm, NAVL1_PERIOD 14) passed their
 #: sampled waypoints 24-37 m on their inside ("Passed waypoint #92 dist 26m") and,
-#: with 20 m here, entered a 35 m zone by 4.9 m (`make sitl-check`, issue 11).
+#: with 20 m here, entered a 35 m zone by 4.9 m (`make sitl-check`).
 TURN_CLEARANCE_M = 45.0
 #: How far the flown path may leave the planned one at a corner it keeps.
 CORNER_TOL_M = 6.0
@@ -688,10 +688,16 @@ def flyable_waypoints(
             frozenset({0}) if lead else frozenset()
         )
         course = flyable_course(
-            pts, alts, zones, radius_m=radius_m, accept_m=accept_m, clearance_m=clearance_m,
+            pts,
+            alts,
+            zones,
+            radius_m=radius_m,
+            accept_m=accept_m,
+            clearance_m=clearance_m,
             start_yaw=start.yaw if lead and start is not None else None,
-            straight=st, free=fr,
-        )  # fmt: skip
+            straight=st,
+            free=fr,
+        )
         if check:
             problems = flight_problems(
                 course.points[lead:] if lead else course.points,
@@ -807,11 +813,20 @@ def flyable_plan(
 
     if isinstance(plan, ObjectivePlan):
         targets = tuple(
-            (p, flyable_plan(t, vehicles, zones, now_unix_s=now_unix_s,
-                             home_alt_msl_m=home_alt_msl_m, accept_m=accept_m,
-                             clearance_m=clearance_m))
+            (
+                p,
+                flyable_plan(
+                    t,
+                    vehicles,
+                    zones,
+                    now_unix_s=now_unix_s,
+                    home_alt_msl_m=home_alt_msl_m,
+                    accept_m=accept_m,
+                    clearance_m=clearance_m,
+                ),
+            )
             for p, t in plan.targets
-        )  # fmt: skip
+        )
         return dataclasses.replace(plan, targets=targets)
     frame: LocalFrame = plan.frame
     zs = ZoneSet.from_messages(zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m)
@@ -831,10 +846,17 @@ def flyable_plan(
             else (frozenset(), frozenset())
         )
         wps, new_tracks = flyable_waypoints(
-            share.waypoints, frame, zs, radius_m=r, start=_start_pose(v, frame),
-            straight=straight, free=free, accept_m=accept_m, clearance_m=clearance_m,
+            share.waypoints,
+            frame,
+            zs,
+            radius_m=r,
+            start=_start_pose(v, frame),
+            straight=straight,
+            free=free,
+            accept_m=accept_m,
+            clearance_m=clearance_m,
             vehicle_id=share.vehicle_id,
-        )  # fmt: skip
+        )
         tracks = [
             t for t in tracks if not (t.vehicle_id == share.vehicle_id and t.kind in _PATH_KINDS)
         ]

@@ -151,9 +151,7 @@ def _entry_pose(frame: LocalFrame, share: Share, k: int) -> Pose:
     here = xy[k]
     assert here is not None
     nxt = next((p for p in xy[k + 1 :] if p is not None and math.dist(p, here) > 0.5), None)
-    prev = next(
-        (p for p in reversed(xy[:k]) if p is not None and math.dist(p, here) > 0.5), None
-    )
+    prev = next((p for p in reversed(xy[:k]) if p is not None and math.dist(p, here) > 0.5), None)
     if nxt is not None:
         yaw = math.atan2(nxt[1] - here[1], nxt[0] - here[0])
     elif prev is not None:

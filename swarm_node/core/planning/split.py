@@ -237,7 +237,9 @@ class _Blocks:
             approach = [0.0] * len(self.lanes)
             if w.start is not None:
                 sx, sy = w.start.x, w.start.y
-                approach = [leg_s(math.hypot(ln.a[0] - sx, ln.a[1] - sy), v, a) for ln in self.lanes]
+                approach = [
+                    leg_s(math.hypot(ln.a[0] - sx, ln.a[1] - sy), v, a) for ln in self.lanes
+                ]
             back_a = [w.return_s(ln.a) for ln in self.lanes]
             back_b = [w.return_s(ln.b) for ln in self.lanes]
             t = self._tables[w.vehicle_id] = (prefix, approach, back_a, back_b)
@@ -267,7 +269,13 @@ class _Blocks:
         if i >= n:
             return i
         prefix, approach, _ba, _bb = self._table(w)
-        allow, v, pi, ap, ex = self.cost.allowance_m(w), w.speed_m_s, prefix[i], approach[i], w.extra_s
+        allow, v, pi, ap, ex = (
+            self.cost.allowance_m(w),
+            w.speed_m_s,
+            prefix[i],
+            approach[i],
+            w.extra_s,
+        )
         lo, hi = i, n  # est(i, lo) <= limit (lo == i: the empty block)
         while lo < hi:
             mid = (lo + hi + 1) // 2

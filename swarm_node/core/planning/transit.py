@@ -88,9 +88,14 @@ def fly_corners(
         else flyable(profile).turn_radius_m(speed)
     )
     out, _tracks = flyable_waypoints(
-        waypoints, frame, zs, radius_m=radius, start=pose,
-        free=free, vehicle_id=profile.vehicle_id,
-    )  # fmt: skip
+        waypoints,
+        frame,
+        zs,
+        radius_m=radius,
+        start=pose,
+        free=free,
+        vehicle_id=profile.vehicle_id,
+    )
     return out
 
 
@@ -160,7 +165,7 @@ def fixed_wing_transit(
     headings) whose sampled path keeps clear of the zones; its arcs become waypoints.
     The entry keeps `flight.TURN_CLEARANCE_M` from the zones, as every turn the flyable
     stage adds does (ArduPlane passes a planned arc's waypoints up to 37 m on their
-    inside); only when no entry keeps that much, TRANSIT_MARGIN_M (issue 20: an entry
+    inside); only when no entry keeps that much, TRANSIT_MARGIN_M (an entry
     kept 20 m clear was flown 9.9 m from the demo's zone on the way home)."""
     legs = safe_transit(
         start, end, alt_rel_m, zones, now=now, home_alt_msl_m=home_alt_msl_m, margin_m=radius_m
@@ -174,8 +179,10 @@ def fixed_wing_transit(
         )
         entry = _entry(frame, start, heading_deg, legs, zs.keep_out(alt_rel_m), radius_m)
         if entry is not None:
-            return [*(Waypoint(lat_deg=la, lon_deg=lo, alt_rel_m=alt_rel_m) for la, lo in entry),
-                    *legs]  # fmt: skip
+            return [
+                *(Waypoint(lat_deg=la, lon_deg=lo, alt_rel_m=alt_rel_m) for la, lo in entry),
+                *legs,
+            ]
     return legs  # no clear entry: the straight legs are the best we have
 
 

@@ -151,9 +151,15 @@ class Traffic:
     def from_report(cls, r: AdsbReport) -> Traffic:
         """From the autopilot link's `AutopilotState.traffic`."""
         return cls(
-            r.icao_address, r.lat_deg, r.lon_deg, r.alt_msl_m,
-            r.vel_north_m_s, r.vel_east_m_s, r.vel_down_m_s, r.time_s,
-        )  # fmt: skip
+            r.icao_address,
+            r.lat_deg,
+            r.lon_deg,
+            r.alt_msl_m,
+            r.vel_north_m_s,
+            r.vel_east_m_s,
+            r.vel_down_m_s,
+            r.time_s,
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -471,8 +477,13 @@ class CollisionAvoider:
                 return _Decision(None, None, ())
             tracks = [tracks[i] for i in near]
             contacts = [contacts[i - 1] for i in near[1:]]
-            k = Kinematic(tuple(k.ids[i] for i in near), k.pos[near], k.vel[near],
-                          k.age_s[near], k.margin_m[near])  # fmt: skip
+            k = Kinematic(
+                tuple(k.ids[i] for i in near),
+                k.pos[near],
+                k.vel[near],
+                k.age_s[near],
+                k.margin_m[near],
+            )
         a = pairwise(k, cfg.horizon_s)
         # a climb or a descent is not trusted to resolve anything before it is done: a
         # pair conflicts if it does with the vertical rates or without them
@@ -576,7 +587,9 @@ class CollisionAvoider:
         # a multirotor (it climbs faster, keeps its path and cannot stop) when both types
         # are known (VehicleInfo), else the higher id
         dz = alt[:, None] - alt[None, :]
-        known = np.array([cfg.own_type is not None] + [c.vehicle_type is not None for c in contacts])
+        known = np.array(
+            [cfg.own_type is not None] + [c.vehicle_type is not None for c in contacts]
+        )
         fw = np.array([t in FIXED_WING for t in types])
         by_type = known[:, None] & known[None, :] & (fw[:, None] != fw[None, :])
         in_band = np.where(by_type, fw[:, None], ids[:, None] > ids[None, :])

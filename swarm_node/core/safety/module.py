@@ -113,9 +113,23 @@ REASSERT_S = 2.0  # a Goto manoeuvre's mode lost (another request won the race):
 RESUME_TRIES = 3
 #: modes a vehicle is sent back to as they are
 RESUME_BY_MODE = frozenset(
-    {"LOITER", "QLOITER", "QHOVER", "POSHOLD", "ALT_HOLD", "BRAKE", "CIRCLE", "CRUISE",
-     "FBWA", "FBWB", "HOLD", "MANUAL", "STABILIZE", "QSTABILIZE"}
-)  # fmt: skip
+    {
+        "LOITER",
+        "QLOITER",
+        "QHOVER",
+        "POSHOLD",
+        "ALT_HOLD",
+        "BRAKE",
+        "CIRCLE",
+        "CRUISE",
+        "FBWA",
+        "FBWB",
+        "HOLD",
+        "MANUAL",
+        "STABILIZE",
+        "QSTABILIZE",
+    }
+)
 
 
 #: how long after the mission's StartMission the autopilot's state may still show the
@@ -267,7 +281,8 @@ class AvoidanceModule:
                 req = o.request
                 assert isinstance(req, UploadMission)
             elif self.landing is not None and req.request_id not in (
-                *self._pad_ids, self.landing.upload_id
+                *self._pad_ids,
+                self.landing.upload_id,
             ):
                 # a new mission replaces the return (a vehicle sent on again on its way
                 # home): its landing is over. Kept, its gate fired in the new mission at
@@ -449,9 +464,14 @@ class AvoidanceModule:
         ):
             return out
         blockers = may_move(
-            self.profile.vehicle_id, ld.pad, self._peers_of(), taking_off=False,
-            config=self.pad_config, own_alt_msl_m=ap.alt_msl_m, own_circles=not self._hovering(ap),
-        )  # fmt: skip
+            self.profile.vehicle_id,
+            ld.pad,
+            self._peers_of(),
+            taking_off=False,
+            config=self.pad_config,
+            own_alt_msl_m=ap.alt_msl_m,
+            own_circles=not self._hovering(ap),
+        )
         if blockers:
             if ld.waited_since is None:
                 ld.waited_since = now
@@ -510,7 +530,9 @@ class AvoidanceModule:
         else:
             held_peers = list(peers)
             self._peers_of = lambda: held_peers
-        self._zones = [z for z in (zones or {}).values() if z.in_force(now) and not z.operating_area]
+        self._zones = [
+            z for z in (zones or {}).values() if z.in_force(now) and not z.operating_area
+        ]
         pad_out = self._pads_tick(ap, now) if self.pads_on else []
         av = self.avoider
         if own is not None:
@@ -716,7 +738,10 @@ class AvoidanceModule:
         if not reqs:
             return self._end("clear")
         s.last = reqs
-        return [Note(logging.INFO, f"{m.reason}: {type(reqs[0]).__name__}"), *self._submit(reqs, now, resume=True)]  # fmt: skip
+        return [
+            Note(logging.INFO, f"{m.reason}: {type(reqs[0]).__name__}"),
+            *self._submit(reqs, now, resume=True),
+        ]
 
     def _resume_requests(
         self, m: Manoeuvre, ap: AutopilotState, s: Suspension

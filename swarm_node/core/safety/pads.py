@@ -52,7 +52,9 @@ ABOUT_TO_TAKE_OFF = frozenset({MissionState.PLANNING, MissionState.PREMISSION})
 
 @dataclass(frozen=True, slots=True)
 class PadConfig:
-    near_m: float = 40.0  # pads (or a vehicle and a pad) closer than this are sequenced (the risk band)
+    near_m: float = (
+        40.0  # pads (or a vehicle and a pad) closer than this are sequenced (the risk band)
+    )
     stagger_m: float = 30.0  # a neighbour above this height over the ground has climbed clear
     airborne_m: float = 1.0  # above this height above its home a vehicle is airborne
     level_band_m: float = 5.0  # landing: a neighbour within this of our level and a lower id first

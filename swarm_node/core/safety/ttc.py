@@ -16,7 +16,7 @@ its protection volume widens by how far it could be from the extrapolation: at m
 `0.5 * max_accel * age^2` (it changes velocity no faster than that) and never more than
 `age * (max_speed + speed)` (the distance it could have moved, plus where the
 extrapolation put it). A report that is itself a prediction (a radio peer's status
-republished by its gateway, issue 19: `VehicleStatus.position_error_m`) widens it by
+republished by its gateway: `VehicleStatus.position_error_m`) widens it by
 that error bound as well. Callers compare `miss_m - margin_m` with their thresholds.
 
     rel_p = p_other - p_own, rel_v = v_other - v_own

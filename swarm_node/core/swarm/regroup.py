@@ -76,14 +76,17 @@ class Lineage:
         return tuple(sorted(ids))
 
     def message(self, sender: int, members_hash: int, handed_to: int = 0) -> PlanLineage:
-        return PlanLineage(self.mission, sender, self.first, tuple(self.steps), members_hash,
-                           handed_to)  # fmt: skip
+        return PlanLineage(
+            self.mission, sender, self.first, tuple(self.steps), members_hash, handed_to
+        )
 
     @classmethod
     def of(cls, msg: PlanLineage) -> Lineage:
         return cls(msg.mission, msg.first, list(msg.replans))
 
-    def replay(self, profiles: Mapping[int, VehicleProfile], adopters: Sequence[int] = ()) -> Replay:
+    def replay(
+        self, profiles: Mapping[int, VehicleProfile], adopters: Sequence[int] = ()
+    ) -> Replay:
         """The planning inputs (`mission.share.replay`); a handed-over lineage (its last
         step has no members) is taken up by `adopters`. KeyError: a member whose
         profile is unknown here."""
@@ -94,9 +97,13 @@ class Lineage:
         steps = []
         for s in self.steps:
             ids = s.members or tuple(adopters)
-            steps.append((tuple(profiles[v] for v in ids),
-                          {p.vehicle_id: p.progress_m for p in s.progress},
-                          {b.vehicle_id: b.battery_pct for b in s.battery}))  # fmt: skip
+            steps.append(
+                (
+                    tuple(profiles[v] for v in ids),
+                    {p.vehicle_id: p.progress_m for p in s.progress},
+                    {b.vehicle_id: b.battery_pct for b in s.battery},
+                )
+            )
         return Replay(first, tuple(steps))
 
 
@@ -137,10 +144,11 @@ class Regroup:
     def founded(self, mission: Mission, members: Sequence[Member]) -> None:
         """The first plan of a fleet this vehicle flies in."""
         first = tuple(
-            LineageHome(m.profile.vehicle_id, m.home,
-                        -1 if m.battery_pct is None else round(m.battery_pct))
+            LineageHome(
+                m.profile.vehicle_id, m.home, -1 if m.battery_pct is None else round(m.battery_pct)
+            )
             for m in members
-        )  # fmt: skip
+        )
         self.lineages[mission.mission_id] = Lineage(mission, first)
         self.lineages.move_to_end(mission.mission_id)
         while len(self.lineages) > KEEP:
@@ -158,12 +166,16 @@ class Regroup:
         if lin is None:
             return False
         before = set(lin.everyone)
-        lin.steps.append(LineageStep(
-            tuple(members),
-            tuple(LineageProgress(v, max(0.0, p)) for v, p in sorted(progress.items())),
-            tuple(LineageBattery(v, min(100.0, max(0.0, b)))
-                  for v, b in sorted((battery or {}).items())),
-        ))  # fmt: skip
+        lin.steps.append(
+            LineageStep(
+                tuple(members),
+                tuple(LineageProgress(v, max(0.0, p)) for v, p in sorted(progress.items())),
+                tuple(
+                    LineageBattery(v, min(100.0, max(0.0, b)))
+                    for v, b in sorted((battery or {}).items())
+                ),
+            )
+        )
         return bool(set(members) - before)
 
     def adopted(self, msg: PlanLineage) -> Lineage:
@@ -213,5 +225,11 @@ def handed_lineage(msgs: Mapping[int, PlanLineage]) -> PlanLineage:
             if p.vehicle_id == sender or p.vehicle_id not in progress:
                 progress[p.vehicle_id] = p.progress_m
     step = LineageStep((), tuple(LineageProgress(v, m) for v, m in sorted(progress.items())))
-    return PlanLineage(first.mission, first.sender_id, first.first,
-                       (*first.replans[:-1], step), first.members_hash, first.handed_to)  # fmt: skip
+    return PlanLineage(
+        first.mission,
+        first.sender_id,
+        first.first,
+        (*first.replans[:-1], step),
+        first.members_hash,
+        first.handed_to,
+    )

@@ -168,7 +168,10 @@ class Roster:
         vid = info.vehicle_id
         if mid is None or vid == self.self_id:
             return []
-        in_mission = info.mission_id == mid and info.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)
+        in_mission = info.mission_id == mid and info.fsm_state in (
+            FsmState.PLAN,
+            FsmState.GO_MISSION,
+        )
         if in_mission and not self.frozen:
             self._answer(mid, vid, True)
         if in_mission:
@@ -188,7 +191,12 @@ class Roster:
             and vid not in self.finished  # done with it (nothing to fly): still in PLAN
         ):
             return [MemberJoined(mid, vid)]  # a vehicle joining (or a lost one back)
-        if self.frozen and vid in self.members and vid not in self.lost and vid not in self.finished:
+        if (
+            self.frozen
+            and vid in self.members
+            and vid not in self.lost
+            and vid not in self.finished
+        ):
             if info.fsm_state == FsmState.EMERGENCY:
                 out += self._lose(vid, "emergency")
             elif info.mission_id != mid and (
@@ -362,7 +370,7 @@ class Roster:
         self.planned = survivors
         self.generation += 1
 
-    # ------------------------------------------------------------------ voting (issue 13)
+    # ------------------------------------------------------------------ voting
     def voted_out(self, winners: Iterable[int]) -> list[RosterEvent]:
         """Members a vote sent to another mission leave this one: alive, but lost to
         this fleet (`MemberLost`, "voted out"), so the others replan without them."""

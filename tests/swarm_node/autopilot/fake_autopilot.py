@@ -115,11 +115,19 @@ class FakeAutopilot:
             out.append(  # a 3-D fix (real ArduPilot has one before its EKF uses GPS)
                 self._pack(
                     mavlink.MAVLink_gps_raw_int_message(
-                        boot * 1000, 3, round(self.lat * 1e7), round(self.lon * 1e7), 0,
-                        65535, 65535, 0, 0, 10,
+                        boot * 1000,
+                        3,
+                        round(self.lat * 1e7),
+                        round(self.lon * 1e7),
+                        0,
+                        65535,
+                        65535,
+                        0,
+                        0,
+                        10,
                     )
                 )
-            )  # fmt: skip
+            )
             fence = (1 << 20) if self.servers[1].items else 0  # geofence present: loaded
             out.append(
                 self._pack(
@@ -185,7 +193,9 @@ class FakeAutopilot:
             elif cmd == 192 and int(msg.param2) & 1:
                 self.custom_mode = 4 if self.kind == "copter" else 15  # GUIDED
         out.append(self._ack(cmd, result, msg))
-        if result == 0 and cmd == 224 and self.report_current:  # DO_SET_MISSION_CURRENT: ArduPilot reports it at once
+        if (
+            result == 0 and cmd == 224 and self.report_current
+        ):  # DO_SET_MISSION_CURRENT: ArduPilot reports it at once
             total = max(0, len(self.servers[0].items) - 1)
             out.append(
                 self._pack(mavlink.MAVLink_mission_current_message(int(msg.param1), total, 3, 0))

@@ -1,4 +1,4 @@
-"""The behaviour recordings of issue 11 (real ArduPilot SITL, master of 2025-09-16:
+"""The behaviour recordings (real ArduPilot SITL, master of 2025-09-16:
 `../shared/data/ardupilot-sitl/behaviours.md`) replayed as bytes through the autopilot
 link: every message is valid to it, and what it reports matches an independent pymavlink
 reading. (The simulator's behaviour is compared with the same recordings in
@@ -89,7 +89,7 @@ def replay(base: Path, name: str) -> Replayed:
 def test_every_message_is_valid_and_the_autopilot_is_ready_when_it_says(
     base: Path, name: str
 ) -> None:
-    """No message of real ArduPilot is refused (before issue 11 MISSION_CURRENT with the
+    """No message of real ArduPilot is refused (once MISSION_CURRENT with the
     old current item beyond the new mission's total was dropped as invalid), and the link
     counts the autopilot booted exactly when it says "ArduPilot Ready" (or its next
     HEARTBEAT in STANDBY): uploads wait for that."""

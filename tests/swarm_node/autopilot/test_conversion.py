@@ -132,10 +132,22 @@ def test_rally_items() -> None:
 
 def test_vehicle_status_from_state() -> None:
     state = AutopilotState(
-        sysid=1, lat_deg=37.4, lon_deg=-5.9, alt_msl_m=50.0, alt_rel_m=40.0, heading_deg=359.999,
-        mode_number=10, armed=True, battery_pct=77, battery_v=23.1, gps_sats=14,
-        position_time_unix_s=1.8e9, mission_count=6, mission_current=3, mission_reached=2,
-    )  # fmt: skip
+        sysid=1,
+        lat_deg=37.4,
+        lon_deg=-5.9,
+        alt_msl_m=50.0,
+        alt_rel_m=40.0,
+        heading_deg=359.999,
+        mode_number=10,
+        armed=True,
+        battery_pct=77,
+        battery_v=23.1,
+        gps_sats=14,
+        position_time_unix_s=1.8e9,
+        mission_count=6,
+        mission_current=3,
+        mission_reached=2,
+    )
     status = to_vehicle_status(
         state,
         vehicle_id=9,
@@ -162,7 +174,7 @@ def test_vehicle_status_from_state() -> None:
 
 
 def test_status_after_a_link_loss_carries_the_time_of_the_last_data() -> None:
-    """Issue 11, defect 9: after a link loss the node republishes the last state; its
+    """After a link loss the node republishes the last state; its
     time is the last sample's (GPS time, or without it the last message's), never now."""
     here = {"lat_deg": 37.4, "lon_deg": -5.9, "alt_msl_m": 50.0, "alt_rel_m": 40.0}
     up = AutopilotState(link_ok=True, last_message_s=1000.0, **here)
@@ -188,9 +200,15 @@ finite = st.floats(-1e7, 1e7)
 
 
 @given(
-    alt=finite, vel=finite, heading=finite, airspeed=finite, battery=st.integers(-500, 500),
-    volts=finite, sats=st.integers(-5, 500), mode=st.integers(-5, 5000),
-)  # fmt: skip
+    alt=finite,
+    vel=finite,
+    heading=finite,
+    airspeed=finite,
+    battery=st.integers(-500, 500),
+    volts=finite,
+    sats=st.integers(-5, 500),
+    mode=st.integers(-5, 5000),
+)
 def test_vehicle_status_always_validates(
     alt: float,
     vel: float,
@@ -202,9 +220,18 @@ def test_vehicle_status_always_validates(
     mode: int,
 ) -> None:
     state = AutopilotState(
-        lat_deg=10.0, lon_deg=20.0, alt_msl_m=alt, alt_rel_m=alt, vel_north_m_s=vel, heading_deg=heading,
-        airspeed_m_s=airspeed, battery_pct=battery, battery_v=volts, gps_sats=sats, mode_number=mode,
-    )  # fmt: skip
+        lat_deg=10.0,
+        lon_deg=20.0,
+        alt_msl_m=alt,
+        alt_rel_m=alt,
+        vel_north_m_s=vel,
+        heading_deg=heading,
+        airspeed_m_s=airspeed,
+        battery_pct=battery,
+        battery_v=volts,
+        gps_sats=sats,
+        mode_number=mode,
+    )
     status = to_vehicle_status(state, vehicle_id=1, now_unix_s=1.7e9)
     assert status is not None
     validate(status)

@@ -123,8 +123,10 @@ class SimFlight:
 
 
 def route(n: int, spacing_m: float, alt: float) -> list[Waypoint]:
-    return [Waypoint(lat_deg=p[0], lon_deg=p[1], alt_rel_m=alt) for p in
-            (offset(spacing_m * (i + 1), spacing_m * (i % 2)) for i in range(n))]  # fmt: skip
+    return [
+        Waypoint(lat_deg=p[0], lon_deg=p[1], alt_rel_m=alt)
+        for p in (offset(spacing_m * (i + 1), spacing_m * (i % 2)) for i in range(n))
+    ]
 
 
 def fly_mission(f: SimFlight, waypoints: list[Waypoint], max_s: float) -> ApResult:
@@ -191,7 +193,7 @@ def test_copter_sortie() -> None:
         ("COMMAND_INT", 192),  # Goto
         ("COMMAND_LONG", 178),
         ("COMMAND_INT", 192),  # ChangeAltitude: reposition to the Goto target, higher
-        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1 (issue 11)
+        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1
         ("MODE", 3),
         ("COMMAND_LONG", 300),
         ("MODE", 6),
@@ -231,7 +233,7 @@ def test_vtol_sortie() -> None:
         ("MODE", 15),
         ("COMMAND_LONG", 400),
         ("COMMAND_LONG", 22),
-        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1 (issue 11)
+        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1
         ("MODE", 10),
         ("COMMAND_LONG", 300),
         ("COMMAND_LONG", 178),
@@ -276,7 +278,7 @@ def test_plane_sortie() -> None:
         ("COMMAND_LONG", 400),
         ("PARAM_SET", "TKOFF_ALT"),
         ("MODE", 13),
-        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1 (issue 11)
+        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1
         ("MODE", 10),
         ("COMMAND_LONG", 300),
     ]
@@ -306,7 +308,7 @@ def test_ground_vehicle_sortie(model: str) -> None:
     assert f.commands() == [
         ("MISSION_COUNT", 4),
         ("COMMAND_LONG", 400),
-        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1 (issue 11)
+        ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1
         ("MODE", 10),
         ("COMMAND_LONG", 300),
         ("MODE", 11),
@@ -320,8 +322,12 @@ def test_fence_rally_and_mission_round_trip_with_the_simulator() -> None:
     ready(f)
     box = [offset(-500, -500), offset(500, -500), offset(500, 500), offset(-500, 500)]
     nfz = [offset(100, 100), offset(150, 100), offset(150, 150)]
-    fence = rq.UploadFence(inclusion_polygons=(tuple(box),), exclusion_polygons=(tuple(nfz),),
-                           exclusion_circles=((*offset(-200, 0), 40.0),), enable=True)  # fmt: skip
+    fence = rq.UploadFence(
+        inclusion_polygons=(tuple(box),),
+        exclusion_polygons=(tuple(nfz),),
+        exclusion_circles=((*offset(-200, 0), 40.0),),
+        enable=True,
+    )
     assert f.do(fence).ok
     assert f.do(rq.UploadRally(points=((*offset(50, 0), 30.0),))).ok
     up = f.do(rq.UploadMission(items=tuple(route(4, 30, 20))))
@@ -351,8 +357,9 @@ def test_copter_sortie_through_tcp_in_scaled_time() -> None:
     server = VehicleServer([VehicleSpec("copter", instance=0, port=port)], clock)
     sent: list[Any] = []
     with server:
-        link = AutopilotLink(f"tcp:127.0.0.1:{port}", clock, vehicle_type=VehicleType.COPTER,
-                             on_send=sent.append)  # fmt: skip
+        link = AutopilotLink(
+            f"tcp:127.0.0.1:{port}", clock, vehicle_type=VehicleType.COPTER, on_send=sent.append
+        )
         with link:
             deadline = time.monotonic() + 120
 

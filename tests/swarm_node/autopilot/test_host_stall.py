@@ -1,4 +1,4 @@
-"""Issue 16: autopilot link loss is judged from the autopilot's own data (its time since
+"""Autopilot link loss is judged from the autopilot's own data (its time since
 boot in GLOBAL_POSITION_INT, ATTITUDE, SYSTEM_TIME), apart from the node's own stalls.
 A timer served late (the node stopped, a loaded host) does not declare the link lost
 while what the autopilot sent meanwhile waits to be read; a burst read late shows the
@@ -20,7 +20,7 @@ def feed(t: object, start_s: float, boot_ms: int, n: int, period_s: float = 0.1)
 
 def test_a_late_timer_waits_for_what_is_in_the_socket() -> None:
     """The node stopped 2 s: its link timer runs first on resume, then the bytes that
-    waited are read. Before issue 16 the timer declared the link lost (a WARNING, and an
+    waited are read. Before the timer declared the link lost (a WARNING, and an
     EMERGENCY had the node's tick also run late); now it defers and nothing is lost."""
     t = tracker(link_timeout_s=0.6)
     feed(t, T0, 10_000, 5)  # up to T0 + 0.4, boot 10.4 s

@@ -15,10 +15,15 @@ from swarm_node.core.autopilot.framing import MavEncoder, MavFramer
 from swarm_sim.core import SITL_HOME, VehicleEndpoint
 
 _RANGES = {
-    "B": (0, 255), "b": (-128, 127), "H": (0, 65535), "h": (-32768, 32767),
-    "I": (0, 2**32 - 1), "i": (-(2**31), 2**31 - 1), "Q": (0, 2**64 - 1),
+    "B": (0, 255),
+    "b": (-128, 127),
+    "H": (0, 65535),
+    "h": (-32768, 32767),
+    "I": (0, 2**32 - 1),
+    "i": (-(2**31), 2**31 - 1),
+    "Q": (0, 2**64 - 1),
     "q": (-(2**63), 2**63 - 1),
-}  # fmt: skip
+}
 
 
 def _random_message(cls: Any, rng: random.Random) -> Any:

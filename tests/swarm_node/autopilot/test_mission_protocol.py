@@ -37,10 +37,16 @@ def from_ap(msg: Any) -> Any:
 
 def items(n: int, kind: MissionKind = MissionKind.MISSION) -> list[MissionItem]:
     return [
-        MissionItem(seq=i, command=MavCmd.NAV_WAYPOINT, lat_deg=37.4 + i * 1e-4, lon_deg=-5.98,
-                    alt_m=30.0 + i, mission_type=int(kind))
+        MissionItem(
+            seq=i,
+            command=MavCmd.NAV_WAYPOINT,
+            lat_deg=37.4 + i * 1e-4,
+            lon_deg=-5.98,
+            alt_m=30.0 + i,
+            mission_type=int(kind),
+        )
         for i in range(n)
-    ]  # fmt: skip
+    ]
 
 
 @pytest.mark.parametrize("request_type", ["MISSION_REQUEST", "MISSION_REQUEST_INT"])
@@ -58,7 +64,7 @@ def test_upload_answers_both_request_kinds(request_type: str) -> None:
 
 
 def test_an_out_of_sequence_ack_does_not_end_an_upload() -> None:
-    """Issue 16: on a loaded host our answer to a request came late, ArduPilot asked
+    """On a loaded host our answer to a request came late, ArduPilot asked
     again after 1 s, we answered twice; it acked the late duplicate INVALID_SEQUENCE and
     kept waiting for the next item (MissionItemProtocol). The upload used to fail
     there ("MISSION_ACK MISSION_INVALID_SEQUENCE": PLAN_FAILED in a loaded demo)."""
@@ -172,8 +178,15 @@ def test_an_endless_autopilot_is_cut_off_by_the_overall_limit() -> None:
 
 
 def test_item_messages_round_trip_and_reject_garbage() -> None:
-    it = MissionItem(seq=4, command=MavCmd.NAV_LOITER_TURNS, param1=2, param3=-80.0,
-                     lat_deg=-33.123456789, lon_deg=151.2, alt_m=100.5)  # fmt: skip
+    it = MissionItem(
+        seq=4,
+        command=MavCmd.NAV_LOITER_TURNS,
+        param1=2,
+        param3=-80.0,
+        lat_deg=-33.123456789,
+        lon_deg=151.2,
+        alt_m=100.5,
+    )
     back = item_from_message(from_ap(item_to_message(it, (255, 191))))
     assert back.same_as(it) and back.seq == 4
     bad = mavlink.MAVLink_mission_item_message(
@@ -235,6 +248,6 @@ def test_transfers_under_random_loss_end_cleanly(
 
 def test_a_long_mission_survives_heavy_loss() -> None:
     # seeded: at 30 % loss each way a 60-item round trip fails some seeds (5 resends per
-    # step); the fake's telemetry (issue 11 added GPS_RAW_INT, SYS_STATUS) moved the draws
+    # step); the fake's telemetry moved the draws
     up, down, _ = run_transfer(0.3, 17, 60, MissionKind.MISSION, request_with_int=False)
     assert up.ok and down.ok and len(down.items) == 60

@@ -64,9 +64,7 @@ def test_every_plan_uploads_to_the_simulated_autopilot(model: str, profile: Vehi
     ready(f)
     uploaded = 0
     made = plans(profile)
-    assert set(made) == {
-        "area", "target", "perimeter", "route", "objective", "autoland", "mumt"
-    }  # fmt: skip
+    assert set(made) == {"area", "target", "perimeter", "route", "objective", "autoland", "mumt"}
     for name, plan in made.items():
         for vp in plan.vehicles:  # type: ignore[attr-defined]
             assert vp.waypoints, name

@@ -1,4 +1,4 @@
-"""Issue 11: what real ArduPilot SITL did to the autopilot link, reproduced with the
+"""What real ArduPilot SITL did to the autopilot link, reproduced with the
 simulator (which now behaves that way) and with the scripted fake. Each test failed on
 the link before the fix.
 
@@ -102,8 +102,11 @@ def test_a_mission_whose_first_waypoint_is_at_the_current_index_is_started() -> 
     so the node left the fleet. The first NAV item of the mission just uploaded counts."""
     f = loitering_after_mission_1()
     assert f.state.mission_current == 3
-    second = (Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=8.0),
-              Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=8.0), *_leg((150, 60), (40, 60)))  # fmt: skip
+    second = (
+        Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=8.0),
+        Waypoint(ItemKind.CHANGE_SPEED, speed_m_s=8.0),
+        *_leg((150, 60), (40, 60)),
+    )
     assert f.do(rq.UploadMission(items=second)).ok
     started = f.do(rq.StartMission())
     assert started.ok, started

@@ -95,7 +95,7 @@ def run(h: Harness, request: rq.ApRequest, max_s: float = 60) -> tuple[rq.ApResu
         ),
         (
             VehicleType.COPTER,
-            rq.StartMission(),  # DO_SET_MISSION_CURRENT 1 first: issue 11
+            rq.StartMission(),  # DO_SET_MISSION_CURRENT 1 first, as ArduPilot needs
             [("long", 224, (1,)), ("long", 176, (1, 3)), ("long", 300, (0,))],
         ),
         (

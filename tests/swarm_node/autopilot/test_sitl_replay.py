@@ -50,7 +50,7 @@ class Expected:
     reached_all: list[int] = field(default_factory=list)
     first_heartbeat_t: float | None = None
     samples: int = 0
-    trusted: bool = False  # a 2-D fix or an EKF absolute position seen (issue 11)
+    trusted: bool = False  # a 2-D fix or an EKF absolute position seen
     untrusted_nonzero: int = 0  # non-zero positions before that (drift near 0, 0)
 
     def update(self, msg: Any) -> None:
@@ -180,7 +180,7 @@ def test_every_position_sample_matches_the_independent_reading(sortie: tuple[str
 
 
 def test_no_position_before_the_fix(sortie: tuple[str, Replay]) -> None:
-    """Issue 11, defect 8: before its GPS fix the QuadPlane sent positions drifting near
+    """Before its GPS fix the QuadPlane sent positions drifting near
     (0, 0) (-0.0000153, 0.0003226 with fix NO_GPS, EKF uninitialised); none of them is a
     position (check_sample asserts no status for each), not only exact zeros."""
     name, r = sortie

@@ -71,7 +71,7 @@ def tracker(fixed: bool = True, **kw: Any) -> StateTracker:
 
 
 def test_a_position_near_zero_before_the_fix_is_no_position() -> None:
-    """Issue 11, defect 8: real ArduPilot (the QuadPlane sortie) sends positions drifting
+    """Real ArduPilot (the QuadPlane sortie) sends positions drifting
     near (0, 0) before its fix (0.0003, 0.00002, fix NO_GPS): not a position until a 2-D
     fix or an EKF absolute position is seen; a reboot forgets it."""
     t = tracker(fixed=False)
@@ -98,11 +98,22 @@ def test_a_position_near_zero_before_the_fix_is_no_position() -> None:
 def test_the_handler_table_covers_what_the_issue_lists() -> None:
     t = StateTracker()
     wanted = {
-        "HEARTBEAT", "GLOBAL_POSITION_INT", "SYS_STATUS", "BATTERY_STATUS", "GPS_RAW_INT",
-        "ATTITUDE", "VFR_HUD", "HOME_POSITION", "SYSTEM_TIME", "MISSION_CURRENT",
-        "MISSION_ITEM_REACHED", "STATUSTEXT", "EKF_STATUS_REPORT", "EXTENDED_SYS_STATE",
+        "HEARTBEAT",
+        "GLOBAL_POSITION_INT",
+        "SYS_STATUS",
+        "BATTERY_STATUS",
+        "GPS_RAW_INT",
+        "ATTITUDE",
+        "VFR_HUD",
+        "HOME_POSITION",
+        "SYSTEM_TIME",
+        "MISSION_CURRENT",
+        "MISSION_ITEM_REACHED",
+        "STATUSTEXT",
+        "EKF_STATUS_REPORT",
+        "EXTENDED_SYS_STATE",
         "ADSB_VEHICLE",
-    }  # fmt: skip
+    }
     assert set(t.handlers) == wanted == set(HANDLED)
     assert not (wanted & IGNORED) and not (wanted & PROTOCOL) and not (IGNORED & PROTOCOL)
 
@@ -276,16 +287,32 @@ def any_message(draw: st.DrawFn) -> Any:
     )
     if kind == "adsb":
         return mavlink.MAVLink_adsb_vehicle_message(
-            draw(st.integers(0, 2**32 - 1)), draw(i32), draw(i32), 0, draw(i32), draw(u16),
-            draw(u16), draw(st.integers(-32768, 32767)), b"X", 0, draw(st.integers(0, 255)),
-            draw(u16), 0,
-        )  # fmt: skip
+            draw(st.integers(0, 2**32 - 1)),
+            draw(i32),
+            draw(i32),
+            0,
+            draw(i32),
+            draw(u16),
+            draw(u16),
+            draw(st.integers(-32768, 32767)),
+            b"X",
+            0,
+            draw(st.integers(0, 255)),
+            draw(u16),
+            0,
+        )
     if kind == "gpi":
         return mavlink.MAVLink_global_position_int_message(
-            draw(st.integers(0, 2**32 - 1)), draw(i32), draw(i32), draw(i32), draw(i32),
-            draw(st.integers(-32768, 32767)), draw(st.integers(-32768, 32767)),
-            draw(st.integers(-32768, 32767)), draw(u16),
-        )  # fmt: skip
+            draw(st.integers(0, 2**32 - 1)),
+            draw(i32),
+            draw(i32),
+            draw(i32),
+            draw(i32),
+            draw(st.integers(-32768, 32767)),
+            draw(st.integers(-32768, 32767)),
+            draw(st.integers(-32768, 32767)),
+            draw(u16),
+        )
     if kind == "att":
         return mavlink.MAVLink_attitude_message(
             draw(st.integers(0, 2**32 - 1)), *[draw(f32) for _ in range(6)]
@@ -369,18 +396,36 @@ def test_heartbeats_alone_do_not_flap_the_link_but_telemetry_makes_it_quick() ->
 
 
 def adsb(
-    icao: int = 0xABCDEF, lat: float = 37.42, lon: float = -5.99, alt_m: float = 150.0,
-    heading_cdeg: int = 9000, speed_cm_s: int = 3000, climb_cm_s: int = -100,
-    flags: int = 1 | 2 | 4 | 8, tslc: int = 1, callsign: bytes = b"EC123",
+    icao: int = 0xABCDEF,
+    lat: float = 37.42,
+    lon: float = -5.99,
+    alt_m: float = 150.0,
+    heading_cdeg: int = 9000,
+    speed_cm_s: int = 3000,
+    climb_cm_s: int = -100,
+    flags: int = 1 | 2 | 4 | 8,
+    tslc: int = 1,
+    callsign: bytes = b"EC123",
 ) -> Any:
     return mavlink.MAVLink_adsb_vehicle_message(
-        icao, round(lat * 1e7), round(lon * 1e7), 0, round(alt_m * 1000), heading_cdeg,
-        speed_cm_s, climb_cm_s, callsign, 1, tslc, flags, 0,
-    )  # fmt: skip
+        icao,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        0,
+        round(alt_m * 1000),
+        heading_cdeg,
+        speed_cm_s,
+        climb_cm_s,
+        callsign,
+        1,
+        tslc,
+        flags,
+        0,
+    )
 
 
 def test_adsb_traffic_is_kept_per_aircraft_and_dropped_when_silent() -> None:
-    """Issue 14: ADSB_VEHICLE from the autopilot (or its ADS-B receiver, same system)
+    """ADSB_VEHICLE from the autopilot (or its ADS-B receiver, same system)
     becomes `traffic` for collision avoidance, the latest report per ICAO address."""
     t = tracker()
     v, _ = t.handle(wire(adsb()), T0 + 1)

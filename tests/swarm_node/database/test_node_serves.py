@@ -85,9 +85,14 @@ def test_a_running_node_serves_its_database(
                 {"id": 14, "user_id": "QUAD-04", "layout": "Quadcopter + EO 1080p", "payload": None}
             ]
             replies = _gcs(
-                "query", str(NODE), "table/systems/systems", "--connect", zenoh_router,
-                "--swarm", swarm,
-            )  # fmt: skip
+                "query",
+                str(NODE),
+                "table/systems/systems",
+                "--connect",
+                zenoh_router,
+                "--swarm",
+                swarm,
+            )
             assert replies[0]["value"] == db.records("systems.systems")
             assert proc.poll() is None, log.read_text()
         finally:

@@ -1,5 +1,5 @@
-"""The node's declared state in its swarm database (migration 4, database/state.py,
-issue 16): stored per node, restored whole; a row that does not decode is skipped and
+"""The node's declared state in its swarm database (migration 4, database/state.py):
+stored per node, restored whole; a row that does not decode is skipped and
 counted; a full disk is a StorageError and leaves the previous state whole."""
 
 from __future__ import annotations
@@ -32,12 +32,22 @@ def book() -> DeclaredBook:
     b = DeclaredBook()
     b.offer_zone(NoFlyZone(3, Geometry.circle(37.41, -5.99, 40.0), name="tower"), T)
     b.offer_zone(NoFlyZone(4, Geometry.circle(37.41, -5.99, 900.0), operating_area=True), T + 1)
-    b.offer_command(Command(900, 1, CommandKind.SET_BASE,
-                            args=CommandArgs(point=GeoPoint(37.41, -5.99, 10.0)),
-                            time_unix_s=T + 2), T)  # fmt: skip
+    b.offer_command(
+        Command(
+            900,
+            1,
+            CommandKind.SET_BASE,
+            args=CommandArgs(point=GeoPoint(37.41, -5.99, 10.0)),
+            time_unix_s=T + 2,
+        ),
+        T,
+    )
     b.offer_assignment(FleetAssignment(2, 0, (7, 8), 900, T + 3), T)
-    b.offer_mission(DeclaredMission(Mission(11, 900, MissionType.AREA,
-                                            Geometry.circle(37.41, -5.99, 100.0)), True, T + 4))
+    b.offer_mission(
+        DeclaredMission(
+            Mission(11, 900, MissionType.AREA, Geometry.circle(37.41, -5.99, 100.0)), True, T + 4
+        )
+    )
     return b
 
 
@@ -81,9 +91,17 @@ def test_a_full_disk_keeps_the_previous_state_whole(tmp_path: Path) -> None:
         db._conn.execute(f"PRAGMA max_page_count = {pages}")  # no room to grow: disk full
         big = book()
         for k in range(40):  # more than fits in the pages there are
-            big.offer_zone(NoFlyZone(100 + k, Geometry.polygon(
-                [(37.41 + 1e-4 * j, -5.99 + 1e-4 * (j % 7)) for j in range(3)] +
-                [(37.40, -5.98)]), name=f"zone {k:02d} " + "x" * 30), T)  # fmt: skip
+            big.offer_zone(
+                NoFlyZone(
+                    100 + k,
+                    Geometry.polygon(
+                        [(37.41 + 1e-4 * j, -5.99 + 1e-4 * (j % 7)) for j in range(3)]
+                        + [(37.40, -5.98)]
+                    ),
+                    name=f"zone {k:02d} " + "x" * 30,
+                ),
+                T,
+            )
         with pytest.raises(StorageError, match="full"):
             store.save(big.snapshot(7, T), SORTIE)
         assert store.failures == 1

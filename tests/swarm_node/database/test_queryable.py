@@ -78,7 +78,9 @@ def served(
 def test_info_profile_profiles_and_export(served: tuple[DatabaseQueryable, zenoh.Session]) -> None:
     q, client = served
     info = fetch_info(client, SWARM, 3)
-    assert info == DbInfo(3, LATEST_VERSION, {k.replace(".", "/"): v for k, v in q.db.counts().items()})
+    assert info == DbInfo(
+        3, LATEST_VERSION, {k.replace(".", "/"): v for k, v in q.db.counts().items()}
+    )
     me = fetch_profile(client, SWARM, 3)
     assert me == q.db.vehicle_profile(3)
     assert me.model == ALBATROSS and me.camera is not None

@@ -206,7 +206,7 @@ def test_every_table_is_in_the_schema_and_in_write_order(raw: sqlite3.Connection
             "SELECT name FROM sqlite_schema WHERE type = 'table' AND name NOT LIKE 'sqlite_%'"
         )
     }
-    # and the node's own state (issue 16), not one of the paper's records
+    # and the node's own state, not one of the paper's records
     assert names == {t.sql for t in TABLES} | set(NODE_STATE_TABLES)
     assert sorted(t.qualname for t in WRITE_ORDER) == sorted(t.qualname for t in TABLES)
     seen: set[str] = set()

@@ -23,9 +23,13 @@ from swarm_proto import Geometry, GeoPoint, Mission, MissionParams, MissionType,
 
 LA, LO = 40.4168, -3.7038
 AREA = Geometry.polygon(
-    [(LA + 0.004, LO - 0.003), (LA + 0.004, LO + 0.003), (LA + 0.008, LO + 0.003),
-     (LA + 0.008, LO - 0.003)]
-)  # fmt: skip
+    [
+        (LA + 0.004, LO - 0.003),
+        (LA + 0.004, LO + 0.003),
+        (LA + 0.008, LO + 0.003),
+        (LA + 0.008, LO - 0.003),
+    ]
+)
 
 
 def _profile(vid: int) -> VehicleProfile:
@@ -48,8 +52,9 @@ def plan(
 
 
 def on_ground(lat: float, lon: float, heading: float = 0.0) -> AutopilotState:
-    return AutopilotState(lat_deg=lat, lon_deg=lon, alt_rel_m=0.0, heading_deg=heading,
-                          home=GeoPoint(lat, lon, 600.0))  # fmt: skip
+    return AutopilotState(
+        lat_deg=lat, lon_deg=lon, alt_rel_m=0.0, heading_deg=heading, home=GeoPoint(lat, lon, 600.0)
+    )
 
 
 def test_the_sync_group_is_the_fixed_wing_members_of_two_or_more(fleet_profiles: dict) -> None:
@@ -137,8 +142,9 @@ def test_the_airspeed_brings_it_to_the_entry_on_time_and_then_keeps_the_fleet_to
     s = FleetSync(1, fleet_profiles[1])
     ground = on_ground(LA, LO)
     assert s.begin(fp, ground, [], 0.0, 600.0, launch_s=30.0)
-    air = msgspec.structs.replace(ground, armed=True, alt_rel_m=80.0, airspeed_m_s=26.0,
-                                  groundspeed_m_s=26.0)  # fmt: skip
+    air = msgspec.structs.replace(
+        ground, armed=True, alt_rel_m=80.0, airspeed_m_s=26.0, groundspeed_m_s=26.0
+    )
     s.plan_leg(air, [], 30.0, 600.0, 100.0)
     assert s.leg is not None
     t = s.depart_unix_s + 5.0
@@ -175,8 +181,9 @@ def test_an_airspeed_the_autopilot_does_not_fly_is_sent_again(fleet_profiles: di
     s = FleetSync(1, fleet_profiles[1])
     ground = on_ground(LA, LO)
     assert s.begin(fp, ground, [], 0.0, 600.0, launch_s=0.0)
-    air = msgspec.structs.replace(ground, armed=True, alt_rel_m=80.0, airspeed_m_s=26.0,
-                                  groundspeed_m_s=26.0)  # fmt: skip
+    air = msgspec.structs.replace(
+        ground, armed=True, alt_rel_m=80.0, airspeed_m_s=26.0, groundspeed_m_s=26.0
+    )
     s.plan_leg(air, [], 0.0, 600.0, 200.0)
     t = s.depart_unix_s + 1.0
     v = s.control(air, t, 2, 0.0, t + 100.0, {}, ())

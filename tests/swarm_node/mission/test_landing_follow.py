@@ -21,8 +21,13 @@ def members(profiles: dict, ids: tuple[int, ...]) -> list[Member]:
 
 
 def test_each_lands_in_its_turn_once_the_one_before_has_landed(fleet_profiles: dict) -> None:
-    mission = Mission(5, 900, MissionType.AUTOLAND, Geometry.point(LA - 0.002, LO),
-                      MissionParams(altitude_rel_m=60.0, separation_s=300.0))  # fmt: skip
+    mission = Mission(
+        5,
+        900,
+        MissionType.AUTOLAND,
+        Geometry.point(LA - 0.002, LO),
+        MissionParams(altitude_rel_m=60.0, separation_s=300.0),
+    )
     plan = plan_fleet(mission, members(fleet_profiles, (7, 8)), [], 0.0, 0.0)
     order = [s.vehicle_id for s in sorted(plan.detail.slots, key=lambda s: s.sequence)]  # type: ignore[attr-defined]
     first, second = (LandingTurn.of(plan, v, plan.share(v).waypoints) for v in order)

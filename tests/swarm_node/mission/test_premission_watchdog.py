@@ -1,4 +1,4 @@
-"""The PREMISSION watchdog (issue 18): a demo VTOL started its leg and circled a point
+"""The PREMISSION watchdog: a demo VTOL started its leg and circled a point
 for 50 simulated minutes until BATTERY_LOW, its node silent (the autopilot flew round
 the leg's first waypoint, past it while the leg was uploaded, and never reached it).
 A member still on its leg well past the meet time gives up the meet and flies its share

@@ -163,9 +163,12 @@ def test_a_vehicles_own_score_for_a_quantity_mission(fleet_profiles: dict) -> No
     classes = seed_payload_classes()
     target = LatLon(REF.lat_deg + 2000.0 / 111_000.0, REF.lon_deg)
     m = Mission(
-        9, 900, MissionType.TARGET, Geometry(GeometryKind.POINT, (target,)),
+        9,
+        900,
+        MissionType.TARGET,
+        Geometry(GeometryKind.POINT, (target,)),
         selection=Selector(SelectorKind.QUANTITY, quantity=2, payload_model=EO15),
-    )  # fmt: skip
+    )
     vtol = Candidate.of(fleet_profiles[1], REF, 60.0)  # EO 1.5 Mpx: the model
     t = mission_terms(PaperScore(), m, vtol, classes)
     arrival = PaperScore.arrival_s(vtol, target)

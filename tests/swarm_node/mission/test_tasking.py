@@ -57,19 +57,32 @@ def test_which_fleet_votes() -> None:
     st = Standing(1, 0, me(), idle=True, peer_missions={2: 41, 3: 41})
     assert t.answer(quantity(), st) == (AckReason.NOT_ADDRESSED, "the fleet of mission 41 votes")
     # two fleets: the larger votes, whatever the ids
-    big = Standing(1, 0, me(), flying=70, fleet=(1, 2, 3), peer_missions={2: 70, 3: 70, 4: 41, 5: 41})
-    small = Standing(4, 0, me(4), flying=41, fleet=(4, 5), peer_missions={1: 70, 2: 70, 3: 70, 5: 41})
+    big = Standing(
+        1, 0, me(), flying=70, fleet=(1, 2, 3), peer_missions={2: 70, 3: 70, 4: 41, 5: 41}
+    )
+    small = Standing(
+        4, 0, me(4), flying=41, fleet=(4, 5), peer_missions={1: 70, 2: 70, 3: 70, 5: 41}
+    )
     assert t.answer(quantity(), big)[0] == AckReason.OK
     assert t.answer(quantity(), small) == (AckReason.NOT_ADDRESSED, "the fleet of mission 70 votes")
     # a tie: the lower mission id
     tie = Standing(1, 0, me(), flying=70, fleet=(1, 2), peer_missions={2: 70, 4: 41, 5: 41})
     assert t.answer(quantity(), tie)[0] == AckReason.NOT_ADDRESSED
     # the selector's fleet: only its vehicles count
-    st = Standing(1, 3, me(), flying=70, fleet=(1, 2), peer_fleets={2: 3, 4: 0, 5: 0},
-                  peer_missions={2: 70, 4: 41, 5: 41})  # fmt: skip
+    st = Standing(
+        1,
+        3,
+        me(),
+        flying=70,
+        fleet=(1, 2),
+        peer_fleets={2: 3, 4: 0, 5: 0},
+        peer_missions={2: 70, 4: 41, 5: 41},
+    )
     assert t.answer(quantity(fleet=3), st)[0] == AckReason.OK
     # replanning, returning: busy; an unknown payload: invalid
-    assert t.answer(quantity(), Standing(1, 0, me(), flying=70, replanning=True))[0] == AckReason.BUSY
+    assert (
+        t.answer(quantity(), Standing(1, 0, me(), flying=70, replanning=True))[0] == AckReason.BUSY
+    )
     assert t.answer(quantity(), Standing(1, 0, me()))[0] == AckReason.BUSY
     assert t.answer(quantity(payload="no such camera"), Standing(1, 0, me(), idle=True))[0] == (
         AckReason.INVALID
@@ -78,8 +91,15 @@ def test_which_fleet_votes() -> None:
 
 def test_one_vote_at_a_time_and_the_electorate() -> None:
     t = tasking()
-    st = Standing(1, 0, me(), flying=70, fleet=(1, 2, 3, 4), away=frozenset({4}),
-                  peer_fleets={2: 0, 3: 5, 4: 0})  # fmt: skip
+    st = Standing(
+        1,
+        0,
+        me(),
+        flying=70,
+        fleet=(1, 2, 3, 4),
+        away=frozenset({4}),
+        peer_fleets={2: 0, 3: 5, 4: 0},
+    )
     electorate, lost = t.electorate(quantity(), st)
     assert electorate == {1, 2, 3, 4} and lost == {4}
     assert t.electorate(quantity(fleet=5), st)[0] == {1, 3}
@@ -90,8 +110,9 @@ def test_one_vote_at_a_time_and_the_electorate() -> None:
 
 
 def report(tid: int = 5, source: int = 3, cls: str = "person", conf: float = 0.9) -> TargetReport:
-    return TargetReport(tid, source, TargetSource.PAYLOAD, 100.0, GeoPoint(37.42, -5.98, 0.0),
-                        cls, conf)  # fmt: skip
+    return TargetReport(
+        tid, source, TargetSource.PAYLOAD, 100.0, GeoPoint(37.42, -5.98, 0.0), cls, conf
+    )
 
 
 @given(st.integers(1, 65534), st.integers(0, 2**32 - 1))

@@ -1,4 +1,4 @@
-"""The leaderless ballot (issue 13): every vehicle ends with the same winners, under
+"""The leaderless ballot: every vehicle ends with the same winners, under
 loss, a voter dying mid-vote, late joiners, radio quantization; the 200 lossy trials."""
 
 from __future__ import annotations
@@ -73,9 +73,12 @@ def test_foreign_votes_are_counted_and_ignored() -> None:
     b.handle(Vote(MID, 2, (VoteScore(2, 0.9), VoteScore(77, 1.0)), members_hash=h), 0.2)
     assert b.table == {1: 5000, 2: 9000}
     assert b.counts == {
-        "other_mission": 1, "wrong_roster": 1, "not_member": 1, "own_echo": 1,
+        "other_mission": 1,
+        "wrong_roster": 1,
+        "not_member": 1,
+        "own_echo": 1,
         "foreign_score": 1,
-    }  # fmt: skip
+    }
 
 
 def test_commit_needs_every_live_member_to_hold_our_table() -> None:
@@ -301,8 +304,10 @@ def test_bad_votes_never_crash_nor_corrupt_the_table(
 def test_a_restarted_voter_with_another_score_still_converges() -> None:
     """Two values for one vehicle (a voter that restarted and scored itself again): the
     lower is kept everywhere, so the tables still converge and all decide alike."""
-    ballots = {v: Ballot(MID, v, frozenset({1, 2, 3}), 1, s, 0.0)
-               for v, s in {1: 0.9, 2: 0.5, 3: 0.4}.items()}  # fmt: skip
+    ballots = {
+        v: Ballot(MID, v, frozenset({1, 2, 3}), 1, s, 0.0)
+        for v, s in {1: 0.9, 2: 0.5, 3: 0.4}.items()
+    }
     ballots[3].table[1] = 1000  # 3 heard an older, lower score of vehicle 1
     t = 0.0
     while not all(b.done for b in ballots.values()) and t < 30.0:

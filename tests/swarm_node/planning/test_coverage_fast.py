@@ -1,4 +1,4 @@
-"""The fast paths of the area planner (issue 20): coverage from the swaths' rectangles
+"""The fast paths of the area planner: coverage from the swaths' rectangles
 equals the union's, the order's local search really moves, memoization does not
 change plans, GIS fields with thousands of vertices are simplified first and their
 plan still covers the original field, and a field too big to fly is refused up front.

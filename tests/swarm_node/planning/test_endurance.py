@@ -143,7 +143,7 @@ def test_the_demo_survey_split_keeps_1_7_8_within_their_batteries(fleet_profiles
         home = frame.to_local(v.pose.lat_deg, v.pose.lon_deg)
         back = math.dist(a.path.lanes[-1].b, home) / a.speed_m_s if a.path.lanes else 0.0
         assert a.time_s + back <= budget + 1e-6, (v.vehicle_id, a.time_s, back, budget)
-    # before issue 12 the split left quadcopter 8 over its budget
+    # before the split left quadcopter 8 over its budget
     old = fp.BASELINE_SPLIT
     fp.BASELINE_SPLIT = True
     try:

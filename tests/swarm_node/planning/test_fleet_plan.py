@@ -53,9 +53,7 @@ AREA = Geometry.polygon(
     [(LA, LO), (LA, LO + 0.012), (LA + 0.006, LO + 0.014), (LA + 0.009, LO + 0.004)]
 )
 #: about 180 m x 220 m: what quadcopters' batteries cover (the seed quad flies ~3 minutes)
-SMALL = Geometry.polygon(
-    [(LA, LO), (LA, LO + 0.002), (LA + 0.002, LO + 0.0025), (LA + 0.002, LO)]
-)
+SMALL = Geometry.polygon([(LA, LO), (LA, LO + 0.002), (LA + 0.002, LO + 0.0025), (LA + 0.002, LO)])
 NO_ZONES: list = []
 
 
@@ -442,6 +440,10 @@ def test_area_replan_keeps_each_survivor_within_its_battery(fleet: Fleet) -> Non
         assert a.time_s + back <= budget + 1e-6
     with pytest.raises(InfeasibleTimingError):
         fp.replan(
-            progress, survivors, zones=[], now_unix_s=0.0, home_alt_msl_m=0.0,
+            progress,
+            survivors,
+            zones=[],
+            now_unix_s=0.0,
+            home_alt_msl_m=0.0,
             battery_pct={v.vehicle_id: 27.0 for v in survivors},
-        )  # fmt: skip
+        )

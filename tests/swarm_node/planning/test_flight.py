@@ -229,9 +229,13 @@ def _fixed_wing_checks(plan: object, vehicles: list[PlanVehicle], zones: list[No
 
 def _square(cx: float, cy: float, w: float, h: float) -> Geometry:
     return Geometry.polygon(
-        [_ll(cx - w / 2, cy - h / 2), _ll(cx + w / 2, cy - h / 2),
-         _ll(cx + w / 2, cy + h / 2), _ll(cx - w / 2, cy + h / 2)]
-    )  # fmt: skip
+        [
+            _ll(cx - w / 2, cy - h / 2),
+            _ll(cx + w / 2, cy - h / 2),
+            _ll(cx + w / 2, cy + h / 2),
+            _ll(cx - w / 2, cy + h / 2),
+        ]
+    )
 
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -249,8 +253,15 @@ def _square(cx: float, cy: float, w: float, h: float) -> Geometry:
 @example(zx=0.0, zy=0.0, zr=58.0, w=250.0, h=200.0, n_fw=2, quad=True, heading=0.0)
 def test_area_plans_around_a_random_zone_are_flown_clear_of_it(
     seed: dict[str, VehicleProfile],
-    zx: float, zy: float, zr: float, w: float, h: float, n_fw: int, quad: bool, heading: float,
-) -> None:  # fmt: skip
+    zx: float,
+    zy: float,
+    zr: float,
+    w: float,
+    h: float,
+    n_fw: int,
+    quad: bool,
+    heading: float,
+) -> None:
     profiles = [flyable(_albatross(seed, i + 1)) for i in range(n_fw)]
     if quad:
         profiles.append(_quad(seed, 7))
@@ -262,9 +273,12 @@ def test_area_plans_around_a_random_zone_are_flown_clear_of_it(
     margin = max(p.turn_radius_m() for p in profiles)
     try:
         plan = plan_area(
-            _square(0, 0, w, h), vehicles, MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
-            zones=zones, zone_margin_m=margin,
-        )  # fmt: skip
+            _square(0, 0, w, h),
+            vehicles,
+            MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
+            zones=zones,
+            zone_margin_m=margin,
+        )
         plan = flyable_plan(plan, vehicles, zones)
     except PlanningError:
         assume(False)
@@ -292,10 +306,12 @@ def test_route_plans_with_sharp_corners_and_zones_are_flown_clear(
     zones = [_nfz(1, *zone)]
     try:
         plan = plan_route(
-            Geometry(GeometryKind.POLYLINE, tuple(LatLon(*_ll(*p)) for p in pts)), vehicles,
+            Geometry(GeometryKind.POLYLINE, tuple(LatLon(*_ll(*p)) for p in pts)),
+            vehicles,
             MissionParams(altitude_rel_m=80.0, altitude_step_m=10.0),
-            zones=zones, zone_margin_m=vehicles[0].profile.turn_radius_m(),
-        )  # fmt: skip
+            zones=zones,
+            zone_margin_m=vehicles[0].profile.turn_radius_m(),
+        )
         plan = flyable_plan(plan, vehicles, zones)
     except PlanningError:
         assume(False)
@@ -341,9 +357,13 @@ def test_the_demo_surveys_fixed_wing_uploads_are_flown_clear_of_the_zone(
             continue
         assert m.home is not None
         ap = AutopilotState(
-            lat_deg=m.home.lat_deg, lon_deg=m.home.lon_deg, alt_rel_m=50.0,
-            heading_deg=0.0, home=m.home, armed=True,
-        )  # fmt: skip
+            lat_deg=m.home.lat_deg,
+            lon_deg=m.home.lon_deg,
+            alt_rel_m=50.0,
+            heading_deg=0.0,
+            home=m.home,
+            armed=True,
+        )
         manager = MissionManager(m.profile)
         outs = manager.release(mission, members, [zone], ap, 0.0)
         job = next(o for o in outs if isinstance(o, PlanJob))  # planning runs off the loop
@@ -385,9 +405,13 @@ def test_the_way_home_is_flown_clear_of_a_zone_from_where_the_aircraft_is(
     zone = _nfz(1, 90, 330, 35)
     for heading in (0.0, 90.0, 180.0, 270.0):
         ap = AutopilotState(
-            lat_deg=_ll(0, 420)[0], lon_deg=_ll(0, 420)[1], alt_rel_m=60.0,
-            heading_deg=heading, home=home, armed=True,
-        )  # fmt: skip
+            lat_deg=_ll(0, 420)[0],
+            lon_deg=_ll(0, 420)[1],
+            alt_rel_m=60.0,
+            heading_deg=heading,
+            home=home,
+            armed=True,
+        )
         outs = MissionManager(prof).start_return(ap, [zone], 0.0)
         upload = next(o.request for o in outs if isinstance(o, Submit))
         items: tuple[Waypoint, ...] = upload.items  # type: ignore[attr-defined]
@@ -404,7 +428,7 @@ def test_the_way_home_is_flown_clear_of_a_zone_from_where_the_aircraft_is(
 def test_a_way_home_that_does_not_start_falls_back_to_rtl(
     seed: dict[str, VehicleProfile],
 ) -> None:
-    """Issue 11, defect 3: the way home is uploaded while the aircraft loiters in AUTO;
+    """The way home is uploaded while the aircraft loiters in AUTO;
     if the autopilot does not start it (StartMission ends NOT_STARTED: MISSION_CURRENT
     never reported item 1), the node flies plain RTL instead of loitering forever."""
     from swarm_node.core.autopilot.requests import ApError, ApResult, ReturnToLaunch, StartMission
@@ -413,9 +437,13 @@ def test_a_way_home_that_does_not_start_falls_back_to_rtl(
     home = GeoPoint(*_ll(0, 0), 10.0)
     zone = _nfz(1, 90, 330, 35)
     ap = AutopilotState(
-        lat_deg=_ll(0, 420)[0], lon_deg=_ll(0, 420)[1], alt_rel_m=60.0,
-        heading_deg=0.0, home=home, armed=True,
-    )  # fmt: skip
+        lat_deg=_ll(0, 420)[0],
+        lon_deg=_ll(0, 420)[1],
+        alt_rel_m=60.0,
+        heading_deg=0.0,
+        home=home,
+        armed=True,
+    )
     manager = MissionManager(prof)
     upload = next(o.request for o in manager.start_return(ap, [zone], 0.0) if isinstance(o, Submit))
     (start,) = [o.request for o in manager.on_result(ApResult(upload.request_id, True), 1.0)]  # type: ignore[attr-defined]

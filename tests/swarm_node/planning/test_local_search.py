@@ -1,4 +1,4 @@
-"""The order's local search (issue 20): on where its cost is paid once (a plan's single
+"""The order's local search: on where its cost is paid once (a plan's single
 path, each vehicle's final share), never making an order worse, and counting the way
 home of a vehicle with a battery budget (without it the search moved the 1,7,8 demo
 survey's shares' ends away from home and the endurance-aware split refused the survey)."""

@@ -50,12 +50,17 @@ def test_the_way_out_of_a_margin_leaves_it_straight_away_from_the_zone() -> None
 
 def test_stayers_replan_when_one_of_them_is_in_the_zone_margin(fleet: Fleet) -> None:
     area = _poly((-500, -350), (500, -350), (500, 350), (-500, 350))
-    zone = NoFlyZone(1, Geometry.circle(*FRAME.to_geodetic(175.0, 50.0), 60.0),
-                     floor_alt_msl_m=-100.0, ceiling_alt_msl_m=1000.0)  # fmt: skip
+    zone = NoFlyZone(
+        1,
+        Geometry.circle(*FRAME.to_geodetic(175.0, 50.0), 60.0),
+        floor_alt_msl_m=-100.0,
+        ceiling_alt_msl_m=1000.0,
+    )
     homes = [VehiclePose(*FRAME.to_geodetic(30.0 * i, -1000.0)) for i in range(6)]
     vs = fleet(["fixed_wing"] * 6, homes)
-    mission = Mission(101, 900, MissionType.AREA, area,
-                      MissionParams(altitude_rel_m=80.0, side_overlap=0.5))  # fmt: skip
+    mission = Mission(
+        101, 900, MissionType.AREA, area, MissionParams(altitude_rel_m=80.0, side_overlap=0.5)
+    )
     fp = plan_fleet(mission, vs, zones=[zone], now_unix_s=0.0, home_alt_msl_m=0.0)
     assert isinstance(fp.detail, AreaPlan)
     progress = {v.vehicle_id: 0.3 * fp.share(v.vehicle_id).length_m for v in vs}

@@ -236,8 +236,15 @@ def test_a_fixed_wing_in_a_zone_margin_is_not_sent_to_a_corner_behind_it() -> No
     zone = Point(0.0, 0.0).buffer(60.0)
     yaw = math.radians(90.0 - 124.0)  # heading 124 degrees: away from the zone, south-east
     start = Pose(-85.0, -43.0, yaw)
-    around = [(-85.0, -43.0), (-135.0, -67.0), (-125.0, -84.0), (-116.0, -95.0),
-              (-58.0, -140.0), (0.0, -150.0), (484.0, -169.0)]  # fmt: skip
+    around = [
+        (-85.0, -43.0),
+        (-135.0, -67.0),
+        (-125.0, -84.0),
+        (-116.0, -95.0),
+        (-58.0, -140.0),
+        (0.0, -150.0),
+        (484.0, -169.0),
+    ]
     out = ahead_of(start, around, zone)
     assert out[0] == around[0] and out[1:] == around[3:]
     hx, hy = math.cos(yaw), math.sin(yaw)

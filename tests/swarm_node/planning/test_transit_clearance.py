@@ -2,7 +2,7 @@
 clearance the flyable stage keeps for the turns it adds (`flight.TURN_CLEARANCE_M`):
 ArduPlane passes a planned arc's waypoints up to 37 m on their inside. Kept 20 m clear
 (TRANSIT_MARGIN_M), a VTOL's way home in the demo survey was flown 9.9 m from the zone
-(issue 20, found with the order's local search on); 20 m remains the fallback when no
+(found with the order's local search on); 20 m remains the fallback when no
 entry keeps 45 m."""
 
 from __future__ import annotations
@@ -24,9 +24,15 @@ def _clearance(zx: float, zy: float, zr: float, heading_deg: float) -> float:
     the entry's and legs' clearance from the zone (waypoint polyline)."""
     zone = NoFlyZone(1, Geometry.circle(*FRAME.to_geodetic(zx, zy), zr))
     wps = fixed_wing_transit(
-        FRAME.to_geodetic(0.0, 0.0), heading_deg, FRAME.to_geodetic(0.0, -1500.0), 60.0,
-        [zone], radius_m=R, now=0.0, home_alt_msl_m=0.0,
-    )  # fmt: skip
+        FRAME.to_geodetic(0.0, 0.0),
+        heading_deg,
+        FRAME.to_geodetic(0.0, -1500.0),
+        60.0,
+        [zone],
+        radius_m=R,
+        now=0.0,
+        home_alt_msl_m=0.0,
+    )
     pts = [(0.0, 0.0), *(FRAME.to_local(w.lat_deg, w.lon_deg) for w in wps)]
     return float(LineString(pts).distance(Point(zx, zy))) - zr
 
@@ -51,9 +57,15 @@ def test_with_no_entry_45_m_clear_the_transit_margin_still_holds() -> None:
         NoFlyZone(2, Geometry.circle(*FRAME.to_geodetic(-245.0, 0.0), 35.0)),
     ]
     wps = fixed_wing_transit(
-        FRAME.to_geodetic(0.0, 0.0), 0.0, FRAME.to_geodetic(0.0, -1500.0), 60.0, both,
-        radius_m=R, now=0.0, home_alt_msl_m=0.0,
-    )  # fmt: skip
+        FRAME.to_geodetic(0.0, 0.0),
+        0.0,
+        FRAME.to_geodetic(0.0, -1500.0),
+        60.0,
+        both,
+        radius_m=R,
+        now=0.0,
+        home_alt_msl_m=0.0,
+    )
     line = LineString([(0.0, 0.0), *(FRAME.to_local(w.lat_deg, w.lon_deg) for w in wps)])
     for x in (245.0, -245.0):
         assert line.distance(Point(x, 0.0)) - 35.0 >= TRANSIT_MARGIN_M - 1.0

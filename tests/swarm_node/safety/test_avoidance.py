@@ -661,7 +661,7 @@ def test_two_hovering_vtols_30_m_apart_do_not_hold_each_other_for_good() -> None
 def test_leaving_out_contacts_beyond_reach_changes_no_decision(
     n: int, spread: float, seed: float, planned: bool
 ) -> None:
-    """Issue 20: a flying node's decision looks only at its cluster (the contacts that
+    """A flying node's decision looks only at its cluster (the contacts that
     could come within the largest threshold of it, or of one that could, inside the
     horizon): the same decision as over the whole swarm."""
     import random
@@ -669,9 +669,13 @@ def test_leaving_out_contacts_beyond_reach_changes_no_decision(
     rnd = random.Random(seed)
     av = avoider(1)
     own = status(1, 0.0, 0.0, 100.0, ve=22.0)
+
     def anyone(i: int) -> VehicleStatus:
-        e, n_, up = (rnd.uniform(-spread, spread), rnd.uniform(-spread, spread),
-                     rnd.uniform(60.0, 140.0))  # fmt: skip
+        e, n_, up = (
+            rnd.uniform(-spread, spread),
+            rnd.uniform(-spread, spread),
+            rnd.uniform(60.0, 140.0),
+        )
         v = (rnd.uniform(-25.0, 25.0), rnd.uniform(-25.0, 25.0), rnd.uniform(-2.0, 2.0))
         return status(i, e, n_, up, ve=v[0], vn=v[1], vu=v[2])
 
@@ -695,7 +699,7 @@ def test_leaving_out_contacts_beyond_reach_changes_no_decision(
     st.booleans(),
 )
 def test_a_run_heard_at_once_is_the_same_as_one_by_one(run: list, statuses_only: bool) -> None:
-    """`heard_all` (a node hearing a batch, issue 20) keeps what `heard` (statuses) and
+    """`heard_all` (a node hearing a batch) keeps what `heard` (statuses) and
     `handle` (infos; a ground station's is no traffic) keep, message by message."""
     if statuses_only:
         run = [("status", vid) for _what, vid in run]

@@ -60,10 +60,19 @@ def ap(**kw: Any) -> AutopilotState:
     lat, lon = at(kw.pop("north", 0.0), kw.pop("east", 0.0))
     rel = kw.pop("alt_rel_m", 60.0)
     base: dict[str, Any] = dict(
-        sysid=2, link_ok=True, armed=True, lat_deg=lat, lon_deg=lon,
-        alt_msl_m=HOME_MSL + rel, alt_rel_m=rel, home=HOME, mode_name="AUTO",
-        mission_current=3, groundspeed_m_s=25.0, vel_east_m_s=25.0,
-    )  # fmt: skip
+        sysid=2,
+        link_ok=True,
+        armed=True,
+        lat_deg=lat,
+        lon_deg=lon,
+        alt_msl_m=HOME_MSL + rel,
+        alt_rel_m=rel,
+        home=HOME,
+        mode_name="AUTO",
+        mission_current=3,
+        groundspeed_m_s=25.0,
+        vel_east_m_s=25.0,
+    )
     base.update(kw)
     return AutopilotState(**base)
 
@@ -71,12 +80,18 @@ def ap(**kw: Any) -> AutopilotState:
 def status(vid: int, state: AutopilotState, now: float) -> VehicleStatus:
     assert state.lat_deg is not None and state.lon_deg is not None
     return VehicleStatus(
-        vehicle_id=vid, time_unix_s=now, lat_deg=state.lat_deg, lon_deg=state.lon_deg,
-        alt_msl_m=state.alt_msl_m or 0.0, alt_rel_m=state.alt_rel_m or 0.0,
-        vel_north_m_s=state.vel_north_m_s, vel_east_m_s=state.vel_east_m_s,
-        vel_down_m_s=state.vel_down_m_s, armed=state.armed,
+        vehicle_id=vid,
+        time_unix_s=now,
+        lat_deg=state.lat_deg,
+        lon_deg=state.lon_deg,
+        alt_msl_m=state.alt_msl_m or 0.0,
+        alt_rel_m=state.alt_rel_m or 0.0,
+        vel_north_m_s=state.vel_north_m_s,
+        vel_east_m_s=state.vel_east_m_s,
+        vel_down_m_s=state.vel_down_m_s,
+        armed=state.armed,
         mission_state=MissionState.MISSION,
-    )  # fmt: skip
+    )
 
 
 def head_on_peer(now: float, east_m: float = 600.0, vid: int = 1) -> VehicleStatus:
@@ -490,13 +505,24 @@ def test_a_circling_vtol_does_not_descend_onto_a_neighbour_landing_60_m_away() -
     m.on_submit(Submit(ReturnToLaunch(request_id=9), Owner.MISSION), state, T)
     assert m.landing is not None and m.landing.hold_alt_rel_m == 60.0
     over = ap(mode_name="AUTO", mission_current=2, alt_rel_m=60.0)  # circling its hold
-    approach = status(4, ap(north=126.0, east=-33.0, alt_rel_m=35.0, groundspeed_m_s=5.0,
-                            vel_east_m_s=0.0, vel_north_m_s=-5.0), T)  # fmt: skip
+    approach = status(
+        4,
+        ap(
+            north=126.0,
+            east=-33.0,
+            alt_rel_m=35.0,
+            groundspeed_m_s=5.0,
+            vel_east_m_s=0.0,
+            vel_north_m_s=-5.0,
+        ),
+        T,
+    )
     out = m.tick(T + 1, status(6, over, T + 1), over, peers=[(approach, pad4)], pads={4: pad4})
     assert requests(out) == [], "6 descends while 4 lands 60 m from its pad"
     assert any(isinstance(o, Note) and "4 below" in o.text for o in out)
-    down = status(4, ap(east=-60.0, alt_rel_m=0.0, armed=False, groundspeed_m_s=0.0,
-                        vel_east_m_s=0.0), T + 30)  # fmt: skip
+    down = status(
+        4, ap(east=-60.0, alt_rel_m=0.0, armed=False, groundspeed_m_s=0.0, vel_east_m_s=0.0), T + 30
+    )
     out = m.tick(T + 30, status(6, over, T + 30), over, peers=[(down, pad4)], pads={4: pad4})
     (lower,) = requests(out)
     assert isinstance(lower, ChangeAltitude) and lower.alt_rel_m == 30.0
@@ -585,8 +611,14 @@ def test_a_land_held_during_a_climb_on_the_way_to_the_pad_does_not_leave_it_in_g
     AUTO, and it hovered in GUIDED until its battery failsafe. A held request that
     will not reach the autopilot does not replace the module's resume."""
     m = AvoidanceModule(COPTER)
-    state = ap(mode_name="AUTO", north=60.0, groundspeed_m_s=5.0, vel_east_m_s=0.0,
-               vel_north_m_s=-5.0, alt_rel_m=50.0)  # fmt: skip
+    state = ap(
+        mode_name="AUTO",
+        north=60.0,
+        groundspeed_m_s=5.0,
+        vel_east_m_s=0.0,
+        vel_north_m_s=-5.0,
+        alt_rel_m=50.0,
+    )
     m.tick(T, status(8, state, T), state)
     subs, _ = m.on_submit(Submit(ReturnToLaunch(request_id=9), Owner.MISSION), state, T)  # type: ignore[misc]
     for o in subs:
@@ -595,8 +627,16 @@ def test_a_land_held_during_a_climb_on_the_way_to_the_pad_does_not_leave_it_in_g
             m.on_result(ApResult(o.request.request_id, True), T)
     assert m.landing is not None
     state = msgspec.structs.replace(state, mission_current=1)
-    m.on_peer(status(7, ap(north=40.0, alt_rel_m=45.0, groundspeed_m_s=0.0,
-                           vel_east_m_s=0.0, vel_down_m_s=-2.0), T), T)  # fmt: skip
+    m.on_peer(
+        status(
+            7,
+            ap(
+                north=40.0, alt_rel_m=45.0, groundspeed_m_s=0.0, vel_east_m_s=0.0, vel_down_m_s=-2.0
+            ),
+            T,
+        ),
+        T,
+    )
     (climb,) = requests(tick(m, state, T + 0.2))
     assert isinstance(climb, Goto) and m.suspension is not None
     m.on_result(ApResult(climb.request_id, True), T + 0.2)

@@ -28,9 +28,15 @@ def status(
 ) -> VehicleStatus:
     p = pad(east_m)
     return VehicleStatus(
-        vehicle_id=vid, time_unix_s=T, lat_deg=p.lat_deg, lon_deg=p.lon_deg,
-        alt_msl_m=10.0 + alt_rel_m, alt_rel_m=alt_rel_m, armed=armed, mission_state=state,
-    )  # fmt: skip
+        vehicle_id=vid,
+        time_unix_s=T,
+        lat_deg=p.lat_deg,
+        lon_deg=p.lon_deg,
+        alt_msl_m=10.0 + alt_rel_m,
+        alt_rel_m=alt_rel_m,
+        armed=armed,
+        mission_state=state,
+    )
 
 
 def ids(blockers: list) -> list[int]:
@@ -98,10 +104,16 @@ def flying(
     """An airborne peer at (east, north) of the origin, flying south at `speed_m_s`."""
     p = pad(east_m, north_m)
     return VehicleStatus(
-        vehicle_id=vid, time_unix_s=T, lat_deg=p.lat_deg, lon_deg=p.lon_deg,
-        alt_msl_m=10.0 + alt_rel_m, alt_rel_m=alt_rel_m, vel_north_m_s=-speed_m_s,
-        armed=True, mission_state=MissionState.MISSION,
-    )  # fmt: skip
+        vehicle_id=vid,
+        time_unix_s=T,
+        lat_deg=p.lat_deg,
+        lon_deg=p.lon_deg,
+        alt_msl_m=10.0 + alt_rel_m,
+        alt_rel_m=alt_rel_m,
+        vel_north_m_s=-speed_m_s,
+        armed=True,
+        mission_state=MissionState.MISSION,
+    )
 
 
 def test_a_circling_vtol_waits_for_a_neighbour_on_its_slow_approach_to_a_pad_60_m_away() -> None:
@@ -115,17 +127,23 @@ def test_a_circling_vtol_waits_for_a_neighbour_on_its_slow_approach_to_a_pad_60_
     mine, theirs = pad(150.0), pad(90.0)
     approaching = flying(4, 117.0, 126.0, alt_rel_m=35.0, speed_m_s=5.0)
     # 6 circles at 180 m: 4, below it and landing on a pad inside 6's circle, holds it
-    blocked = may_move(6, mine, [(approaching, theirs)], taking_off=False,
-                       own_alt_msl_m=190.0, own_circles=True)  # fmt: skip
+    blocked = may_move(
+        6, mine, [(approaching, theirs)], taking_off=False, own_alt_msl_m=190.0, own_circles=True
+    )
     assert ids(blocked) == [4] and "its own pad" in blocked[0].why
     # after a climb for 4, at 62 m, 4 74 m from the pad (at 47.7 m): still held
     closer = flying(4, 83.0, 31.0, alt_rel_m=47.7, speed_m_s=5.0)
-    assert ids(may_move(6, mine, [(closer, theirs)], taking_off=False,
-                        own_alt_msl_m=72.0, own_circles=True)) == [4]  # fmt: skip
+    assert ids(
+        may_move(
+            6, mine, [(closer, theirs)], taking_off=False, own_alt_msl_m=72.0, own_circles=True
+        )
+    ) == [4]
     # 4 down on its pad: 6 goes
     down = status(4, 90.0, alt_rel_m=0.0, armed=False)
-    assert may_move(6, mine, [(down, theirs)], taking_off=False,
-                    own_alt_msl_m=190.0, own_circles=True) == []  # fmt: skip
+    assert (
+        may_move(6, mine, [(down, theirs)], taking_off=False, own_alt_msl_m=190.0, own_circles=True)
+        == []
+    )
     # a multirotor hovers straight down over its pad: its 40 m band is unchanged
     assert may_move(6, mine, [(closer, theirs)], taking_off=False, own_alt_msl_m=72.0) == []
 
@@ -135,12 +153,15 @@ def test_a_neighbour_far_from_its_pad_does_not_hold_a_landing() -> None:
     landing, we go (a lander does not wait for the whole fleet to come home)."""
     mine, theirs = pad(150.0), pad(120.0)
     away = flying(5, 120.0, 500.0, alt_rel_m=90.0, speed_m_s=26.0)
-    assert may_move(6, mine, [(away, theirs)], taking_off=False,
-                    own_alt_msl_m=190.0, own_circles=True) == []  # fmt: skip
+    assert (
+        may_move(6, mine, [(away, theirs)], taking_off=False, own_alt_msl_m=190.0, own_circles=True)
+        == []
+    )
     # nearer its pad than `approach_m`, it is on its way down there: it holds us
     back = flying(5, 120.0, 150.0, alt_rel_m=90.0, speed_m_s=26.0)
-    assert ids(may_move(6, mine, [(back, theirs)], taking_off=False,
-                        own_alt_msl_m=190.0, own_circles=True)) == [5]  # fmt: skip
+    assert ids(
+        may_move(6, mine, [(back, theirs)], taking_off=False, own_alt_msl_m=190.0, own_circles=True)
+    ) == [5]
     # a take-off is not held by it (the rule is the landing's)
     assert may_move(6, mine, [(back, theirs)], taking_off=True, own_circles=True) == []
 
@@ -157,24 +178,30 @@ def test_landings_never_deadlock(spots: list[tuple[float, float]]) -> None:
         v
         for v, me in peers.items()
         if not may_move(
-            v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=False,
+            v,
+            pads[v],
+            [(s, pads[u]) for u, s in peers.items()],
+            taking_off=False,
             own_alt_msl_m=me.alt_msl_m,
         )
-    ]  # fmt: skip
+    ]
     if all(s.alt_rel_m >= PadConfig().stagger_m for s in peers.values()):
         assert free
-
 
 
 @given(
     st.lists(
         st.tuples(
-            st.floats(-60, 60), st.floats(-250, 250), st.floats(0, 180), st.floats(0, 30),
+            st.floats(-60, 60),
+            st.floats(-250, 250),
+            st.floats(0, 180),
+            st.floats(0, 30),
             st.booleans(),
         ),
-        min_size=2, max_size=7,
+        min_size=2,
+        max_size=7,
     )
-)  # fmt: skip
+)
 def test_landings_never_deadlock_with_circles_and_approaches(
     spots: list[tuple[float, float, float, float, bool]],
 ) -> None:
@@ -191,10 +218,14 @@ def test_landings_never_deadlock_with_circles_and_approaches(
         v
         for v, me in peers.items()
         if not may_move(
-            v, pads[v], [(s, pads[u]) for u, s in peers.items()], taking_off=False,
-            own_alt_msl_m=me.alt_msl_m, own_circles=circles[v],
+            v,
+            pads[v],
+            [(s, pads[u]) for u, s in peers.items()],
+            taking_off=False,
+            own_alt_msl_m=me.alt_msl_m,
+            own_circles=circles[v],
         )
-    ]  # fmt: skip
+    ]
     if all(s.alt_rel_m >= PadConfig().stagger_m for s in peers.values()):
         assert free
 
@@ -205,7 +236,9 @@ def test_holding_layers_never_repeat_among_pads_whose_circles_may_overlap(
 ) -> None:
     pads = {v + 1: pad(e, n) for v, (e, n) in enumerate(spots)}
     cfg = PadConfig()
-    layer = {v: hold_layer(v, p, {u: q for u, q in pads.items() if u != v}) for v, p in pads.items()}
+    layer = {
+        v: hold_layer(v, p, {u: q for u, q in pads.items() if u != v}) for v, p in pads.items()
+    }
     for a, b in itertools.combinations(pads, 2):
         pa, pb = pads[a], pads[b]
         if geodesy.distance_m(pa.lat_deg, pa.lon_deg, pb.lat_deg, pb.lon_deg) < cfg.hold_near_m:

@@ -1,4 +1,4 @@
-"""A radio peer's predicted status (issue 19: its gateway's dead reckoning to `now`, with
+"""A radio peer's predicted status (its gateway's dead reckoning to `now`, with
 `position_error_m`) widens its protection volume by that bound: the contract between the
 radio gateway and avoidance (docs/radio.md, docs/avoidance.md)."""
 
@@ -15,9 +15,14 @@ T = 1.75e9
 
 def _status(vid: int, lat: float, lon: float, **kw: object) -> VehicleStatus:
     return VehicleStatus(
-        vehicle_id=vid, time_unix_s=T, lat_deg=lat, lon_deg=lon, alt_msl_m=150.0,
-        alt_rel_m=100.0, **kw,  # type: ignore[arg-type]
-    )  # fmt: skip
+        vehicle_id=vid,
+        time_unix_s=T,
+        lat_deg=lat,
+        lon_deg=lon,
+        alt_msl_m=150.0,
+        alt_rel_m=100.0,
+        **kw,  # type: ignore[arg-type]
+    )
 
 
 def test_a_predicted_status_widens_the_margin_by_its_error_bound() -> None:
