@@ -23,8 +23,8 @@ Comparison is as ArduPilot stores items: command, latitude and longitude to 2e-7
 degrees, a circle's radius (or a polygon's vertex count) to 0.5 m, a rally point's
 altitude to 1 m (ArduPilot keeps it in whole metres).
 
-Pure: `on_autopilot`, `on_result`, `on_timer` take `now`; requests are `Submit`s with
-owner FENCE (never refused for precedence: they do not fly the vehicle).
+Pure: `on_autopilot`, `on_result`, `on_timer` take `now`; requests are `Submit`s of
+owner BACKSTOP (never refused for precedence: they do not fly the vehicle).
 """
 
 from __future__ import annotations
@@ -45,7 +45,6 @@ from .autopilot.state import AutopilotState
 from .fences import FenceKeeper
 from .outputs import ModuleOutput, Note, Owner, Publish, Submit
 
-BACKSTOP_FIRST_REQUEST_ID = 3_000_000  # fences.py: 2_000_000+
 RETRY_S = 5.0
 SETTLE_S = 2.0
 _LATLON_TOL_DEG = 2e-7
@@ -108,12 +107,7 @@ class BackstopKeeper:
     _epoch: tuple[int, int] | None = None  # (reboots, link losses) last attached at
     _in_flight: tuple[MissionKind, int] | None = None  # (store, request id)
     _now: float = float("-inf")  # when the checks were last tried
-    _ids: itertools.count[int] = field(
-        default_factory=lambda: itertools.count(BACKSTOP_FIRST_REQUEST_ID)
-    )
-
-    def owns(self, request_id: int) -> bool:
-        return request_id >= BACKSTOP_FIRST_REQUEST_ID
+    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     # ------------------------------------------------------------------ inputs
     def on_autopilot(
@@ -216,7 +210,7 @@ class BackstopKeeper:
     ) -> list[ModuleOutput]:
         rid = next(self._ids)
         self._in_flight = (kind, rid)
-        return [Submit(msgspec.structs.replace(request, request_id=rid), Owner.FENCE)]
+        return [Submit(msgspec.structs.replace(request, request_id=rid), Owner.BACKSTOP)]
 
     def _compare(
         self,

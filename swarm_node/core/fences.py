@@ -42,7 +42,6 @@ FENCE_MAX_ITEMS = 84  # ArduPilot on a Pixhawk (AC_PolyFence_loader::max_items)
 FENCE_FULL_HEIGHT_REL_M = 120.0  # the planners' climb-over limit above home
 FENCE_TYPE_POLYGON = 4.0  # FENCE_TYPE bit: polygon/circle fences only (not ALT_MAX, CIRCLE)
 FENCE_RETRY_S = 5.0
-FENCE_FIRST_REQUEST_ID = 2_000_000  # command manager: small ids; mission manager: 1_000_000+
 _TOLERANCES_M = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
 
 
@@ -182,12 +181,7 @@ class FenceKeeper:
     failures: int = 0  # consecutive failed requests
     _in_flight: ApRequest | None = None
     _retry_at: float | None = None
-    _ids: itertools.count[int] = field(
-        default_factory=lambda: itertools.count(FENCE_FIRST_REQUEST_ID)
-    )
-
-    def owns(self, request_id: int) -> bool:
-        return request_id >= FENCE_FIRST_REQUEST_ID
+    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     @property
     def busy(self) -> bool:

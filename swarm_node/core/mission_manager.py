@@ -19,7 +19,7 @@ import itertools
 import logging
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from enum import Enum
 
 import msgspec
@@ -86,6 +86,7 @@ from .planning.transit import (
 )
 from .planning.transit import flyable as flyable  # re-exported (was defined here)
 from .profile import VehicleProfile
+from .safety.pad_sequence import PadSequence
 from .swarm.roster import Roster
 
 #: parameters a planner reads as "not given" when 0 (besides None), per mission type
@@ -131,8 +132,10 @@ LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close 
 # plain waypoint asks for it (ArduPlane's 90 m default would count the closely spaced
 # waypoints of a planned turn as reached at once and loop wide); the flyable stage
 # plans every corner for it.
-FIRST_REQUEST_ID = 1_000_000  # the command manager uses small ids
 AP_POLL_S = 0.2  # the node reads the autopilot's state this often
+#: how long after our StartMission the autopilot's state may still show the mode before
+#: it (the command's ack, then the next heartbeat; simulated seconds)
+START_SEEN_S = 3.0
 
 
 class Phase(Enum):
@@ -176,7 +179,6 @@ class MissionManager:
     last_item: int = 0  # reaching this item completes the mission
     zones: tuple[NoFlyZone, ...] = ()
     sortie: Sortie = field(default_factory=Sortie)  # the one owner of the mission state
-    owner: Owner = Owner.MISSION  # the rank of our requests (OPERATOR after a recall)
     base: GeoPoint | None = None  # the operator's base (the autopilot's rally point)
     along_m: tuple[float, ...] = ()  # metres along the share at each item (index = seq)
     hold_s: float = 0.0  # a timed hold on the share's unlimited loiter (target --duration)
@@ -197,7 +199,7 @@ class MissionManager:
     _planning: tuple[Mission, tuple[NoFlyZone, ...]] | None = None
     _steps: list[ApRequest] = field(default_factory=list)
     _in_flight: ApRequest | None = None  # the request we wait for
-    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
+    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
     mission: Mission | None = None  # the mission being flown (its parameters)
     sync: FleetSync = field(init=False)  # PREMISSION and the MISSION speed rule
     agreement: ReplanAgreement = field(default_factory=ReplanAgreement)
@@ -213,9 +215,24 @@ class MissionManager:
         tuple[tuple[Waypoint, ...], tuple[NoFlyZone, ...], float, float, float, int] | None
     ) = None
     _ap: AutopilotState | None = None  # the autopilot as last seen
+    # take-off and landing at close pads (safety/pad_sequence.py): its requests are ours
+    pads: PadSequence = field(init=False)
+    with_pads: InitVar[PadSequence | None] = None  # default: pads from the profile alone
+    _pad_requests: dict[int, ApRequest] = field(default_factory=dict)
+    uploaded: tuple[Waypoint, ...] = ()  # the mission the autopilot holds (items 1..)
+    suspended: bool = False  # avoidance holds the autopilot: our flight requests wait
+    # our last StartMission and when: a manoeuvre that begins before the autopilot shows
+    # AUTO must go back to it, not to the mode it saw
+    _started: tuple[ApRequest, float] | None = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, with_pads: PadSequence | None) -> None:
         self.sync = FleetSync(self.profile.vehicle_id, self.profile)
+        self.pads = with_pads if with_pads is not None else PadSequence(self.profile)
+
+    @property
+    def launch_queued(self) -> bool:
+        """The take-off waits its turn at the close pads (not planning time)."""
+        return self.pads.launch is not None
 
     @property
     def mission_state(self) -> MissionState:
@@ -229,7 +246,6 @@ class MissionManager:
         """The state machine began planning `mission_id` (the way home keeps the
         progress of the mission just flown)."""
         self.sortie.begin(keep_progress=mission_id == fsm.RETURN_MISSION)
-        self.owner = Owner.MISSION
         self._planning = None
 
     @property
@@ -424,7 +440,7 @@ class MissionManager:
                 return [note, *self._confirm(mid)]
             self._steps = self._launch_steps()
             self.phase = Phase.STARTING
-            return [note, *self._next()]
+            return [note, *self._next(now)]
         note = Log(
             f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
         )
@@ -437,7 +453,7 @@ class MissionManager:
             steps.append(StartMission())
         self._steps = steps
         self.phase = Phase.STARTING
-        return [note, *self._next()]
+        return [note, *self._next(now)]
 
     def vote(self) -> None:
         """Idle candidates synchronised for a QUANTITY mission vote (mission/tasking.py)."""
@@ -477,7 +493,7 @@ class MissionManager:
             return [note, *self._confirm(mid)]
         self._steps = self._launch_steps()
         self.phase = Phase.STARTING
-        return [note, *self._next()]
+        return [note, *self._next(now)]
 
     def _following(self, ap: AutopilotState, now: float) -> list[Out]:
         """MUM-T: our slot where the lead will be, every second; the end after the
@@ -492,9 +508,7 @@ class MissionManager:
             return [Log(f"mission {mid}: {why}"), Post(fsm.MissionComplete(mid))]
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         return [
-            Submit(
-                msgspec.structs.replace(r, request_id=next(self._ids)), self.owner, Owner.MISSION
-            )
+            Submit(msgspec.structs.replace(r, request_id=next(self._ids)), Owner.MISSION)
             for r in follow.step(ap, now, self.zones, home_alt)
         ]
 
@@ -564,7 +578,7 @@ class MissionManager:
                 return []
             self._steps = [StartMission()]
             self.phase = Phase.STARTING
-            return self._next()
+            return self._next(now)
         etas = fleet.entry_at if fleet is not None else {}
         gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
         t = sync.ready(etas, gone, now)
@@ -584,7 +598,7 @@ class MissionManager:
         except (PlanningError, ValueError) as exc:  # fly the share as planned
             sync.stop()
             return self._fly_share_from_here(ap, now, f"no PREMISSION leg ({exc})")
-        return [note, *self._next()]
+        return [note, *self._next(now)]
 
     def _fly_share_from_here(self, ap: AutopilotState, now: float, why: str) -> list[Out]:
         """Climbed, without a meet: our share with an approach from where we are."""
@@ -597,7 +611,7 @@ class MissionManager:
         note = Log(f"mission {self.mission_id}: {why}; flying the share")
         self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
         self.phase = Phase.STARTING
-        return [note, *self._next()]
+        return [note, *self._next(now)]
 
     def _abandon(self, reason: str) -> list[Out]:
         """The share cannot be flown after all: a plan the state machine has not taken
@@ -635,7 +649,6 @@ class MissionManager:
             self.sortie.go(Trigger.REPLAN)
         if now is not None:
             self.agreement.begin(now)
-        self.owner = Owner.MISSION
         self._planning, self._held = None, None
         self.sync.stop()  # a replanned share is flown from where we are, without a meet
 
@@ -815,13 +828,72 @@ class MissionManager:
             Takeoff(alt_rel_m=self.takeoff_alt_m),
         ]  # StartMission after the climb
 
-    def _next(self) -> list[Out]:
+    def _next(self, now: float) -> list[Out]:
         if not self._steps:
             self._in_flight = None
             return []
         req = msgspec.structs.replace(self._steps.pop(0), request_id=next(self._ids))
         self._in_flight = req
-        return [Submit(req, self.owner, Owner.MISSION)]
+        return self._ask(req, now)
+
+    def _ask(self, req: ApRequest, now: float) -> list[Out]:
+        """Our next step to the arbiter, as the close pads fly it (pad_sequence.py): the
+        launch waits its turn, the way home ends on the own pad, whose landing answers
+        our Land at once."""
+        ap, pads = self._ap or AutopilotState(), self.pads
+        if isinstance(req, UploadMission):
+            req = self._in_flight = pads.upload(req, ap)
+            self.uploaded = req.items
+        elif isinstance(req, Arm):
+            held = pads.hold_launch(req, ap, now)
+            if held is not None:
+                return [held]
+        elif isinstance(req, ReturnToLaunch):
+            home = pads.home(ap)
+            if home is not None:
+                note, reqs = home
+                answer = ApResult(req.request_id, True, "home to its pad")
+                return [note, *self._pad_submit(reqs), *self.on_result(answer, now)]
+        elif isinstance(req, Land) and pads.answers_land:
+            return self.on_result(ApResult(req.request_id, True, "landing on its pad"), now)
+        elif isinstance(req, StartMission) and not self.suspended:
+            self._started = (req, now)
+        return [Submit(req, Owner.MISSION)]
+
+    def _pad_submit(self, reqs: Sequence[ApRequest]) -> list[Out]:
+        """The landing on the pad's own requests (their results to `pads`)."""
+        out: list[Out] = []
+        for r in reqs:
+            req = msgspec.structs.replace(r, request_id=next(self._ids))
+            self._pad_requests[req.request_id] = req
+            if isinstance(req, UploadMission):
+                self.uploaded = req.items
+            out.append(Submit(req, Owner.MISSION))
+        return out
+
+    def pads_tick(self, ap: AutopilotState, now: float) -> list[Out]:
+        """The close pads at the avoidance's 5 Hz (pad_sequence.py): the held launch let
+        go, the landing's gate."""
+        launched, out, reqs = self.pads.tick(ap, now)
+        if launched is not None:
+            out.append(Submit(launched, Owner.MISSION))
+        return out + self._pad_submit(reqs)
+
+    def on_suspended(self, on: bool, now: float) -> list[Out]:
+        """Avoidance suspended us (the arbiter holds our flight requests meanwhile) or
+        gave the autopilot back. A StartMission of ours the autopilot's state may not
+        show yet (a VTOL's PREMISSION leg sent from its hover over the pad) is asked
+        again, held: the manoeuvre's resume, going back to the mode it saw, would put
+        it back in GUIDED over the pad for good (a mixed demo's VTOL hovered there)."""
+        self.suspended = self.pads.suspended = on
+        if not on:
+            self.pads.resumed()
+            return []
+        started, self._started = self._started, None
+        ap = self._ap
+        if started is None or now - started[1] > START_SEEN_S or ap is None:
+            return []
+        return [Submit(started[0], Owner.MISSION)] if ap.mode_name != "AUTO" else []
 
     # ------------------------------------------------------------------ return
     def start_return(self, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float) -> list[Out]:
@@ -843,7 +915,7 @@ class MissionManager:
             return [*done]
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
             self._steps = [ReturnToLaunch()]
-            return [*done, *self._next()]
+            return [*done, *self._next(now)]
         try:
             leg = self._transit_from(ap, (home.lat_deg, home.lon_deg), zones, now, home.alt_msl_m)
         except (PlanningError, ValueError):
@@ -863,7 +935,7 @@ class MissionManager:
                 UploadMission(items=(*self._tight(leg), Waypoint(ItemKind.RTL))),
                 StartMission(),
             ]
-        return [*done, *note, *self._next()]
+        return [*done, *note, *self._next(now)]
 
     def _transit_from(
         self,
@@ -913,6 +985,7 @@ class MissionManager:
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
+        self.pads.stop()
         self.reattached = False
         self._planning, self._held = None, None  # a plan job still running is abandoned
         self.share, self._share_index, self._offset = None, (), 0.0
@@ -928,7 +1001,6 @@ class MissionManager:
         own return)."""
         self.stop()
         self.sortie.go(Trigger.PARACHUTE if phase == Phase.PARACHUTE else Trigger.TAKE_OVER)
-        self.owner = Owner.OPERATOR  # landing the recalled vehicle is the operator's work
         self.phase, self.mission_id = phase, fsm.RETURN_MISSION
 
     @property
@@ -957,6 +1029,15 @@ class MissionManager:
 
     # ------------------------------------------------------------------ inputs
     def on_result(self, result: ApResult, now: float) -> list[Out]:
+        pad = self._pad_requests.pop(result.request_id, None)
+        if pad is not None:
+            if result.ok:
+                return []
+            out, fallback = self.pads.failed(pad, result.reason, now)
+            if fallback:  # its result is not waited for
+                rtl = ReturnToLaunch(request_id=next(self._ids))
+                out.append(Submit(rtl, Owner.MISSION))
+            return out
         done = self._in_flight
         if done is None or result.request_id != done.request_id:
             return []
@@ -966,7 +1047,7 @@ class MissionManager:
             phase = self.phase
             if phase == Phase.RETURNING and not isinstance(done, ReturnToLaunch):
                 self._steps = [ReturnToLaunch()]  # the zone-safe way home failed: plain RTL
-                return self._next()
+                return self._next(now)
             if phase in (Phase.STARTING, Phase.MEETING):
                 return self._abandon(f"autopilot: {result.reason}")
             self.stop()
@@ -992,7 +1073,7 @@ class MissionManager:
                 if not self.sync.flying_leg:  # PREMISSION: MISSION from the entry on
                     self.sortie.go(Trigger.STARTED)
                 return self._confirm(mid)
-        return self._next()
+        return self._next(now)
 
     def _approach_again(self, now: float) -> list[Out]:
         """The share is uploaded but the vehicle has flown on meanwhile (its upload held
@@ -1021,7 +1102,7 @@ class MissionManager:
                 f"mission {mid}: moved {moved:.0f} m while uploading; approach planned "
                 "again from here"
             ),
-            *self._next(),
+            *self._next(now),
         ]
 
     def _approach_slack_m(self) -> float:
@@ -1060,7 +1141,7 @@ class MissionManager:
                     return self._meet(ap, fleet, now)
                 self.phase = Phase.STARTING
                 self._steps = [StartMission()]
-                return self._next()
+                return self._next(now)
         elif self.phase == Phase.MEETING:
             return self._meet(ap, fleet, now)
         elif self.phase == Phase.FOLLOWING:
@@ -1082,7 +1163,7 @@ class MissionManager:
                 self.phase = Phase.LANDING
                 ground = self.profile.vehicle_type in (VehicleType.ROVER, VehicleType.BOAT)
                 self._steps = [Land(), Disarm()] if ground else [Land()]
-                return self._next()
+                return self._next(now)
         return []
 
     def _flying(self, ap: AutopilotState, now: float, fleet: Roster | None = None) -> list[Out]:
@@ -1142,7 +1223,7 @@ class MissionManager:
         current = ap.mission_current if self._fresh_current else 0
         if turn is not None and self._in_flight is None and turn.release(current, fleet, now):
             self._steps = [StartMission(first_item=turn.hold_seq + 1)]
-            return [Log(f"mission {self.mission_id}: our turn to land"), *self._next()]
+            return [Log(f"mission {self.mission_id}: our turn to land"), *self._next(now)]
         if not self._fresh_current or ap.armed or (ap.alt_rel_m or 0.0) >= 2.0:
             return []
         self.sortie.finish()  # peers see it in our VehicleInfo: the next may land
@@ -1182,7 +1263,7 @@ class MissionManager:
             )
         if speed is not None:
             req = ChangeSpeed(request_id=next(self._ids), speed_m_s=speed)
-            out.append(Submit(req, self.owner, Owner.MISSION))
+            out.append(Submit(req, Owner.MISSION))
         return out
 
     def _leg_overdue(self, ap: AutopilotState, now: float, late_s: float) -> list[Out]:

@@ -84,12 +84,13 @@ from swarm_proto import (
     TargetReport,
     VehicleInfo,
     VehicleStatus,
+    VehicleType,
     Vote,
 )
 from swarm_proto.text import short_text
 
 from . import state_machine as fsm
-from .arbiter import AutopilotArbiter, Routed
+from .arbiter import AutopilotArbiter, Outcome, Routed, Send, Suspended
 from .autopilot.requests import ApResult, UploadRally
 from .autopilot.state import AutopilotState
 from .autopilot.status import to_vehicle_status
@@ -134,11 +135,25 @@ from .mission.tasking import Tasking, TaskingSettings
 from .mission.voting import VoterLost
 from .mission_manager import Member, MissionManager, Phase, replan_battery, with_defaults
 from .monitoring import Thresholds, VehicleMonitor
-from .outputs import ModuleOutput, Note, Owner, Persist, PlanJob, Post, Publish, Submit
+from .outputs import (
+    Claim,
+    Delegate,
+    ModuleOutput,
+    Note,
+    Owner,
+    Persist,
+    PlanJob,
+    Post,
+    Publish,
+    Release,
+    Submit,
+    Suspend,
+)
 from .planning import PlanningError
 from .profile import VehicleProfile
 from .reattach import Decision, Reattacher, dropped, same_share, sortie_record
 from .safety.module import AvoidanceModule
+from .safety.pad_sequence import PadSequence
 from .stalls import StallMeter
 from .swarm.regroup import Regroup
 from .swarm.roster import MemberJoined, MemberLost, Roster, RosterEvent, RosterMismatch
@@ -283,7 +298,14 @@ class NodeCore:
         self.fsm = fsm.StateMachine(plan_timeout_s=self.settings.plan_timeout_s, now=self.now)
         self.commands = CommandTracker(vid)
         self.answers = AnswerCache()  # repeated commands and missions get the same answer
-        self.manager = MissionManager(self.profile)
+        pads = PadSequence(
+            self.profile,
+            enabled=self.settings.avoidance,
+            peers=self._peer_homes,
+            pads=self._pads,
+            types=self._peer_types,
+        )
+        self.manager = MissionManager(self.profile, with_pads=pads)
         self.active = True
         self.base: GeoPoint | None = None
         self.fleet_id = 0
@@ -678,8 +700,8 @@ class NodeCore:
         ]
 
     def _route(self, outs: list[ModuleOutput], now: float) -> list[Output]:
-        """Posts to the state machine, requests through the arbiter (a refusal goes
-        straight back to its module), the rest to the shell."""
+        """Posts to the state machine, requests and control through the arbiter (what it
+        answers at once goes straight back to its module), the rest to the shell."""
         out: list[Output] = []
         todo = list(outs)
         while todo:
@@ -687,17 +709,18 @@ class NodeCore:
             match o:
                 case Post(event):
                     self.fsm.post(event)
-                case Submit(request, owner, route):
-                    took = self.avoid.on_submit(o, self.autopilot, now)
-                    if took is not None:  # held, or replaced (safety/module.py)
-                        subs, answer = took
-                        todo[0:0] = subs + (self._on_result(answer, now) if answer else [])
-                        continue
-                    sent = self.arbiter.submit(owner, request, route)
-                    if isinstance(sent, Routed):
-                        todo[0:0] = self._on_result(sent, now)
-                    else:
-                        out.append(Submit(sent, owner, route))
+                case Submit(request, owner):
+                    todo[0:0] = self._ruled(self.arbiter.submit(owner, request), out, now)
+                case Claim(owner):
+                    todo[0:0] = self._ruled(self.arbiter.take(owner), out, now)
+                case Release(owner):
+                    todo[0:0] = self._ruled(self.arbiter.release(owner), out, now)
+                case Suspend(passing):
+                    todo[0:0] = self._ruled(
+                        self.arbiter.suspend(Owner.AVOIDANCE, passing=passing), out, now
+                    )
+                case Delegate(to, rank):
+                    self.arbiter.delegate(to, rank)
                 case Publish():
                     out.append(o)
                 case Note() | PlanJob() | Persist():
@@ -706,11 +729,30 @@ class NodeCore:
                     assert_never(o)
         return out
 
+    def _ruled(self, outcomes: list[Outcome], out: list[Output], now: float) -> list[ModuleOutput]:
+        """The arbiter's outcomes: requests to send (to the shell), results and
+        suspensions to their owners (whose answers are routed next)."""
+        back: list[ModuleOutput] = []
+        for oc in outcomes:
+            if isinstance(oc, Send):
+                out.append(Submit(oc.request, oc.owner))
+            elif isinstance(oc, Routed):
+                back += self._on_result(oc, now)
+            elif isinstance(oc, Suspended):
+                back += self.manager.on_suspended(oc.on, now)
+            else:
+                assert_never(oc)
+        return back
+
     def _on_result(self, routed: Routed, now: float) -> list[ModuleOutput]:
         result = routed.result
         match routed.owner:
             case Owner.FENCE:
                 return self._fence_result(result, now)
+            case Owner.BACKSTOP:
+                return self.backstop.on_result(result, self.autopilot, now)
+            case Owner.REATTACH:
+                return self.reattach.on_result(result, now)
             case Owner.MISSION:
                 return self.manager.on_result(result, now)
             case Owner.OPERATOR:
@@ -733,7 +775,7 @@ class NodeCore:
                     ),
                 ]
             case Owner.AVOIDANCE:
-                return self._avoided(self.avoid.on_result(result, now))
+                return self.avoid.on_result(result, now)
             case _:
                 assert_never(routed.owner)
 
@@ -871,10 +913,11 @@ class NodeCore:
                         short_text(f"no landing route: {exc}"),
                     )
                     return self._answer([ack])
+        out: list[ModuleOutput] = []
         for effect in plan.effects:
-            self._apply(effect)
+            out += self._apply(effect)
         started = self.commands.start(cmd, requests, now)
-        out: list[ModuleOutput] = [Submit(r, Owner.OPERATOR) for r in started]
+        out += [Submit(r, Owner.OPERATOR) for r in started]
         if plan.ack is not None:
             out += self._answer([plan.ack])
             if not plan.ack.accepted:
@@ -886,7 +929,7 @@ class NodeCore:
                 )
         return out
 
-    def _apply(self, effect: Effect) -> None:
+    def _apply(self, effect: Effect) -> list[ModuleOutput]:
         if isinstance(effect, SetBase):
             self.base = self.manager.base = effect.point
         elif isinstance(effect, SetFleet):
@@ -899,8 +942,11 @@ class NodeCore:
             self.manager.take_over(effect.phase)
             if self.fsm.state in (FsmState.PLAN, FsmState.GO_MISSION):
                 self.fsm.post(fsm.Recalled(effect.reason))
+            # the mission manager watches the landing the operator asked for
+            return [Delegate(Owner.MISSION, Owner.OPERATOR)]
         elif isinstance(effect, StopLanding):
             self.manager.stop()  # the operator holds the vehicle; LAND or RTL ends the sortie
+        return []
 
     def _on_mission(self, mission: Mission) -> list[ModuleOutput]:
         repeat = self._repeat(mission)
@@ -1000,10 +1046,6 @@ class NodeCore:
         return out + [Submit(r, Owner.FENCE) for r in self.fence.update(plan.request, now)]
 
     def _fence_result(self, result: ApResult, now: float) -> list[ModuleOutput]:
-        if self.reattach.owns(result.request_id):
-            return self.reattach.on_result(result, now)
-        if self.backstop.owns(result.request_id):
-            return self.backstop.on_result(result, self.autopilot, now)
         reqs, problem = self.fence.on_result(result, now)
         out: list[ModuleOutput] = [Submit(r, Owner.FENCE) for r in reqs]
         if problem is not None and self.fence.failures == 1:  # once per run of failures
@@ -1193,22 +1235,23 @@ class NodeCore:
 
     def _avoidance_tick(self, now: float) -> list[ModuleOutput]:
         """Collision avoidance at 5 Hz (safety/module.py): the own state, ADS-B traffic,
-        the altitude to come back to and the zones' ceiling in; manoeuvres out."""
+        the altitude to come back to and the zones' ceiling in; manoeuvres out. The
+        mission manager's close pads tick with it (safety/pad_sequence.py)."""
         due = self.avoid.next_deadline()
         if due is None or now < due:
             return []
         climbing = self.manager.phase == Phase.CLIMBING
-        out = self.avoid.tick(
+        out = self.manager.pads_tick(self.autopilot, now)
+        return out + self.avoid.tick(
             now,
             self.status(now),
             self.autopilot,
             zones=self.monitor.zones,
             climb_target_rel_m=self.manager.takeoff_alt_m if climbing else None,
             holder=self.arbiter.holder,
-            pads=self._pads,
-            peers=self._peer_homes,
+            items=self.manager.uploaded,
+            will_steer=self.arbiter.will_steer,
         )
-        return self._avoided(out)
 
     def _peer_homes(self) -> list[tuple[VehicleStatus, GeoPoint | None]]:
         """The live peers' latest statuses with their homes (the pad rules')."""
@@ -1225,16 +1268,9 @@ class NodeCore:
             pads[self.self_id] = self.autopilot.home
         return pads
 
-    def _avoided(self, out: list[ModuleOutput]) -> list[ModuleOutput]:
-        """Avoidance gave the autopilot back: to whoever held it before, and the
-        mission's requests held meanwhile go on."""
-        if self.avoid.release_due:
-            self.avoid.release_due = False
-            self.arbiter.release(Owner.AVOIDANCE)
-            if self.avoid.restore is not None:
-                self.arbiter.take(self.avoid.restore)
-            out += self.avoid.take_held()
-        return out
+    def _peer_types(self) -> dict[int, VehicleType]:
+        """Every known peer's vehicle type (VehicleInfo): the pads' holding layers."""
+        return {v: p.info.vehicle_type for v, p in self.members.peers.items() if p.info}
 
     def facts(self) -> fsm.Facts:
         return fsm.Facts(
@@ -1244,7 +1280,7 @@ class NodeCore:
             emergency=self.monitor.emergency,
             fleet_ready=self._fleet_ready(),
             armed=self.autopilot.armed,
-            launch_queued=self.avoid.launch is not None,
+            launch_queued=self.manager.launch_queued,
         )
 
     def _fleet_ready(self) -> bool:
@@ -1273,7 +1309,7 @@ class NodeCore:
             Note(logging.INFO, f"{tr.before.name} -> {tr.after.name} ({tr.rule})")
         ]
         if tr.before == FsmState.EMERGENCY and tr.after != FsmState.EMERGENCY:
-            self.arbiter.release(Owner.EMERGENCY)
+            out.append(Release(Owner.EMERGENCY))
         for o in tr.outputs:
             out += self._carry_out(o, now)
         if tr.before != tr.after or any(isinstance(o, fsm.BeginPlan) for o in tr.outputs):
@@ -1290,8 +1326,7 @@ class NodeCore:
             alert = Alert(
                 self.self_id, max(0.0, now), o.severity, o.code, f"emergency: {o.code.name}"
             )
-            out: list[ModuleOutput] = [Publish(alert)]
-            self.arbiter.take(Owner.EMERGENCY)
+            out: list[ModuleOutput] = [Publish(alert), Claim(Owner.EMERGENCY)]
             requests, why = zone_safe_emergency(
                 emergency_requests(o.code, self.profile),
                 self.autopilot,
@@ -1327,8 +1362,7 @@ class NodeCore:
                 self.manager.begin_replan(now)
             else:
                 self.manager.plan(o.mission_id)
-            self.arbiter.release(Owner.OPERATOR)  # the state machine decides the next flight
-            return []
+            return [Release(Owner.OPERATOR)]  # the state machine decides the next flight
         if isinstance(o, fsm.ReleaseMission):
             return self._release(o.mission_id, now)
         if isinstance(o, fsm.StandDown):
@@ -1360,8 +1394,10 @@ class NodeCore:
             return []
         if isinstance(o, fsm.Deactivated):
             self.manager.stop()
-            self.arbiter.release(Owner.OPERATOR)
-            return [Note(logging.INFO, f"state machine deactivated: {o.reason}")]
+            return [
+                Release(Owner.OPERATOR),
+                Note(logging.INFO, f"state machine deactivated: {o.reason}"),
+            ]
         return []
 
     def _release(self, mission_id: int, now: float) -> list[ModuleOutput]:

@@ -1,25 +1,27 @@
 """The one output vocabulary of the node's modules (and of NodeCore itself):
 
     Publish(msg)               a swarm message to publish
-    Submit(owner, request)     an autopilot request on behalf of `owner` (the arbiter
-                               gives it its id and routes its result back to the owner)
+    Submit(request, owner)     an autopilot request of `owner` (the arbiter gives it its
+                               id, rules on it and routes its result back to the owner)
+    Claim / Release / Suspend / Delegate
+                               control of the autopilot, to the arbiter (arbiter.py)
     Post(event)                an event for the swarm state machine
     Note(level, text)          a log line
     PlanJob(request)           planning to run off the control loop (mission/share.py)
     Persist(state, sortie)     the declared state to store (it survives a restart)
 
-A module returns a list of these; NodeCore routes them: `Post` to the state machine,
-`Submit` through the `AutopilotArbiter`, the rest to the shell.
+A module returns a list of these; NodeCore routes them: `Post` to the state machine's
+owner, `Submit` and control through the `AutopilotArbiter`, the rest to the shell.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum
 from typing import TYPE_CHECKING
 
 import msgspec
 
+from .arbiter import Owner
 from .autopilot.requests import ApRequest
 from .mission.share import PlanRequest
 
@@ -30,16 +32,6 @@ if TYPE_CHECKING:
     from .declared import SortieRecord
 
 
-class Owner(IntEnum):
-    """Who asks the autopilot, in precedence order (higher wins control)."""
-
-    FENCE = 1
-    MISSION = 2
-    OPERATOR = 3
-    AVOIDANCE = 4
-    EMERGENCY = 5
-
-
 @dataclass(frozen=True)
 class Publish:
     msg: msgspec.Struct
@@ -47,13 +39,44 @@ class Publish:
 
 @dataclass(frozen=True)
 class Submit:
-    """`owner` ranks the request (precedence); `route` (default: the owner) is the
-    module its result goes back to: the mission manager landing a vehicle the operator
-    recalled asks with the operator's rank and gets the answer itself."""
+    """An autopilot request of `owner`: the arbiter ranks it by its owner (or the rank
+    delegated to it) and routes its result back to it."""
 
     request: ApRequest
-    owner: Owner = Owner.OPERATOR
-    route: Owner | None = None
+    owner: Owner
+
+
+@dataclass(frozen=True)
+class Claim:
+    """`owner` takes control of the autopilot (an emergency begins)."""
+
+    owner: Owner
+
+
+@dataclass(frozen=True)
+class Release:
+    """`owner` gives control back (to whoever held it before a suspension it began)."""
+
+    owner: Owner
+
+
+@dataclass(frozen=True)
+class Suspend:
+    """Avoidance takes control and suspends the mission; `passing`: the mission's
+    requests go on under the manoeuvre (flown on its path) instead of being held."""
+
+    passing: bool
+
+
+@dataclass(frozen=True)
+class Delegate:
+    """`to` asks with `rank`'s precedence until `rank` releases control."""
+
+    to: Owner
+    rank: Owner
+
+
+Control = Claim | Release | Suspend | Delegate
 
 
 @dataclass(frozen=True)
@@ -87,4 +110,6 @@ class Persist:
     sortie: SortieRecord | None = None
 
 
-ModuleOutput = Publish | Submit | Post | Note | PlanJob | Persist
+ModuleOutput = (
+    Publish | Submit | Claim | Release | Suspend | Delegate | Post | Note | PlanJob | Persist
+)
