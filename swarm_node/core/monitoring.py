@@ -22,7 +22,7 @@ A link that never came up is not a loss: "no autopilot yet" is a WARNING after
 
 from __future__ import annotations
 
-from collections.abc import MutableMapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from swarm_proto import (
@@ -135,8 +135,8 @@ class _Tracked:
 class VehicleMonitor:
     vehicle_id: int
     thresholds: Thresholds = field(default_factory=Thresholds)
-    # and operating areas: the node's one zone book (any mapping of zones will do)
-    zones: MutableMapping[int, NoFlyZone] = field(default_factory=ZoneBook)
+    # and operating areas: the node's one zone book, read (the declared book keeps it)
+    zones: Mapping[int, NoFlyZone] = field(default_factory=ZoneBook)
     _tracked: dict[AlertCode, _Tracked] = field(default_factory=dict)
     _had_gps: bool = False
     _had_ekf: bool = False

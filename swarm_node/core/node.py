@@ -285,9 +285,11 @@ class NodeCore:
         vid = self.profile.vehicle_id
         self.self_id = vid
         self.autopilot = AutopilotState()
+        self.declared = DeclaredBook()  # what the operator declared (declared.py)
         self.monitor = VehicleMonitor(
             vid,
             self.settings.thresholds or Thresholds.from_profile(self.profile),
+            zones=self.declared.zones,  # the one zone book, read
             vehicle_type=self.profile.vehicle_type,  # an autopilot of another type is flagged
         )
         self.members = SwarmMembership(
@@ -325,7 +327,6 @@ class NodeCore:
         self.avoid = AvoidanceModule(
             self.profile, enabled=self.settings.avoidance, _next_tick=self.now
         )
-        self._zones_version = 0  # 0: no zone heard yet, the autopilot's fence is left alone
         self._fence_key: object = None
         self._next_status = self.now
         self._next_info = self.now
@@ -337,7 +338,6 @@ class NodeCore:
         # only peers' telemetry that changed nothing came in since (handle's fast path)
         self._rest_due = math.inf
         self._rest_fresh = False
-        self.declared = DeclaredBook()  # what the operator declared (declared.py)
         self._base_stamp = 0.0  # the stamp of the declaration our base came from
         self._fleet_stamp = 0.0
         self._dirty = False  # the declared state changed: store it
@@ -581,9 +581,6 @@ class NodeCore:
         monitoring and the fence, a newer base or fleet for this vehicle is taken."""
         changed = self.declared.merge(state, now)
         out: list[ModuleOutput] = []
-        for z in changed.zones:
-            self.monitor.zones[z.zone_id] = z
-            self._zones_version += 1
         if changed.zones:
             ids = ",".join(str(z.zone_id) for z in changed.zones)
             out.append(Note(logging.INFO, f"zones {ids} learned from {source}"))
@@ -821,12 +818,10 @@ class NodeCore:
                     return self.changes.on_quantity(msg, now)
                 return self._on_mission(msg)
             case NoFlyZone():
-                held = self.monitor.zones.get(msg.zone_id)
+                held = self.declared.zones.get(msg.zone_id)
                 zone = self.declared.offer_zone(msg, now)
                 if zone is None:  # older than the declaration held: a withdrawal stays
                     return self._zone_ack(msg, held)
-                self.monitor.zones[zone.zone_id] = zone
-                self._zones_version += 1
                 self._dirty = True
                 return self._zone_ack(msg, held) + self._keep_fence(now)
             case FleetAssignment():
@@ -1010,17 +1005,18 @@ class NodeCore:
         """Keep the autopilot's fence equal to the zones in force (fences.py): a new plan
         when a zone, its validity, home or the flight ceiling changed."""
         home = self.autopilot.home
-        if self._zones_version == 0 or home is None:
+        zones = self.declared.zones  # version 0: no zone heard, the fence is left alone
+        if zones.version == 0 or home is None:
             return []
-        in_force = tuple(sorted(z.zone_id for z in self.monitor.zones.values() if z.in_force(now)))
+        in_force = tuple(sorted(z.zone_id for z in zones.values() if z.in_force(now)))
         ceiling = self.fly_ceiling_rel_m()
-        key = (self._zones_version, in_force, home, ceiling)
+        key = (zones.version, in_force, home, ceiling)
         if key == self._fence_key:
             return [Submit(r, Owner.FENCE) for r in self.fence.on_timer(now)]
         self._fence_key = key
         before = self.fence_plan
         plan = plan_fence(
-            self.monitor.zones.values(),
+            zones.values(),
             now,
             home=home,
             fly_ceiling_rel_m=ceiling,
@@ -1066,7 +1062,7 @@ class NodeCore:
     def planning_zones(self, now: float) -> list[NoFlyZone]:
         """The no-fly zones the planners avoid: those in force (operating areas are not
         no-fly zones)."""
-        return [z for z in self.monitor.zones.values() if z.in_force(now) and not z.operating_area]
+        return self.declared.zones.no_fly(now)
 
     def _peer_events(self, events: list[PeerEvent]) -> list[ModuleOutput]:
         """Peers joined and left. A peer that leaves just after this node's own long
@@ -1246,7 +1242,7 @@ class NodeCore:
             now,
             self.status(now),
             self.autopilot,
-            zones=self.monitor.zones,
+            zones=self.declared.zones,
             climb_target_rel_m=self.manager.takeoff_alt_m if climbing else None,
             holder=self.arbiter.holder,
             items=self.manager.uploaded,
