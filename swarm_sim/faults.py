@@ -186,11 +186,11 @@ class Run:
             if v.down:
                 continue
             n = v.node
-            base, _, fleet, _ = n.declared.resolve(vid)
+            base, _, fleet, _ = n.declarations.book.resolve(vid)
             lost += n.base != self.base or base != self.base
             lost += fleet != self.fleets.get(vid, 0)
             for zid, z in self.zones.items():
-                lost += n.monitor.zones.get(zid) != z or n.declared.zones.get(zid) != z
+                lost += n.zones.get(zid) != z
         return lost
 
 
@@ -319,7 +319,7 @@ def fault_sigstop(run: Run) -> Injected:
     v = run.fleet.vehicles[vid]
     return Injected(
         run.fleet.now - t0 if ok else None,
-        f"stall seen {v.node.stalls.max_s:.1f} s by the node, "
+        f"stall seen {v.node.stalls.meter.max_s:.1f} s by the node, "
         f"{v.link.state.host_stalls} late read(s) by its link",
         ok=ok,
     )

@@ -35,6 +35,9 @@ suspension and drops what was held.
 Delegation (`delegate`): the mission manager watching the landing of a vehicle the
 operator recalled asks with the operator's rank, until the operator releases control.
 
+Its inputs are the modules' outputs `Submit`, `Claim`, `Release`, `Suspend` and
+`Delegate` (`rule`); its outcomes (`Send`, `Routed`, `Suspended`) NodeCore sends on.
+
 Pure: no I/O, no clock.
 """
 
@@ -44,6 +47,7 @@ import itertools
 from collections import Counter
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import assert_never
 
 import msgspec
 
@@ -108,6 +112,50 @@ def flies(request: ApRequest) -> bool:
     return not isinstance(request, NOT_FLIGHT)
 
 
+# ----------------------------------------------------------------------- inputs
+@dataclass(frozen=True)
+class Submit:
+    """An autopilot request of `owner`: the arbiter ranks it by its owner (or the rank
+    delegated to it) and routes its result back to it."""
+
+    request: ApRequest
+    owner: Owner
+
+
+@dataclass(frozen=True)
+class Claim:
+    """`owner` takes control of the autopilot (an emergency begins)."""
+
+    owner: Owner
+
+
+@dataclass(frozen=True)
+class Release:
+    """`owner` gives control back (to whoever held it before a suspension it began)."""
+
+    owner: Owner
+
+
+@dataclass(frozen=True)
+class Suspend:
+    """Avoidance takes control and suspends the mission; `passing`: the mission's
+    requests go on under the manoeuvre (flown on its path) instead of being held."""
+
+    passing: bool
+
+
+@dataclass(frozen=True)
+class Delegate:
+    """`to` asks with `rank`'s precedence until `rank` releases control."""
+
+    to: Owner
+    rank: Owner
+
+
+ToArbiter = Submit | Claim | Release | Suspend | Delegate
+
+
+# ----------------------------------------------------------------------- outcomes
 @dataclass(frozen=True)
 class Send:
     """A request to send to the autopilot (with the arbiter's id), on `owner`'s behalf."""
@@ -180,6 +228,23 @@ class AutopilotArbiter:
 
     def pending(self, owner: Owner) -> int:
         return sum(1 for o, _ in self._owners.values() if o == owner)
+
+    def rule(self, o: ToArbiter) -> list[Outcome]:
+        """A module's request or control output, ruled on."""
+        match o:
+            case Submit(request, owner):
+                return self.submit(owner, request)
+            case Claim(owner):
+                return self.take(owner)
+            case Release(owner):
+                return self.release(owner)
+            case Suspend(passing):
+                return self.suspend(Owner.AVOIDANCE, passing=passing)
+            case Delegate(to, rank):
+                self.delegate(to, rank)
+                return []
+            case _:
+                assert_never(o)
 
     # ------------------------------------------------------------------ requests
     def submit(self, owner: Owner, request: ApRequest) -> list[Outcome]:

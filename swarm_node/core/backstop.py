@@ -33,17 +33,21 @@ import itertools
 import logging
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import TYPE_CHECKING
 
 import msgspec
 
-from swarm_proto import Alert, AlertCode, Severity
+from swarm_proto import Alert, AlertCode, GeoPoint, Severity, VehicleType
 
 from .autopilot.conversion import ConversionError, fence_items, rally_items
 from .autopilot.mission_item import MissionItem
 from .autopilot.requests import ApResult, DownloadMission, MissionKind, UploadFence, UploadRally
 from .autopilot.state import AutopilotState
-from .fences import FenceKeeper
+from .commands import rally_alt_rel_m
 from .outputs import ModuleOutput, Note, Owner, Publish, Submit
+
+if TYPE_CHECKING:
+    from .fences import FenceKeeper  # (fences.Fences composes the two)
 
 RETRY_S = 5.0
 SETTLE_S = 2.0
@@ -64,6 +68,16 @@ class Stage(Enum):
 
 _NAME = {MissionKind.FENCE: "fence", MissionKind.RALLY: "rally point"}
 _CODE = {MissionKind.FENCE: AlertCode.NO_FLY_ZONE, MissionKind.RALLY: AlertCode.GENERIC}
+
+
+def rally_point(
+    vehicle_type: VehicleType, base: GeoPoint | None, home: GeoPoint | None
+) -> UploadRally | None:
+    """The rally point the autopilot should hold: the base (commands.rally_alt_rel_m)."""
+    if base is None or home is None:
+        return None
+    alt = rally_alt_rel_m(vehicle_type, base.alt_msl_m - home.alt_msl_m)
+    return UploadRally(points=((base.lat_deg, base.lon_deg, alt),))
 
 
 def same_items(kind: MissionKind, held: tuple[MissionItem, ...], want: list[MissionItem]) -> bool:

@@ -17,10 +17,8 @@ from __future__ import annotations
 
 import itertools
 import logging
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import InitVar, dataclass, field
-from enum import Enum
 
 import msgspec
 
@@ -60,6 +58,7 @@ from .mission.agreement import ReplanAgreement, Verdict
 from .mission.fleet_sync import FleetSync
 from .mission.follow import Follow
 from .mission.landing import LandingTurn
+from .mission.phases import Phase
 from .mission.share import (
     FleetPlan,
     Member,
@@ -75,15 +74,7 @@ from .planning import (
     PlanningError,
 )
 from .planning.endurance import CLIMB_FRACTION, Endurance, launch_s
-from .planning.flight import FIXED_WING_ACCEPT_M
-from .planning.transit import (
-    TRANSIT_MARGIN_M,
-    distance_m,
-    fixed_wing_transit,
-    flown_turn_radius_m,
-    fly_corners,
-    safe_transit,
-)
+from .planning.transit import VehicleTransit, distance_m
 from .planning.transit import flyable as flyable  # re-exported (was defined here)
 from .profile import VehicleProfile
 from .safety.pad_sequence import PadSequence
@@ -138,18 +129,6 @@ AP_POLL_S = 0.2  # the node reads the autopilot's state this often
 START_SEEN_S = 3.0
 
 
-class Phase(Enum):
-    IDLE = "idle"
-    STARTING = "starting"  # upload, arm, take off
-    CLIMBING = "climbing"  # waiting for the take-off altitude
-    MEETING = "meeting"  # PREMISSION: climbed, waiting for the fleet's meet time
-    FOLLOWING = "following"  # MUM-T: holding our slot around the lead
-    FLYING = "flying"  # the mission is running on the autopilot
-    RETURNING = "returning"  # RTL
-    LANDING = "landing"
-    PARACHUTE = "parachute"  # released: coming down under the canopy
-
-
 Out = ModuleOutput  # the node's one output vocabulary (outputs.py)
 
 
@@ -179,7 +158,6 @@ class MissionManager:
     last_item: int = 0  # reaching this item completes the mission
     zones: tuple[NoFlyZone, ...] = ()
     sortie: Sortie = field(default_factory=Sortie)  # the one owner of the mission state
-    base: GeoPoint | None = None  # the operator's base (the autopilot's rally point)
     along_m: tuple[float, ...] = ()  # metres along the share at each item (index = seq)
     hold_s: float = 0.0  # a timed hold on the share's unlimited loiter (target --duration)
     hold_seq: int = 0  # that loiter's item
@@ -227,6 +205,7 @@ class MissionManager:
 
     def __post_init__(self, with_pads: PadSequence | None) -> None:
         self.sync = FleetSync(self.profile.vehicle_id, self.profile)
+        self.transit = VehicleTransit(self.profile)  # the legs a plan does not cover
         self.pads = with_pads if with_pads is not None else PadSequence(self.profile)
 
     @property
@@ -254,12 +233,6 @@ class MissionManager:
         home (or the rally point) at its turn radius in RTL, a multirotor comes right
         over it."""
         return max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
-
-    @property
-    def transit_margin_m(self) -> float:
-        """Clearance from zones on transit legs: a fixed-wing may start the leg with a
-        U-turn as wide as two turn radii."""
-        return max(TRANSIT_MARGIN_M, 2.0 * self.profile.turn_radius_m())
 
     # ------------------------------------------------------------------ start
     def release(
@@ -412,7 +385,9 @@ class MissionManager:
         if not sync:
             base_waypoints = waypoints
             try:
-                waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
+                waypoints = self.transit.tight(
+                    self.transit.with_approach(waypoints, ap, zones, now, home_alt)
+                )
             except (PlanningError, ValueError) as exc:
                 return self._failed(mid, f"approach: {exc}")
             if ap.armed and ap.lat_deg is not None and ap.lon_deg is not None:
@@ -594,7 +569,7 @@ class MissionManager:
                 f"{leg.speed_m_s:.1f} m/s, leaving in {sync.depart_unix_s - now:.1f} s, "
                 f"at our entry at {sync.meet_unix_s:.1f} ({sync.meet_unix_s - now:.1f} s)"
             )
-            self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap))]
+            self._steps = [UploadMission(items=self._load(self.transit.tight(waypoints), ap))]
         except (PlanningError, ValueError) as exc:  # fly the share as planned
             sync.stop()
             return self._fly_share_from_here(ap, now, f"no PREMISSION leg ({exc})")
@@ -605,11 +580,16 @@ class MissionManager:
         assert self.share is not None
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         try:
-            waypoints = self._with_approach(self.share.waypoints, ap, self.zones, now, home_alt)
+            waypoints = self.transit.with_approach(
+                self.share.waypoints, ap, self.zones, now, home_alt
+            )
         except (PlanningError, ValueError) as exc2:
             return self._abandon(f"approach: {exc2}")
         note = Log(f"mission {self.mission_id}: {why}; flying the share")
-        self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
+        self._steps = [
+            UploadMission(items=self._load(self.transit.tight(waypoints), ap)),
+            StartMission(),
+        ]
         self.phase = Phase.STARTING
         return [note, *self._next(now)]
 
@@ -718,105 +698,6 @@ class MissionManager:
                 self.last_item = max(self.last_item, i + 1)
                 return
 
-    def _tight(self, waypoints: Sequence[Waypoint]) -> tuple[Waypoint, ...]:
-        """Fixed-wing: every plain waypoint asks for FIXED_WING_ACCEPT_M acceptance."""
-        if not self.profile.is_fixed_wing:
-            return tuple(waypoints)
-        return tuple(
-            msgspec.structs.replace(w, acceptance_radius_m=FIXED_WING_ACCEPT_M)
-            if w.kind == ItemKind.WAYPOINT and w.acceptance_radius_m == 0.0
-            else w
-            for w in waypoints
-        )
-
-    def _with_approach(
-        self,
-        waypoints: tuple[Waypoint, ...],
-        ap: AutopilotState,
-        zones: Sequence[NoFlyZone],
-        now: float,
-        home_alt: float,
-    ) -> tuple[Waypoint, ...]:
-        """Prefix the leg from where the vehicle is to its first waypoint, around zones;
-        a fixed-wing's then made flyable from its pose (the leg's points and the plan's
-        first one, where the plan assumed it starts, may be skipped). The share's speed
-        is set before the leg (the leg is flown at the speed the flyable stage plans its
-        turns for), and the leg's first turn, flown while the aircraft is still at its
-        speed now, is planned at the radius of the faster of the two."""
-        first_at = next((i for i, w in enumerate(waypoints) if w.kind == ItemKind.WAYPOINT), None)
-        if first_at is None or ap.lat_deg is None or ap.lon_deg is None:
-            return waypoints
-        first = waypoints[first_at]
-        speed = next(
-            (i for i, w in enumerate(waypoints[:first_at]) if w.kind == ItemKind.CHANGE_SPEED),
-            None,
-        )
-        lead: tuple[Waypoint, ...] = ()
-        if speed is not None and self.profile.is_fixed_wing:
-            lead, waypoints = (waypoints[speed],), (*waypoints[:speed], *waypoints[speed + 1 :])
-            first_at -= 1
-        leg: list[Waypoint] = []
-        if zones:
-            now_m_s = flown_speed_m_s(ap)
-            if lead and lead[0].speed_m_s is not None:
-                now_m_s = max(now_m_s, lead[0].speed_m_s)
-            leg = self._transit(
-                (ap.lat_deg, ap.lon_deg),
-                ap.heading_deg,
-                (first.lat_deg, first.lon_deg),
-                first.alt_rel_m,
-                zones,
-                now,
-                home_alt,
-                speed_m_s=now_m_s,
-            )[:-1]
-        out = (*lead, *leg, *waypoints)
-        free = frozenset(range(len(lead) + len(leg))) | {len(lead) + len(leg) + first_at}
-        return fly_corners(
-            out,
-            self.profile,
-            zones,
-            start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
-            free=free,
-            now=now,
-            home_alt_msl_m=home_alt,
-        )
-
-    def _transit(
-        self,
-        start: tuple[float, float],
-        heading_deg: float,
-        end: tuple[float, float],
-        alt_rel_m: float,
-        zones: Sequence[NoFlyZone],
-        now: float,
-        home_alt: float,
-        speed_m_s: float | None = None,
-    ) -> list[Waypoint]:
-        """A zone-safe transit; a fixed-wing's entered along a Dubins path at the radius
-        of `speed_m_s` (what it flies now) with the planners' margin
-        (`flown_turn_radius_m`)."""
-        if self.profile.is_fixed_wing:
-            return fixed_wing_transit(
-                start,
-                heading_deg,
-                end,
-                alt_rel_m,
-                zones,
-                radius_m=flown_turn_radius_m(self.profile, speed_m_s),
-                now=now,
-                home_alt_msl_m=home_alt,
-            )
-        return safe_transit(
-            start,
-            end,
-            alt_rel_m,
-            zones,
-            now=now,
-            home_alt_msl_m=home_alt,
-            margin_m=self.transit_margin_m,
-        )
-
     def _launch_steps(self) -> list[ApRequest]:
         vt = self.profile.vehicle_type
         if vt in (VehicleType.ROVER, VehicleType.BOAT):
@@ -917,13 +798,15 @@ class MissionManager:
             self._steps = [ReturnToLaunch()]
             return [*done, *self._next(now)]
         try:
-            leg = self._transit_from(ap, (home.lat_deg, home.lon_deg), zones, now, home.alt_msl_m)
+            leg = self.transit.from_here(
+                ap, (home.lat_deg, home.lon_deg), zones, now, home.alt_msl_m
+            )
         except (PlanningError, ValueError):
             leg = []
         note: list[Out] = []
         if len(leg) > 1:
             try:
-                leg = list(self._flyable_leg(leg, ap, zones, now, home.alt_msl_m))
+                leg = list(self.transit.flyable_leg(leg, ap, zones, now, home.alt_msl_m))
             except (PlanningError, ValueError) as exc:  # the zone-safe legs, as planned
                 note = [Log(f"return: no flyable turns ({exc}); flying the legs as they are")]
         if len(leg) <= 1:  # nothing in the way: plain RTL
@@ -932,56 +815,10 @@ class MissionManager:
             self.items = len(leg) + 2
             self.last_item = self.items - 1
             self._steps = [
-                UploadMission(items=(*self._tight(leg), Waypoint(ItemKind.RTL))),
+                UploadMission(items=(*self.transit.tight(leg), Waypoint(ItemKind.RTL))),
                 StartMission(),
             ]
         return [*done, *note, *self._next(now)]
-
-    def _transit_from(
-        self,
-        ap: AutopilotState,
-        there: tuple[float, float],
-        zones: Sequence[NoFlyZone],
-        now: float,
-        home_alt: float,
-    ) -> list[Waypoint]:
-        """A zone-safe leg from where the vehicle is to `there`, at its current height
-        (at least 30 m above home)."""
-        assert ap.lat_deg is not None and ap.lon_deg is not None
-        alt = max(ap.alt_rel_m or 0.0, 30.0)
-        return self._transit(
-            (ap.lat_deg, ap.lon_deg),
-            ap.heading_deg,
-            there,
-            alt,
-            zones,
-            now,
-            home_alt,
-            speed_m_s=flown_speed_m_s(ap),
-        )
-
-    def _flyable_leg(
-        self,
-        leg: Sequence[Waypoint],
-        ap: AutopilotState,
-        zones: Sequence[NoFlyZone],
-        now: float,
-        home_alt: float,
-    ) -> tuple[Waypoint, ...]:
-        """A transit leg (its end included) a fixed-wing can fly from where it is: its
-        points but the end may be skipped."""
-        if ap.lat_deg is None or ap.lon_deg is None:
-            return tuple(leg)
-        return fly_corners(
-            leg,
-            self.profile,
-            zones,
-            start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
-            free=frozenset(range(len(leg) - 1)),
-            now=now,
-            home_alt_msl_m=home_alt,
-            speed_m_s=flown_speed_m_s(ap),
-        )
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
         self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
@@ -1012,20 +849,6 @@ class MissionManager:
     def touching_down(self) -> bool:
         """Landing now (the way home's last stage): a new mission waits for the landing."""
         return self.phase == Phase.LANDING
-
-    def landing_route(
-        self, point: GeoPoint, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float
-    ) -> tuple[ApRequest, ...]:
-        """An emergency landing at `point` (paper section 3.5.1: "if the landing route has
-        been specified"): a zone-safe leg from here at the current altitude (at least
-        30 m), then a landing item there, flown in AUTO."""
-        home = ap.home
-        if home is None or ap.lat_deg is None or ap.lon_deg is None:
-            raise PlanningError("no position or home")
-        leg = self._transit_from(ap, (point.lat_deg, point.lon_deg), zones, now, home.alt_msl_m)
-        leg = list(self._flyable_leg(leg, ap, zones, now, home.alt_msl_m))
-        land = Waypoint(ItemKind.LAND, point.lat_deg, point.lon_deg, 0.0)
-        return (UploadMission(items=(*self._tight(leg[:-1]), land)), StartMission())
 
     # ------------------------------------------------------------------ inputs
     def on_result(self, result: ApResult, now: float) -> list[Out]:
@@ -1091,7 +914,9 @@ class MissionManager:
         if moved <= self._approach_slack_m() or tries >= 3:
             return []
         try:
-            waypoints = self._tight(self._with_approach(base, ap, zones, now, home_alt))
+            waypoints = self.transit.tight(
+                self.transit.with_approach(base, ap, zones, now, home_alt)
+            )
         except (PlanningError, ValueError):
             return []  # keep the approach we have
         self._approach = (base, zones, home_alt, ap.lat_deg, ap.lon_deg, tries + 1)
@@ -1113,10 +938,15 @@ class MissionManager:
         return 10.0
 
     def on_autopilot(
-        self, ap: AutopilotState, now: float, fleet: Roster | None = None
+        self,
+        ap: AutopilotState,
+        now: float,
+        fleet: Roster | None = None,
+        base: GeoPoint | None = None,
     ) -> list[Out]:
         """`fleet`: the mission's roster (the members' published ETAs, progress and
-        hashes: PREMISSION, the MISSION speed rule, the agreement on a replan)."""
+        hashes: PREMISSION, the MISSION speed rule, the agreement on a replan); `base`:
+        the operator's (the autopilot's rally point)."""
         self._ap = ap
         if fleet is not None and self.sortie.state == MissionState.REPLAN:
             agreed = self._agree(ap, now, fleet)
@@ -1152,7 +982,7 @@ class MissionManager:
             # RTL flies to the nearer of home and the rally point (the base: ArduPilot's
             # RALLY_INCL_HOME): land near either (a VTOL whose home is far from the base
             # circled the base for ever)
-            places = [p for p in (ap.home, self.base) if p is not None]
+            places = [p for p in (ap.home, base) if p is not None]
             if (
                 places
                 and ap.lat_deg is not None
@@ -1345,14 +1175,6 @@ def share_index_of_items(
                 break
         out.append(k)
     return tuple(out)
-
-
-def flown_speed_m_s(ap: AutopilotState) -> float:
-    """The speed a vehicle flies now, for the radius of its next turn: the faster of its
-    airspeed and groundspeed (a tailwind widens the turn over the ground); 0 when
-    unknown or not finite."""
-    v = max(ap.airspeed_m_s, ap.groundspeed_m_s)
-    return v if math.isfinite(v) and v > 0.0 else 0.0
 
 
 def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float, ...]:

@@ -148,6 +148,7 @@ class VehicleMonitor:
     ready: bool = False
     vehicle_type: VehicleType | None = None  # the node's identity (None: not checked)
     _mismatch_text: str | None = None
+    state: AutopilotState = field(default_factory=AutopilotState)  # the latest reported
 
     def note_stall(self, seconds: float) -> None:
         """The node was not served for `seconds` (its own stall, a loaded host): a link
@@ -207,7 +208,9 @@ class VehicleMonitor:
         return breach(self.zones.values(), s.lat_deg, s.lon_deg, alt, now)
 
     def update(self, s: AutopilotState, now: float) -> list[Alert]:
-        """Alerts raised (with their severity) or cleared (CONDITION_CLEARED) now."""
+        """The vehicle's latest state: alerts raised (with their severity) or cleared
+        (CONDITION_CLEARED) now."""
+        self.state = s
         seen = self._observe(s, now)
         out: list[Alert] = []
         tracked = self._tracked

@@ -149,7 +149,7 @@ class AvoidanceModule:
     config: AvoidanceConfig | None = None
     suspension: Suspension | None = None
     items: tuple[Waypoint, ...] = ()  # the mission the autopilot holds (items 1..)
-    _next_tick: float = 0.0  # the first tick at once
+    next_tick: float = 0.0  # the first tick at once (NodeCore: when it starts)
     counters: dict[str, int] = field(default_factory=dict)
     _pending: dict[int, ApRequest] = field(default_factory=dict)
     _resume_ids: set[int] = field(default_factory=set)
@@ -175,7 +175,7 @@ class AvoidanceModule:
 
     def next_deadline(self) -> float | None:
         """The next 5 Hz tick (None: the module is off)."""
-        return self._next_tick if self.enabled else None
+        return self.next_tick if self.enabled else None
 
     # ------------------------------------------------------------------ inputs
     def on_peer(self, msg: VehicleStatus | VehicleInfo, now: float) -> None:
@@ -222,11 +222,11 @@ class AvoidanceModule:
         the autopilot now (the arbiter's); `items`: the mission the mission manager
         uploaded; `will_steer`: whether a mission request the arbiter holds will say
         where the vehicle goes once control is given back (asked at a resume)."""
-        if not self.enabled or now < self._next_tick:
+        if not self.enabled or now < self.next_tick:
             return []
         period = self.cfg.period_s
-        nxt = self._next_tick + period
-        self._next_tick = nxt if nxt > now else now + period  # late: no catch-up burst
+        nxt = self.next_tick + period
+        self.next_tick = nxt if nxt > now else now + period  # late: no catch-up burst
         if items is not None:
             self.items = items
         if will_steer is not None:
