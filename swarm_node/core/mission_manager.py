@@ -58,7 +58,7 @@ from .mission.agreement import ReplanAgreement, Verdict
 from .mission.fleet_sync import FleetSync
 from .mission.follow import Follow
 from .mission.landing import LandingTurn
-from .mission.phases import Phase
+from .mission.phases import TAKE_OVER, Phase, Step, go
 from .mission.share import (
     FleetPlan,
     Member,
@@ -207,6 +207,10 @@ class MissionManager:
         self.sync = FleetSync(self.profile.vehicle_id, self.profile)
         self.transit = VehicleTransit(self.profile)  # the legs a plan does not cover
         self.pads = with_pads if with_pads is not None else PadSequence(self.profile)
+
+    def _go(self, step: Step) -> None:
+        """The next phase, checked against the table (mission/phases.py)."""
+        self.phase = go(self.phase, step)
 
     @property
     def launch_queued(self) -> bool:
@@ -411,10 +415,10 @@ class MissionManager:
                 f"(plan {outcome.plan.digest()})"
             )
             if ap.armed:
-                self.phase = Phase.MEETING
+                self._go(Step.MEET)
                 return [note, *self._confirm(mid)]
             self._steps = self._launch_steps()
-            self.phase = Phase.STARTING
+            self._go(Step.PLANNED)
             return [note, *self._next(now)]
         note = Log(
             f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
@@ -427,7 +431,7 @@ class MissionManager:
         else:
             steps.append(StartMission())
         self._steps = steps
-        self.phase = Phase.STARTING
+        self._go(Step.PLANNED)
         return [note, *self._next(now)]
 
     def vote(self) -> None:
@@ -462,12 +466,12 @@ class MissionManager:
             f"of {len(follow.offsets)}"
         )
         if ap.armed:
-            self.phase = Phase.FOLLOWING
+            self._go(Step.FOLLOW)
             self.sortie.go(Trigger.STARTED)
             follow.begin(now)
             return [note, *self._confirm(mid)]
         self._steps = self._launch_steps()
-        self.phase = Phase.STARTING
+        self._go(Step.PLANNED)
         return [note, *self._next(now)]
 
     def _following(self, ap: AutopilotState, now: float) -> list[Out]:
@@ -552,7 +556,7 @@ class MissionManager:
             if now < sync.depart_unix_s - AP_POLL_S / 2:
                 return []
             self._steps = [StartMission()]
-            self.phase = Phase.STARTING
+            self._go(Step.DEPART)
             return self._next(now)
         etas = fleet.entry_at if fleet is not None else {}
         gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
@@ -590,7 +594,7 @@ class MissionManager:
             UploadMission(items=self._load(self.transit.tight(waypoints), ap)),
             StartMission(),
         ]
-        self.phase = Phase.STARTING
+        self._go(Step.FROM_HERE)
         return [note, *self._next(now)]
 
     def _abandon(self, reason: str) -> list[Out]:
@@ -619,7 +623,7 @@ class MissionManager:
         self._fresh_reached = self._fresh_current = True
         self._reached = 0
         self.hold_s, self.hold_seq = 0.0, 0
-        self.phase = Phase.FLYING
+        self._go(Step.REATTACHED)
         self.reattached = True  # the autopilot past the last item: the share is flown
 
     def begin_replan(self, now: float | None = None) -> None:
@@ -782,7 +786,8 @@ class MissionManager:
         zone-safe waypoints to above home, then RTL (whose landing the autopilot or
         `on_autopilot` completes). Without zones in the way, plain RTL."""
         self.mission_id = fsm.RETURN_MISSION
-        self.phase, self._approach = Phase.RETURNING, None
+        self._approach = None
+        self._go(Step.RETURN)
         self._planning, self._held = None, None  # a plan job still running is abandoned
         self.agreement.end()
         self.sortie.go(Trigger.RETURN)
@@ -821,7 +826,8 @@ class MissionManager:
         return [*done, *note, *self._next(now)]
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
-        self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
+        self._go(Step.STOP)
+        self.mission_id, self._steps, self._in_flight = None, [], None
         self.pads.stop()
         self.reattached = False
         self._planning, self._held = None, None  # a plan job still running is abandoned
@@ -838,7 +844,8 @@ class MissionManager:
         own return)."""
         self.stop()
         self.sortie.go(Trigger.PARACHUTE if phase == Phase.PARACHUTE else Trigger.TAKE_OVER)
-        self.phase, self.mission_id = phase, fsm.RETURN_MISSION
+        self._go(TAKE_OVER[phase])
+        self.mission_id = fsm.RETURN_MISSION
 
     @property
     def landing(self) -> bool:
@@ -885,14 +892,14 @@ class MissionManager:
                 return again
         if self.phase == Phase.STARTING and not self._steps:
             if isinstance(done, Takeoff):
-                self.phase = Phase.CLIMBING  # the mission starts once it has climbed
+                self._go(Step.TOOK_OFF)  # the mission starts once it has climbed
                 # the plan is flown from the take-off: the climb (held level for
                 # minutes by avoidance under a fleet taking off at close pads) and a
                 # PREMISSION's meet would otherwise count against the state machine's
                 # plan timeout (a demo vehicle was sent home from 46 m)
                 return self._confirm(mid)
             if isinstance(done, StartMission):
-                self.phase = Phase.FLYING
+                self._go(Step.STARTED)
                 if not self.sync.flying_leg:  # PREMISSION: MISSION from the entry on
                     self.sortie.go(Trigger.STARTED)
                 return self._confirm(mid)
@@ -962,14 +969,14 @@ class MissionManager:
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
                 if self.follow is not None and self.mission_id is not None:
-                    self.phase = Phase.FOLLOWING
+                    self._go(Step.FOLLOW)
                     self.sortie.go(Trigger.STARTED)
                     self.follow.begin(now)
                     return self._confirm(self.mission_id)
                 if self.sync.active:
-                    self.phase = Phase.MEETING
+                    self._go(Step.MEET)
                     return self._meet(ap, fleet, now)
-                self.phase = Phase.STARTING
+                self._go(Step.CLIMBED)
                 self._steps = [StartMission()]
                 return self._next(now)
         elif self.phase == Phase.MEETING:
@@ -990,7 +997,7 @@ class MissionManager:
                 and min(distance_m(ap.lat_deg, ap.lon_deg, p.lat_deg, p.lon_deg) for p in places)
                 < self.land_radius_m
             ):
-                self.phase = Phase.LANDING
+                self._go(Step.NEAR_HOME)
                 ground = self.profile.vehicle_type in (VehicleType.ROVER, VehicleType.BOAT)
                 self._steps = [Land(), Disarm()] if ground else [Land()]
                 return self._next(now)
