@@ -23,12 +23,11 @@ import pytest
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.autopilot.requests import UploadMission
 from swarm_node.core.mission_manager import MissionManager
-from swarm_node.core.planning.transit import flown_speed_m_s
 from swarm_node.core.outputs import Submit
 from swarm_node.core.planning.fleet_plan import TURN_RADIUS_MARGIN
 from swarm_node.core.planning.flight import FIXED_WING_ACCEPT_M
 from swarm_node.core.planning.geo import LocalFrame
-from swarm_node.core.planning.transit import flown_turn_radius_m
+from swarm_node.core.planning.transit import flown_speed_m_s, flown_turn_radius_m
 from swarm_proto import Geometry, GeoPoint, NoFlyZone
 from swarm_sim.core.airframes import ALBATROSS_250_VTOL
 from swarm_sim.core.kinematics import Body, FixedWingModel
