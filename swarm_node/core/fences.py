@@ -263,6 +263,7 @@ class Fences:
     plan: FencePlan | None = None  # the last plan (what is fenced, overflown, left out)
     backstop: BackstopKeeper = field(init=False)  # the fence and rally point checked
     _key: object = None
+    _version: int = 0  # the zone book's version the fence was last planned for
 
     def __post_init__(self) -> None:
         self.backstop = BackstopKeeper(self.vehicle_id, self.keeper)
@@ -285,6 +286,15 @@ class Fences:
         out = self.keep(zones, ap.home, ceiling_rel_m, now)
         return out + self.backstop.on_timer(ap, now)
 
+    def new_zones(
+        self, zones: ZoneBook, home: GeoPoint | None, ceiling_rel_m: float, now: float
+    ) -> list[ModuleOutput]:
+        """`keep`, when a zone changed since the fence was last planned (asked after any
+        input: a zone heard, a book merged)."""
+        if zones.version == self._version:
+            return []
+        return self.keep(zones, home, ceiling_rel_m, now)
+
     def keep(
         self, zones: ZoneBook, home: GeoPoint | None, ceiling_rel_m: float, now: float
     ) -> list[ModuleOutput]:
@@ -293,6 +303,7 @@ class Fences:
         left alone."""
         if zones.version == 0 or home is None:
             return []
+        self._version = zones.version
         in_force = tuple(sorted(z.zone_id for z in zones.values() if z.in_force(now)))
         key = (zones.version, in_force, home, ceiling_rel_m)
         if key == self._key:

@@ -1,8 +1,8 @@
-"""The vehicle node as one pure object: a router between the modules that own its state.
-It owns none itself: it hands each input to the module that owns it, and each module's
-outputs, as that module returns them, to the module they concern (outputs.py has the
-table) or to the shell (swarm_node.runtime.node; tests and fast-time simulations join
-several NodeCores and jump from deadline to deadline).
+"""The vehicle node as one pure object: a router between the modules that own its state
+(docs/node.md has the routes). It owns none itself: it hands each input to the module
+that owns it, and what each module returns, as it returns it, to the module it concerns
+(routes.py; the table is outputs.py's) or to the shell (swarm_node.runtime.node; tests
+and fast-time simulations join several NodeCores and jump from deadline to deadline).
 
     core.handle(input, now) -> list[Output]    core.on_timer(now) -> list[Output]
     core.hear(inputs, now)  (handle, for a batch)   core.next_deadline() -> float
@@ -20,15 +20,6 @@ several NodeCores and jump from deadline to deadline).
     Received(Ack | Vote | TargetReport | PlanLineage), PlanDone
                                 the mission coordinator (mission/coordinator.py)
     BadInput, anything else     counted (`bad_input`, `unhandled`), never dropped silently
-
-    output                      to (outputs.py)
-    ToArbiter                   the arbiter: requests to the shell, results and
-                                suspensions to their owners
-    ToMission, ToDeclarations, ToOperator
-                                the coordinator, the declarations, the operator desk
-    PeerLost                    avoidance and the roster; BeginEmergency: emergency.py
-    Heard                       as received; PublishInfo: our VehicleInfo, now
-    ToShell                     the shell; Persist after a step that changed what is stored
 """
 
 from __future__ import annotations
@@ -38,16 +29,14 @@ import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, assert_never
+from typing import assert_never
 
 import msgspec
 
 import swarm_proto as proto
 from swarm_proto import DeclaredState, MissionType, VehicleInfo, VehicleStatus
 
-from . import outputs
-from .arbiter import AutopilotArbiter, Outcome, Routed, Send, Suspended
-from .commands import NodeView
+from .arbiter import AutopilotArbiter
 from .declarations import Declarations
 from .emergency import EmergencyProcedure
 from .fences import Fences
@@ -60,29 +49,21 @@ from .mission.phases import Phase
 from .mission.tasking import TaskingSettings
 from .monitoring import Thresholds, VehicleMonitor
 from .operator import OperatorDesk
-from .outputs import ModuleOutput, Note, Output, Owner, Persist, Publish, Submit
-from .outputs import PlanJob as PlanJob  # the shell's vocabulary, re-exported
+from .outputs import ModuleOutput, Note, Output, Publish
+from .outputs import Persist as Persist  # the shell's vocabulary, re-exported
+from .outputs import PlanJob as PlanJob
+from .outputs import Submit as Submit
 from .peer_traffic import PeerTraffic
 from .planning.transit import VehicleTransit
 from .profile import VehicleProfile
 from .reports import Beacon
+from .routes import Routes
 from .safety.module import AvoidanceModule
 from .safety.pad_sequence import PadSequence
 from .settings import NodeSettings as NodeSettings
 from .stalls import StallGuard
 from .views import Views
-
-
-def _view(path: str) -> Any:
-    """A read-only view of a module's state (`mission.fsm`), for the shells and tests."""
-    names = path.split(".")
-
-    def get(self: object) -> object:
-        for n in names:
-            self = getattr(self, n)
-        return self
-
-    return property(get, doc=f"read-only: {path}")
+from .views import module_view as _view
 
 
 @dataclass
@@ -98,36 +79,30 @@ class NodeCore:
 
     def __post_init__(self) -> None:
         p, s, vid, now = self.profile, self.settings, self.profile.vehicle_id, self.now
+        fp, md, ts = self.fleet_profiles, self.mission_defaults, self.tasking_settings
         self.self_id = vid
-        self.declarations = Declarations(vid)  # zones, base, fleet: what was declared
+        d = self.declarations = Declarations(vid)  # zones, base, fleet: what was declared
         limits = s.thresholds or Thresholds.from_profile(p)
         # the vehicle's latest state; reads the zone book; flags an autopilot of another type
-        self.monitor = VehicleMonitor(vid, limits, self.zones, vehicle_type=p.vehicle_type)
+        mon = self.monitor = VehicleMonitor(vid, limits, d.zones, vehicle_type=p.vehicle_type)
         m = self.members = SwarmMembership(vid, s.stale_after_s, s.info_stale_after_s)
-        self.operator = OperatorDesk(VehicleTransit(p), self.mission_defaults)
-        self.arbiter = AutopilotArbiter()  # who commands the autopilot (arbiter.py)
-        self.fences = Fences(vid, p.vehicle_type, s.fence_max_items)
-        self.emergency = EmergencyProcedure(p)
+        op = self.operator = OperatorDesk(VehicleTransit(p), md)
+        arb = self.arbiter = AutopilotArbiter()  # who commands the autopilot (arbiter.py)
+        fen = self.fences = Fences(vid, p.vehicle_type, s.fence_max_items)
+        em = self.emergency = EmergencyProcedure(p)
         # its first tick at once: now, not at time 0 (a deadline of 0 reads as a stall)
-        self.avoid = AvoidanceModule(p, enabled=s.avoidance, next_tick=now)
+        av = self.avoid = AvoidanceModule(p, enabled=s.avoidance, next_tick=now)
         pads = PadSequence(p, s.avoidance, peers=m.statuses_and_homes, pads=m.homes, types=m.types)
-        self.mission = MissionCoordinator(
-            p,
-            s.plan_timeout_s,
-            self.fleet_profiles,
-            self.mission_defaults,
-            self.tasking_settings,
-            pads,
-            now,
-        )
+        mi = self.mission = MissionCoordinator(p, s.plan_timeout_s, fp, md, ts, pads, now)
         self.stalls = StallGuard(vid, s.stale_after_s)  # our own stalls (stalls.py)
         self.beacon = Beacon(s.status_period_s, s.info_period_s, now, now)  # status, info
-        self.views = Views(
-            p, self.monitor, self.declarations, m, self.operator, self.mission, self.avoid
-        )
+        views = self.views = Views(p, mon, d, m, op, mi, av)  # what modules read of others
+        # each module's outputs, as it returns them, to the module that takes it
+        self.routes = Routes(arb, mi, d, op, av, em, fen, mon, views, self._on_message)
+        self._route = self.routes.route
         # peers' telemetry, the hot path, to the modules that keep it (peer_traffic.py)
-        self._manager = self.mission.manager
-        self.traffic = PeerTraffic(m, self.avoid, self._manager, self.mission.roster)
+        self._manager = mi.manager
+        self.traffic = PeerTraffic(m, av, mi.manager, mi.roster)
         self.bad_input: Counter[str] = Counter()
         self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
         self._due: float | None = None  # the deadline this core last declared
@@ -145,9 +120,6 @@ class NodeCore:
     zones, base = _view("declarations.zones"), _view("declarations.base")
     fleet_id, active = _view("declarations.fleet_id"), _view("operator.active")
     autopilot = _view("monitor.state")
-
-    def view(self) -> NodeView:
-        return self.views.node_view()
 
     def status(self, now: float) -> VehicleStatus | None:
         return self.views.status(now)
@@ -175,7 +147,7 @@ class NodeCore:
                     return []
                 return self._peers_changed(events, now)
         sink: list[Output] = []
-        self._stalled(now, sink)
+        self._route(self.stalls.check(now, self._due), now, sink)  # our own stall first
         outs: list[ModuleOutput] = []
         match event:
             case Received(msg):
@@ -187,7 +159,7 @@ class NodeCore:
                 outs += self.fences.on_autopilot(state, d.zones, d.base, ceiling, now)
             case AutopilotResult(result):
                 routed = self.arbiter.on_result(result)
-                outs = self._on_result(routed, now) if routed else self._unhandled("result")
+                outs = self.routes.result(routed, now) if routed else self._unhandled("result")
             case PeerAlive(node_id, alive):
                 outs = self.stalls.peer_events(self.members.on_alive(node_id, alive, now), now)
             case BadInput(key, error):
@@ -196,19 +168,20 @@ class NodeCore:
             case PlanDone(outcome):
                 outs = self.mission.on_plan(outcome, self.autopilot, now)
             case Learned(state, sortie, source):
-                version = self.zones.version
                 outs = self.declarations.learn(state, source, now)
                 if source == "database":  # at start: the share we flew (the vehicle may fly)
                     self.mission.restored(sortie, now)
-                outs += self._keep_fence(now) if self.zones.version != version else []
             case StoreResult(ok, error):
                 outs = self.declarations.stored(ok, error, now)
             case _:
                 assert_never(event)
         self._route(outs, now, sink)
+        ap, ceiling = self.autopilot, self.mission.fly_ceiling_rel_m()
+        self._route(self.fences.new_zones(self.zones, ap.home, ceiling, now), now, sink)
         if self._manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s
             sink.append(Publish(self.info()))
-        return self._routed(sink, now)
+        self.routes.persist(sink, now)
+        return sink
 
     def hear(self, events: Sequence[Input], now: float) -> list[tuple[int, list[Output]]]:
         """`handle` for each of `events` in turn, all at `now` (what a harness hands a
@@ -250,7 +223,8 @@ class NodeCore:
         self._route(self.stalls.peer_events(events, now), now, sink)
         if self._manager.info_due():
             sink.append(Publish(self.info()))
-        return self._routed(sink, now)
+        self.routes.persist(sink, now)
+        return sink
 
     def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
         match msg:
@@ -261,14 +235,14 @@ class NodeCore:
                 out = self.stalls.peer_events(self.members.on_info(msg, now), now)
                 return out + self.mission.on_info(msg, self.views.context(), now)
             case proto.Command():
-                return self.operator.on_command(msg, self.view(), self.zones.no_fly(now), now)
+                return self.operator.on_command(
+                    msg, self.views.node_view(), self.zones.no_fly(now), now
+                )
             case proto.Mission():
                 self.mission.heard_mission(msg)  # a vehicle may be told to join it later
-                return self.operator.on_mission(msg, self.view())
-            case proto.NoFlyZone():
-                version = self.zones.version
-                out = self.declarations.on_zone(msg, now)
-                return out + (self._keep_fence(now) if self.zones.version != version else [])
+                return self.operator.on_mission(msg, self.views.node_view())
+            case proto.NoFlyZone():  # (a new zone: fenced once routed)
+                return self.declarations.on_zone(msg, now)
             case proto.FleetAssignment():
                 return self.declarations.on_assignment(msg, now)
             case (
@@ -281,93 +255,11 @@ class NodeCore:
             case _:
                 return self._unhandled(type(msg).__name__)
 
-    def _keep_fence(self, now: float) -> list[ModuleOutput]:
-        ceiling = self.mission.fly_ceiling_rel_m()
-        return self.fences.keep(self.zones, self.autopilot.home, ceiling, now)
-
-    def _stalled(self, now: float, sink: list[Output]) -> None:
-        """Our own stall: not counted as autopilot link loss (stalls.py)."""
-        stall, out = self.stalls.check(now, self._due)
-        if stall:
-            self.monitor.note_stall(stall)
-        self._route(out, now, sink)
-
     def _unhandled(self, kind: str) -> list[ModuleOutput]:
         self.unhandled[kind] += 1
         if self.unhandled[kind] == 1:
             return [Note(logging.WARNING, f"no route for {kind} (counted in unhandled)")]
         return []
-
-    # ------------------------------------------------------------------ outputs
-    def _route(self, outs: list[ModuleOutput], now: float, sink: list[Output]) -> None:
-        """Each output to the module that takes it (outputs.py's table; what that module
-        answers is routed next), or to the shell (`sink`)."""
-        todo = list(outs)
-        while todo:
-            o, back = todo.pop(0), []
-            if isinstance(o, outputs.ToShell):
-                sink.append(o)
-            elif isinstance(o, outputs.ToArbiter):
-                back = self._ruled(self.arbiter.rule(o), now, sink)
-            elif isinstance(o, outputs.ToMission):
-                back = self.mission.take(o, self.views.context, now)
-            elif isinstance(o, outputs.ToDeclarations):
-                self.declarations.take(o, now)
-            elif isinstance(o, outputs.ToOperator):
-                back = self.operator.take(o)
-            elif isinstance(o, outputs.PeerLost):
-                self.avoid.forget(o.vehicle_id, now)
-                back = self.mission.peer_lost(o.vehicle_id, o.why, self.views.context(), now)
-            elif isinstance(o, outputs.BeginEmergency):
-                ap, base, zones = self.autopilot, self.base, self.zones.no_fly(now)
-                back = self.emergency.start(o.code, o.severity, ap, base, zones, now)
-            elif isinstance(o, outputs.Heard):
-                back = self._on_message(o.msg, now)
-            elif isinstance(o, outputs.PublishInfo):
-                sink.append(Publish(self.info()))
-            else:
-                assert_never(o)
-            todo[0:0] = back
-
-    def _ruled(self, outcomes: list[Outcome], now: float, sink: list[Output]) -> list[ModuleOutput]:
-        """The arbiter's outcomes: requests to send (to the shell), results and
-        suspensions to their owners (whose answers are routed next)."""
-        back: list[ModuleOutput] = []
-        for oc in outcomes:
-            if isinstance(oc, Send):
-                sink.append(Submit(oc.request, oc.owner))
-            elif isinstance(oc, Routed):
-                back += self._on_result(oc, now)
-            elif isinstance(oc, Suspended):
-                back += self.mission.on_suspended(oc.on, now)  # the suspended owner's
-            else:
-                assert_never(oc)
-        return back
-
-    def _on_result(self, routed: Routed, now: float) -> list[ModuleOutput]:
-        """A result to the module that asked (the request's owner)."""
-        owner, result = routed.owner, routed.result
-        match owner:
-            case Owner.FENCE | Owner.BACKSTOP:
-                return self.fences.on_result(owner, result, self.autopilot, now)
-            case Owner.MISSION | Owner.REATTACH:
-                return self.mission.on_result(owner, result, now)
-            case Owner.OPERATOR:
-                return self.operator.on_result(result, now)
-            case Owner.AVOIDANCE:
-                return self.avoid.on_result(result, now)
-            case Owner.EMERGENCY:
-                return self.emergency.on_result(result, now)
-            case _:
-                assert_never(owner)
-
-    def _routed(self, sink: list[Output], now: float) -> list[Output]:
-        """After a step: the share flown kept on record, and the declared state stored
-        when it (or that record) changed."""
-        changed = self.mission.keep_record(now)
-        if self.declarations.take_store() or changed:
-            sink.append(Persist(self.declared_state(now), self.mission.record))
-        return sink
 
     # ------------------------------------------------------------------ time
     def next_deadline(self) -> float:
@@ -383,12 +275,8 @@ class NodeCore:
     def _rest_deadline(self) -> float:
         """Every module's next deadline but the membership's."""
         t = min(self.beacon.next_deadline(), self.mission.next_deadline())
-        for d in (
-            self.operator.next_deadline(),
-            self.fences.next_deadline(),
-            self.avoid.next_deadline(),
-            self.stalls.next_deadline(),
-        ):
+        for m in (self.operator, self.fences, self.avoid, self.stalls):
+            d = m.next_deadline()
             if d is not None and d < t:
                 t = d
         self._rest_due, self._rest_fresh = t, True
@@ -397,7 +285,7 @@ class NodeCore:
     def on_timer(self, now: float) -> list[Output]:
         self.now, self._rest_fresh = now, False
         sink: list[Output] = []
-        self._stalled(now, sink)
+        self._route(self.stalls.check(now, self._due), now, sink)  # our own stall first
         ap, ceiling, go = self.autopilot, self.mission.fly_ceiling_rel_m(), self._route
         go(self.stalls.peer_events(self.members.on_timer(now), now), now, sink)
         go(self.stalls.on_timer(now), now, sink)  # suspects that did not come back
@@ -414,7 +302,8 @@ class NodeCore:
             sink.append(Publish(st))
         if self.beacon.info_due(now):
             sink.append(Publish(self.info()))
-        return self._routed(sink, now)
+        self.routes.persist(sink, now)
+        return sink
 
     def _avoidance_tick(self, now: float) -> list[ModuleOutput]:
         """Collision avoidance at 5 Hz (safety/module.py), and the mission manager's

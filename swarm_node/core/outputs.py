@@ -35,6 +35,7 @@ Inside the node:
     TakeOver, StopLanding      the operator flies the vehicle: to the mission manager
     BeginEmergency             to the emergency procedure
     PeerLost(vid, why)         a peer left the swarm: avoidance, the roster
+    Stalled(seconds)           the node's own stall: vehicle monitoring (not a link loss)
     PublishInfo()              publish our VehicleInfo now, not at the next second
 """
 
@@ -185,6 +186,11 @@ class PeerLost:
 
 
 @dataclass(frozen=True)
+class Stalled:
+    seconds: float
+
+
+@dataclass(frozen=True)
 class PublishInfo:
     pass
 
@@ -195,8 +201,8 @@ ToShell = Publish | Note | PlanJob | Persist
 ToMission = Post | Accepted | Candidacy | Regrouping | TakeOver | StopLanding  # the coordinator
 ToDeclarations = Declared | Ended | SetBase | SetFleet | LeftFleet
 ToOperator = Answer | SetActive  # the operator desk
-# and: PeerLost (avoidance and the roster), BeginEmergency (the emergency procedure),
-# Heard, PublishInfo (NodeCore itself)
+# and: PeerLost (avoidance and the roster), Stalled (monitoring), BeginEmergency (the
+# emergency procedure), Heard, PublishInfo (NodeCore itself)
 ModuleOutput = (
     ToShell
     | ToArbiter
@@ -204,6 +210,7 @@ ModuleOutput = (
     | ToDeclarations
     | ToOperator
     | PeerLost
+    | Stalled
     | BeginEmergency
     | Heard
     | PublishInfo

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from swarm_proto import Alert, AlertCode, Severity
 
 from .membership import PeerEvent, PeerJoined, PeerLeft
-from .outputs import ModuleOutput, Note, PeerLost, Publish
+from .outputs import ModuleOutput, Note, PeerLost, Publish, Stalled
 
 STALL_TOLERANCE_S = 0.25  # lateness below this is scheduling jitter
 STALL_REPORT_S = 1.0  # a stall this long is reported to the operator
@@ -103,26 +103,28 @@ class StallGuard:
     def idle(self, now: float, due: float | None) -> bool:
         return self.meter.idle(now, due)
 
-    def check(self, now: float, due: float | None) -> tuple[float, list[ModuleOutput]]:
-        """The node's own stall (served later than its declared deadline), for vehicle
-        monitoring at once (not counted as autopilot link loss: `note_stall`), and its
-        report."""
+    def check(self, now: float, due: float | None) -> list[ModuleOutput]:
+        """The node's own stall (served later than its declared deadline): for vehicle
+        monitoring (`Stalled`: not counted as autopilot link loss; routed before the
+        step's input), and its report."""
         meter = self.meter
         if meter.idle(now, due):
-            return 0.0, []
+            return []
         stall = meter.observe(now, due)
+        out: list[ModuleOutput] = []
         if stall:
+            out.append(Stalled(stall))
             meter.note(now, stall)
             if stall >= OWN_STALL_SUSPECT_S:  # our session and our news of the peers lapsed
                 self._own_stall_until = now + self.stale_after_s
         worst = meter.due_report(now)
         if not worst:
-            return stall, []
+            return out
         text = f"node stalled {worst:.1f} s (host busy), not a link loss"
         alert = Alert(
             self.vehicle_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC, text[:64]
         )
-        return stall, [Note(logging.WARNING, text), Publish(alert)]
+        return [*out, Note(logging.WARNING, text), Publish(alert)]
 
     def peer_events(self, events: list[PeerEvent], now: float) -> list[ModuleOutput]:
         """Peers joined and left; one that leaves just after our own long stall is only

@@ -11,6 +11,7 @@ itself, assembled from the modules that own each value. Read-only: it owns nothi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from swarm_proto import AlertFlag, VehicleInfo, VehicleStatus
 
@@ -101,3 +102,16 @@ class Views:
             fleet_id=d.fleet_id,
             errors=self.monitor.active_codes,
         )
+
+
+def module_view(path: str) -> Any:
+    """A read-only property reaching a module's public state from the node
+    (`mission.fsm`): what the shells and tests read, without keeping it themselves."""
+    names = path.split(".")
+
+    def get(self: object) -> object:
+        for n in names:
+            self = getattr(self, n)
+        return self
+
+    return property(get, doc=f"read-only: {path}")
