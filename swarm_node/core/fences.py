@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import msgspec
@@ -287,13 +287,13 @@ class Fences:
         return out + self.backstop.on_timer(ap, now)
 
     def new_zones(
-        self, zones: ZoneBook, home: GeoPoint | None, ceiling_rel_m: float, now: float
+        self, zones: ZoneBook, home: GeoPoint | None, ceiling: Callable[[], float], now: float
     ) -> list[ModuleOutput]:
         """`keep`, when a zone changed since the fence was last planned (asked after any
-        input: a zone heard, a book merged)."""
+        input: a zone heard, a book merged); `ceiling`: the flight ceiling, asked then."""
         if zones.version == self._version:
             return []
-        return self.keep(zones, home, ceiling_rel_m, now)
+        return self.keep(zones, home, ceiling(), now)
 
     def keep(
         self, zones: ZoneBook, home: GeoPoint | None, ceiling_rel_m: float, now: float

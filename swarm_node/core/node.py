@@ -155,7 +155,7 @@ class NodeCore:
             case AutopilotUpdate(state):
                 d, ceiling = self.declarations, self.mission.fly_ceiling_rel_m()
                 outs = [Publish(a) for a in self.monitor.update(state, now)]
-                outs += self.mission.on_autopilot(self.views.context(), now)
+                outs += self.mission.on_autopilot(state, d.base, now)
                 outs += self.fences.on_autopilot(state, d.zones, d.base, ceiling, now)
             case AutopilotResult(result):
                 routed = self.arbiter.on_result(result)
@@ -166,7 +166,7 @@ class NodeCore:
                 self.bad_input[key] += 1
                 outs = [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
             case PlanDone(outcome):
-                outs = self.mission.on_plan(outcome, self.autopilot, now)
+                outs = self.mission.on_plan(outcome, self.monitor.state, now)
             case Learned(state, sortie, source):
                 outs = self.declarations.learn(state, source, now)
                 if source == "database":  # at start: the share we flew (the vehicle may fly)
@@ -176,8 +176,9 @@ class NodeCore:
             case _:
                 assert_never(event)
         self._route(outs, now, sink)
-        ap, ceiling = self.autopilot, self.mission.fly_ceiling_rel_m()
-        self._route(self.fences.new_zones(self.zones, ap.home, ceiling, now), now, sink)
+        zones, home = self.declarations.zones, self.monitor.state.home
+        fly_ceiling = self.mission.fly_ceiling_rel_m  # asked only when a zone changed
+        self._route(self.fences.new_zones(zones, home, fly_ceiling, now), now, sink)
         if self._manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s
             sink.append(Publish(self.info()))
         self.routes.persist(sink, now)
@@ -233,10 +234,10 @@ class NodeCore:
             case VehicleInfo():  # (with a mission: the roster hears it too)
                 self.avoid.on_peer(msg, now)
                 out = self.stalls.peer_events(self.members.on_info(msg, now), now)
-                return out + self.mission.on_info(msg, self.views.context(), now)
+                return out + self.mission.on_info(msg, self.views.context, now)
             case proto.Command():
                 return self.operator.on_command(
-                    msg, self.views.node_view(), self.zones.no_fly(now), now
+                    msg, self.views.node_view(), self.declarations.zones.no_fly(now), now
                 )
             case proto.Mission():
                 self.mission.heard_mission(msg)  # a vehicle may be told to join it later
@@ -248,7 +249,7 @@ class NodeCore:
             case (
                 proto.Ack() | proto.Vote() | proto.TargetReport() | proto.PlanLineage()
             ):  # roster, tasking, regroup
-                return self.mission.on_message(msg, self.views.context(), now)
+                return self.mission.on_message(msg, self.views.context, now)
             case proto.Alert() | proto.SwarmView():
                 self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
                 return []
@@ -286,18 +287,18 @@ class NodeCore:
         self.now, self._rest_fresh = now, False
         sink: list[Output] = []
         self._route(self.stalls.check(now, self._due), now, sink)  # our own stall first
-        ap, ceiling, go = self.autopilot, self.mission.fly_ceiling_rel_m(), self._route
+        ap, ceiling, go = self.monitor.state, self.mission.fly_ceiling_rel_m(), self._route
         go(self.stalls.peer_events(self.members.on_timer(now), now), now, sink)
         go(self.stalls.on_timer(now), now, sink)  # suspects that did not come back
         go(self.operator.on_timer(now), now, sink)
-        go(self.fences.on_timer(ap, self.zones, ceiling, now), now, sink)
-        go(self.mission.on_timer(self.views.context(), now), now, sink)  # tasking, reattach
+        go(self.fences.on_timer(ap, self.declarations.zones, ceiling, now), now, sink)
+        go(self.mission.on_timer(self.views.context, now), now, sink)  # tasking, reattach
         go(self._avoidance_tick(now), now, sink)
         if now >= self.mission.fsm.next_deadline():
             # alerts that escalate with time (a lasting link loss) are
             # re-evaluated at every tick, not only when the link reports a new state
             go([Publish(a) for a in self.monitor.update(ap, now)], now, sink)
-            go(self.mission.tick(self.views.facts(), self.views.context(), now), now, sink)
+            go(self.mission.tick(self.views.facts(), self.views.context, now), now, sink)
         if self.beacon.status_due(now) and (st := self.status(now)) is not None:
             sink.append(Publish(st))
         if self.beacon.info_due(now):
@@ -311,14 +312,14 @@ class NodeCore:
         due = self.avoid.next_deadline()
         if due is None or now < due:
             return []
-        m, ap, a = self._manager, self.autopilot, self.arbiter
+        m, ap, a = self._manager, self.monitor.state, self.arbiter
         climb = m.takeoff_alt_m if m.phase == Phase.CLIMBING else None
         out = self.mission.pads_tick(ap, now)
         return out + self.avoid.tick(
             now,
             self.status(now),
             ap,
-            zones=self.zones,
+            zones=self.declarations.zones,
             climb_target_rel_m=climb,
             holder=a.holder,
             items=m.uploaded,

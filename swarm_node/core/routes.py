@@ -44,6 +44,8 @@ class Routes:
 
     def route(self, outs: list[ModuleOutput], now: float, sink: list[Output]) -> None:
         """Each output to the module that takes it, or to the shell (`sink`)."""
+        if not outs:
+            return
         todo = list(outs)
         while todo:
             o, back = todo.pop(0), []
@@ -61,7 +63,7 @@ class Routes:
                 self.monitor.note_stall(o.seconds)
             elif isinstance(o, outputs.PeerLost):
                 self.avoid.forget(o.vehicle_id, now)
-                back = self.mission.peer_lost(o.vehicle_id, o.why, self.views.context(), now)
+                back = self.mission.peer_lost(o.vehicle_id, o.why, self.views.context, now)
             elif isinstance(o, outputs.BeginEmergency):
                 ap, d = self.monitor.state, self.declarations
                 zones = d.zones.no_fly(now)

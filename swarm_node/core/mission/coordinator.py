@@ -126,6 +126,9 @@ class Context:
     on_record: Callable[[int], tuple[Mission | None, str]]  # a mission the declarations keep
 
 
+Read = Callable[[], Context]  # the Context, read when needed (most inputs need none)
+
+
 @dataclass
 class MissionCoordinator:
     profile: VehicleProfile
@@ -190,7 +193,7 @@ class MissionCoordinator:
         return t
 
     # ------------------------------------------------------------------ the state machine
-    def take(self, o: ToMission, ctx: Callable[[], Context], now: float) -> list[ModuleOutput]:
+    def take(self, o: ToMission, ctx: Read, now: float) -> list[ModuleOutput]:
         """What other modules tell us (outputs.ToMission); `ctx` read when needed."""
         match o:
             case Post(event):
@@ -217,21 +220,23 @@ class MissionCoordinator:
             case _:
                 assert_never(o)
 
-    def tick(self, facts: fsm.Facts, ctx: Context, now: float) -> list[ModuleOutput]:
+    def tick(self, facts: fsm.Facts, read: Read, now: float) -> list[ModuleOutput]:
         """The state machine's step (`facts` from the other modules; the fleet's
         readiness and the take-off queue are ours); its outputs carried out."""
+        planning = self.fsm.state == FsmState.PLAN and self.fsm.mission_id is not None
         facts = fsm.Facts(
             active=facts.active,
             base_set=facts.base_set,
             vehicle_ready=facts.vehicle_ready,
             emergency=facts.emergency,
-            fleet_ready=self._fleet_ready(ctx),
+            fleet_ready=planning and self._fleet_ready(read()),
             armed=facts.armed,
             launch_queued=self.manager.launch_queued,
         )
         tr = self.fsm.tick(now, facts)
         if tr is None:
             return []
+        ctx = read()
         out: list[ModuleOutput] = [
             Note(logging.INFO, f"{tr.before.name} -> {tr.after.name} ({tr.rule})")
         ]
@@ -513,7 +518,7 @@ class MissionCoordinator:
 
     # ------------------------------------------------------------------ messages
     def on_message(
-        self, msg: Ack | Vote | TargetReport | PlanLineage, ctx: Context, now: float
+        self, msg: Ack | Vote | TargetReport | PlanLineage, read: Read, now: float
     ) -> list[ModuleOutput]:
         """The peers' answers to missions (the roster), votes and target reports
         (tasking), how a fleet's plan came to be (regroup)."""
@@ -525,18 +530,20 @@ class MissionCoordinator:
                 self.regroup.on_lineage(msg)
                 return []
             case Vote() | TargetReport():
-                return self._tasked(self.tasking.handle(msg, now), ctx, now)
+                return self._tasked(self.tasking.handle(msg, now), read(), now)
             case _:
                 assert_never(msg)
 
     # ------------------------------------------------------------------ tasking
 
-    def on_timer(self, ctx: Context, now: float) -> list[ModuleOutput]:
+    def on_timer(self, read: Read, now: float) -> list[ModuleOutput]:
         """Tasking's deadlines (a vote's, a target's gathering) and reattach's."""
-        due = self.tasking.next_deadline()
-        out = [] if due is None or now < due else self._tasked(self.tasking.on_timer(now), ctx, now)
+        due, out = self.tasking.next_deadline(), []
+        if due is not None and now >= due:
+            out = self._tasked(self.tasking.on_timer(now), read(), now)
         if not self.reattach.active:
             return out
+        ctx = read()
         peers = sorted(ctx.peers.values(), key=lambda p: p.node_id)
         infos = [p.info for p in peers if p.present and p.info is not None]
         decision, said = self.reattach.on_timer(ctx.autopilot, infos, self.fsm.state, now)
@@ -661,11 +668,13 @@ class MissionCoordinator:
         )
 
     # ------------------------------------------------------------------ the roster
-    def on_info(self, info: VehicleInfo, ctx: Context, now: float) -> list[ModuleOutput]:
-        return self._roster_events(self.roster.on_info(info), ctx, now)
+    def on_info(self, info: VehicleInfo, read: Read, now: float) -> list[ModuleOutput]:
+        events = self.roster.on_info(info)
+        return self._roster_events(events, read(), now) if events else []
 
-    def peer_lost(self, vid: int, why: str, ctx: Context, now: float) -> list[ModuleOutput]:
-        return self._roster_events(self.roster.on_peer_left(vid, why), ctx, now)
+    def peer_lost(self, vid: int, why: str, read: Read, now: float) -> list[ModuleOutput]:
+        events = self.roster.on_peer_left(vid, why)
+        return self._roster_events(events, read(), now) if events else []
 
     def _roster_events(
         self, events: list[RosterEvent], ctx: Context, now: float
@@ -784,9 +793,10 @@ class MissionCoordinator:
         return [Post(fsm.Reattached(rec.mission_id))]
 
     # ------------------------------------------------------------------ the mission manager
-    def on_autopilot(self, ctx: Context, now: float) -> list[ModuleOutput]:
-        ap = ctx.autopilot
-        out = self.manager.on_autopilot(ap, now, self.roster, base=ctx.base)
+    def on_autopilot(
+        self, ap: AutopilotState, base: GeoPoint | None, now: float
+    ) -> list[ModuleOutput]:
+        out = self.manager.on_autopilot(ap, now, self.roster, base=base)
         return out + self.reattach.on_autopilot(ap, now)
 
     def on_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[ModuleOutput]:

@@ -100,7 +100,7 @@ def _xy(frame: LocalFrame, w: Waypoint) -> tuple[float, float]:
     return frame.to_local(w.lat_deg, w.lon_deg)
 
 
-def _local_xy(frame: LocalFrame, waypoints: Sequence[Waypoint]) -> list[tuple[float, float] | None]:
+def local_xy(frame: LocalFrame, waypoints: Sequence[Waypoint]) -> list[tuple[float, float] | None]:
     """Each WAYPOINT item's local position (None for the other items)."""
     idx = [k for k, w in enumerate(waypoints) if w.kind == ItemKind.WAYPOINT]
     out: list[tuple[float, float] | None] = [None] * len(waypoints)
@@ -117,7 +117,7 @@ def along_metres(waypoints: Sequence[Waypoint]) -> tuple[float, ...]:
     pts = [(w.lat_deg, w.lon_deg) for w in waypoints if w.kind == ItemKind.WAYPOINT]
     if not pts:
         return tuple(0.0 for _ in waypoints)
-    xy = iter(_local_xy(LocalFrame(*pts[0]), waypoints))
+    xy = iter(local_xy(LocalFrame(*pts[0]), waypoints))
     out: list[float] = []
     s = 0.0
     prev: tuple[float, float] | None = None
@@ -479,7 +479,7 @@ def _lane_anchors(
     from .coverage import CoveragePath
 
     assert isinstance(path, CoveragePath)
-    xy = _local_xy(frame, share.waypoints)
+    xy = local_xy(frame, share.waypoints)
     out = []
     s = 0.0
     k = 0

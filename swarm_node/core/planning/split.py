@@ -20,8 +20,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from . import coverage
-from .coverage import CoveragePath, Lane, connect, order, order_cost
+from .coverage import LOCAL_SEARCH, CoveragePath, Lane, connect, order, order_cost
 from .dubins import Pose
 from .endurance import leg_s, stop_and_go_s
 from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError
@@ -155,10 +154,10 @@ class MakespanCost:
 
     def final(self, block: Sequence[Lane], w: Worker) -> Assignment:
         """The block as it is flown: its order improved by the local search
-        (`coverage._LOCAL_SEARCH`), kept only if that overruns the budget less and,
+        (`coverage.LOCAL_SEARCH`), kept only if that overruns the budget less and,
         then, takes less time than the seed pattern the split timed."""
         a = self.assignment(block, w)
-        if not block or not coverage._LOCAL_SEARCH:
+        if not block or not LOCAL_SEARCH:
             return a
         b = Assignment(
             w.vehicle_id, w.speed_m_s, self.path(block, w, improve=True), w.accel_m_s2, w.extra_s
