@@ -159,7 +159,10 @@ class NodeCore:
                 outs += self.fences.on_autopilot(state, d.zones, d.base, ceiling, now)
             case AutopilotResult(result):
                 routed = self.arbiter.on_result(result)
-                outs = self.routes.result(routed, now) if routed else self._unhandled("result")
+                what = f"autopilot result {result.request_id}"
+                outs = (
+                    self.routes.result(routed, now) if routed else self._unhandled("result", what)
+                )
             case PeerAlive(node_id, alive):
                 outs = self.stalls.peer_events(self.members.on_alive(node_id, alive, now), now)
             case BadInput(key, error):
@@ -254,12 +257,13 @@ class NodeCore:
                 self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
                 return []
             case _:
-                return self._unhandled(type(msg).__name__)
+                kind = type(msg).__name__
+                return self._unhandled(kind, f"message {kind}")
 
-    def _unhandled(self, kind: str) -> list[ModuleOutput]:
+    def _unhandled(self, kind: str, what: str) -> list[ModuleOutput]:
         self.unhandled[kind] += 1
         if self.unhandled[kind] == 1:
-            return [Note(logging.WARNING, f"no route for {kind} (counted in unhandled)")]
+            return [Note(logging.WARNING, f"no route for {what} (counted in unhandled)")]
         return []
 
     # ------------------------------------------------------------------ time
