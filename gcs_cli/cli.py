@@ -328,7 +328,7 @@ def alerts(
                         **msgspec.to_builtins(a),
                         "severity": a.severity.name,
                         "code": a.code.name,
-                        "meaning": alert_text(a.code, a.text),
+                        "meaning": alert_text(a.code, a.text, a.detail),
                     }
                     for a in got
                 ],
@@ -340,7 +340,7 @@ def alerts(
         style = "red" if a.severity >= 2 else ("yellow" if a.severity == 1 else None)
         console.print(
             f"{a.vehicle_id:>5} {a.severity.name:<9} {a.code.name:<20} "
-            f"{alert_text(a.code, a.text)}",
+            f"{alert_text(a.code, a.text, a.detail)}",
             style=style,
             highlight=False,
         )

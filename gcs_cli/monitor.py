@@ -33,7 +33,7 @@ def watch_screen(view: FleetView, swarm: str, shown: Selector | None) -> Group:
     lines = [
         Text(
             f"{time.strftime('%H:%M:%S', time.gmtime(a.time_unix_s))} {a.vehicle_id:>5} "
-            f"{a.severity.name:<9} {alert_text(a.code, a.text)}",
+            f"{a.severity.name:<9} {alert_text(a.code, a.text, a.detail)}",
             style="red" if a.severity >= 2 else ("yellow" if a.severity == 1 else ""),
         )
         for a in list(view.alerts)[-ALERT_LINES:]

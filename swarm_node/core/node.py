@@ -1282,9 +1282,8 @@ class NodeCore:
 
     def _carry_out(self, o: fsm.Output, now: float) -> list[ModuleOutput]:
         if isinstance(o, fsm.RaiseAlert):
-            return [
-                Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, short_text(o.text)))
-            ]
+            text = short_text(o.text)
+            return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, text, o.detail))]
         if isinstance(o, fsm.StartEmergency):
             self.manager.stop()
             alert = Alert(
