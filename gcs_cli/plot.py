@@ -26,8 +26,8 @@ import typer
 from swarm_proto import GeometryKind, Mission, NoFlyZone, VehicleStatus
 from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter, read_trajectory
 
-from .cli import _shown, app, console, wait_option
-from .options import AllOption, FleetOption, IdsOption
+from .cli import _shown, app, console
+from .options import AllOption, FleetOption, IdsOption, finite
 from .recovery import StateFileError, SwarmState, collect, read_state
 
 R_EARTH_M = 6_371_008.8
@@ -384,8 +384,7 @@ def record(
 
     Example: gcs record flight.csv --duration 600
     """
-    if duration is not None:
-        wait_option(duration)
+    finite(duration, "--duration", 0.0, 1.0e7)
     shown = _shown(ids, fleet, all_)
     rows = 0
     last: dict[int, float] = {}
