@@ -14,6 +14,7 @@ nothing.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Sequence
@@ -280,7 +281,8 @@ class Planned:
         what = f"{kind} {z.zone_id}{name} ({where(z)}"
         if not z.operating_area:
             what += f", {z.floor_alt_msl_m:g}..{z.ceiling_alt_msl_m:g} m above sea level"
-        what += f"; from {self.source})"
+        what += "" if self.source == z.name else f"; from {self.source}"
+        what += ")"
         if self.action == "replace" and self.held is not None:
             old = f" {self.held.name!r}" if self.held.name else ""
             return f"replace zone {z.zone_id}{old} with {what}"
@@ -339,8 +341,7 @@ def plan_import(
         raise ValueError(
             f"zone{'s' if many else ''} {', '.join(clashes)} {'are' if many else 'is'} in force "
             f"with another zone: add --replace to replace {'them' if many else 'it'} with the "
-            "file's"
-            + ("" if first_id is None else ", or leave out --first-id for free ids")
+            "file's" + ("" if first_id is None else ", or leave out --first-id for free ids")
         )
     return out
 
@@ -435,6 +436,9 @@ def zone_import(
             f"{file}: no fence polygon or circle in it ({has})", param_hint="FILE"
         )
     base = _base(zf, file) if base_from_file else None
+    if base is not None:  # the first rally point is imported: as the base
+        first = next(i for i, s in enumerate(zf.skipped) if s.role == "rally")
+        zf = dataclasses.replace(zf, skipped=zf.skipped[:first] + zf.skipped[first + 1 :])
     sel = selector_from(ids, fleet, 0, "", all_)
     link: Link = ctx.obj
     now = time.time()
@@ -558,15 +562,15 @@ def _show_plan(
     head = "would" if dry_run else "will"
     console.print(f"{head}:", style="bold", highlight=False)
     if base is not None:
-        console.print(f"  {base[1]}", highlight=False)
+        console.print(f"  {base[1]}", highlight=False, soft_wrap=True)
     for p in plan:
-        console.print(f"  {p.line()}", highlight=False)
+        console.print(f"  {p.line()}", highlight=False, soft_wrap=True)
     if zf.skipped:
         console.print("not imported:", style="bold", highlight=False)
         for s in zf.skipped:
-            console.print(f"  {s}", highlight=False)
+            console.print(f"  {s}", highlight=False, soft_wrap=True)
     for w in warnings:
-        console.print(f"warning: {w}", style="yellow", highlight=False)
+        console.print(f"warning: {w}", style="yellow", highlight=False, soft_wrap=True)
     if not checked_against:
         console.print(
             "ids not checked against the vehicles' zones (nothing answered)",

@@ -964,6 +964,7 @@ class Skipped:
 
     what: str
     why: str
+    role: str = ""  # the feature's (rally, home, area ...)
 
     def __str__(self) -> str:
         return f"{self.what}: {self.why}"
@@ -1017,7 +1018,7 @@ def zones_from_file(path: Path | str) -> ZoneFile:
         if f.role == "home":
             home = (g.points[0].lat_deg, g.points[0].lon_deg, f.alt_m)
         if not fence:
-            skipped.append(Skipped(f.describe(), _skip_reason(f, path)))
+            skipped.append(Skipped(f.describe(), _skip_reason(f, path), f.role))
             continue
         area = f.role == "inclusion"
         shell = Geometry(g.kind, g.points, (), g.radius_m)
