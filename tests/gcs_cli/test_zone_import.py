@@ -9,7 +9,6 @@ they are sent, on a router on 127.0.0.1 (the real ground station talks to them).
 from __future__ import annotations
 
 import json
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -19,20 +18,8 @@ import pytest
 from gcs_cli.cli import run
 from gcs_cli.files import fence_warnings, plan_import
 from gcs_cli.geofiles import zones_from_file
-from swarm_proto import (
-    Ack,
-    AckReason,
-    AckRef,
-    Command,
-    CommandKind,
-    Geometry,
-    NoFlyZone,
-    VehicleInfo,
-    VehicleType,
-    lan,
-)
-from swarm_proto.session import SwarmBus, ZenohSettings
-from swarm_proto.topics import COMMAND, ZONE, ZONES
+from swarm_proto import Command, CommandKind, Geometry, NoFlyZone
+from tests.gcs_cli.fake_vehicle import Vehicle
 
 DATA = Path(__file__).parent / "data"
 PLAN = DATA / "qgc-survey.plan"
@@ -110,56 +97,6 @@ def test_fence_limits_are_said_with_the_limit() -> None:
 
 
 # --------------------------------------------------------------------------- a swarm
-
-
-class Vehicle:
-    """A vehicle as the ground station sees one: alive, its VehicleInfo, its zones
-    queryable, and an Ack for every zone and command it is sent."""
-
-    def __init__(self, router: str, swarm: str, vid: int, zones: list[NoFlyZone]) -> None:
-        self.vid, self.swarm = vid, swarm
-        self.zones = {z.zone_id: z for z in zones}
-        self.got: list[object] = []
-        self.lock = threading.Lock()
-        self.bus = SwarmBus.open(ZenohSettings(mode="client", connect=(router,)), swarm)
-        self.queryable = self.bus.session.declare_queryable(
-            ZONES.key(swarm, vehicle_id=vid), self._answer
-        )
-        self.bus.subscribe(ZONE, self._on_zone)
-        self.bus.subscribe(COMMAND, self._on_command)
-        self.bus.declare_alive(vid)
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self._info, daemon=True)
-        self.thread.start()
-
-    def _info(self) -> None:
-        info = VehicleInfo(self.vid, VehicleType.COPTER, "Generic Quadcopter", f"Q{self.vid}")
-        while not self.stop.wait(0.2):
-            self.bus.publish(info)
-
-    def _answer(self, query: object) -> None:
-        with self.lock:
-            zones = list(self.zones.values())
-        for z in zones:
-            key = ZONES.key(self.swarm, vehicle_id=self.vid, zone_id=z.zone_id)
-            query.reply(key, lan.encode(z))  # type: ignore[attr-defined]
-
-    def _on_zone(self, z: NoFlyZone, key: str) -> None:
-        with self.lock:
-            self.got.append(z)
-            self.zones[z.zone_id] = z
-        self.bus.publish(Ack(self.vid, z.issuer_id, AckRef.ZONE, z.zone_id, True, text="held"))
-
-    def _on_command(self, c: Command, key: str) -> None:
-        with self.lock:
-            self.got.append(c)
-        self.bus.publish(Ack(self.vid, c.issuer_id, AckRef.COMMAND, c.seq, True, AckReason.OK))
-
-    def close(self) -> None:
-        self.stop.set()
-        self.thread.join(2.0)
-        self.queryable.undeclare()
-        self.bus.close()
 
 
 @pytest.fixture
