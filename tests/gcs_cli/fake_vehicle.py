@@ -36,8 +36,10 @@ class Vehicle:
         *,
         home: GeoPoint | None = None,
         battery_pct: int = -1,
+        mission_id: int = 0,
     ) -> None:
         self.vid, self.swarm, self.home, self.battery_pct = vid, swarm, home, battery_pct
+        self.mission_id = mission_id
         self.zones = {z.zone_id: z for z in zones}
         self.got: list[object] = []
         self.lock = threading.Lock()
@@ -61,6 +63,7 @@ class Vehicle:
             f"Q{self.vid}",
             home=self.home,
             battery_pct=self.battery_pct,
+            mission_id=self.mission_id,
         )
         while not self.stop.wait(0.2):
             self.bus.publish(info)
