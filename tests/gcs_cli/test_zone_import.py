@@ -161,3 +161,26 @@ def test_import_next_to_a_zone_changes_none_and_sets_the_base(
     zones = [z for z in got if isinstance(z, NoFlyZone)]
     assert sorted(z.zone_id for z in zones) == [2, 3, 4]
     assert pond.zones[1] == POND  # untouched
+
+
+def test_withdrawn_zones_list_as_withdrawn_and_an_id_never_held_is_not_removed(
+    zenoh_router: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Withdrawn zones listed as "circle 0,0 r 1 m" (the withdrawal's placeholder), and
+    removing an id never held left it "withdrawn, held by 7,8,9" on every vehicle."""
+    gone = NoFlyZone(5, Geometry.circle(0.0, 0.0, 1.0), active=False, issuer_id=900)
+    v = Vehicle(zenoh_router, "imp", 7, [POND, gone])
+    try:
+        code, out, _ = gcs(zenoh_router, capsys, "zone", "list", "--withdrawn")
+        row = next(line for line in out.splitlines() if line.strip().startswith("5"))
+        assert code == 0 and "withdrawn" in row and "0.00000" not in row and "r 1 m" not in row
+        code, out, _ = gcs(zenoh_router, capsys, "zone", "list", "--withdrawn", "--json")
+        z5 = next(z for z in json.loads(out) if z["zone_id"] == 5)
+        assert z5["state"] == "withdrawn" and z5["geometry"] is None
+        code, out, _ = gcs(zenoh_router, capsys, "zone", "remove", "77")
+        assert code == 1 and "zone 77 is held by no vehicle (ids held: 1, 5)" in out, out
+        code, out, _ = gcs(zenoh_router, capsys, "zone", "remove", "5")
+        assert code == 0 and "zone 5 is already withdrawn" in out, out
+        assert v.got == []  # nothing sent
+    finally:
+        v.close()
