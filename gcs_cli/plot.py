@@ -227,10 +227,11 @@ def draw(
     xy = [frame.xy(a, b) for a, b in focus]
     x0, x1 = min(x for x, _ in xy), max(x for x, _ in xy)
     y0, y1 = min(y for _, y in xy), max(y for _, y in xy)
-    pad = max(VIEW_MARGIN_M, 0.08 * max(x1 - x0, y1 - y0))
-    ax.set_xlim(x0 - pad, x1 + pad)
-    ax.set_ylim(y0 - pad, y1 + pad)
-    ax.set_aspect("equal", adjustable="datalim")
+    half = max(x1 - x0, y1 - y0) / 2 + max(VIEW_MARGIN_M, 0.08 * max(x1 - x0, y1 - y0))
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    ax.set_xlim(cx - half, cx + half)  # square, as the figure: metres equal both ways
+    ax.set_ylim(cy - half, cy + half)
+    ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel(f"east of {frame.lat0:.5f}, {frame.lon0:.5f} (m)")
     ax.set_ylabel("north (m)")
     ax.grid(True, linewidth=0.3)
