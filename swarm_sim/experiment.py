@@ -167,6 +167,12 @@ def run(
     fleet = demo.start(
         members, speedup, tmp, console, radio=radio, avoidance=avoidance, spacing_m=PAD_SPACING_M
     )
+    console.print(  # the operator's live map on the demo's network (docs/ground-station.md)
+        f"  map: BANDADA_DB={tmp / 'swarm.db'} gcs --connect {fleet.endpoint} --mode "
+        f"{'peer' if radio else 'client'} --gcs-id {demo.GCS_ID + 1} map  "
+        "(then open the URL it prints)",
+        soft_wrap=True,
+    )
     clock = ScaledClock(speedup)
     now = _clock_now(fleet.clock_spec) if fleet.clock_spec else clock.now
     # on the LAN a client of the demo's router, as the nodes are (demo.zenoh_role)

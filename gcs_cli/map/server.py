@@ -416,6 +416,9 @@ def csp(tiles: str | None) -> str:
     )
 
 
+PUMP = web.AppKey("pump", asyncio.Task)
+
+
 def make_app(hub: Hub) -> web.Application:
     app = web.Application(client_max_size=MAX_REQUEST_BYTES)
     policy = csp(hub.config.tiles)
@@ -497,13 +500,13 @@ def make_app(hub: Hub) -> web.Application:
     app.router.add_static("/leaflet/", leaflet_dir())
 
     async def start_pump(app: web.Application) -> None:
-        app["pump"] = asyncio.create_task(hub.pump())
+        app[PUMP] = asyncio.create_task(hub.pump())
 
     async def stop_pump(app: web.Application) -> None:
         hub.stop.set()
-        app["pump"].cancel()
+        app[PUMP].cancel()
         with contextlib.suppress(asyncio.CancelledError):
-            await app["pump"]
+            await app[PUMP]
         for ws in list(hub.pages):
             await ws.close()
 

@@ -95,6 +95,7 @@
     v.marker = m;
     v.iconKey = `${v.data.type}/${v.data.fleet}`;
     v.el = m.getElement();
+    v.el.dataset.vehicle = v.id;
   }
 
   function styleMarker(v) {
@@ -369,6 +370,7 @@
   }
 
   let errorTimer = null;
+  $("error").onclick = () => $("error").classList.add("hidden");
   function showError(text) {
     const e = $("error");
     e.textContent = text;
