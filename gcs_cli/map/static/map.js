@@ -143,7 +143,7 @@
     const v = vehicle(d.id);
     v.data = d;
     if (d.t && state.config && state.config.mode === "live") {
-      keep(stats.lagMs, Date.now() - d.t * 1000, 2000);
+      keep(stats.lagMs, Date.now() - d.t * 1000, 20000);
     }
     styleMarker(v);
     // a radio gateway's prediction: the truth is within position_error_m
