@@ -17,6 +17,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 READY = """
 const vs = [...mapState.vehicles.values()];
@@ -84,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
             options.add_argument(a)
         driver = webdriver.Chrome(options=options, service=Service(chromedriver))
         driver.get(url)
-        seen: dict[str, object] = {}
+        seen: dict[str, Any] = {}
         while time.monotonic() < end and demo.poll() is None:
             time.sleep(2.0)
             seen = driver.execute_script(READY)
