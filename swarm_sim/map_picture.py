@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     demo_log = open(tmp / "demo.log", "wb")  # noqa: SIM115
     demo = subprocess.Popen(
-        [sys.executable, "-m", "swarm_sim.cli", "demo", "--out", str(tmp / "demo-out")],
+        [str(Path(sys.executable).parent / "swarm-sim"), "demo", "--out", str(tmp / "demo-out")],
         stdout=demo_log,
         stderr=subprocess.STDOUT,
         env=env,
