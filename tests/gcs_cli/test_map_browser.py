@@ -339,6 +339,36 @@ def test_the_live_map_shows_selects_commands_and_draws(live: Live, driver: Any) 
     rtl = answered(d, "rtl to vehicles 1, 2?")
     assert set(rtl) == {1, 2} and all("no answer" not in t for t in rtl.values()), rtl
 
+    # a box dragged with shift held selects what is inside it; Fleet: one click, its fleet
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    vs = vehicles(d)
+    xs, ys = zip(*(pixel_of(d, v["lat"], v["lon"]) for v in vs.values()), strict=True)
+    body = d.find_element(By.TAG_NAME, "body")
+    w, h = d.execute_script("return [window.innerWidth, window.innerHeight]")
+    corner = (min(xs) - 40 - w // 2, min(ys) - 40 - h // 2)
+    ActionChains(d).key_down(Keys.SHIFT).move_to_element_with_offset(
+        body, *corner
+    ).click_and_hold().move_by_offset(
+        max(xs) - min(xs) + 80, max(ys) - min(ys) + 80
+    ).release().key_up(Keys.SHIFT).perform()
+    until(
+        d,
+        "return document.getElementById('sel-text').textContent",
+        lambda t: t == "vehicles 1, 2, 7",
+        10,
+        "the box's selection",
+    )
+    click(d, "#sel-fleet")
+    click(d, '.leaflet-marker-icon[data-vehicle="7"]')
+    assert d.execute_script("return document.getElementById('sel-text').textContent") == (
+        "fleet 2: 7"
+    )
+    click(d, "#sel-uav")
+    click(d, "#sel-none")
+
     # the base, set by clicking the map
     vs = vehicles(d)
     bx, by = pixel_of(d, vs[1]["lat"], vs[1]["lon"])
@@ -505,3 +535,13 @@ def test_a_flight_replayed(tmp_path: Path, driver: Any) -> None:
     finally:
         proc.send_signal(signal.SIGINT)
         assert proc.wait(30) == 0, (tmp_path / "map.log").read_text()
+
+
+def test_without_chromium_ci_fails_and_elsewhere_skips(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    monkeypatch.setenv("CI", "true")
+    with pytest.raises(pytest.fail.Exception, match="make browser"):
+        browser_binaries()
+    monkeypatch.delenv("CI")
+    with pytest.warns(UserWarning, match="not installed"), pytest.raises(pytest.skip.Exception):
+        browser_binaries()
