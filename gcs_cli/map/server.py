@@ -201,7 +201,10 @@ class Hub:
 
     async def pump(self) -> None:
         while not self.stop.is_set():
-            self.fold()
+            try:
+                self.fold()
+            except Exception:  # a bug in the fold must not freeze every page
+                log.exception("map: folding what was heard failed")
             for page in list(self.pages.values()):
                 page.wake.set()
             await asyncio.sleep(FRAME_S)
