@@ -324,6 +324,36 @@ def test_the_live_map_shows_selects_commands_and_draws(live: Live, driver: Any) 
     x, y = pixel_of(d, vs[1]["lat"], vs[1]["lon"])
     assert near(img.getpixel((x - 150, y - 150)), (238, 241, 244), 12)  # the map's ground
 
+    # the vehicle list: a row opens the flight display; the eye hides the icon
+    click(d, '#vrows .vrow[data-id="1"]')
+    pfd = until(
+        d,
+        "return document.getElementById('pfd').textContent",
+        lambda t: "ALB-01" in t,
+        10,
+        "the flight display",
+    )
+    for words in ("ground speed", "airspeed", "altitude", "battery", "GPS", "base"):
+        assert words in pfd, (words, pfd)
+    click(d, '#vrows .vrow[data-id="2"] button.eye')
+    icons = "return document.querySelectorAll('.leaflet-marker-icon[data-vehicle=\"2\"]').length"
+    assert d.execute_script(icons) == 0
+    click(d, '#vrows .vrow[data-id="2"] button.eye')
+    until(d, icons, lambda n: n == 1, 5, "vehicle 2 shown again")
+    # the fleet summary selects by state; By ID lists every vehicle
+    click(d, '#summary .state[data-state="INACTIVE"]')
+    assert d.execute_script("return document.getElementById('sel-text').textContent") == (
+        "vehicles 1, 2, 7"
+    )
+    click(d, "#sel-none")
+    click(d, "#sel-id")
+    click(d, '#idlist input[data-id="2"]')
+    assert d.execute_script("return document.getElementById('sel-text').textContent") == (
+        "vehicles 2"
+    )
+    click(d, "#sel-id")
+    click(d, "#sel-none")
+
     # clicking icons selects; an RTL to the selection is confirmed and every answer shown
     click(d, '.leaflet-marker-icon[data-vehicle="1"]')
     click(d, '.leaflet-marker-icon[data-vehicle="2"]')

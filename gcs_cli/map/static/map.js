@@ -230,55 +230,84 @@
     }
   }
 
-  function horizon(roll, pitch) {
-    const ns = "http://www.w3.org/2000/svg";
-    const svg = document.createElementNS(ns, "svg");
-    svg.setAttribute("viewBox", "-50 -50 100 100"); svg.setAttribute("width", "110"); svg.setAttribute("height", "110");
-    const g = document.createElementNS(ns, "g");
-    g.setAttribute("transform", `rotate(${-(roll || 0)}) translate(0 ${(pitch || 0) * 1.5})`);
-    const sky = document.createElementNS(ns, "rect"); sky.setAttribute("x", -150); sky.setAttribute("y", -150); sky.setAttribute("width", 300); sky.setAttribute("height", 150); sky.setAttribute("fill", "#5aa0e6");
-    const ground = document.createElementNS(ns, "rect"); ground.setAttribute("x", -150); ground.setAttribute("y", 0); ground.setAttribute("width", 300); ground.setAttribute("height", 150); ground.setAttribute("fill", "#a0703c");
-    g.append(sky, ground);
-    const clip = document.createElementNS(ns, "clipPath"); clip.id = "pfdclip";
-    const c = document.createElementNS(ns, "circle"); c.setAttribute("r", 48); clip.append(c);
-    const wrap = document.createElementNS(ns, "g"); wrap.setAttribute("clip-path", "url(#pfdclip)"); wrap.append(g);
-    const wings = document.createElementNS(ns, "path"); wings.setAttribute("d", "M-30,0 L-10,0 L0,8 L10,0 L30,0"); wings.setAttribute("stroke", "#ff0"); wings.setAttribute("stroke-width", 3); wings.setAttribute("fill", "none");
-    svg.append(clip, wrap, wings);
-    return svg;
+  // the flight display: built once per vehicle shown, its values updated in place (a
+  // button pressed while a frame arrives must not be replaced under the pointer)
+  const SVG = "http://www.w3.org/2000/svg";
+  function svgEl(tag, attrs) {
+    const e = document.createElementNS(SVG, tag);
+    for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+    return e;
+  }
+
+  function buildPfd(v) {
+    const box = $("pfd");
+    box.textContent = "";
+    const p = {};
+    const head = el("div", "title");
+    const close = el("button", "", "×"); close.style.float = "right";
+    close.addEventListener("click", () => { state.focused = null; renderPfd(); });
+    p.title = el("span");
+    head.append(close, p.title);
+    const grid = el("div", "grid");
+    const left = el("div"), mid = el("div"), right = el("div");
+    p.gs = el("div", "big"); p.as = el("div", "big"); p.base = el("div");
+    left.append(el("div", "dim", "ground speed"), p.gs, el("div", "dim", "airspeed"), p.as, p.base);
+    const svg = svgEl("svg", { viewBox: "-50 -50 100 100", width: 110, height: 110 });
+    const clip = svgEl("clipPath", { id: "pfdclip" });
+    clip.append(svgEl("circle", { r: 48 }));
+    p.horizon = svgEl("g", {});
+    p.horizon.append(svgEl("rect", { x: -150, y: -150, width: 300, height: 150, fill: "#5aa0e6" }),
+      svgEl("rect", { x: -150, y: 0, width: 300, height: 150, fill: "#a0703c" }));
+    const wrap = svgEl("g", { "clip-path": "url(#pfdclip)" });
+    wrap.append(p.horizon);
+    svg.append(clip, wrap, svgEl("path", { d: "M-30,0 L-10,0 L0,8 L10,0 L30,0", stroke: "#ff0", "stroke-width": 3, fill: "none" }));
+    p.att = el("div");
+    mid.append(svg, p.att);
+    p.alt = el("div", "big"); p.msl = el("div", "dim"); p.battery = el("div"); p.gps = el("div");
+    right.append(el("div", "dim", "altitude"), p.alt, p.msl, p.battery, p.gps);
+    grid.append(left, mid, right);
+    p.sensors = el("div", "sensors"); p.state = el("div"); p.alerts = el("div"); p.mismatch = el("div", "bad");
+    p.trail = el("button");
+    p.trail.addEventListener("click", () => { v.trailOn = !v.trailOn; trimTrail(v); renderPfd(); renderList(); });
+    box.append(head, grid, p.sensors, p.state, p.alerts, p.trail, p.mismatch);
+    return p;
+  }
+
+  function setText(e, text, cls) {
+    if (e.textContent !== text) e.textContent = text;
+    if (cls !== undefined && e.className !== cls) e.className = cls;
   }
 
   function renderPfd() {
     const box = $("pfd");
     const v = state.vehicles.get(state.focused);
-    if (!v) { box.classList.add("hidden"); return; }
-    const d = v.data, link = v.link || {};
+    if (!v) { box.classList.add("hidden"); state.pfd = null; return; }
+    if (!state.pfd || state.pfd.id !== v.id) state.pfd = { id: v.id, p: buildPfd(v) };
+    const p = state.pfd.p, d = v.data, link = v.link || {};
     const f = (x, unit, nd = 1) => (x === undefined || x === null ? "-" : `${Number(x).toFixed(nd)}${unit}`);
     box.classList.remove("hidden");
-    box.textContent = "";
-    const head = el("div", "title", `vehicle ${d.id} ${d.model || ""} ${d.user_id ? "(" + d.user_id + ")" : ""}`);
-    const close = el("button", "", "×"); close.style.float = "right";
-    close.addEventListener("click", () => { state.focused = null; renderPfd(); });
-    head.prepend(close);
-    const grid = el("div", "grid");
-    const left = el("div"), mid = el("div"), right = el("div");
-    left.append(el("div", "dim", "ground speed"), el("div", "big", f(d.groundspeed_m_s, " m/s")),
-      el("div", "dim", "airspeed"), el("div", "big", f(d.airspeed_m_s, " m/s")),
-      el("div", "", `base ${d.base ? d.base[0].toFixed(5) + ", " + d.base[1].toFixed(5) : "not set"}`));
-    mid.append(horizon(d.roll_deg, d.pitch_deg),
-      el("div", "", `hdg ${f(d.heading_deg, "°", 0)} roll ${f(d.roll_deg, "°", 0)} pitch ${f(d.pitch_deg, "°", 0)}`));
-    right.append(el("div", "dim", "altitude"), el("div", "big", f(d.alt_rel_m, " m")),
-      el("div", "dim", `${f(d.alt_msl_m, " m")} MSL, climb ${f(d.climb_m_s, " m/s")}`),
-      el("div", d.battery_pct >= 0 && d.battery_pct < 25 ? "bad" : "", `battery ${d.battery_pct >= 0 ? d.battery_pct + " %" : "?"} ${f(d.battery_v, " V", 2)}`),
-      el("div", "", `GPS ${d.gps_fix || "-"} ${d.gps_sats !== undefined ? d.gps_sats + " sats" : ""}`));
-    grid.append(left, mid, right);
-    const sensors = el("div", "sensors");
-    for (const [name, s] of Object.entries(d.sensors || {})) sensors.append(el("span", s === "ok" ? "" : "bad", `${name} ${s}`));
-    const st = el("div", "", `${d.fsm || "-"} / ${d.mission_state || "-"} ${d.progress_pct ?? ""}% · ${d.mode || "-"} ${d.armed ? "ARMED" : "disarmed"} · fleet ${d.fleet ?? "-"} · mission ${d.mission_id || "-"} · link ${link.lost ? "LOST" : f(link.age_s, " s")} ${f(link.pps, "/s")}`);
-    const alerts = el("div", d.worst ? "bad" : "dim", (d.alerts && d.alerts.length) ? `alerts: ${d.alerts.join(", ")}` : "no active alert");
-    const trail = el("button", "", v.trailOn ? "Hide trajectory" : "Show trajectory");
-    trail.addEventListener("click", () => { v.trailOn = !v.trailOn; trimTrail(v); renderPfd(); renderList(); });
-    box.append(head, grid, sensors, st, alerts, trail);
-    if (d.autopilot_mismatch) box.append(el("div", "bad", `autopilot: ${d.autopilot_mismatch}`));
+    setText(p.title, `vehicle ${d.id} ${d.model || ""} ${d.user_id ? "(" + d.user_id + ")" : ""}`);
+    setText(p.gs, f(d.groundspeed_m_s, " m/s"));
+    setText(p.as, f(d.airspeed_m_s, " m/s"));
+    setText(p.base, `base ${d.base ? d.base[0].toFixed(5) + ", " + d.base[1].toFixed(5) : "not set"}`);
+    p.horizon.setAttribute("transform", `rotate(${-(d.roll_deg || 0)}) translate(0 ${(d.pitch_deg || 0) * 1.5})`);
+    setText(p.att, `hdg ${f(d.heading_deg, "°", 0)} roll ${f(d.roll_deg, "°", 0)} pitch ${f(d.pitch_deg, "°", 0)}`);
+    setText(p.alt, f(d.alt_rel_m, " m"));
+    setText(p.msl, `${f(d.alt_msl_m, " m")} MSL, climb ${f(d.climb_m_s, " m/s")}`);
+    setText(p.battery, `battery ${d.battery_pct >= 0 ? d.battery_pct + " %" : "?"} ${f(d.battery_v, " V", 2)}`,
+      d.battery_pct >= 0 && d.battery_pct < 25 ? "bad" : "");
+    setText(p.gps, `GPS ${d.gps_fix || "-"} ${d.gps_sats !== undefined ? d.gps_sats + " sats" : ""}`);
+    const sensors = Object.entries(d.sensors || {});
+    const key = sensors.map((x) => x.join(" ")).join(",");
+    if (p.sensorsKey !== key) {
+      p.sensorsKey = key;
+      p.sensors.textContent = "";
+      for (const [name, st] of sensors) p.sensors.append(el("span", st === "ok" ? "" : "bad", `${name} ${st}`));
+    }
+    setText(p.state, `${d.fsm || "-"} / ${d.mission_state || "-"} ${d.progress_pct ?? ""}% · ${d.mode || "-"} ${d.armed ? "ARMED" : "disarmed"} · fleet ${d.fleet ?? "-"} · mission ${d.mission_id || "-"} · link ${link.lost ? "LOST" : f(link.age_s, " s")} ${f(link.pps, "/s")}`);
+    setText(p.alerts, (d.alerts && d.alerts.length) ? `alerts: ${d.alerts.join(", ")}` : "no active alert", d.worst ? "bad" : "dim");
+    setText(p.trail, v.trailOn ? "Hide trajectory" : "Show trajectory");
+    setText(p.mismatch, d.autopilot_mismatch ? `autopilot: ${d.autopilot_mismatch}` : "");
   }
 
   // ------------------------------------------------------------------ selection
@@ -299,6 +328,7 @@
     $("sel-text").textContent = text;
     for (const v of state.vehicles.values()) styleMarker(v);
     renderList();
+    renderIdList();
   }
 
   function clickVehicle(id) {
@@ -326,11 +356,30 @@
   $("sel-all").onclick = () => setSelection([...state.vehicles.values()].filter((v) => !(v.link || {}).lost).map((v) => v.id), "all");
   $("sel-none").onclick = () => setSelection([]);
   $("sel-id").onclick = () => {
-    const text = prompt("vehicle ids (e.g. 1 2 7)", [...state.sel].join(" "));
-    if (text === null) return;
-    const ids = text.split(/[\s,]+/).filter(Boolean).map(Number);
-    setSelection(ids);
+    const box = $("idlist");
+    box.classList.toggle("hidden");
+    if (!box.classList.contains("hidden")) renderIdList();
   };
+  function renderIdList() {
+    const box = $("idlist");
+    if (box.classList.contains("hidden")) return;
+    const key = state.order.join(",") + "|" + [...state.sel].join(",");
+    if (box.dataset.key === key) return;
+    box.dataset.key = key;
+    box.textContent = "";
+    for (const id of state.order) {
+      const d = state.vehicles.get(id).data;
+      const label = el("label", "idpick");
+      const cb = el("input");
+      cb.type = "checkbox"; cb.checked = state.sel.has(id); cb.dataset.id = id;
+      cb.onchange = () => {
+        const ids = [...box.querySelectorAll("input:checked")].map((c) => Number(c.dataset.id));
+        setSelection(ids);
+      };
+      label.append(cb, document.createTextNode(` ${id} ${d.user_id || ""}`));
+      box.append(label);
+    }
+  }
   $("btn-fit").onclick = () => fitAll();
 
   function fitAll() {
@@ -622,6 +671,12 @@
 
   function renderSummary(s) {
     const box = $("summary");
+    const key = JSON.stringify([s.count, s.by_state]);
+    if (state.summaryKey !== key) { state.summaryKey = key; drawSummary(box, s); }
+    baseInfo(s);
+  }
+
+  function drawSummary(box, s) {
     box.textContent = "";
     box.append(el("span", "", `${s.count} vehicle${s.count === 1 ? "" : "s"}`));
     for (const [name, ids] of Object.entries(s.by_state)) {
@@ -632,6 +687,9 @@
       b.onclick = () => setSelection(ids);
       box.append(b);
     }
+  }
+
+  function baseInfo(s) {
     state.base = s.base;
     $("base-info").textContent = s.base ? `base: ${s.base[0].toFixed(6)}, ${s.base[1].toFixed(6)}, ${s.base[2]} m${s.bases_disagree ? " (the vehicles disagree)" : ""}` : "base: not set";
     if (s.base) {
@@ -670,6 +728,7 @@
     for (const v of state.vehicles.values()) if (v.marker) v.marker.remove();
     for (const k of ["zones", "missions", "shares", "homes", "trails", "errors"]) layers[k].clearLayers();
     state.vehicles = new Map(); state.order = []; state.baseMarker = null;
+    state.pfd = null; state.summaryKey = null; $("idlist").dataset.key = "";
     $("vrows").textContent = "";
   }
 
@@ -693,6 +752,7 @@
     if (f.commands) renderCommands(f.commands);
     renderSummary(f.summary);
     renderList();
+    renderIdList();
     if (state.focused !== null) renderPfd();
     if (f.replay) renderReplay(f.replay);
     if (!state.fitted && [...state.vehicles.values()].some((v) => v.data.has_position)) { state.fitted = true; fitAll(); }
