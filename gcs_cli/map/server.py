@@ -256,14 +256,13 @@ class Hub:
             return {"ok": False, "error": str(exc)}
         alive = {k.vehicle_id: k.fleet_id or 0 for k in self.gs.known() if k.alive}
         q = question(p, alive)
-        if op == "check":  # the request as confirmed: the ids chosen here go with it
-            req = {**body["req"], **p.fixed}
+        if op == "check":  # the ids chosen here go with the request as it is confirmed
             return {
                 "ok": True,
                 "question": q,
                 "what": p.what,
                 "geometry": geometry_preview(p),
-                "req": req,
+                "fixed": p.fixed,
             }
         cid = next(self.cids)
         self.put(CommandSent(cid, p.what, q))

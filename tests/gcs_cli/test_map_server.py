@@ -91,6 +91,11 @@ def test_no_command_without_the_token_and_nothing_sent_for_bad_input(
         r = await client.post("/api/check", json={"req": rtl, "token": TOKEN})
         body = await r.json()
         assert body["ok"] and body["question"].startswith("set-base to every vehicle alive")
+        zone = {"type": "zone", "circle": [37.4, -5.9, 30]}
+        body = await (await client.post("/api/check", json={"req": zone, "token": TOKEN})).json()
+        assert body["fixed"] == {"zone_id": 1}  # the id the confirmation names is the one sent
+        assert body["question"] == "zone 1 to every vehicle alive (none known alive)?"
+        assert body["geometry"] == {"kind": "circle", "points": [[37.4, -5.9]], "radius_m": 30.0}
         # the page and the frames need no token on loopback; the WebSocket sends frames
         assert (await client.get("/")).status == 200
         ws = await client.ws_connect("/ws")

@@ -444,7 +444,7 @@
     const checked = await send("check", req);
     if (!checked.ok) { showError(checked.error); return false; }
     if (!(await confirmBox(checked.question))) return false;
-    const sent = await send("send", checked.req || req);  // what was confirmed (its ids)
+    const sent = await send("send", { ...req, ...(checked.fixed || {}) });  // as confirmed (its ids)
     if (!sent.ok) { showError(sent.error); return false; }
     return true;
   }
@@ -603,7 +603,7 @@
         ? { color: "#2e7d32", weight: 2, dashArray: "8 5", fill: false }
         : { color: "#c62828", weight: 2, fillColor: "#e53935", fillOpacity: 0.3 };
       const shape = drawGeometry(z.geometry, style, layers.zones);
-      shape.bindTooltip(`${z.operating_area ? "operating area" : "no-fly zone"} ${z.id} ${z.name || ""}`);
+      shape.bindTooltip(el("span", "", `${z.operating_area ? "operating area" : "no-fly zone"} ${z.id} ${z.name || ""}`));
       const row = el("div", "row", `${z.operating_area ? "area" : "zone"} ${z.id} ${z.name || ""} `);
       const rm = el("button", "", "withdraw");
       rm.onclick = () => request({ type: "zone-remove", zone_id: z.id });
@@ -618,7 +618,7 @@
     layers.shares.clearLayers();
     for (const m of missions) {
       const shape = drawGeometry(m.geometry, { color: "#333", weight: 1.5, dashArray: "6 4", fillColor: "#888", fillOpacity: 0.08 }, layers.missions);
-      shape.bindTooltip(`mission ${m.id} (${m.type}) ${m.name || ""}: ${m.selection}; flown by ${m.flying.join(", ") || "none"}; shares ${m.plan}`);
+      shape.bindTooltip(el("span", "", `mission ${m.id} (${m.type}) ${m.name || ""}: ${m.selection}; flown by ${m.flying.join(", ") || "none"}; shares ${m.plan}`));
       for (const [vid, pts] of Object.entries(m.shares)) {
         const id = Number(vid);
         const lost = !m.flying.includes(id);
