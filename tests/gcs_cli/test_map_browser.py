@@ -34,7 +34,7 @@ import pytest
 from swarm_node.database import SwarmDatabase
 from swarm_proto import ScaledClock
 from swarm_proto.session import SwarmBus, ZenohSettings, open_session
-from swarm_proto.topics import COMMAND, ZONE
+from swarm_proto.topics import COMMAND, MISSION, ZONE
 from swarm_sim.core import SITL_HOME
 from swarm_sim.runtime import VehicleServer, VehicleSpec
 from swarm_sim.runtime.server import spread_homes
@@ -113,7 +113,7 @@ class Live:
     swarm: str
     url: str
     tmp: Path
-    heard: list[object] = field(default_factory=list)  # commands and zones on the router
+    heard: list[object] = field(default_factory=list)  # commands, missions, zones on the router
 
 
 @pytest.fixture(scope="module")
@@ -160,7 +160,7 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Live]:
                 )
                 state = Live(router, swarm, url, tmp)
                 listener = SwarmBus.open(ZenohSettings(connect=(router,)), swarm)
-                for topic in (COMMAND, ZONE):
+                for topic in (COMMAND, MISSION, ZONE):
                     listener.subscribe(topic, lambda m, k: state.heard.append(m))
                 yield state
         finally:
@@ -485,7 +485,39 @@ def test_the_live_map_shows_selects_commands_and_draws(live: Live, driver: Any) 
         east = (v["lon"] - start[1]) * 111_320.0 * math.cos(math.radians(start[0]))
         return math.hypot(north, east) > 15.0 and v["trail"] > 1
 
+    # a mission from a file the operator picks (read on the page, checked by the server
+    # as `gcs mission --file` reads it): confirmed or, here, cancelled
+    field_file = live.tmp / "field.geojson"
+    lat0, lon0 = start
+    ring = [[lon0, lat0], [lon0 + 0.002, lat0], [lon0 + 0.002, lat0 + 0.002], [lon0, lat0 + 0.002]]
+    field_file.write_text(
+        '{"type": "Polygon", "coordinates": [' + str([*ring, ring[0]]).replace("'", '"') + "]}"
+    )
+    d.execute_script("document.getElementById('m-type').value = 'area'")
+    d.find_element(By.ID, "m-file").send_keys(str(field_file))
+    until(
+        d,
+        "return document.getElementById('m-geometry').textContent",
+        lambda t: t == "file: field.geojson",
+        10,
+        "the file read",
+    )
+    click(d, "#sel-all")
+    click(d, "#btn-mission")
+    question = until(
+        d,
+        "return document.getElementById('modal-question').textContent",
+        lambda q: "(area)" in q,
+        10,
+        "the file mission's confirmation",
+    )
+    assert question.endswith("(area) to every vehicle alive (1, 2, 7)?"), question
+    heard = len(live.heard)
+    click(d, "#modal-cancel")
+
     until(d, VEHICLES, moved, 120, "vehicle 7 flying its mission")
+    time.sleep(0.5)
+    assert len(live.heard) == heard  # cancelled: not sent
     until(
         d,
         "return mapState.missions.map(m => [m.plan, Object.keys(m.shares)])",
