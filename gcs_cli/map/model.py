@@ -358,7 +358,9 @@ class MapModel:
                 if c is not None:
                     c.error = msg.error
                     self._bump("commands")
-        return self.on_timer(now)
+        if isinstance(msg, VehicleInfo | Mission | NoFlyZone):  # what a roster or plan needs
+            return self.on_timer(now)
+        return []
 
     def _on_status(self, msg: VehicleStatus, now: float) -> None:
         if msg.vehicle_id in self.ground:
