@@ -29,6 +29,9 @@ STREAK = re.compile(r"\bstreaks?\b", re.IGNORECASE)
 STOP_NUMBER = re.compile(
     r"\bstop[ -]\d+\b(?!\s*(?:s|ms|m|%|seconds?|minutes?|times)\b)", re.IGNORECASE
 )
+# "issue 16", "issues 11 and 16": which issue made a thing is history too (the tracker
+# and the commit messages hold it); docs and code comments say what holds now
+ISSUE = re.compile(r"\bissues? #?\d+", re.IGNORECASE)
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 FENCE = re.compile(r"^(```|~~~)")
 
@@ -52,7 +55,7 @@ def _prose(path: Path) -> list[tuple[int, str]]:
 def history_in(text: str) -> list[str]:
     """What in `text` reads as run history, each as the matched words."""
     found = [m.group(0) for m in HASH.finditer(text) if m.group(0).lower() not in NOT_HASHES]
-    for pattern in (RUN_ID, STREAK, STOP_NUMBER):
+    for pattern in (RUN_ID, STREAK, STOP_NUMBER, ISSUE):
         found += [m.group(0) for m in pattern.finditer(text)]
     return found
 
@@ -90,6 +93,8 @@ def anchors(path: Path) -> set[str]:
         ("followers stop 10 s after it falls silent", []),
         ("a 5 m threshold, 1e-5 BER, 0xFFFF, deadbeef, 1234567, R = 30 m", []),
         ("VTOL QuadPlane ArduCopter 2026-11-26", []),
+        ("the declared state (issue 16) and issues 11", ["issue 16", "issues 11"]),
+        ("the issue's check", []),
     ],
 )
 def test_what_counts_as_run_history(text: str, expected: list[str]) -> None:
@@ -140,3 +145,19 @@ def test_relative_links_resolve(path: Path) -> None:
             elif anchor and dest.suffix == ".md" and anchor not in anchors(dest):
                 broken.append(f"{path.relative_to(REPO)}:{number}: {target} (no such heading)")
     assert not broken, "\n".join(broken)
+
+
+SOURCES = ("swarm_proto", "swarm_node", "radio_gateway", "gcs_cli", "swarm_sim", "bench", "tests")
+
+
+def test_no_issue_numbers_in_code() -> None:
+    """Comments and docstrings say why, not which issue asked for it."""
+    bad = [
+        f"{path.relative_to(REPO)}:{number}: {m.group(0)}"
+        for pkg in SOURCES
+        for path in sorted((REPO / pkg).rglob("*.py"))
+        if path.name != "test_docs_hygiene.py"
+        for number, line in enumerate(path.read_text().splitlines(), 1)
+        for m in ISSUE.finditer(line)
+    ]
+    assert not bad, "issue numbers in code:\n" + "\n".join(bad)
