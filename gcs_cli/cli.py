@@ -797,6 +797,7 @@ def version() -> None:
 def _register() -> None:
     """The command groups that live in their own modules."""
     from . import files, monitor, plot, recovery  # noqa: F401 (they register themselves)
+    from .map import command  # noqa: F401 (`gcs map`)
 
 
 def main(argv: list[str] | None = None) -> None:
