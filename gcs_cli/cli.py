@@ -328,7 +328,7 @@ def alerts(
                         **msgspec.to_builtins(a),
                         "severity": a.severity.name,
                         "code": a.code.name,
-                        "meaning": alert_text(a.code, a.text),
+                        "meaning": alert_text(a.code, a.text, a.detail),
                     }
                     for a in got
                 ],
@@ -340,7 +340,7 @@ def alerts(
         style = "red" if a.severity >= 2 else ("yellow" if a.severity == 1 else None)
         console.print(
             f"{a.vehicle_id:>5} {a.severity.name:<9} {a.code.name:<20} "
-            f"{alert_text(a.code, a.text)}",
+            f"{alert_text(a.code, a.text, a.detail)}",
             style=style,
             highlight=False,
         )
@@ -395,6 +395,16 @@ MOVING = frozenset(
     }
 )
 COMMAND_NAMES = [k.name.lower().replace("_", "-") for k in CommandKind]
+#: --value of the commands that need one: (lowest, highest, lowest allowed, what)
+VALUE_RANGES: dict[CommandKind, tuple[float, float, bool, str]] = {
+    CommandKind.SET_SPEED: (0.0, 300.0, False, "--value, a speed in m/s"),
+    CommandKind.TAKEOFF: (0.0, 8000.0, False, "--value, an altitude in m above home"),
+    CommandKind.SET_ALTITUDE: (0.0, 8000.0, True, "--value, an altitude in m above home"),
+}
+
+
+def name_of(k: CommandKind) -> str:
+    return k.name.lower().replace("_", "-")
 
 
 def _complete_kind(incomplete: str) -> list[str]:
@@ -458,6 +468,14 @@ def cmd(
         ) from exc
     timeout_option(timeout)
     finite(value, "--value", -1.0e6, 1.0e6)
+    if k in VALUE_RANGES:  # what the vehicles would refuse, refused here (nothing sent)
+        lo, hi, zero_ok, what = VALUE_RANGES[k]
+        if value is None or not (lo <= value <= hi) or (value == lo and not zero_ok):
+            shown = "none given" if value is None else f"got {value:g}"
+            bounds = f"{lo:g} to {hi:g}" if zero_ok else f"above {lo:g}, at most {hi:g}"
+            raise typer.BadParameter(
+                f"{name_of(k)} needs {what}, {bounds} ({shown})", param_hint="--value"
+            )
     geo = GeoPoint(*parse_geopoint(point)) if point else None
     if k == CommandKind.EMERGENCY_LAND and geo is None:  # paper 3.5.1: ask for the route
         raise typer.BadParameter(
@@ -528,7 +546,7 @@ def mission(
     radius: float | None = typer.Option(None, help="target/perimeter radius, m"),
     alt_step: float | None = typer.Option(None, help="vertical separation between vehicles, m"),
     duration: float | None = typer.Option(None, help="target/objective: how long to hold, s"),
-    name: str = typer.Option("", help="a name for people"),
+    name: str | None = typer.Option(None, help="a name for people (default: the file's)"),
     mission_id: int = typer.Option(0, min=0, max=2**32 - 1, help="default: a fresh id"),
     timeout: float = typer.Option(5.0, help="seconds to wait for every answer"),
     save: Path | None = typer.Option(
@@ -558,15 +576,14 @@ def mission(
             f"unknown mission type {mission_type!r}", param_hint="TYPE"
         ) from exc
     timeout_option(timeout)
+    from_file: dict[str, object] = {}
     if file is not None:
         if any((polygon, point, circle, line, points)):
             raise typer.BadParameter("--file and --polygon/--point/... exclude each other")
-        from .geofiles import GeoFileError, mission_geometry
+        from .files import mission_file
 
-        try:
-            geometry = mission_geometry(file, mtype, feature)
-        except GeoFileError as exc:
-            raise typer.BadParameter(str(exc), param_hint="--file") from None
+        geometry, from_file, file_name = mission_file(file, mtype, feature, console)
+        name = file_name if name is None else name
     else:
         geometry = geometry_from(polygon, point, circle, line, points)
     for opt, v, lo, hi in (
@@ -590,7 +607,10 @@ def mission(
     }
     if payload:
         check_payload_model(payload, db_path)
-    values = {**mission_defaults(mtype, db_path, circle=geometry.radius_m is not None)}
+    values: dict[str, object] = {
+        **mission_defaults(mtype, db_path, circle=geometry.radius_m is not None)
+    }
+    values.update(from_file)  # the file's values, then the options given
     values.update({k: v for k, v in given.items() if v is not None})
     sel = selector_from(ids, fleet, quantity, payload, all_, required=not dry_run)
     try:
@@ -602,21 +622,20 @@ def mission(
             geometry,
             params,
             sel,
-            name,
+            name or "",
             time.time(),
         )
     except (ValueError, msgspec.ValidationError) as exc:
         raise typer.BadParameter(str(exc)) from exc
     checked(m)
     if save is not None:
-        from .geofiles import GeoFileError, save_mission
+        from .files import save_mission_file
 
-        try:
-            save_mission(save, m)
-        except GeoFileError as exc:
-            raise typer.BadParameter(str(exc), param_hint="--save") from None
-        console.print(f"mission {m.mission_id} written to {save}", style="dim")
+        save_mission_file(save, m, console)
     if dry_run:
+        from .budgets import dry_run_check
+
+        dry_run_check(ctx.obj, m, db_path, console)
         return
     with ctx.obj.open() as gs:
         ask(gs, f"mission {m.mission_id} ({mtype.name.lower()})", sel, yes)
@@ -720,7 +739,11 @@ def zone_add(
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
     sel = selector_from(ids, fleet, 0, "", all_)
-    _declare(ctx.obj, checked(zone), sel, timeout, as_json)
+    from .files import fence_warnings
+
+    for w in fence_warnings([checked(zone)]):
+        console.print(f"warning: {w}", style="yellow", highlight=False)
+    _declare(ctx.obj, zone, sel, timeout, as_json)
 
 
 def _declare(link: Link, zone: NoFlyZone, sel: Selector, timeout: float, as_json: bool) -> None:
@@ -738,15 +761,23 @@ def zone_remove(
     fleet: FleetOption = None,
     all_: AllOption = False,
     timeout: float = typer.Option(10.0, help="seconds to wait for the vehicles to drop it"),
+    force: bool = typer.Option(
+        False, "--force", help="send it even if no vehicle answers holding the id (radio)"
+    ),
     as_json: JsonOption = False,
 ) -> None:
     """Withdraw a no-fly zone or operating area (republished inactive: the vehicles
     drop it by id; the geometry sent is a placeholder) and show each vehicle's answer;
-    a vehicle that never held it answers NOT_FOUND (exit 1).
+    a vehicle that never held it answers NOT_FOUND (exit 1). An id no vehicle holds is
+    refused before anything is sent (exit 1), unless --force.
 
     Example: gcs zone remove 3
     """
     timeout_option(timeout)
+    if not force:
+        from .files import check_removal
+
+        check_removal(ctx.obj, zone_id)
     placeholder = Geometry.circle(0.0, 0.0, 1.0)
     zone = NoFlyZone(zone_id, placeholder, active=False, issuer_id=ctx.obj.gcs_id)
     _declare(ctx.obj, zone, selector_from(ids, fleet, 0, "", all_), timeout, as_json)
@@ -766,6 +797,7 @@ def version() -> None:
 def _register() -> None:
     """The command groups that live in their own modules."""
     from . import files, monitor, plot, recovery  # noqa: F401 (they register themselves)
+    from .map import command  # noqa: F401 (`gcs map`)
 
 
 def main(argv: list[str] | None = None) -> None:

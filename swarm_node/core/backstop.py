@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 import msgspec
 
 from swarm_proto import Alert, AlertCode, GeoPoint, Severity, VehicleType
+from swarm_proto.text import short_text
 
 from .autopilot.conversion import ConversionError, fence_items, rally_items
 from .autopilot.mission_item import MissionItem
@@ -280,4 +281,6 @@ class BackstopKeeper:
         return out + self._next(ap, now)
 
     def _alert(self, now: float, severity: Severity, kind: MissionKind, text: str) -> Publish:
-        return Publish(Alert(self.vehicle_id, max(0.0, now), severity, _CODE[kind], text[:64]))
+        return Publish(
+            Alert(self.vehicle_id, max(0.0, now), severity, _CODE[kind], short_text(text))
+        )

@@ -422,7 +422,14 @@ class CommandTracker:
         if run is None:
             return [], []  # not ours (emergency or mission requests), or already timed out
         if not result.ok:
-            return [], [self._ack(run.cmd, False, AckReason.AUTOPILOT_REJECTED, result.reason)]
+            # the arbiter's own refusal ("preempted by AVOIDANCE") is the node's, not
+            # the autopilot's
+            who = (
+                AckReason.PREEMPTED
+                if result.reason.startswith("preempted by")
+                else AckReason.AUTOPILOT_REJECTED
+            )
+            return [], [self._ack(run.cmd, False, who, result.reason)]
         if run.remaining:
             return [self._submit(run.cmd, run.remaining, now)], []
         return [], [self._ack(run.cmd, True, AckReason.OK, result.reason)]

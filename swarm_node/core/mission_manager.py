@@ -32,6 +32,7 @@ from swarm_proto import (
     MissionState,
     MissionType,
     NoFlyZone,
+    ReasonDetail,
     Severity,
     VehicleStatus,
     VehicleType,
@@ -352,7 +353,7 @@ class MissionManager:
                     self._alert(Severity.WARNING, text, now, AlertCode.MISSION_FAILED),
                     *self._resume(mid),
                 ]
-            return self._failed(mid, outcome.error)
+            return self._failed(mid, outcome.error, outcome.detail)
         old = self.share
         self.fleet_plan = outcome.plan
         try:
@@ -685,9 +686,9 @@ class MissionManager:
         less what was flown before the last replan)."""
         return max(0.0, self.sortie.progress_m - self._offset)
 
-    def _failed(self, mid: int, reason: str) -> list[Out]:
+    def _failed(self, mid: int, reason: str, detail: ReasonDetail | None = None) -> list[Out]:
         self.sortie.go(Trigger.FAILED)
-        return [Post(fsm.PlanFailed(mid, short_text(reason)))]
+        return [Post(fsm.PlanFailed(mid, short_text(reason), detail))]
 
     def _timed_hold(self, waypoints: Sequence[Waypoint], duration_s: float | None) -> None:
         """A mission with a duration that holds on an unlimited loiter (a fixed-wing's

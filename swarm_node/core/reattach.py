@@ -42,6 +42,7 @@ from enum import Enum
 import msgspec
 
 from swarm_proto import Alert, AlertCode, FsmState, Severity, VehicleInfo
+from swarm_proto.text import short_text
 
 from .autopilot.mission_item import MavCmd, MissionItem
 from .autopilot.requests import ApResult, DownloadMission, MissionKind
@@ -204,7 +205,9 @@ class Reattacher:
         severity = Severity.INFO if decision == Decision.CONTINUE else Severity.WARNING
         return [
             Note(logging.WARNING, f"{text} ({why})"),
-            Publish(Alert(self.vehicle_id, max(0.0, now), severity, AlertCode.GENERIC, text[:64])),
+            Publish(
+                Alert(self.vehicle_id, max(0.0, now), severity, AlertCode.GENERIC, short_text(text))
+            ),
         ]
 
     def next_deadline(self) -> float | None:

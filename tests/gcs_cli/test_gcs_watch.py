@@ -274,5 +274,5 @@ def test_record_writes_the_flight_csv(zenoh_router: str, tmp_path: object) -> No
     header = out.read_text().splitlines()[0]
     assert header == (
         "time_s,vehicle,lat,lon,alt_m,alt_rel_m,groundspeed_m_s,heading_deg,"
-        "battery_pct,fsm,mission,progress_pct"
+        "battery_pct,fsm,mission,progress_pct,armed"
     )

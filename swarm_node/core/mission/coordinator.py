@@ -250,8 +250,8 @@ class MissionCoordinator:
 
     def _carry_out(self, o: fsm.Output, ctx: Context, now: float) -> list[ModuleOutput]:
         if isinstance(o, fsm.RaiseAlert):
-            alert = Alert(self.self_id, max(0.0, now), o.severity, o.code, short_text(o.text))
-            return [Publish(alert)]
+            text = short_text(o.text)
+            return [Publish(Alert(self.self_id, max(0.0, now), o.severity, o.code, text, o.detail))]
         if isinstance(o, fsm.StartEmergency):
             self.manager.stop()
             return [BeginEmergency(o.code, o.severity)]

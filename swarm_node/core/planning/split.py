@@ -20,6 +20,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from swarm_proto import DetailCode, ReasonDetail
+
 from .coverage import LOCAL_SEARCH, CoveragePath, Lane, connect, order, order_cost
 from .dubins import Pose
 from .endurance import leg_s, stop_and_go_s
@@ -445,8 +447,38 @@ def _best_bounds(
         f"vehicle {w.vehicle_id} {w.budget_s:.0f} s" for w in workers if math.isfinite(w.budget_s)
     )
     short = f" (short by {worst:.0f} s)" if worst > 0.0 else ""
-    raise InfeasibleTimingError(
+    exc = InfeasibleTimingError(
         f"the vehicles' endurance does not cover the area{short}: at cruise, {budgets}"
+    )
+    exc.detail = _shortfall(ordered, workers, cost)
+    raise exc
+
+
+def _shortfall(
+    ordered: Sequence[Lane], workers: Sequence[Worker], cost: MakespanCost
+) -> ReasonDetail:
+    """What the area asks of each vehicle against what it has, for people: an even
+    split of the lanes (in sweep order), each block with the way home by the estimate,
+    against the battery's budget, both averaged over the vehicles with a budget (one
+    vehicle: its own figures)."""
+    limited = [w for w in workers if math.isfinite(w.budget_s)]
+    n, k = len(workers), len(ordered)
+    needs, budgets = [], []
+    for idx, w in enumerate(workers):
+        if not math.isfinite(w.budget_s):
+            continue
+        block = ordered[round(idx * k / n) : round((idx + 1) * k / n)] or ordered[-1:]
+        back = max(w.return_s(p) for p in (block[0].a, block[0].b, block[-1].a, block[-1].b))
+        needs.append(cost.estimate(block, w) + back)
+        budgets.append(w.budget_s)
+    if not needs:
+        return ReasonDetail(DetailCode.ENDURANCE)
+    one = limited[0].vehicle_id if len(workers) == 1 else 0
+    return ReasonDetail(
+        DetailCode.ENDURANCE,
+        one if one <= 65534 else 0,
+        needed_s=min(sum(needs) / len(needs), 1.0e7),
+        available_s=min(sum(budgets) / len(budgets), 1.0e7),
     )
 
 

@@ -74,6 +74,7 @@ from swarm_proto import (
     VehicleType,
 )
 from swarm_proto.geodesy import distance_m
+from swarm_proto.text import short_text
 
 from ..autopilot.items import ItemKind, Waypoint
 from ..autopilot.requests import (
@@ -521,7 +522,9 @@ class AvoidanceModule:
 
     def _alert(self, now: float, severity: Severity, text: str) -> Publish:
         vid = self.profile.vehicle_id
-        return Publish(Alert(vid, max(0.0, now), severity, AlertCode.COLLISION_RISK, text[:64]))
+        return Publish(
+            Alert(vid, max(0.0, now), severity, AlertCode.COLLISION_RISK, short_text(text))
+        )
 
     def _count(self, what: str) -> None:
         self.counters[what] = self.counters.get(what, 0) + 1

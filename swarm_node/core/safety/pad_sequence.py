@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import msgspec
 
 from swarm_proto import Alert, AlertCode, GeoPoint, Severity, VehicleStatus, VehicleType
+from swarm_proto.text import short_text
 
 from ..autopilot.items import ItemKind, Waypoint
 from ..autopilot.requests import (
@@ -250,7 +251,7 @@ class PadSequence:
     def _alert(self, now: float, text: str) -> Publish:
         vid = self.profile.vehicle_id
         return Publish(
-            Alert(vid, max(0.0, now), Severity.WARNING, AlertCode.COLLISION_RISK, text[:64])
+            Alert(vid, max(0.0, now), Severity.WARNING, AlertCode.COLLISION_RISK, short_text(text))
         )
 
     def _count(self, what: str) -> None:
