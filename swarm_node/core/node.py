@@ -1,8 +1,8 @@
 """The vehicle node as one pure object: a router between the modules that own its state
-(docs/node.md has the routes). It owns none itself: it hands each input to the module
-that owns it, and what each module returns, as it returns it, to the module it concerns
-(routes.py; the table is outputs.py's) or to the shell (swarm_node.runtime.node; tests
-and fast-time simulations join several NodeCores and jump from deadline to deadline).
+(docs/node.md). It owns none itself: it hands each input to the module that owns it, and
+what each module returns, as it returns it, to the module it concerns (routes.py; the
+table is outputs.py's) or to the shell (swarm_node.runtime.node; tests and fast-time
+simulations join several NodeCores and jump from deadline to deadline).
 
     core.handle(input, now) -> list[Output]    core.on_timer(now) -> list[Output]
     core.hear(inputs, now)  (handle, for a batch)   core.next_deadline() -> float

@@ -6,7 +6,7 @@ flies this vehicle's share). Only this module posts to the state machine: every 
 module's events reach it as `Post` outputs.
 
     inputs (from NodeCore)                 what it does with them
-    tick(ctx, now)                         the state machine's step; its outputs carried
+    tick(facts, read, now)                 the state machine's step; its outputs carried
                                            out (BeginPlan -> the roster opens, the
                                            mission manager plans; ReleaseMission -> the
                                            fleet plans, votes, replans or joins; ...)
@@ -14,23 +14,25 @@ module's events reach it as `Post` outputs.
     take(Accepted)                         a mission past the acceptance checks: in force
     take(Candidacy)                        a QUANTITY mission past them: tasking answers
                                            it, a flying fleet votes at once
-    take(Regrouping)                        JOIN / SWAP addressed to this vehicle
+    take(Regrouping)                       JOIN / SWAP addressed to this vehicle
     take(TakeOver), take(StopLanding)      the operator flies the vehicle
-    on_vote, on_target, on_timer           tasking; its outcomes (elected, failed,
+    on_message(Vote | TargetReport), on_timer
+                                           tasking; its outcomes (elected, failed,
                                            derived missions) carried out
-    on_lineage, heard_mission              regroup
-    on_info, on_ack, peer_lost             the roster (members lost or joining: replan)
-    restored(record), on_reattach_result   a node restarted in flight: reattach
+    on_message(PlanLineage), heard_mission regroup
+    on_message(Ack), on_info, peer_lost    the roster (members lost or joining: replan)
+    restored(record), on_result(REATTACH)  a node restarted in flight: reattach
                                            (reattach.py, owner REATTACH) decides with
                                            the share on record, which is kept here
     on_autopilot, on_plan, on_result,      the mission manager
-    on_suspended, pads_tick, peer statuses
+    on_suspended, pads_tick
 
 It talks to the rest of the node through outputs (outputs.py): requests (owner
 MISSION), control released, declarations kept or ended, this vehicle's fleet left,
 the emergency procedure begun, our VehicleInfo published now. What it reads of the
 other modules comes in as a `Context` (the autopilot's state, the peers, the base, the
-fleet, the active flag, the zones).
+fleet, the active flag, readiness, the zones, the missions on record), read only when an
+input needs it.
 
 Pure: no I/O; `now` is passed in.
 """
