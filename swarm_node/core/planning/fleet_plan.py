@@ -50,6 +50,7 @@ from swarm_proto import Mission, MissionType, NoFlyZone
 
 from .area import AreaPlan, plan_area, replan_area
 from .autoland import plan_autoland
+from .context import PlanContext
 from .endurance import launch_s, transition_s
 from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError, PlanningError
 from .flight import FIXED_WING_ACCEPT_M, flyable_plan, predict_flight
@@ -586,16 +587,16 @@ def _plan(
     extra: dict[str, object] = {}
     if mission.mission_type == MissionType.AUTOLAND:
         extra = {"hold_until_released": True, "pad_spacing_m": LANDING_PAD_SPACING_M}
-    detail = planner(
+    ctx = PlanContext(
         mission.geometry,
         vehicles,
         mission.params,
-        zones=zones,
-        now_unix_s=now_unix_s,
-        home_alt_msl_m=home_alt_msl_m,
-        zone_margin_m=zone_margin_m(vehicles),
-        **extra,
+        zones,
+        now_unix_s,
+        home_alt_msl_m,
+        zone_margin_m(vehicles),
     )
+    detail = planner(ctx, **extra)
     # every fixed-wing share flyable as planned (the plan's tracks follow)
     detail = flyable_plan(
         detail, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
@@ -676,13 +677,15 @@ def _plan_area(
     rounds = FLYABLE_ROUNDS if aware and any(v.profile.is_fixed_wing for v in vehicles) else 1
     for _ in range(rounds):
         raw = plan_area(
-            mission.geometry,
-            vehicles,
-            mission.params,
-            zones=zones,
-            now_unix_s=now_unix_s,
-            home_alt_msl_m=home_alt_msl_m,
-            zone_margin_m=margin,
+            PlanContext(
+                mission.geometry,
+                vehicles,
+                mission.params,
+                zones,
+                now_unix_s,
+                home_alt_msl_m,
+                margin,
+            ),
             endurance=aware,
             extra_s=extra,
             legacy_split=not aware,
