@@ -15,9 +15,11 @@ from rich.table import Table
 from swarm_proto import GeometryKind, NoFlyZone
 
 from .answers import progress, report
-from .cli import Link, console, selector_from, timeout_option, zone_app
+from .common import Link, console, selector_from, timeout_option
 from .geofiles import GeoFileError, save_zones, zone_features
 from .options import AllOption, FleetOption, IdsOption, JsonOption, checked, finite
+
+zone_app = typer.Typer()  # zone list, export, import: app.py puts them in `gcs zone`
 
 
 def held_zones(

@@ -26,9 +26,11 @@ import typer
 from swarm_proto import GeometryKind, Mission, NoFlyZone, VehicleStatus
 from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter, read_trajectory
 
-from .cli import _shown, app, console, wait_option
+from .common import console, read_filter, wait_option
 from .options import AllOption, FleetOption, IdsOption
 from .recovery import StateFileError, SwarmState, collect, read_state
+
+app = typer.Typer()  # plot, record: app.py puts them at the top level
 
 R_EARTH_M = 6_371_008.8
 
@@ -386,7 +388,7 @@ def record(
     """
     if duration is not None:
         wait_option(duration)
-    shown = _shown(ids, fleet, all_)
+    shown = read_filter(ids, fleet, all_)
     rows = 0
     last: dict[int, float] = {}
     try:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 from typer.testing import CliRunner
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from gcs_cli.tasking import result_of, vote_table
 from swarm_proto import Vote, VoteScore
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from gcs_cli.geofiles import (
     GeoFileError,
     mission_geometry,
