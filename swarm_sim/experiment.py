@@ -143,7 +143,9 @@ def run(
     plan_kw: dict[str, Any] | None = None,
     avoidance: bool = True,
 ) -> int:
-    """Fly the story with `members`; write the report to `out`; 0 when it passed."""
+    """Fly the story with `members`; write the report to `out`; 0 when it passed.
+    Collision avoidance and the close pads' take-off and landing sequencing are on (the
+    nodes' default), as in the paper's experiment."""
     console = console or (Console() if sys.stdout.isatty() else Console(width=140))
     if len(members) < 4:
         console.print(

@@ -129,6 +129,7 @@ def test_the_whole_demo_flies_over_the_radio() -> None:
     """`swarm-sim demo --radio`: the default fleet (three VTOLs, two quadcopters, six
     radio nodes with the ground station) plans, flies, returns and lands with every
     message between the vehicles and the ground station on the air (about 6 minutes)."""
-    from swarm_sim.demo import DEFAULT_FLEET, run_demo
+    from swarm_sim.demo import DEFAULT_FLEET
+    from swarm_sim.experiment import run
 
-    assert run_demo(DEFAULT_FLEET, speedup=1.0, timeout_s=900.0, radio=True) == 0
+    assert run(DEFAULT_FLEET, speedup=1.0, timeout_s=900.0, radio=True) == 0
