@@ -93,11 +93,13 @@ class Arming:
             return "Battery 1 below minimum arming capacity"
         return None
 
+    def prearm_due(self, now: float) -> bool:
+        """Time to send the failing pre-arm check again (booted, disarmed)."""
+        return self.sensors.ready and not self.armed and now >= self.prearm_next
+
     def show_prearm_failure(self, now: float, mode: ModeSpec) -> None:
-        """Every PREARM_DISPLAY_PERIOD_S while disarmed with a position: the failing
-        check, as ArduPilot repeats it."""
-        if not self.sensors.ready or self.armed or now < self.prearm_next:
-            return
+        """When due, every PREARM_DISPLAY_PERIOD_S: the failing check, as ArduPilot
+        repeats it (once the EKF has a position)."""
         self.prearm_next = now + PREARM_DISPLAY_PERIOD_S
         if self.sensors.ekf_position and self.params.value("ARMING_CHECK") != 0:
             reason = self.prearm_failure(mode)

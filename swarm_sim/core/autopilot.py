@@ -148,7 +148,6 @@ class SimAutopilot:
             fence=self.fence,
             navigator=self.navigator,
             modes=self.modes,
-            timeline=timeline,
             out=out,
         )
         self.boot = Boot(
@@ -186,12 +185,16 @@ class SimAutopilot:
         """Run physics, boot events, protocol timeouts and due telemetry up to `now`."""
         self._advance(now)
         self.timeline.now = now
-        self.out.extend(self.stores.update(now))
+        timeouts = self.stores.update(now)
+        if timeouts:
+            self.out.extend(timeouts)
         self._emit_due(now)
         return self.out.flush()
 
     def next_deadline(self) -> float | None:
-        t = min(self._next_phys, self.timeline.next_event_at())
+        t = self._next_phys
+        if self.timeline.next_at < t:
+            t = self.timeline.next_at
         due = self.streams.next_deadline()
         if due is not None and due < t:
             t = due
@@ -327,7 +330,7 @@ class SimAutopilot:
         if now < tl.t - 1e-6:
             raise ValueError(f"time went backwards: {now} < {tl.t}")
         while True:
-            t_evt = tl.next_event_at()
+            t_evt = tl.next_at
             t_phys = self._next_phys
             if min(t_evt, t_phys) > now:
                 break
@@ -338,7 +341,8 @@ class SimAutopilot:
                 self._physics_step(t_phys - tl.t if t_phys > tl.t else 0.0, t_phys)
                 tl.t = t_phys
                 self._next_phys = t_phys + dt
-        self.arming.show_prearm_failure(now, self.modes.spec)
+        if self.arming.prearm_due(now):
+            self.arming.show_prearm_failure(now, self.modes.spec)
 
     def _phys_dt(self) -> float:
         b = self.body

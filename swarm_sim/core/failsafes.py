@@ -12,7 +12,6 @@ from .modes import Modes
 from .navigator import Navigator
 from .outbox import Outbox
 from .params import Parameters
-from .timeline import Timeline
 
 
 class Failsafes:
@@ -25,7 +24,6 @@ class Failsafes:
         fence: Fence,
         navigator: Navigator,
         modes: Modes,
-        timeline: Timeline,
         out: Outbox,
     ) -> None:
         self.firmware = firmware
@@ -34,17 +32,15 @@ class Failsafes:
         self.fence = fence
         self.navigator = navigator
         self.modes = modes
-        self.timeline = timeline
         self.out = out
 
     def check(self) -> None:
-        """After a physics step while armed (the timeline is still at the step's start)."""
+        """After every physics step while armed."""
         self._fence()
 
     def _fence(self) -> None:
         b = self.body
-        breach_ms = self.timeline.boot_ms(self.timeline.t)
-        if not self.fence.check(b.n, b.e, b.on_ground, breach_ms):
+        if not self.fence.check(b.n, b.e, b.on_ground):
             return
         self.out.text(SEV_NOTICE, "Fence Breached")
         action = int(self.params.value("FENCE_ACTION"))

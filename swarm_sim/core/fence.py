@@ -90,8 +90,9 @@ class Fence:
             i += 1
         return inclusion_seen and not inside_any_inclusion
 
-    def check(self, n: float, e: float, on_ground: bool, boot_ms: int) -> bool:
-        """Update the breach state; True on a new breach (the failsafe acts on it)."""
+    def check(self, n: float, e: float, on_ground: bool) -> bool:
+        """Update the breach state after a physics step (the timeline still at its
+        start); True on a new breach (the failsafe acts on it)."""
         if (
             not self.enabled
             or not int(self.params.value("FENCE_TYPE")) & 4
@@ -104,6 +105,6 @@ class Fence:
         new = breached and not self.breached
         if new:
             self.breach_count += 1
-            self.breach_ms = boot_ms
+            self.breach_ms = self.timeline.boot_ms(self.timeline.t)
         self.breached = breached
         return new

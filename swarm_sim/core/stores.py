@@ -73,6 +73,7 @@ class ItemStores:
             FENCE: ItemTransfer(FENCE, self.fence, on_change=on_change, statustext=statustext),
             RALLY: ItemTransfer(RALLY, self.rally, on_change=on_change, statustext=statustext),
         }
+        self._each = tuple(self.transfers.values())
 
     @property
     def mission_total(self) -> int:
@@ -89,13 +90,14 @@ class ItemStores:
     def update(self, now: float) -> list[Any]:
         """Protocol timeouts and resent requests of the uploads in progress."""
         out: list[Any] = []
-        for transfer in self.transfers.values():
-            out.extend(transfer.update(now))
+        for transfer in self._each:
+            if transfer.receiving:
+                out.extend(transfer.update(now))
         return out
 
     def next_deadline(self) -> float | None:
         due: float | None = None
-        for transfer in self.transfers.values():
+        for transfer in self._each:
             if transfer.receiving:
                 d = transfer.next_deadline()
                 if d is not None and (due is None or d < due):

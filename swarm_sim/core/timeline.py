@@ -16,6 +16,7 @@ class Timeline:
         self.event_t = now  # the time of the event being run
         self.now = now  # the time of the message or timer being handled
         self._events: list[tuple[float, Callable[[], None]]] = []
+        self.next_at = math.inf  # when the earliest action is due (read on every deadline)
 
     def boot_ms(self, now: float) -> int:
         """Milliseconds since boot, as MAVLink's time_boot_ms (wraps at 2**32)."""
@@ -24,13 +25,12 @@ class Timeline:
     def schedule(self, at: float, action: Callable[[], None]) -> None:
         """Run `action` at `at` (after the actions already due then)."""
         bisect.insort(self._events, (at, action), key=lambda ev: ev[0])
-
-    def next_event_at(self) -> float:
-        return self._events[0][0] if self._events else math.inf
+        self.next_at = self._events[0][0]
 
     def run_next(self) -> None:
         """Run the earliest action; `event_t` is its time while it runs (an action that
         reschedules itself counts from there)."""
         at, action = self._events.pop(0)
+        self.next_at = self._events[0][0] if self._events else math.inf
         self.event_t = at
         action()
