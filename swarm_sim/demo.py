@@ -401,7 +401,7 @@ def stop(fleet: Fleet) -> None:
         fleet.router.close()  # type: ignore[attr-defined]
 
 
-def _radio_up(
+def radio_up(
     stats: dict[int, RadioStats], members: tuple[int, ...], fleet: Fleet, console: Console
 ) -> dict[str, int]:
     """Wait until the ground station's gateway follows a table of every node; return
@@ -429,7 +429,7 @@ def _radio_up(
     return before
 
 
-def _radio_report(
+def radio_report(
     stats: RadioStats | None, fleet: Fleet, configuring: dict[str, int], console: Console
 ) -> bool:
     """What the ground station's gateway heard, and what the channel saw since the

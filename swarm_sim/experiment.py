@@ -209,7 +209,7 @@ def run(
     try:
         if radio:
             console.print("  radio: the gateways configure their modules over AT commands ...")
-            configuring = demo._radio_up(radio_stats, members, fleet, console)
+            configuring = demo.radio_up(radio_stats, members, fleet, console)
         live = None
         if console.is_terminal:
             from rich.live import Live
@@ -282,7 +282,7 @@ def run(
         radio_report = None
         if radio:
             radio_report = _radio_figures(radio_stats.get(demo.GCS_ID), fleet, configuring)
-            demo._radio_report(radio_stats.get(demo.GCS_ID), fleet, configuring, console)
+            demo.radio_report(radio_stats.get(demo.GCS_ID), fleet, configuring, console)
     except KeyboardInterrupt:
         console.print("[yellow]interrupted[/]")
         story.record.outcome = story.record.outcome or "interrupted"

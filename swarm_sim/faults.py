@@ -433,7 +433,7 @@ def fault_ground_station_lost(run: Run) -> Injected:
     run.fleet.run_for(2.0)
     run.gcs_alive = False
     for vid in run.fleet.vehicles:
-        run.fleet._deliver(vid, PeerAlive(GCS, False), run.fleet.now)
+        run.fleet.deliver(vid, PeerAlive(GCS, False), run.fleet.now)
     injected = fault_kill(run, send=False)
     return Injected(
         injected.recover_s,
