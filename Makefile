@@ -84,7 +84,7 @@ sitl-check: $(STAMP)
 
 ## docs: regenerate the generated documents (keyspace, state diagrams)
 docs: $(STAMP)
-	$(BIN)/python -m swarm_proto.topics > docs/keyspace.md
+	$(BIN)/python -m swarm_proto.keyspace_doc > docs/keyspace.md
 	$(BIN)/python -m swarm_node.docs_gen docs/state-machine.md
 
 clean:

@@ -148,7 +148,7 @@ def _one(n: int, endpoint: str, browser: Any, tmp: Path) -> dict[str, Any]:
     out = open(log, "wb")  # noqa: SIM115
     server = subprocess.Popen(
         [
-            *(sys.executable, "-m", "gcs_cli.cli", "--connect", endpoint, "--swarm", SWARM),
+            *(sys.executable, "-m", "gcs_cli.app", "--connect", endpoint, "--swarm", SWARM),
             *("map", "--listen", "127.0.0.1:0", "--token", TOKEN),
         ],
         stdout=out,

@@ -41,7 +41,7 @@ from swarm_proto.messages import Mission
 
 from . import _clickx
 from .answers import outcome_json, progress, report
-from .cli import Link, console, selector_from, timeout_option, zone_app
+from .common import Link, console, selector_from, timeout_option
 from .core.exchange import Outcome
 from .geofiles import (
     GeoFileError,
@@ -55,6 +55,8 @@ from .geofiles import (
 )
 from .ground import GroundStation
 from .options import AllOption, FleetOption, IdsOption, JsonOption, checked, finite
+
+zone_app = typer.Typer()  # zone list, export, import: app.py puts them in `gcs zone`
 
 #: the zone's heights when neither the file nor an option gives them
 FULL_FLOOR_M, FULL_CEILING_M = -1000.0, 8000.0

@@ -26,9 +26,11 @@ import typer
 from swarm_proto import GeometryKind, Mission, NoFlyZone, VehicleStatus
 from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter, read_trajectory
 
-from .cli import _shown, app, console
+from .common import console, read_filter
 from .options import AllOption, FleetOption, IdsOption, finite
 from .recovery import StateFileError, SwarmState, collect, read_state
+
+app = typer.Typer()  # plot, record: app.py puts them at the top level
 
 R_EARTH_M = 6_371_008.8
 
@@ -453,7 +455,7 @@ def record(
     Example: gcs record flight.csv --duration 600
     """
     finite(duration, "--duration", 0.0, 1.0e7)
-    shown = _shown(ids, fleet, all_)
+    shown = read_filter(ids, fleet, all_)
     rows = 0
     last: dict[int, float] = {}
     try:

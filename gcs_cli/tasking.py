@@ -25,6 +25,7 @@ from swarm_proto import Ack, AckRef, GeoPoint, TargetReport, TargetSource, Vote,
 from swarm_proto.errors import ProtoError
 from swarm_proto.topics import ACK, VOTE
 
+from .common import parse_point
 from .ground import FleetView, GroundStation
 from .render import ack_table
 
@@ -238,8 +239,6 @@ def report(
 
     Example: gcs target report --point 37.4125,-5.9889 --class person --confidence 0.9
     """
-    from .cli import parse_point
-
     lat, lon = parse_point(point)
     if not (confidence >= 0.0 and confidence <= 1.0):
         raise typer.BadParameter("--confidence must be in [0, 1]", param_hint="--confidence")

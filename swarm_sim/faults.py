@@ -61,6 +61,7 @@ from swarm_proto import (
 
 from .core import SITL_HOME
 from .fast_fleet import FastFleet
+from .fault_row import FaultRow
 from .scenarios import GCS, square
 
 ALT_M = 60.0
@@ -79,25 +80,6 @@ MISSIONS: tuple[MissionSpec, ...] = (
     MissionSpec("survey, 3 VTOLs", (1, 2, 3), 220.0, 3),
     MissionSpec("survey, 2 quadcopters + 1 VTOL", (7, 8, 1), 120.0, 8),
 )
-
-
-@dataclass
-class FaultRow:
-    fault: str
-    mission: str
-    env: str  # "fast" (FastFleet) | "processes"
-    recovered: bool
-    recover_s: float | None  # simulated seconds, fault -> its recovery event
-    coverage: float
-    mission_completed: bool
-    declared_state_lost: int
-    false_emergencies: int  # emergencies whose condition did not hold (a link loss judged)
-    emergencies: dict[str, int] = field(
-        default_factory=dict
-    )  # every STATE_EMERGENCY: code (vehicle)
-    alerts: dict[str, int] = field(default_factory=dict)  # "SEVERITY CODE" -> count
-    note: str = ""
-    wall_s: float = 0.0
 
 
 # ----------------------------------------------------------------------------- FastFleet
@@ -451,7 +433,7 @@ def fault_ground_station_lost(run: Run) -> Injected:
     run.fleet.run_for(2.0)
     run.gcs_alive = False
     for vid in run.fleet.vehicles:
-        run.fleet._deliver(vid, PeerAlive(GCS, False), run.fleet.now)
+        run.fleet.deliver(vid, PeerAlive(GCS, False), run.fleet.now)
     injected = fault_kill(run, send=False)
     return Injected(
         injected.recover_s,

@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         words = shlex.split(line.split("map: ", 1)[1].split("(then")[0])
         db = words[0].split("=", 1)[1]
-        cmd = [sys.executable, "-m", "gcs_cli.cli", *words[2:], "--listen", "127.0.0.1:0"]
+        cmd = [sys.executable, "-m", "gcs_cli.app", *words[2:], "--listen", "127.0.0.1:0"]
         map_log = tmp / "map.log"
         with open(map_log, "wb") as out:
             gcs_map = subprocess.Popen(

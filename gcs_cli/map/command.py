@@ -1,5 +1,5 @@
 """`gcs map`: the operator's live map in a browser (docs/ground-station.md, "The live
-map"). Registered on the `gcs` app by cli.py."""
+map"). Registered on the `gcs` app by app.py."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import typer
 
-from ..cli import app, console
+from ..common import console
 from ..options import finite
 
 
@@ -117,8 +117,7 @@ def map_command(
     try:
         hub = Hub(config, gs, player)
         if player is not None:
-            hub.infos = replay_infos(sorted({s.vehicle_id for s in player.samples}), None)
-            hub.model = hub._new_model()
+            hub.use_infos(replay_infos(sorted({s.vehicle_id for s in player.samples}), None))
         else:
             hub.attach()
         _run(hub)
@@ -156,6 +155,3 @@ def _run(hub: object) -> None:
         asyncio.run(main())
     finally:
         hub.close()
-
-
-app.command("map")(map_command)

@@ -40,7 +40,8 @@ from swarm_proto import (
 )
 
 from .. import _clickx
-from ..cli import MOVING, check_payload_model, mission_defaults, selector_from
+from ..cli import MOVING, check_payload_model, mission_defaults
+from ..common import selector_from
 from ..core.exchange import Exchange, Outcome
 from ..ground import GroundStation, new_seq
 from ..options import checked, describe, finite, geometry_from, parse_geopoint

@@ -119,6 +119,11 @@ class Hub:
     def now(self) -> float:
         return self.player.t if self.player is not None else time.monotonic()
 
+    def use_infos(self, infos: list[VehicleInfo]) -> None:
+        """The vehicles a replay shows (from its CSV): the map starts again with them."""
+        self.infos = infos
+        self.model = self._new_model()
+
     def _new_model(self) -> MapModel:
         if self.player is None:
             return MapModel(
@@ -526,9 +531,8 @@ async def serve(hub: Hub, ready: Callable[[str], None], stopped: asyncio.Event) 
     try:
         site = web.TCPSite(runner, hub.config.host, hub.config.port)
         await site.start()
-        server = getattr(site, "_server", None)
-        sockets = getattr(server, "sockets", None) or []
-        port = sockets[0].getsockname()[1] if sockets else hub.config.port
+        bound = [a for a in runner.addresses if isinstance(a, tuple)]
+        port = bound[0][1] if bound else hub.config.port
         host = hub.config.host
         shown = f"[{host}]" if ":" in host else host
         ready(f"http://{shown}:{port}/?token={hub.config.token}")

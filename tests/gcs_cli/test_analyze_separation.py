@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner, Result
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from gcs_cli.separation import AnalysisError, Thresholds, analyze
 from swarm_proto import VehicleStatus
 from swarm_proto.trajectory import HEADER, TrajectoryError, TrajectoryWriter, parse_trajectory

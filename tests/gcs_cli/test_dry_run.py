@@ -14,8 +14,8 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from gcs_cli.app import run
 from gcs_cli.budgets import Swarm, budgets
-from gcs_cli.cli import run
 from gcs_cli.geofiles import mission_from_file
 from swarm_node.core.planning import PlanningError
 from swarm_node.database import seed_profiles

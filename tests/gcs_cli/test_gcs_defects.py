@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from swarm_proto.endpoints import mavlink_endpoint, zenoh_endpoint
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import COMMAND, MISSION, ZONE
@@ -196,7 +196,7 @@ def test_the_connect_option_takes_either_spelling(
 
 
 def test_every_command_has_an_example_in_its_help(capsys: pytest.CaptureFixture[str]) -> None:
-    from gcs_cli.cli import app
+    from gcs_cli.app import app
     from tests.gcs_cli.cli_walk import commands
 
     paths = commands(app)

@@ -3,7 +3,7 @@
 --fleet, --id) and reports each one's answer, vehicles that start after `gcs` too;
 zones are acknowledged, listed, exported and withdrawn; save / load; the monitoring
 commands' JSON. Each `gcs` here is the command line as an operator runs it
-(`gcs_cli.cli.run`, a fresh ground station session per command)."""
+(`gcs_cli.app.run`, a fresh ground station session per command)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from swarm_proto import Ack, AckReason, AckRef, Command, VehicleInfo, VehicleType
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import ACK, COMMAND

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 from typer.testing import CliRunner
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from gcs_cli.tasking import result_of, vote_table
 from swarm_proto import Vote, VoteScore
 
@@ -60,7 +60,7 @@ def test_a_vote_over_before_gcs_vote_listened_is_read_from_the_vehicles(
 ) -> None:
     """`gcs vote ID` said "no vote heard" 5-15 s after a vote while the winners flew:
     the winners are read from what they publish (VehicleInfo.mission_id)."""
-    from gcs_cli.cli import run
+    from gcs_cli.app import run
     from tests.gcs_cli.fake_vehicle import Vehicle
 
     vs = [Vehicle(zenoh_router, "vote", v, [], mission_id=77 if v != 9 else 0) for v in (7, 8, 9)]

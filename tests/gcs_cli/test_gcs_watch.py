@@ -52,7 +52,7 @@ def test_watch_on_a_terminal(zenoh_router: str) -> None:
         [
             sys.executable,
             "-m",
-            "gcs_cli.cli",
+            "gcs_cli.app",
             "--connect",
             zenoh_router,
             "--swarm",
@@ -163,7 +163,7 @@ def test_a_command_shows_its_progress_on_a_terminal(zenoh_router: str) -> None:
         [
             sys.executable,
             "-m",
-            "gcs_cli.cli",
+            "gcs_cli.app",
             "--connect",
             zenoh_router,
             "--swarm",
@@ -216,7 +216,7 @@ def test_record_writes_the_flight_csv(zenoh_router: str, tmp_path: object) -> No
     recorder's format, readable by `gcs plot --track` and `gcs analyze separation`."""
     from pathlib import Path
 
-    from gcs_cli.cli import run
+    from gcs_cli.app import run
     from swarm_proto.trajectory import read_trajectory
 
     out = Path(str(tmp_path)) / "flight.csv"

@@ -18,7 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from gcs_cli.geofiles import (
     GeoFileError,
     mission_from_file,

@@ -94,7 +94,7 @@ def start_map(log: Path, *args: str) -> tuple[subprocess.Popen[bytes], str]:
     """`gcs ... map` as an operator runs it; returns it and the URL it printed."""
     out = open(log, "wb")  # noqa: SIM115
     proc = subprocess.Popen(
-        [sys.executable, "-m", "gcs_cli.cli", *args],
+        [sys.executable, "-m", "gcs_cli.app", *args],
         stdout=out,
         stderr=subprocess.STDOUT,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from gcs_cli.map.commands import PageError, prepare, question
 from swarm_proto import CommandKind, GeometryKind, MissionType, SelectorKind
 

@@ -16,7 +16,7 @@ import pytest
 from aiohttp import WSServerHandshakeError
 from aiohttp.test_utils import TestClient, TestServer
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from gcs_cli.ground import GroundStation
 from gcs_cli.map.replay import Player, read_flight
 from gcs_cli.map.server import Config, Hub, make_app
@@ -254,7 +254,7 @@ def test_the_map_server_process_stops_on_sigint(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "gcs_cli.cli",
+            "gcs_cli.app",
             "map",
             "--replay",
             str(flight_csv(tmp_path / "f.csv")),

@@ -10,7 +10,7 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from gcs_cli.plot import EXTRA, read_georeference, sorties
 from gcs_cli.recovery import SwarmState, VehicleState
 from swarm_proto import (

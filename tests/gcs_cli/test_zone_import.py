@@ -15,7 +15,7 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from gcs_cli.files import fence_warnings, plan_import
 from gcs_cli.geofiles import zones_from_file
 from swarm_proto import Command, CommandKind, Geometry, NoFlyZone
