@@ -664,6 +664,27 @@ class PlanLineage(Struct, frozen=True):
         return self.mission.mission_id
 
 
+# --------------------------------------------------------------------------- MAVLink passthrough
+
+SessionId = Annotated[
+    int, Meta(ge=1, le=2**32 - 1, description="MAVLink passthrough session id (uint32)")
+]
+
+
+class MavlinkSession(Struct, frozen=True):
+    """A ground station's MAVLink passthrough session with one vehicle's autopilot
+    (`gcs mavlink`, docs/ground-station.md): announced when it opens, again every second
+    while its client is there, and once with `closing` when it ends; the node ends a
+    session it has not heard of for 5 s. The frames travel raw (MAVLink bytes) on the
+    session's `up` and `down` keys. LAN only."""
+
+    vehicle_id: VehicleId  # whose autopilot the client talks to
+    session_id: SessionId  # chosen at random by the ground station
+    issuer_id: VehicleId  # the ground station
+    read_only: bool = False  # telemetry and downloads only: commanding frames refused
+    closing: bool = False
+
+
 #: Every message type, in radio type-tag order (index + 1 is the tag). Append only.
 MESSAGE_TYPES: tuple[type[Struct], ...] = (
     VehicleStatus,

@@ -23,6 +23,7 @@ from .messages import (
     Command,
     DeclaredState,
     FleetAssignment,
+    MavlinkSession,
     Mission,
     NoFlyZone,
     PlanLineage,
@@ -271,6 +272,35 @@ RADIO_STATS = Topic(
     "Radio gateway statistics per peer (LAN only).",
 )
 
+# MAVLink passthrough (`gcs mavlink`, docs/ground-station.md): a session's frames travel
+# raw, as the client and the autopilot wrote them, below the swarm's own traffic
+MAVLINK_SESSION = Topic(
+    "mavlink_session",
+    "vehicle/{vehicle_id}/mavlink/{session_id}/session",
+    MavlinkSession,
+    "A ground station's MAVLink passthrough session with the vehicle's autopilot: "
+    "announced every second while its client is there, and when it closes. LAN only.",
+    priority=Priority.DATA_LOW,
+)
+MAVLINK_UP = Topic(
+    "mavlink_up",
+    "vehicle/{vehicle_id}/mavlink/{session_id}/up",
+    None,
+    "Raw MAVLink frames from the session's client (QGroundControl, MAVProxy) to the "
+    "vehicle's node, which relays them to its autopilot or rules on them first "
+    "(docs/autopilot-link.md, Passthrough). LAN only.",
+    priority=Priority.DATA_LOW,
+)
+MAVLINK_DOWN = Topic(
+    "mavlink_down",
+    "vehicle/{vehicle_id}/mavlink/{session_id}/down",
+    None,
+    "Raw MAVLink frames from the vehicle's autopilot (and the node's answers on its "
+    "behalf) to the session's client. LAN only.",
+    priority=Priority.DATA_LOW,
+    congestion=Congestion.DROP,
+)
+
 TOPICS: tuple[Topic, ...] = (
     STATUS,
     INFO,
@@ -290,6 +320,9 @@ TOPICS: tuple[Topic, ...] = (
     DECLARED,
     DATABASE,
     RADIO_STATS,
+    MAVLINK_SESSION,
+    MAVLINK_UP,
+    MAVLINK_DOWN,
 )
 TOPIC_OF_TYPE: dict[type, Topic] = {t.msg_type: t for t in TOPICS if t.msg_type is not None}
 

@@ -57,6 +57,7 @@ from .autopilot.requests import (
     Calibrate,
     ChangeSpeed,
     DownloadMission,
+    RelaySetting,
     SetParam,
     UploadFence,
     UploadRally,
@@ -105,7 +106,7 @@ PRECEDENCE: tuple[Seat, ...] = (
 SUSPENDS: dict[Owner, tuple[Owner, ...]] = {Owner.AVOIDANCE: (Owner.MISSION,)}
 
 #: requests that do not fly the vehicle: never refused for precedence
-NOT_FLIGHT = (UploadFence, UploadRally, SetParam, Calibrate, DownloadMission)
+NOT_FLIGHT = (UploadFence, UploadRally, SetParam, Calibrate, DownloadMission, RelaySetting)
 
 
 def flies(request: ApRequest) -> bool:

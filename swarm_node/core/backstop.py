@@ -4,9 +4,11 @@ there if the companion computer fails; an autopilot that reboots or reconnects m
 back with an empty or different store.
 
 Whenever the node (re)attaches to its autopilot (the node starts, the autopilot reboots
-(its time since boot went back), the link comes back after a loss) and whenever the base
-it wants as rally point changes, `BackstopKeeper` checks each store by downloading it
-and comparing it with what it should hold:
+(its time since boot went back), the link comes back after a loss), whenever a ground
+station changed the fence, the rally points or their parameters through MAVLink
+passthrough (`recheck`: as after a reboot) and whenever the base it wants as rally
+point changes, `BackstopKeeper` checks each store by downloading it and comparing it
+with what it should hold:
 
     VERIFY    download, compare     -> same: done
                                     -> different: WARNING, RESTORE
@@ -59,6 +61,8 @@ _RALLY_ALT_TOL_M = 1.0
 
 #: Why a check runs when the autopilot may have lost its stores (alerted when it had).
 ATTACHED = frozenset({"node start", "autopilot rebooted", "link back"})
+#: ... or when a ground station changed them through MAVLink passthrough (`recheck`)
+FROM_OUTSIDE = "set by "
 
 
 class Stage(Enum):
@@ -151,6 +155,17 @@ class BackstopKeeper:
             if self.rally_want is not None:
                 self._check(MissionKind.RALLY, now, why)
         return self._next(ap, now)
+
+    def recheck(self, why: str, *, restore: bool, now: float) -> None:
+        """A ground station changed the stores or their settings (passthrough.py): both
+        checked as after a reboot; `restore`: the fence is uploaded again first (a
+        setting such as FENCE_ENABLE, which a download of the items cannot see)."""
+        if self.fence.want is not None:
+            if restore:
+                self.fence.forget()
+            self._check(MissionKind.FENCE, now, why)
+        if self.rally_want is not None:
+            self._check(MissionKind.RALLY, now, why)
 
     def on_result(self, result: ApResult, ap: AutopilotState, now: float) -> list[ModuleOutput]:
         if self._in_flight is None or result.request_id != self._in_flight[1]:
@@ -248,7 +263,7 @@ class BackstopKeeper:
                 self.restored += 1
                 text = f"{name} restored and verified ({check.why})"
                 out.append(Note(logging.WARNING, text))
-                if check.why in ATTACHED:
+                if _alerted(check.why):
                     out.append(self._alert(now, Severity.WARNING, kind, text))
             else:
                 out.append(Note(logging.INFO, f"{name} verified on the autopilot ({check.why})"))
@@ -259,7 +274,7 @@ class BackstopKeeper:
             return out + self._next(ap, now)
         detail = f"{len(held)} items, {len(want)} wanted"
         if check.stage == Stage.VERIFY:
-            if check.why in ATTACHED:
+            if _alerted(check.why):
                 text = f"autopilot {name} lost or changed ({check.why}): restoring"
                 out += [
                     Note(logging.WARNING, f"{text}; {detail}"),
@@ -284,3 +299,9 @@ class BackstopKeeper:
         return Publish(
             Alert(self.vehicle_id, max(0.0, now), severity, _CODE[kind], short_text(text))
         )
+
+
+def _alerted(why: str) -> bool:
+    """A store found different is alerted when the autopilot may have lost it or a
+    ground station changed it (not for a new base: the rally point is uploaded for it)."""
+    return why in ATTACHED or why.startswith(FROM_OUTSIDE)

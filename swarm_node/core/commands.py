@@ -402,7 +402,9 @@ class CommandTracker:
 
     self_id: int
     timeout_s: float = 30.0  # the link retries itself; this only catches a link that never answers
-    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
+    # the operator's request ids, shared with the passthrough sessions (one space for
+    # the results the arbiter routes to OPERATOR)
+    ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
     _running: dict[int, _Running] = field(default_factory=dict)  # request_id -> command
 
     def start(self, cmd: Command, requests: tuple[ApRequest, ...], now: float) -> list[ApRequest]:
@@ -412,7 +414,7 @@ class CommandTracker:
         return [self._submit(cmd, list(requests), now)]
 
     def _submit(self, cmd: Command, requests: list[ApRequest], now: float) -> ApRequest:
-        rid = next(self._ids)
+        rid = next(self.ids)
         req = msgspec.structs.replace(requests[0], request_id=rid)
         self._running[rid] = _Running(cmd, requests[1:], rid, now + self.timeout_s)
         return req

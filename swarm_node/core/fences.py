@@ -286,6 +286,12 @@ class Fences:
         out = self.keep(zones, ap.home, ceiling_rel_m, now)
         return out + self.backstop.on_timer(ap, now)
 
+    def recheck(self, why: str, restore: bool, now: float) -> list[ModuleOutput]:
+        """A ground station changed the fence, the rally points or their parameters
+        through passthrough: the backstop checks them as after a reboot."""
+        self.backstop.recheck(why, restore=restore, now=now)
+        return []
+
     def new_zones(
         self, zones: ZoneBook, home: GeoPoint | None, ceiling: Callable[[], float], now: float
     ) -> list[ModuleOutput]:

@@ -42,6 +42,14 @@ class BadInput:
 
 
 @dataclass(frozen=True)
+class MavlinkUp:
+    """Raw MAVLink frames from a passthrough session's client (passthrough.py)."""
+
+    session_id: int
+    data: bytes
+
+
+@dataclass(frozen=True)
 class PlanDone:
     """A plan job's outcome (the shell ran the node's PlanJob)."""
 
@@ -72,6 +80,7 @@ Input = (
     | PeerAlive
     | Received
     | BadInput
+    | MavlinkUp
     | PlanDone
     | Learned
     | StoreResult

@@ -839,10 +839,10 @@ class MissionManager:
         self.sortie.go(trigger)
 
     def take_over(self, phase: Phase) -> None:
-        """The operator's command (RTL, LAND, EMERGENCY_LAND, PARACHUTE) flies the
-        vehicle now: drop whatever was planned and only watch for the landing
-        (RETURNING: a hover-capable vehicle is landed once near home, as on the node's
-        own return)."""
+        """The operator's command (RTL, LAND, EMERGENCY_LAND, PARACHUTE, or a ground
+        station's mode through passthrough: OPERATOR) flies the vehicle now: drop
+        whatever was planned and only watch for the landing (RETURNING: a hover-capable
+        vehicle is landed once near home, as on the node's own return)."""
         self.stop()
         self.sortie.go(Trigger.PARACHUTE if phase == Phase.PARACHUTE else Trigger.TAKE_OVER)
         self._go(TAKE_OVER[phase])
@@ -961,7 +961,7 @@ class MissionManager:
             if agreed:
                 return agreed
         if (
-            self.phase in (Phase.RETURNING, Phase.LANDING, Phase.PARACHUTE)
+            self.phase in (Phase.RETURNING, Phase.LANDING, Phase.PARACHUTE, Phase.OPERATOR)
             and not ap.armed
             and (ap.alt_rel_m or 0.0) < 2.0
         ):

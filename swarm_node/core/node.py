@@ -17,6 +17,8 @@ simulations join several NodeCores and jump from deadline to deadline).
     Received(Command | Mission) the operator desk (operator.py); missions to regroup too
     Received(NoFlyZone | FleetAssignment), Learned, StoreResult
                                 the declarations (declarations.py); new zones: the fences
+    Received(MavlinkSession), MavlinkUp
+                                the ground stations' MAVLink sessions (passthrough.py)
     Received(Ack | Vote | TargetReport | PlanLineage), PlanDone
                                 the mission coordinator (mission/coordinator.py)
     BadInput, anything else     counted (`bad_input`, `unhandled`), never dropped silently
@@ -24,6 +26,7 @@ simulations join several NodeCores and jump from deadline to deadline).
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 from collections import Counter
@@ -35,13 +38,23 @@ import msgspec
 
 import swarm_proto as proto
 from swarm_proto import DeclaredState, MissionType, VehicleInfo, VehicleStatus
+from swarm_proto.messages import MavlinkSession
 
 from .arbiter import AutopilotArbiter
 from .declarations import Declarations
 from .emergency import EmergencyProcedure
 from .fences import Fences
 from .inputs import AutopilotResult as AutopilotResult
-from .inputs import AutopilotUpdate, BadInput, Input, Learned, PeerAlive, PlanDone, Received
+from .inputs import (
+    AutopilotUpdate,
+    BadInput,
+    Input,
+    Learned,
+    MavlinkUp,
+    PeerAlive,
+    PlanDone,
+    Received,
+)
 from .inputs import StoreResult as StoreResult
 from .membership import PeerEvent, SwarmMembership
 from .mission.coordinator import MissionCoordinator
@@ -53,6 +66,7 @@ from .outputs import ModuleOutput, Note, Output, Publish
 from .outputs import Persist as Persist  # the shell's vocabulary, re-exported
 from .outputs import PlanJob as PlanJob
 from .outputs import Submit as Submit
+from .passthrough import Passthrough
 from .peer_traffic import PeerTraffic
 from .planning.transit import VehicleTransit
 from .profile import VehicleProfile
@@ -86,7 +100,9 @@ class NodeCore:
         # the vehicle's latest state; reads the zone book; flags an autopilot of another type
         mon = self.monitor = VehicleMonitor(vid, limits, d.zones, vehicle_type=p.vehicle_type)
         m = self.members = SwarmMembership(vid, s.stale_after_s, s.info_stale_after_s)
-        op = self.operator = OperatorDesk(VehicleTransit(p), md)
+        ids = itertools.count(1)  # the operator's request ids: commands and passthrough
+        op = self.operator = OperatorDesk(VehicleTransit(p), md, ids=ids)
+        pt = self.passthrough = Passthrough(vid, ids)  # ground stations' MAVLink sessions
         arb = self.arbiter = AutopilotArbiter()  # who commands the autopilot (arbiter.py)
         fen = self.fences = Fences(vid, p.vehicle_type, s.fence_max_items)
         em = self.emergency = EmergencyProcedure(p)
@@ -98,7 +114,7 @@ class NodeCore:
         self.beacon = Beacon(s.status_period_s, s.info_period_s, now, now)  # status, info
         views = self.views = Views(p, mon, d, m, op, mi, av)  # what modules read of others
         # each module's outputs, as it returns them, to the module that takes it
-        self.routes = Routes(arb, mi, d, op, av, em, fen, mon, views, self._on_message)
+        self.routes = Routes(arb, mi, d, op, av, em, fen, mon, views, self._on_message, pt)
         self._route = self.routes.route
         # peers' telemetry, the hot path, to the modules that keep it (peer_traffic.py)
         self._manager = mi.manager
@@ -165,6 +181,8 @@ class NodeCore:
                 )
             case PeerAlive(node_id, alive):
                 outs = self.stalls.peer_events(self.members.on_alive(node_id, alive, now), now)
+            case MavlinkUp(session_id, data):
+                outs = self.passthrough.on_frames(session_id, data, self.views.node_view(), now)
             case BadInput(key, error):
                 self.bad_input[key] += 1
                 outs = [Note(logging.WARNING, f"dropped malformed input on {key}: {error}")]
@@ -253,6 +271,8 @@ class NodeCore:
                 proto.Ack() | proto.Vote() | proto.TargetReport() | proto.PlanLineage()
             ):  # roster, tasking, regroup
                 return self.mission.on_message(msg, self.views.context, now)
+            case MavlinkSession():
+                return self.passthrough.on_session(msg, now)
             case proto.Alert() | proto.SwarmView():
                 self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
                 return []
@@ -280,7 +300,7 @@ class NodeCore:
     def _rest_deadline(self) -> float:
         """Every module's next deadline but the membership's."""
         t = min(self.beacon.next_deadline(), self.mission.next_deadline())
-        for m in (self.operator, self.fences, self.avoid, self.stalls):
+        for m in (self.operator, self.fences, self.avoid, self.stalls, self.passthrough):
             d = m.next_deadline()
             if d is not None and d < t:
                 t = d
@@ -295,6 +315,7 @@ class NodeCore:
         go(self.stalls.peer_events(self.members.on_timer(now), now), now, sink)
         go(self.stalls.on_timer(now), now, sink)  # suspects that did not come back
         go(self.operator.on_timer(now), now, sink)
+        go(self.passthrough.on_timer(now), now, sink)
         go(self.fences.on_timer(ap, self.declarations.zones, ceiling, now), now, sink)
         go(self.mission.on_timer(self.views.context, now), now, sink)  # tasking, reattach
         go(self._avoidance_tick(now), now, sink)

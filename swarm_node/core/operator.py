@@ -21,6 +21,7 @@ Pure: no I/O; `now` is passed in.
 
 from __future__ import annotations
 
+import itertools
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -84,10 +85,12 @@ class OperatorDesk:
     mission_defaults: Mapping[MissionType, Mapping[str, float]] = field(default_factory=dict)
     active: bool = True  # the operator's ACTIVATE / SHUTDOWN
     answers: AnswerCache = field(default_factory=AnswerCache)  # repeats get the same answer
+    # the operator's request ids (the passthrough sessions draw from it too: passthrough.py)
+    ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
     commands: CommandTracker = field(init=False)
 
     def __post_init__(self) -> None:
-        self.commands = CommandTracker(self.transit.profile.vehicle_id)
+        self.commands = CommandTracker(self.transit.profile.vehicle_id, ids=self.ids)
 
     # ------------------------------------------------------------------ commands
     def on_command(

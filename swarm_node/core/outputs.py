@@ -9,6 +9,10 @@ To the shell (`Output`):
     Note(level, text)          a log line
     PlanJob(request)           planning to run off the control loop (mission/share.py)
     Persist(state, sortie)     the declared state to store (it survives a restart)
+    ToAutopilot(data)          a passthrough session's frames to write to the autopilot
+    ToClient(session, data)    frames to a passthrough session's client (passthrough.py)
+    Sessions(ids)              the passthrough sessions open: the autopilot's frames go to them
+    StreamWish(rates)          the sessions' stream rates wanted of the autopilot link
 
 Inside the node:
 
@@ -37,6 +41,7 @@ Inside the node:
     PeerLost(vid, why)         a peer left the swarm: avoidance, the roster
     Stalled(seconds)           the node's own stall: vehicle monitoring (not a link loss)
     PublishInfo()              publish our VehicleInfo now, not at the next second
+    Recheck(why, restore)      a ground station changed the backstop's settings: the fences
 """
 
 from __future__ import annotations
@@ -96,6 +101,37 @@ class Persist:
 
     state: DeclaredState
     sortie: SortieRecord | None = None
+
+
+@dataclass(frozen=True)
+class ToAutopilot:
+    """A passthrough session's frames, written to the autopilot as they came."""
+
+    data: bytes
+
+
+@dataclass(frozen=True)
+class ToClient:
+    """Frames for a passthrough session's client (the node answering for the autopilot)."""
+
+    session_id: int
+    data: bytes
+
+
+@dataclass(frozen=True)
+class Sessions:
+    """The passthrough sessions open now: the shell relays the autopilot's frames to
+    each (none: it stops keeping them)."""
+
+    ids: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class StreamWish:
+    """Message rates the sessions want of the autopilot (name, Hz): the link asks for the
+    faster of its own and these; withdrawn ones go back to its own."""
+
+    rates: tuple[tuple[str, float], ...]
 
 
 # ----------------------------------------------------------------------- between modules
@@ -195,14 +231,28 @@ class PublishInfo:
     pass
 
 
+@dataclass(frozen=True)
+class Recheck:
+    """A ground station changed what the backstop keeps (a fence or rally upload, a
+    FENCE_* parameter) through passthrough: the fence and rally point are checked as
+    after a reboot; `restore`: the fence is uploaded again first (a setting a download
+    cannot see)."""
+
+    why: str
+    restore: bool = False
+
+
 # the routing table: which module takes which output (NodeCore._route)
-Output = Publish | Submit | Note | PlanJob | Persist  # to the shell (a Submit once ruled on)
-ToShell = Publish | Note | PlanJob | Persist
+# to the shell (a Submit once ruled on)
+Output = (
+    Publish | Submit | Note | PlanJob | Persist | ToAutopilot | ToClient | Sessions | StreamWish
+)
+ToShell = Publish | Note | PlanJob | Persist | ToAutopilot | ToClient | Sessions | StreamWish
 ToMission = Post | Accepted | Candidacy | Regrouping | TakeOver | StopLanding  # the coordinator
 ToDeclarations = Declared | Ended | SetBase | SetFleet | LeftFleet
 ToOperator = Answer | SetActive  # the operator desk
 # and: PeerLost (avoidance and the roster), Stalled (monitoring), BeginEmergency (the
-# emergency procedure), Heard, PublishInfo (NodeCore itself)
+# emergency procedure), Recheck (the fences), Heard, PublishInfo (NodeCore itself)
 ModuleOutput = (
     ToShell
     | ToArbiter
@@ -212,6 +262,7 @@ ModuleOutput = (
     | PeerLost
     | Stalled
     | BeginEmergency
+    | Recheck
     | Heard
     | PublishInfo
 )

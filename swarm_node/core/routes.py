@@ -25,6 +25,7 @@ from .mission.coordinator import MissionCoordinator
 from .monitoring import VehicleMonitor
 from .operator import OperatorDesk
 from .outputs import ModuleOutput, Output, Persist, Publish, Submit
+from .passthrough import Passthrough
 from .safety.module import AvoidanceModule
 from .views import Views
 
@@ -41,6 +42,7 @@ class Routes:
     monitor: VehicleMonitor
     views: Views
     heard: Callable[[msgspec.Struct, float], list[ModuleOutput]]  # NodeCore's, for Heard
+    passthrough: Passthrough  # the ground stations' MAVLink sessions (their results)
 
     def route(self, outs: list[ModuleOutput], now: float, sink: list[Output]) -> None:
         """Each output to the module that takes it, or to the shell (`sink`)."""
@@ -72,6 +74,8 @@ class Routes:
                 back = self.heard(o.msg, now)
             elif isinstance(o, outputs.PublishInfo):
                 sink.append(Publish(self.views.info()))
+            elif isinstance(o, outputs.Recheck):
+                back = self.fences.recheck(o.why, o.restore, now)
             else:
                 assert_never(o)
             todo[0:0] = back
@@ -92,6 +96,8 @@ class Routes:
                 return self.fences.on_result(owner, result, self.monitor.state, now)
             case Owner.MISSION | Owner.REATTACH:
                 return self.mission.on_result(owner, result, now)
+            case Owner.OPERATOR if self.passthrough.owns(result.request_id):
+                return self.passthrough.on_result(result, self.views.node_view(), now)
             case Owner.OPERATOR:
                 return self.operator.on_result(result, now)
             case Owner.AVOIDANCE:

@@ -101,6 +101,11 @@ class AutopilotLink:
         self._closed = False
         self._reopen_at = 0.0  # monotonic wall time
         self._lost_since: float | None = None
+        # passthrough (core/passthrough.py): sessions' frames to write, the autopilot's
+        # frames for them (`on_frames`, on this link's thread, while tapped)
+        self._relay_out: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        self._tap = False
+        self.on_frames: Callable[[bytes], None] | None = None
 
     # ------------------------------------------------------------------ public API
 
@@ -133,6 +138,17 @@ class AutopilotLink:
         self._inbox.put((token, request, future))
         self._wake()
         return future
+
+    def relay(self, data: bytes) -> None:
+        """A passthrough session's frames, written to the autopilot as they are (any
+        thread; the node's core decided they may go: core/passthrough.py)."""
+        if data and not self._closed:
+            self._relay_out.put(bytes(data))
+            self._wake()
+
+    def set_tap(self, on: bool) -> None:
+        """Hand the autopilot's frames to `on_frames` (passthrough sessions open)."""
+        self._tap = on
 
     def request(self, request: ApRequest, timeout_s: float | None = None) -> ApResult:
         """Blocking submit (wall-clock `timeout_s`; None waits for the result, which
@@ -174,6 +190,8 @@ class AutopilotLink:
             "foreign_packets": self._state.foreign_packets,
             "unhandled": self._core.tracker.unhandled,
             "not_for_us": c.not_for_us,
+            "relayed_out": c.relayed_out,
+            "tapped": c.tapped,
             "last_bad_reason": self._core.tracker.last_bad_reason,
             "reconnects": self.reconnects,
             "io_errors": self.io_errors,
@@ -242,6 +260,7 @@ class AutopilotLink:
             with contextlib.suppress(OSError):
                 os.read(self._wake_r, 4096)
         out: list[Output] = []
+        self._core.tap = self._tap and self.on_frames is not None
         if any(fd in readable for fd in link_fds):
             for _ in range(64):  # drain, but let timers run under a flood
                 try:
@@ -252,6 +271,11 @@ class AutopilotLink:
                 if not data:
                     break
                 out += self._core.receive(data, self.clock.now())
+        while True:
+            try:
+                out += self._core.relay(self._relay_out.get_nowait())
+            except queue.Empty:
+                break
         now = self.clock.now()
         while True:
             try:
@@ -269,6 +293,9 @@ class AutopilotLink:
             out += self._core.on_timer(now)
         self._execute(out)
         self._state = self._core.state
+        tapped = self._core.take_tapped()
+        if tapped and self.on_frames is not None:
+            self._call(self.on_frames, tapped)
         self._maybe_reopen_silent(now)
 
     def _wait_s(self, now: float) -> float:
@@ -306,7 +333,7 @@ class AutopilotLink:
                     self._transport.write(o.data)
                 except OSError as exc:
                     self._broken(str(exc))
-                if self.on_send is not None:
+                if self.on_send is not None and o.message is not None:
                     self._call(self.on_send, o.message)
             elif isinstance(o, Emit):
                 ev = o.event

@@ -20,6 +20,12 @@ checks the source and validates; then
 | SYS_STATUS, MISSION_CURRENT              | tracker, then the request runner (fence enable waits, mission start check) |
 | tracker.IGNORED                          | nowhere (listed on purpose)              |
 | anything else                            | counted as unhandled                     |
+
+Passthrough (core/passthrough.py): while `tap` is set, every frame from the autopilot's
+system that decoded, whatever the tracker made of it, is also kept as it came
+(`take_tapped`), for the ground stations' sessions, unless it answers the node itself
+(`for_passthrough`). `relay(data)` writes a session's frames as they are;
+`RelayCommand` / `RelaySetting` requests (granted by the arbiter) too, answered at once.
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ from swarm_proto import VehicleType
 from .events import ApEvent, AutopilotFound, AutopilotRebooted, LinkRestored
 from .framing import BadFrame, MavEncoder, MavFramer, MAVLinkMessage
 from .plans import PlanContext, check_request
-from .requests import ApRequest, ApResult, MissionKind
+from .requests import ApError, ApRequest, ApResult, MissionKind, RelayCommand
 from .runner import Finished, RequestRunner, RunnerSettings, mission_kind_of
 from .state import AutopilotState
 from .streams import DEFAULT_RATES_HZ, StreamRequester
@@ -64,7 +70,7 @@ class LinkSettings:
 @dataclass(frozen=True, slots=True)
 class Transmit:
     data: bytes
-    message: MAVLinkMessage
+    message: MAVLinkMessage  # None: a passthrough session's frames, written as they came
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,6 +94,8 @@ class LinkCounters:
     messages_in: int = 0
     messages_out: int = 0
     not_for_us: int = 0  # protocol replies addressed to another GCS
+    relayed_out: int = 0  # passthrough bytes written to the autopilot
+    tapped: int = 0  # frames from the autopilot kept for passthrough sessions
 
 
 class LinkCore:
@@ -106,6 +114,8 @@ class LinkCore:
         self.streams = StreamRequester(s.stream_rates_hz)
         self.counters = LinkCounters()
         self._next_heartbeat = now
+        self.tap = False  # keep the autopilot's frames for passthrough sessions
+        self._tapped: list[bytes] = []
 
     # ------------------------------------------------------------------ public
 
@@ -124,6 +134,8 @@ class LinkCore:
     def receive_message(self, msg: MAVLinkMessage | BadFrame, now: float) -> list[Output]:
         """One decoded message (or BadFrame): what `receive` does per frame."""
         verdict, events = self.tracker.handle(msg, now)
+        if self.tap and not isinstance(msg, BadFrame):
+            self._keep(msg)
         out: list[Output] = [Emit(e) for e in events]
         for e in events:
             if isinstance(e, AutopilotFound | LinkRestored | AutopilotRebooted):
@@ -149,6 +161,16 @@ class LinkCore:
 
     def submit(self, token: int, request: ApRequest, now: float) -> list[Output]:
         """Queue a request; raises plans.InvalidRequest for a malformed one."""
+        if isinstance(request, RelayCommand):  # a session's frames the arbiter granted
+            if not self.state.link_ok:
+                down = ApResult(
+                    request.request_id, False, "autopilot link down", error=ApError.LINK_DOWN
+                )
+                return [Complete(token, down)]
+            return [
+                *self.relay(request.data),
+                Complete(token, ApResult(request.request_id, True, "relayed")),
+            ]
         vt = self.tracker.state.vehicle_type
         check_request(request, vt if vt != VehicleType.OTHER else None)
         sent, done = self.runner.submit(token, request, self._context(), now)
@@ -186,6 +208,35 @@ class LinkCore:
     def pending_requests(self) -> int:
         return self.runner.pending()
 
+    # ------------------------------------------------------------------ passthrough
+
+    def relay(self, data: bytes) -> list[Output]:
+        """A passthrough session's frames, written to the autopilot as they are."""
+        if not data:
+            return []
+        self.counters.relayed_out += len(data)
+        self.counters.bytes_out += len(data)
+        return [Transmit(bytes(data), None)]
+
+    def take_tapped(self) -> bytes:
+        """The autopilot's frames kept since the last call (`tap`), as they came."""
+        if not self._tapped:
+            return b""
+        data = b"".join(self._tapped)
+        self._tapped.clear()
+        return data
+
+    def _keep(self, msg: MAVLinkMessage) -> None:
+        sysid = self.state.sysid
+        if not sysid or msg.get_srcSystem() != sysid:
+            return  # before the autopilot is known, or another system on the link
+        if not for_passthrough(msg, self.settings.source_sysid, self.settings.source_compid):
+            return
+        buf = msg.get_msgbuf()
+        if buf:
+            self.counters.tapped += 1
+            self._tapped.append(bytes(buf))
+
     # ------------------------------------------------------------------ helpers
 
     def _target(self) -> tuple[int, int]:
@@ -221,3 +272,14 @@ class LinkCore:
                 self.tracker.set_mission_count(len(f.result.items))
             out.append(Complete(f.token, f.result))
         return out
+
+
+def for_passthrough(msg: MAVLinkMessage, node_sysid: int, node_compid: int) -> bool:
+    """Whether a frame from the autopilot goes to passthrough sessions: all but the
+    answers to the node's own requests (a COMMAND_ACK, a MISSION_REQUEST of its upload:
+    addressed to the node's component alone), which a client would take for its own."""
+    ts = getattr(msg, "target_system", None)
+    tc = getattr(msg, "target_component", None)
+    if ts is None or tc is None:
+        return True
+    return not (int(ts) == node_sysid and int(tc) == node_compid)

@@ -114,6 +114,21 @@ class SetParam(ApRequest, frozen=True):
     value: float
 
 
+class RelayCommand(ApRequest, frozen=True):
+    """MAVLink frames of a passthrough session's client (a ground station) that change
+    what the vehicle does: written to the autopilot as they are, once the node's arbiter
+    granted them (core/passthrough.py). The link answers at once: written (ok) or the
+    link is down; the autopilot's own answer goes to the client."""
+
+    data: bytes
+    what: str = ""  # e.g. "SET_MODE LOITER", for logs and refusals
+
+
+class RelaySetting(RelayCommand, frozen=True):
+    """A passthrough frame that changes the vehicle without flying it (a parameter, a
+    fence or rally upload, a calibration): never refused for precedence."""
+
+
 class ApError(IntEnum):
     """Why a request failed, for code to branch on (ApResult.reason is for people)."""
 

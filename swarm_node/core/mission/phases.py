@@ -15,6 +15,8 @@ mission manager waits for on the autopilot:
     RETURNING   the way home (RTL, or zone-safe legs then RTL; the pad's mission)
     LANDING     landing (a hover-capable vehicle near home; the operator's LAND)
     PARACHUTE   released: coming down under the canopy
+    OPERATOR    a ground station flies it (a mode or mission set through MAVLink
+                passthrough): nothing but its landing
 
 Planning a share starts over from any phase (a new mission on the way home, a replan
 in flight); so do the way home and a stop.
@@ -35,6 +37,7 @@ class Phase(Enum):
     RETURNING = "returning"
     LANDING = "landing"
     PARACHUTE = "parachute"
+    OPERATOR = "operator"
 
 
 class Step(Enum):
@@ -52,10 +55,11 @@ class Step(Enum):
     OPERATOR_RTL = "the operator's RTL"
     OPERATOR_LAND = "the operator's LAND"
     OPERATOR_PARACHUTE = "the operator's PARACHUTE"
+    OPERATOR_FLIES = "a ground station's mode or mission"
     STOP = "stop"
 
 
-ID, S, C, M, F, Y, R, L, P = tuple(Phase)
+ID, S, C, M, F, Y, R, L, P, OP = tuple(Phase)
 
 #: (phase, step) -> next phase; anything else is a bug
 TRANSITIONS: dict[tuple[Phase, Step], Phase] = {}
@@ -81,10 +85,16 @@ _add((R,), Step.NEAR_HOME, L)
 _add((ID,), Step.OPERATOR_RTL, R)  # (the mission manager stops first)
 _add((ID,), Step.OPERATOR_LAND, L)
 _add((ID,), Step.OPERATOR_PARACHUTE, P)
+_add((ID,), Step.OPERATOR_FLIES, OP)
 _add(_ALL, Step.STOP, ID)
 
 #: the phase the operator's take-over leaves the mission manager watching
-TAKE_OVER = {R: Step.OPERATOR_RTL, L: Step.OPERATOR_LAND, P: Step.OPERATOR_PARACHUTE}
+TAKE_OVER = {
+    R: Step.OPERATOR_RTL,
+    L: Step.OPERATOR_LAND,
+    P: Step.OPERATOR_PARACHUTE,
+    OP: Step.OPERATOR_FLIES,
+}
 
 
 class IllegalMove(AssertionError):
