@@ -1,7 +1,7 @@
 """`gcs`: the ground station command line (paper section 3). This module only assembles
 the commands, which live in their own modules (cli.py: status, commands, missions and
 zones; monitor.py, recovery.py, plot.py, files.py, db.py, analyze.py, tasking.py,
-declared.py), and runs them: `main` is the `gcs` entry point.
+declared.py, mavlink.py), and runs them: `main` is the `gcs` entry point.
 
 The commands appear in `gcs --help` in the order they are added here.
 """
@@ -13,7 +13,7 @@ import sys
 
 import typer
 
-from . import _clickx, analyze, cli, db, declared, files, monitor, plot, recovery, tasking
+from . import _clickx, analyze, cli, db, declared, files, mavlink, monitor, plot, recovery, tasking
 from .common import link_options
 from .map.command import map_command
 
@@ -39,6 +39,7 @@ app.add_typer(zone_app, name="zone")
 app.add_typer(analyze.app, name="analyze")
 app.add_typer(tasking.app, name="target")  # re-tasking, and the vote shown
 app.command("map")(map_command)  # the live map in a browser
+app.command("mavlink")(mavlink.mavlink)  # QGroundControl / MAVProxy on a vehicle, through the swarm
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -45,6 +45,7 @@ from swarm_node.core.node import (
     StoreResult,
     Submit,
 )
+from swarm_node.core.outputs import Sessions, ToAutopilot, ToClient
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.plan_memo import PlanMemo
 from swarm_node.testing import published_matching
@@ -150,6 +151,9 @@ class FastFleet:
     # radio's resolution; one the radio cannot encode as the LAN carries it), as in
     # `swarm-sim demo --radio` where each node is behind its own gateway
     over_air: bool = False
+    # MAVLink passthrough: what each node answered its sessions' clients (time, vehicle,
+    # session, frames); the autopilot's frames for them are its link's (`take_tapped`)
+    to_clients: list[tuple[float, int, int, bytes]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         # swarm messages and results in time order; a broadcast is one entry for all its
@@ -311,6 +315,12 @@ class FastFleet:
             elif isinstance(o, PlanJob):  # inline, after the simulated planning time
                 done = PlanDone(self.plans.run(o.request))
                 self._deliver(vid, done, self.now + self.plan_delay_s)
+            elif isinstance(o, ToAutopilot):  # a passthrough session's frames
+                self._link_out(vid, v.link.relay(o.data))
+            elif isinstance(o, ToClient):
+                self.to_clients.append((self.now, vid, o.session_id, o.data))
+            elif isinstance(o, Sessions):
+                v.link.tap = bool(o.ids)
 
     def _others_of(self, vid: int) -> tuple[int, ...]:
         """Every vehicle here but `vid`, in the fleet's order (kept while the fleet's

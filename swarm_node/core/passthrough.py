@@ -439,7 +439,7 @@ class Passthrough:
             command = mavlink.MAVLINK_MSG_ID_SET_MODE  # ArduPilot acks it with its id
         if s.read_only:
             self._drop(s, "refused_read_only")
-            text = f"bandada: read-only session: {v.what} refused"
+            text = f"bandada read-only: {v.what} refused"
             return self._refuse(s, name, command, v, mavlink.MAV_RESULT_DENIED, text, view)
         ap = view.autopilot
         if command in (DO_SET_MODE, mavlink.MAVLINK_MSG_ID_SET_MODE) and ap.link_ok:
@@ -478,7 +478,7 @@ class Passthrough:
                 if result.reason.startswith("preempted by")
                 else mavlink.MAV_RESULT_FAILED
             )
-            text = f"bandada: {v.what} refused: {result.reason}"
+            text = f"bandada: {result.reason}: {v.what} refused"  # the why first: 50 characters
             out: list[ModuleOutput] = [Note(logging.INFO, f"passthrough {who}: {text}")]
             return out + self._refuse(s, p.msg_name, p.command, v, code, text, view)
         self.counts["granted"] += 1
@@ -494,8 +494,8 @@ class Passthrough:
 
     def _report(self, who: str, v: Verdict, now: float) -> list[ModuleOutput]:
         """A setting bandada relies on, changed from outside: said, and checked."""
-        then = "the fence is uploaded again" if v.restore else "the backstop checks it"
-        text = short_text(f"{v.what} by {who}; {then}")
+        then = "fence reloaded" if v.restore else "backstop checks it"
+        text = short_text(f"{v.what} from {who}; {then}")
         alert = Alert(self.vehicle_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC, text)
         return [Publish(alert), Recheck(f"set by {who}", v.restore)]
 

@@ -25,7 +25,7 @@ import queue
 import select
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import Future
 from typing import Any
 
@@ -104,6 +104,7 @@ class AutopilotLink:
         # passthrough (core/passthrough.py): sessions' frames to write, the autopilot's
         # frames for them (`on_frames`, on this link's thread, while tapped)
         self._relay_out: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        self._wishes: queue.SimpleQueue[dict[str, float]] = queue.SimpleQueue()  # stream rates
         self._tap = False
         self.on_frames: Callable[[bytes], None] | None = None
 
@@ -145,6 +146,11 @@ class AutopilotLink:
         if data and not self._closed:
             self._relay_out.put(bytes(data))
             self._wake()
+
+    def want_rates(self, rates: Mapping[str, float]) -> None:
+        """Message rates passthrough sessions want (name -> Hz; any thread)."""
+        self._wishes.put(dict(rates))
+        self._wake()
 
     def set_tap(self, on: bool) -> None:
         """Hand the autopilot's frames to `on_frames` (passthrough sessions open)."""
@@ -277,6 +283,14 @@ class AutopilotLink:
             except queue.Empty:
                 break
         now = self.clock.now()
+        wishes: dict[str, float] | None = None
+        while True:  # the newest wishes only
+            try:
+                wishes = self._wishes.get_nowait()
+            except queue.Empty:
+                break
+        if wishes is not None:
+            out += self._core.want_rates(wishes, now)
         while True:
             try:
                 token, request, future = self._inbox.get_nowait()

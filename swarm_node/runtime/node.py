@@ -32,7 +32,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
-from typing import Protocol
+from typing import Protocol, TypeGuard
 
 import msgspec
 import zenoh
@@ -96,12 +96,14 @@ from ..core.node import (
     Received,
     Submit,
 )
+from ..core.outputs import Sessions, StreamWish, ToAutopilot, ToClient
 from ..core.profile import VehicleProfile
 from ..database import ProfileError, SwarmDatabase
 from ..database.queryable import DatabaseQueryable
 from ..database.state import NodeStateStore
 from .config import NodeConfig
 from .parent_watch import exit_with_parent
+from .passthrough import PassthroughRelay, RelayPort
 from .persistence import StateWriter
 
 log = logging.getLogger("swarm_node")
@@ -160,6 +162,11 @@ class NoAutopilot:
 
     def close(self) -> None:
         pass
+
+
+def _relays(autopilot: object) -> TypeGuard[RelayPort]:
+    """Whether an autopilot port can carry passthrough sessions (an AutopilotLink)."""
+    return all(hasattr(autopilot, n) for n in ("relay", "set_tap", "want_rates", "on_frames"))
 
 
 class _Snapshot(msgspec.Struct, frozen=True):
@@ -267,6 +274,10 @@ class NodeRuntime:
         self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)
         if bus is not None:
             bus.on_bad_input = self._bad_input
+        # MAVLink passthrough sessions (ground stations' QGroundControl, MAVProxy), when the
+        # autopilot is a link that relays (core/passthrough.py decides): made at start,
+        # the link may be given after the node is built (launch.py)
+        self.passthrough: PassthroughRelay | None = None
         self._queryable: zenoh.Queryable | None = None
         self._zones_queryable: zenoh.Queryable | None = None
         self._missions_queryable: zenoh.Queryable | None = None
@@ -475,6 +486,11 @@ class NodeRuntime:
         self._declared_queryable = self.bus.session.declare_queryable(
             DECLARED.key(self.config.swarm, vehicle_id=self.core.self_id), self._answer_declared
         )
+        if _relays(self.autopilot):
+            self.passthrough = PassthroughRelay(
+                self.bus, self.core.self_id, self.autopilot, self.inbox.put
+            )
+            self.passthrough.start()
         self.bus.watch_alive(self._alive)
         self.bus.declare_alive(self.core.self_id)
         # the planner's worker process starts once the node is active (the run loop),
@@ -553,6 +569,15 @@ class NodeRuntime:
                 self._plan_jobs.append(o.request)
             elif isinstance(o, Persist) and self.writer is not None:
                 self.writer.submit(o.state, o.sortie)
+            elif self.passthrough is not None:
+                if isinstance(o, ToAutopilot):
+                    self.passthrough.to_autopilot(o.data)
+                elif isinstance(o, ToClient):
+                    self.passthrough.to_client(o.session_id, o.data)
+                elif isinstance(o, Sessions):
+                    self.passthrough.sessions(o.ids)
+                elif isinstance(o, StreamWish):
+                    self.passthrough.wish(o.rates)
 
     def _submit(self, request: ApRequest) -> None:
         log.info("node %d: autopilot <- %s", self.core.self_id, type(request).__name__)
@@ -596,6 +621,8 @@ class NodeRuntime:
         self._missions_queryable = None
         if self.writer is not None:
             self.writer.close()
+        if self.passthrough is not None:
+            self.passthrough.close()
         self.bus.close()
         self.autopilot.close()
         if self.database is not None:

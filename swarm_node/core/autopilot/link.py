@@ -218,6 +218,10 @@ class LinkCore:
         self.counters.bytes_out += len(data)
         return [Transmit(bytes(data), None)]
 
+    def want_rates(self, wishes: Mapping[str, float], now: float) -> list[Output]:
+        """Message rates passthrough sessions want (name -> Hz; streams.py `want`)."""
+        return self._send(self.streams.want(wishes, now))
+
     def take_tapped(self) -> bytes:
         """The autopilot's frames kept since the last call (`tap`), as they came."""
         if not self._tapped:

@@ -5,6 +5,14 @@ SET_MESSAGE_INTERVAL (MAV_CMD 511) per message. If the autopilot answers any of 
 UNSUPPORTED/DENIED, or not at all within `ack_timeout_s`, it falls back to the older
 REQUEST_DATA_STREAM groups. A watchdog then re-requests any message that stopped
 arriving (e.g. another GCS on the same link changed the rates).
+
+Passthrough sessions (core/passthrough.py) may wish for more (`want`): each message is
+asked at the faster of the node's rate and the wish, and a wish withdrawn goes back to
+the node's rate (or to the autopilot's default, interval 0, for a message the node does
+not use). A wish is sent only while no request of the node's own awaits its answers: a
+COMMAND_ACK does not say which message it answers, and a refusal of a client's wish
+must not switch the node's own streams to the fallback. With the fallback in use the
+sessions get what the node streams.
 """
 
 from __future__ import annotations
@@ -43,6 +51,10 @@ FALLBACK_STREAMS_HZ: Mapping[int, int] = {
 NOT_WATCHED = frozenset({"HOME_POSITION", "EXTENDED_SYS_STATE", "BATTERY_STATUS"})
 
 
+def _known(name: str) -> bool:
+    return getattr(mavlink, f"MAVLINK_MSG_ID_{name}", None) is not None
+
+
 def message_id(name: str) -> int:
     msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}", None)
     if msg_id is None:
@@ -74,9 +86,14 @@ class StreamRequester:
         self._last_full_request = -1e18
         self._seen: dict[str, float] = {}
         self._requested_at: dict[str, float] = {}
+        self.wishes: dict[str, float] = {}  # passthrough sessions' rates (`want`)
+        self._wish_due: set[str] = set()  # wishes not sent yet
 
-    def _interval(self, name: str) -> MAVLinkMessage:
-        interval_us = round(1e6 / self.rates_hz[name])
+    def _interval(self, name: str, rate_hz: float | None = None) -> MAVLinkMessage:
+        """SET_MESSAGE_INTERVAL for `name` at `rate_hz` (default: the node's; 0: the
+        autopilot's own default)."""
+        rate = self.rates_hz[name] if rate_hz is None else rate_hz
+        interval_us = round(1e6 / rate) if rate > 0 else 0
         return mavlink.MAVLink_command_long_message(
             self.target[0],
             self.target[1],
@@ -90,6 +107,31 @@ class StreamRequester:
             0,
             0,
         )
+
+    def want(self, wishes: Mapping[str, float], now: float) -> list[MAVLinkMessage]:
+        """The sessions' wishes (message name -> Hz; names the dialect does not know
+        are ignored): what changed is asked for now, or once the node's own requests
+        are answered."""
+        new = {n: hz for n, hz in wishes.items() if hz > 0 and _known(n)}
+        self._wish_due |= {
+            n for n in set(new) | set(self.wishes) if new.get(n) != self.wishes.get(n)
+        }
+        self.wishes = new
+        return self._send_wishes()
+
+    def _send_wishes(self) -> list[MAVLinkMessage]:
+        if not self._wish_due or self.target == (0, 0) or self._awaiting_acks > 0:
+            return []
+        due, self._wish_due = sorted(self._wish_due), set()
+        if self.use_fallback:
+            return []
+        out = []
+        for n in due:
+            own = self.rates_hz.get(n)
+            wish = self.wishes.get(n, 0.0)
+            out.append(self._interval(n, max(own or 0.0, wish)))
+        self.requests_sent += len(out)
+        return out
 
     def _fallback(self) -> list[MAVLinkMessage]:
         return [
@@ -120,6 +162,7 @@ class StreamRequester:
             return []
         self._last_full_request = now
         self._awaiting_acks = 0
+        self._wish_due |= set(self.wishes)  # asked again once these are answered
         return self._request(list(self.rates_hz), now)
 
     def note(self, mtype: str, now: float) -> None:
@@ -134,7 +177,7 @@ class StreamRequester:
             self._ack_deadline = None
         if int(msg.result) in (2, 3) and not self.use_fallback:  # DENIED, UNSUPPORTED
             return self._switch_to_fallback(now)
-        return []
+        return self._send_wishes()  # (only once every one is answered)
 
     def _switch_to_fallback(self, now: float) -> list[MAVLinkMessage]:
         self.use_fallback = True
@@ -159,6 +202,8 @@ class StreamRequester:
             if self._awaiting_acks > 0 and nothing_seen and not self.use_fallback:
                 out += self._switch_to_fallback(now)
             self._awaiting_acks = 0
+            if link_ok:
+                out += self._send_wishes()
         if self._watch_at is not None and now >= self._watch_at:
             self._watch_at = now + self.watchdog_period_s
             if not link_ok:
