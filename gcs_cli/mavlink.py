@@ -24,11 +24,13 @@ from typing import Annotated, Any
 import typer
 
 from swarm_node.runtime.mavlink_transport import Endpoint, Transport, make_transport, parse_url
+from swarm_proto.clock import clock_from_env
 from swarm_proto.session import put_options
 from swarm_proto.topics import MAVLINK_DOWN, MAVLINK_UP
 
 from .common import console
 from .core.mavlink_session import (
+    ANNOUNCE_S,
     CLIENT_TIMEOUT_S,
     Action,
     Announce,
@@ -79,6 +81,11 @@ class Bridge:
         os.set_blocking(self._wake_w, False)
         self._rng = random.SystemRandom()
         self.stop = threading.Event()
+        # the client is a person's program (wall time); the node times a session out on
+        # the swarm's clock, which a simulation runs faster (BANDADA_CLOCK): announced
+        # every second of that clock
+        wall = clock_from_env().to_wall(ANNOUNCE_S)
+        self.announce_s = wall if wall > 0 else ANNOUNCE_S
 
     def add(self, vehicle_id: int, endpoint: Endpoint) -> None:
         """An endpoint for `vehicle_id` (opened now: OSError when the port is taken)."""
@@ -91,6 +98,7 @@ class Bridge:
             read_only=self.read_only,
             listens=endpoint.kind != "udpout",
             client_timeout_s=self.client_timeout_s,
+            announce_s=self.announce_s,
         )
         v = self.vehicles[vehicle_id] = _Vehicle(vehicle_id, endpoint, transport, core)
         self._carry(v, core.start(time.monotonic()))
