@@ -49,6 +49,7 @@ from swarm_proto import (
     lan,
     radio,
 )
+from swarm_proto.messages import MavlinkAnswer, MavlinkCommand, MavlinkSummary
 
 NOW = 1.75e9
 
@@ -186,6 +187,19 @@ def _hl2() -> Any:
         38,
         4,
     )
+
+
+# MAVLink passthrough on the radio (swarm_node/core/passthrough.py): a HIGH_LATENCY2
+# summary, a radio session's command and the vehicle's answer
+SAMPLES[MavlinkSummary] = MavlinkSummary(12, bytes(_hl2().pack(_mav())))
+SAMPLES[MavlinkCommand] = MavlinkCommand(
+    900,
+    12,
+    bytes(mavlink.MAVLink_command_long_message(12, 1, 176, 0, 1, 5, 0, 0, 0, 0, 0).pack(_mav())),
+)
+SAMPLES[MavlinkAnswer] = MavlinkAnswer(
+    12, 900, bytes(mavlink.MAVLink_command_ack_message(176, 0, 0, 0, 255, 190).pack(_mav()))
+)
 
 
 def _signed_mav() -> mavlink.MAVLink:

@@ -18,6 +18,7 @@ import select
 import signal
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Annotated, Any
 
@@ -25,8 +26,9 @@ import typer
 
 from swarm_node.runtime.mavlink_transport import Endpoint, Transport, make_transport, parse_url
 from swarm_proto.clock import clock_from_env
+from swarm_proto.messages import MavlinkAnswer, MavlinkSummary
 from swarm_proto.session import put_options
-from swarm_proto.topics import MAVLINK_DOWN, MAVLINK_UP
+from swarm_proto.topics import MAVLINK_ANSWER, MAVLINK_DOWN, MAVLINK_SUMMARY, MAVLINK_UP
 
 from .common import console
 from .core.mavlink_session import (
@@ -34,13 +36,18 @@ from .core.mavlink_session import (
     CLIENT_TIMEOUT_S,
     Action,
     Announce,
+    Command,
     Down,
     Listen,
+    RadioAction,
+    RadioSessionCore,
     SessionCore,
     Up,
 )
 from .ground import GroundStation
 from .options import AllOption, IdsOption
+
+SUMMARY, ANSWER = -1, -2  # radio frames in the down queue (not session ids)
 
 ServeOption = Annotated[
     str,
@@ -60,7 +67,7 @@ class _Vehicle:
     vehicle_id: int
     endpoint: Endpoint
     transport: Transport
-    core: SessionCore
+    core: SessionCore | RadioSessionCore
     sub: Any = None  # the current session's down subscriber
     pub: Any = None  # ... and up publisher
 
@@ -69,12 +76,19 @@ class Bridge:
     """Moves bytes between the endpoints and Zenoh, on the calling thread (`run`)."""
 
     def __init__(
-        self, gs: GroundStation, read_only: bool, client_timeout_s: float = CLIENT_TIMEOUT_S
+        self,
+        gs: GroundStation,
+        read_only: bool,
+        client_timeout_s: float = CLIENT_TIMEOUT_S,
+        *,
+        radio: bool = False,
     ) -> None:
         self.gs = gs
         self.read_only = read_only
+        self.radio = radio
         self.client_timeout_s = client_timeout_s
         self.vehicles: dict[int, _Vehicle] = {}
+        # from Zenoh's threads: (vehicle, session id or SUMMARY / ANSWER, frames)
         self._down: queue.SimpleQueue[tuple[int, int, bytes]] = queue.SimpleQueue()
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
@@ -91,6 +105,16 @@ class Bridge:
         """An endpoint for `vehicle_id` (opened now: OSError when the port is taken)."""
         transport = make_transport(endpoint)
         transport.open()
+        if self.radio:
+            radio = RadioSessionCore(vehicle_id, self.gs.gcs_id)
+            v = self.vehicles[vehicle_id] = _Vehicle(vehicle_id, endpoint, transport, radio)
+            bus, swarm = self.gs.bus, self.gs.swarm
+            summary = MAVLINK_SUMMARY.key(swarm, vehicle_id=vehicle_id)
+            bus.subscribe(MAVLINK_SUMMARY, self._queue(vehicle_id, SUMMARY), key=summary)
+            answer = MAVLINK_ANSWER.key(swarm, vehicle_id=vehicle_id, issuer_id=self.gs.gcs_id)
+            bus.subscribe(MAVLINK_ANSWER, self._queue(vehicle_id, ANSWER), key=answer)
+            self._carry(v, radio.start(time.monotonic()))
+            return
         core = SessionCore(
             vehicle_id,
             self.gs.gcs_id,
@@ -148,15 +172,23 @@ class Bridge:
             except queue.Empty:
                 break
             v2 = self.vehicles.get(vid)
-            if v2 is not None:
-                self._carry(v2, v2.core.on_vehicle(sid, data))
+            if v2 is None:
+                continue
+            c = v2.core
+            if isinstance(c, RadioSessionCore):
+                got = c.on_summary(data, now) if sid == SUMMARY else c.on_answer(data)
+                self._carry(v2, got)
+            else:
+                self._carry(v2, c.on_vehicle(sid, data))
         for v in self.vehicles.values():
             self._carry(v, v.core.on_timer(now))
 
-    def _carry(self, v: _Vehicle, actions: list[Action]) -> None:
+    def _carry(self, v: _Vehicle, actions: Sequence[Action | RadioAction]) -> None:
         session = self.gs.bus.session
         for a in actions:
-            if isinstance(a, Up):
+            if isinstance(a, Command):
+                self.gs.bus.publish(a.msg)  # the radio gateway carries it
+            elif isinstance(a, Up):
                 if v.pub is not None:
                     v.pub.put(a.data)
             elif isinstance(a, Down):
@@ -182,6 +214,16 @@ class Bridge:
                 v.pub = session.declare_publisher(up, **put_options(MAVLINK_UP))
                 mode = " (read-only)" if self.read_only else ""
                 console.print(f"vehicle {vid}: session {sid} open{mode}")
+
+    def _queue(self, vid: int, kind: int) -> Any:
+        """A typed subscriber's callback: a radio summary's or answer's frames."""
+
+        def handler(msg: MavlinkSummary | MavlinkAnswer, _key: str) -> None:
+            self._down.put((vid, kind, msg.frame))
+            with contextlib.suppress(OSError):
+                os.write(self._wake_w, b"x")
+
+        return handler
 
     def _on_down(self, vid: int, sid: int) -> Any:
         def handler(sample: Any) -> None:
@@ -228,6 +270,11 @@ def mavlink(
     duration: float | None = typer.Option(
         None, min=0.1, help="stop after this many seconds (default: until Ctrl-C)"
     ),
+    radio: bool = typer.Option(
+        False,
+        "--radio",
+        help="a vehicle behind the 900 MHz radio: its HIGH_LATENCY2 every 5 s and commands only",
+    ),
 ) -> None:
     """A vehicle's autopilot for QGroundControl, MAVProxy or pymavlink, through the swarm:
     one local endpoint per vehicle, speaking with that autopilot's system id. The
@@ -248,11 +295,13 @@ def mavlink(
             "serve on udp:, udpout: or tcpin: (a serial port is not an endpoint here)",
             param_hint="--serve",
         )
+    if radio and read_only:
+        raise typer.BadParameter("--radio carries commands only: --read-only is not for it")
     with ctx.obj.open() as gs:
         wanted = sorted(set(ids)) if ids else sorted(gs.discover())
         if not wanted:
             raise typer.BadParameter("no vehicle alive", param_hint="--all")
-        bridge = Bridge(gs, read_only, client_timeout)
+        bridge = Bridge(gs, read_only, client_timeout, radio=radio)
         for i, vid in enumerate(wanted):
             ep = endpoint_for(base, i)
             try:
@@ -262,7 +311,9 @@ def mavlink(
                 raise typer.BadParameter(
                     f"cannot serve {ep.kind}:{ep.host}:{ep.port}: {exc}", param_hint="--serve"
                 ) from exc
-            mode = " (read-only)" if read_only else ""
+            mode = (
+                " (read-only)" if read_only else " (radio: summary and commands)" if radio else ""
+            )
             console.print(f"vehicle {vid}: {ep.kind}:{ep.host}:{ep.port}{mode}")
         previous = signal.getsignal(signal.SIGTERM)
         signal.signal(signal.SIGTERM, lambda *_: bridge.stop.set())
@@ -274,6 +325,12 @@ def mavlink(
             signal.signal(signal.SIGTERM, previous)
         for vid, v in bridge.vehicles.items():
             c = v.core.counts
+            if isinstance(v.core, RadioSessionCore):
+                console.print(
+                    f"vehicle {vid}: {c['summaries']} summaries, {c['commands']} commands, "
+                    f"{c['answers']} answers, {c['too_soon'] + c['not_on_the_radio']} refused here"
+                )
+                continue
             console.print(
                 f"vehicle {vid}: {v.core.sessions} session(s), {c['frames_up']} frames up, "
                 f"{c['bytes_down']} bytes down, {c['malformed']} malformed runs dropped"

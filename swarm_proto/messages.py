@@ -685,6 +685,38 @@ class MavlinkSession(Struct, frozen=True):
     closing: bool = False
 
 
+MavlinkFrames = Annotated[
+    bytes, Meta(max_length=280, description="MAVLink frames, as the autopilot or client wrote them")
+]
+
+
+class MavlinkSummary(Struct, frozen=True):
+    """A vehicle's HIGH_LATENCY2 (one MAVLink frame) for ground stations behind the 900
+    MHz radio (`gcs mavlink --radio`), every 5 s while a radio session asks for it: the
+    budgeted passthrough of the radio (docs/radio.md, "MAVLink passthrough on the air")."""
+
+    vehicle_id: VehicleId
+    frame: MavlinkFrames
+
+
+class MavlinkCommand(Struct, frozen=True):
+    """A radio session's command to a vehicle's autopilot: one COMMAND_LONG, COMMAND_INT
+    or SET_MODE frame, ruled on by the vehicle's node as the operator's; empty: the
+    session is still there (every 20 s)."""
+
+    issuer_id: VehicleId  # the ground station
+    target_id: VehicleId  # the vehicle
+    frame: MavlinkFrames = b""
+
+
+class MavlinkAnswer(Struct, frozen=True):
+    """The vehicle's answer to a radio session's command (COMMAND_ACK, STATUSTEXT)."""
+
+    vehicle_id: VehicleId
+    issuer_id: VehicleId
+    frame: MavlinkFrames
+
+
 #: Every message type, in radio type-tag order (index + 1 is the tag). Append only.
 MESSAGE_TYPES: tuple[type[Struct], ...] = (
     VehicleStatus,
@@ -699,6 +731,9 @@ MESSAGE_TYPES: tuple[type[Struct], ...] = (
     TargetReport,
     RadioStats,
     PlanLineage,
+    MavlinkSummary,
+    MavlinkCommand,
+    MavlinkAnswer,
 )
 
 

@@ -235,7 +235,7 @@ def _codec_for(tp: Any) -> _Codec:
         return _plan(tp)
     if tp is float:
         raise EncodeError("float field without a Fixed resolution")
-    if tp in (int, bool, str) or (isinstance(tp, type) and issubclass(tp, enum.Enum)):
+    if tp in (int, bool, str, bytes) or (isinstance(tp, type) and issubclass(tp, enum.Enum)):
         return _Plain()
     raise EncodeError(f"unsupported field type {tp!r}")
 

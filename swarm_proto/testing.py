@@ -49,6 +49,8 @@ def _strategy(t: Any) -> st.SearchStrategy[Any]:
         return _floats(t)
     if isinstance(t, mi.BoolType):
         return st.booleans()
+    if isinstance(t, mi.BytesType):
+        return st.binary(max_size=t.max_length if t.max_length is not None else 32)
     if isinstance(t, mi.StrType):
         return st.text(max_size=t.max_length if t.max_length is not None else 32)
     if isinstance(t, mi.EnumType):

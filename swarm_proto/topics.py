@@ -23,7 +23,10 @@ from .messages import (
     Command,
     DeclaredState,
     FleetAssignment,
+    MavlinkAnswer,
+    MavlinkCommand,
     MavlinkSession,
+    MavlinkSummary,
     Mission,
     NoFlyZone,
     PlanLineage,
@@ -78,6 +81,7 @@ class RadioClass(IntEnum):
     ALERT = 1
     STATUS = 2
     INFO = 3
+    PASSTHROUGH = 4  # a ground station's MAVLink: room left over only, never moved up
 
 
 class RadioPolicy(msgspec.Struct, frozen=True):
@@ -301,6 +305,34 @@ MAVLINK_DOWN = Topic(
     congestion=Congestion.DROP,
 )
 
+# ... and on the 900 MHz radio, a budgeted mode: a HIGH_LATENCY2 summary every 5 s and
+# commands only, in the room the swarm's own traffic leaves (docs/radio.md)
+MAVLINK_SUMMARY = Topic(
+    "mavlink_summary",
+    "vehicle/{vehicle_id}/mavlink/summary",
+    MavlinkSummary,
+    "The vehicle's HIGH_LATENCY2 every 5 s while a radio passthrough session asks for it.",
+    priority=Priority.DATA_LOW,
+    radio=RadioPolicy(True, RadioClass.PASSTHROUGH, max_rate_hz=0.2, latest_only=True),
+    **_TELEMETRY,  # type: ignore[arg-type]
+)
+MAVLINK_COMMAND = Topic(
+    "mavlink_command",
+    "vehicle/{target_id}/mavlink/command/{issuer_id}",
+    MavlinkCommand,
+    "A radio passthrough session's command to the vehicle's autopilot (or, empty, its keep-alive).",
+    priority=Priority.DATA_LOW,
+    radio=RadioPolicy(True, RadioClass.PASSTHROUGH, acked=True),
+)
+MAVLINK_ANSWER = Topic(
+    "mavlink_answer",
+    "vehicle/{vehicle_id}/mavlink/answer/{issuer_id}",
+    MavlinkAnswer,
+    "The vehicle's answer to a radio passthrough session's command.",
+    priority=Priority.DATA_LOW,
+    radio=RadioPolicy(True, RadioClass.PASSTHROUGH, acked=True),
+)
+
 TOPICS: tuple[Topic, ...] = (
     STATUS,
     INFO,
@@ -323,6 +355,9 @@ TOPICS: tuple[Topic, ...] = (
     MAVLINK_SESSION,
     MAVLINK_UP,
     MAVLINK_DOWN,
+    MAVLINK_SUMMARY,
+    MAVLINK_COMMAND,
+    MAVLINK_ANSWER,
 )
 TOPIC_OF_TYPE: dict[type, Topic] = {t.msg_type: t for t in TOPICS if t.msg_type is not None}
 

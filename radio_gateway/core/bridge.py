@@ -44,7 +44,7 @@ import msgspec
 
 from swarm_proto import Ack, VehicleStatus, lan, radio
 from swarm_proto.errors import DecodeError, EncodeError
-from swarm_proto.messages import RadioStats
+from swarm_proto.messages import MavlinkAnswer, RadioStats
 from swarm_proto.topics import RADIO_STATS, STATUS, Topic, key_of, match, topic_of
 
 from .outbox import OutMessage
@@ -198,8 +198,8 @@ class Bridge:
             max_rate_hz=p.max_rate_hz,
             # an answer is for its issuer: only the issuer acknowledges it on air (with
             # every member acknowledging every vehicle's Ack, n vehicles answering a
-            # command cost n^2 acknowledgements)
-            ack_by=msg.issuer_id if isinstance(msg, Ack) else 0,
+            # command cost n^2 acknowledgements; a passthrough answer likewise)
+            ack_by=msg.issuer_id if isinstance(msg, Ack | MavlinkAnswer) else 0,
         )
 
     def _note_gateway(self, payload: bytes, now: float) -> None:

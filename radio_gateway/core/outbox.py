@@ -5,7 +5,8 @@ Classes are `swarm_proto.topics.RadioClass` values, lower first: CONTROL (comman
 votes, missions, zones, fleets), ALERT, STATUS, INFO. Within a class, retransmissions
 come before new messages, and older messages before newer ones. A message waiting longer
 than `starve_s` moves up one class per `starve_s` waited, so slow classes are never
-starved outright.
+starved outright; PASSTHROUGH (a ground station's MAVLink, below INFO) never moves up:
+it goes in the room the swarm's own traffic leaves, or waits.
 
 - latest-only topics (telemetry) keep one message per key: a newer value replaces an
   unsent older one, and a key is not sent more often than its maximum rate. With
@@ -28,6 +29,8 @@ import itertools
 from collections import Counter
 from dataclasses import dataclass, field
 
+from swarm_proto.topics import RadioClass
+
 from .frame import (
     CHUNK_BYTES,
     FRAG_FIXED,
@@ -42,6 +45,9 @@ from .frame import (
 )
 
 _MIN_FRAG = RECORD_HEADER_BYTES + FRAG_FIXED + 1
+
+
+PASSTHROUGH = int(RadioClass.PASSTHROUGH)
 
 
 @dataclass(frozen=True)
@@ -165,6 +171,8 @@ class Outbox:
             c.receivers.discard(node)
 
     def _klass(self, msg: OutMessage, since: float, now: float) -> int:
+        if msg.klass >= PASSTHROUGH:  # a ground station's MAVLink never moves up
+            return msg.klass
         return max(0, msg.klass - int(max(0.0, now - since) // self.starve_s))
 
     def fill(self, budget: int, now: float, receivers: frozenset[int]) -> list[Record]:

@@ -17,7 +17,7 @@ simulations join several NodeCores and jump from deadline to deadline).
     Received(Command | Mission) the operator desk (operator.py); missions to regroup too
     Received(NoFlyZone | FleetAssignment), Learned, StoreResult
                                 the declarations (declarations.py); new zones: the fences
-    Received(MavlinkSession), MavlinkUp
+    Received(MavlinkSession | MavlinkCommand), MavlinkUp
                                 the ground stations' MAVLink sessions (passthrough.py)
     Received(Ack | Vote | TargetReport | PlanLineage), PlanDone
                                 the mission coordinator (mission/coordinator.py)
@@ -38,7 +38,7 @@ import msgspec
 
 import swarm_proto as proto
 from swarm_proto import DeclaredState, MissionType, VehicleInfo, VehicleStatus
-from swarm_proto.messages import MavlinkSession
+from swarm_proto.messages import MavlinkCommand, MavlinkSession
 
 from .arbiter import AutopilotArbiter
 from .declarations import Declarations
@@ -273,6 +273,8 @@ class NodeCore:
                 return self.mission.on_message(msg, self.views.context, now)
             case MavlinkSession():
                 return self.passthrough.on_session(msg, now)
+            case MavlinkCommand():  # a radio passthrough session's
+                return self.passthrough.on_radio(msg, self.views.node_view(), now)
             case proto.Alert() | proto.SwarmView():
                 self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
                 return []
@@ -315,7 +317,7 @@ class NodeCore:
         go(self.stalls.peer_events(self.members.on_timer(now), now), now, sink)
         go(self.stalls.on_timer(now), now, sink)  # suspects that did not come back
         go(self.operator.on_timer(now), now, sink)
-        go(self.passthrough.on_timer(now), now, sink)
+        go(self.passthrough.on_timer(now, self.views.node_view), now, sink)
         go(self.fences.on_timer(ap, self.declarations.zones, ceiling, now), now, sink)
         go(self.mission.on_timer(self.views.context, now), now, sink)  # tasking, reattach
         go(self._avoidance_tick(now), now, sink)

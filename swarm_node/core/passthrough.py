@@ -27,6 +27,14 @@ classified (`classify`; the tables below say what is what):
              DO_FENCE_ENABLE) are reported in an alert and the backstop checks the fence
              and rally point as after a reboot (`Recheck`)
 
+Over the 900 MHz radio (`gcs mavlink --radio`) a session is budgeted: the node
+publishes a HIGH_LATENCY2 summary (`high_latency2`) every `SUMMARY_PERIOD_S` while a
+radio session was heard within `RADIO_SESSION_S`, and takes commands only (COMMAND_LONG,
+COMMAND_INT, SET_MODE), one frame each, turned into the node's own requests
+(`radio_request`: a mode, arming, RTL, land, take-off, speed, mission start, parachute)
+and ruled on by the arbiter as above; the answer (COMMAND_ACK from the request's result,
+a STATUSTEXT for a refusal) goes back as a `MavlinkAnswer`.
+
 A read-only session's FLIGHT and SETTING frames are refused: COMMAND_ACK DENIED (a
 MISSION_ACK DENIED for an upload) and a STATUSTEXT to the client, from the autopilot's
 ids. A frame that does not decode, one addressed to another system, one that claims the
@@ -37,9 +45,11 @@ node's own MAVLink ids, or one of a session never announced is dropped and count
     on_session(MavlinkSession)              Sessions (the shell relays to them), Note
     on_frames(session, data, view)          ToAutopilot (READ, ITEM), Submit(Relay*,
                                             OPERATOR), ToClient (answers), StreamWish
+    on_radio(MavlinkCommand, view)          Submit(own request, OPERATOR), Publish(answer)
     on_result(result) (owns(request_id))    TakeOver (+ Delegate), Publish(Alert),
-                                            Recheck, ToClient (a refusal)
-    on_timer                                Sessions (timed out), Recheck (an upload over)
+                                            Recheck, ToClient / Publish(MavlinkAnswer)
+    on_timer(now, view)                     Sessions (timed out), Recheck (an upload over),
+                                            Publish(MavlinkSummary)
 
 Pure: no I/O; `now` is passed in.
 """
@@ -49,19 +59,35 @@ from __future__ import annotations
 import itertools
 import logging
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
+import msgspec
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from swarm_proto import Alert, AlertCode, Severity
+from swarm_proto import Alert, AlertCode, GpsFix, Severity
 from swarm_proto.ardupilot import mode_name
-from swarm_proto.messages import MavlinkSession
+from swarm_proto.messages import MavlinkAnswer, MavlinkCommand, MavlinkSession, MavlinkSummary
 from swarm_proto.text import short_text
 
 from .autopilot.framing import BadFrame, MavEncoder, MavFramer, MAVLinkMessage
-from .autopilot.requests import ApResult, RelayCommand, RelaySetting
+from .autopilot.requests import (
+    ApRequest,
+    ApResult,
+    Arm,
+    ChangeSpeed,
+    Disarm,
+    Land,
+    Parachute,
+    RelayCommand,
+    RelaySetting,
+    ReturnToLaunch,
+    SetMode,
+    StartMission,
+    Takeoff,
+)
+from .autopilot.state import AutopilotState
 from .commands import NodeView
 from .mission.phases import Phase
 from .outputs import (
@@ -84,6 +110,9 @@ UPLOAD_IDLE_S = 5.0  # an upload with no item for this long is over
 MAX_WISH_HZ = 10.0  # a session's stream wish: at most the node's own fastest rate
 #: the node's own MAVLink ids on the link (LinkSettings): a client must not claim them
 NODE_IDS = (255, 191)
+RADIO_SESSION_S = 60.0  # a radio session not heard of this long ends (kept every 20 s)
+SUMMARY_PERIOD_S = 5.0  # HIGH_LATENCY2's rate on a high-latency link (as ArduPilot sends it)
+MAV_AUTOPILOT_ARDUPILOTMEGA = 3
 
 
 class Kind(Enum):
@@ -306,12 +335,19 @@ class Session:
 
 @dataclass(frozen=True)
 class _Pending:
-    session_id: int
+    session_id: int  # 0: a radio session's
     verdict: Verdict
     msg_name: str
     command: int  # COMMAND_ACK's command for the answer (the message id for SET_MODE)
     on_mission: bool
     client: tuple[int, int]
+    radio_issuer: int = 0  # a radio session's ground station
+
+
+@dataclass
+class RadioSession:
+    issuer_id: int
+    heard: float
 
 
 @dataclass
@@ -325,6 +361,11 @@ class Passthrough:
     counts: Counter[str] = field(default_factory=Counter)  # dropped and refused, by why
     _pending: dict[int, _Pending] = field(default_factory=dict)  # request id -> frame
     _wish: dict[str, float] = field(default_factory=dict)  # the last StreamWish
+    radio: dict[int, RadioSession] = field(default_factory=dict)  # by ground station
+    radio_timeout_s: float = RADIO_SESSION_S
+    summary_period_s: float = SUMMARY_PERIOD_S
+    _summary_at: float = float("-inf")
+    _encoder: MavEncoder | None = None  # summaries and radio answers, the autopilot's ids
 
     # ------------------------------------------------------------------ sessions
     def on_session(self, msg: MavlinkSession, now: float) -> list[ModuleOutput]:
@@ -342,8 +383,9 @@ class Passthrough:
         text = f"{mode}passthrough session {msg.session_id} of ground station {msg.issuer_id}"
         return [Note(logging.INFO, f"{text} open"), self._sessions()]
 
-    def on_timer(self, now: float) -> list[ModuleOutput]:
-        out: list[ModuleOutput] = []
+    def on_timer(self, now: float, view: Callable[[], NodeView]) -> list[ModuleOutput]:
+        """Sessions timed out, uploads over, the radio's summary (`view` asked then)."""
+        out: list[ModuleOutput] = self._radio_timer(now, view) if self.radio else []
         for sid, s in list(self.sessions.items()):
             if now - s.heard >= self.timeout_s:
                 out += self._end(sid, f"client silent for {self.timeout_s:g} s", now)
@@ -354,10 +396,13 @@ class Passthrough:
         return out
 
     def next_deadline(self) -> float | None:
-        if not self.sessions:
+        if not self.sessions and not self.radio:
             return None
         due = [s.heard + self.timeout_s for s in self.sessions.values()]
         due += [t for s in self.sessions.values() for t in s.uploads.values()]
+        due += [r.heard + self.radio_timeout_s for r in self.radio.values()]
+        if self.radio:
+            due.append(self._summary_at)
         return min(due)
 
     def _end(self, sid: int, why: str, now: float) -> list[ModuleOutput]:
@@ -464,6 +509,8 @@ class Passthrough:
         p = self._pending.pop(result.request_id, None)
         if p is None:
             return []
+        if p.radio_issuer:
+            return self._radio_result(p, result, view, now)
         s = self.sessions.get(p.session_id)
         v, who = p.verdict, f"ground station {s.issuer_id}" if s else "a ground station"
         if not result.ok:
@@ -508,6 +555,115 @@ class Passthrough:
             v = Verdict(Kind.SETTING, f"{store} uploaded", report=True)
             return self._report(f"ground station {s.issuer_id}", v, now)
         return []
+
+    # ------------------------------------------------------------------ the radio
+    def on_radio(self, msg: MavlinkCommand, view: NodeView, now: float) -> list[ModuleOutput]:
+        """A radio session's keep-alive (no frame) or command: ruled on as the node's
+        own request of owner OPERATOR; anything but a command is refused."""
+        if msg.target_id != self.vehicle_id:
+            return []
+        out: list[ModuleOutput] = []
+        r = self.radio.get(msg.issuer_id)
+        if r is None:
+            r = self.radio[msg.issuer_id] = RadioSession(msg.issuer_id, now)
+            self._summary_at = now  # the first summary at once
+            text = f"radio passthrough session of ground station {msg.issuer_id} open"
+            out.append(Note(logging.INFO, text))
+        r.heard = now
+        if not msg.frame:
+            return out
+        items = MavFramer().feed(msg.frame)
+        if len(items) != 1 or isinstance(items[0], BadFrame):
+            self.counts["malformed"] += 1
+            return out
+        m = items[0]
+        target = getattr(m, "target_system", None)
+        if target is not None and int(target) not in (0, view.autopilot.sysid):
+            self.counts["foreign_system"] += 1
+            return out
+        name = m.get_type()
+        client = (int(m.get_srcSystem()), int(m.get_srcComponent()))
+        command = int(m.command) if name.startswith("COMMAND_") else mavlink.MAVLINK_MSG_ID_SET_MODE
+        request = radio_request(m, view.autopilot) if name in RADIO_MESSAGES else None
+        if request is None:
+            self.counts["not_over_the_radio"] += 1
+            text = f"bandada: not on the radio: {_label(m)}"
+            code = mavlink.MAV_RESULT_UNSUPPORTED
+            return out + self._radio_answer(msg.issuer_id, client, command, code, text, view)
+        v = classify(m, view)
+        ap = view.autopilot
+        if isinstance(request, SetMode) and ap.link_ok and request.mode == ap.mode_name:
+            ok = mavlink.MAV_RESULT_ACCEPTED
+            return out + self._radio_answer(msg.issuer_id, client, command, ok, "", view)
+        rid = next(self.ids)
+        self._pending[rid] = _Pending(
+            0, v, name, command, view.on_mission, client, radio_issuer=msg.issuer_id
+        )
+        req = msgspec.structs.replace(request, request_id=rid)
+        return [*out, Submit(req, Owner.OPERATOR)]
+
+    def _radio_result(
+        self, p: _Pending, result: ApResult, view: NodeView, now: float
+    ) -> list[ModuleOutput]:
+        who, v = f"ground station {p.radio_issuer} (radio)", p.verdict
+        if result.ok:
+            code, text = mavlink.MAV_RESULT_ACCEPTED, ""
+        elif result.reason.startswith("preempted by"):
+            code, text = mavlink.MAV_RESULT_TEMPORARILY_REJECTED, f"bandada: {result.reason}"
+        else:
+            code = result.mav_result if result.mav_result is not None else mavlink.MAV_RESULT_FAILED
+            text = f"bandada: {result.reason}" if result.reason else ""
+        out = self._radio_answer(p.radio_issuer, p.client, p.command, code, text, view)
+        self.counts["granted" if result.ok else "refused"] += 1
+        out.append(Note(logging.INFO, f"passthrough {who}: {v.what}: {result.reason or 'done'}"))
+        if result.ok and v.kind == Kind.FLIGHT and p.on_mission:
+            out.append(TakeOver(short_text(f"{who}: {v.what}"), v.phase))
+            if v.phase != Phase.OPERATOR:
+                out.append(Delegate(Owner.MISSION, Owner.OPERATOR))
+        return out
+
+    def _radio_answer(
+        self,
+        issuer: int,
+        client: tuple[int, int],
+        command: int,
+        code: int,
+        text: str,
+        view: NodeView,
+    ) -> list[ModuleOutput]:
+        msgs = [mavlink.MAVLink_command_ack_message(command, code, 0, 0, client[0], client[1])]
+        if text:
+            msgs.append(
+                mavlink.MAVLink_statustext_message(
+                    mavlink.MAV_SEVERITY_WARNING, text[:50].encode("ascii", "replace")
+                )
+            )
+        enc = self._encoder_for(view.autopilot)
+        frames = b"".join(enc.encode(m) for m in msgs)
+        return [Publish(MavlinkAnswer(self.vehicle_id, issuer, frames))]
+
+    def _radio_timer(self, now: float, view: Callable[[], NodeView]) -> list[ModuleOutput]:
+        out: list[ModuleOutput] = []
+        for issuer, r in list(self.radio.items()):
+            if now - r.heard >= self.radio_timeout_s:
+                del self.radio[issuer]
+                text = f"radio passthrough session of ground station {issuer} ended (silent)"
+                out.append(Note(logging.INFO, text))
+        if self.radio and now >= self._summary_at:
+            self._summary_at = now + self.summary_period_s
+            v = view()
+            ap = v.autopilot
+            if ap.sysid:  # an autopilot heard: there is something to sum up
+                frame = self._encoder_for(ap).encode(high_latency2(ap, int(v.fsm_state)))
+                out.append(Publish(MavlinkSummary(self.vehicle_id, frame)))
+        return out
+
+    def _encoder_for(self, ap: AutopilotState) -> MavEncoder:
+        ids = (ap.sysid or self.vehicle_id % 256 or 1, ap.compid or 1)
+        enc = self._encoder
+        if enc is None or (enc.sysid, enc.compid) != ids:
+            enc = self._encoder = MavEncoder(*ids)
+        return enc
 
     # ------------------------------------------------------------------ local answers
     def _local(self, s: Session, msg: MAVLinkMessage, view: NodeView) -> list[ModuleOutput]:
@@ -596,3 +752,90 @@ def _wish(wishes: dict[str, float], name: str, rate_hz: float) -> None:
         wishes[name] = min(rate_hz, MAX_WISH_HZ)
     else:
         wishes.pop(name, None)
+
+
+# ----------------------------------------------------------------------- the radio's budget
+RADIO_MESSAGES = frozenset({"COMMAND_LONG", "COMMAND_INT", "SET_MODE"})
+FORCE_MAGIC = 21196  # COMPONENT_ARM_DISARM param2: force
+
+
+def _label(msg: MAVLinkMessage) -> str:
+    name = msg.get_type()
+    return _command_name(int(msg.command)) if name.startswith("COMMAND_") else name
+
+
+def radio_request(msg: MAVLinkMessage, ap: AutopilotState) -> ApRequest | None:
+    """A radio session's command as the node's own request (None: not over the radio)."""
+    if msg.get_type() == "SET_MODE":
+        return _set_mode(int(msg.custom_mode), ap)
+    cmd, p1, p2 = int(msg.command), float(msg.param1), float(msg.param2)
+    if cmd == DO_SET_MODE:
+        return _set_mode(int(p2), ap)
+    if cmd == 400:  # COMPONENT_ARM_DISARM
+        force = round(p2) == FORCE_MAGIC
+        return Arm(force=force) if round(p1) == 1 else Disarm(force=force)
+    if cmd == 20:
+        return ReturnToLaunch()
+    if cmd == 21:
+        return Land()
+    if cmd == 22:  # NAV_TAKEOFF: the altitude in param7 (COMMAND_INT: z)
+        alt = float(msg.param7 if msg.get_type() == "COMMAND_LONG" else msg.z)
+        return Takeoff(alt_rel_m=alt) if alt > 0 else None
+    if cmd == 178 and p2 > 0:  # DO_CHANGE_SPEED: param1 0 airspeed, param2 m/s
+        return ChangeSpeed(speed_m_s=p2, airspeed=round(p1) == 0)
+    if cmd == 300:  # MISSION_START
+        return StartMission(first_item=max(0, int(p1)))
+    if cmd == 208 and round(p1) == 2:  # DO_PARACHUTE release
+        return Parachute()
+    return None
+
+
+def _set_mode(number: int, ap: AutopilotState) -> SetMode | None:
+    name = mode_name(ap.vehicle_type, number)
+    return None if name.startswith("MODE(") else SetMode(mode=name)
+
+
+def _clamp(x: float, lo: int, hi: int) -> int:
+    return max(lo, min(hi, round(x))) if x == x else 0
+
+
+def high_latency2(ap: AutopilotState, fsm_state: int = 0) -> MAVLinkMessage:
+    """The vehicle in one HIGH_LATENCY2, as ArduPilot sends it on a high-latency link:
+    `custom0` is 1 when armed (the message has no armed flag), `custom1` the node's
+    state machine state (FsmState)."""
+    failures = 0
+    if ap.gps_fix < GpsFix.FIX_3D:
+        failures |= mavlink.HL_FAILURE_FLAG_GPS
+    if not ap.ekf_ok:
+        failures |= mavlink.HL_FAILURE_FLAG_ESTIMATOR
+    if not ap.link_ok:
+        failures |= mavlink.HL_FAILURE_FLAG_OFFBOARD_LINK
+    return mavlink.MAVLink_high_latency2_message(
+        ap.boot_time_ms & 0xFFFFFFFF,
+        ap.mav_type & 0xFF,
+        MAV_AUTOPILOT_ARDUPILOTMEGA,
+        ap.mode_number & 0xFFFF,
+        _clamp((ap.lat_deg or 0.0) * 1e7, -900_000_000, 900_000_000),
+        _clamp((ap.lon_deg or 0.0) * 1e7, -1_800_000_000, 1_800_000_000),
+        _clamp(ap.alt_msl_m or 0.0, -32768, 32767),
+        0,
+        _clamp(ap.heading_deg / 2.0, 0, 179),
+        0,
+        0,
+        _clamp(ap.throttle_pct, 0, 100),
+        _clamp(ap.airspeed_m_s * 5.0, 0, 255),
+        0,
+        _clamp(ap.groundspeed_m_s * 5.0, 0, 255),
+        0,
+        0,
+        0,
+        0,
+        0,
+        _clamp(ap.climb_m_s * 10.0, -128, 127),
+        _clamp(ap.battery_pct, -1, 100),
+        ap.mission_current & 0xFFFF,
+        failures,
+        1 if ap.armed else 0,
+        _clamp(fsm_state, -128, 127),
+        0,
+    )

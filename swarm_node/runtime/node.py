@@ -64,6 +64,7 @@ from swarm_proto.topics import (
     FLEET,
     INFO,
     LINEAGE,
+    MAVLINK_COMMAND,
     MISSION,
     MISSIONS,
     PEERS,
@@ -473,6 +474,9 @@ class NodeRuntime:
         # ACK: the peers' answers to missions make the roster (core/swarm/roster.py)
         for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET, LINEAGE):
             self.bus.subscribe(topic, self._received)
+        # radio passthrough sessions' commands to this vehicle (core/passthrough.py)
+        key = MAVLINK_COMMAND.key(self.config.swarm, target_id=self.core.self_id)
+        self.bus.subscribe(MAVLINK_COMMAND, self._received, key=key)
         self._asker = threading.Thread(
             target=self._asking, name=f"declared-{self.core.self_id}", daemon=True
         )

@@ -12,11 +12,20 @@ import threading
 import time
 from pathlib import Path
 
+import msgspec
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from rich.console import Console
 
-from gcs_cli.core.mavlink_session import Announce, Down, Listen, SessionCore, Up
+from gcs_cli.core.mavlink_session import (
+    Announce,
+    Command,
+    Down,
+    Listen,
+    RadioSessionCore,
+    SessionCore,
+    Up,
+)
 from gcs_cli.ground import GroundStation
 from swarm_proto import (
     AlertCode,
@@ -32,7 +41,7 @@ from swarm_proto import (
     NoFlyZone,
     Selector,
 )
-from swarm_proto.messages import MavlinkSession
+from swarm_proto.messages import MavlinkCommand, MavlinkSession
 from swarm_proto.session import ZenohSettings
 from swarm_sim.core import SITL_HOME
 from swarm_sim.demo import start, stop
@@ -86,6 +95,37 @@ def test_an_endpoint_that_speaks_first_is_open_from_the_start_and_never_times_ou
     c = core(listens=False)
     assert c.start(0.0) == [Listen(1), Announce(MavlinkSession(7, 1, 900))]
     assert c.on_timer(100.0) == [Announce(MavlinkSession(7, 1, 900))]
+
+
+def test_a_radio_session_sends_commands_only_and_makes_heartbeats_from_the_summary() -> None:
+    from swarm_node.core.autopilot.framing import MavFramer
+    from swarm_node.core.autopilot.state import AutopilotState
+    from swarm_node.core.passthrough import high_latency2
+    from swarm_proto import VehicleType
+
+    r = RadioSessionCore(7, 900)
+    assert r.start(0.0) == [Command(MavlinkCommand(900, 7))]  # the keep-alive
+    assert r.next_deadline() == 20.0
+    ap = AutopilotState(sysid=7, compid=1, vehicle_type=VehicleType.COPTER, mav_type=2)
+    ap_mav = mavlink.MAVLink(None, srcSystem=7, srcComponent=1)
+    armed = high_latency2(msgspec.structs.replace(ap, armed=True, mode_number=5))
+    summary = bytes(armed.pack(ap_mav))
+    out = r.on_summary(summary, 1.0)
+    assert out[0] == Down(summary)
+    (hb,) = MavFramer().feed(out[1].data)  # type: ignore[union-attr]
+    assert hb.get_type() == "HEARTBEAT" and hb.custom_mode == 5 and hb.base_mode & 128
+    assert hb.get_srcSystem() == 7  # from the autopilot's ids
+    assert [type(a) for a in r.on_timer(2.0)] == [Down]  # a heartbeat every second
+    mode = bytes(mavlink.MAVLink_set_mode_message(7, 1, 4).pack(CLIENT))
+    assert r.on_client(heartbeat() + mode, 2.5) == [Command(MavlinkCommand(900, 7, mode))]
+    (soon,) = r.on_client(mode, 3.0)  # one command per 2 s on the air
+    ack, text = MavFramer().feed(soon.data)  # type: ignore[union-attr]
+    assert ack.result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED and "one command" in text.text
+    params = bytes(mavlink.MAVLink_param_request_list_message(7, 1).pack(CLIENT))
+    (told,) = r.on_client(params, 4.0)
+    assert MavFramer().feed(told.data)[0].text == "bandada: not on the radio: PARAM_REQUEST_LIST"  # type: ignore[union-attr]
+    assert r.on_client(params, 5.0) == []  # told once in 30 s
+    assert r.counts["not_on_the_radio"] == 2 and r.counts["commands"] == 1
 
 
 # ----------------------------------------------------------------------- real processes

@@ -5,6 +5,7 @@ links and simulated ArduPilot exchanging real MAVLink bytes)."""
 
 from __future__ import annotations
 
+import msgspec
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -13,7 +14,18 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from swarm_node.core.arbiter import AutopilotArbiter, Owner, flies
 from swarm_node.core.autopilot.framing import MavFramer
 from swarm_node.core.autopilot.link import LinkCore, LinkSettings, Transmit, for_passthrough
-from swarm_node.core.autopilot.requests import ApResult, RelayCommand, RelaySetting
+from swarm_node.core.autopilot.requests import (
+    ApResult,
+    Arm,
+    ChangeSpeed,
+    Disarm,
+    Land,
+    RelayCommand,
+    RelaySetting,
+    ReturnToLaunch,
+    SetMode,
+    Takeoff,
+)
 from swarm_node.core.autopilot.state import AutopilotState
 from swarm_node.core.autopilot.streams import StreamRequester
 from swarm_node.core.commands import NodeView
@@ -30,7 +42,7 @@ from swarm_node.core.outputs import (
     ToAutopilot,
     ToClient,
 )
-from swarm_node.core.passthrough import Kind, Passthrough, classify
+from swarm_node.core.passthrough import Kind, Passthrough, classify, radio_request
 from swarm_proto import (
     Alert,
     AlertCode,
@@ -46,7 +58,7 @@ from swarm_proto import (
     Selector,
     VehicleType,
 )
-from swarm_proto.messages import MavlinkSession
+from swarm_proto.messages import MavlinkAnswer, MavlinkCommand, MavlinkSession, MavlinkSummary
 from swarm_sim.core import SITL_HOME
 from swarm_sim.fast_fleet import FastFleet
 
@@ -269,8 +281,8 @@ def test_bandadas_settings_changed_by_a_ground_station_are_alerted_and_checked(
     )
     assert pt.on_frames(SID, item, v, 3.0) == [ToAutopilot(item)]
     assert pt.on_session(MavlinkSession(7, SID, GCS), 7.0) == []  # announced every second
-    assert pt.on_timer(7.9) == []
-    outs = pt.on_timer(8.0)  # 5 s without an item
+    assert pt.on_timer(7.9, lambda: v) == []
+    outs = pt.on_timer(8.0, lambda: v)  # 5 s without an item
     assert Recheck("set by ground station 900", False) in outs
     assert pt.on_frames(SID, item, v, 9.0) == []  # no upload: dropped
     assert pt.counts["item_outside_upload"] == 1
@@ -328,7 +340,7 @@ def test_bad_frames_are_dropped_and_counted_and_a_silent_session_ends(
     assert pt.counts["node_ids"] == 1
     assert pt.on_frames(99, good, v, 1.0) == [] and pt.counts["no_session"] == 1
     assert pt.next_deadline() == 6.0
-    outs = pt.on_timer(6.0)
+    outs = pt.on_timer(6.0, lambda: v)
     assert Sessions(()) in outs and not any(isinstance(o, ToAutopilot | Submit) for o in outs)
 
 
@@ -437,3 +449,78 @@ def test_a_ground_stations_mode_change_takes_a_vehicle_out_of_its_fleet_and_read
     # the client goes away: its session ends, nothing more is kept for it
     assert fleet.run_until(lambda: not v7.link.tap, 10)
     assert v7.link.state.mode_name == "LOITER"
+
+
+# ----------------------------------------------------------------------- the radio
+def test_a_radio_session_gets_a_summary_every_5_s_and_commands_as_the_nodes_own(
+    fleet_profiles: dict,
+) -> None:
+    pt = Passthrough(7)
+    ap = msgspec.structs.replace(
+        AP, lat_deg=37.4, lon_deg=-5.9, alt_msl_m=60.0, armed=True, battery_pct=80, mav_type=2
+    )
+    v = view(fleet_profiles, on_mission=True, ap=ap)
+    assert pt.on_radio(MavlinkCommand(GCS, 8), v, 0.0) == []  # not ours
+    pt.on_radio(MavlinkCommand(GCS, 7), v, 0.0)  # the keep-alive opens it
+    assert pt.next_deadline() == 0.0
+    (summary,) = [o.msg for o in pt.on_timer(0.0, lambda: v) if isinstance(o, Publish)]
+    assert isinstance(summary, MavlinkSummary) and len(summary.frame) <= 54
+    (hl2,) = MavFramer().feed(summary.frame)
+    assert hl2.get_type() == "HIGH_LATENCY2" and hl2.custom_mode == 3 and hl2.custom0 == 1
+    assert (hl2.latitude, hl2.altitude, hl2.battery) == (374_000_000, 60, 80)
+    assert pt.on_timer(4.9, lambda: v) == [] and pt.next_deadline() == 5.0
+    # a mode change: the node's own SetMode, answered with its result
+    (sub,) = pt.on_radio(
+        MavlinkCommand(GCS, 7, frame(mavlink.MAVLink_set_mode_message(7, 1, 5))), v, 6.0
+    )
+    assert isinstance(sub, Submit) and sub.request == SetMode(
+        request_id=sub.request.request_id, mode="LOITER"
+    )
+    outs = pt.on_result(ApResult(sub.request.request_id, True), v, 6.1)
+    (answer,) = [o.msg for o in outs if isinstance(o, Publish)]
+    assert isinstance(answer, MavlinkAnswer) and answer.issuer_id == GCS
+    (ack,) = MavFramer().feed(answer.frame)
+    assert (ack.command, ack.result, ack.target_component) == (11, 0, 190)
+    assert TakeOver("ground station 900 (radio): SET_MODE LOITER", Phase.OPERATOR) in outs
+    # what is not a command does not go over the radio
+    outs = pt.on_radio(MavlinkCommand(GCS, 7, frame(command(241, 1))), v, 7.0)
+    ack, text = MavFramer().feed(outs[0].msg.frame)  # type: ignore[union-attr]
+    assert ack.result == mavlink.MAV_RESULT_UNSUPPORTED and text.text == "bandada: not on the radio: PREFLIGHT_CALIBRATION"
+    # silent for 60 s: no more summaries
+    outs = pt.on_timer(67.0, lambda: v)  # 60 s after its last command
+    assert not pt.radio and not any(isinstance(o, Publish) for o in outs)
+
+
+def test_radio_commands_become_the_nodes_requests() -> None:
+    ap = AP
+    cases = [
+        (command(400, 1), Arm()),
+        (command(400, 0, 21196), Disarm(force=True)),
+        (command(20), ReturnToLaunch()),
+        (command(21), Land()),
+        (command(22, 0, 0, 0, 0, 0, 0, 30), Takeoff(alt_rel_m=30.0)),
+        (command(178, 1, 8), ChangeSpeed(speed_m_s=8.0, airspeed=False)),
+        (command(176, 1, 4), SetMode(mode="GUIDED")),
+        (command(241, 1), None),
+        (mavlink.MAVLink_set_mode_message(7, 1, 99), None),  # no such copter mode
+    ]
+    for msg, want in cases:
+        (decoded_msg,) = MavFramer().feed(frame(msg))
+        assert radio_request(decoded_msg, ap) == want
+
+
+def test_a_radio_sessions_mode_change_in_fast_time(fleet_profiles: dict) -> None:
+    fleet = FastFleet.build([7], fleet_profiles)
+    v7 = fleet.vehicles[7]
+    fleet.run_until(lambda: v7.link.state.ekf_has_position, 60)
+    fleet.deliver(7, Received(MavlinkCommand(GCS, 7)), fleet.now)
+    fleet.run_for(11.0)
+    summaries = [m for _, vid, m in fleet.published if isinstance(m, MavlinkSummary)]
+    assert len(summaries) == 3  # at once, then every 5 s
+    set_mode = frame(mavlink.MAVLink_set_mode_message(7, 1, 4))  # GUIDED
+    fleet.deliver(7, Received(MavlinkCommand(GCS, 7, set_mode)), fleet.now)
+    fleet.run_for(2.0)
+    assert v7.link.state.mode_name == "GUIDED"
+    (answer,) = [m for _, vid, m in fleet.published if isinstance(m, MavlinkAnswer)]
+    (ack,) = MavFramer().feed(answer.frame)
+    assert ack.result == mavlink.MAV_RESULT_ACCEPTED and ack.get_srcSystem() == 7
