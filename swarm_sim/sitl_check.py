@@ -76,7 +76,7 @@ SURVEY_ALT_M = {
     "quadplane": 60.0,
 }  # a rally point below this (above home) is not a safe way home
 RESULTS = Path(__file__).resolve().parent.parent / "bench" / "results" / "sitl.json"
-CHECKS = ("status", "rally", "fence", "survey", "way home", "rtl/land", "link loss")
+CHECKS = ("status", "rally", "fence", "survey", "way home", "rtl/land", "link loss", "passthrough")
 CHECK_TEXT = {
     "status": "status matches SITL",
     "rally": "base -> rally point, safe altitude",
@@ -85,6 +85,7 @@ CHECK_TEXT = {
     "way home": "way home flown, landed, disarmed",
     "rtl/land": "RTL / LAND commands",
     "link loss": "link loss reported, link back",
+    "passthrough": "pymavlink via gcs mavlink: params, mission",
 }
 
 
@@ -852,6 +853,21 @@ class Harness:
         for run in self.runs:
             self.log(f"{run.spec.kind}: SITL frozen (SIGSTOP) to lose the link")
             self._guarded("link loss", functools.partial(self.check_link_loss, run))
+        for run in self.runs:
+            self.log(f"{run.spec.kind}: pymavlink through `gcs mavlink`")
+            self._guarded("passthrough", functools.partial(self.check_passthrough, run))
+
+    def check_passthrough(self, run: Run) -> None:
+        from .passthrough_check import check
+
+        ok, detail = check(
+            f"tcp/127.0.0.1:{self.router_port}",
+            SWARM,
+            run.spec.node_id,
+            self.tmp / f"gcs-mavlink-{run.spec.node_id}.log",
+            run.downloader,
+        )
+        run.result.set("passthrough", ok, detail)
 
 
 def table(runs: list[Run]) -> Table:

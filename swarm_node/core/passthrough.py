@@ -330,7 +330,8 @@ class Session:
     uploads: dict[int, float] = field(default_factory=dict)  # granted store -> until
     wishes: dict[str, float] = field(default_factory=dict)  # message -> Hz
     encoder: MavEncoder | None = None  # answers on the autopilot's behalf
-    counts: Counter[str] = field(default_factory=Counter)
+    counts: Counter[str] = field(default_factory=Counter)  # frames dropped, by why
+    noted: set[str] = field(default_factory=set)  # causes already logged
 
 
 @dataclass(frozen=True)
@@ -452,6 +453,10 @@ class Passthrough:
                 out += self._rule(s, item, raw, v, view, now)
         if reads:
             out.append(ToAutopilot(b"".join(reads)))
+        for why in sorted(set(s.counts) - s.noted):  # said once per session and cause
+            s.noted.add(why)
+            text = f"passthrough session {session_id}: dropping frames from its client ({why})"
+            out.append(Note(logging.WARNING, text))
         return out
 
     def _accepted(self, s: Session, msg: MAVLinkMessage, view: NodeView) -> Verdict | None:
