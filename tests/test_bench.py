@@ -136,6 +136,15 @@ NAMED: dict[str, tuple[str, ...]] = {
         "autoland/touchdown_gaps_s",
         "mumt/slot_error_max_m",
     ),
+    "passthrough": (
+        "lan/round_trips/passthrough/param_request_read/median_ms",
+        "lan/round_trips/passthrough/command_long_do_set_servo/median_ms",
+        "lan/round_trips/passthrough/command_long_do_set_mode/median_ms",
+        "lan/round_trips/direct/param_request_read/median_ms",
+        "lan/mission_100/download_s",
+        "lan/streaming/node_extra_cpu_pct",
+        "radio/vehicle_bytes_per_s",
+    ),
 }
 FAULT_ROW = ("recovered", "recover_s", "coverage", "declared_state_lost", "false_emergencies")
 RADIO_ROW = (
