@@ -128,6 +128,27 @@ def test_a_radio_session_sends_commands_only_and_makes_heartbeats_from_the_summa
     assert r.counts["not_on_the_radio"] == 2 and r.counts["commands"] == 1
 
 
+@pytest.mark.parametrize(
+    "argv, named",
+    [
+        (["mavlink"], "--id"),
+        (["mavlink", "--id", "7", "--all"], "--id"),
+        (["mavlink", "--id", "7", "--serve", "nonsense:x"], "--serve"),
+        (["mavlink", "--id", "7", "--serve", "/dev/ttyUSB0"], "--serve"),
+        (["mavlink", "--id", "7", "--radio", "--read-only"], "--radio"),
+        (["mavlink", "--id", "0"], "--id"),
+    ],
+)
+def test_bad_options_are_one_line_and_nothing_is_opened(
+    argv: list[str], named: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from gcs_cli.app import run
+
+    assert run(["--connect", "tcp/127.0.0.1:9", *argv]) == 2  # no router there: not asked
+    err = capsys.readouterr().err
+    assert named in err and err.count("\n") == 1, err
+
+
 # ----------------------------------------------------------------------- real processes
 class MavProxy:
     """MAVProxy on stdin/stdout, its lines collected."""
@@ -301,3 +322,47 @@ def test_mavproxy_through_gcs_mavlink_reads_downloads_and_its_mode_change_leaves
         stop(fleet)
     log = (tmp_path / "node-7.log").read_text()
     assert "passthrough ground station 900: DO_SET_MODE LOITER relayed" in log
+
+
+@pytest.mark.soak
+@pytest.mark.network
+@pytest.mark.timeout(300)
+def test_a_vehicle_behind_the_radio_through_gcs_mavlink_radio(
+    tmp_path: Path, swarm_db: Path
+) -> None:
+    """The demo's radio harness in real time (emulated channel, one gateway per node and
+    the ground station's): a pymavlink client through `gcs mavlink --radio` gets the
+    HIGH_LATENCY2 and heartbeats made from it, a mode change acknowledged, and the rest
+    refused at the ground station."""
+    from swarm_sim.passthrough_check import PassthroughClient, gcs_mavlink
+
+    fleet = start((7,), 1.0, tmp_path, Console(file=open(os.devnull, "w")), radio=True)  # noqa: SIM115
+    try:
+        host, port = fleet.endpoint.split("/", 1)[1].rsplit(":", 1)
+
+        def gateway_up() -> bool:
+            with socket.socket() as s:
+                return s.connect_ex((host, int(port))) == 0
+
+        assert wait(gateway_up, 60)
+        log = tmp_path / "gcs-radio.log"
+        # the ground station's own id: its radio gateway sends what it originates only
+        radio = ("--radio",)
+        with gcs_mavlink(fleet.endpoint, "default", 7, log, *radio, gcs_id=900, mode="peer") as url:
+            c = PassthroughClient(url)
+            try:
+                assert c.attach(90), log.read_text()
+                assert c.conn.recv_match(type="HIGH_LATENCY2", blocking=True, timeout=15)
+                got = c.command(176, 1, 4, timeout_s=30)  # GUIDED, as a COMMAND_LONG
+                assert got is not None and got[0] == mavlink.MAV_RESULT_ACCEPTED, got
+                c.conn.mav.param_request_list_send(*c.target)
+                text = c.conn.recv_match(type="STATUSTEXT", blocking=True, timeout=10)
+                assert text is not None and "not on the radio" in text.text
+            finally:
+                c.close()
+    finally:
+        stop(fleet)
+    assert (
+        "radio passthrough session of ground station 900 open"
+        in (tmp_path / "node-7.log").read_text()
+    )
