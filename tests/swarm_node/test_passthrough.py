@@ -485,7 +485,10 @@ def test_a_radio_session_gets_a_summary_every_5_s_and_commands_as_the_nodes_own(
     # what is not a command does not go over the radio
     outs = pt.on_radio(MavlinkCommand(GCS, 7, frame(command(241, 1))), v, 7.0)
     ack, text = MavFramer().feed(outs[0].msg.frame)  # type: ignore[union-attr]
-    assert ack.result == mavlink.MAV_RESULT_UNSUPPORTED and text.text == "bandada: not on the radio: PREFLIGHT_CALIBRATION"
+    assert (
+        ack.result == mavlink.MAV_RESULT_UNSUPPORTED
+        and text.text == "bandada: not on the radio: PREFLIGHT_CALIBRATION"
+    )
     # silent for 60 s: no more summaries
     outs = pt.on_timer(67.0, lambda: v)  # 60 s after its last command
     assert not pt.radio and not any(isinstance(o, Publish) for o in outs)
