@@ -113,6 +113,7 @@ NODE_IDS = (255, 191)
 RADIO_SESSION_S = 60.0  # a radio session not heard of this long ends (kept every 20 s)
 SUMMARY_PERIOD_S = 5.0  # HIGH_LATENCY2's rate on a high-latency link (as ArduPilot sends it)
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3
+TELL_AGAIN_S = 2.0  # one refusal's STATUSTEXT at most this often per session
 
 
 class Kind(Enum):
@@ -332,6 +333,7 @@ class Session:
     encoder: MavEncoder | None = None  # answers on the autopilot's behalf
     counts: Counter[str] = field(default_factory=Counter)  # frames dropped, by why
     noted: set[str] = field(default_factory=set)  # causes already logged
+    told: dict[str, float] = field(default_factory=dict)  # refusal text -> when last said
 
 
 @dataclass(frozen=True)
@@ -468,7 +470,7 @@ class Passthrough:
         target = getattr(msg, "target_system", None)
         sysid = view.autopilot.sysid
         if target is not None and int(target) != 0 and int(target) != sysid:
-            self._drop(s, "foreign_system")
+            self._drop(s, "foreign_system" if sysid else "no_autopilot_yet")
             return None
         s.client = src
         return classify(msg, view)
@@ -490,7 +492,7 @@ class Passthrough:
         if s.read_only:
             self._drop(s, "refused_read_only")
             text = f"bandada read-only: {v.what} refused"
-            return self._refuse(s, name, command, v, mavlink.MAV_RESULT_DENIED, text, view)
+            return self._refuse(s, name, command, v, mavlink.MAV_RESULT_DENIED, text, view, now)
         ap = view.autopilot
         if command in (DO_SET_MODE, mavlink.MAVLINK_MSG_ID_SET_MODE) and ap.link_ok:
             number = int(msg.custom_mode) if name == "SET_MODE" else int(msg.param2)
@@ -532,16 +534,18 @@ class Passthrough:
             )
             text = f"bandada: {result.reason}: {v.what} refused"  # the why first: 50 characters
             out: list[ModuleOutput] = [Note(logging.INFO, f"passthrough {who}: {text}")]
-            return out + self._refuse(s, p.msg_name, p.command, v, code, text, view)
+            return out + self._refuse(s, p.msg_name, p.command, v, code, text, view, now)
         self.counts["granted"] += 1
-        out = [Note(logging.INFO, f"passthrough {who}: {v.what} relayed")]
-        if v.kind == Kind.FLIGHT and p.on_mission:
+        takes_over = v.kind == Kind.FLIGHT and p.on_mission
+        level = logging.INFO if takes_over or v.report else logging.DEBUG  # sticks: 50 Hz
+        out = [Note(level, f"passthrough {who}: {v.what} relayed")]
+        if takes_over:
             # the operator flies the vehicle now: out of its fleet, as on `gcs cmd rtl`
             out.append(TakeOver(short_text(f"{who}: {v.what}"), v.phase))
             if v.phase != Phase.OPERATOR:  # the mission manager lands it for the operator
                 out.append(Delegate(Owner.MISSION, Owner.OPERATOR))
-        if v.report and (v.mission_type is None or v.mission_type == ALL_TYPES):
-            out += self._report(who, v, now)
+        if v.report and (v.mission_type in (None, ALL_TYPES) or p.msg_name == "MISSION_CLEAR_ALL"):
+            out += self._report(who, v, now)  # (an upload: once its items are in)
         return out
 
     def _report(self, who: str, v: Verdict, now: float) -> list[ModuleOutput]:
@@ -712,8 +716,10 @@ class Passthrough:
         code: int,
         text: str,
         view: NodeView,
+        now: float,
     ) -> list[ModuleOutput]:
-        """Answered as the autopilot answers a refusal, and said in a STATUSTEXT."""
+        """Answered as the autopilot answers a refusal, and said in a STATUSTEXT (each
+        text once in `TELL_AGAIN_S`)."""
         msgs: list[MAVLinkMessage] = []
         client = s.client or (0, 0)
         if command:
@@ -725,12 +731,15 @@ class Passthrough:
                     client[0], client[1], mavlink.MAV_MISSION_DENIED, mt
                 )
             )
-        msgs.append(
-            mavlink.MAVLink_statustext_message(
-                mavlink.MAV_SEVERITY_WARNING, text[:50].encode("ascii", "replace")
+        last = s.told.get(text)
+        if last is None or now - last >= TELL_AGAIN_S:  # sticks at 50 Hz: said once a while
+            s.told[text] = now
+            msgs.append(
+                mavlink.MAVLink_statustext_message(
+                    mavlink.MAV_SEVERITY_WARNING, text[:50].encode("ascii", "replace")
+                )
             )
-        )
-        return self._answer(s, view, *msgs)
+        return self._answer(s, view, *msgs) if msgs else []
 
     def _ack(self, s: Session, command: int, result: int) -> MAVLinkMessage:
         c = s.client or (0, 0)

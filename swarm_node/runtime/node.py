@@ -75,7 +75,7 @@ from swarm_proto.topics import (
     ZONES,
 )
 
-from ..core.autopilot.requests import ApRequest, ApResult
+from ..core.autopilot.requests import ApRequest, ApResult, RelayCommand
 from ..core.autopilot.state import AutopilotState
 from ..core.mission.share import PlanOutcome, PlanRequest, run_plan, warm
 from ..core.mission.tasking import RETASK_MODULE, VOTING_MODULE, TaskingSettings
@@ -584,7 +584,9 @@ class NodeRuntime:
                     self.passthrough.wish(o.rates)
 
     def _submit(self, request: ApRequest) -> None:
-        log.info("node %d: autopilot <- %s", self.core.self_id, type(request).__name__)
+        # a passthrough session's frames (sticks at 50 Hz) are logged by the core instead
+        level = logging.DEBUG if isinstance(request, RelayCommand) else logging.INFO
+        log.log(level, "node %d: autopilot <- %s", self.core.self_id, type(request).__name__)
         try:
             future = self.autopilot.submit(request)
         except Exception as exc:  # a request the link refuses outright

@@ -103,9 +103,9 @@ class PassthroughRelay:
         for pub in self._down.values():
             try:
                 pub.put(data)
-            except Exception:  # the session is closing
+            except Exception:  # that session is closing
                 log.debug("passthrough put failed", exc_info=True)
-                return
+                continue
             self.batches_down += 1
             self.bytes_down += len(data)
 

@@ -33,6 +33,7 @@ from swarm_node.core.inputs import MavlinkUp, Received
 from swarm_node.core.mission.phases import Phase
 from swarm_node.core.outputs import (
     Delegate,
+    Note,
     Publish,
     Recheck,
     Sessions,
@@ -232,7 +233,8 @@ def test_a_read_only_session_gets_downloads_and_refusals(fleet_profiles: dict) -
         (mavlink.MAVLink_param_set_message(7, 1, b"FENCE_ENABLE", 0, 2), "STATUSTEXT", None),
     ]:
         outs = pt.on_frames(SID, frame(msg), v, 1.0)
-        assert all(isinstance(o, ToClient) for o in outs), outs  # nothing else goes anywhere
+        # nothing goes anywhere but to the client (and the node's log, once)
+        assert all(isinstance(o, ToClient | Note) for o in outs), outs
         answers = decoded(outs)
         assert answers[0].get_type() == name
         if command_id is not None:
@@ -243,6 +245,22 @@ def test_a_read_only_session_gets_downloads_and_refusals(fleet_profiles: dict) -
         assert answers[-1].get_type() == "STATUSTEXT"
         assert answers[-1].text.startswith("bandada read-only: ")
     assert pt.counts["refused_read_only"] == 4
+
+
+def test_sticks_refused_at_50_hz_are_told_once_in_2_s(fleet_profiles: dict) -> None:
+    pt = opened(read_only=True)
+    sticks = frame(mavlink.MAVLink_manual_control_message(7, 0, 0, 500, 0, 0))
+    told = [decoded(pt.on_frames(SID, sticks, view(fleet_profiles), i * 0.02)) for i in range(150)]
+    assert [i for i, t in enumerate(told) if t] == [0, 100]  # at 0 s and 2 s, not 150 times
+
+
+def test_a_fence_cleared_by_a_ground_station_is_reported_at_once(fleet_profiles: dict) -> None:
+    pt = opened()
+    v = view(fleet_profiles)
+    clear = frame(mavlink.MAVLink_mission_clear_all_message(7, 1, 1))
+    (sub,) = pt.on_frames(SID, clear, v, 1.0)
+    outs = pt.on_result(ApResult(sub.request.request_id, True), v, 1.0)
+    assert Recheck("set by ground station 900", False) in outs
 
 
 def test_a_mode_it_is_in_already_is_answered_and_takes_nothing_over(fleet_profiles: dict) -> None:
@@ -284,7 +302,8 @@ def test_bandadas_settings_changed_by_a_ground_station_are_alerted_and_checked(
     assert pt.on_timer(7.9, lambda: v) == []
     outs = pt.on_timer(8.0, lambda: v)  # 5 s without an item
     assert Recheck("set by ground station 900", False) in outs
-    assert pt.on_frames(SID, item, v, 9.0) == []  # no upload: dropped
+    outs = pt.on_frames(SID, item, v, 9.0)  # no upload: dropped, and said once
+    assert [type(o) for o in outs] == [Note] and "item_outside_upload" in outs[0].text
     assert pt.counts["item_outside_upload"] == 1
 
 
@@ -335,8 +354,12 @@ def test_bad_frames_are_dropped_and_counted_and_a_silent_session_ends(
     )
     good = frame(mavlink.MAVLink_param_request_list_message(7, 1))
     outs = pt.on_frames(SID, b"\x00garbage\xfd\x09" + foreign + impostor + good, v, 1.0)
-    assert outs == [ToAutopilot(good)]
-    assert pt.counts["malformed"] == 1 and pt.counts["foreign_system"] == 1
+    assert outs[0] == ToAutopilot(good)
+    logged = [o.text.rsplit("(", 1)[1] for o in outs[1:] if isinstance(o, Note)]
+    assert logged == ["foreign_system)", "malformed)", "node_ids)"]  # once each, per session
+    again = pt.on_frames(SID, foreign + good, v, 1.0)
+    assert again == [ToAutopilot(good)]
+    assert pt.counts["malformed"] == 1 and pt.counts["foreign_system"] == 2
     assert pt.counts["node_ids"] == 1
     assert pt.on_frames(99, good, v, 1.0) == [] and pt.counts["no_session"] == 1
     assert pt.next_deadline() == 6.0
