@@ -62,7 +62,7 @@ unit: $(STAMP) browser
 bench: $(STAMP) browser
 	$(BIN)/python -m bench $(BENCH)
 
-## faults: the fault campaign (issue 16; docs/reliability.md): faults x missions in
+## faults: the fault campaign (docs/reliability.md): faults x missions in
 ## FastFleet and over real processes, writes bench/results/faults.json (about 20 min).
 ## BANDADA_FAULTS=fast runs only the FastFleet part; the smoke subset is in `make test`.
 faults: $(STAMP)
