@@ -21,6 +21,8 @@ dropped silently):
                               avoidance (AVOIDANCE, and its pad landing steps)
     PeerAlive              -> membership -> roster (MemberLost), avoidance (forget)
     BadInput               -> counted, logged
+    IdentityNews           -> monitoring (this vehicle's identity conflict: an alert,
+                              not ready), roster (untrusted peers: not members)
     Received(VehicleStatus)-> membership, avoidance (a contact)
     Received(VehicleInfo)  -> membership, roster (answers, MemberLost, hash mismatch),
                               avoidance (the contact's type)
@@ -122,6 +124,7 @@ from .fences import (
     plan_fence,
 )
 from .fleet_changes import FleetChanges
+from .identity import IdentityNews
 from .membership import PeerEvent, PeerJoined, PeerLeft, SwarmMembership
 from .mission.published import (
     along_share,
@@ -213,6 +216,7 @@ Input = (
     | PlanDone
     | Learned
     | StoreResult
+    | IdentityNews
 )
 
 
@@ -250,6 +254,7 @@ class NodeSettings:
     thresholds: Thresholds | None = None  # default: from the profile
     fence_max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
     avoidance: bool = True  # collision avoidance (safety/module.py); off: compare without it
+    mav_sysid: int = 0  # the autopilot's MAVLink system id, from the database (0: not checked)
 
 
 # ----------------------------------------------------------------------------- core
@@ -274,6 +279,7 @@ class NodeCore:
             vid,
             self.settings.thresholds or Thresholds.from_profile(self.profile),
             vehicle_type=self.profile.vehicle_type,  # an autopilot of another type is flagged
+            mav_sysid=self.settings.mav_sysid,  # and one of another MAVLink system id
         )
         self.members = SwarmMembership(
             vid,
@@ -448,6 +454,9 @@ class NodeCore:
                 out += self._learn(state, sortie, source, now)
             case StoreResult(ok, error):
                 out += self._stored(ok, error, now)
+            case IdentityNews(conflict, untrusted):
+                out += [Publish(a) for a in self.monitor.on_identity(conflict, now)]
+                self.roster.distrust(untrusted)
             case _:
                 assert_never(event)
         if self.manager.info_due():  # a PREMISSION ETA for the fleet: at once, not in 1 s

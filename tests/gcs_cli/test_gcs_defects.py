@@ -269,4 +269,4 @@ def test_status_fits_100_columns_with_positions() -> None:
     assert max(len(line.rstrip()) for line in text.splitlines()) <= 100, text
     assert "-37.41235,-125.98765" in text and "LOITERALTQLAND"[:9] in text, text
     assert "…" not in text, text  # no cell cut
-    assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠type" in text, text
+    assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠db" in text, text
