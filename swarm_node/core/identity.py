@@ -72,8 +72,8 @@ Output = IdentityNews | HolderAlive
 @dataclass
 class _Seen:
     last_s: float
-    sysid: int
     what: str  # Source.describe()
+    sysids: dict[int, float] = field(default_factory=dict)  # MAVLink system id: last heard
 
 
 @dataclass
@@ -81,7 +81,6 @@ class _Track:
     sources: dict[str, _Seen] = field(default_factory=dict)  # by Source.key
     incumbent: str = ""
     holders: set[str] = field(default_factory=set)  # session ids holding the id now
-    heard_zids: set[str] = field(default_factory=set)  # sessions heard by telemetry
     alive_said: bool = False
     reports_conflict_s: float = float("-inf")  # it last said it has a conflict
     ground: bool = False
@@ -127,19 +126,18 @@ class IdentityBook:
         seen = track.sources.get(key)
         sysid = sysid or source.sysid
         if seen is None:
-            if len(track.sources) >= MAX_SOURCES:
-                oldest = min(track.sources, key=lambda k: track.sources[k].last_s)
-                if oldest != track.incumbent:
-                    del track.sources[oldest]
-            seen = track.sources[key] = _Seen(now, sysid, source.describe())
+            others = [k for k in track.sources if k != track.incumbent]
+            if len(track.sources) >= MAX_SOURCES and others:
+                del track.sources[min(others, key=lambda k: track.sources[k].last_s)]
+            seen = track.sources[key] = _Seen(now, source.describe())
         else:
             seen.last_s = max(seen.last_s, now)
-            if sysid:
-                seen.sysid = sysid
+        if sysid:
+            if sysid not in seen.sysids and len(seen.sysids) >= MAX_SOURCES:
+                del seen.sysids[min(seen.sysids, key=seen.sysids.__getitem__)]
+            seen.sysids[sysid] = now
         if reports_conflict:
             track.reports_conflict_s = now
-        if source.zid and len(track.heard_zids) < MAX_SOURCES:
-            track.heard_zids.add(source.zid)
         out = self._judge(vehicle_id, track, now)
         out += self._alive(vehicle_id, track)
         keep = not track.why or key == track.incumbent
@@ -165,6 +163,11 @@ class IdentityBook:
                 track.holders.add(zid)
         else:
             track.holders.discard(zid)
+            # its session is gone (stopped, or restarted with a new one): what it said
+            # no longer competes with what comes next
+            track.sources.pop(zid, None)
+            if track.incumbent == zid:
+                track.incumbent = ""
         return self._judge(node_id, track, now) + self._alive(node_id, track)
 
     # ------------------------------------------------------------------ ourselves
@@ -214,14 +217,15 @@ class IdentityBook:
     def _reason(self, track: _Track, now: float) -> str:
         recent = {k: s for k, s in track.sources.items() if now - s.last_s <= self.clear_after_s}
         inc = track.sources.get(track.incumbent)
-        if inc is not None and now - inc.last_s > self.clear_after_s and recent:
+        if (inc is None or now - inc.last_s > self.clear_after_s) and recent:
             # the trusted source went silent: the one heard last is trusted now
             track.incumbent = max(recent, key=lambda k: recent[k].last_s)
         sessions = sorted(k for k in recent if k != "radio")
         if len(sessions) > 1:
             a, b = (recent[k].what for k in sessions[:2])
             return f"heard from {a} and {b}"
-        sysids = sorted({s.sysid for s in recent.values() if s.sysid})
+        window = now - self.clear_after_s
+        sysids = sorted({i for s in recent.values() for i, t in s.sysids.items() if t >= window})
         if len(sysids) > 1:
             return f"MAVLink system ids {sysids[0]} and {sysids[1]}"
         if len(track.holders) > 1:
@@ -231,7 +235,7 @@ class IdentityBook:
         return ""
 
     def _alive(self, vid: int, track: _Track) -> list[Output]:
-        alive = bool(track.holders & track.heard_zids)
+        alive = any(zid in track.sources for zid in track.holders)  # held, and heard
         if alive == track.alive_said:
             return []
         track.alive_said = alive

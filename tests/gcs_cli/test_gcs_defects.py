@@ -259,14 +259,16 @@ def test_status_fits_100_columns_with_positions() -> None:
             mission_state=MissionState.REPLAN,
             mission_progress_pct=100,
             fleet_id=255,
-            alerts=AlertFlag(0x7FF),
+            alerts=AlertFlag(0xFFF),
         )
         view.info[vid] = VehicleInfo(vid, vt, "Albatross 250 VTOL", "U", mav_type=2)
         view.heard_at[vid] = _time.monotonic() - 123.4
+    view.untrusted[7] = "heard from session 3f2a9c1d and a foreign publisher"
     console = Console(width=100, record=True)
     console.print(fleet_table(view, title="swarm default"))
     text = console.export_text()
     assert max(len(line.rstrip()) for line in text.splitlines()) <= 100, text
     assert "-37.41235,-125.98765" in text and "LOITERALTQLAND"[:9] in text, text
     assert "…" not in text, text  # no cell cut
-    assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠db" in text, text
+    assert "7 ! untrusted: heard from session 3f2a9c1d and a foreign publisher" in text, text
+    assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠db,ID!" in text, text
