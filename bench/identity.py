@@ -12,7 +12,8 @@ impostor and the garbage.
   topic a node subscribes to. `rss_growth_pct`: each node's resident memory 5 s after
   the run against just before it (the larger of the two); `malformed_alerts`: the
   MALFORMED_INPUT alerts each node raised (at most one per topic a minute);
-  `dropped_by_reason`: what node 7's peers queryable counts; `status_hz_during`: the
+  `dropped_by_reason`: what node 7's peers queryable counts (`dropped_by_zenoh`: the
+  rest, refused by Zenoh before the node: the blobs); `status_hz_during`: the
   statuses each node published while the run lasted; `log_lines`: what each node logged
   meanwhile.
 """
@@ -273,6 +274,8 @@ def run(*, blobs: int = BLOBS) -> dict[str, Any]:
             },
             "malformed_alerts": {f"node_{vid}": malformed.get(vid, 0) for vid in IDS},
             "dropped_by_reason": dict(sorted(dropped.items())),
+            # larger than any cap: Zenoh refuses them before the node sees them
+            "dropped_by_zenoh": len(payloads) - sum(dropped.values()),
             "status_hz_during": {
                 f"node_{vid}": round(during.get(vid, 0) / (g1 - g0 + 1.0), 2) for vid in IDS
             },
