@@ -272,3 +272,25 @@ def test_status_fits_100_columns_with_positions() -> None:
     assert "…" not in text, text  # no cell cut
     assert "7 ! untrusted: heard from session 3f2a9c1d and a foreign publisher" in text, text
     assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠db,ID!" in text, text
+
+
+def test_a_mission_over_the_size_cap_is_refused_before_sending() -> None:
+    import math
+
+    import typer
+
+    from gcs_cli.options import checked
+    from swarm_proto import Geometry, Mission, MissionType
+
+    def ring(n: int) -> list[tuple[float, float]]:
+        return [
+            (
+                37.4 + 0.01 * math.sin(2 * math.pi * i / n),
+                -5.9 + 0.01 * math.cos(2 * math.pi * i / n),
+            )
+            for i in range(n)
+        ]
+
+    assert checked(Mission(5, 900, MissionType.AREA, Geometry.polygon(ring(4000))))
+    with pytest.raises(typer.BadParameter, match="more than the 262144 mission takes"):
+        checked(Mission(5, 900, MissionType.AREA, Geometry.polygon(ring(15000))))
