@@ -337,6 +337,7 @@ class NodeRuntime:
         self.alarm = InputAlarm(config.swarm)  # what the bus dropped: counts, alerts
         self.identity = IdentityBook(profile.vehicle_id, self.bus.zid)
         self._sysid = 0  # the autopilot's MAVLink system id, as last told to the bus
+        self._untrusted: frozenset[int] = frozenset()  # as last logged
         self._queryable: zenoh.Queryable | None = None
         self._zones_queryable: zenoh.Queryable | None = None
         self._missions_queryable: zenoh.Queryable | None = None
@@ -438,7 +439,7 @@ class NodeRuntime:
                 if n.alive:
                     self._ask_peers.put(n.node_id)  # learn what it holds (off the loop)
                 continue
-            before = self.core.roster.untrusted
+            before, self._untrusted = self._untrusted, n.untrusted
             for vid in sorted(n.untrusted - before):
                 log.warning(
                     "node %d: vehicle %d untrusted: %s",
