@@ -41,7 +41,16 @@ from .declarations import Declarations
 from .emergency import EmergencyProcedure
 from .fences import Fences
 from .inputs import AutopilotResult as AutopilotResult
-from .inputs import AutopilotUpdate, BadInput, Input, Learned, PeerAlive, PlanDone, Received
+from .inputs import (
+    AutopilotUpdate,
+    BadInput,
+    IdentityNews,
+    Input,
+    Learned,
+    PeerAlive,
+    PlanDone,
+    Received,
+)
 from .inputs import StoreResult as StoreResult
 from .membership import PeerEvent, SwarmMembership
 from .mission.coordinator import MissionCoordinator
@@ -84,7 +93,9 @@ class NodeCore:
         d = self.declarations = Declarations(vid)  # zones, base, fleet: what was declared
         limits = s.thresholds or Thresholds.from_profile(p)
         # the vehicle's latest state; reads the zone book; flags an autopilot of another type
-        mon = self.monitor = VehicleMonitor(vid, limits, d.zones, vehicle_type=p.vehicle_type)
+        mon = self.monitor = VehicleMonitor(
+            vid, limits, d.zones, vehicle_type=p.vehicle_type, mav_sysid=s.mav_sysid
+        )
         m = self.members = SwarmMembership(vid, s.stale_after_s, s.info_stale_after_s)
         op = self.operator = OperatorDesk(VehicleTransit(p), md)
         arb = self.arbiter = AutopilotArbiter()  # who commands the autopilot (arbiter.py)
@@ -176,6 +187,9 @@ class NodeCore:
                     self.mission.restored(sortie, now)
             case StoreResult(ok, error):
                 outs = self.declarations.stored(ok, error, now)
+            case IdentityNews(conflict, untrusted):  # from the shell's identity book
+                outs = [Publish(a) for a in self.monitor.on_identity(conflict, now)]
+                self.mission.distrust(untrusted)
             case _:
                 assert_never(event)
         self._route(outs, now, sink)
