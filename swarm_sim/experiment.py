@@ -63,8 +63,7 @@ MIXED_EXTRA = (7, 8, 9, 10, 12)  # --mixed: three quadcopters, a rover, a boat
 PAD_SPACING_M = 30.0  # the paper's pads
 # `swarm-sim demo` without --speedup or --radio. Planning is wall time (a replan 1-3 s on
 # a loaded 2-core machine): at 5x that is 5-15 s of flight on the old share and the
-# replan's 15 s agreement window is 3 s of wall time; 4 of 8 runs in a row failed
-# there, 5 of 5 passed at 3x (docs/benchmarks.md, "demo")
+# replan's 15 s agreement window is 3 s of wall time (docs/demo.md, "Options")
 DEFAULT_SPEEDUP = 3.0
 TICK_S = 0.1  # wall seconds between the story's timers when nothing is heard
 COLORS = (

@@ -1,4 +1,4 @@
-"""Two choices the README names, each held by a test: the base set by the operator is
+"""Two choices docs/paper-choices.md names, each held by a test: the base set by the operator is
 uploaded as the autopilot's rally point (so ArduPilot's own RTL goes to the base), and
 every mission ends on an unlimited loiter (so a plane never RTLs by itself, through a
 no-fly zone, when its mission ends). Pure node cores first, then end to end in fast
