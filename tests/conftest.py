@@ -9,18 +9,42 @@ from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
+from hypothesis.database import DirectoryBasedExampleDatabase
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("BANDADA_SHARED", REPO.parent / "shared"))
 
-# Shared, noisy 2-core machines: no per-example deadlines; derandomized on CI.
+# Property tests in `make test` run the same examples on every run of a commit
+# (derandomized: seeded by each test's own code; no example database), so a verdict
+# never depends on what an earlier run happened to find. No per-example deadline: the
+# machines are shared. `make fuzz` (--hypothesis-profile=fuzz) explores instead: random
+# examples, FUZZ_FACTOR times as many, and a database that replays what it found; a
+# failure it finds comes back to its test as an @example.
+DEFAULT_EXAMPLES = 50
+FUZZ_FACTOR = 20
 settings.register_profile(
-    "default", deadline=None, suppress_health_check=[HealthCheck.too_slow], max_examples=100
+    "default",
+    derandomize=True,
+    database=None,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    print_blob=True,
+    max_examples=DEFAULT_EXAMPLES,
 )
 settings.register_profile(
-    "ci", parent=settings.get_profile("default"), derandomize=True, print_blob=True
+    "fuzz",
+    parent=settings.get_profile("default"),
+    derandomize=False,
+    database=DirectoryBasedExampleDatabase(REPO / ".hypothesis" / "examples"),
+    max_examples=DEFAULT_EXAMPLES * FUZZ_FACTOR,
 )
-settings.load_profile("ci" if os.environ.get("CI") else "default")
+settings.load_profile("default")
+
+
+def examples(n: int) -> int:
+    """A property test's own example count: `n` under the default profile, scaled as the
+    loaded profile scales DEFAULT_EXAMPLES (FUZZ_FACTOR times `n` in `make fuzz`)."""
+    return max(1, n * settings.default.max_examples // DEFAULT_EXAMPLES)
 
 
 def free_tcp_port() -> int:

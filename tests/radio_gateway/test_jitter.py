@@ -21,6 +21,7 @@ from radio_gateway.core.membership import Membership, Phase
 from radio_gateway.core.slots import TdmConfig
 from swarm_sim.radio_channel.harness import Fleet
 from swarm_sim.radio_channel.model import ChannelParams
+from tests.conftest import examples
 
 from .helpers import KEY, status_producer
 
@@ -119,7 +120,7 @@ def test_the_silence_limit_follows_the_members_loss(missed: int, limit: int) -> 
     assert m.silence_limit(1, c) == limit
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(st.lists(st.booleans(), min_size=0, max_size=120), st.lists(st.booleans(), max_size=40))
 def test_the_silence_limit_is_bounded_and_grows_with_the_loss(
     heard: list[bool], extra_misses: list[bool]

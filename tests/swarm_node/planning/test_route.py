@@ -26,6 +26,7 @@ from swarm_node.core.planning.checks import arrival_spread_s, waypoint_zone_prob
 from swarm_node.core.planning.route import leg_for
 from swarm_node.core.profile import G_M_S2, VehicleProfile
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
+from tests.conftest import examples
 
 from .conftest import ORIGIN, make_fleet
 
@@ -49,6 +50,7 @@ def bank_radius(profile: VehicleProfile, speed: float) -> float:
     return speed * speed / (G_M_S2 * math.tan(math.radians(profile.max_bank_deg)))
 
 
+@pytest.mark.hypothesis  # a property inside: `make fuzz` explores it too
 def test_simultaneous_arrivals_within_one_second(profiles: dict[str, VehicleProfile]) -> None:
     # found by exploration: the fixed-wing that needs an orbit to make the time of the one
     # at its top speed needs 2e-8 m more than that, inside synchronize's tolerance; its
@@ -59,7 +61,7 @@ def test_simultaneous_arrivals_within_one_second(profiles: dict[str, VehicleProf
     one_orbit_more = leg_for(fw2, 1000.0 - at_top.orbit_m + 2e-8, slow)
     overshoot = [at_top, one_orbit_more, leg_for(fw3, 10.0, slow), leg_for(quad, 50.0, 5.0)]
 
-    @settings(max_examples=200)
+    @settings(max_examples=examples(200))
     @given(legs(profiles))
     @example(overshoot)
     def check(ls: list[Leg]) -> None:
@@ -189,10 +191,13 @@ def _check_arrivals(legs: tuple[Leg, ...], arrivals: dict[int, Any], vs: list[Pl
             assert bank_radius(p, a.speed_m_s) <= leg.radius_m * (1 + 1e-9)
 
 
+@pytest.mark.hypothesis  # a property inside: `make fuzz` explores it too
 def test_target_and_route_plans_fly_every_leg_within_its_radius(
     profiles: dict[str, VehicleProfile],
 ) -> None:
-    @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @settings(
+        max_examples=examples(25), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+    )
     @given(fleets(profiles), st.sampled_from([None, 20.0, 32.0]))
     def check(vs: list[PlanVehicle], speed: float | None) -> None:
         params = MissionParams(altitude_rel_m=100, altitude_step_m=10, speed_m_s=speed)
