@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.bandada-installed
 BENCH  ?=
 PYTEST_ARGS ?=
 
-.PHONY: all demo test lint typecheck unit fuzz bench soak scale docs clean install sitl-check faults
+.PHONY: all demo test lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check faults
 
 all: test
 
@@ -48,6 +48,11 @@ unit: $(STAMP)
 ## found. A failure it finds goes back to its test as an @example (make test never explores)
 fuzz: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) -m "hypothesis and not soak and not scale" --hypothesis-profile=fuzz $(PYTEST_ARGS)
+
+## test-stress: the stress gate, run before resolving an issue: `make test` five times from
+## a fresh clone of HEAD with one core kept busy; writes bench/results/test_stress.json
+test-stress:
+	$(PYTHON) -m bench test_stress
 
 ## bench: every benchmark, or one with BENCH=<topic>; writes bench/results/<topic>.json
 bench: $(STAMP)
