@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.bandada-installed
 BENCH  ?=
 PYTEST_ARGS ?=
 
-.PHONY: all demo test lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check faults
+.PHONY: all demo test lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check faults browser
 
 all: test
 
@@ -18,6 +18,21 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 install: $(STAMP)
+
+## browser: headless Chromium and its driver, for `gcs map`'s browser tests
+## (tests/gcs_cli/test_map_browser.py) and `make bench BENCH=map`. Installed with
+## apt-get where they are missing and this is root on Debian/Ubuntu (CI); otherwise
+## said here, and those tests fail under CI (CI set) or skip, saying why, elsewhere.
+browser:
+	@if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "browser: installing chromium and chromium-driver (apt-get)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    --no-install-recommends chromium chromium-driver >/dev/null; \
+	else \
+	  echo "browser: chromium and chromedriver are missing and cannot be installed here" \
+	    "(not root, or no apt-get): the map's browser tests fail under CI, skip otherwise"; \
+	fi
 
 ## demo: a simulated swarm flying a mission, on this machine, in fast time
 demo: $(STAMP)
@@ -39,8 +54,8 @@ typecheck: $(STAMP)
 ## time on 2 cores (measured 5:18 against 9:25 in one process); TEST_WORKERS=0 runs it in one
 TEST_WORKERS ?= 2
 ## tests marked `timing` (real-time TDM on pseudo-terminals) run alone, after the others
-unit: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) -m "not soak and not scale and not timing" $(PYTEST_ARGS)
+unit: $(STAMP) browser
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not soak and not scale and not timing" $(PYTEST_ARGS)
 	$(BIN)/python -m pytest -q -m "timing and not soak and not scale" $(PYTEST_ARGS)
 
 ## fuzz: the property tests exploring (hypothesis profile `fuzz`, tests/conftest.py): random
@@ -55,7 +70,7 @@ test-stress:
 	$(PYTHON) -m bench test_stress
 
 ## bench: every benchmark, or one with BENCH=<topic>; writes bench/results/<topic>.json
-bench: $(STAMP)
+bench: $(STAMP) browser
 	$(BIN)/python -m bench $(BENCH)
 
 ## faults: the fault campaign (issue 16; docs/reliability.md): faults x missions in
@@ -80,7 +95,7 @@ sitl-check: $(STAMP)
 
 ## docs: regenerate the generated documents (keyspace, state diagrams)
 docs: $(STAMP)
-	$(BIN)/python -m swarm_proto.topics > docs/keyspace.md
+	$(BIN)/python -m swarm_proto.keyspace_doc > docs/keyspace.md
 	$(BIN)/python -m swarm_node.docs_gen docs/state-machine.md
 
 clean:

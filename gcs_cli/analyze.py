@@ -1,14 +1,20 @@
 """`gcs analyze`: offline analyses of recorded flights.
 
     gcs analyze separation LOG.csv [--json] [--png FILE] [--risk 40 --danger 10 --near 5]
-                                   [--vehicles 1,2,3] [--step S] [--max-gap S]
+                                   [--vehicles 1,2,3] [--step S] [--max-gap S] [--ground]
 
 LOG.csv is a flight recorder trajectory (`time_s,vehicle,lat,lon,alt_m`, see
-swarm_proto/trajectory.py). Exit status: 0 ok, 2 bad input (one line on stderr).
+swarm_proto/trajectory.py). Pairs count only while both vehicles are airborne (more
+than AIRBORNE_M above home, and armed) when the log says so (`gcs record` and the demo
+write `alt_rel_m` and `armed`): vehicles parked on pads 10 m apart are not a risk.
+Times are seconds from the log's first sample. Exit status: 0 ok, 2 bad input (one
+line on stderr).
 """
 
 from __future__ import annotations
 
+import csv
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -18,11 +24,57 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from swarm_proto.trajectory import TrajectoryError, read_trajectory
+from swarm_proto.trajectory import Trajectory, TrajectoryError, read_trajectory
 
 from .separation import AnalysisError, SeparationReport, Thresholds, analyze
 
 app = typer.Typer(help="Offline analyses of recorded flights.", no_args_is_help=True)
+
+#: a vehicle more than this above its home (and armed, when the log says) is airborne
+AIRBORNE_M = 1.0
+
+
+def airborne_mask(path: Path, rows: int) -> tuple[np.ndarray | None, str]:
+    """Which samples are airborne, from the log's `alt_rel_m` (and `armed`) columns,
+    in the rows `read_trajectory` keeps; None (every sample) when the log has no
+    height above home. The second value says which, for people."""
+    with path.open(newline="", encoding="utf-8") as f:
+        reader = csv.reader(f)
+        header = [h.strip() for h in next(reader, [])]
+        if "alt_rel_m" not in header:
+            return None, "every sample (the log has no alt_rel_m column)"
+        i_rel = header.index("alt_rel_m")
+        i_armed = header.index("armed") if "armed" in header else None
+        keep: list[bool] = []
+        for line_no, row in enumerate(reader, start=2):
+            if not row or all(not cell.strip() for cell in row):
+                continue
+            try:
+                up = float(row[i_rel]) > AIRBORNE_M
+            except (ValueError, IndexError):
+                raise TrajectoryError(f"{path}:{line_no}: alt_rel_m is not a number") from None
+            if i_armed is not None:
+                up = up and row[i_armed].strip().lower() in ("1", "true", "yes")
+            keep.append(up)
+    if len(keep) != rows:
+        raise TrajectoryError(f"{path}: {len(keep)} rows with alt_rel_m, {rows} samples")
+    return np.array(keep, dtype=bool), (
+        f"samples where both are airborne (more than {AIRBORNE_M:g} m above home"
+        + (", armed)" if i_armed is not None else ")")
+    )
+
+
+def _masked(tr: Trajectory, mask: np.ndarray) -> Trajectory:
+    return Trajectory(tr.time_s[mask], tr.vehicle[mask], tr.lat[mask], tr.lon[mask], tr.alt_m[mask])
+
+
+def since(report: SeparationReport, t0: float) -> SeparationReport:
+    """The report with its times in seconds from `t0` (the log's first sample)."""
+    pairs = tuple(
+        dataclasses.replace(p, times_s=p.times_s - t0, min_time_s=p.min_time_s - t0)
+        for p in report.pairs
+    )
+    return dataclasses.replace(report, pairs=pairs)
 
 
 def _fail(message: str) -> typer.Exit:
@@ -50,9 +102,14 @@ def separation(
     vehicles: str | None = typer.Option(None, help="only these ids, e.g. 1,2,5"),
     step: float | None = typer.Option(None, help="resample on a uniform grid of this step, s"),
     max_gap: float = typer.Option(2.0, help="interpolate over sample gaps up to this, s"),
+    ground: bool = typer.Option(
+        False, "--ground", help="count samples on the ground too (default: airborne pairs)"
+    ),
 ) -> None:
     """Pairwise 3-D separation, minimum and risk / danger / near-collision counts
-    (the paper's tables 2 and 3).
+    (the paper's tables 2 and 3), while both vehicles of a pair are airborne when the
+    log has their height above home (`gcs record` writes it); times in seconds from
+    the log's first sample.
 
     Example: gcs analyze separation flight.csv --png separation.png
     """
@@ -61,29 +118,44 @@ def separation(
             if not math.isfinite(v):
                 raise AnalysisError(f"--{name} must be finite")
         th = Thresholds(risk_m=risk, danger_m=danger, near_m=near)
-        report = analyze(
-            read_trajectory(log), th, vehicles=_vehicles(vehicles), step_s=step, max_gap_s=max_gap
+        tr = read_trajectory(log)
+        t0 = float(tr.time_s.min())
+        counted = "every sample (--ground)"
+        if not ground:
+            mask, counted = airborne_mask(log, len(tr.time_s))
+            if mask is not None:
+                tr = _masked(tr, mask)
+                if len(set(tr.vehicle.tolist())) < 2:
+                    raise AnalysisError(
+                        f"{log}: fewer than two vehicles airborne (--ground counts the samples "
+                        "on the ground too)"
+                    )
+        report = since(
+            analyze(tr, th, vehicles=_vehicles(vehicles), step_s=step, max_gap_s=max_gap), t0
         )
     except (TrajectoryError, AnalysisError) as exc:
         raise _fail(str(exc)) from None
+    except OSError as exc:
+        raise _fail(f"{log}: cannot read: {exc.strerror or exc}") from None
     if png is not None:
         try:
             draw(report, png)
         except (OSError, ValueError) as exc:
             raise _fail(f"{png}: cannot write: {exc}") from None
     if as_json:
-        typer.echo(json.dumps(report.as_dict(), indent=2))
+        typer.echo(json.dumps({**report.as_dict(), "t0_s": t0, "counted": counted}, indent=2))
         return
-    Console().print(table(report, log.name))
+    Console().print(table(report, log.name, counted))
 
 
-def table(report: SeparationReport, title: str) -> Table:
+def table(report: SeparationReport, title: str, counted: str = "") -> Table:
     th = report.thresholds
     t = Table(
         title=f"separation: {title}",
         caption=(
             f"risk {th.danger_m:g}-{th.risk_m:g} m, danger {th.near_m:g}-{th.danger_m:g} m, "
-            f"near-collision < {th.near_m:g} m (samples)"
+            f"near-collision < {th.near_m:g} m (samples); Time_s from the log's first sample"
+            + (f"; {counted}" if counted else "")
         ),
     )
     for name in ("Pair", "MinDistance_m", "Time_s", "Risk", "Danger", "Near", "Samples"):
@@ -145,7 +217,7 @@ def draw(report: SeparationReport, path: Path) -> None:
     for y, c in ((th.risk_m, "risk"), (th.danger_m, "danger"), (th.near_m, "near")):
         bottom.axhline(y, color=colours[c], linestyle="--", linewidth=0.8)
     bottom.set_yscale("log")  # distances under 0.1 m drawn at 0.1
-    bottom.set_xlabel("time, s")
+    bottom.set_xlabel("time from the log's first sample, s")
     bottom.set_ylabel("3-D distance, m")
     if len(pairs) <= 15:
         bottom.legend(fontsize="x-small", ncol=3)

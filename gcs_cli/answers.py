@@ -10,6 +10,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import msgspec
 import typer
 from rich import box
 from rich.console import Console
@@ -35,7 +36,7 @@ def outcome_table(out: Outcome) -> Table:
             why = f"no answer in {out.elapsed_s:.1f} s" + (f" ({notes})" if notes else "")
             table.add_row(str(r.vehicle_id), "silent", "-", why, style="yellow")
             continue
-        why = reason_text(r.ack.reason, r.ack.text)
+        why = reason_text(r.ack.reason, r.ack.text, r.ack.detail)
         if notes:
             why = f"{why} ({notes})" if why else notes
         ok = r.verdict == Verdict.ACCEPTED
@@ -74,7 +75,8 @@ def outcome_json(out: Outcome) -> dict[str, Any]:
                 "answer": r.verdict.value,
                 "reason": r.ack.reason.name if r.ack else None,
                 "text": r.ack.text if r.ack else "",
-                "why": reason_text(r.ack.reason, r.ack.text) if r.ack else "",
+                "why": reason_text(r.ack.reason, r.ack.text, r.ack.detail) if r.ack else "",
+                "detail": msgspec.to_builtins(r.ack.detail) if r.ack and r.ack.detail else None,
                 "notes": list(r.notes),
             }
             for r in out.rows

@@ -1,23 +1,21 @@
-"""`gcs`: the ground station command line (paper section 3): fleet status and every
-operator command. Sub-command groups live in their own modules and are registered here.
+"""The ground station's own commands (paper section 3): fleet status (`status`,
+`alerts`, `peers`), operator commands (`cmd`), missions (`mission`), zones declared and
+withdrawn (`zone add | remove`) and `version`. `app.py` assembles them with the
+command groups of the other modules.
 
 Every command that talks to the swarm takes --connect (Zenoh endpoints, default the lab
 router on tcp/127.0.0.1:7447) or --zenoh-config (a Zenoh JSON5 file), --swarm and --gcs-id.
-Bad input is one line on stderr and exit 2, before anything is sent (`main`).
+Bad input is one line on stderr and exit 2, before anything is sent (`app.run`).
 """
 
 from __future__ import annotations
 
 import json
-import os
-import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import msgspec
 import typer
-from rich.console import Console
 
 from swarm_proto import (
     Command,
@@ -30,21 +28,23 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
     Selector,
-    SelectorKind,
 )
-from swarm_proto.endpoints import zenoh_endpoint
-from swarm_proto.session import ZenohSettings
-from swarm_proto.session import zenoh_config as zenoh_config_of
 
-from . import _clickx
-from .analyze import app as analyze_app
 from .answers import progress, report
+from .common import (
+    Link,
+    ask,
+    console,
+    geometry_from,
+    read_filter,
+    selector_from,
+    timeout_option,
+    wait_option,
+)
 from .core.exchange import Verdict
 from .core.reasons import alert_text
 from .db import DbOption
-from .db import app as db_app
-from .declared import declared as declared_command
-from .ground import DEFAULT_GCS_ID, GroundStation, new_seq
+from .ground import new_seq
 from .options import (
     AllOption,
     FleetOption,
@@ -52,208 +52,18 @@ from .options import (
     JsonOption,
     YesOption,
     checked,
-    confirm,
-    describe,
     finite,
     parse_geopoint,
-    selection,
 )
-from .options import geometry_from as _geometry_from
-from .options import parse_latlon as _parse_latlon
-from .options import parse_points as _parse_points
 from .render import fleet_rows, fleet_table
 from .tasking import VoteWatch, show_vote
-from .tasking import app as target_app
-from .tasking import vote as show_a_vote
 
-app = typer.Typer(
-    help="bandada ground station: fleet status, commands, missions, zones, files and plots.",
-    no_args_is_help=True,
-    pretty_exceptions_enable=False,
-    context_settings={"help_option_names": ["-h", "--help"]},
-)
-app.add_typer(db_app, name="db")
-zone_app = typer.Typer(help="No-fly zones and operating areas.", no_args_is_help=True)
-app.add_typer(zone_app, name="zone")
-app.add_typer(analyze_app, name="analyze")
-app.add_typer(target_app, name="target")  # re-tasking, and the vote shown
-app.command("vote")(show_a_vote)
-app.command(name="declared")(declared_command)  # declared.py
-
-
-def _width() -> int | None:
-    """A terminal's own width; 100 columns (or $COLUMNS if wider) for a file or a pipe,
-    where rich would take 80 and squeeze the tables."""
-    if sys.stdout.isatty():
-        return None
-    try:
-        return max(100, int(os.environ.get("COLUMNS", "100")))
-    except ValueError:
-        return 100
-
-
-console = Console(width=_width())
-REACH_S = 3.0  # how long a fresh session may take to reach the router or a peer
-
-
-@dataclass
-class Link:
-    settings: ZenohSettings
-    swarm: str
-    gcs_id: int
-
-    def open(self, *, check: bool = True) -> GroundStation:
-        """A ground station session; exit 2 (one line) when Zenoh cannot be opened
-        (a taken --listen port, a certificate), exit 1 when, with `check`, nothing at
-        --connect answers
-        (an unreachable router looked like an empty swarm, exit 0)."""
-        try:
-            gs = GroundStation(self.settings, self.swarm, self.gcs_id, database_ids=database_ids())
-        except Exception as exc:
-            from swarm_proto.session import zenoh_reason as _zenoh_reason
-
-            err = _clickx.ClickException(f"cannot open Zenoh: {_zenoh_reason(exc)}")
-            err.exit_code = 2  # type: ignore[attr-defined]  # a taken port, a bad certificate: the setup
-            raise err from None
-        if check and self.settings.connect and not gs.reachable(REACH_S):
-            gs.close()
-            where = ", ".join(self.settings.connect)
-            raise _clickx.ClickException(
-                f"nothing answers at {where} within {REACH_S:g} s: is the router running "
-                "(`swarm-node router`), and is the endpoint right?"
-            )
-        return gs
-
-
-def database_ids() -> list[int] | None:
-    """The vehicles of the swarm database ($BANDADA_DB, else the per-user file), or
-    None when it cannot be read: whom `--all` may miss, and ids it does not know."""
-    from swarm_node.database import SwarmDatabase
-    from swarm_node.database.errors import SwarmDbError
-    from swarm_node.database.paths import resolve_db_path
-    from swarm_proto import VehicleType
-
-    try:
-        with SwarmDatabase.open(resolve_db_path(None)) as db:
-            return [p.vehicle_id for p in db.profiles() if p.vehicle_type != VehicleType.GCS]
-    except (SwarmDbError, OSError):
-        return None
-
-
-def _endpoints(values: list[str], name: str) -> list[str]:
-    out = []
-    for v in values:
-        try:
-            out.append(zenoh_endpoint(v))
-        except ValueError as exc:
-            raise typer.BadParameter(str(exc), param_hint=name) from None
-    return out
-
-
-@app.callback()
-def _group(
-    ctx: typer.Context,
-    connect: list[str] = typer.Option(
-        [],
-        help="Zenoh endpoints to connect to, e.g. tcp/10.0.0.1:7447 (tcp:HOST:PORT and "
-        "HOST:PORT are read the same); default tcp/127.0.0.1:7447, or the file's",
-    ),
-    listen: list[str] = typer.Option([], help="Zenoh endpoints to listen on"),
-    mode: str = typer.Option("peer", help="Zenoh mode: peer or client"),
-    zenoh_config: str | None = typer.Option(
-        None,
-        "--zenoh-config",
-        help="a Zenoh JSON5 config (deploy/zenoh/peer.json5, or gcs-<id>.json5 from "
-        "`swarm-node certs make`); --connect/--listen/--mode override it",
-    ),
-    swarm: str = typer.Option("default", help="swarm name"),
-    gcs_id: int = typer.Option(
-        DEFAULT_GCS_ID, min=1, max=65534, help="this ground station's node id"
-    ),
-) -> None:
-    """bandada ground station.
-
-    Example: gcs --connect tcp/10.0.0.1:7447 status
-    """
-    if mode not in ("peer", "client", "router"):
-        raise typer.BadParameter("mode is peer, client or router", param_hint="--mode")
-    connect = _endpoints(connect, "--connect")
-    listen = _endpoints(listen, "--listen")
-    if not connect and not zenoh_config and mode != "router":
-        connect = ["tcp/127.0.0.1:7447"]
-    settings = msgspec.convert(
-        {"mode": mode, "connect": connect, "listen": listen, "config_file": zenoh_config},
-        ZenohSettings,
-    )
-    if zenoh_config:
-        try:
-            zenoh_config_of(settings)
-        except ValueError as exc:
-            raise typer.BadParameter(str(exc), param_hint="--zenoh-config") from exc
-    ctx.obj = Link(settings, swarm, gcs_id)
-
-
-# --------------------------------------------------------------------------- parsing
-# (kept here for the modules and tests that import them from gcs_cli.cli)
-
-
-def parse_point(text: str) -> tuple[float, float]:
-    return _parse_latlon(text)
-
-
-def parse_points(text: str) -> list[tuple[float, float]]:
-    return _parse_points(text, "--points")
-
-
-def geometry_from(
-    polygon: str | None, point: str | None, circle: str | None, line: str | None, points: str | None
-) -> Geometry:
-    return _geometry_from(polygon, point, circle, line, points)
-
-
-def selector_from(
-    ids: list[int],
-    fleet: int | None,
-    quantity: int,
-    payload: str,
-    all_: bool = False,
-    *,
-    required: bool = False,
-) -> Selector:
-    if not 0 <= quantity <= 255:
-        raise typer.BadParameter(f"--count must be 1..255, got {quantity}")
-    if payload and not quantity:
-        raise typer.BadParameter("--payload needs --count: voting picks a payload's vehicles")
-    if quantity and ids:
-        raise typer.BadParameter("--count and --id exclude each other: voting picks the ids")
-    if quantity and all_:
-        raise typer.BadParameter("--count and --all exclude each other")
-    try:
-        if quantity:
-            return Selector(
-                SelectorKind.QUANTITY, fleet_id=fleet or 0, quantity=quantity, payload_model=payload
-            )
-        return selection(ids, fleet, all_, required=required)
-    except ValueError as exc:
-        raise typer.BadParameter(str(exc)) from exc
-
-
-def wait_option(wait: float) -> float:
-    finite(wait, "--wait", 0.0, 3600.0)
-    return wait
-
-
-def timeout_option(timeout: float) -> float:
-    finite(timeout, "--timeout", 0.0, 3600.0)
-    return timeout
+#: the top-level commands and the `zone` commands of this module (app.py places them)
+app = typer.Typer()
+zone_app = typer.Typer()
 
 
 # --------------------------------------------------------------------------- status
-
-
-def _shown(ids: list[int], fleet: int | None, all_: bool = False) -> Selector:
-    """A read command's filter: --id / --fleet, else (or --all) every vehicle."""
-    return selection(ids, fleet, all_, required=False)
 
 
 @app.command()
@@ -272,7 +82,7 @@ def status(
     Example: gcs status --fleet 2 --json
     """
     wait_option(wait)
-    shown = _shown(ids, fleet, all_)
+    shown = read_filter(ids, fleet, all_)
     with ctx.obj.open() as gs:
         time.sleep(wait)
         if as_json:
@@ -314,7 +124,7 @@ def alerts(
     Example: gcs alerts --wait 30 --id 7
     """
     wait_option(wait)
-    shown = _shown(ids, fleet, all_)
+    shown = read_filter(ids, fleet, all_)
     with ctx.obj.open() as gs:
         time.sleep(wait)
         view = gs.snapshot()
@@ -328,7 +138,7 @@ def alerts(
                         **msgspec.to_builtins(a),
                         "severity": a.severity.name,
                         "code": a.code.name,
-                        "meaning": alert_text(a.code, a.text),
+                        "meaning": alert_text(a.code, a.text, a.detail),
                     }
                     for a in got
                 ],
@@ -340,7 +150,7 @@ def alerts(
         style = "red" if a.severity >= 2 else ("yellow" if a.severity == 1 else None)
         console.print(
             f"{a.vehicle_id:>5} {a.severity.name:<9} {a.code.name:<20} "
-            f"{alert_text(a.code, a.text)}",
+            f"{alert_text(a.code, a.text, a.detail)}",
             style=style,
             highlight=False,
         )
@@ -395,25 +205,20 @@ MOVING = frozenset(
     }
 )
 COMMAND_NAMES = [k.name.lower().replace("_", "-") for k in CommandKind]
+#: --value of the commands that need one: (lowest, highest, lowest allowed, what)
+VALUE_RANGES: dict[CommandKind, tuple[float, float, bool, str]] = {
+    CommandKind.SET_SPEED: (0.0, 300.0, False, "--value, a speed in m/s"),
+    CommandKind.TAKEOFF: (0.0, 8000.0, False, "--value, an altitude in m above home"),
+    CommandKind.SET_ALTITUDE: (0.0, 8000.0, True, "--value, an altitude in m above home"),
+}
+
+
+def name_of(k: CommandKind) -> str:
+    return k.name.lower().replace("_", "-")
 
 
 def _complete_kind(incomplete: str) -> list[str]:
     return [k for k in COMMAND_NAMES if k.startswith(incomplete)]
-
-
-def ask(gs: GroundStation, what: str, sel: Selector, yes: bool) -> None:
-    """Confirm a request that moves or arms vehicles, naming whom it reaches now."""
-    if yes:
-        return
-    alive = None
-    if sel.kind != SelectorKind.IDS:
-        gs.discover()
-        alive = sorted(
-            k.vehicle_id
-            for k in gs.known()
-            if k.alive and sel.addresses(k.vehicle_id, k.fleet_id or 0)
-        )
-    confirm(f"{what} to {describe(sel, alive)}?", yes)
 
 
 @app.command()
@@ -458,6 +263,14 @@ def cmd(
         ) from exc
     timeout_option(timeout)
     finite(value, "--value", -1.0e6, 1.0e6)
+    if k in VALUE_RANGES:  # what the vehicles would refuse, refused here (nothing sent)
+        lo, hi, zero_ok, what = VALUE_RANGES[k]
+        if value is None or not (lo <= value <= hi) or (value == lo and not zero_ok):
+            shown = "none given" if value is None else f"got {value:g}"
+            bounds = f"{lo:g} to {hi:g}" if zero_ok else f"above {lo:g}, at most {hi:g}"
+            raise typer.BadParameter(
+                f"{name_of(k)} needs {what}, {bounds} ({shown})", param_hint="--value"
+            )
     geo = GeoPoint(*parse_geopoint(point)) if point else None
     if k == CommandKind.EMERGENCY_LAND and geo is None:  # paper 3.5.1: ask for the route
         raise typer.BadParameter(
@@ -528,7 +341,7 @@ def mission(
     radius: float | None = typer.Option(None, help="target/perimeter radius, m"),
     alt_step: float | None = typer.Option(None, help="vertical separation between vehicles, m"),
     duration: float | None = typer.Option(None, help="target/objective: how long to hold, s"),
-    name: str = typer.Option("", help="a name for people"),
+    name: str | None = typer.Option(None, help="a name for people (default: the file's)"),
     mission_id: int = typer.Option(0, min=0, max=2**32 - 1, help="default: a fresh id"),
     timeout: float = typer.Option(5.0, help="seconds to wait for every answer"),
     save: Path | None = typer.Option(
@@ -558,15 +371,14 @@ def mission(
             f"unknown mission type {mission_type!r}", param_hint="TYPE"
         ) from exc
     timeout_option(timeout)
+    from_file: dict[str, object] = {}
     if file is not None:
         if any((polygon, point, circle, line, points)):
             raise typer.BadParameter("--file and --polygon/--point/... exclude each other")
-        from .geofiles import GeoFileError, mission_geometry
+        from .files import mission_file
 
-        try:
-            geometry = mission_geometry(file, mtype, feature)
-        except GeoFileError as exc:
-            raise typer.BadParameter(str(exc), param_hint="--file") from None
+        geometry, from_file, file_name = mission_file(file, mtype, feature, console)
+        name = file_name if name is None else name
     else:
         geometry = geometry_from(polygon, point, circle, line, points)
     for opt, v, lo, hi in (
@@ -590,7 +402,10 @@ def mission(
     }
     if payload:
         check_payload_model(payload, db_path)
-    values = {**mission_defaults(mtype, db_path, circle=geometry.radius_m is not None)}
+    values: dict[str, object] = {
+        **mission_defaults(mtype, db_path, circle=geometry.radius_m is not None)
+    }
+    values.update(from_file)  # the file's values, then the options given
     values.update({k: v for k, v in given.items() if v is not None})
     sel = selector_from(ids, fleet, quantity, payload, all_, required=not dry_run)
     try:
@@ -602,21 +417,20 @@ def mission(
             geometry,
             params,
             sel,
-            name,
+            name or "",
             time.time(),
         )
     except (ValueError, msgspec.ValidationError) as exc:
         raise typer.BadParameter(str(exc)) from exc
     checked(m)
     if save is not None:
-        from .geofiles import GeoFileError, save_mission
+        from .files import save_mission_file
 
-        try:
-            save_mission(save, m)
-        except GeoFileError as exc:
-            raise typer.BadParameter(str(exc), param_hint="--save") from None
-        console.print(f"mission {m.mission_id} written to {save}", style="dim")
+        save_mission_file(save, m, console)
     if dry_run:
+        from .budgets import dry_run_check
+
+        dry_run_check(ctx.obj, m, db_path, console)
         return
     with ctx.obj.open() as gs:
         ask(gs, f"mission {m.mission_id} ({mtype.name.lower()})", sel, yes)
@@ -720,7 +534,11 @@ def zone_add(
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
     sel = selector_from(ids, fleet, 0, "", all_)
-    _declare(ctx.obj, checked(zone), sel, timeout, as_json)
+    from .files import fence_warnings
+
+    for w in fence_warnings([checked(zone)]):
+        console.print(f"warning: {w}", style="yellow", highlight=False)
+    _declare(ctx.obj, zone, sel, timeout, as_json)
 
 
 def _declare(link: Link, zone: NoFlyZone, sel: Selector, timeout: float, as_json: bool) -> None:
@@ -738,15 +556,23 @@ def zone_remove(
     fleet: FleetOption = None,
     all_: AllOption = False,
     timeout: float = typer.Option(10.0, help="seconds to wait for the vehicles to drop it"),
+    force: bool = typer.Option(
+        False, "--force", help="send it even if no vehicle answers holding the id (radio)"
+    ),
     as_json: JsonOption = False,
 ) -> None:
     """Withdraw a no-fly zone or operating area (republished inactive: the vehicles
     drop it by id; the geometry sent is a placeholder) and show each vehicle's answer;
-    a vehicle that never held it answers NOT_FOUND (exit 1).
+    a vehicle that never held it answers NOT_FOUND (exit 1). An id no vehicle holds is
+    refused before anything is sent (exit 1), unless --force.
 
     Example: gcs zone remove 3
     """
     timeout_option(timeout)
+    if not force:
+        from .files import check_removal
+
+        check_removal(ctx.obj, zone_id)
     placeholder = Geometry.circle(0.0, 0.0, 1.0)
     zone = NoFlyZone(zone_id, placeholder, active=False, issuer_id=ctx.obj.gcs_id)
     _declare(ctx.obj, zone, selector_from(ids, fleet, 0, "", all_), timeout, as_json)
@@ -761,49 +587,3 @@ def version() -> None:
     from importlib.metadata import version as v
 
     typer.echo(v("bandada"))
-
-
-def _register() -> None:
-    """The command groups that live in their own modules."""
-    from . import files, monitor, plot, recovery  # noqa: F401 (they register themselves)
-
-
-def main(argv: list[str] | None = None) -> None:
-    """The `gcs` entry point (exits with `run`'s code)."""
-    sys.exit(run(argv))
-
-
-def run(argv: list[str] | None = None) -> int:
-    """`gcs` with these arguments, its exit code returned: a usage error or a bad value is one line on stderr and
-    exit 2 (nothing sent); a failure the operator can act on (no router) one line and
-    exit 1; anything else one line and exit 1 (GCS_DEBUG=1 shows the traceback)."""
-    try:
-        rv = app(args=argv, prog_name="gcs", standalone_mode=False)
-    except _clickx.UsageError as exc:
-        ctx = getattr(exc, "ctx", None)
-        where = ctx.command_path if ctx is not None else "gcs"
-        print(f"{where}: {' '.join(exc.format_message().split())}", file=sys.stderr)  # type: ignore[attr-defined]
-        return 2
-    except _clickx.ClickException as exc:
-        print(f"gcs: {' '.join(exc.format_message().split())}", file=sys.stderr)  # type: ignore[attr-defined]
-        return int(getattr(exc, "exit_code", 1))
-    except SystemExit as exc:  # --show-completion and friends exit on their own
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    except (typer.Abort, KeyboardInterrupt, BrokenPipeError):
-        print("gcs: aborted", file=sys.stderr)
-        return 130
-    except Exception as exc:
-        if os.environ.get("GCS_DEBUG"):
-            raise
-        text = " ".join(str(exc).split()) or type(exc).__name__
-        print(f"gcs: error: {text} (GCS_DEBUG=1 shows where)", file=sys.stderr)
-        return 1
-    return rv if isinstance(rv, int) else 0
-
-
-_register()
-
-if __name__ == "__main__":  # python -m gcs_cli.cli: the package's module, commands registered
-    from gcs_cli.cli import main as _main
-
-    _main()

@@ -18,11 +18,13 @@ from rich.text import Text
 from swarm_proto import Selector, VehicleType
 from swarm_proto.ardupilot import autopilot_mismatch, mode_name
 
-from .cli import _shown, app, console, wait_option
+from .common import console, read_filter, wait_option
 from .core.reasons import alert_text
 from .ground import FleetView, GroundStation
-from .options import AllOption, FleetOption, IdsOption, JsonOption
+from .options import AllOption, FleetOption, IdsOption, JsonOption, finite
 from .render import fleet_rows, fleet_table
+
+app = typer.Typer()  # watch, vehicle, fleets: app.py puts them at the top level
 
 ALERT_LINES = 8  # the latest alerts under the live table
 
@@ -33,7 +35,7 @@ def watch_screen(view: FleetView, swarm: str, shown: Selector | None) -> Group:
     lines = [
         Text(
             f"{time.strftime('%H:%M:%S', time.gmtime(a.time_unix_s))} {a.vehicle_id:>5} "
-            f"{a.severity.name:<9} {alert_text(a.code, a.text)}",
+            f"{a.severity.name:<9} {alert_text(a.code, a.text, a.detail)}",
             style="red" if a.severity >= 2 else ("yellow" if a.severity == 1 else ""),
         )
         for a in list(view.alerts)[-ALERT_LINES:]
@@ -88,12 +90,11 @@ def watch(
 
     Example: gcs watch --fleet 1
     """
-    wait_option(period)
-    if duration is not None:
-        wait_option(duration)
+    finite(period, "--period", 0.0, 3600.0)
+    finite(duration, "--duration", 0.0, 1.0e7)
     if period <= 0:
         raise typer.BadParameter("must be > 0", param_hint="--period")
-    shown = _shown(ids, fleet, all_)
+    shown = read_filter(ids, fleet, all_)
     with ctx.obj.open() as gs:
         if not as_json:
             live_watch(gs, console, shown, period_s=period, duration_s=duration)

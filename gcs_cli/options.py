@@ -2,7 +2,7 @@
 reaching a vehicle: every number finite and in range, every position on the Earth,
 every message validated against the wire contract before a session is opened. A bad
 value is a `typer.BadParameter`, which `gcs` prints as one line and exits 2
-(cli.main)."""
+(app.run)."""
 
 from __future__ import annotations
 

@@ -26,9 +26,11 @@ import typer
 from swarm_proto import GeometryKind, Mission, NoFlyZone, VehicleStatus
 from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter, read_trajectory
 
-from .cli import _shown, app, console, wait_option
-from .options import AllOption, FleetOption, IdsOption
+from .common import console, read_filter
+from .options import AllOption, FleetOption, IdsOption, finite
 from .recovery import StateFileError, SwarmState, collect, read_state
+
+app = typer.Typer()  # plot, record: app.py puts them at the top level
 
 R_EARTH_M = 6_371_008.8
 
@@ -95,13 +97,11 @@ def draw(
     from matplotlib.patches import Circle, Polygon
 
     pts: list[tuple[float, float]] = []
-    zones: list[NoFlyZone] = list(state.zones) if state else []
+    zones: list[NoFlyZone] = [z for z in (state.zones if state else []) if z.active]
     missions = list(state.missions) if state else []
     shares = shares or {}
-    for z in zones:
-        pts += [(p.lat_deg, p.lon_deg) for p in z.geometry.points]
     for m in missions:
-        pts += [(p.lat_deg, p.lon_deg) for p in m.geometry.points]
+        pts += _outline(m.geometry)
     for s in shares.values():
         pts += s
     if track is not None:
@@ -110,9 +110,12 @@ def draw(
         pts += [(v.home.lat_deg, v.home.lon_deg) for v in state.vehicles if v.home]
         if state.base:
             pts.append((state.base.lat_deg, state.base.lon_deg))
-    if not pts:
+    # the view is what is planned and flown; zones are drawn where they fall in it (an
+    # operating area around the field would zoom a 30 m orbit out of sight)
+    focus = list(pts) or [p for z in zones for p in _outline(z.geometry)]
+    if not focus:
         raise ValueError("nothing to draw")
-    frame = Frame(sum(p[0] for p in pts) / len(pts), sum(p[1] for p in pts) / len(pts))
+    frame = Frame(sum(p[0] for p in focus) / len(focus), sum(p[1] for p in focus) / len(focus))
     ids = sorted(
         set(shares)
         | set(track.vehicles if track is not None else [])
@@ -223,8 +226,14 @@ def draw(
                 zorder=6,
                 label="base",
             )
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.autoscale_view()
+    xy = [frame.xy(a, b) for a, b in focus]
+    x0, x1 = min(x for x, _ in xy), max(x for x, _ in xy)
+    y0, y1 = min(y for _, y in xy), max(y for _, y in xy)
+    half = max(x1 - x0, y1 - y0) / 2 + max(VIEW_MARGIN_M, 0.08 * max(x1 - x0, y1 - y0))
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    ax.set_xlim(cx - half, cx + half)  # square, as the figure: metres equal both ways
+    ax.set_ylim(cy - half, cy + half)
+    ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel(f"east of {frame.lat0:.5f}, {frame.lon0:.5f} (m)")
     ax.set_ylabel("north (m)")
     ax.grid(True, linewidth=0.3)
@@ -236,6 +245,48 @@ def draw(
     finally:
         plt.close(fig)
     return drawn
+
+
+#: the least margin around what is planned and flown in a picture
+VIEW_MARGIN_M = 20.0
+
+
+def _outline(g: Any) -> list[tuple[float, float]]:
+    """A geometry's points, a circle's as its bounding square's corners."""
+    pts = [(p.lat_deg, p.lon_deg) for p in g.points]
+    if g.kind == GeometryKind.CIRCLE and g.radius_m:
+        lat, lon = pts[0]
+        dlat = math.degrees(g.radius_m / R_EARTH_M)
+        dlon = dlat / max(math.cos(math.radians(lat)), 1e-6)
+        pts = [(lat + a * dlat, lon + b * dlon) for a in (-1, 1) for b in (-1, 1)]
+    return pts
+
+
+#: a gap this long with no vehicle airborne ends a sortie (a gap in the record, when the
+#: record has no height above home)
+SORTIE_GAP_S = 30.0
+
+
+def sorties(tr: Trajectory, airborne: Any = None) -> list[tuple[float, float]]:
+    """The sorties of a flight record, in time order: (start, end) of each stretch with
+    some vehicle airborne (`airborne`, a mask of the samples; None: every sample), two
+    stretches less than SORTIE_GAP_S apart being one."""
+    import numpy as np
+
+    t = tr.time_s if airborne is None else tr.time_s[np.asarray(airborne, dtype=bool)]
+    times = sorted(set(t.tolist()))
+    out: list[tuple[float, float]] = []
+    for x in times:
+        if out and x - out[-1][1] < SORTIE_GAP_S:
+            out[-1] = (out[-1][0], x)
+        else:
+            out.append((x, x))
+    return out
+
+
+def in_window(tr: Trajectory, start: float, end: float) -> Trajectory:
+    m = (tr.time_s >= start) & (tr.time_s <= end)
+    return Trajectory(tr.time_s[m], tr.vehicle[m], tr.lat[m], tr.lon[m], tr.alt_m[m])
 
 
 def _georeference(fig: Any, ax: Any, frame: Frame) -> str:
@@ -292,10 +343,15 @@ def plot(
     ),
     no_plan: bool = typer.Option(False, "--no-plan", help="do not compute the shares"),
     offline: bool = typer.Option(False, "--offline", help="only the files: ask no vehicle"),
+    all_sorties: bool = typer.Option(
+        False, "--all-sorties", help="every sortie of --track (default: the last)"
+    ),
 ) -> None:
     """Draw the plan (each vehicle's share of every mission in force, the zones, the
     base and the homes) and the flown tracks to a PNG. The plan comes from a `gcs save`
-    file or from the swarm now; the tracks from a flight recorder CSV.
+    file or from the swarm now; the tracks from a flight recorder CSV, its last sortie
+    unless --all-sorties. The picture shows what is planned and flown; zones are drawn
+    where they fall in it.
 
     Example: gcs plot --state saved.json --track flight.csv --out flight.png
     """
@@ -309,10 +365,22 @@ def plot(
             raise typer.BadParameter(str(exc), param_hint="--state") from None
     trajectory = None
     if track is not None:
+        from .analyze import airborne_mask
+
         try:
             trajectory = read_trajectory(track)
+            mask, _ = airborne_mask(track, len(trajectory.time_s))
         except TrajectoryError as exc:
             raise typer.BadParameter(str(exc), param_hint="--track") from None
+        found = sorties(trajectory, mask) or sorties(trajectory)
+        if len(found) > 1 and not all_sorties:
+            start, end = found[-1]
+            trajectory = in_window(trajectory, start, end)
+            console.print(
+                f"{track.name}: the last of {len(found)} sorties ({end - start:.0f} s); "
+                "--all-sorties draws every one",
+                style="dim",
+            )
     if state is None and not offline:
         with ctx.obj.open() as gs:
             state, warnings = collect(gs)
@@ -345,6 +413,7 @@ EXTRA = (
     "fsm",
     "mission",
     "progress_pct",
+    "armed",
 )
 
 
@@ -362,6 +431,7 @@ def write_status(w: TrajectoryWriter, s: VehicleStatus) -> None:
         s.fsm_state.name,
         s.mission_state.name,
         s.mission_progress_pct,
+        int(s.armed),
     )
 
 
@@ -379,14 +449,13 @@ def record(
     """Record the flight from the live telemetry: one CSV row per VehicleStatus heard
     (time_s = the sample's GPS UNIX time, vehicle, lat, lon, alt_m above mean sea
     level, then alt_rel_m, groundspeed_m_s, heading_deg, battery_pct, fsm, mission,
-    progress_pct). `gcs plot --track` and `gcs analyze separation` read it. Exit 1 if
+    progress_pct, armed). `gcs plot --track` and `gcs analyze separation` read it. Exit 1 if
     nothing was heard.
 
     Example: gcs record flight.csv --duration 600
     """
-    if duration is not None:
-        wait_option(duration)
-    shown = _shown(ids, fleet, all_)
+    finite(duration, "--duration", 0.0, 1.0e7)
+    shown = read_filter(ids, fleet, all_)
     rows = 0
     last: dict[int, float] = {}
     try:

@@ -24,9 +24,11 @@ from swarm_proto import (
 )
 
 from .answers import progress, report
-from .cli import Link, app, ask, console, selector_from, timeout_option
+from .common import Link, ask, console, selector_from, timeout_option
 from .ground import GroundStation, new_seq
 from .options import AllOption, FleetOption, IdsOption, JsonOption, YesOption, checked
+
+app = typer.Typer()  # save, load: app.py puts them at the top level
 
 FORMAT = "bandada-swarm-state"
 

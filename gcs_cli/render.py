@@ -13,6 +13,7 @@ from rich.text import Text
 from swarm_proto import Ack, AlertFlag, Selector, VehicleStatus, VehicleType
 from swarm_proto.ardupilot import autopilot_mismatch, mode_name
 
+from .core.reasons import ack_text
 from .ground import FleetView
 
 
@@ -227,14 +228,14 @@ def fleet_table(
 
 def ack_table(acks: list[Ack], title: str) -> Table:
     table = Table(title=title)
-    for col in ("vehicle", "accepted", "reason", "text"):
+    for col in ("vehicle", "accepted", "reason", "why"):
         table.add_column(col)
     for a in sorted(acks, key=lambda a: a.vehicle_id):
         table.add_row(
             str(a.vehicle_id),
             "yes" if a.accepted else "NO",
             a.reason.name,
-            a.text,
+            ack_text(a),
             style=None if a.accepted else "red",
         )
     return table

@@ -25,6 +25,7 @@ from swarm_proto import Ack, AckRef, GeoPoint, TargetReport, TargetSource, Vote,
 from swarm_proto.errors import ProtoError
 from swarm_proto.topics import ACK, VOTE
 
+from .common import parse_point
 from .ground import FleetView, GroundStation
 from .render import ack_table
 
@@ -161,7 +162,9 @@ def vote(
     wait: float = typer.Option(5.0, help="seconds to listen for the votes"),
 ) -> None:
     """Show a vote: every vehicle's score and who goes (from the votes the vehicles
-    re-send for a few seconds after deciding, and the winners' status).
+    re-send for a few seconds after deciding, and the winners' status). A vote over
+    before this listened is read from the vehicles: who flies the mission (their
+    VehicleInfo) and who holds it (their missions queryable); its scores are gone.
 
     Example: gcs vote 4242 --count 2 --wait 5
     """
@@ -172,9 +175,45 @@ def vote(
     with ctx.obj.open() as gs:
         watch = VoteWatch(gs)
         time.sleep(wait)
+        if not watch.of(mission_id):  # over before we listened: what the vehicles hold
+            held = gs.missions_held(2.0)
+            after = decided_after(gs.snapshot(), held, mission_id)
+            console.print(after.text(), highlight=False)
+            if not after.flown_by:
+                raise typer.Exit(1)
+            return
         r = show_vote(gs, watch, mission_id, set(watch.of(mission_id)), count, 0.0)
     if not r.decided:
         raise typer.Exit(1)
+
+
+@dataclass(frozen=True)
+class After:
+    """A vote read after it was over: who flies the mission (their VehicleInfo), who
+    holds it (their missions queryable: the candidates that accepted it)."""
+
+    mission_id: int
+    flown_by: tuple[int, ...]
+    held_by: tuple[int, ...]
+
+    def text(self) -> str:
+        m = self.mission_id
+        held = f"; held by {', '.join(map(str, self.held_by))}" if self.held_by else ""
+        if not self.flown_by:
+            return f"mission {m}: no vote heard and no vehicle flies it{held}"
+        return (
+            f"mission {m}: decided before this listened (the votes are re-sent for a few "
+            f"seconds only, the scores are gone): flown by {', '.join(map(str, self.flown_by))} "
+            f"(their VehicleInfo){held}"
+        )
+
+
+def decided_after(view: FleetView, held: dict[int, dict[int, object]], mission_id: int) -> After:
+    """The outcome of a vote over before `gcs vote` listened, from what the vehicles
+    publish and hold: the winners fly the mission (VehicleInfo.mission_id)."""
+    flown = tuple(sorted(v for v, i in view.info.items() if i.mission_id == mission_id))
+    holding = tuple(sorted(v for v, ms in held.items() if mission_id in ms))
+    return After(mission_id, flown, holding)
 
 
 # --------------------------------------------------------------------------- targets
@@ -200,8 +239,6 @@ def report(
 
     Example: gcs target report --point 37.4125,-5.9889 --class person --confidence 0.9
     """
-    from .cli import parse_point
-
     lat, lon = parse_point(point)
     if not (confidence >= 0.0 and confidence <= 1.0):
         raise typer.BadParameter("--confidence must be in [0, 1]", param_hint="--confidence")

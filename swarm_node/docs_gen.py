@@ -1,6 +1,7 @@
 """Regenerate the diagrams in docs/state-machine.md from their tables (`make docs`):
-the swarm state machine (`core/state_machine.RULES`) and the sortie
-(`core/mission/sortie.TRANSITIONS`). Each diagram is the mermaid block after its
+the swarm state machine (`core/state_machine.RULES`), the sortie
+(`core/mission/sortie.TRANSITIONS`) and the mission manager's phases
+(`core/mission/phases.TRANSITIONS`). Each diagram is the mermaid block after its
 marker line."""
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ import sys
 from pathlib import Path
 
 from .core import state_machine
-from .core.mission import sortie
+from .core.mission import phases, sortie
 
 MARKERS = {
     "## Diagram (generated from the table: `python -m swarm_node.core.state_machine`)": (
@@ -17,6 +18,9 @@ MARKERS = {
     ),
     "## Sortie diagram (generated from the table: `python -m swarm_node.core.mission.sortie`)": (
         sortie.mermaid
+    ),
+    "## Phase diagram (generated from the table: `python -m swarm_node.core.mission.phases`)": (
+        phases.mermaid
     ),
 }
 

@@ -184,6 +184,17 @@ class AckReason(IntEnum):
     NOT_FOUND = 11
     DUPLICATE = 12
     IN_NO_FLY_ZONE = 13
+    PREEMPTED = 14  # the node refused it: a module of higher priority holds the autopilot
+
+
+class DetailCode(IntEnum):
+    """What the numbers of a ReasonDetail are (which of its fields are used)."""
+
+    NONE = 0
+    ENDURANCE = 1  # vehicle_id (0: each vehicle), needed_s, available_s
+    COLLISION = (
+        2  # vehicle_id (the other; 0: several or not a swarm node), distance_m, in_s, altitude_m
+    )
 
 
 class TargetSource(IntEnum):

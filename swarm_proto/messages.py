@@ -23,6 +23,7 @@ from .enums import (
     AlertCode,
     AlertFlag,
     CommandKind,
+    DetailCode,
     FsmState,
     GeometryKind,
     GpsFix,
@@ -342,6 +343,20 @@ class Command(Struct, frozen=True):
     time_unix_s: UnixTimeS = 0.0
 
 
+class ReasonDetail(Struct, frozen=True):
+    """The facts behind a refusal or an alert, as numbers: a 64-character text cannot
+    hold them, and the ground station words them in full (gcs_cli/core/reasons.py).
+    `code` says which fields are used; the others stay 0."""
+
+    code: DetailCode = DetailCode.NONE
+    vehicle_id: OptVehicleId = 0  # whom it is about (0: every vehicle, or none)
+    needed_s: DurationS = 0.0  # ENDURANCE: its share and the way home, at cruise
+    available_s: DurationS = 0.0  # ENDURANCE: what its battery allows at cruise
+    distance_m: DistanceM = 0.0  # COLLISION: the closest approach predicted
+    in_s: DurationS = 0.0  # COLLISION: in how long
+    altitude_m: HeightM = 0.0  # COLLISION: the altitude above home it goes to (0: it stops)
+
+
 class Ack(Struct, frozen=True):
     """A node's answer to a command, mission, zone or fleet assignment."""
 
@@ -352,6 +367,8 @@ class Ack(Struct, frozen=True):
     accepted: bool
     reason: AckReason = AckReason.OK
     text: ShortText = ""
+    # appended: the reason's numbers (None: the code and the text say it all)
+    detail: ReasonDetail | None = None
 
 
 class Alert(Struct, frozen=True):
@@ -366,6 +383,8 @@ class Alert(Struct, frozen=True):
     severity: Severity
     code: AlertCode
     text: ShortText = ""  # for the operator, e.g. "battery 9%" or "in zone 3"
+    # appended: the alert's numbers (None: the code and the text say it all)
+    detail: ReasonDetail | None = None
 
 
 # --------------------------------------------------------------------------- missions

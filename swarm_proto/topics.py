@@ -5,7 +5,7 @@ Keys live under `bandada/<swarm>/`. A message's key is computed from the message
 itself (`Topic.key_of`), so the radio never carries key strings: a receiver rebuilds
 the key from the decoded message.
 
-`python -m swarm_proto.topics` prints docs/keyspace.md (kept in sync by a test).
+`python -m swarm_proto.keyspace_doc` prints docs/keyspace.md from it (kept in sync by a test).
 """
 
 from __future__ import annotations
@@ -313,9 +313,3 @@ def match(swarm: str, key: str) -> tuple[Topic, dict[str, str]] | None:
         if params is not None:
             return topic, params
     return None
-
-
-if __name__ == "__main__":
-    from .keyspace_doc import render
-
-    print(render(), end="")

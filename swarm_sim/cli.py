@@ -54,8 +54,7 @@ def demo(
     if a mission was not completed, airborne vehicles came within 5 m or the survey
     covered under 99 %. With --radio, every message between vehicles and the ground
     station crosses the emulated 900 MHz TDM radio instead."""
-    from .demo import run_demo
-    from .experiment import DEFAULT_SPEEDUP, EXPERIMENT_FLEET, MIXED_EXTRA
+    from .experiment import DEFAULT_SPEEDUP, EXPERIMENT_FLEET, MIXED_EXTRA, run
 
     if vehicle_ids is not None and mixed:
         raise typer.BadParameter("give --vehicles or --mixed, not both", param_hint="--mixed")
@@ -78,7 +77,7 @@ def demo(
         # TDM slots are a few milliseconds of wall time at high speed-ups; a shared
         # laptop cannot write the serial ports that precisely
         typer.echo(f"warning: --radio at {speedup:g}x leaves the slots little margin", err=True)
-    code = run_demo(
+    code = run(
         members,
         speedup=speedup,
         timeout_s=timeout,

@@ -424,33 +424,7 @@ def stop(fleet: Fleet) -> None:
         fleet.router.close()  # type: ignore[attr-defined]
 
 
-def run_demo(
-    members: tuple[int, ...] | None = None,
-    speedup: float = 5.0,
-    timeout_s: float = 1800.0,
-    keep: bool = False,
-    radio: bool = False,
-    out: Path = Path("demo-out"),
-    avoidance: bool = True,
-) -> int:
-    """`make demo`: the paper's experiment 1 with `members` (default: the six VTOLs),
-    narrated, recorded and reported in `out` (swarm_sim/experiment.py); 0 when it
-    passed. Collision avoidance and the close pads' take-off and landing sequencing
-    are on (the nodes' default), as in the paper's experiment."""
-    from .experiment import EXPERIMENT_FLEET, run
-
-    return run(
-        members or EXPERIMENT_FLEET,
-        speedup=speedup,
-        timeout_s=timeout_s,
-        keep=keep,
-        radio=radio,
-        out=out,
-        avoidance=avoidance,
-    )
-
-
-def _radio_up(
+def radio_up(
     stats: dict[int, RadioStats], members: tuple[int, ...], fleet: Fleet, console: Console
 ) -> dict[str, int]:
     """Wait until the ground station's gateway follows a table of every node; return
@@ -478,7 +452,7 @@ def _radio_up(
     return before
 
 
-def _radio_report(
+def radio_report(
     stats: RadioStats | None, fleet: Fleet, configuring: dict[str, int], console: Console
 ) -> bool:
     """What the ground station's gateway heard, and what the channel saw since the

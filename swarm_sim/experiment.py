@@ -142,7 +142,9 @@ def run(
     plan_kw: dict[str, Any] | None = None,
     avoidance: bool = True,
 ) -> int:
-    """Fly the story with `members`; write the report to `out`; 0 when it passed."""
+    """Fly the story with `members`; write the report to `out`; 0 when it passed.
+    Collision avoidance and the close pads' take-off and landing sequencing are on (the
+    nodes' default), as in the paper's experiment."""
     console = console or (Console() if sys.stdout.isatty() else Console(width=140))
     if len(members) < 4:
         console.print(
@@ -165,6 +167,12 @@ def run(
     wall0 = time.monotonic()
     fleet = demo.start(
         members, speedup, tmp, console, radio=radio, avoidance=avoidance, spacing_m=PAD_SPACING_M
+    )
+    console.print(  # the operator's live map on the demo's network (docs/ground-station.md)
+        f"  map: BANDADA_DB={tmp / 'swarm.db'} gcs --connect {fleet.endpoint} --mode "
+        f"{'peer' if radio else 'client'} --gcs-id {demo.GCS_ID + 1} map  "
+        "(then open the URL it prints)",
+        soft_wrap=True,
     )
     clock = ScaledClock(speedup)
     now = _clock_now(fleet.clock_spec) if fleet.clock_spec else clock.now
@@ -206,7 +214,7 @@ def run(
     try:
         if radio:
             console.print("  radio: the gateways configure their modules over AT commands ...")
-            configuring = demo._radio_up(radio_stats, members, fleet, console)
+            configuring = demo.radio_up(radio_stats, members, fleet, console)
         live = None
         if console.is_terminal:
             from rich.live import Live
@@ -279,7 +287,7 @@ def run(
         radio_report = None
         if radio:
             radio_report = _radio_figures(radio_stats.get(demo.GCS_ID), fleet, configuring)
-            demo._radio_report(radio_stats.get(demo.GCS_ID), fleet, configuring, console)
+            demo.radio_report(radio_stats.get(demo.GCS_ID), fleet, configuring, console)
     except KeyboardInterrupt:
         console.print("[yellow]interrupted[/]")
         story.record.outcome = story.record.outcome or "interrupted"

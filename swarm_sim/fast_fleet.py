@@ -243,6 +243,10 @@ class FastFleet:
     def _deliver(self, vid: int, event: Input, at: float) -> None:
         heapq.heappush(self._bus, (at, next(self._seq), (vid,), event))
 
+    def deliver(self, vid: int, event: Input, at: float) -> None:
+        """Hand vehicle `vid`'s node `event` at `at` (a fault, a peer's liveliness)."""
+        self._deliver(vid, event, at)
+
     def hold_tokens(self, ids: Sequence[int] | None = None) -> None:
         """A LAN swarm: the nodes here see the liveliness tokens of peers `ids` (default:
         the fleet's vehicles; a split fleet names the other parts' too) from now on, as
@@ -424,6 +428,11 @@ class FastFleet:
         self._reschedule()
         t = self._bus[0][0] if self._bus else float("inf")
         return min(t, self._next_timer())
+
+    def next_deadline(self) -> float:
+        """When anything here is next due: a message or result on the bus, a vehicle's
+        timer (a split fleet's parts agree their windows on it)."""
+        return self._deadline()
 
     def step(self) -> None:
         """Everything due at the next deadline: the swarm messages and results first,

@@ -60,7 +60,7 @@ from swarm_proto.session import SwarmBus, ZenohSettings, open_session
 from swarm_proto.topics import ALERT, INFO, STATUS
 
 from .core import SITL_HOME
-from .faults import FaultRow
+from .fault_row import FaultRow
 from .runtime import VehicleServer, VehicleSpec, spread_homes
 from .scenarios import square
 

@@ -61,6 +61,7 @@ from swarm_proto import (
 
 from .core import SITL_HOME
 from .fast_fleet import FastFleet
+from .fault_row import FaultRow
 from .scenarios import GCS, square
 
 ALT_M = 60.0
@@ -79,25 +80,6 @@ MISSIONS: tuple[MissionSpec, ...] = (
     MissionSpec("survey, 3 VTOLs", (1, 2, 3), 220.0, 3),
     MissionSpec("survey, 2 quadcopters + 1 VTOL", (7, 8, 1), 120.0, 8),
 )
-
-
-@dataclass
-class FaultRow:
-    fault: str
-    mission: str
-    env: str  # "fast" (FastFleet) | "processes"
-    recovered: bool
-    recover_s: float | None  # simulated seconds, fault -> its recovery event
-    coverage: float
-    mission_completed: bool
-    declared_state_lost: int
-    false_emergencies: int  # emergencies whose condition did not hold (a link loss judged)
-    emergencies: dict[str, int] = field(
-        default_factory=dict
-    )  # every STATE_EMERGENCY: code (vehicle)
-    alerts: dict[str, int] = field(default_factory=dict)  # "SEVERITY CODE" -> count
-    note: str = ""
-    wall_s: float = 0.0
 
 
 # ----------------------------------------------------------------------------- FastFleet
@@ -186,11 +168,11 @@ class Run:
             if v.down:
                 continue
             n = v.node
-            base, _, fleet, _ = n.declared.resolve(vid)
+            base, _, fleet, _ = n.declarations.book.resolve(vid)
             lost += n.base != self.base or base != self.base
             lost += fleet != self.fleets.get(vid, 0)
             for zid, z in self.zones.items():
-                lost += n.monitor.zones.get(zid) != z or n.declared.zones.get(zid) != z
+                lost += n.zones.get(zid) != z
         return lost
 
 
@@ -319,7 +301,7 @@ def fault_sigstop(run: Run) -> Injected:
     v = run.fleet.vehicles[vid]
     return Injected(
         run.fleet.now - t0 if ok else None,
-        f"stall seen {v.node.stalls.max_s:.1f} s by the node, "
+        f"stall seen {v.node.stalls.meter.max_s:.1f} s by the node, "
         f"{v.link.state.host_stalls} late read(s) by its link",
         ok=ok,
     )
@@ -451,7 +433,7 @@ def fault_ground_station_lost(run: Run) -> Injected:
     run.fleet.run_for(2.0)
     run.gcs_alive = False
     for vid in run.fleet.vehicles:
-        run.fleet._deliver(vid, PeerAlive(GCS, False), run.fleet.now)
+        run.fleet.deliver(vid, PeerAlive(GCS, False), run.fleet.now)
     injected = fault_kill(run, send=False)
     return Injected(
         injected.recover_s,

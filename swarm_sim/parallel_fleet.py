@@ -54,7 +54,7 @@ def _part_main(
     fleet.export, fleet.latency_s = [], latency_s
     if tokens is not None:
         fleet.hold_tokens(tokens)
-    conn.send(("ready", fleet._deadline()))
+    conn.send(("ready", fleet.next_deadline()))
     cpu0 = time.process_time()
     while True:
         cmd, t, incoming = conn.recv()
@@ -74,7 +74,7 @@ def _part_main(
             fleet.receive(raw, cls, at)
         fleet.run_before(t)
         out, fleet.export = fleet.export, []
-        conn.send((out, fleet._deadline()))
+        conn.send((out, fleet.next_deadline()))
 
 
 def _live_peers(fleet: Any) -> dict[int, list[int]]:
@@ -148,7 +148,9 @@ class ParallelFleet:
             self.local.hold_tokens(ids)
         self._cpu0 = time.process_time()
         # the earliest time anything is due in any part (its timers, what it was handed)
-        self._next = min([self.local._deadline()] + [conn.recv()[1] for _p, conn in self.workers])
+        self._next = min(
+            [self.local.next_deadline()] + [conn.recv()[1] for _p, conn in self.workers]
+        )
         self._incoming: list[Outgoing] = [[] for _ in range(1 + len(self.workers))]
 
     def run_for(self, seconds: float) -> None:
@@ -167,7 +169,9 @@ class ParallelFleet:
                 self.local.receive(raw, cls, at)
             self.local.run_before(window_end)
             mine, self.local.export = self.local.export, []
-            answers = [(mine, self.local._deadline())] + [conn.recv() for _p, conn in self.workers]
+            answers = [(mine, self.local.next_deadline())] + [
+                conn.recv() for _p, conn in self.workers
+            ]
             self.steps += 1
             self._incoming = [[] for _ in answers]
             nxt = min(due for _out, due in answers)

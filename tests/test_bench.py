@@ -91,6 +91,11 @@ NAMED: dict[str, tuple[str, ...]] = {
         "real_processes_cpu_pct/nodes_10",
     ),
     "gcs": ("rtl_all_ms/10", "rtl_all_ms/25", "rtl_all_ms/50", "raw_zenoh_ms/10", "nodes/50"),
+    "map": tuple(
+        f"sizes/{n}/{k}"
+        for n in (6, 50)
+        for k in ("lag_ms_p50", "lag_ms_p99", "server_cpu_pct", "frame_ms_p99")
+    ),
     "separation": (
         "avoid_cpu_us_per_tick/peers_10",
         "avoid_cpu_us_per_tick/peers_50",

@@ -58,7 +58,7 @@ def test_router_command_keeps_the_files_multicast_scouting() -> None:
 def test_node_and_gcs_take_a_zenoh_config_file(tmp_path: Path) -> None:
     from typer.testing import CliRunner
 
-    from gcs_cli.cli import app as gcs_app
+    from gcs_cli.app import app as gcs_app
     from swarm_node.cli import app as node_app
     from swarm_node.runtime.config import load_config
 
@@ -86,7 +86,7 @@ def test_peer_json5_instructions_name_an_option_that_exists() -> None:
     assert "--zenoh-config" in text
     from typer.testing import CliRunner
 
-    from gcs_cli.cli import app as gcs_app
+    from gcs_cli.app import app as gcs_app
     from swarm_node.cli import app as node_app
 
     assert "--zenoh-config" in CliRunner().invoke(node_app, ["run", "--help"]).output

@@ -5,13 +5,15 @@ text (`swarm_proto.text`): on a 900 MHz radio every byte is air time. The code i
 meaning and is rendered here, in full, at the ground station; the text is what is
 particular to that vehicle at that time ("EKF estimate not good yet", "autopilot is
 PLANE (MAV_TYPE 1), identity COPTER"), written by the node to fit, and cut visibly
-with "…" when it does not. A new code is one entry here;
+with "…" when it does not. The numbers behind a reason (an endurance budget, a
+collision's distance) travel as numbers, a `ReasonDetail`, and are worded here too
+("needs about 410 s per vehicle ..., has 148 s"). A new code is one entry here;
 `tests/gcs_cli/test_exchange.py` checks every code has one.
 """
 
 from __future__ import annotations
 
-from swarm_proto import Ack, AckReason, AckRef, AlertCode
+from swarm_proto import Ack, AckReason, AckRef, Alert, AlertCode, DetailCode, ReasonDetail
 
 ACK_REASONS: dict[AckReason, str] = {
     AckReason.OK: "accepted",
@@ -30,6 +32,8 @@ ACK_REASONS: dict[AckReason, str] = {
     AckReason.NOT_FOUND: "no such thing on this vehicle",
     AckReason.DUPLICATE: "already received",
     AckReason.IN_NO_FLY_ZONE: "it would enter a no-fly zone",
+    AckReason.PREEMPTED: "the node refused it: a module of higher priority holds the "
+    "autopilot (collision avoidance, an emergency or a landing)",
 }
 
 ALERT_CODES: dict[AlertCode, str] = {
@@ -66,21 +70,62 @@ WHAT: dict[AckRef, str] = {
 }
 
 
-def reason_text(reason: AckReason | None, text: str = "") -> str:
-    """A reason in full with the vehicle's own text: "the autopilot refused it:
-    COMMAND_ACK DENIED". An accepted answer shows only its text."""
-    if reason is None:
-        return text
-    if reason == AckReason.OK:
-        return text
-    full = ACK_REASONS.get(reason, reason.name)
-    return f"{full}: {text}" if text else full
+#: every DetailCode's words (`detail_text`); a test checks each has them
+DETAIL_CODES: dict[DetailCode, str] = {
+    DetailCode.NONE: "",
+    DetailCode.ENDURANCE: "needs {needed} at cruise (its share and the way home), has {available}",
+    DetailCode.COLLISION: "{who} predicted {distance} away in {when}{then}",
+}
+
+
+def _s(seconds: float) -> str:
+    return f"{seconds:.0f} s"
+
+
+def detail_text(detail: ReasonDetail | None) -> str:
+    """A ReasonDetail in words: "needs 410 s per vehicle at cruise (its share and the
+    way home), has 148 s"; "" for none."""
+    if detail is None or detail.code == DetailCode.NONE:
+        return ""
+    d = detail
+    if d.code == DetailCode.ENDURANCE:
+        needed = _s(d.needed_s) + (" per vehicle" if not d.vehicle_id else "")
+        words = DETAIL_CODES[d.code].format(needed=needed, available=_s(d.available_s))
+        return f"vehicle {d.vehicle_id} {words}" if d.vehicle_id else words
+    if d.code == DetailCode.COLLISION:
+        return DETAIL_CODES[d.code].format(
+            who=f"vehicle {d.vehicle_id}" if d.vehicle_id else "traffic",
+            distance=f"{d.distance_m:.0f} m",
+            when=_s(d.in_s),
+            then=f"; going to {d.altitude_m:.0f} m above home" if d.altitude_m else "",
+        )
+    return d.code.name.lower()  # a code newer than this ground station: its name
+
+
+def _joined(*parts: str) -> str:
+    return ": ".join(p for p in parts if p)
+
+
+def reason_text(
+    reason: AckReason | None, text: str = "", detail: ReasonDetail | None = None
+) -> str:
+    """A reason in full with its numbers and the vehicle's own text: "the autopilot
+    refused it: COMMAND_ACK DENIED". An accepted answer shows only its numbers and
+    text."""
+    if reason is None or reason == AckReason.OK:
+        return _joined(detail_text(detail), text)
+    return _joined(ACK_REASONS.get(reason, reason.name), detail_text(detail), text)
 
 
 def ack_text(ack: Ack) -> str:
-    return reason_text(ack.reason, ack.text)
+    return reason_text(ack.reason, ack.text, ack.detail)
 
 
-def alert_text(code: AlertCode, text: str = "") -> str:
+def alert_text(code: AlertCode, text: str = "", detail: ReasonDetail | None = None) -> str:
     full = ALERT_CODES.get(code, code.name)
-    return f"{full}: {text}" if text and text != code.name else full
+    return _joined(full, detail_text(detail), text if text != code.name else "")
+
+
+def alert_words(alert: Alert) -> str:
+    """An Alert in full: its code's meaning, its numbers, its text."""
+    return alert_text(alert.code, alert.text, alert.detail)

@@ -674,6 +674,18 @@ class Membership:
         return SlotLayout.build(tuple(range(1, n + 1)), self.timing, self.config).k
 
     # ------------------------------------------------------------------ output
+    def tx_state(self) -> tuple[object, ...]:
+        """What `next_tx` depends on besides its arguments: while it is unchanged, a slot
+        `next_tx` gave is still the one (a caller may keep it)."""
+        return (
+            self.phase,
+            self.table_hash,
+            tuple(sorted(self.pending.items())),
+            tuple(sorted(self.pending_levels.items())),
+            self._join_cycle,
+            self._join_sent,
+        )
+
     def next_tx(self, now: float, min_cycle: int) -> TxSlot | None:
         """Our next transmission whose air start is not in the past."""
         lay = self.layout

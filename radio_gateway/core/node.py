@@ -366,15 +366,7 @@ class RadioNode:
     # ------------------------------------------------------------------ transmit
     def _next_slot(self, t: float) -> TxSlot | None:
         m = self.membership
-        key = (
-            m.phase,
-            m.table_hash,
-            tuple(sorted(m.pending.items())),
-            tuple(sorted(m.pending_levels.items())),
-            self._last_tx_cycle,
-            m._join_cycle,
-            m._join_sent,
-        )
+        key = (m.tx_state(), self._last_tx_cycle)
         if self._slot is not None and key == self._slot_key and self._slot.air_start >= t:
             return self._slot
         self._slot = m.next_tx(t, self._last_tx_cycle + 1)

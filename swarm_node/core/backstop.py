@@ -23,8 +23,8 @@ Comparison is as ArduPilot stores items: command, latitude and longitude to 2e-7
 degrees, a circle's radius (or a polygon's vertex count) to 0.5 m, a rally point's
 altitude to 1 m (ArduPilot keeps it in whole metres).
 
-Pure: `on_autopilot`, `on_result`, `on_timer` take `now`; requests are `Submit`s with
-owner FENCE (never refused for precedence: they do not fly the vehicle).
+Pure: `on_autopilot`, `on_result`, `on_timer` take `now`; requests are `Submit`s of
+owner BACKSTOP (never refused for precedence: they do not fly the vehicle).
 """
 
 from __future__ import annotations
@@ -33,19 +33,23 @@ import itertools
 import logging
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import TYPE_CHECKING
 
 import msgspec
 
-from swarm_proto import Alert, AlertCode, Severity
+from swarm_proto import Alert, AlertCode, GeoPoint, Severity, VehicleType
+from swarm_proto.text import short_text
 
 from .autopilot.conversion import ConversionError, fence_items, rally_items
 from .autopilot.mission_item import MissionItem
 from .autopilot.requests import ApResult, DownloadMission, MissionKind, UploadFence, UploadRally
 from .autopilot.state import AutopilotState
-from .fences import FenceKeeper
+from .commands import rally_alt_rel_m
 from .outputs import ModuleOutput, Note, Owner, Publish, Submit
 
-BACKSTOP_FIRST_REQUEST_ID = 3_000_000  # fences.py: 2_000_000+
+if TYPE_CHECKING:
+    from .fences import FenceKeeper  # (fences.Fences composes the two)
+
 RETRY_S = 5.0
 SETTLE_S = 2.0
 _LATLON_TOL_DEG = 2e-7
@@ -65,6 +69,16 @@ class Stage(Enum):
 
 _NAME = {MissionKind.FENCE: "fence", MissionKind.RALLY: "rally point"}
 _CODE = {MissionKind.FENCE: AlertCode.NO_FLY_ZONE, MissionKind.RALLY: AlertCode.GENERIC}
+
+
+def rally_point(
+    vehicle_type: VehicleType, base: GeoPoint | None, home: GeoPoint | None
+) -> UploadRally | None:
+    """The rally point the autopilot should hold: the base (commands.rally_alt_rel_m)."""
+    if base is None or home is None:
+        return None
+    alt = rally_alt_rel_m(vehicle_type, base.alt_msl_m - home.alt_msl_m)
+    return UploadRally(points=((base.lat_deg, base.lon_deg, alt),))
 
 
 def same_items(kind: MissionKind, held: tuple[MissionItem, ...], want: list[MissionItem]) -> bool:
@@ -108,12 +122,7 @@ class BackstopKeeper:
     _epoch: tuple[int, int] | None = None  # (reboots, link losses) last attached at
     _in_flight: tuple[MissionKind, int] | None = None  # (store, request id)
     _now: float = float("-inf")  # when the checks were last tried
-    _ids: itertools.count[int] = field(
-        default_factory=lambda: itertools.count(BACKSTOP_FIRST_REQUEST_ID)
-    )
-
-    def owns(self, request_id: int) -> bool:
-        return request_id >= BACKSTOP_FIRST_REQUEST_ID
+    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     # ------------------------------------------------------------------ inputs
     def on_autopilot(
@@ -216,7 +225,7 @@ class BackstopKeeper:
     ) -> list[ModuleOutput]:
         rid = next(self._ids)
         self._in_flight = (kind, rid)
-        return [Submit(msgspec.structs.replace(request, request_id=rid), Owner.FENCE)]
+        return [Submit(msgspec.structs.replace(request, request_id=rid), Owner.BACKSTOP)]
 
     def _compare(
         self,
@@ -272,4 +281,6 @@ class BackstopKeeper:
         return out + self._next(ap, now)
 
     def _alert(self, now: float, severity: Severity, kind: MissionKind, text: str) -> Publish:
-        return Publish(Alert(self.vehicle_id, max(0.0, now), severity, _CODE[kind], text[:64]))
+        return Publish(
+            Alert(self.vehicle_id, max(0.0, now), severity, _CODE[kind], short_text(text))
+        )

@@ -60,7 +60,8 @@ from .autopilot.requests import (
     UploadRally,
 )
 from .autopilot.state import AutopilotState
-from .mission_manager import Phase
+from .mission.phases import Phase
+from .outputs import SetActive, SetBase, SetFleet, StopLanding, TakeOver
 from .profile import VehicleProfile
 
 ABORT_LANDING_MIN_ALT_M = 30.0  # climb to at least this (above home) when aborting a landing
@@ -82,6 +83,7 @@ class NodeView:
     ready: bool  # vehicle monitoring says the vehicle is ready
     landing: bool = False  # the mission manager is bringing the vehicle home or down
     touching_down: bool = False  # ... and is landing it now (the way home's last stage)
+    not_ready: str = ""  # what vehicle monitoring says is not ready
 
     @property
     def on_mission(self) -> bool:
@@ -92,21 +94,8 @@ class NodeView:
 
 
 # ----------------------------------------------------------------------- node effects
-
-
-@dataclass(frozen=True)
-class SetBase:
-    point: GeoPoint
-
-
-@dataclass(frozen=True)
-class SetFleet:
-    fleet_id: int
-
-
-@dataclass(frozen=True)
-class SetActive:
-    active: bool
+# (SetBase, SetFleet, SetActive, TakeOver and StopLanding are outputs the node routes
+# to their owners: outputs.py; these the operator desk carries out itself)
 
 
 @dataclass(frozen=True)
@@ -115,25 +104,11 @@ class CancelMission:
 
 
 @dataclass(frozen=True)
-class TakeOver:
-    """The operator's command flies the vehicle out of its mission: the mission manager
-    only watches for the landing (`phase`), the state machine gets `Recalled`."""
-
-    reason: str
-    phase: Phase
-
-
-@dataclass(frozen=True)
 class LandAt:
     """EMERGENCY_LAND: the node plans the zone-safe route to `point` and lands there
     (its requests become the command's)."""
 
     point: GeoPoint
-
-
-@dataclass(frozen=True)
-class StopLanding:
-    """ABORT_LANDING: the mission manager stops bringing the vehicle down."""
 
 
 Effect = SetBase | SetFleet | SetActive | CancelMission | TakeOver | LandAt | StopLanding
@@ -447,7 +422,14 @@ class CommandTracker:
         if run is None:
             return [], []  # not ours (emergency or mission requests), or already timed out
         if not result.ok:
-            return [], [self._ack(run.cmd, False, AckReason.AUTOPILOT_REJECTED, result.reason)]
+            # the arbiter's own refusal ("preempted by AVOIDANCE") is the node's, not
+            # the autopilot's
+            who = (
+                AckReason.PREEMPTED
+                if result.reason.startswith("preempted by")
+                else AckReason.AUTOPILOT_REJECTED
+            )
+            return [], [self._ack(run.cmd, False, who, result.reason)]
         if run.remaining:
             return [self._submit(run.cmd, run.remaining, now)], []
         return [], [self._ack(run.cmd, True, AckReason.OK, result.reason)]

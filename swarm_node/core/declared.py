@@ -13,7 +13,9 @@ are ordered by the declaration's bytes, so ties too resolve the same everywhere.
 
 What is kept:
 
-    zones        zone id -> the newest NoFlyZone (withdrawn ones too)
+    zones        zone id -> the newest NoFlyZone (withdrawn ones too): the node's one
+                 zone book (safety/zones.py), which monitoring, the fence keeper, the
+                 planners and collision avoidance read
     commands     SET_BASE, SET_FLEET and CANCEL_MISSION commands, by kind and selector:
                  the newest per (kind, selector); older ones a newer command to ALL of
                  the same kind supersedes are dropped
@@ -48,6 +50,8 @@ from swarm_proto import (
     SelectorKind,
     lan,
 )
+
+from .safety.zones import ZoneBook
 
 #: Commands that declare state (the others act and are done).
 DECLARING = frozenset({CommandKind.SET_BASE, CommandKind.SET_FLEET, CommandKind.CANCEL_MISSION})
@@ -127,7 +131,7 @@ class Changed:
 
 @dataclass
 class DeclaredBook:
-    zones: dict[int, NoFlyZone] = field(default_factory=dict)
+    zones: ZoneBook = field(default_factory=ZoneBook)
     commands: dict[str, Command] = field(default_factory=dict)
     assignments: dict[int, FleetAssignment] = field(default_factory=dict)
     missions: dict[int, DeclaredMission] = field(default_factory=dict)

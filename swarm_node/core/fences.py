@@ -2,7 +2,11 @@
 backstop if the companion computer fails.
 
 `plan_fence` decides what the autopilot's fence holds; `FenceKeeper` uploads it (one
-request at a time) whenever that changes, and retries after a failure.
+request at a time) whenever that changes, and retries after a failure; `Fences` is the
+node's module: it plans the fence again when a zone, its validity, home or the flight
+ceiling changed (owner FENCE of the autopilot), alerts what did not fit or failed, and
+has the backstop (backstop.py, owner BACKSTOP) check the autopilot still holds the fence
+and the rally point.
 
 What becomes a fence (docs/node.md, "Fences"):
 
@@ -26,23 +30,29 @@ Pure: no I/O; `now` is passed in.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable, Sequence
+import logging
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import msgspec
 from shapely.geometry import Polygon
 
-from swarm_proto import GeometryKind, GeoPoint, NoFlyZone
+from swarm_proto import Alert, AlertCode, GeometryKind, GeoPoint, NoFlyZone, Severity, VehicleType
 from swarm_proto.geodesy import distance_m
+from swarm_proto.text import short_text
 
+from .arbiter import Owner
 from .autopilot.requests import ApRequest, ApResult, SetParam, UploadFence
+from .autopilot.state import AutopilotState
+from .backstop import BackstopKeeper, rally_point
+from .outputs import ModuleOutput, Note, Publish, Submit
 from .planning.geo import LocalFrame
+from .safety.zones import ZoneBook
 
 FENCE_MAX_ITEMS = 84  # ArduPilot on a Pixhawk (AC_PolyFence_loader::max_items)
 FENCE_FULL_HEIGHT_REL_M = 120.0  # the planners' climb-over limit above home
 FENCE_TYPE_POLYGON = 4.0  # FENCE_TYPE bit: polygon/circle fences only (not ALT_MAX, CIRCLE)
 FENCE_RETRY_S = 5.0
-FENCE_FIRST_REQUEST_ID = 2_000_000  # command manager: small ids; mission manager: 1_000_000+
 _TOLERANCES_M = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
 
 
@@ -182,12 +192,7 @@ class FenceKeeper:
     failures: int = 0  # consecutive failed requests
     _in_flight: ApRequest | None = None
     _retry_at: float | None = None
-    _ids: itertools.count[int] = field(
-        default_factory=lambda: itertools.count(FENCE_FIRST_REQUEST_ID)
-    )
-
-    def owns(self, request_id: int) -> bool:
-        return request_id >= FENCE_FIRST_REQUEST_ID
+    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     @property
     def busy(self) -> bool:
@@ -244,3 +249,106 @@ class FenceKeeper:
         if self._in_flight is None and self.want != self.held:
             return self._retry_at
         return None
+
+
+@dataclass
+class Fences:
+    """The autopilot's fence kept equal to the zones in force, and the backstop kept
+    true (the node's module)."""
+
+    vehicle_id: int
+    vehicle_type: VehicleType
+    max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
+    keeper: FenceKeeper = field(default_factory=FenceKeeper)
+    plan: FencePlan | None = None  # the last plan (what is fenced, overflown, left out)
+    backstop: BackstopKeeper = field(init=False)  # the fence and rally point checked
+    _key: object = None
+    _version: int = 0  # the zone book's version the fence was last planned for
+
+    def __post_init__(self) -> None:
+        self.backstop = BackstopKeeper(self.vehicle_id, self.keeper)
+
+    def on_autopilot(
+        self,
+        ap: AutopilotState,
+        zones: ZoneBook,
+        base: GeoPoint | None,
+        ceiling_rel_m: float,
+        now: float,
+    ) -> list[ModuleOutput]:
+        rally = rally_point(self.vehicle_type, base, ap.home)
+        out = self.keep(zones, ap.home, ceiling_rel_m, now)
+        return out + self.backstop.on_autopilot(ap, rally, now)
+
+    def on_timer(
+        self, ap: AutopilotState, zones: ZoneBook, ceiling_rel_m: float, now: float
+    ) -> list[ModuleOutput]:
+        out = self.keep(zones, ap.home, ceiling_rel_m, now)
+        return out + self.backstop.on_timer(ap, now)
+
+    def new_zones(
+        self, zones: ZoneBook, home: GeoPoint | None, ceiling: Callable[[], float], now: float
+    ) -> list[ModuleOutput]:
+        """`keep`, when a zone changed since the fence was last planned (asked after any
+        input: a zone heard, a book merged); `ceiling`: the flight ceiling, asked then."""
+        if zones.version == self._version:
+            return []
+        return self.keep(zones, home, ceiling(), now)
+
+    def keep(
+        self, zones: ZoneBook, home: GeoPoint | None, ceiling_rel_m: float, now: float
+    ) -> list[ModuleOutput]:
+        """A new plan when a zone, its validity, home or the flight ceiling changed; the
+        keeper's retry otherwise. No zone heard yet (version 0): the autopilot's fence is
+        left alone."""
+        if zones.version == 0 or home is None:
+            return []
+        self._version = zones.version
+        in_force = tuple(sorted(z.zone_id for z in zones.values() if z.in_force(now)))
+        key = (zones.version, in_force, home, ceiling_rel_m)
+        if key == self._key:
+            return [Submit(r, Owner.FENCE) for r in self.keeper.on_timer(now)]
+        self._key = key
+        before = self.plan
+        plan = self.plan = plan_fence(
+            zones.values(),
+            now,
+            home=home,
+            fly_ceiling_rel_m=ceiling_rel_m,
+            max_items=self.max_items,
+        )
+        out: list[ModuleOutput] = []
+        if plan.left_out and (before is None or before.left_out != plan.left_out):
+            ids = ",".join(str(i) for i in plan.left_out)
+            text = f"fence full: zones {ids} not in the autopilot"
+            out += [Note(logging.WARNING, text), self._alert(now, text)]
+        return out + [Submit(r, Owner.FENCE) for r in self.keeper.update(plan.request, now)]
+
+    def on_result(
+        self, owner: Owner, result: ApResult, ap: AutopilotState, now: float
+    ) -> list[ModuleOutput]:
+        """A result of ours (owner FENCE) or of the backstop (BACKSTOP)."""
+        if owner == Owner.BACKSTOP:
+            return self.backstop.on_result(result, ap, now)
+        reqs, problem = self.keeper.on_result(result, now)
+        out: list[ModuleOutput] = [Submit(r, Owner.FENCE) for r in reqs]
+        if problem is not None and self.keeper.failures == 1:  # once per run of failures
+            out += [
+                Note(logging.WARNING, f"{problem}; retrying every {self.keeper.retry_s:g} s"),
+                self._alert(now, problem),
+            ]
+        return out
+
+    def next_deadline(self) -> float | None:
+        a, b = self.keeper.next_deadline(), self.backstop.next_deadline()
+        return b if a is None else a if b is None else min(a, b)
+
+    def _alert(self, now: float, text: str) -> Publish:
+        alert = Alert(
+            self.vehicle_id,
+            max(0.0, now),
+            Severity.WARNING,
+            AlertCode.NO_FLY_ZONE,
+            short_text(text),
+        )
+        return Publish(alert)

@@ -39,7 +39,7 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from swarm_proto import FsmState, VehicleInfo, VehicleStatus, VehicleType
+from swarm_proto import FsmState, GeoPoint, VehicleInfo, VehicleStatus, VehicleType
 
 
 @dataclass(frozen=True)
@@ -254,6 +254,22 @@ class SwarmMembership:
 
     def fleet(self, fleet_id: int) -> list[Peer]:
         return [p for p in self.vehicles() if fleet_id and p.fleet_id == fleet_id]
+
+    def statuses_and_homes(self) -> list[tuple[VehicleStatus, GeoPoint | None]]:
+        """The live peers' latest statuses with their homes (the pad rules')."""
+        return [
+            (p.status, p.info.home if p.info else None)
+            for p in self.peers.values()
+            if p.present and p.status is not None
+        ]
+
+    def homes(self) -> dict[int, GeoPoint]:
+        """Every known peer's home (VehicleInfo): their pads."""
+        return {v: p.info.home for v, p in self.peers.items() if p.info and p.info.home}
+
+    def types(self) -> dict[int, VehicleType]:
+        """Every known peer's vehicle type (VehicleInfo)."""
+        return {v: p.info.vehicle_type for v, p in self.peers.items() if p.info}
 
     # ------------------------------------------------------------------ internals
     def _heard(

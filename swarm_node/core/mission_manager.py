@@ -17,10 +17,8 @@ from __future__ import annotations
 
 import itertools
 import logging
-import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
-from enum import Enum
+from dataclasses import InitVar, dataclass, field
 
 import msgspec
 
@@ -34,6 +32,7 @@ from swarm_proto import (
     MissionState,
     MissionType,
     NoFlyZone,
+    ReasonDetail,
     Severity,
     VehicleStatus,
     VehicleType,
@@ -60,6 +59,7 @@ from .mission.agreement import ReplanAgreement, Verdict
 from .mission.fleet_sync import FleetSync
 from .mission.follow import Follow
 from .mission.landing import LandingTurn
+from .mission.phases import TAKE_OVER, Phase, Step, go
 from .mission.share import (
     FleetPlan,
     Member,
@@ -75,17 +75,10 @@ from .planning import (
     PlanningError,
 )
 from .planning.endurance import CLIMB_FRACTION, Endurance, launch_s
-from .planning.flight import FIXED_WING_ACCEPT_M
-from .planning.transit import (
-    TRANSIT_MARGIN_M,
-    distance_m,
-    fixed_wing_transit,
-    flown_turn_radius_m,
-    fly_corners,
-    safe_transit,
-)
+from .planning.transit import VehicleTransit, distance_m
 from .planning.transit import flyable as flyable  # re-exported (was defined here)
 from .profile import VehicleProfile
+from .safety.pad_sequence import PadSequence
 from .swarm.roster import Roster
 
 #: parameters a planner reads as "not given" when 0 (besides None), per mission type
@@ -131,20 +124,10 @@ LAND_AT_HOME_M = 30.0  # multirotors: land once RTL has brought them this close 
 # plain waypoint asks for it (ArduPlane's 90 m default would count the closely spaced
 # waypoints of a planned turn as reached at once and loop wide); the flyable stage
 # plans every corner for it.
-FIRST_REQUEST_ID = 1_000_000  # the command manager uses small ids
 AP_POLL_S = 0.2  # the node reads the autopilot's state this often
-
-
-class Phase(Enum):
-    IDLE = "idle"
-    STARTING = "starting"  # upload, arm, take off
-    CLIMBING = "climbing"  # waiting for the take-off altitude
-    MEETING = "meeting"  # PREMISSION: climbed, waiting for the fleet's meet time
-    FOLLOWING = "following"  # MUM-T: holding our slot around the lead
-    FLYING = "flying"  # the mission is running on the autopilot
-    RETURNING = "returning"  # RTL
-    LANDING = "landing"
-    PARACHUTE = "parachute"  # released: coming down under the canopy
+#: how long after our StartMission the autopilot's state may still show the mode before
+#: it (the command's ack, then the next heartbeat; simulated seconds)
+START_SEEN_S = 3.0
 
 
 Out = ModuleOutput  # the node's one output vocabulary (outputs.py)
@@ -176,8 +159,6 @@ class MissionManager:
     last_item: int = 0  # reaching this item completes the mission
     zones: tuple[NoFlyZone, ...] = ()
     sortie: Sortie = field(default_factory=Sortie)  # the one owner of the mission state
-    owner: Owner = Owner.MISSION  # the rank of our requests (OPERATOR after a recall)
-    base: GeoPoint | None = None  # the operator's base (the autopilot's rally point)
     along_m: tuple[float, ...] = ()  # metres along the share at each item (index = seq)
     hold_s: float = 0.0  # a timed hold on the share's unlimited loiter (target --duration)
     hold_seq: int = 0  # that loiter's item
@@ -197,7 +178,7 @@ class MissionManager:
     _planning: tuple[Mission, tuple[NoFlyZone, ...]] | None = None
     _steps: list[ApRequest] = field(default_factory=list)
     _in_flight: ApRequest | None = None  # the request we wait for
-    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(FIRST_REQUEST_ID))
+    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
     mission: Mission | None = None  # the mission being flown (its parameters)
     sync: FleetSync = field(init=False)  # PREMISSION and the MISSION speed rule
     agreement: ReplanAgreement = field(default_factory=ReplanAgreement)
@@ -213,9 +194,29 @@ class MissionManager:
         tuple[tuple[Waypoint, ...], tuple[NoFlyZone, ...], float, float, float, int] | None
     ) = None
     _ap: AutopilotState | None = None  # the autopilot as last seen
+    # take-off and landing at close pads (safety/pad_sequence.py): its requests are ours
+    pads: PadSequence = field(init=False)
+    with_pads: InitVar[PadSequence | None] = None  # default: pads from the profile alone
+    _pad_requests: dict[int, ApRequest] = field(default_factory=dict)
+    uploaded: tuple[Waypoint, ...] = ()  # the mission the autopilot holds (items 1..)
+    suspended: bool = False  # avoidance holds the autopilot: our flight requests wait
+    # our last StartMission and when: a manoeuvre that begins before the autopilot shows
+    # AUTO must go back to it, not to the mode it saw
+    _started: tuple[ApRequest, float] | None = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, with_pads: PadSequence | None) -> None:
         self.sync = FleetSync(self.profile.vehicle_id, self.profile)
+        self.transit = VehicleTransit(self.profile)  # the legs a plan does not cover
+        self.pads = with_pads if with_pads is not None else PadSequence(self.profile)
+
+    def _go(self, step: Step) -> None:
+        """The next phase, checked against the table (mission/phases.py)."""
+        self.phase = go(self.phase, step)
+
+    @property
+    def launch_queued(self) -> bool:
+        """The take-off waits its turn at the close pads (not planning time)."""
+        return self.pads.launch is not None
 
     @property
     def mission_state(self) -> MissionState:
@@ -229,7 +230,6 @@ class MissionManager:
         """The state machine began planning `mission_id` (the way home keeps the
         progress of the mission just flown)."""
         self.sortie.begin(keep_progress=mission_id == fsm.RETURN_MISSION)
-        self.owner = Owner.MISSION
         self._planning = None
 
     @property
@@ -238,12 +238,6 @@ class MissionManager:
         home (or the rally point) at its turn radius in RTL, a multirotor comes right
         over it."""
         return max(LAND_AT_HOME_M, 1.5 * self.profile.turn_radius_m())
-
-    @property
-    def transit_margin_m(self) -> float:
-        """Clearance from zones on transit legs: a fixed-wing may start the leg with a
-        U-turn as wide as two turn radii."""
-        return max(TRANSIT_MARGIN_M, 2.0 * self.profile.turn_radius_m())
 
     # ------------------------------------------------------------------ start
     def release(
@@ -359,7 +353,7 @@ class MissionManager:
                     self._alert(Severity.WARNING, text, now, AlertCode.MISSION_FAILED),
                     *self._resume(mid),
                 ]
-            return self._failed(mid, outcome.error)
+            return self._failed(mid, outcome.error, outcome.detail)
         old = self.share
         self.fleet_plan = outcome.plan
         try:
@@ -396,7 +390,9 @@ class MissionManager:
         if not sync:
             base_waypoints = waypoints
             try:
-                waypoints = self._tight(self._with_approach(waypoints, ap, zones, now, home_alt))
+                waypoints = self.transit.tight(
+                    self.transit.with_approach(waypoints, ap, zones, now, home_alt)
+                )
             except (PlanningError, ValueError) as exc:
                 return self._failed(mid, f"approach: {exc}")
             if ap.armed and ap.lat_deg is not None and ap.lon_deg is not None:
@@ -420,11 +416,11 @@ class MissionManager:
                 f"(plan {outcome.plan.digest()})"
             )
             if ap.armed:
-                self.phase = Phase.MEETING
+                self._go(Step.MEET)
                 return [note, *self._confirm(mid)]
             self._steps = self._launch_steps()
-            self.phase = Phase.STARTING
-            return [note, *self._next()]
+            self._go(Step.PLANNED)
+            return [note, *self._next(now)]
         note = Log(
             f"mission {mid}: planned for fleet {fleet_ids} around {len(zones)} zone(s); {len(waypoints)} items for us"
         )
@@ -436,8 +432,8 @@ class MissionManager:
         else:
             steps.append(StartMission())
         self._steps = steps
-        self.phase = Phase.STARTING
-        return [note, *self._next()]
+        self._go(Step.PLANNED)
+        return [note, *self._next(now)]
 
     def vote(self) -> None:
         """Idle candidates synchronised for a QUANTITY mission vote (mission/tasking.py)."""
@@ -471,13 +467,13 @@ class MissionManager:
             f"of {len(follow.offsets)}"
         )
         if ap.armed:
-            self.phase = Phase.FOLLOWING
+            self._go(Step.FOLLOW)
             self.sortie.go(Trigger.STARTED)
             follow.begin(now)
             return [note, *self._confirm(mid)]
         self._steps = self._launch_steps()
-        self.phase = Phase.STARTING
-        return [note, *self._next()]
+        self._go(Step.PLANNED)
+        return [note, *self._next(now)]
 
     def _following(self, ap: AutopilotState, now: float) -> list[Out]:
         """MUM-T: our slot where the lead will be, every second; the end after the
@@ -492,9 +488,7 @@ class MissionManager:
             return [Log(f"mission {mid}: {why}"), Post(fsm.MissionComplete(mid))]
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         return [
-            Submit(
-                msgspec.structs.replace(r, request_id=next(self._ids)), self.owner, Owner.MISSION
-            )
+            Submit(msgspec.structs.replace(r, request_id=next(self._ids)), Owner.MISSION)
             for r in follow.step(ap, now, self.zones, home_alt)
         ]
 
@@ -563,8 +557,8 @@ class MissionManager:
             if now < sync.depart_unix_s - AP_POLL_S / 2:
                 return []
             self._steps = [StartMission()]
-            self.phase = Phase.STARTING
-            return self._next()
+            self._go(Step.DEPART)
+            return self._next(now)
         etas = fleet.entry_at if fleet is not None else {}
         gone = set(fleet.lost) | fleet.finished if fleet is not None else set()
         t = sync.ready(etas, gone, now)
@@ -580,24 +574,29 @@ class MissionManager:
                 f"{leg.speed_m_s:.1f} m/s, leaving in {sync.depart_unix_s - now:.1f} s, "
                 f"at our entry at {sync.meet_unix_s:.1f} ({sync.meet_unix_s - now:.1f} s)"
             )
-            self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap))]
+            self._steps = [UploadMission(items=self._load(self.transit.tight(waypoints), ap))]
         except (PlanningError, ValueError) as exc:  # fly the share as planned
             sync.stop()
             return self._fly_share_from_here(ap, now, f"no PREMISSION leg ({exc})")
-        return [note, *self._next()]
+        return [note, *self._next(now)]
 
     def _fly_share_from_here(self, ap: AutopilotState, now: float, why: str) -> list[Out]:
         """Climbed, without a meet: our share with an approach from where we are."""
         assert self.share is not None
         home_alt = ap.home.alt_msl_m if ap.home else 0.0
         try:
-            waypoints = self._with_approach(self.share.waypoints, ap, self.zones, now, home_alt)
+            waypoints = self.transit.with_approach(
+                self.share.waypoints, ap, self.zones, now, home_alt
+            )
         except (PlanningError, ValueError) as exc2:
             return self._abandon(f"approach: {exc2}")
         note = Log(f"mission {self.mission_id}: {why}; flying the share")
-        self._steps = [UploadMission(items=self._load(self._tight(waypoints), ap)), StartMission()]
-        self.phase = Phase.STARTING
-        return [note, *self._next()]
+        self._steps = [
+            UploadMission(items=self._load(self.transit.tight(waypoints), ap)),
+            StartMission(),
+        ]
+        self._go(Step.FROM_HERE)
+        return [note, *self._next(now)]
 
     def _abandon(self, reason: str) -> list[Out]:
         """The share cannot be flown after all: a plan the state machine has not taken
@@ -625,7 +624,7 @@ class MissionManager:
         self._fresh_reached = self._fresh_current = True
         self._reached = 0
         self.hold_s, self.hold_seq = 0.0, 0
-        self.phase = Phase.FLYING
+        self._go(Step.REATTACHED)
         self.reattached = True  # the autopilot past the last item: the share is flown
 
     def begin_replan(self, now: float | None = None) -> None:
@@ -635,7 +634,6 @@ class MissionManager:
             self.sortie.go(Trigger.REPLAN)
         if now is not None:
             self.agreement.begin(now)
-        self.owner = Owner.MISSION
         self._planning, self._held = None, None
         self.sync.stop()  # a replanned share is flown from where we are, without a meet
 
@@ -688,9 +686,9 @@ class MissionManager:
         less what was flown before the last replan)."""
         return max(0.0, self.sortie.progress_m - self._offset)
 
-    def _failed(self, mid: int, reason: str) -> list[Out]:
+    def _failed(self, mid: int, reason: str, detail: ReasonDetail | None = None) -> list[Out]:
         self.sortie.go(Trigger.FAILED)
-        return [Post(fsm.PlanFailed(mid, short_text(reason)))]
+        return [Post(fsm.PlanFailed(mid, short_text(reason), detail))]
 
     def _timed_hold(self, waypoints: Sequence[Waypoint], duration_s: float | None) -> None:
         """A mission with a duration that holds on an unlimited loiter (a fixed-wing's
@@ -705,105 +703,6 @@ class MissionManager:
                 self.last_item = max(self.last_item, i + 1)
                 return
 
-    def _tight(self, waypoints: Sequence[Waypoint]) -> tuple[Waypoint, ...]:
-        """Fixed-wing: every plain waypoint asks for FIXED_WING_ACCEPT_M acceptance."""
-        if not self.profile.is_fixed_wing:
-            return tuple(waypoints)
-        return tuple(
-            msgspec.structs.replace(w, acceptance_radius_m=FIXED_WING_ACCEPT_M)
-            if w.kind == ItemKind.WAYPOINT and w.acceptance_radius_m == 0.0
-            else w
-            for w in waypoints
-        )
-
-    def _with_approach(
-        self,
-        waypoints: tuple[Waypoint, ...],
-        ap: AutopilotState,
-        zones: Sequence[NoFlyZone],
-        now: float,
-        home_alt: float,
-    ) -> tuple[Waypoint, ...]:
-        """Prefix the leg from where the vehicle is to its first waypoint, around zones;
-        a fixed-wing's then made flyable from its pose (the leg's points and the plan's
-        first one, where the plan assumed it starts, may be skipped). The share's speed
-        is set before the leg (the leg is flown at the speed the flyable stage plans its
-        turns for), and the leg's first turn, flown while the aircraft is still at its
-        speed now, is planned at the radius of the faster of the two."""
-        first_at = next((i for i, w in enumerate(waypoints) if w.kind == ItemKind.WAYPOINT), None)
-        if first_at is None or ap.lat_deg is None or ap.lon_deg is None:
-            return waypoints
-        first = waypoints[first_at]
-        speed = next(
-            (i for i, w in enumerate(waypoints[:first_at]) if w.kind == ItemKind.CHANGE_SPEED),
-            None,
-        )
-        lead: tuple[Waypoint, ...] = ()
-        if speed is not None and self.profile.is_fixed_wing:
-            lead, waypoints = (waypoints[speed],), (*waypoints[:speed], *waypoints[speed + 1 :])
-            first_at -= 1
-        leg: list[Waypoint] = []
-        if zones:
-            now_m_s = flown_speed_m_s(ap)
-            if lead and lead[0].speed_m_s is not None:
-                now_m_s = max(now_m_s, lead[0].speed_m_s)
-            leg = self._transit(
-                (ap.lat_deg, ap.lon_deg),
-                ap.heading_deg,
-                (first.lat_deg, first.lon_deg),
-                first.alt_rel_m,
-                zones,
-                now,
-                home_alt,
-                speed_m_s=now_m_s,
-            )[:-1]
-        out = (*lead, *leg, *waypoints)
-        free = frozenset(range(len(lead) + len(leg))) | {len(lead) + len(leg) + first_at}
-        return fly_corners(
-            out,
-            self.profile,
-            zones,
-            start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
-            free=free,
-            now=now,
-            home_alt_msl_m=home_alt,
-        )
-
-    def _transit(
-        self,
-        start: tuple[float, float],
-        heading_deg: float,
-        end: tuple[float, float],
-        alt_rel_m: float,
-        zones: Sequence[NoFlyZone],
-        now: float,
-        home_alt: float,
-        speed_m_s: float | None = None,
-    ) -> list[Waypoint]:
-        """A zone-safe transit; a fixed-wing's entered along a Dubins path at the radius
-        of `speed_m_s` (what it flies now) with the planners' margin
-        (`flown_turn_radius_m`)."""
-        if self.profile.is_fixed_wing:
-            return fixed_wing_transit(
-                start,
-                heading_deg,
-                end,
-                alt_rel_m,
-                zones,
-                radius_m=flown_turn_radius_m(self.profile, speed_m_s),
-                now=now,
-                home_alt_msl_m=home_alt,
-            )
-        return safe_transit(
-            start,
-            end,
-            alt_rel_m,
-            zones,
-            now=now,
-            home_alt_msl_m=home_alt,
-            margin_m=self.transit_margin_m,
-        )
-
     def _launch_steps(self) -> list[ApRequest]:
         vt = self.profile.vehicle_type
         if vt in (VehicleType.ROVER, VehicleType.BOAT):
@@ -815,13 +714,72 @@ class MissionManager:
             Takeoff(alt_rel_m=self.takeoff_alt_m),
         ]  # StartMission after the climb
 
-    def _next(self) -> list[Out]:
+    def _next(self, now: float) -> list[Out]:
         if not self._steps:
             self._in_flight = None
             return []
         req = msgspec.structs.replace(self._steps.pop(0), request_id=next(self._ids))
         self._in_flight = req
-        return [Submit(req, self.owner, Owner.MISSION)]
+        return self._ask(req, now)
+
+    def _ask(self, req: ApRequest, now: float) -> list[Out]:
+        """Our next step to the arbiter, as the close pads fly it (pad_sequence.py): the
+        launch waits its turn, the way home ends on the own pad, whose landing answers
+        our Land at once."""
+        ap, pads = self._ap or AutopilotState(), self.pads
+        if isinstance(req, UploadMission):
+            req = self._in_flight = pads.upload(req, ap)
+            self.uploaded = req.items
+        elif isinstance(req, Arm):
+            held = pads.hold_launch(req, ap, now)
+            if held is not None:
+                return [held]
+        elif isinstance(req, ReturnToLaunch):
+            home = pads.home(ap)
+            if home is not None:
+                note, reqs = home
+                answer = ApResult(req.request_id, True, "home to its pad")
+                return [note, *self._pad_submit(reqs), *self.on_result(answer, now)]
+        elif isinstance(req, Land) and pads.answers_land:
+            return self.on_result(ApResult(req.request_id, True, "landing on its pad"), now)
+        elif isinstance(req, StartMission) and not self.suspended:
+            self._started = (req, now)
+        return [Submit(req, Owner.MISSION)]
+
+    def _pad_submit(self, reqs: Sequence[ApRequest]) -> list[Out]:
+        """The landing on the pad's own requests (their results to `pads`)."""
+        out: list[Out] = []
+        for r in reqs:
+            req = msgspec.structs.replace(r, request_id=next(self._ids))
+            self._pad_requests[req.request_id] = req
+            if isinstance(req, UploadMission):
+                self.uploaded = req.items
+            out.append(Submit(req, Owner.MISSION))
+        return out
+
+    def pads_tick(self, ap: AutopilotState, now: float) -> list[Out]:
+        """The close pads at the avoidance's 5 Hz (pad_sequence.py): the held launch let
+        go, the landing's gate."""
+        launched, out, reqs = self.pads.tick(ap, now)
+        if launched is not None:
+            out.append(Submit(launched, Owner.MISSION))
+        return out + self._pad_submit(reqs)
+
+    def on_suspended(self, on: bool, now: float) -> list[Out]:
+        """Avoidance suspended us (the arbiter holds our flight requests meanwhile) or
+        gave the autopilot back. A StartMission of ours the autopilot's state may not
+        show yet (a VTOL's PREMISSION leg sent from its hover over the pad) is asked
+        again, held: the manoeuvre's resume, going back to the mode it saw, would put
+        it back in GUIDED over the pad for good (a mixed demo's VTOL hovered there)."""
+        self.suspended = self.pads.suspended = on
+        if not on:
+            self.pads.resumed()
+            return []
+        started, self._started = self._started, None
+        ap = self._ap
+        if started is None or now - started[1] > START_SEEN_S or ap is None:
+            return []
+        return [Submit(started[0], Owner.MISSION)] if ap.mode_name != "AUTO" else []
 
     # ------------------------------------------------------------------ return
     def start_return(self, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float) -> list[Out]:
@@ -829,7 +787,8 @@ class MissionManager:
         zone-safe waypoints to above home, then RTL (whose landing the autopilot or
         `on_autopilot` completes). Without zones in the way, plain RTL."""
         self.mission_id = fsm.RETURN_MISSION
-        self.phase, self._approach = Phase.RETURNING, None
+        self._approach = None
+        self._go(Step.RETURN)
         self._planning, self._held = None, None  # a plan job still running is abandoned
         self.agreement.end()
         self.sortie.go(Trigger.RETURN)
@@ -843,15 +802,17 @@ class MissionManager:
             return [*done]
         if not zones or home is None or ap.lat_deg is None or ap.lon_deg is None or not ap.armed:
             self._steps = [ReturnToLaunch()]
-            return [*done, *self._next()]
+            return [*done, *self._next(now)]
         try:
-            leg = self._transit_from(ap, (home.lat_deg, home.lon_deg), zones, now, home.alt_msl_m)
+            leg = self.transit.from_here(
+                ap, (home.lat_deg, home.lon_deg), zones, now, home.alt_msl_m
+            )
         except (PlanningError, ValueError):
             leg = []
         note: list[Out] = []
         if len(leg) > 1:
             try:
-                leg = list(self._flyable_leg(leg, ap, zones, now, home.alt_msl_m))
+                leg = list(self.transit.flyable_leg(leg, ap, zones, now, home.alt_msl_m))
             except (PlanningError, ValueError) as exc:  # the zone-safe legs, as planned
                 note = [Log(f"return: no flyable turns ({exc}); flying the legs as they are")]
         if len(leg) <= 1:  # nothing in the way: plain RTL
@@ -860,59 +821,15 @@ class MissionManager:
             self.items = len(leg) + 2
             self.last_item = self.items - 1
             self._steps = [
-                UploadMission(items=(*self._tight(leg), Waypoint(ItemKind.RTL))),
+                UploadMission(items=(*self.transit.tight(leg), Waypoint(ItemKind.RTL))),
                 StartMission(),
             ]
-        return [*done, *note, *self._next()]
-
-    def _transit_from(
-        self,
-        ap: AutopilotState,
-        there: tuple[float, float],
-        zones: Sequence[NoFlyZone],
-        now: float,
-        home_alt: float,
-    ) -> list[Waypoint]:
-        """A zone-safe leg from where the vehicle is to `there`, at its current height
-        (at least 30 m above home)."""
-        assert ap.lat_deg is not None and ap.lon_deg is not None
-        alt = max(ap.alt_rel_m or 0.0, 30.0)
-        return self._transit(
-            (ap.lat_deg, ap.lon_deg),
-            ap.heading_deg,
-            there,
-            alt,
-            zones,
-            now,
-            home_alt,
-            speed_m_s=flown_speed_m_s(ap),
-        )
-
-    def _flyable_leg(
-        self,
-        leg: Sequence[Waypoint],
-        ap: AutopilotState,
-        zones: Sequence[NoFlyZone],
-        now: float,
-        home_alt: float,
-    ) -> tuple[Waypoint, ...]:
-        """A transit leg (its end included) a fixed-wing can fly from where it is: its
-        points but the end may be skipped."""
-        if ap.lat_deg is None or ap.lon_deg is None:
-            return tuple(leg)
-        return fly_corners(
-            leg,
-            self.profile,
-            zones,
-            start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
-            free=frozenset(range(len(leg) - 1)),
-            now=now,
-            home_alt_msl_m=home_alt,
-            speed_m_s=flown_speed_m_s(ap),
-        )
+        return [*done, *note, *self._next(now)]
 
     def stop(self, trigger: Trigger = Trigger.STOP) -> None:
-        self.phase, self.mission_id, self._steps, self._in_flight = Phase.IDLE, None, [], None
+        self._go(Step.STOP)
+        self.mission_id, self._steps, self._in_flight = None, [], None
+        self.pads.stop()
         self.reattached = False
         self._planning, self._held = None, None  # a plan job still running is abandoned
         self.share, self._share_index, self._offset = None, (), 0.0
@@ -928,8 +845,8 @@ class MissionManager:
         own return)."""
         self.stop()
         self.sortie.go(Trigger.PARACHUTE if phase == Phase.PARACHUTE else Trigger.TAKE_OVER)
-        self.owner = Owner.OPERATOR  # landing the recalled vehicle is the operator's work
-        self.phase, self.mission_id = phase, fsm.RETURN_MISSION
+        self._go(TAKE_OVER[phase])
+        self.mission_id = fsm.RETURN_MISSION
 
     @property
     def landing(self) -> bool:
@@ -941,22 +858,17 @@ class MissionManager:
         """Landing now (the way home's last stage): a new mission waits for the landing."""
         return self.phase == Phase.LANDING
 
-    def landing_route(
-        self, point: GeoPoint, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float
-    ) -> tuple[ApRequest, ...]:
-        """An emergency landing at `point` (paper section 3.5.1: "if the landing route has
-        been specified"): a zone-safe leg from here at the current altitude (at least
-        30 m), then a landing item there, flown in AUTO."""
-        home = ap.home
-        if home is None or ap.lat_deg is None or ap.lon_deg is None:
-            raise PlanningError("no position or home")
-        leg = self._transit_from(ap, (point.lat_deg, point.lon_deg), zones, now, home.alt_msl_m)
-        leg = list(self._flyable_leg(leg, ap, zones, now, home.alt_msl_m))
-        land = Waypoint(ItemKind.LAND, point.lat_deg, point.lon_deg, 0.0)
-        return (UploadMission(items=(*self._tight(leg[:-1]), land)), StartMission())
-
     # ------------------------------------------------------------------ inputs
     def on_result(self, result: ApResult, now: float) -> list[Out]:
+        pad = self._pad_requests.pop(result.request_id, None)
+        if pad is not None:
+            if result.ok:
+                return []
+            out, fallback = self.pads.failed(pad, result.reason, now)
+            if fallback:  # its result is not waited for
+                rtl = ReturnToLaunch(request_id=next(self._ids))
+                out.append(Submit(rtl, Owner.MISSION))
+            return out
         done = self._in_flight
         if done is None or result.request_id != done.request_id:
             return []
@@ -966,7 +878,7 @@ class MissionManager:
             phase = self.phase
             if phase == Phase.RETURNING and not isinstance(done, ReturnToLaunch):
                 self._steps = [ReturnToLaunch()]  # the zone-safe way home failed: plain RTL
-                return self._next()
+                return self._next(now)
             if phase in (Phase.STARTING, Phase.MEETING):
                 return self._abandon(f"autopilot: {result.reason}")
             self.stop()
@@ -981,18 +893,18 @@ class MissionManager:
                 return again
         if self.phase == Phase.STARTING and not self._steps:
             if isinstance(done, Takeoff):
-                self.phase = Phase.CLIMBING  # the mission starts once it has climbed
+                self._go(Step.TOOK_OFF)  # the mission starts once it has climbed
                 # the plan is flown from the take-off: the climb (held level for
                 # minutes by avoidance under a fleet taking off at close pads) and a
                 # PREMISSION's meet would otherwise count against the state machine's
                 # plan timeout (a demo vehicle was sent home from 46 m)
                 return self._confirm(mid)
             if isinstance(done, StartMission):
-                self.phase = Phase.FLYING
+                self._go(Step.STARTED)
                 if not self.sync.flying_leg:  # PREMISSION: MISSION from the entry on
                     self.sortie.go(Trigger.STARTED)
                 return self._confirm(mid)
-        return self._next()
+        return self._next(now)
 
     def _approach_again(self, now: float) -> list[Out]:
         """The share is uploaded but the vehicle has flown on meanwhile (its upload held
@@ -1010,7 +922,9 @@ class MissionManager:
         if moved <= self._approach_slack_m() or tries >= 3:
             return []
         try:
-            waypoints = self._tight(self._with_approach(base, ap, zones, now, home_alt))
+            waypoints = self.transit.tight(
+                self.transit.with_approach(base, ap, zones, now, home_alt)
+            )
         except (PlanningError, ValueError):
             return []  # keep the approach we have
         self._approach = (base, zones, home_alt, ap.lat_deg, ap.lon_deg, tries + 1)
@@ -1021,7 +935,7 @@ class MissionManager:
                 f"mission {mid}: moved {moved:.0f} m while uploading; approach planned "
                 "again from here"
             ),
-            *self._next(),
+            *self._next(now),
         ]
 
     def _approach_slack_m(self) -> float:
@@ -1032,10 +946,15 @@ class MissionManager:
         return 10.0
 
     def on_autopilot(
-        self, ap: AutopilotState, now: float, fleet: Roster | None = None
+        self,
+        ap: AutopilotState,
+        now: float,
+        fleet: Roster | None = None,
+        base: GeoPoint | None = None,
     ) -> list[Out]:
         """`fleet`: the mission's roster (the members' published ETAs, progress and
-        hashes: PREMISSION, the MISSION speed rule, the agreement on a replan)."""
+        hashes: PREMISSION, the MISSION speed rule, the agreement on a replan); `base`:
+        the operator's (the autopilot's rally point)."""
         self._ap = ap
         if fleet is not None and self.sortie.state == MissionState.REPLAN:
             agreed = self._agree(ap, now, fleet)
@@ -1051,16 +970,16 @@ class MissionManager:
         if self.phase == Phase.CLIMBING:
             if (ap.alt_rel_m or 0.0) >= CLIMB_FRACTION * self.takeoff_alt_m:
                 if self.follow is not None and self.mission_id is not None:
-                    self.phase = Phase.FOLLOWING
+                    self._go(Step.FOLLOW)
                     self.sortie.go(Trigger.STARTED)
                     self.follow.begin(now)
                     return self._confirm(self.mission_id)
                 if self.sync.active:
-                    self.phase = Phase.MEETING
+                    self._go(Step.MEET)
                     return self._meet(ap, fleet, now)
-                self.phase = Phase.STARTING
+                self._go(Step.CLIMBED)
                 self._steps = [StartMission()]
-                return self._next()
+                return self._next(now)
         elif self.phase == Phase.MEETING:
             return self._meet(ap, fleet, now)
         elif self.phase == Phase.FOLLOWING:
@@ -1071,7 +990,7 @@ class MissionManager:
             # RTL flies to the nearer of home and the rally point (the base: ArduPilot's
             # RALLY_INCL_HOME): land near either (a VTOL whose home is far from the base
             # circled the base for ever)
-            places = [p for p in (ap.home, self.base) if p is not None]
+            places = [p for p in (ap.home, base) if p is not None]
             if (
                 places
                 and ap.lat_deg is not None
@@ -1079,10 +998,10 @@ class MissionManager:
                 and min(distance_m(ap.lat_deg, ap.lon_deg, p.lat_deg, p.lon_deg) for p in places)
                 < self.land_radius_m
             ):
-                self.phase = Phase.LANDING
+                self._go(Step.NEAR_HOME)
                 ground = self.profile.vehicle_type in (VehicleType.ROVER, VehicleType.BOAT)
                 self._steps = [Land(), Disarm()] if ground else [Land()]
-                return self._next()
+                return self._next(now)
         return []
 
     def _flying(self, ap: AutopilotState, now: float, fleet: Roster | None = None) -> list[Out]:
@@ -1142,7 +1061,7 @@ class MissionManager:
         current = ap.mission_current if self._fresh_current else 0
         if turn is not None and self._in_flight is None and turn.release(current, fleet, now):
             self._steps = [StartMission(first_item=turn.hold_seq + 1)]
-            return [Log(f"mission {self.mission_id}: our turn to land"), *self._next()]
+            return [Log(f"mission {self.mission_id}: our turn to land"), *self._next(now)]
         if not self._fresh_current or ap.armed or (ap.alt_rel_m or 0.0) >= 2.0:
             return []
         self.sortie.finish()  # peers see it in our VehicleInfo: the next may land
@@ -1182,7 +1101,7 @@ class MissionManager:
             )
         if speed is not None:
             req = ChangeSpeed(request_id=next(self._ids), speed_m_s=speed)
-            out.append(Submit(req, self.owner, Owner.MISSION))
+            out.append(Submit(req, Owner.MISSION))
         return out
 
     def _leg_overdue(self, ap: AutopilotState, now: float, late_s: float) -> list[Out]:
@@ -1264,14 +1183,6 @@ def share_index_of_items(
                 break
         out.append(k)
     return tuple(out)
-
-
-def flown_speed_m_s(ap: AutopilotState) -> float:
-    """The speed a vehicle flies now, for the radius of its next turn: the faster of its
-    airspeed and groundspeed (a tailwind widens the turn over the ground); 0 when
-    unknown or not finite."""
-    v = max(ap.airspeed_m_s, ap.groundspeed_m_s)
-    return v if math.isfinite(v) and v > 0.0 else 0.0
 
 
 def along_path(ap: AutopilotState, waypoints: Sequence[Waypoint]) -> tuple[float, ...]:

@@ -22,7 +22,7 @@ A link that never came up is not a loss: "no autopilot yet" is a WARNING after
 
 from __future__ import annotations
 
-from collections.abc import MutableMapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from swarm_proto import (
@@ -135,8 +135,8 @@ class _Tracked:
 class VehicleMonitor:
     vehicle_id: int
     thresholds: Thresholds = field(default_factory=Thresholds)
-    # and operating areas: the node's one zone book (any mapping of zones will do)
-    zones: MutableMapping[int, NoFlyZone] = field(default_factory=ZoneBook)
+    # and operating areas: the node's one zone book, read (the declared book keeps it)
+    zones: Mapping[int, NoFlyZone] = field(default_factory=ZoneBook)
     _tracked: dict[AlertCode, _Tracked] = field(default_factory=dict)
     _had_gps: bool = False
     _had_ekf: bool = False
@@ -148,6 +148,7 @@ class VehicleMonitor:
     ready: bool = False
     vehicle_type: VehicleType | None = None  # the node's identity (None: not checked)
     _mismatch_text: str | None = None
+    state: AutopilotState = field(default_factory=AutopilotState)  # the latest reported
 
     def note_stall(self, seconds: float) -> None:
         """The node was not served for `seconds` (its own stall, a loaded host): a link
@@ -207,7 +208,9 @@ class VehicleMonitor:
         return breach(self.zones.values(), s.lat_deg, s.lon_deg, alt, now)
 
     def update(self, s: AutopilotState, now: float) -> list[Alert]:
-        """Alerts raised (with their severity) or cleared (CONDITION_CLEARED) now."""
+        """The vehicle's latest state: alerts raised (with their severity) or cleared
+        (CONDITION_CLEARED) now."""
+        self.state = s
         seen = self._observe(s, now)
         out: list[Alert] = []
         tracked = self._tracked

@@ -1,64 +1,75 @@
-"""The one output vocabulary of the node's modules (and of NodeCore itself):
+"""The one output vocabulary of the node's modules. A module returns a list of these;
+NodeCore routes each to the module that owns what it is about (node.py, `_route`), or
+to the shell. Modules talk to each other only this way.
+
+To the shell (`Output`):
 
     Publish(msg)               a swarm message to publish
-    Submit(owner, request)     an autopilot request on behalf of `owner` (the arbiter
-                               gives it its id and routes its result back to the owner)
-    Post(event)                an event for the swarm state machine
+    Submit(request, owner)     an autopilot request, once the arbiter has ruled on it
     Note(level, text)          a log line
     PlanJob(request)           planning to run off the control loop (mission/share.py)
     Persist(state, sortie)     the declared state to store (it survives a restart)
 
-A module returns a list of these; NodeCore routes them: `Post` to the state machine,
-`Submit` through the `AutopilotArbiter`, the rest to the shell.
+Inside the node:
+
+    Submit(request, owner)     an autopilot request of `owner`: the arbiter gives it its
+                               id, rules on it and routes its result back to the owner
+    Claim / Release / Suspend / Delegate
+                               control of the autopilot (the arbiter's inputs, defined
+                               in arbiter.py)
+    Post(event)                an event for the swarm state machine (its owner: the
+                               mission coordinator)
+    Answer(ack)                an ack to publish that answers repeats of what it
+                               answers (the operator desk remembers it)
+    Declared(msg)              a declaration every node keeps (a declaring command, a
+                               mission accepted), to the declarations
+    Ended(mission_id)          a mission no longer in force, to the declarations
+    Accepted(mission)          a mission that passed the acceptance checks: in force
+    Candidacy(mission)         a QUANTITY mission that passed them: tasking answers it
+    Regrouping(cmd)            JOIN_MISSION / SWAP_MISSION addressed to this vehicle
+    Heard(msg)                 a message to take as if heard (a mission a target report
+                               derived)
+    SetBase, SetFleet, LeftFleet
+                               this vehicle's base and fleet, to the declarations
+    SetActive(active)          the operator's active flag (the state machine's Shutdown)
+    TakeOver, StopLanding      the operator flies the vehicle: to the mission manager
+    BeginEmergency             to the emergency procedure
+    PeerLost(vid, why)         a peer left the swarm: avoidance, the roster
+    Stalled(seconds)           the node's own stall: vehicle monitoring (not a link loss)
+    PublishInfo()              publish our VehicleInfo now, not at the next second
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum
 from typing import TYPE_CHECKING
 
 import msgspec
 
-from .autopilot.requests import ApRequest
+from swarm_proto import AlertCode, Command, GeoPoint, Mission, Severity
+
+# the arbiter's inputs, re-exported: every module's output vocabulary is here
+from .arbiter import Claim as Claim
+from .arbiter import Delegate as Delegate
+from .arbiter import Owner as Owner
+from .arbiter import Release as Release
+from .arbiter import Submit as Submit
+from .arbiter import Suspend as Suspend
+from .arbiter import ToArbiter
+from .mission.phases import Phase
 from .mission.share import PlanRequest
 
 if TYPE_CHECKING:
-    from swarm_proto import DeclaredState
+    from swarm_proto import Ack, DeclaredState
 
     from . import state_machine as fsm
     from .declared import SortieRecord
 
 
-class Owner(IntEnum):
-    """Who asks the autopilot, in precedence order (higher wins control)."""
-
-    FENCE = 1
-    MISSION = 2
-    OPERATOR = 3
-    AVOIDANCE = 4
-    EMERGENCY = 5
-
-
+# ----------------------------------------------------------------------- to the shell
 @dataclass(frozen=True)
 class Publish:
     msg: msgspec.Struct
-
-
-@dataclass(frozen=True)
-class Submit:
-    """`owner` ranks the request (precedence); `route` (default: the owner) is the
-    module its result goes back to: the mission manager landing a vehicle the operator
-    recalled asks with the operator's rank and gets the answer itself."""
-
-    request: ApRequest
-    owner: Owner = Owner.OPERATOR
-    route: Owner | None = None
-
-
-@dataclass(frozen=True)
-class Post:
-    event: fsm.Event
 
 
 @dataclass(frozen=True)
@@ -87,4 +98,120 @@ class Persist:
     sortie: SortieRecord | None = None
 
 
-ModuleOutput = Publish | Submit | Post | Note | PlanJob | Persist
+# ----------------------------------------------------------------------- between modules
+@dataclass(frozen=True)
+class Post:
+    event: fsm.Event
+
+
+@dataclass(frozen=True)
+class Answer:
+    ack: Ack
+
+
+@dataclass(frozen=True)
+class Declared:
+    msg: Command | Mission
+
+
+@dataclass(frozen=True)
+class Ended:
+    mission_id: int
+
+
+@dataclass(frozen=True)
+class Accepted:
+    mission: Mission
+
+
+@dataclass(frozen=True)
+class Candidacy:
+    mission: Mission
+
+
+@dataclass(frozen=True)
+class Regrouping:
+    command: Command
+
+
+@dataclass(frozen=True)
+class Heard:
+    msg: msgspec.Struct
+
+
+@dataclass(frozen=True)
+class SetBase:
+    point: GeoPoint
+
+
+@dataclass(frozen=True)
+class SetFleet:
+    fleet_id: int
+
+
+@dataclass(frozen=True)
+class LeftFleet:
+    """This vehicle left its fleet (the state machine's LeaveFleet): fleet 0."""
+
+
+@dataclass(frozen=True)
+class SetActive:
+    active: bool
+
+
+@dataclass(frozen=True)
+class TakeOver:
+    """The operator's command flies the vehicle out of its mission: the mission manager
+    only watches for the landing (`phase`), the state machine gets `Recalled`."""
+
+    reason: str
+    phase: Phase
+
+
+@dataclass(frozen=True)
+class StopLanding:
+    """ABORT_LANDING: the mission manager stops bringing the vehicle down."""
+
+
+@dataclass(frozen=True)
+class BeginEmergency:
+    code: AlertCode
+    severity: Severity
+
+
+@dataclass(frozen=True)
+class PeerLost:
+    vehicle_id: int
+    why: str
+
+
+@dataclass(frozen=True)
+class Stalled:
+    seconds: float
+
+
+@dataclass(frozen=True)
+class PublishInfo:
+    pass
+
+
+# the routing table: which module takes which output (NodeCore._route)
+Output = Publish | Submit | Note | PlanJob | Persist  # to the shell (a Submit once ruled on)
+ToShell = Publish | Note | PlanJob | Persist
+ToMission = Post | Accepted | Candidacy | Regrouping | TakeOver | StopLanding  # the coordinator
+ToDeclarations = Declared | Ended | SetBase | SetFleet | LeftFleet
+ToOperator = Answer | SetActive  # the operator desk
+# and: PeerLost (avoidance and the roster), Stalled (monitoring), BeginEmergency (the
+# emergency procedure), Heard, PublishInfo (NodeCore itself)
+ModuleOutput = (
+    ToShell
+    | ToArbiter
+    | ToMission
+    | ToDeclarations
+    | ToOperator
+    | PeerLost
+    | Stalled
+    | BeginEmergency
+    | Heard
+    | PublishInfo
+)

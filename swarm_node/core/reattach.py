@@ -27,7 +27,7 @@ The same hand-on applies to a node that was stopped (SIGSTOP, a frozen host) lon
 enough for its fleet to replan without it: `dropped` tells it from a peer's members
 hash (the next roster generation without this vehicle).
 
-Pure: inputs and `now` in, `ModuleOutput`s out (requests as `Submit(owner FENCE)`:
+Pure: inputs and `now` in, `ModuleOutput`s out (requests as `Submit(owner REATTACH)`:
 downloads never take control of the vehicle).
 """
 
@@ -42,6 +42,7 @@ from enum import Enum
 import msgspec
 
 from swarm_proto import Alert, AlertCode, FsmState, Severity, VehicleInfo
+from swarm_proto.text import short_text
 
 from .autopilot.mission_item import MavCmd, MissionItem
 from .autopilot.requests import ApResult, DownloadMission, MissionKind
@@ -50,7 +51,6 @@ from .declared import SortieRecord
 from .outputs import ModuleOutput, Note, Owner, Publish, Submit
 from .swarm.roster import members_hash
 
-REATTACH_FIRST_REQUEST_ID = 4_000_000  # backstop.py: 3_000_000+
 SETTLE_S = 2.5  # hear every peer's VehicleInfo (1 Hz) before deciding
 GIVE_UP_S = 60.0  # no state machine ready by then: leave the vehicle to the operator
 RETRY_S = 3.0
@@ -138,12 +138,7 @@ class Reattacher:
     _due: float = 0.0
     _give_up_at: float = 0.0
     _in_flight: int | None = None
-    _ids: itertools.count[int] = field(
-        default_factory=lambda: itertools.count(REATTACH_FIRST_REQUEST_ID)
-    )
-
-    def owns(self, request_id: int) -> bool:
-        return request_id >= REATTACH_FIRST_REQUEST_ID
+    _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
     def start(self, record: SortieRecord | None, now: float) -> None:
         """The node started (its database read): reattach if the vehicle flies."""
@@ -166,7 +161,7 @@ class Reattacher:
     def _read(self, now: float) -> list[ModuleOutput]:
         rid = next(self._ids)
         self._in_flight = rid
-        return [Submit(DownloadMission(kind=MissionKind.MISSION, request_id=rid), Owner.FENCE)]
+        return [Submit(DownloadMission(kind=MissionKind.MISSION, request_id=rid), Owner.REATTACH)]
 
     def on_result(self, result: ApResult, now: float) -> list[ModuleOutput]:
         if result.request_id != self._in_flight:
@@ -210,7 +205,9 @@ class Reattacher:
         severity = Severity.INFO if decision == Decision.CONTINUE else Severity.WARNING
         return [
             Note(logging.WARNING, f"{text} ({why})"),
-            Publish(Alert(self.vehicle_id, max(0.0, now), severity, AlertCode.GENERIC, text[:64])),
+            Publish(
+                Alert(self.vehicle_id, max(0.0, now), severity, AlertCode.GENERIC, short_text(text))
+            ),
         ]
 
     def next_deadline(self) -> float | None:

@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
 
-from swarm_proto import AlertCode, FsmState, Severity
+from swarm_proto import AlertCode, FsmState, ReasonDetail, Severity
 from swarm_proto.text import short_text
 
 TICK_S = 0.2  # 5 Hz
@@ -92,6 +92,7 @@ class PlanSucceeded:
 class PlanFailed:
     mission_id: int
     reason: str = ""
+    detail: ReasonDetail | None = None  # the reason's numbers, for the alert
 
 
 @dataclass(frozen=True)
@@ -235,6 +236,7 @@ class RaiseAlert:
     code: AlertCode
     severity: Severity
     text: str
+    detail: ReasonDetail | None = None
 
 
 @dataclass(frozen=True)
@@ -504,7 +506,10 @@ RULES: tuple[Rule, ...] = (
         guard=_is_current,
         outputs=lambda c: (
             RaiseAlert(
-                AlertCode.PLAN_FAILED, Severity.WARNING, short_text(getattr(c.event, "reason", ""))
+                AlertCode.PLAN_FAILED,
+                Severity.WARNING,
+                short_text(getattr(c.event, "reason", "")),
+                getattr(c.event, "detail", None),
             ),
             LeaveFleet("planning failed"),
             ReturnHome("planning failed"),

@@ -56,6 +56,7 @@ from swarm_proto import (
 from swarm_proto.clock import SteadyClock
 from swarm_proto.errors import DecodeError
 from swarm_proto.session import SwarmBus
+from swarm_proto.text import short_text
 from swarm_proto.topics import (
     ACK,
     COMMAND,
@@ -429,7 +430,7 @@ class NodeRuntime:
                         max(0.0, now),
                         Severity.WARNING,
                         AlertCode.GENERIC,
-                        text[:64],
+                        short_text(text),
                     )
                 )
             ]

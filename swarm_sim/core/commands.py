@@ -9,19 +9,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from . import mission_runner, telemetry
 from . import streams as S
+from . import telemetry
 from .airframes import VehicleModel
 from .firmware import SEV_INFO, SEV_NOTICE, Behaviour, Firmware, mode_number
-from .mission import GLOBAL_FRAMES, Peer
+from .mission import GLOBAL_FRAMES, MAX_ALT_M, Peer
 from .navigation import Hold, Idle, Purpose, Sequence, Takeoff
-
-if TYPE_CHECKING:
-    from .autopilot import SimAutopilot
+from .vehicle import Vehicle
 
 # MAV_RESULT
 ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
@@ -31,7 +29,6 @@ DISARM_FORCE_MAGIC = 21196.0
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 MAV_MODE_FLAG_DECODE_POSITION_SAFETY = 128
 MAV_DO_REPOSITION_FLAGS_CHANGE_MODE = 1
-MAX_ALT_M = 50_000.0  # altitudes beyond this in a command are refused as bad input
 
 # commands and messages ArduPilot handles without doing anything the simulator models
 ACCEPTED_NOOP_COMMANDS = {115, 183, 184, 181, 182, 201, 195, 197, 203, 206, 2000, 2001, 2500, 2501}
@@ -64,7 +61,7 @@ class Cmd:
 COMMAND_LONG_FRAME = {22: 3, 84: 3, 179: 0}
 
 
-def on_command_long(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
+def on_command_long(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     cmd = Cmd(
         command=int(msg.command),
         p1=msg.param1,
@@ -78,10 +75,10 @@ def on_command_long(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
         is_int=False,
         src=src,
     )
-    run_command(ap, cmd)
+    run_command(v, cmd)
 
 
-def on_command_int(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
+def on_command_int(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     cmd = Cmd(
         command=int(msg.command),
         p1=msg.param1,
@@ -95,55 +92,55 @@ def on_command_int(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
         is_int=True,
         src=src,
     )
-    run_command(ap, cmd)
+    run_command(v, cmd)
 
 
-def run_command(ap: SimAutopilot, cmd: Cmd) -> None:
-    mark = len(ap._out)
+def run_command(v: Vehicle, cmd: Cmd) -> None:
+    mark = v.out.mark()
     handler = COMMANDS.get(cmd.command)
     if handler is None:
         result = ACCEPTED if cmd.command in ACCEPTED_NOOP_COMMANDS else UNSUPPORTED
     else:
-        result = handler(ap, cmd)
+        result = handler(v, cmd)
     ack = mavlink.MAVLink_command_ack_message(
         cmd.command, result, 0, 0, cmd.src.sysid, cmd.src.compid
     )
     if result == ACCEPTED:
-        ap._out.insert(mark, ack)  # ACK first, then what the command caused
+        v.out.insert_at(mark, ack)  # ACK first, then what the command caused
     else:
-        ap._out.append(ack)  # the reason (STATUSTEXT) first, then the NAK
-    ap.counters[f"cmd:{cmd.command}:{result}"] += 1
+        v.out.send(ack)  # the reason (STATUSTEXT) first, then the NAK
+    v.counters[f"cmd:{cmd.command}:{result}"] += 1
 
 
-def cmd_set_mode(ap: SimAutopilot, cmd: Cmd) -> int:
-    return set_mode_common(ap, int(cmd.p1), int(cmd.p2))
+def cmd_set_mode(v: Vehicle, cmd: Cmd) -> int:
+    return set_mode_common(v, int(cmd.p1), int(cmd.p2))
 
 
-def set_mode_common(ap: SimAutopilot, base: int, custom: int) -> int:
+def set_mode_common(v: Vehicle, base: int, custom: int) -> int:
     if base & MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-        return ACCEPTED if ap._set_mode(custom) else FAILED
+        return ACCEPTED if v.modes.set_mode(custom) else FAILED
     if base == MAV_MODE_FLAG_DECODE_POSITION_SAFETY:
         return ACCEPTED if custom in (0, 1) else DENIED
     return DENIED
 
 
-def cmd_arm_disarm(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_arm_disarm(v: Vehicle, cmd: Cmd) -> int:
     if cmd.p1 == 1.0:
-        return ACCEPTED if ap._arm(force=cmd.p2 == ARM_FORCE_MAGIC) else FAILED
+        return ACCEPTED if v.arming.arm(v.modes.spec, force=cmd.p2 == ARM_FORCE_MAGIC) else FAILED
     if cmd.p1 == 0.0:
-        if not ap.armed:
+        if not v.arming.armed:
             return ACCEPTED
-        if ap._flying() and cmd.p2 != DISARM_FORCE_MAGIC:
+        if v.navigator.flying() and cmd.p2 != DISARM_FORCE_MAGIC:
             return FAILED
-        ap._disarm()
-        if ap._flying():
-            ap._set_nav(Idle())
+        v.arming.disarm()
+        if v.navigator.flying():
+            v.navigator.set(Idle())
         return ACCEPTED
     return DENIED
 
 
-def cmd_takeoff(ap: SimAutopilot, cmd: Cmd) -> int:
-    fw = ap.firmware
+def cmd_takeoff(v: Vehicle, cmd: Cmd) -> int:
+    fw, nav, b = v.firmware, v.navigator, v.body
     if fw == Firmware.ROVER or (cmd.command == 84 and fw == Firmware.PLANE):
         return UNSUPPORTED
     if not math.isfinite(cmd.z) or abs(cmd.z) > MAX_ALT_M:
@@ -151,8 +148,8 @@ def cmd_takeoff(ap: SimAutopilot, cmd: Cmd) -> int:
     if fw == Firmware.COPTER:
         if cmd.frame not in (3, 6):
             return DENIED
-        alt = ap.home_alt + cmd.z
-        spec = ap.mode_spec
+        alt = v.home.alt + cmd.z
+        spec = v.modes.spec
         supports = spec.name in (
             "GUIDED",
             "LOITER",
@@ -163,12 +160,12 @@ def cmd_takeoff(ap: SimAutopilot, cmd: Cmd) -> int:
             "ZIGZAG",
             "GUIDED_NOGPS",
         )
-        if not ap.armed or not ap.body.on_ground or not supports or alt <= ap.body.alt:
+        if not v.arming.armed or not b.on_ground or not supports or alt <= b.alt:
             return FAILED
         if spec.behaviour == Behaviour.GUIDED:
-            ap._set_nav(Takeoff(alt, vtol=True), Purpose.GUIDED_TAKEOFF)
+            nav.set(Takeoff(alt, vtol=True), Purpose.GUIDED_TAKEOFF)
         else:
-            ap._set_nav(Sequence([Takeoff(alt, vtol=True), Hold(ap.body.n, ap.body.e, alt)]))
+            nav.set(Sequence([Takeoff(alt, vtol=True), Hold(b.n, b.e, alt)]))
         return ACCEPTED
     # ArduPlane: QuadPlane only, COMMAND_INT in MAV_FRAME_LOCAL_OFFSET_NED (z down)
     if cmd.is_int:
@@ -177,177 +174,177 @@ def cmd_takeoff(ap: SimAutopilot, cmd: Cmd) -> int:
         height = -cmd.z
     else:
         height = cmd.z
-    if ap.model != VehicleModel.VTOL:
+    if v.airframe.model != VehicleModel.VTOL:
         return FAILED
-    if ap.mode_spec.behaviour != Behaviour.GUIDED:
-        ap._text(SEV_INFO, "User Takeoff only in GUIDED mode")
+    if v.modes.behaviour != Behaviour.GUIDED:
+        v.out.text(SEV_INFO, "User Takeoff only in GUIDED mode")
         return FAILED
-    if not ap.armed:
-        ap._text(SEV_INFO, "Must be armed for takeoff")
+    if not v.arming.armed:
+        v.out.text(SEV_INFO, "Must be armed for takeoff")
         return FAILED
-    if ap._flying():
-        ap._text(SEV_INFO, "Already flying - no takeoff")
+    if nav.flying():
+        v.out.text(SEV_INFO, "Already flying - no takeoff")
         return FAILED
-    ap._set_nav(Takeoff(ap.home_alt + height, vtol=True), Purpose.GUIDED_TAKEOFF)
+    nav.set(Takeoff(v.home.alt + height, vtol=True), Purpose.GUIDED_TAKEOFF)
     return ACCEPTED
 
 
-def cmd_reposition(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_reposition(v: Vehicle, cmd: Cmd) -> int:
     if not cmd.is_int:
         return UNSUPPORTED  # ArduPilot takes DO_REPOSITION as COMMAND_INT only
     if not (-90 <= cmd.x <= 90 and -180 <= cmd.y <= 180) or (cmd.x == 0 and cmd.y == 0):
         return DENIED
-    alt = ap._alt_from_frame(cmd.frame, cmd.z)
+    alt = v.home.alt_from_frame(cmd.frame, cmd.z)
     if alt is None:
         return DENIED
     change_mode = int(cmd.p2) & MAV_DO_REPOSITION_FLAGS_CHANGE_MODE if math.isfinite(cmd.p2) else 0
-    in_guided = ap.mode_spec.behaviour == Behaviour.GUIDED
-    if ap.firmware == Firmware.PLANE:
+    in_guided = v.modes.behaviour == Behaviour.GUIDED
+    guided = mode_number(v.firmware, "GUIDED")
+    if v.firmware == Firmware.PLANE:
         if not (change_mode or in_guided):
             return FAILED
-        if not in_guided and not ap._set_mode(mode_number(ap.firmware, "GUIDED")):
+        if not in_guided and not v.modes.set_mode(guided):
             return FAILED
-        radius = cmd.p3 if math.isfinite(cmd.p3) and cmd.p3 > 0 else 0.0
-        ap._guided_radius = radius
-        ap._guided_goto(cmd.x, cmd.y, alt, ccw=math.isfinite(cmd.p4) and cmd.p4 != 0)
+        v.navigator.guided_radius = cmd.p3 if math.isfinite(cmd.p3) and cmd.p3 > 0 else 0.0
+        v.navigator.goto(cmd.x, cmd.y, alt)
         return ACCEPTED
     if not in_guided and not change_mode:
         return DENIED
-    if not in_guided and not ap._set_mode(mode_number(ap.firmware, "GUIDED")):
+    if not in_guided and not v.modes.set_mode(guided):
         return FAILED
-    ap._guided_goto(cmd.x, cmd.y, alt)
+    v.navigator.goto(cmd.x, cmd.y, alt)
     return ACCEPTED
 
 
-def cmd_change_speed(ap: SimAutopilot, cmd: Cmd) -> int:
-    if ap.firmware == Firmware.COPTER:
+def cmd_change_speed(v: Vehicle, cmd: Cmd) -> int:
+    if v.firmware == Firmware.COPTER:
         if not (math.isfinite(cmd.p2) and cmd.p2 > 0):
             return DENIED
         if int(cmd.p1) not in (0, 1, 2, 3):
             return DENIED
-        return ACCEPTED if ap._change_speed(int(cmd.p1), cmd.p2) else FAILED
-    if ap.firmware == Firmware.PLANE:
-        beh = ap.mode_spec.behaviour
-        if beh not in (Behaviour.GUIDED, Behaviour.AUTO):
-            return FAILED
-    return ACCEPTED if ap._change_speed(int(cmd.p1), cmd.p2) else FAILED
+        return ACCEPTED if v.navigator.change_speed(int(cmd.p1), cmd.p2) else FAILED
+    if v.firmware == Firmware.PLANE and v.modes.behaviour not in (
+        Behaviour.GUIDED,
+        Behaviour.AUTO,
+    ):
+        return FAILED
+    return ACCEPTED if v.navigator.change_speed(int(cmd.p1), cmd.p2) else FAILED
 
 
-def cmd_change_altitude(ap: SimAutopilot, cmd: Cmd) -> int:
-    if ap.firmware != Firmware.PLANE:
+def cmd_change_altitude(v: Vehicle, cmd: Cmd) -> int:
+    if v.firmware != Firmware.PLANE:
         return UNSUPPORTED
-    alt = ap._alt_from_frame(int(cmd.p2), cmd.p1)
+    alt = v.home.alt_from_frame(int(cmd.p2), cmd.p1)
     if alt is None:
         return DENIED
-    ap._change_alt(alt)
+    v.navigator.change_alt(alt, guided=v.modes.behaviour == Behaviour.GUIDED)
     return ACCEPTED
 
 
-def cmd_rtl(ap: SimAutopilot, cmd: Cmd) -> int:
-    ok = ap._set_mode(mode_number(ap.firmware, "RTL"))
-    if ap.firmware == Firmware.PLANE:
+def cmd_rtl(v: Vehicle, cmd: Cmd) -> int:
+    ok = v.modes.set_mode(mode_number(v.firmware, "RTL"))
+    if v.firmware == Firmware.PLANE:
         return ACCEPTED
     return ACCEPTED if ok else FAILED
 
 
-def cmd_land(ap: SimAutopilot, cmd: Cmd) -> int:
-    if ap.firmware != Firmware.COPTER:
+def cmd_land(v: Vehicle, cmd: Cmd) -> int:
+    if v.firmware != Firmware.COPTER:
         return UNSUPPORTED
-    return ACCEPTED if ap._set_mode(mode_number(ap.firmware, "LAND")) else FAILED
+    return ACCEPTED if v.modes.set_mode(mode_number(v.firmware, "LAND")) else FAILED
 
 
-def cmd_loiter_unlim(ap: SimAutopilot, cmd: Cmd) -> int:
-    ok = ap._set_mode(mode_number(ap.firmware, "LOITER"))
-    if ap.firmware == Firmware.PLANE:
+def cmd_loiter_unlim(v: Vehicle, cmd: Cmd) -> int:
+    ok = v.modes.set_mode(mode_number(v.firmware, "LOITER"))
+    if v.firmware == Firmware.PLANE:
         return ACCEPTED
     return ACCEPTED if ok else FAILED
 
 
-def cmd_mission_start(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_mission_start(v: Vehicle, cmd: Cmd) -> int:
     if (math.isfinite(cmd.p1) and cmd.p1 != 0) or (math.isfinite(cmd.p2) and cmd.p2 != 0):
         return DENIED
-    auto = mode_number(ap.firmware, "AUTO")
-    if ap.firmware == Firmware.PLANE:
-        ap._set_mode(auto)
+    auto = mode_number(v.firmware, "AUTO")
+    if v.firmware == Firmware.PLANE:
+        v.modes.set_mode(auto)
         return ACCEPTED
-    if ap.mode == auto:
-        if not ap.mission_running:
-            mission_runner.start_or_resume(ap)
+    if v.modes.mode == auto:
+        if not v.stores.progress.running:
+            v.mission.start_or_resume()
         return ACCEPTED
-    return ACCEPTED if ap._set_mode(auto) else FAILED
+    return ACCEPTED if v.modes.set_mode(auto) else FAILED
 
 
-def cmd_parachute(ap: SimAutopilot, cmd: Cmd) -> int:
-    if ap.firmware == Firmware.ROVER:
+def cmd_parachute(v: Vehicle, cmd: Cmd) -> int:
+    if v.firmware == Firmware.ROVER:
         return UNSUPPORTED
     action = int(cmd.p1) if math.isfinite(cmd.p1) else -1
-    if action == 0:
-        ap.params["CHUTE_ENABLED"] = (0.0, 2)
-        return ACCEPTED
-    if action == 1:
-        ap.params["CHUTE_ENABLED"] = (1.0, 2)
+    if action in (0, 1):
+        v.params.set_value("CHUTE_ENABLED", float(action))
         return ACCEPTED
     if action != 2:
         return FAILED
-    if ap.firmware == Firmware.PLANE:
-        if ap.parachute_released:
-            ap._text(SEV_NOTICE, "Parachute already released")
+    if v.firmware == Firmware.PLANE:
+        if v.arming.parachute_released:
+            v.out.text(SEV_NOTICE, "Parachute already released")
             return FAILED
-        if ap._param("CHUTE_ENABLED") == 0:
-            ap._text(SEV_NOTICE, "Parachute not enabled")
+        if v.params.value("CHUTE_ENABLED") == 0:
+            v.out.text(SEV_NOTICE, "Parachute not enabled")
             return FAILED
-        return ACCEPTED if ap._parachute_release() else FAILED
-    ap._parachute_release()  # ArduCopter accepts and checks inside
+        return ACCEPTED if v.arming.parachute_release() else FAILED
+    v.arming.parachute_release()  # ArduCopter accepts and checks inside
     return ACCEPTED
 
 
-def cmd_set_home(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_set_home(v: Vehicle, cmd: Cmd) -> int:
     if cmd.p1 == 1:
-        if not ap.ekf_position:
+        if not v.sensors.ekf_position:
             return FAILED
-        ap._set_home(ap.body.n, ap.body.e, ap.body.alt)
-        return ACCEPTED
-    if not (-90 <= cmd.x <= 90 and -180 <= cmd.y <= 180) or (cmd.x == 0 and cmd.y == 0):
-        return FAILED
-    frame = cmd.frame if cmd.is_int else 0
-    alt = ap._alt_from_frame(frame, cmd.z)
-    if alt is None:
-        return FAILED
-    n, e = ap.frame.to_ne(cmd.x, cmd.y)
-    ap._set_home(n, e, alt)
+        v.home.set(v.body.n, v.body.e, v.body.alt)
+    else:
+        if not (-90 <= cmd.x <= 90 and -180 <= cmd.y <= 180) or (cmd.x == 0 and cmd.y == 0):
+            return FAILED
+        frame = cmd.frame if cmd.is_int else 0
+        alt = v.home.alt_from_frame(frame, cmd.z)
+        if alt is None:
+            return FAILED
+        n, e = v.frame.to_ne(cmd.x, cmd.y)
+        v.home.set(n, e, alt)
+    v.out.send(v.home.position_message(v.timeline.t))
     return ACCEPTED
 
 
-def cmd_set_mission_current(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_set_mission_current(v: Vehicle, cmd: Cmd) -> int:
     seq = int(cmd.p1) if math.isfinite(cmd.p1) else -1
-    if not ap._set_mission_current(seq):
+    if not v.mission.set_current(seq):
         return FAILED
+    v.out.send(telemetry.mission_current(v))
     return ACCEPTED
 
 
-def cmd_fence_enable(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_fence_enable(v: Vehicle, cmd: Cmd) -> int:
     action = int(cmd.p1) if math.isfinite(cmd.p1) else -1
     if action not in (0, 1, 2):
         return FAILED
-    if action == 1 and not ap.fence_present():
+    if action == 1 and not v.fence.present():
         # GCS_MAVLINK::handle_command_do_fence_enable: FAILED unless AC_Fence::present()
         # (FENCE_TYPE polygon-only and the uploaded fence not loaded yet, as real SITL does)
         return FAILED
-    ap.params["FENCE_ENABLE"] = (1.0 if action == 1 else 0.0, 2)
+    v.params.set_value("FENCE_ENABLE", 1.0 if action == 1 else 0.0)
     return ACCEPTED
 
 
-def cmd_vtol_transition(ap: SimAutopilot, cmd: Cmd) -> int:
-    if ap.model != VehicleModel.VTOL:
-        ap._text(SEV_NOTICE, "VTOL not available")
+def cmd_vtol_transition(v: Vehicle, cmd: Cmd) -> int:
+    if v.airframe.model != VehicleModel.VTOL:
+        v.out.text(SEV_NOTICE, "VTOL not available")
         return FAILED
-    if ap.mode_spec.behaviour != Behaviour.AUTO:
-        ap._text(SEV_NOTICE, "VTOL Transition only in AUTO")
+    if v.modes.behaviour != Behaviour.AUTO:
+        v.out.text(SEV_NOTICE, "VTOL Transition only in AUTO")
         return FAILED
     return ACCEPTED
 
 
-def cmd_set_message_interval(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_set_message_interval(v: Vehicle, cmd: Cmd) -> int:
     if not (math.isfinite(cmd.p1) and math.isfinite(cmd.p2)):
         return DENIED
     msg_id, interval_us = int(cmd.p1), cmd.p2
@@ -357,79 +354,68 @@ def cmd_set_message_interval(ap: SimAutopilot, cmd: Cmd) -> int:
         interval = 0.0
     else:
         interval = interval_us / 1e6
-    return ACCEPTED if ap.streams.set_interval(msg_id, interval, ap._t) else FAILED
+    return ACCEPTED if v.streams.set_interval(msg_id, interval, v.timeline.t) else FAILED
 
 
-def cmd_get_message_interval(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_get_message_interval(v: Vehicle, cmd: Cmd) -> int:
     msg_id = int(cmd.p1) if math.isfinite(cmd.p1) else -1
     if msg_id not in S.STREAMABLE:
-        ap._out.append(mavlink.MAVLink_message_interval_message(max(0, min(65535, msg_id)), 0))
+        v.out.send(mavlink.MAVLink_message_interval_message(max(0, min(65535, msg_id)), 0))
         return ACCEPTED
-    iv = ap.streams.interval(msg_id)
-    ap._out.append(
-        mavlink.MAVLink_message_interval_message(msg_id, int(iv * 1e6) if iv > 0 else -1)
-    )
+    iv = v.streams.interval(msg_id)
+    v.out.send(mavlink.MAVLink_message_interval_message(msg_id, int(iv * 1e6) if iv > 0 else -1))
     return ACCEPTED
 
 
-def cmd_request_message(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_request_message(v: Vehicle, cmd: Cmd) -> int:
     msg_id = int(cmd.p1) if math.isfinite(cmd.p1) else -1
     if msg_id not in telemetry.ONE_SHOT:
         return UNSUPPORTED
-    msg = telemetry.build(ap, msg_id, ap._t)
+    msg = telemetry.build(v, msg_id, v.timeline.t)
     if msg is None:
         return FAILED
-    ap._out.append(msg)
+    v.out.send(msg)
     return ACCEPTED
 
 
-def cmd_autopilot_capabilities(ap: SimAutopilot, cmd: Cmd) -> int:
-    ap._out.append(telemetry.autopilot_version(ap))
+def cmd_autopilot_capabilities(v: Vehicle, cmd: Cmd) -> int:
+    v.out.send(telemetry.autopilot_version(v))
     return ACCEPTED
 
 
-def cmd_get_home(ap: SimAutopilot, cmd: Cmd) -> int:
-    if not ap.home_set:
+def cmd_get_home(v: Vehicle, cmd: Cmd) -> int:
+    if not v.home.is_set:
         return FAILED
-    ap._out.append(telemetry.home_position(ap, ap._t))
+    v.out.send(v.home.position_message(v.timeline.t))
     return ACCEPTED
 
 
-def cmd_mount(ap: SimAutopilot, cmd: Cmd) -> int:
-    if ap.airframe.camera is None:
+def cmd_mount(v: Vehicle, cmd: Cmd) -> int:
+    if v.mount is None:
         return UNSUPPORTED
-    cam = ap.airframe.camera
-    pitch = cmd.p1
-    yaw = cmd.p3 if cmd.command == 205 else cmd.p2
-    if math.isfinite(pitch):
-        ap.mount_pitch_deg = max(cam.pitch_min_deg, min(cam.pitch_max_deg, pitch))
-    if math.isfinite(yaw):
-        ap.mount_yaw_deg = yaw
+    v.mount.point(cmd.p1, cmd.p3 if cmd.command == 205 else cmd.p2)
     return ACCEPTED
 
 
-def cmd_calibration(ap: SimAutopilot, cmd: Cmd) -> int:
-    if ap.armed:
+def cmd_calibration(v: Vehicle, cmd: Cmd) -> int:
+    if v.arming.armed:
         return DENIED
     if cmd.p3 == 1:
-        ap._text(SEV_INFO, "Updating barometer calibration")
-        ap._text(SEV_INFO, "Barometer calibration complete")
-    if cmd.p6 == 2 and ap.airframe.is_fixed_wing:
-        ap._text(SEV_INFO, "Airspeed 1 calibration started")
+        v.out.text(SEV_INFO, "Updating barometer calibration")
+        v.out.text(SEV_INFO, "Barometer calibration complete")
+    if cmd.p6 == 2 and v.airframe.is_fixed_wing:
+        v.out.text(SEV_INFO, "Airspeed 1 calibration started")
     return ACCEPTED
 
 
-# other messages ---------------------------------------------------------------
-
-
-def cmd_land_start(ap: SimAutopilot, cmd: Cmd) -> int:
+def cmd_land_start(v: Vehicle, cmd: Cmd) -> int:
     """MAV_CMD_DO_LAND_START: continue the mission at its landing sequence."""
-    if ap.firmware == Firmware.ROVER:
+    if v.firmware == Firmware.ROVER:
         return UNSUPPORTED
-    return ACCEPTED if mission_runner.jump_to_landing_sequence(ap) else FAILED
+    return ACCEPTED if v.mission.jump_to_landing_sequence() else FAILED
 
 
-COMMANDS: dict[int, Callable[[SimAutopilot, Cmd], int]] = {
+COMMANDS: dict[int, Callable[[Vehicle, Cmd], int]] = {
     176: cmd_set_mode,
     400: cmd_arm_disarm,
     22: cmd_takeoff,

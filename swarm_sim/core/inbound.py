@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import msgspec
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from . import commands, mission_runner
+from . import commands, telemetry
 from .firmware import SEV_INFO, SEV_WARNING, Behaviour, Firmware
 from .mission import (
     GLOBAL_FRAMES,
@@ -24,9 +23,7 @@ from .mission import (
     validate_item,
 )
 from .navigation import FlyTo, Hold, Loiter, Purpose
-
-if TYPE_CHECKING:
-    from .autopilot import SimAutopilot
+from .vehicle import Vehicle
 
 MSG_ID_SET_MODE = 11
 GUIDED_VELOCITY_TIMEOUT_S = 3.0  # GUID_TIMEOUT
@@ -38,233 +35,234 @@ def param_id(raw: Any) -> str:
     return str(raw).split("\x00", 1)[0].strip()
 
 
-def on_set_mode(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    result = commands.set_mode_common(ap, int(msg.base_mode), int(msg.custom_mode))
+def on_set_mode(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    result = commands.set_mode_common(v, int(msg.base_mode), int(msg.custom_mode))
     # ArduPilot acks SET_MODE with a COMMAND_ACK for "command" 11 (the message id)
-    ap._out.append(
+    v.out.send(
         mavlink.MAVLink_command_ack_message(MSG_ID_SET_MODE, result, 0, 0, src.sysid, src.compid)
     )
 
 
-def on_position_target_global(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    if ap.mode_spec.behaviour != Behaviour.GUIDED:
-        ap.counters["position_target_not_guided"] += 1
+def on_position_target_global(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    if v.modes.behaviour != Behaviour.GUIDED:
+        v.counters["position_target_not_guided"] += 1
         return
+    nav = v.navigator
     mask = int(msg.type_mask)
     pos_ignore = mask & 0b111 == 0b111
     alt_ignore = bool(mask & 0b100)
     vel_ignore = mask & 0b111000 == 0b111000
-    alt = ap._alt_from_frame(int(msg.coordinate_frame), float(msg.alt))
-    if ap.firmware == Firmware.PLANE:
+    alt = v.home.alt_from_frame(int(msg.coordinate_frame), float(msg.alt))
+    if v.firmware == Firmware.PLANE:
         if alt is None:
-            ap._text(SEV_WARNING, "Invalid coord frame in SET_POSTION_TARGET_GLOBAL_INT")
+            v.out.text(SEV_WARNING, "Invalid coord frame in SET_POSTION_TARGET_GLOBAL_INT")
             return
         if not alt_ignore:
-            ap._change_alt(alt)
+            nav.change_alt(alt, guided=True)
         return
     if not pos_ignore:
         lat, lon = msg.lat_int * 1e-7, msg.lon_int * 1e-7
         if alt is None or not (-90 <= lat <= 90 and -180 <= lon <= 180):
-            ap._set_nav(ap._hold_here())
+            nav.set(nav.hold_here())
             return
-        ap._guided_goto(lat, lon, alt)
+        nav.goto(lat, lon, alt)
     elif not vel_ignore:
         vn, ve, vd = float(msg.vx), float(msg.vy), float(msg.vz)
-        if not all(math.isfinite(v) and abs(v) < 1000 for v in (vn, ve, vd)):
-            ap._set_nav(ap._hold_here())
+        if not all(math.isfinite(x) and abs(x) < 1000 for x in (vn, ve, vd)):
+            nav.set(nav.hold_here())
             return
-        b = ap.body
+        b = v.body
         speed = math.hypot(vn, ve)
         t = GUIDED_VELOCITY_TIMEOUT_S
         task = FlyTo(
             b.n + vn * t, b.e + ve * t, b.alt - vd * t, accept_m=0.5, speed=speed, stop=True
         )
-        ap._set_nav(task, Purpose.GUIDED_VELOCITY)
+        nav.set(task, Purpose.GUIDED_VELOCITY)
 
 
-def on_position_target_local(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    if ap.mode_spec.behaviour != Behaviour.GUIDED:
+def on_position_target_local(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    if v.modes.behaviour != Behaviour.GUIDED:
         return
-    if ap.firmware == Firmware.PLANE:
+    nav = v.navigator
+    if v.firmware == Firmware.PLANE:
         if int(msg.coordinate_frame) == 7:  # LOCAL_OFFSET_NED: altitude only
-            task = ap._leaf_task()
+            task = nav.leaf()
             if isinstance(task, (FlyTo, Hold, Loiter)) and math.isfinite(float(msg.z)):
                 task.alt += -float(msg.z)
-                ap._text(SEV_INFO, f"Change alt to {task.alt - ap.home_alt:.1f}")
+                v.out.text(SEV_INFO, f"Change alt to {task.alt - v.home.alt:.1f}")
         return
     mask = int(msg.type_mask)
     if mask & 0b111 == 0b111:
         return
     frame = int(msg.coordinate_frame)
     x, y, z = float(msg.x), float(msg.y), float(msg.z)
-    if not all(math.isfinite(v) for v in (x, y, z)):
-        ap._set_nav(ap._hold_here())
+    if not all(math.isfinite(c) for c in (x, y, z)):
+        nav.set(nav.hold_here())
         return
-    b = ap.body
+    b = v.body
     if frame == 1:  # LOCAL_NED, from the EKF origin
-        n, e, alt = x, y, ap.origin_alt - z
+        n, e, alt = x, y, v.home.origin_alt - z
     elif frame in (7, 9):  # LOCAL_OFFSET_NED, BODY_OFFSET_NED
         if frame == 9:
             h = math.radians(b.heading_deg)
             x, y = x * math.cos(h) - y * math.sin(h), x * math.sin(h) + y * math.cos(h)
         n, e, alt = b.n + x, b.e + y, b.alt - z
     else:
-        ap._set_nav(ap._hold_here())
+        nav.set(nav.hold_here())
         return
-    lat, lon = ap.frame.to_latlon(n, e)
-    ap._guided_goto(lat, lon, alt)
+    lat, lon = v.frame.to_latlon(n, e)
+    nav.goto(lat, lon, alt)
 
 
-def on_mission_count(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    transfer = transfer_for(ap, msg)
+def on_mission_count(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    transfer = transfer_for(v, msg)
     if transfer is None:
         return
-    if not ap.ready and int(msg.count) > 0:
+    if not v.sensors.ready and int(msg.count) > 0:
         # recorded: before "ArduPilot Ready" the storage holds 0 items: MISSION_ACK
         # NO_SPACE at once and "Only 0 items are supported"
-        ap._out.append(transfer._ack(src, NO_SPACE))
-        ap._text(SEV_WARNING, "Only 0 items are supported")
+        v.out.send(mission_ack(src, NO_SPACE, transfer.mission_type))
+        v.out.text(SEV_WARNING, "Only 0 items are supported")
         return
-    ap._out.extend(transfer.handle_count(src, int(msg.count), now))
+    v.out.extend(transfer.handle_count(src, int(msg.count), now))
 
 
-def on_mission_item(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
+def on_mission_item(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     mtype = int(getattr(msg, "mission_type", 0))
     if mtype == MISSION and int(msg.current) in (2, 3):
-        guided_mission_item(ap, msg)
+        guided_mission_item(v, msg)
         return
-    transfer = transfer_for(ap, msg)
+    transfer = transfer_for(v, msg)
     if transfer is None:
         return
     item = MissionItem.from_message(msg)
-    ap._out.extend(transfer.handle_item(src, item, now, as_float=msg.get_type() == "MISSION_ITEM"))
+    v.out.extend(transfer.handle_item(src, item, now, as_float=msg.get_type() == "MISSION_ITEM"))
 
 
-def guided_mission_item(ap: SimAutopilot, msg: Any) -> None:
+def guided_mission_item(v: Vehicle, msg: Any) -> None:
     """MISSION_ITEM(_INT) with current=2 (guided goto) or 3 (change altitude)."""
     item = MissionItem.from_message(msg)
     if validate_item(item) != 0 or item.frame not in GLOBAL_FRAMES:
-        ap._out.append(
+        v.out.send(
             mavlink.MAVLink_mission_ack_message(
                 msg.get_srcSystem(), msg.get_srcComponent(), 1, MISSION
             )
         )
         return
+    guided = v.modes.behaviour == Behaviour.GUIDED
     if int(msg.current) == 3:
-        ap._change_alt(mission_runner.item_alt(ap, item))
+        v.navigator.change_alt(v.home.item_alt(item), guided=guided)
         result = 0
-    elif ap.mode_spec.behaviour != Behaviour.GUIDED:
+    elif not guided:
         result = 1  # ERROR: only in GUIDED
     else:
-        ap._guided_goto(item.lat_deg, item.lon_deg, mission_runner.item_alt(ap, item))
+        v.navigator.goto(item.lat_deg, item.lon_deg, v.home.item_alt(item))
         result = 0
-    ap._out.append(
+    v.out.send(
         mavlink.MAVLink_mission_ack_message(
             msg.get_srcSystem(), msg.get_srcComponent(), result, MISSION
         )
     )
 
 
-def on_mission_request(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    transfer = transfer_for(ap, msg)
+def on_mission_request(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    transfer = transfer_for(v, msg)
     if transfer is not None:
         as_int = msg.get_type() == "MISSION_REQUEST_INT"
-        ap._out.extend(transfer.handle_request(src, int(msg.seq), as_int=as_int))
+        v.out.extend(transfer.handle_request(src, int(msg.seq), as_int=as_int))
 
 
-def on_mission_request_list(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    transfer = transfer_for(ap, msg)
+def on_mission_request_list(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    transfer = transfer_for(v, msg)
     if transfer is not None:
-        ap._out.extend(transfer.handle_request_list(src))
+        v.out.extend(transfer.handle_request_list(src))
 
 
-def on_mission_clear_all(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
+def on_mission_clear_all(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     mtype = int(getattr(msg, "mission_type", 0))
     if mtype == 255:
-        for each in ap.transfers.values():
+        for each in v.stores.transfers.values():
             each.handle_clear_all(src)
-        ap._out.append(mavlink.MAVLink_mission_ack_message(src.sysid, src.compid, 0, 255))
+        v.out.send(mavlink.MAVLink_mission_ack_message(src.sysid, src.compid, 0, 255))
         return
-    transfer = transfer_for(ap, msg)
+    transfer = transfer_for(v, msg)
     if transfer is not None:
-        ap._out.extend(transfer.handle_clear_all(src))
+        v.out.extend(transfer.handle_clear_all(src))
 
 
-def on_mission_set_current(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    ap._set_mission_current(int(msg.seq))
+def on_mission_set_current(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    if v.mission.set_current(int(msg.seq)):
+        v.out.send(telemetry.mission_current(v))
 
 
-def on_mission_write_partial_list(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    transfer = transfer_for(ap, msg)
+def on_mission_write_partial_list(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    transfer = transfer_for(v, msg)
     if transfer is not None:
-        ap._out.extend(
+        v.out.extend(
             transfer.handle_partial_list(src, int(msg.start_index), int(msg.end_index), now)
         )
 
 
-def transfer_for(ap: SimAutopilot, msg: Any) -> ItemTransfer | None:
+def mission_ack(peer: Peer, result: int, mission_type: int) -> Any:
+    return mavlink.MAVLink_mission_ack_message(peer.sysid, peer.compid, result, mission_type)
+
+
+def transfer_for(v: Vehicle, msg: Any) -> ItemTransfer | None:
     mtype = int(getattr(msg, "mission_type", 0))
-    transfer = ap.transfers.get(mtype)
+    transfer = v.stores.transfers.get(mtype)
     if transfer is None:
-        ap.counters["bad_mission_type"] += 1
+        v.counters["bad_mission_type"] += 1
         src = Peer(msg.get_srcSystem(), msg.get_srcComponent())
-        ap._out.append(mavlink.MAVLink_mission_ack_message(src.sysid, src.compid, 3, mtype & 0xFF))
+        v.out.send(mission_ack(src, 3, mtype & 0xFF))
     return transfer
 
 
-def on_request_data_stream(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    ap.streams.request_data_stream(
+def on_request_data_stream(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    v.streams.request_data_stream(
         int(msg.req_stream_id), int(msg.req_message_rate), bool(msg.start_stop), now
     )
 
 
-def on_param_request_list(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    names = sorted(ap.params)
-    for index, name in enumerate(names):
-        ap._out.append(ap._param_value(name, index, len(names)))
+def on_param_request_list(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    names = sorted(v.params)
+    for index in range(len(names)):
+        v.out.send(v.params.value_message_at(index, names))
 
 
-def on_param_request_read(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
-    names = sorted(ap.params)
+def on_param_request_read(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    names = sorted(v.params)
     name = param_id(msg.param_id)
-    if name in ap.params:
-        ap._out.append(ap._param_value(name, names.index(name), len(names)))
+    if name in v.params:
+        v.out.send(v.params.value_message(name))
     elif 0 <= int(msg.param_index) < len(names) and name == "":
-        idx = int(msg.param_index)
-        ap._out.append(ap._param_value(names[idx], idx, len(names)))
+        v.out.send(v.params.value_message_at(int(msg.param_index), names))
     else:
-        ap.counters["param_unknown"] += 1
+        v.counters["param_unknown"] += 1
 
 
-def on_param_set(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
+def on_param_set(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     name = param_id(msg.param_id)
     value = float(msg.param_value)
-    if name not in ap.params or not math.isfinite(value):
-        ap.counters["param_unknown"] += 1
+    if not v.params.set_from_gcs(name, value):
+        v.counters["param_unknown"] += 1
         return
-    if name not in ("MIS_TOTAL", "SYSID_THISMAV", "Q_ENABLE", "FRAME_CLASS"):
-        ap.params[name] = (value, ap.params[name][1])
     if name == "BATT_CAPACITY" and value > 0:  # a bigger battery, as charged as before
-        b = ap.battery
-        left = b.remaining_frac
-        b.params = msgspec.structs.replace(b.params, capacity_mah=value)
-        b.consumed_mah = value * (1.0 - left)
-    names = sorted(ap.params)
-    ap._out.append(ap._param_value(name, names.index(name), len(names)))
+        v.battery.resize(value)
+    v.out.send(v.params.value_message(name))
 
 
-def on_timesync(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
+def on_timesync(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     if int(msg.tc1) == 0:
-        ap._out.append(mavlink.MAVLink_timesync_message(int(now * 1e9), int(msg.ts1)))
+        v.out.send(mavlink.MAVLink_timesync_message(int(now * 1e9), int(msg.ts1)))
 
 
-def on_ftp(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
+def on_ftp(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     """MAVLink FTP is not simulated: NAK every request at once (TerminateSession and
     ResetSessions are ACKed), so that MAVProxy and QGC fall back to PARAM_REQUEST_LIST
     and MISSION_REQUEST_* instead of timing out."""
     payload = bytes(msg.payload)
     if len(payload) < 12:
-        ap.counters["bad_ftp"] += 1
+        v.counters["bad_ftp"] += 1
         return
     seq, session, opcode = int.from_bytes(payload[0:2], "little"), payload[2], payload[3]
     ack = opcode in (1, 2)
@@ -274,7 +272,7 @@ def on_ftp(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
     reply[2], reply[3], reply[5] = session, 128 if ack else 129, opcode
     if not ack:
         reply[4], reply[12] = 1, error
-    ap._out.append(
+    v.out.send(
         mavlink.MAVLink_file_transfer_protocol_message(0, src.sysid, src.compid, list(reply))
     )
 
@@ -282,7 +280,7 @@ def on_ftp(ap: SimAutopilot, msg: Any, src: Peer, now: float) -> None:
 # ------------------------------------------------------------------ helpers
 
 
-HANDLERS: dict[str, Callable[[SimAutopilot, Any, Peer, float], None]] = {
+HANDLERS: dict[str, Callable[[Vehicle, Any, Peer, float], None]] = {
     "COMMAND_LONG": commands.on_command_long,
     "COMMAND_INT": commands.on_command_int,
     "SET_MODE": on_set_mode,

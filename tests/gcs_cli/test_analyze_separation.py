@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner, Result
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from gcs_cli.separation import AnalysisError, Thresholds, analyze
 from swarm_proto import VehicleStatus
 from swarm_proto.trajectory import HEADER, TrajectoryError, TrajectoryWriter, parse_trajectory
@@ -195,3 +195,51 @@ def test_writer_round_trips_and_takes_statuses(tmp_path: Path) -> None:
     assert list(tr.vehicle) == [4, 5] and tr.alt_m[0] == 812.5 and tr.lat[1] == 40.2
     with pytest.raises(TrajectoryError):
         parse_trajectory("")
+
+
+def test_only_airborne_pairs_count_and_times_are_from_the_start(tmp_path: Path) -> None:
+    """82,005 "risk" samples came from vehicles parked 10 m apart on their pads, and the
+    plot's axis read "+1.7958e9": a `gcs record` log (UNIX times, alt_rel_m, armed)
+    counts pairs only while both are airborne, in seconds from the log's start."""
+    from gcs_cli.plot import EXTRA
+
+    log = tmp_path / "record.csv"
+    t0 = 1.7958e9
+    with TrajectoryWriter(log, EXTRA) as w:
+        for k in range(200):
+            t = t0 + 0.2 * k
+            flying = k >= 100  # on the pads for 20 s, then both up, 60 m apart
+            for vid, east in ((7, 0.0), (8, 10.0 if not flying else 60.0)):
+                rel = 30.0 if flying else 0.0
+                w.write(
+                    t,
+                    vid,
+                    40.0,
+                    -3.0 + east / 85_000,
+                    700.0 + rel,
+                    rel,
+                    0,
+                    0,
+                    100,
+                    "X",
+                    "Y",
+                    0,
+                    int(flying),
+                )
+    data = json.loads(cli(str(log), "--json").output)
+    (pair,) = data["pairs"]
+    assert pair["samples"] == 100 and pair["risk"] == 0 and pair["min_m"] > 55.0, pair
+    assert 20.0 <= pair["min_time_s"] <= 40.0 and data["t0_s"] == t0, data
+    assert data["counted"].startswith("samples where both are airborne"), data
+    parked = json.loads(cli(str(log), "--json", "--ground").output)["pairs"][0]
+    assert parked["samples"] == 200 and parked["risk"] == 100 and parked["min_time_s"] < 20.0
+    png = tmp_path / "sep.png"
+    result = cli(str(log), "--png", str(png))
+    assert result.exit_code == 0 and "1.79" not in result.output, result.output
+    # parked the whole time: nothing airborne to analyse, said in one line (exit 2)
+    with TrajectoryWriter(tmp_path / "parked.csv", EXTRA) as w:
+        for k in range(10):
+            for vid in (7, 8):
+                w.write(t0 + k, vid, 40.0, -3.0 + vid / 1e5, 700.0, 0.0, 0, 0, 100, "X", "Y", 0, 0)
+    result = cli(str(tmp_path / "parked.csv"))
+    assert result.exit_code == 2 and "fewer than two vehicles airborne" in result.output

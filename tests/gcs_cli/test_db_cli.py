@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 import pytest
 from typer.testing import CliRunner, Result
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from swarm_node.database import SwarmDatabase
 from swarm_node.database.tables import table, tables_of
 
@@ -778,7 +778,7 @@ def test_a_failed_export_leaves_no_temporary_file(db: Path, tmp_path: Path) -> N
 
 def _gcs(*args: str, prefix: list[str] | None = None) -> subprocess.CompletedProcess[str]:
     """`gcs db ...` in a child process (optionally under a wrapper command)."""
-    cmd = [sys.executable, "-c", "from gcs_cli.cli import main; main()", "db", *args]
+    cmd = [sys.executable, "-c", "from gcs_cli.app import main; main()", "db", *args]
     env = {k: v for k, v in os.environ.items() if k != "BANDADA_DB"}
     return subprocess.run(
         [*(prefix or []), *cmd], capture_output=True, text=True, timeout=120, env=env

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from gcs_cli.ground import FleetView, GroundStation
 from swarm_proto import AlertCode, SystemClock
 from swarm_proto.session import ZenohSettings

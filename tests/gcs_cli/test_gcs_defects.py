@@ -11,12 +11,13 @@ from pathlib import Path
 
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from swarm_proto.endpoints import mavlink_endpoint, zenoh_endpoint
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import COMMAND, MISSION, ZONE
 from tests.conftest import free_tcp_port
 
+DATA = Path(__file__).parent / "data"
 BAD = [
     # (arguments, what the one line must say)
     (["cmd", "goto", "--point", "95,0", "--all"], "latitude 95 is out of range"),
@@ -72,6 +73,16 @@ BAD = [
     (["plot", "--out", "x.jpg", "--offline"], "the picture is a .png"),
     (["plot", "--out", "x.png", "--offline"], "nothing to draw"),
     (["load", "/nonexistent/state.json", "--yes"], "cannot read"),
+    # sent and refused by each vehicle before; the option named is the one at fault
+    (["cmd", "set-speed", "--value", "-3", "--all"], "set-speed needs --value, a speed in m/s"),
+    (["cmd", "takeoff", "--id", "3"], "takeoff needs --value, an altitude in m above home"),
+    (["cmd", "set-altitude", "--value", "-5", "--id", "3"], "(got -5)"),
+    (["watch", "--period", "-1"], "Invalid value for --period"),
+    (["watch", "--duration", "-3"], "Invalid value for --duration"),
+    (["record", "x.csv", "--duration", "-3"], "Invalid value for --duration"),
+    (["zone", "import", "/nonexistent/a.plan"], "cannot read"),
+    (["zone", "import", "x.plan", "--floor", "nan"], "--floor"),
+    (["zone", "import", str(DATA / "geojson-io.geojson"), "--base-from-file"], "no rally point"),
 ]
 
 
@@ -103,6 +114,7 @@ def test_bad_input_is_one_line_exit_2_and_nothing_sent(
         lines = err.strip().splitlines()
         assert code == 2, (args, out, err)
         assert len(lines) == 1 and says in lines[0], (args, err)
+        assert "--wait" not in lines[0] or "--wait" in args, (args, err)  # the right option
         assert "Traceback" not in out + err
     assert listener == []  # nothing was sent, whatever the mistake
 
@@ -184,7 +196,7 @@ def test_the_connect_option_takes_either_spelling(
 
 
 def test_every_command_has_an_example_in_its_help(capsys: pytest.CaptureFixture[str]) -> None:
-    from gcs_cli.cli import app
+    from gcs_cli.app import app
     from tests.gcs_cli.cli_walk import commands
 
     paths = commands(app)

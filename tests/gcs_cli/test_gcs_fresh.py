@@ -31,7 +31,7 @@ def gcs(
     router: str, swarm: str, *args: str, timeout: float = 60.0
 ) -> subprocess.CompletedProcess[str]:
     """The ground station as an operator runs it: a new process each time."""
-    cmd = [sys.executable, "-m", "gcs_cli.cli", "--connect", router, "--swarm", swarm, *args]
+    cmd = [sys.executable, "-m", "gcs_cli.app", "--connect", router, "--swarm", swarm, *args]
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "200"}
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
 

@@ -12,7 +12,7 @@ import msgspec
 import numpy as np
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from gcs_cli.plot import plan_shares, vehicle_colors
 from gcs_cli.recovery import SwarmState, VehicleState
 from swarm_proto import (

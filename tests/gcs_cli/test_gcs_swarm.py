@@ -3,7 +3,7 @@
 --fleet, --id) and reports each one's answer, vehicles that start after `gcs` too;
 zones are acknowledged, listed, exported and withdrawn; save / load; the monitoring
 commands' JSON. Each `gcs` here is the command line as an operator runs it
-(`gcs_cli.cli.run`, a fresh ground station session per command)."""
+(`gcs_cli.app.run`, a fresh ground station session per command)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs_cli.cli import run
+from gcs_cli.app import run
 from swarm_proto import Ack, AckReason, AckRef, Command, VehicleInfo, VehicleType
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import ACK, COMMAND
@@ -237,10 +237,20 @@ def test_six_vehicles_every_command_and_answer(
     assert zone["zone_id"] == 5 and zone["held_by"] == [1, 2, 3, 7, 8, 9]
     code, out, _ = s.gcs(capsys, "zone", "export", str(tmp_path / "zones.geojson"))
     assert code == 0 and json.loads((tmp_path / "zones.geojson").read_text())["features"]
-    # the exported file declared again (its ids kept): each vehicle acknowledges it
+    # the exported file imported again: zone 5 is held as the file has it, left alone;
+    # with a file id changed it is a clash, refused with the id named (nothing sent)
     code, out, _ = s.gcs(capsys, "zone", "import", str(tmp_path / "zones.geojson"), "--json")
-    assert code == 0 and json.loads(out)["what"] == "zone 5", out
-    code, out, _ = s.gcs(capsys, "zone", "remove", "77", "--json")
+    assert code == 0 and json.loads(out)["zones"] == [{"zone_id": 5, "action": "unchanged"}], out
+    moved = json.loads((tmp_path / "zones.geojson").read_text())
+    moved["features"][0]["properties"]["radius_m"] = 70.0
+    (tmp_path / "moved.geojson").write_text(json.dumps(moved))
+    code, _, err = s.gcs(capsys, "zone", "import", str(tmp_path / "moved.geojson"))
+    assert code == 2 and "zone 5 is in force" in err and "--replace" in err, err
+    # an id no vehicle holds is not withdrawn (each would keep the withdrawal); --force
+    # sends it all the same, and each vehicle answers NOT_FOUND
+    code, out, _ = s.gcs(capsys, "zone", "remove", "77")
+    assert code == 1 and "zone 77 is held by no vehicle" in out, out
+    code, out, _ = s.gcs(capsys, "zone", "remove", "77", "--force", "--json")
     answers = rows(out)
     assert code == 1 and {r["reason"] for r in answers.values()} == {"NOT_FOUND"}, out
     assert len(answers) == 6

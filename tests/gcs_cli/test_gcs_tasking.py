@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 from typer.testing import CliRunner
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from gcs_cli.tasking import result_of, vote_table
 from swarm_proto import Vote, VoteScore
 
@@ -52,3 +52,26 @@ def test_the_vote_table_ranks_as_the_vehicles_do() -> None:
     undecided = result_of(77, votes(committed=False), None, went=set())
     assert not undecided.decided and undecided.winners is None
     assert set(undecided.scores) == {1, 7, 8, 9}
+
+
+@pytest.mark.network
+def test_a_vote_over_before_gcs_vote_listened_is_read_from_the_vehicles(
+    zenoh_router: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`gcs vote ID` said "no vote heard" 5-15 s after a vote while the winners flew:
+    the winners are read from what they publish (VehicleInfo.mission_id)."""
+    from gcs_cli.app import run
+    from tests.gcs_cli.fake_vehicle import Vehicle
+
+    vs = [Vehicle(zenoh_router, "vote", v, [], mission_id=77 if v != 9 else 0) for v in (7, 8, 9)]
+    try:
+        code = run(["--connect", zenoh_router, "--swarm", "vote", "vote", "77", "--wait", "1.5"])
+        out = " ".join(capsys.readouterr().out.split())
+        assert code == 0 and "mission 77: decided before this listened" in out, out
+        assert "flown by 7, 8 (their VehicleInfo)" in out, out
+        code = run(["--connect", zenoh_router, "--swarm", "vote", "vote", "78", "--wait", "1.5"])
+        out = " ".join(capsys.readouterr().out.split())
+        assert code == 1 and "mission 78: no vote heard and no vehicle flies it" in out, out
+    finally:
+        for v in vs:
+            v.close()

@@ -54,7 +54,7 @@ def test_watch_on_a_terminal(zenoh_router: str) -> None:
         [
             sys.executable,
             "-m",
-            "gcs_cli.cli",
+            "gcs_cli.app",
             "--connect",
             zenoh_router,
             "--swarm",
@@ -188,7 +188,7 @@ def test_a_command_shows_its_progress_on_a_terminal(zenoh_router: str) -> None:
         [
             sys.executable,
             "-m",
-            "gcs_cli.cli",
+            "gcs_cli.app",
             "--connect",
             zenoh_router,
             "--swarm",
@@ -241,7 +241,7 @@ def test_record_writes_the_flight_csv(zenoh_router: str, tmp_path: object) -> No
     recorder's format, readable by `gcs plot --track` and `gcs analyze separation`."""
     from pathlib import Path
 
-    from gcs_cli.cli import run
+    from gcs_cli.app import run
     from swarm_proto.trajectory import read_trajectory
 
     out = Path(str(tmp_path)) / "flight.csv"
@@ -299,5 +299,5 @@ def test_record_writes_the_flight_csv(zenoh_router: str, tmp_path: object) -> No
     header = out.read_text().splitlines()[0]
     assert header == (
         "time_s,vehicle,lat,lon,alt_m,alt_rel_m,groundspeed_m_s,heading_deg,"
-        "battery_pct,fsm,mission,progress_pct"
+        "battery_pct,fsm,mission,progress_pct,armed"
     )

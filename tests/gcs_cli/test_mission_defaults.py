@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from swarm_node.database import SwarmDatabase
 from swarm_proto import Ack, AckRef, Mission, SelectorKind, VehicleInfo, VehicleType
 from swarm_proto.session import SwarmBus, ZenohSettings

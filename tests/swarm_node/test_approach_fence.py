@@ -22,12 +22,12 @@ import pytest
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.autopilot.requests import UploadMission
-from swarm_node.core.mission_manager import MissionManager, flown_speed_m_s
+from swarm_node.core.mission_manager import MissionManager
 from swarm_node.core.outputs import Submit
 from swarm_node.core.planning.fleet_plan import TURN_RADIUS_MARGIN
 from swarm_node.core.planning.flight import FIXED_WING_ACCEPT_M
 from swarm_node.core.planning.geo import LocalFrame
-from swarm_node.core.planning.transit import flown_turn_radius_m
+from swarm_node.core.planning.transit import flown_speed_m_s, flown_turn_radius_m
 from swarm_proto import Geometry, GeoPoint, NoFlyZone
 from swarm_sim.core.airframes import ALBATROSS_250_VTOL
 from swarm_sim.core.kinematics import Body, FixedWingModel
@@ -100,7 +100,8 @@ def _uploaded(speed_m_s: float = FLOWN_M_S) -> tuple[Waypoint, ...]:
         home=GeoPoint(37.4112, -5.98788, HOME_ALT_MSL_M),
     )
     manager = MissionManager(profile(4, VTOL))
-    return manager._tight(manager._with_approach(_share(), ap, [_zone()], NOW, HOME_ALT_MSL_M))
+    t = manager.transit
+    return t.tight(t.with_approach(_share(), ap, [_zone()], NOW, HOME_ALT_MSL_M))
 
 
 def _fly(

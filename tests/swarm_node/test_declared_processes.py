@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from gcs_cli.ground import GroundStation
 from swarm_proto import CommandArgs, CommandKind, Geometry, GeoPoint, NoFlyZone
 from swarm_proto.session import ZenohSettings

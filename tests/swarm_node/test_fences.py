@@ -201,9 +201,9 @@ def test_the_keeper_sets_the_fence_type_uploads_and_retries() -> None:
 # ----------------------------------------------------------------------- in the node
 
 
-def quad_node() -> NodeCore:
+def quad_node(settings: NodeSettings | None = None) -> NodeCore:
     """A seed quadcopter's node whose autopilot is up, with home set."""
-    node = NodeCore(seed_profiles()["Generic Quadcopter"], now=T0)
+    node = NodeCore(seed_profiles()["Generic Quadcopter"], settings or NodeSettings(), now=T0)
     node.handle(AutopilotUpdate(flying(home=HOME)), T0)
     return node
 
@@ -252,13 +252,12 @@ def test_a_zone_reaches_the_autopilot_as_a_fence_and_leaves_it_again() -> None:
 
 
 def test_a_fence_that_does_not_fit_is_reported() -> None:
-    node = quad_node()
-    node.settings = NodeSettings(fence_max_items=2)  # not even a triangle fits
+    node = quad_node(NodeSettings(fence_max_items=2))  # not even a triangle fits
     out = node.handle(Received(NoFlyZone(9, Geometry.polygon(ring(12, 300, 0, 50)))), T0)
     raised = alerts(out)
     assert [(a.code, a.severity) for a in raised] == [(AlertCode.NO_FLY_ZONE, Severity.WARNING)]
     assert "zones 9" in raised[0].text
-    assert node.fence_plan is not None and node.fence_plan.left_out == (9,)
+    assert node.fences.plan is not None and node.fences.plan.left_out == (9,)
 
 
 def test_a_failed_upload_is_reported_once_and_retried() -> None:
@@ -275,7 +274,7 @@ def test_a_failed_upload_is_reported_once_and_retried() -> None:
 
 def test_the_fence_ceiling_follows_the_highest_mission() -> None:
     node = quad_node()
-    assert node.fly_ceiling_rel_m() == FENCE_FULL_HEIGHT_REL_M
+    assert node.mission.fly_ceiling_rel_m() == FENCE_FULL_HEIGHT_REL_M
     zone = circle_zone(4, 300, 0, ceiling_alt_msl_m=HOME.alt_msl_m + 140.0)
     sent = answer_all(node, node.handle(Received(zone), T0), T0)
     assert isinstance(sent[-1], UploadFence) and sent[-1].exclusion_circles
@@ -291,10 +290,10 @@ def test_the_fence_ceiling_follows_the_highest_mission() -> None:
         Selector.ids(node.self_id),
     )
     answer_all(node, node.handle(Received(high), T0 + 0.3), T0 + 0.3)
-    assert node.fly_ceiling_rel_m() == 150.0
+    assert node.mission.fly_ceiling_rel_m() == 150.0
     sent = answer_all(node, node.on_timer(T0 + 0.4), T0 + 0.4)
     assert sent == [UploadFence(request_id=sent[0].request_id, enable=False)]
-    assert node.fence_plan is not None and node.fence_plan.overflown == (4,)
+    assert node.fences.plan is not None and node.fences.plan.overflown == (4,)
 
 
 def test_inclusion_circles_become_circle_inclusion_items() -> None:

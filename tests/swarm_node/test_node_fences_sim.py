@@ -71,7 +71,7 @@ def test_a_zone_becomes_the_autopilots_fence_and_turns_the_vehicle_back(
     # once after the upload, ArduPilot not having loaded the fence yet; the simulator now
     # does the same): no "fence upload failed" warning, one DO_FENCE_ENABLE
     assert not [a for a in fleet.messages(Alert, sender=7) if a.code == AlertCode.NO_FLY_ZONE]
-    assert v.node.fence.failures == 0 and sim.fence_present()
+    assert v.node.fences.keeper.failures == 0 and sim.fence_present()
 
     # flown straight at the zone (a GOTO through it, no planner involved): the
     # autopilot's own fence breach turns it home before it gets far in

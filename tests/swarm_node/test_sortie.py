@@ -104,7 +104,7 @@ def test_a_mission_started_while_a_replan_began_does_not_crash_the_node() -> Non
     m.sortie.begin(keep_progress=False)
     m.sortie.go(Trigger.RELEASED)
     m.phase, m.mission_id, m._steps = Phase.STARTING, 5, [StartMission()]
-    (submit,) = m._next()
+    (submit,) = m._next(0.0)
     m.begin_replan()
     assert m.sortie.state == MissionState.REPLAN
     m.on_result(ApResult(submit.request.request_id, True), 1.0)  # type: ignore[attr-defined]

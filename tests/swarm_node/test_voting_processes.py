@@ -50,7 +50,7 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
             gcs = [
                 sys.executable,
                 "-m",
-                "gcs_cli.cli",
+                "gcs_cli.app",
                 "--connect",
                 zenoh_router,
                 "--swarm",
@@ -111,7 +111,7 @@ def test_gcs_count_2_with_a_payload_to_four_nodes(
             join = [
                 sys.executable,
                 "-m",
-                "gcs_cli.cli",
+                "gcs_cli.app",
                 "--connect",
                 zenoh_router,
                 "--swarm",

@@ -15,8 +15,14 @@ from hypothesis import strategies as st
 
 from swarm_proto import (
     MESSAGE_TYPES,
+    Ack,
+    AckReason,
+    AckRef,
+    Alert,
+    AlertCode,
     AlertFlag,
     DecodeError,
+    DetailCode,
     EncodeError,
     Geometry,
     GpsFix,
@@ -24,6 +30,8 @@ from swarm_proto import (
     MissionParams,
     MissionType,
     NoFlyZone,
+    ReasonDetail,
+    Severity,
     SwarmView,
     VehicleStatus,
     lan,
@@ -262,6 +270,30 @@ def test_an_operating_area_survives_both_encodings_and_older_senders() -> None:
         {k: v for k, v in msgspec.to_builtins(area).items() if k != "operating_area"}
     )
     assert lan.decode(lan_older, NoFlyZone).operating_area is False
+
+
+def test_a_reason_detail_crosses_both_encodings_and_older_nodes() -> None:
+    """An Ack and an Alert carry their reason's numbers (appended: an older node's
+    Ack decodes with none, and an older node reads ours without them); on the radio an
+    Ack without them costs one byte more than before."""
+    detail = ReasonDetail(DetailCode.ENDURANCE, 0, needed_s=410.0, available_s=148.0)
+    ack = Ack(7, 900, AckRef.MISSION, 42, False, AckReason.INVALID, "endurance", detail)
+    alert = Alert(8, NOW, Severity.WARNING, AlertCode.COLLISION_RISK, "avoid: climb", None)
+    for msg in (ack, alert):
+        assert lan.decode(lan.encode(msg), type(msg)) == msg
+        assert radio.decode(radio.encode(msg), now_unix_s=NOW) == msg
+    raw = msgspec.msgpack.decode(radio.encode(ack)[2:])
+    header = bytes((radio.RADIO_SCHEMA_VERSION, radio.TAG_OF[Ack]))
+    older = radio.decode(header + msgspec.msgpack.encode(raw[:-1]), now_unix_s=NOW)
+    assert isinstance(older, Ack) and older.detail is None and older.text == "endurance"
+    plain = Ack(7, 900, AckRef.COMMAND, 3, True)
+    before = msgspec.msgpack.encode(msgspec.msgpack.decode(radio.encode(plain)[2:])[:-1])
+    assert len(radio.encode(plain)) == 2 + len(before) + 1
+    # an older node's LAN map has no "detail" key
+    lan_older = msgspec.msgpack.encode(
+        {k: v for k, v in msgspec.to_builtins(ack).items() if k != "detail"}
+    )
+    assert lan.decode(lan_older, Ack).detail is None
 
 
 def test_radio_refuses_values_it_cannot_carry() -> None:

@@ -29,7 +29,7 @@ from swarm_proto import (
 from swarm_proto.messages import RadioStats
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import RADIO_STATS
-from swarm_sim.demo import GCS_ID, _radio_up, start, stop
+from swarm_sim.demo import GCS_ID, radio_up, start, stop
 from swarm_sim.experiment import Shell
 
 pytestmark = pytest.mark.network
@@ -44,7 +44,7 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
     bus = SwarmBus.open(ZenohSettings(connect=(fleet.endpoint,)))
     bus.subscribe(RADIO_STATS, lambda m, k: stats.__setitem__(m.node_id, m))
     try:
-        _radio_up(stats, MEMBERS, fleet, Console(file=io.StringIO()))
+        radio_up(stats, MEMBERS, fleet, Console(file=io.StringIO()))
         up = gs.wait_for(
             lambda v: all(
                 i in v.status
@@ -129,6 +129,7 @@ def test_the_whole_demo_flies_over_the_radio() -> None:
     """`swarm-sim demo --radio`: the default fleet (three VTOLs, two quadcopters, six
     radio nodes with the ground station) plans, flies, returns and lands with every
     message between the vehicles and the ground station on the air (about 6 minutes)."""
-    from swarm_sim.demo import DEFAULT_FLEET, run_demo
+    from swarm_sim.demo import DEFAULT_FLEET
+    from swarm_sim.experiment import run
 
-    assert run_demo(DEFAULT_FLEET, speedup=1.0, timeout_s=900.0, radio=True) == 0
+    assert run(DEFAULT_FLEET, speedup=1.0, timeout_s=900.0, radio=True) == 0

@@ -19,7 +19,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from swarm_proto import GeoPoint, Mission, NoFlyZone
+from swarm_proto import GeoPoint, Mission, NoFlyZone, ReasonDetail
 
 from ..autopilot.items import ItemKind
 from ..planning import PlanningError, PlanVehicle, VehiclePose
@@ -169,6 +169,7 @@ class PlanOutcome:
     job_id: int
     plan: FleetPlan | None
     error: str = ""
+    detail: ReasonDetail | None = None  # the error's numbers (an endurance budget)
 
 
 def plan_fleet(
@@ -214,5 +215,5 @@ def run_plan(req: PlanRequest) -> PlanOutcome:
                 battery_pct=dict(req.battery_pct) or None,
             )
     except (PlanningError, ValueError) as exc:
-        return PlanOutcome(req.job_id, None, f"planning: {exc}")
+        return PlanOutcome(req.job_id, None, f"planning: {exc}", getattr(exc, "detail", None))
     return PlanOutcome(req.job_id, plan)

@@ -76,6 +76,7 @@ from swarm_proto import (
     TargetSource,
     Vote,
 )
+from swarm_proto.text import short_text
 
 from ..outputs import Note, Publish
 from ..planning.geo import LocalFrame
@@ -366,7 +367,7 @@ class Tasking:
         try:
             payload_wanted(sel.payload_model, self.settings.payload_classes)
         except ScoreError as exc:
-            return AckReason.INVALID, str(exc)[:64]
+            return AckReason.INVALID, short_text(str(exc))
         fleets = Counter(
             m
             for v, m in st.peer_missions.items()
@@ -480,7 +481,7 @@ class Tasking:
                                 max(0.0, now),
                                 Severity.INFO,
                                 AlertCode.GENERIC,
-                                f"chosen for mission {mid}, score {r.terms.score:.4f}"[:64],
+                                short_text(f"chosen for mission {mid}, score {r.terms.score:.4f}"),
                             )
                         )
                     )
@@ -496,7 +497,7 @@ class Tasking:
                             max(0.0, now),
                             Severity.WARNING,
                             AlertCode.MISSION_FAILED,
-                            text[:64],
+                            short_text(text),
                         )
                     ),
                     VoteFailed(mid, r.home, o.reason),

@@ -10,6 +10,7 @@ cannot plan. See docs/planners.md.
 
 from .area import AreaPlan, plan_area, replan_area
 from .autoland import AutolandPlan, LandingSlot, plan_autoland
+from .context import PlanContext
 from .coverage import (
     CoveragePath,
     Lane,
@@ -89,6 +90,7 @@ __all__ = [
     "Obstacles",
     "Offset",
     "PerimeterPlan",
+    "PlanContext",
     "PlanVehicle",
     "PlanningError",
     "PointTurns",

@@ -7,8 +7,9 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
+from swarm_proto import GeometryKind, MissionParams
 
+from .context import PlanContext
 from .coverage import LanePlan, check_flyable, decompose, lane_spacing_m, plan_lanes
 from .dubins import Pose, shortest_path
 from .endurance import Endurance, accel_m_s2
@@ -138,17 +139,10 @@ def _tracks(
 
 
 def plan_area(
-    geometry: Geometry,
-    vehicles: Sequence[PlanVehicle],
-    params: MissionParams = DEFAULT_PARAMS,
+    ctx: PlanContext,
     *,
-    zones: Sequence[NoFlyZone] = (),
-    now_unix_s: float = 0.0,
-    home_alt_msl_m: float = 0.0,
-    zone_margin_m: float = 0.0,
     hfov_deg: float | None = None,
     min_coverage: float = 0.99,
-    frame: LocalFrame | None = None,
     endurance: bool = False,
     extra_s: Mapping[int, float] | None = None,
     legacy_split: bool = False,
@@ -169,14 +163,13 @@ def plan_area(
     for all from the widest turn radius), the benchmark's baseline. A field the vehicles
     together would take over `max_flight_s` to fly (estimated before planning) is refused:
     FieldTooBigError with the estimate."""
+    geometry, vehicles, params = ctx.geometry, ctx.vehicles, ctx.params
     require_vehicles(vehicles)
     if geometry.kind != GeometryKind.POLYGON:
         raise InvalidGeometryError(f"an area mission needs a POLYGON, got {geometry.kind.name}")
-    frame = frame or LocalFrame.for_geometry(geometry)
+    frame = ctx.local_frame()
     poly = frame.shape(geometry)
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
-    )
+    zs = ctx.zone_set(frame)
     alts = {
         v.vehicle_id: params.altitude_rel_m + i * params.altitude_step_m
         for i, v in enumerate(vehicles)

@@ -12,19 +12,20 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from shapely.geometry import Point
 from shapely.ops import nearest_points
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
-from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone, VehicleType
+from swarm_proto import GeometryKind, VehicleType
 
+from .context import PlanContext
 from .endurance import LAND_FINAL_M, LAND_FINAL_M_S, VTOL_SINK_M_S
 from .errors import InvalidGeometryError, InvalidParameterError, TargetInZoneError
 from .geo import LocalFrame, heading_to_yaw
-from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
+from .vehicles import PlanVehicle, VehiclePlan, require_vehicles
 from .zones import XYZ, Track, ZoneSet, circle_points
 
 DEFAULT_SEPARATION_S = 60.0
@@ -93,17 +94,10 @@ def _course_problem(
 
 
 def plan_autoland(
-    geometry: Geometry,
-    vehicles: Sequence[PlanVehicle],
-    params: MissionParams = DEFAULT_PARAMS,
+    ctx: PlanContext,
     *,
     priority: Mapping[int, float] | None = None,
-    zones: Sequence[NoFlyZone] = (),
-    now_unix_s: float = 0.0,
-    home_alt_msl_m: float = 0.0,
-    zone_margin_m: float = 0.0,
     max_alt_rel_m: float = 120.0,
-    frame: LocalFrame | None = None,
     hold_until_released: bool = False,
     pad_spacing_m: float = 0.0,
 ) -> AutolandPlan:
@@ -120,6 +114,7 @@ def plan_autoland(
     its turn radius) and final leg are clear (else `TargetInZoneError`); each vehicle's
     transit to the fix climbs over or goes around zones (`ZoneSet.avoid`, up to
     `max_alt_rel_m`; a vehicle inside a zone first leaves it by the nearest way)."""
+    geometry, vehicles, params = ctx.geometry, ctx.vehicles, ctx.params
     require_vehicles(vehicles)
     if geometry.kind != GeometryKind.POINT:
         raise InvalidGeometryError(f"a landing base is a POINT, got {geometry.kind.name}")
@@ -127,11 +122,9 @@ def plan_autoland(
     step = params.altitude_step_m or DEFAULT_STACK_STEP_M
     if sep <= 0 or step <= 0:
         raise InvalidParameterError("landing separation and altitude step must be > 0")
-    frame = frame or LocalFrame.for_geometry(geometry)
+    frame = ctx.local_frame()
     base = frame.to_local(geometry.points[0].lat_deg, geometry.points[0].lon_deg)
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
-    )
+    zs = ctx.zone_set(frame)
     if zs.zone_containing(*base, 0.0) is not None:
         raise TargetInZoneError("the landing base is inside a no-fly zone")
     speeds = {v.vehicle_id: v.speed(params) for v in vehicles}

@@ -783,8 +783,8 @@ def order(
     """The lanes in a short flight order and direction for this turn model (from
     `start` if given; with `end`, counting the straight way there from the last lane,
     e.g. home): the cheapest seed pattern, or with `improve` (default: the module's
-    `_LOCAL_SEARCH`) the `restarts` cheapest improved to a local optimum, best kept."""
-    search = _LOCAL_SEARCH if improve is None else improve
+    `LOCAL_SEARCH`) the `restarts` cheapest improved to a local optimum, best kept."""
+    search = LOCAL_SEARCH if improve is None else improve
     return _order(lanes_, turns, start, restarts, end=end, improve=search)[0]
 
 
@@ -812,7 +812,7 @@ def order_cost(
 # share (`split_lanes`), each kept only if it is better than the seed pattern it starts
 # from (a share: by its time and, for a vehicle with a battery budget, its way home).
 # Ranking candidates and timing blocks use the seed patterns alone.
-_LOCAL_SEARCH = True
+LOCAL_SEARCH = True
 
 
 def _order(
@@ -1319,7 +1319,7 @@ def plan_lanes(
     if best is None:
         raise EmptyAreaError("no lane fits in the area")
     path = best.path
-    if _LOCAL_SEARCH:
+    if LOCAL_SEARCH:
         # the chosen lanes' order improved, kept if shorter as connected (improving every
         # candidate's would find irregular6's 24231 m path, 80 m shorter, for some 20 ms
         # more of a 50-80 ms plan; the planning budget is 100 ms)

@@ -3,9 +3,14 @@ a `ValueError`) for input it cannot plan: the caller's misuse, never a crash dee
 
 from __future__ import annotations
 
+from swarm_proto import ReasonDetail
+
 
 class PlanningError(ValueError):
-    """Base class: the input cannot be planned."""
+    """Base class: the input cannot be planned. `detail`: the numbers behind it, for the
+    ground station (an endurance budget), when there are any."""
+
+    detail: ReasonDetail | None = None
 
 
 class InvalidGeometryError(PlanningError):

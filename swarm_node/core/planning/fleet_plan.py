@@ -50,6 +50,7 @@ from swarm_proto import Mission, MissionType, NoFlyZone
 
 from .area import AreaPlan, plan_area, replan_area
 from .autoland import plan_autoland
+from .context import PlanContext
 from .endurance import launch_s, transition_s
 from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError, PlanningError
 from .flight import FIXED_WING_ACCEPT_M, flyable_plan, predict_flight
@@ -100,7 +101,7 @@ def _xy(frame: LocalFrame, w: Waypoint) -> tuple[float, float]:
     return frame.to_local(w.lat_deg, w.lon_deg)
 
 
-def _local_xy(frame: LocalFrame, waypoints: Sequence[Waypoint]) -> list[tuple[float, float] | None]:
+def local_xy(frame: LocalFrame, waypoints: Sequence[Waypoint]) -> list[tuple[float, float] | None]:
     """Each WAYPOINT item's local position (None for the other items)."""
     idx = [k for k, w in enumerate(waypoints) if w.kind == ItemKind.WAYPOINT]
     out: list[tuple[float, float] | None] = [None] * len(waypoints)
@@ -117,7 +118,7 @@ def along_metres(waypoints: Sequence[Waypoint]) -> tuple[float, ...]:
     pts = [(w.lat_deg, w.lon_deg) for w in waypoints if w.kind == ItemKind.WAYPOINT]
     if not pts:
         return tuple(0.0 for _ in waypoints)
-    xy = iter(_local_xy(LocalFrame(*pts[0]), waypoints))
+    xy = iter(local_xy(LocalFrame(*pts[0]), waypoints))
     out: list[float] = []
     s = 0.0
     prev: tuple[float, float] | None = None
@@ -479,7 +480,7 @@ def _lane_anchors(
     from .coverage import CoveragePath
 
     assert isinstance(path, CoveragePath)
-    xy = _local_xy(frame, share.waypoints)
+    xy = local_xy(frame, share.waypoints)
     out = []
     s = 0.0
     k = 0
@@ -586,16 +587,16 @@ def _plan(
     extra: dict[str, object] = {}
     if mission.mission_type == MissionType.AUTOLAND:
         extra = {"hold_until_released": True, "pad_spacing_m": LANDING_PAD_SPACING_M}
-    detail = planner(
+    ctx = PlanContext(
         mission.geometry,
         vehicles,
         mission.params,
-        zones=zones,
-        now_unix_s=now_unix_s,
-        home_alt_msl_m=home_alt_msl_m,
-        zone_margin_m=zone_margin_m(vehicles),
-        **extra,
+        zones,
+        now_unix_s,
+        home_alt_msl_m,
+        zone_margin_m(vehicles),
     )
+    detail = planner(ctx, **extra)
     # every fixed-wing share flyable as planned (the plan's tracks follow)
     detail = flyable_plan(
         detail, vehicles, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
@@ -676,13 +677,15 @@ def _plan_area(
     rounds = FLYABLE_ROUNDS if aware and any(v.profile.is_fixed_wing for v in vehicles) else 1
     for _ in range(rounds):
         raw = plan_area(
-            mission.geometry,
-            vehicles,
-            mission.params,
-            zones=zones,
-            now_unix_s=now_unix_s,
-            home_alt_msl_m=home_alt_msl_m,
-            zone_margin_m=margin,
+            PlanContext(
+                mission.geometry,
+                vehicles,
+                mission.params,
+                zones,
+                now_unix_s,
+                home_alt_msl_m,
+                margin,
+            ),
             endurance=aware,
             extra_s=extra,
             legacy_split=not aware,

@@ -5,20 +5,21 @@ point its vehicles form a target formation (see target.py)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
+from swarm_proto import Geometry, GeometryKind
 
+from .context import PlanContext
 from .errors import InvalidGeometryError, TargetInZoneError
 from .formation import assign_min_cost
 from .geo import LocalFrame
 from .target import TargetPlan, plan_target
-from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
-from .zones import Track, ZoneSet
+from .vehicles import PlanVehicle, VehiclePlan, require_vehicles
+from .zones import Track
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,25 +48,14 @@ def even_counts(n_vehicles: int, n_points: int) -> list[int]:
     return [base + (1 if i < extra else 0) for i in range(n_points)]
 
 
-def plan_objective(
-    geometry: Geometry,
-    vehicles: Sequence[PlanVehicle],
-    params: MissionParams = DEFAULT_PARAMS,
-    *,
-    zones: Sequence[NoFlyZone] = (),
-    now_unix_s: float = 0.0,
-    home_alt_msl_m: float = 0.0,
-    zone_margin_m: float = 0.0,
-    frame: LocalFrame | None = None,
-) -> ObjectivePlan:
+def plan_objective(ctx: PlanContext) -> ObjectivePlan:
+    geometry, vehicles, params = ctx.geometry, ctx.vehicles, ctx.params
     require_vehicles(vehicles)
     if geometry.kind not in (GeometryKind.POINT, GeometryKind.POINTS):
         raise InvalidGeometryError(f"objectives are POINT or POINTS, got {geometry.kind.name}")
-    frame = frame or LocalFrame.for_geometry(geometry)
+    frame = ctx.local_frame()
     pts = frame.ring(geometry.points)
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
-    )
+    zs = ctx.zone_set(frame)
     for i, (x, y) in enumerate(pts):
         z = zs.zone_containing(x, y, params.altitude_rel_m)
         if z is not None:
@@ -90,14 +80,9 @@ def plan_objective(
             (
                 p,
                 plan_target(
-                    Geometry.point(la, lo),
-                    group,
-                    params,
-                    zones=zones,
-                    now_unix_s=now_unix_s,
-                    home_alt_msl_m=home_alt_msl_m,
-                    zone_margin_m=zone_margin_m,
-                    frame=frame,
+                    dataclasses.replace(
+                        ctx, geometry=Geometry.point(la, lo), vehicles=group, frame=frame
+                    )
                 ),
             )
         )

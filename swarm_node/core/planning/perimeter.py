@@ -22,15 +22,15 @@ from dataclasses import dataclass
 
 from shapely.geometry import LinearRing, LineString, Point, Polygon
 
-from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
+from swarm_proto import Geometry, GeometryKind
 
+from .context import PlanContext
 from .dubins import Pose
 from .errors import InvalidGeometryError, NoSafeRouteError
 from .formation import Trim, cyclic_slots, respace, speed_ranges_on
 from .geo import LocalFrame
 from .route import Arrival, Leg, approach, arrival_waypoints, synchronize
 from .vehicles import (
-    DEFAULT_PARAMS,
     PlanVehicle,
     VehiclePlan,
     common_speed,
@@ -96,21 +96,12 @@ def _loop(geometry: Geometry, frame: LocalFrame, radius: float) -> LinearRing:
     return LinearRing(ring.coords)
 
 
-def plan_perimeter(
-    geometry: Geometry,
-    vehicles: Sequence[PlanVehicle],
-    params: MissionParams = DEFAULT_PARAMS,
-    *,
-    zones: Sequence[NoFlyZone] = (),
-    now_unix_s: float = 0.0,
-    home_alt_msl_m: float = 0.0,
-    zone_margin_m: float = 0.0,
-    frame: LocalFrame | None = None,
-) -> PerimeterPlan:
+def plan_perimeter(ctx: PlanContext) -> PerimeterPlan:
+    geometry, vehicles, params = ctx.geometry, ctx.vehicles, ctx.params
     require_vehicles(vehicles)
     if geometry.kind not in (GeometryKind.POLYGON, GeometryKind.CIRCLE):
         raise InvalidGeometryError(f"a perimeter is a POLYGON or CIRCLE, got {geometry.kind.name}")
-    frame = frame or LocalFrame.for_geometry(geometry)
+    frame = ctx.local_frame()
     speed = common_speed(vehicles, params)
     radius = max(
         max(
@@ -121,9 +112,7 @@ def plan_perimeter(
     )
     ring = _loop(geometry, frame, radius)
     loop_radius = (geometry.radius_m or radius) if geometry.kind == GeometryKind.CIRCLE else radius
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
-    )
+    zs = ctx.zone_set(frame)
     alts = {
         v.vehicle_id: params.altitude_rel_m + i * params.altitude_step_m
         for i, v in enumerate(vehicles)

@@ -39,7 +39,7 @@ from swarm_proto import LatLon, NoFlyZone
 from .area import AreaPlan
 from .dubins import Pose
 from .errors import InvalidParameterError, PlanningError
-from .fleet_plan import FleetPlan, Share, _local_xy, along_metres, flyable
+from .fleet_plan import FleetPlan, Share, along_metres, flyable, local_xy
 from .geo import LocalFrame
 from .objective import ObjectivePlan
 from .perimeter import PerimeterPlan
@@ -123,7 +123,7 @@ def entry_index(plan: FleetPlan, vehicle_id: int) -> int:
         path = detail.split.of(vehicle_id).path if vehicle_id in plan.roster else None
         if path is not None and path.lanes:
             a = path.lanes[0].a
-            xy = _local_xy(detail.frame, wps)
+            xy = local_xy(detail.frame, wps)
             for k in positioned:
                 p = xy[k]
                 if p is not None and math.dist(p, a) < 0.05:
@@ -147,7 +147,7 @@ _HOLDS = frozenset({ItemKind.LOITER_TURNS, ItemKind.LOITER_UNLIMITED, ItemKind.L
 
 
 def _entry_pose(frame: LocalFrame, share: Share, k: int) -> Pose:
-    xy = _local_xy(frame, share.waypoints)
+    xy = local_xy(frame, share.waypoints)
     here = xy[k]
     assert here is not None
     nxt = next((p for p in xy[k + 1 :] if p is not None and math.dist(p, here) > 0.5), None)

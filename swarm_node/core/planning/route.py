@@ -18,8 +18,9 @@ from shapely.geometry import LineString
 from shapely.geometry.base import BaseGeometry
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
-from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
+from swarm_proto import GeometryKind
 
+from .context import PlanContext
 from .dubins import Pose, all_paths
 from .errors import (
     InfeasibleTimingError,
@@ -30,7 +31,7 @@ from .errors import (
 )
 from .geo import LocalFrame, heading_to_yaw
 from .turns import DubinsTurns
-from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles
+from .vehicles import PlanVehicle, VehiclePlan, require_vehicles
 from .zones import ARC_STEP_M, Obstacles, Track, ZoneSet, circle_points
 
 _MAX_ORBITS = 60
@@ -347,29 +348,21 @@ class RoutePlan:
 
 
 def plan_route(
-    geometry: Geometry,
-    vehicles: Sequence[PlanVehicle],
-    params: MissionParams = DEFAULT_PARAMS,
+    ctx: PlanContext,
     *,
-    zones: Sequence[NoFlyZone] = (),
-    now_unix_s: float = 0.0,
-    home_alt_msl_m: float = 0.0,
-    zone_margin_m: float = 0.0,
     max_alt_rel_m: float = 120.0,
-    frame: LocalFrame | None = None,
 ) -> RoutePlan:
     """All vehicles reach the route's first point at the same moment (heading along the
     first leg, or `heading_deg`), then fly the route; legs crossing a no-fly zone climb
     over it (ceiling + margin <= `max_alt_rel_m`) or go around it."""
+    geometry, vehicles, params = ctx.geometry, ctx.vehicles, ctx.params
     require_vehicles(vehicles)
     if geometry.kind not in (GeometryKind.POLYLINE, GeometryKind.POINT):
         raise InvalidGeometryError(f"a route needs a POLYLINE or POINT, got {geometry.kind.name}")
     if any(v.pose is None for v in vehicles):
         raise InvalidParameterError("a route plan needs every vehicle's current position")
-    frame = frame or LocalFrame.for_geometry(geometry)
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
-    )
+    frame = ctx.local_frame()
+    zs = ctx.zone_set(frame)
     pts = frame.ring(geometry.points)
     alts = [params.altitude_rel_m + i * params.altitude_step_m for i in range(len(vehicles))]
     for x, y in pts:

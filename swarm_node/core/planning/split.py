@@ -20,8 +20,9 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from . import coverage
-from .coverage import CoveragePath, Lane, connect, order, order_cost
+from swarm_proto import DetailCode, ReasonDetail
+
+from .coverage import LOCAL_SEARCH, CoveragePath, Lane, connect, order, order_cost
 from .dubins import Pose
 from .endurance import leg_s, stop_and_go_s
 from .errors import InfeasibleTimingError, InvalidParameterError, NoVehiclesError
@@ -155,10 +156,10 @@ class MakespanCost:
 
     def final(self, block: Sequence[Lane], w: Worker) -> Assignment:
         """The block as it is flown: its order improved by the local search
-        (`coverage._LOCAL_SEARCH`), kept only if that overruns the budget less and,
+        (`coverage.LOCAL_SEARCH`), kept only if that overruns the budget less and,
         then, takes less time than the seed pattern the split timed."""
         a = self.assignment(block, w)
-        if not block or not coverage._LOCAL_SEARCH:
+        if not block or not LOCAL_SEARCH:
             return a
         b = Assignment(
             w.vehicle_id, w.speed_m_s, self.path(block, w, improve=True), w.accel_m_s2, w.extra_s
@@ -446,8 +447,38 @@ def _best_bounds(
         f"vehicle {w.vehicle_id} {w.budget_s:.0f} s" for w in workers if math.isfinite(w.budget_s)
     )
     short = f" (short by {worst:.0f} s)" if worst > 0.0 else ""
-    raise InfeasibleTimingError(
+    exc = InfeasibleTimingError(
         f"the vehicles' endurance does not cover the area{short}: at cruise, {budgets}"
+    )
+    exc.detail = _shortfall(ordered, workers, cost)
+    raise exc
+
+
+def _shortfall(
+    ordered: Sequence[Lane], workers: Sequence[Worker], cost: MakespanCost
+) -> ReasonDetail:
+    """What the area asks of each vehicle against what it has, for people: an even
+    split of the lanes (in sweep order), each block with the way home by the estimate,
+    against the battery's budget, both averaged over the vehicles with a budget (one
+    vehicle: its own figures)."""
+    limited = [w for w in workers if math.isfinite(w.budget_s)]
+    n, k = len(workers), len(ordered)
+    needs, budgets = [], []
+    for idx, w in enumerate(workers):
+        if not math.isfinite(w.budget_s):
+            continue
+        block = ordered[round(idx * k / n) : round((idx + 1) * k / n)] or ordered[-1:]
+        back = max(w.return_s(p) for p in (block[0].a, block[0].b, block[-1].a, block[-1].b))
+        needs.append(cost.estimate(block, w) + back)
+        budgets.append(w.budget_s)
+    if not needs:
+        return ReasonDetail(DetailCode.ENDURANCE)
+    one = limited[0].vehicle_id if len(workers) == 1 else 0
+    return ReasonDetail(
+        DetailCode.ENDURANCE,
+        one if one <= 65534 else 0,
+        needed_s=min(sum(needs) / len(needs), 1.0e7),
+        available_s=min(sum(budgets) / len(budgets), 1.0e7),
     )
 
 

@@ -22,14 +22,15 @@ from dataclasses import dataclass
 from shapely.geometry import Point
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
-from swarm_proto import Geometry, GeometryKind, MissionParams, NoFlyZone
+from swarm_proto import GeometryKind, MissionParams
 
+from .context import PlanContext
 from .dubins import Pose
 from .errors import InvalidGeometryError, InvalidParameterError, TargetInZoneError
 from .formation import Trim, cyclic_slots, respace, speed_ranges_on
 from .geo import LocalFrame
 from .route import Arrival, Leg, approach, arrival_waypoints, synchronize
-from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, common_speed, require_vehicles
+from .vehicles import PlanVehicle, VehiclePlan, common_speed, require_vehicles
 from .zones import Track, Zone, ZoneSet, circle_points
 
 DEFAULT_HOVER_RADIUS_M = 50.0
@@ -91,26 +92,14 @@ def _phases(
     return out
 
 
-def plan_target(
-    geometry: Geometry,
-    vehicles: Sequence[PlanVehicle],
-    params: MissionParams = DEFAULT_PARAMS,
-    *,
-    zones: Sequence[NoFlyZone] = (),
-    now_unix_s: float = 0.0,
-    home_alt_msl_m: float = 0.0,
-    zone_margin_m: float = 0.0,
-    clockwise: bool = False,
-    frame: LocalFrame | None = None,
-) -> TargetPlan:
+def plan_target(ctx: PlanContext, *, clockwise: bool = False) -> TargetPlan:
+    geometry, vehicles, params = ctx.geometry, ctx.vehicles, ctx.params
     require_vehicles(vehicles)
     if geometry.kind not in (GeometryKind.POINT, GeometryKind.CIRCLE):
         raise InvalidGeometryError(f"a target is a POINT or CIRCLE, got {geometry.kind.name}")
-    frame = frame or LocalFrame.for_geometry(geometry)
+    frame = ctx.local_frame()
     centre = frame.to_local(geometry.points[0].lat_deg, geometry.points[0].lon_deg)
-    zs = ZoneSet.from_messages(
-        zones, frame, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m, margin_m=zone_margin_m
-    )
+    zs = ctx.zone_set(frame)
     alts = {
         v.vehicle_id: params.altitude_rel_m + i * params.altitude_step_m
         for i, v in enumerate(vehicles)

@@ -11,24 +11,30 @@ flyable from its pose at its planned turn radius.
                         PREMISSION's catch-up)
     flyable             (fleet_plan.py) the profile planners use: turns at 1.3 x the
                         minimum radius
+    VehicleTransit      one vehicle's legs from where its autopilot says it is: the
+                        approach to its share, the way home, an emergency landing
+                        route; fixed-wing waypoints with their acceptance radius
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
+import msgspec
 from shapely.geometry import LineString
 from shapely.geometry.base import BaseGeometry
 
-from swarm_proto import LatLon, NoFlyZone, geodesy
+from swarm_proto import GeoPoint, LatLon, NoFlyZone, geodesy
 
 from ..autopilot.items import ItemKind, Waypoint
+from ..autopilot.state import AutopilotState
 from ..profile import VehicleProfile
 from .dubins import Pose, all_paths
 from .errors import PlanningError
 from .fleet_plan import TURN_RADIUS_MARGIN, flyable
-from .flight import TURN_CLEARANCE_M, flyable_waypoints
+from .flight import FIXED_WING_ACCEPT_M, TURN_CLEARANCE_M, flyable_waypoints
 from .geo import LocalFrame, heading_to_yaw
 from .zones import ZoneSet
 
@@ -230,3 +236,184 @@ def _entry(
 def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
     """Ground distance, metres: the one geodesy (swarm_proto.geodesy)."""
     return geodesy.distance_m(lat1, lon1, lat2, lon2)
+
+
+def flown_speed_m_s(ap: AutopilotState) -> float:
+    """The speed a vehicle flies now, for the radius of its next turn: the faster of its
+    airspeed and groundspeed (a tailwind widens the turn over the ground); 0 when
+    unknown or not finite."""
+    v = max(ap.airspeed_m_s, ap.groundspeed_m_s)
+    return v if math.isfinite(v) and v > 0.0 else 0.0
+
+
+@dataclass(frozen=True)
+class VehicleTransit:
+    """The transit legs of one vehicle (its profile), from where its autopilot says it
+    is: the approach to its share, the way home, an emergency landing route."""
+
+    profile: VehicleProfile
+
+    @property
+    def margin_m(self) -> float:
+        """Clearance from zones on transit legs: a fixed-wing may start the leg with a
+        U-turn as wide as two turn radii."""
+        return max(TRANSIT_MARGIN_M, 2.0 * self.profile.turn_radius_m())
+
+    def tight(self, waypoints: Sequence[Waypoint]) -> tuple[Waypoint, ...]:
+        """Fixed-wing: every plain waypoint asks for FIXED_WING_ACCEPT_M acceptance."""
+        if not self.profile.is_fixed_wing:
+            return tuple(waypoints)
+        return tuple(
+            msgspec.structs.replace(w, acceptance_radius_m=FIXED_WING_ACCEPT_M)
+            if w.kind == ItemKind.WAYPOINT and w.acceptance_radius_m == 0.0
+            else w
+            for w in waypoints
+        )
+
+    def with_approach(
+        self,
+        waypoints: tuple[Waypoint, ...],
+        ap: AutopilotState,
+        zones: Sequence[NoFlyZone],
+        now: float,
+        home_alt: float,
+    ) -> tuple[Waypoint, ...]:
+        """Prefix the leg from where the vehicle is to its first waypoint, around zones;
+        a fixed-wing's then made flyable from its pose (the leg's points and the plan's
+        first one, where the plan assumed it starts, may be skipped). The share's speed
+        is set before the leg (the leg is flown at the speed the flyable stage plans its
+        turns for), and the leg's first turn, flown while the aircraft is still at its
+        speed now, is planned at the radius of the faster of the two."""
+        first_at = next((i for i, w in enumerate(waypoints) if w.kind == ItemKind.WAYPOINT), None)
+        if first_at is None or ap.lat_deg is None or ap.lon_deg is None:
+            return waypoints
+        first = waypoints[first_at]
+        speed = next(
+            (i for i, w in enumerate(waypoints[:first_at]) if w.kind == ItemKind.CHANGE_SPEED),
+            None,
+        )
+        lead: tuple[Waypoint, ...] = ()
+        if speed is not None and self.profile.is_fixed_wing:
+            lead, waypoints = (waypoints[speed],), (*waypoints[:speed], *waypoints[speed + 1 :])
+            first_at -= 1
+        leg: list[Waypoint] = []
+        if zones:
+            now_m_s = flown_speed_m_s(ap)
+            if lead and lead[0].speed_m_s is not None:
+                now_m_s = max(now_m_s, lead[0].speed_m_s)
+            leg = self.leg(
+                (ap.lat_deg, ap.lon_deg),
+                ap.heading_deg,
+                (first.lat_deg, first.lon_deg),
+                first.alt_rel_m,
+                zones,
+                now,
+                home_alt,
+                speed_m_s=now_m_s,
+            )[:-1]
+        out = (*lead, *leg, *waypoints)
+        free = frozenset(range(len(lead) + len(leg))) | {len(lead) + len(leg) + first_at}
+        return fly_corners(
+            out,
+            self.profile,
+            zones,
+            start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
+            free=free,
+            now=now,
+            home_alt_msl_m=home_alt,
+        )
+
+    def leg(
+        self,
+        start: tuple[float, float],
+        heading_deg: float,
+        end: tuple[float, float],
+        alt_rel_m: float,
+        zones: Sequence[NoFlyZone],
+        now: float,
+        home_alt: float,
+        speed_m_s: float | None = None,
+    ) -> list[Waypoint]:
+        """A zone-safe transit; a fixed-wing's entered along a Dubins path at the radius
+        of `speed_m_s` (what it flies now) with the planners' margin
+        (`flown_turn_radius_m`)."""
+        if self.profile.is_fixed_wing:
+            return fixed_wing_transit(
+                start,
+                heading_deg,
+                end,
+                alt_rel_m,
+                zones,
+                radius_m=flown_turn_radius_m(self.profile, speed_m_s),
+                now=now,
+                home_alt_msl_m=home_alt,
+            )
+        return safe_transit(
+            start,
+            end,
+            alt_rel_m,
+            zones,
+            now=now,
+            home_alt_msl_m=home_alt,
+            margin_m=self.margin_m,
+        )
+
+    def from_here(
+        self,
+        ap: AutopilotState,
+        there: tuple[float, float],
+        zones: Sequence[NoFlyZone],
+        now: float,
+        home_alt: float,
+    ) -> list[Waypoint]:
+        """A zone-safe leg from where the vehicle is to `there`, at its current height
+        (at least 30 m above home)."""
+        assert ap.lat_deg is not None and ap.lon_deg is not None
+        alt = max(ap.alt_rel_m or 0.0, 30.0)
+        return self.leg(
+            (ap.lat_deg, ap.lon_deg),
+            ap.heading_deg,
+            there,
+            alt,
+            zones,
+            now,
+            home_alt,
+            speed_m_s=flown_speed_m_s(ap),
+        )
+
+    def flyable_leg(
+        self,
+        leg: Sequence[Waypoint],
+        ap: AutopilotState,
+        zones: Sequence[NoFlyZone],
+        now: float,
+        home_alt: float,
+    ) -> tuple[Waypoint, ...]:
+        """A transit leg (its end included) a fixed-wing can fly from where it is: its
+        points but the end may be skipped."""
+        if ap.lat_deg is None or ap.lon_deg is None:
+            return tuple(leg)
+        return fly_corners(
+            leg,
+            self.profile,
+            zones,
+            start=(ap.lat_deg, ap.lon_deg, ap.heading_deg),
+            free=frozenset(range(len(leg) - 1)),
+            now=now,
+            home_alt_msl_m=home_alt,
+            speed_m_s=flown_speed_m_s(ap),
+        )
+
+    def landing_route(
+        self, point: GeoPoint, ap: AutopilotState, zones: Sequence[NoFlyZone], now: float
+    ) -> tuple[Waypoint, ...]:
+        """An emergency landing at `point` (paper section 3.5.1: "if the landing route has
+        been specified"): a zone-safe leg from here at the current altitude (at least
+        30 m), then a landing item there (to fly in AUTO)."""
+        home = ap.home
+        if home is None or ap.lat_deg is None or ap.lon_deg is None:
+            raise PlanningError("no position or home")
+        leg = self.from_here(ap, (point.lat_deg, point.lon_deg), zones, now, home.alt_msl_m)
+        leg = list(self.flyable_leg(leg, ap, zones, now, home.alt_msl_m))
+        land = Waypoint(ItemKind.LAND, point.lat_deg, point.lon_deg, 0.0)
+        return (*self.tight(leg[:-1]), land)

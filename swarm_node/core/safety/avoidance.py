@@ -71,7 +71,17 @@ from typing import Any
 
 import numpy as np
 
-from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, VehicleType
+from swarm_proto import (
+    Alert,
+    AlertCode,
+    DetailCode,
+    ReasonDetail,
+    Severity,
+    VehicleInfo,
+    VehicleStatus,
+    VehicleType,
+)
+from swarm_proto.text import short_text
 
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
 from ..autopilot.state import AdsbReport
@@ -784,7 +794,7 @@ class CollisionAvoider:
             reqs: tuple[ApRequest, ...] = (SetMode(mode="HOLD"),)
             text = f"avoid: stop for {who} {when}"
             out.append(Manoeuvre(d.kind, reqs, None, d.against, text))
-            out.append(self._alert(own, now, Severity.WARNING, text))
+            out.append(self._alert(own, now, Severity.WARNING, text, detail=_detail(d, 0.0)))
             return out
         assert d.target_msl_m is not None
         home = own.alt_msl_m - own.alt_rel_m
@@ -810,7 +820,7 @@ class CollisionAvoider:
             why = f" (too slow: {climb_s:.0f} s to climb)"
         text = f"avoid: {verb} {target_rel:.0f} m{why} for {who} {when}"
         out.append(Manoeuvre(d.kind, reqs, target_rel, d.against, text))
-        out.append(self._alert(own, now, severity, text))
+        out.append(self._alert(own, now, severity, text, detail=_detail(d, target_rel)))
         return out
 
     def _resume(self, own: VehicleStatus, now: float) -> list[Output]:
@@ -837,11 +847,27 @@ class CollisionAvoider:
         severity: Severity,
         text: str,
         cleared: bool = False,
+        detail: ReasonDetail | None = None,
     ) -> Alert:
         return Alert(
             vehicle_id=self.config.own_id,
             time_unix_s=max(0.0, now),
             severity=severity,
             code=AlertCode.CONDITION_CLEARED if cleared else AlertCode.COLLISION_RISK,
-            text=text[:64],
+            text=short_text(text),
+            detail=detail,
         )
+
+
+def _detail(d: _Decision, altitude_rel_m: float) -> ReasonDetail:
+    """A manoeuvre's numbers for the ground station: the other aircraft (a swarm node
+    alone; 0 for several or ADS-B traffic), the closest approach, when, and the altitude
+    above home it goes to (0: it stops)."""
+    other = d.against[0] if len(d.against) == 1 and d.against[0] > 0 else 0
+    return ReasonDetail(
+        DetailCode.COLLISION,
+        other if other <= 65534 else 0,
+        distance_m=min(max(d.closest_m, 0.0), 1.0e6) if math.isfinite(d.closest_m) else 0.0,
+        in_s=min(max(d.soonest_s, 0.0), 1.0e7) if math.isfinite(d.soonest_s) else 0.0,
+        altitude_m=min(max(altitude_rel_m, 0.0), 8000.0),
+    )

@@ -44,10 +44,23 @@ import math
 from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
 
-from swarm_proto import GeoPoint, MissionState, VehicleStatus
+from swarm_proto import GeoPoint, MissionState, VehicleStatus, VehicleType
 from swarm_proto.geodesy import distance_m
 
 ABOUT_TO_TAKE_OFF = frozenset({MissionState.PLANNING, MissionState.PREMISSION})
+HOVER_SPEED_M_S = 8.0  # a VTOL slower than this is hovering (it manoeuvres as a multirotor)
+
+
+def hovering(vehicle_type: VehicleType, mode_name: str, groundspeed_m_s: float) -> bool:
+    """A multirotor, or a VTOL hovering outside its mission (a take-off climb, QLOITER):
+    in AUTO a VTOL counts as the fixed-wing it flies as (slow only in a transition)."""
+    if vehicle_type == VehicleType.COPTER:
+        return True
+    return (
+        vehicle_type == VehicleType.VTOL
+        and mode_name != "AUTO"
+        and groundspeed_m_s < HOVER_SPEED_M_S
+    )
 
 
 @dataclass(frozen=True, slots=True)

@@ -32,7 +32,7 @@ Pure: no I/O, no clock.
 from __future__ import annotations
 
 from collections import Counter, OrderedDict
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from swarm_proto import (
@@ -212,6 +212,68 @@ class Regroup:
     def handover(self, ours: int) -> dict[int, PlanLineage]:
         """Lineages of an emptied fleet's mission handed to our mission's fleet."""
         return self.handed.pop(ours, {})
+
+    def emptied(
+        self, cmd: Command, flying: Iterable[int], missions: Mapping[int, int], theirs: int
+    ) -> bool:
+        """This swap takes every member of our fleet (`flying`) and none of theirs
+        (`missions`: the live peers' missions)."""
+        named = set(cmd.target.vehicle_ids)
+        if not set(flying) <= named:
+            return False
+        return not any(missions.get(v) == theirs for v in named)
+
+    def hand_over(
+        self, ours: int, theirs: int, progress: Mapping[int, float], members_hash: int
+    ) -> PlanLineage | None:
+        """Our fleet is emptied: its lineage, with the progress we leave at, for the
+        fleet of `theirs` (the paper's SENDING_MISSION; None: no plan to hand over). We
+        go to their fleet: we take it up with them."""
+        lineage = self.lineages.get(ours)
+        if lineage is None:
+            return None
+        last = Lineage(lineage.mission, lineage.first, list(lineage.steps))
+        self.replanned(ours, (), progress)  # the hand-over step
+        msg = self.lineages[ours].message(self.self_id, members_hash, theirs)
+        self.lineages[ours] = last
+        self.on_lineage(msg)
+        return msg
+
+    def take_over(self, ours: int) -> PlanLineage | None:
+        """Our mission is flown: an emptied fleet's mission handed to ours, to take up
+        (the fleet as the swap left it flies what is left of it), instead of flying
+        home; its adopters are noted for `join`."""
+        handed = self.handover(ours)
+        if not handed:
+            return None
+        msg = handed_lineage(handed)
+        mine = self.lineages.get(ours)
+        movers = set(handed)
+        adopters: tuple[int, ...] = mine.members if mine else (self.self_id,)
+        for step in mine.steps if mine else ():
+            if movers & set(step.members):
+                adopters = step.members
+                break
+        self.adopting[msg.mission.mission_id] = (msg, adopters)
+        return msg
+
+    def join(
+        self, mid: int, profiles: Mapping[int, VehicleProfile]
+    ) -> tuple[PlanLineage, Lineage, Replay]:
+        """The plan of the fleet we join (or of an emptied fleet's, handed to ours),
+        made again from its lineage. Raises KeyError for a member with no profile."""
+        adopting = self.adopting.pop(mid, None)
+        if adopting is not None:
+            msg, adopters = adopting
+            lineage = Lineage.of(msg)
+        else:
+            msg, adopters = self.offered[mid], ()
+            lineage = self.adopted(msg)
+        replay = lineage.replay(profiles, adopters)
+        if adopters:  # the hand-over step is ours now: taken up by the adopters
+            lineage.steps[-1] = LineageStep(tuple(adopters), lineage.steps[-1].progress)
+            self.lineages[mid] = lineage
+        return msg, lineage, replay
 
 
 def handed_lineage(msgs: Mapping[int, PlanLineage]) -> PlanLineage:

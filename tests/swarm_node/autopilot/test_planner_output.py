@@ -9,6 +9,7 @@ import pytest
 
 from swarm_node.core.autopilot import requests as rq
 from swarm_node.core.planning import LeadState, PlanVehicle, VehiclePose
+from swarm_node.core.planning.context import PlanContext
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.database import seed_profiles
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams
@@ -44,12 +45,12 @@ def plans(profile: VehicleProfile) -> dict[str, object]:
     objectives = Geometry(GeometryKind.POINTS, (LatLon(*offset(600, 0)), LatLon(*offset(0, 700))))
     lead = LeadState(*offset(400, 0), 90.0, course_deg=90.0, speed_m_s=30.0, time_s=0.0)
     return {
-        "area": planning.plan_area(Geometry.polygon(square), v, p, **kw),
-        "target": planning.plan_target(Geometry.point(*offset(600, 0)), v, p, **kw),
-        "perimeter": planning.plan_perimeter(Geometry.polygon(square), v, p, **kw),
-        "route": planning.plan_route(line, v, p, **kw),
-        "objective": planning.plan_objective(objectives, v, p, **kw),
-        "autoland": planning.plan_autoland(Geometry.point(*offset(0, 0)), v, p, **kw),
+        "area": planning.plan_area(PlanContext(Geometry.polygon(square), v, p, **kw)),
+        "target": planning.plan_target(PlanContext(Geometry.point(*offset(600, 0)), v, p, **kw)),
+        "perimeter": planning.plan_perimeter(PlanContext(Geometry.polygon(square), v, p, **kw)),
+        "route": planning.plan_route(PlanContext(line, v, p, **kw)),
+        "objective": planning.plan_objective(PlanContext(objectives, v, p, **kw)),
+        "autoland": planning.plan_autoland(PlanContext(Geometry.point(*offset(0, 0)), v, p, **kw)),
         "mumt": planning.plan_mumt(lead, v, p, now_s=0.0, **kw),
     }
 

@@ -16,7 +16,7 @@ import pytest
 import zenoh
 from typer.testing import CliRunner
 
-from gcs_cli.cli import app
+from gcs_cli.app import app
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.database import LATEST_VERSION, QUADCOPTER, SwarmDatabase
 from swarm_proto import SystemClock

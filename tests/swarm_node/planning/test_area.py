@@ -22,6 +22,7 @@ from swarm_node.core.planning import (
     replan_area,
 )
 from swarm_node.core.planning.checks import waypoint_zone_problems
+from swarm_node.core.planning.context import PlanContext
 from swarm_proto import Geometry, MissionParams, NoFlyZone
 
 from .conftest import ORIGIN
@@ -46,7 +47,7 @@ def plan(profiles: dict) -> object:
     from .conftest import make_fleet
 
     vs = make_fleet(profiles, ["fixed_wing", "fixed_wing", "multirotor"], _poses(3))
-    return vs, plan_area(AREA, vs, PARAMS, zones=[ZONE], zone_margin_m=20.0)
+    return vs, plan_area(PlanContext(AREA, vs, PARAMS, zones=[ZONE], zone_margin_m=20.0))
 
 
 def test_area_plan_covers_and_never_enters_zones(plan: object) -> None:
@@ -97,13 +98,13 @@ def test_replan_after_dropout_and_join(plan: object, fleet: Fleet) -> None:
 def test_invalid_area_input(fleet: Fleet) -> None:
     vs = fleet(["fixed_wing"])
     with pytest.raises(NoVehiclesError):
-        plan_area(AREA, [])
+        plan_area(PlanContext(AREA, []))
     with pytest.raises(InvalidGeometryError):
-        plan_area(Geometry.point(LA, LO), vs)
+        plan_area(PlanContext(Geometry.point(LA, LO), vs))
     with pytest.raises(ValueError, match="not simple"):  # rejected already by the message type
         Geometry.polygon([(LA, LO), (LA + 0.01, LO + 0.01), (LA + 0.01, LO), (LA, LO + 0.01)])
     no_camera = [PlanVehicle(msgspec.structs.replace(vs[0].profile, camera=None))]
     with pytest.raises(InvalidParameterError, match="camera"):
-        plan_area(AREA, no_camera)
+        plan_area(PlanContext(AREA, no_camera))
     with pytest.raises(InvalidParameterError, match="duplicate"):
-        plan_area(AREA, vs + vs)
+        plan_area(PlanContext(AREA, vs + vs))

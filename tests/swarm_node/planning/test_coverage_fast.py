@@ -16,6 +16,7 @@ from shapely.geometry import Polygon
 
 from swarm_node.core.planning import DubinsTurns, decompose, lanes, plan_lanes
 from swarm_node.core.planning import coverage as cov
+from swarm_node.core.planning.context import PlanContext
 from swarm_node.core.planning.errors import FieldTooBigError
 
 SPACING = 34.64
@@ -116,5 +117,5 @@ def test_plan_area_refuses_a_field_too_big_before_planning(fleet: Any) -> None:
     la, lo = ORIGIN[0], ORIGIN[1]
     huge = Geometry.polygon([(la, lo), (la + 0.5, lo), (la + 0.5, lo + 0.5), (la, lo + 0.5)])
     with pytest.raises(FieldTooBigError, match="too big to fly") as err:
-        plan_area(huge, fleet(["fixed_wing", "fixed_wing"]))
+        plan_area(PlanContext(huge, fleet(["fixed_wing", "fixed_wing"])))
     assert err.value.estimated_s > 4 * 3600.0

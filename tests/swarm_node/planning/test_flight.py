@@ -41,6 +41,7 @@ from swarm_node.core.planning import (
     shortest_path,
 )
 from swarm_node.core.planning.checks import track_cover_problems, track_zone_problems
+from swarm_node.core.planning.context import PlanContext
 from swarm_node.core.planning.flight import TURN_CLEARANCE_M, corner_overshoot_m, max_corner_rad
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.plan_memo import PlanMemo
@@ -274,11 +275,13 @@ def test_area_plans_around_a_random_zone_are_flown_clear_of_it(
     margin = max(p.turn_radius_m() for p in profiles)
     try:
         plan = plan_area(
-            _square(0, 0, w, h),
-            vehicles,
-            MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
-            zones=zones,
-            zone_margin_m=margin,
+            PlanContext(
+                _square(0, 0, w, h),
+                vehicles,
+                MissionParams(altitude_rel_m=60.0, side_overlap=0.6),
+                zones=zones,
+                zone_margin_m=margin,
+            )
         )
         plan = flyable_plan(plan, vehicles, zones)
     except PlanningError:
@@ -307,11 +310,13 @@ def test_route_plans_with_sharp_corners_and_zones_are_flown_clear(
     zones = [_nfz(1, *zone)]
     try:
         plan = plan_route(
-            Geometry(GeometryKind.POLYLINE, tuple(LatLon(*_ll(*p)) for p in pts)),
-            vehicles,
-            MissionParams(altitude_rel_m=80.0, altitude_step_m=10.0),
-            zones=zones,
-            zone_margin_m=vehicles[0].profile.turn_radius_m(),
+            PlanContext(
+                Geometry(GeometryKind.POLYLINE, tuple(LatLon(*_ll(*p)) for p in pts)),
+                vehicles,
+                MissionParams(altitude_rel_m=80.0, altitude_step_m=10.0),
+                zones=zones,
+                zone_margin_m=vehicles[0].profile.turn_radius_m(),
+            )
         )
         plan = flyable_plan(plan, vehicles, zones)
     except PlanningError:

@@ -31,6 +31,7 @@ from swarm_node.core.planning import (
     smooth_loop,
 )
 from swarm_node.core.planning.checks import arrival_spread_s
+from swarm_node.core.planning.context import PlanContext
 from swarm_node.core.profile import G_M_S2, VehicleProfile
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
 from tests.conftest import examples
@@ -65,7 +66,7 @@ def _gaps(angles: list[float]) -> list[float]:
 def test_hover_formation_equal_angles_radius_and_altitude_steps(fleet: Fleet) -> None:
     vs = fleet(["multirotor"] * 4, _around(4))
     params = MissionParams(altitude_rel_m=60, altitude_step_m=5, radius_m=40)
-    plan = plan_target(Geometry.point(*ORIGIN), vs, params)
+    plan = plan_target(PlanContext(Geometry.point(*ORIGIN), vs, params))
     assert all(s.radius_m == 40 and not s.orbit for s in plan.slots)
     assert _gaps([s.phase_rad for s in plan.slots]) == pytest.approx([math.pi / 2] * 4)
     assert sorted(s.alt_rel_m for s in plan.slots) == [60, 65, 70, 75]
@@ -77,7 +78,7 @@ def test_hover_formation_equal_angles_radius_and_altitude_steps(fleet: Fleet) ->
 def test_fixed_wing_orbit_radius_and_phase_spacing(fleet: Fleet) -> None:
     vs = fleet(["fixed_wing"] * 3, _around(3))
     params = MissionParams(altitude_rel_m=120, altitude_step_m=10, radius_m=20.0)
-    plan = plan_target(Geometry.point(*ORIGIN), vs, params)
+    plan = plan_target(PlanContext(Geometry.point(*ORIGIN), vs, params))
     p = vs[0].profile
     v = p.cruise_speed_m_s
     assert plan.orbit_radius_m >= v * v / (G_M_S2 * math.tan(math.radians(p.max_bank_deg))) - 1e-9
@@ -94,7 +95,7 @@ def test_fixed_wing_orbit_radius_and_phase_spacing(fleet: Fleet) -> None:
 def test_arrival_order_follows_initial_bearings(fleet: Fleet) -> None:
     poses = _around(5, 0.02)
     vs = fleet(["multirotor"] * 5, poses)
-    plan = plan_target(Geometry.point(*ORIGIN), vs, MissionParams(radius_m=60))
+    plan = plan_target(PlanContext(Geometry.point(*ORIGIN), vs, MissionParams(radius_m=60)))
     bearing = {}
     for v in vs:
         assert v.pose is not None
@@ -114,7 +115,7 @@ def test_arrival_order_follows_initial_bearings(fleet: Fleet) -> None:
 def test_target_inside_a_zone_raises(fleet: Fleet) -> None:
     zone = NoFlyZone(4, Geometry.circle(*ORIGIN, 300.0))
     with pytest.raises(TargetInZoneError):
-        plan_target(Geometry.point(*ORIGIN), fleet(["multirotor"]), zones=[zone])
+        plan_target(PlanContext(Geometry.point(*ORIGIN), fleet(["multirotor"]), zones=[zone]))
 
 
 def _bank_radius(v: PlanVehicle, speed: float) -> float:
@@ -198,7 +199,7 @@ def _min_turn_radius(ring: list[tuple[float, float]]) -> float:
 
 def test_perimeter_fixed_wing_smoothed_and_evenly_spaced(fleet: Fleet) -> None:
     vs = fleet(["fixed_wing"] * 3, _around(3))
-    plan = plan_perimeter(_square(), vs, MissionParams(altitude_step_m=10))
+    plan = plan_perimeter(PlanContext(_square(), vs, MissionParams(altitude_step_m=10)))
     r = max(v.profile.turn_radius_m(plan.speed_m_s) for v in vs)
     assert _min_turn_radius(list(plan.loop)) >= 0.98 * r
     offs = sorted(o for _v, o in plan.offsets_m)
@@ -244,7 +245,7 @@ def test_perimeter_entry_is_timed(profiles: dict[str, VehicleProfile], role: str
             VehiclePose(ORIGIN[0] + a, ORIGIN[1] + b, 50.0, h) for a, b, h in where
         ]
         vs = make_fleet(profiles, [role] * len(where), poses)
-        plan = plan_perimeter(_square(), vs, MissionParams(altitude_step_m=10))
+        plan = plan_perimeter(PlanContext(_square(), vs, MissionParams(altitude_step_m=10)))
         # every vehicle is at its phase point at the same moment (within 1 s)...
         arrivals = {a.vehicle_id: a for a in plan.arrivals}
         assert len(plan.legs) == len(vs)
@@ -268,7 +269,7 @@ def test_perimeter_entry_is_timed(profiles: dict[str, VehicleProfile], role: str
 @pytest.mark.parametrize("role", ["multirotor", "fixed_wing"])
 def test_perimeter_insertion_and_removal(fleet: Fleet, role: str) -> None:
     vs = fleet([role] * 4, _around(4))
-    plan = plan_perimeter(_square(), vs[:3])
+    plan = plan_perimeter(PlanContext(_square(), vs[:3]))
     pos = {v: o for v, o in plan.offsets_m}
     pos.pop(vs[1].vehicle_id)  # one leaves
     pos[vs[3].vehicle_id] = pos[vs[0].vehicle_id] + 30.0  # one joins just ahead of another
@@ -287,10 +288,10 @@ def test_perimeter_insertion_and_removal(fleet: Fleet, role: str) -> None:
 def test_perimeter_circle_and_too_narrow(fleet: Fleet) -> None:
     vs = fleet(["fixed_wing"] * 2, _around(2))
     circle = Geometry.circle(*ORIGIN, 300.0)
-    plan = plan_perimeter(circle, vs)
+    plan = plan_perimeter(PlanContext(circle, vs))
     assert plan.length_m == pytest.approx(2 * math.pi * 300.0, rel=0.01)
     with pytest.raises(InvalidGeometryError):
-        plan_perimeter(Geometry.circle(*ORIGIN, 30.0), vs)
+        plan_perimeter(PlanContext(Geometry.circle(*ORIGIN, 30.0), vs))
     with pytest.raises(InvalidGeometryError):
         smooth_loop(Polygon([(0, 0), (1000, 0), (1000, 50), (0, 50)]), 60.0)
 
@@ -302,12 +303,12 @@ def test_objective_distributes_evenly(fleet: Fleet) -> None:
     vs = fleet(["multirotor"] * 5, _around(5))
     la, lo = ORIGIN
     pts = Geometry(GeometryKind.POINTS, (LatLon(la + 0.01, lo), LatLon(la - 0.01, lo)))
-    plan = plan_objective(pts, vs, MissionParams(radius_m=30))
+    plan = plan_objective(PlanContext(pts, vs, MissionParams(radius_m=30)))
     sizes = sorted(len(g) for _p, g in plan.groups)
     assert sizes == [2, 3]
     assert sorted(v for _p, g in plan.groups for v in g) == sorted(v.vehicle_id for v in vs)
     three = Geometry(GeometryKind.POINTS, tuple(LatLon(la + 0.01 * k, lo) for k in range(3)))
-    few = plan_objective(three, vs[:2])
+    few = plan_objective(PlanContext(three, vs[:2]))
     assert len(few.unserved) == 1
 
 
@@ -317,7 +318,9 @@ def test_objective_distributes_evenly(fleet: Fleet) -> None:
 def test_autoland_separates_in_time_and_altitude(fleet: Fleet) -> None:
     vs = fleet(["fixed_wing", "fixed_wing", "multirotor"], _around(3, 0.005))
     params = MissionParams(altitude_rel_m=80, altitude_step_m=20, separation_s=90, heading_deg=270)
-    plan = plan_autoland(Geometry.point(*ORIGIN), vs, params, priority={vs[2].vehicle_id: 50})
+    plan = plan_autoland(
+        PlanContext(Geometry.point(*ORIGIN), vs, params), priority={vs[2].vehicle_id: 50}
+    )
     assert plan.slots[0].vehicle_id == vs[2].vehicle_id  # priority lands first
     times = [s.land_at_s for s in plan.slots]
     assert all(b - a >= 90 - 1e-9 for a, b in itertools.pairwise(times))
@@ -330,9 +333,11 @@ def test_autoland_separates_in_time_and_altitude(fleet: Fleet) -> None:
 def test_autoland_base_in_zone_raises(fleet: Fleet) -> None:
     with pytest.raises(TargetInZoneError):
         plan_autoland(
-            Geometry.point(*ORIGIN),
-            fleet(["multirotor"]),
-            zones=[NoFlyZone(1, Geometry.circle(*ORIGIN, 50))],
+            PlanContext(
+                Geometry.point(*ORIGIN),
+                fleet(["multirotor"]),
+                zones=[NoFlyZone(1, Geometry.circle(*ORIGIN, 50))],
+            )
         )
 
 
@@ -377,7 +382,7 @@ def test_mumt_slots_follow_the_moving_lead(fleet: Fleet) -> None:
 
 def test_zero_vehicles_raise() -> None:
     with pytest.raises(NoVehiclesError):
-        plan_target(Geometry.point(*ORIGIN), [])
+        plan_target(PlanContext(Geometry.point(*ORIGIN), []))
     with pytest.raises(NoVehiclesError):
         plan_mumt(LeadState(*ORIGIN, 100.0, 0.0, 30.0), [])
 
@@ -385,6 +390,6 @@ def test_zero_vehicles_raise() -> None:
 def test_nan_positions_raise(fleet: Fleet) -> None:
     bad = fleet(["multirotor"], [VehiclePose(math.nan, ORIGIN[1])])
     with pytest.raises(InvalidGeometryError, match="finite"):
-        plan_target(Geometry.point(*ORIGIN), bad)
+        plan_target(PlanContext(Geometry.point(*ORIGIN), bad))
     with pytest.raises(InvalidGeometryError, match="finite"):
         plan_mumt(LeadState(*ORIGIN, 100.0, 0.0, 30.0), bad)

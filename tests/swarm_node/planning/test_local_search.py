@@ -24,7 +24,7 @@ def _length(lanes: Any, turns: Any = TURNS, start: Pose | None = None) -> float:
 
 
 def test_the_search_never_lengthens_an_order(coverage_refs: dict[str, Any]) -> None:
-    assert cov._LOCAL_SEARCH
+    assert cov.LOCAL_SEARCH
     for name, p in coverage_refs["polygons"].items():
         lanes = plan_lanes(decompose(Polygon(p["shell"], p["holes"])), SPACING, TURNS).lanes
         for start in (None, Pose(-500.0, -500.0, 0.3)):

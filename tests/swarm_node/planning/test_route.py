@@ -23,6 +23,7 @@ from swarm_node.core.planning import (
     synchronize,
 )
 from swarm_node.core.planning.checks import arrival_spread_s, waypoint_zone_problems
+from swarm_node.core.planning.context import PlanContext
 from swarm_node.core.planning.route import leg_for
 from swarm_node.core.profile import G_M_S2, VehicleProfile
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
@@ -136,7 +137,7 @@ def test_route_plan_arrives_together_and_avoids_zones(fleet: Fleet) -> None:
         ceiling_alt_msl_m=10_000.0,
     )
     plan = plan_route(
-        route, vs, MissionParams(altitude_rel_m=100, altitude_step_m=10), zones=[zone]
+        PlanContext(route, vs, MissionParams(altitude_rel_m=100, altitude_step_m=10), zones=[zone])
     )
     assert len({round(a.arrival_s, 6) for a in plan.arrivals}) == 1
     zs = ZoneSet.from_messages([zone], plan.frame, now_unix_s=0.0)
@@ -152,7 +153,7 @@ def test_route_point_inside_a_zone_raises(fleet: Fleet) -> None:
     route = Geometry.point(*ORIGIN)
     zone = NoFlyZone(1, Geometry.circle(*ORIGIN, 200.0))
     with pytest.raises(TargetInZoneError):
-        plan_route(route, vs, zones=[zone])
+        plan_route(PlanContext(route, vs, zones=[zone]))
 
 
 # --------------------------------------------------------------------------- whole plans
@@ -201,7 +202,7 @@ def test_target_and_route_plans_fly_every_leg_within_its_radius(
     @given(fleets(profiles), st.sampled_from([None, 20.0, 32.0]))
     def check(vs: list[PlanVehicle], speed: float | None) -> None:
         params = MissionParams(altitude_rel_m=100, altitude_step_m=10, speed_m_s=speed)
-        tp = plan_target(Geometry.point(*ORIGIN), vs, params)
+        tp = plan_target(PlanContext(Geometry.point(*ORIGIN), vs, params))
         orbiters = [v for v in vs if v.profile.is_fixed_wing]
         # the orbiters arrive on the orbit together; hoverers just take their slots
         orbiting = tuple(leg for leg in tp.legs if leg.radius_m > 0)
@@ -212,7 +213,7 @@ def test_target_and_route_plans_fly_every_leg_within_its_radius(
             GeometryKind.POLYLINE,
             (LatLon(*ORIGIN), LatLon(ORIGIN[0] + 0.004, ORIGIN[1] + 0.004)),
         )
-        rp = plan_route(line, vs, params)
+        rp = plan_route(PlanContext(line, vs, params))
         _check_arrivals(rp.legs, {a.vehicle_id: a for a in rp.arrivals}, vs)
 
     check()
@@ -227,7 +228,7 @@ def test_two_albatross_at_a_target_never_exceed_the_orbit_speed(fleet: Fleet) ->
             VehiclePose(ORIGIN[0] + 0.005, ORIGIN[1], 50.0, 90.0),
         ],
     )
-    plan = plan_target(Geometry.point(*ORIGIN), vs, MissionParams(altitude_rel_m=100))
+    plan = plan_target(PlanContext(Geometry.point(*ORIGIN), vs, MissionParams(altitude_rel_m=100)))
     p = vs[0].profile
     for a in plan.arrivals:
         assert a.speed_m_s <= p.cruise_speed_m_s + 1e-9

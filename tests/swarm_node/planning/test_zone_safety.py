@@ -29,6 +29,7 @@ from swarm_node.core.planning import (
     plan_target,
 )
 from swarm_node.core.planning.checks import track_cover_problems, track_zone_problems
+from swarm_node.core.planning.context import PlanContext
 from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
 
@@ -69,10 +70,10 @@ def test_target_orbit_through_a_zone_between_two_slots_raises(fleet: Fleet) -> N
     zone = _zone(7, 0, 200, 60)
     params = MissionParams(altitude_rel_m=100, radius_m=200)
     with pytest.raises(TargetInZoneError, match=r"orbit .* zone 7.*below 1[34]\d m or beyond"):
-        plan_target(Geometry.point(*ORIGIN), vs, params, zones=[zone])
+        plan_target(PlanContext(Geometry.point(*ORIGIN), vs, params, zones=[zone]))
     # a zone that applies only above the orbiters' altitudes does not matter
     high = NoFlyZone(7, zone.geometry, floor_alt_msl_m=500.0)
-    _check(plan_target(Geometry.point(*ORIGIN), vs, params, zones=[high]), [high])
+    _check(plan_target(PlanContext(Geometry.point(*ORIGIN), vs, params, zones=[high])), [high])
 
 
 def test_waiting_orbit_moves_along_the_approach_away_from_a_zone(fleet: Fleet) -> None:
@@ -80,7 +81,7 @@ def test_waiting_orbit_moves_along_the_approach_away_from_a_zone(fleet: Fleet) -
     # to go) pushes the orbit to the right side or further along
     near, far = fleet(["fixed_wing"] * 2, [_pose(-600, 0, 90), _pose(-4000, 200, 90)])
     zone = _zone(3, -600, 120, 40)
-    plan = plan_target(Geometry.point(*ORIGIN), [near, far], PARAMS, zones=[zone])
+    plan = plan_target(PlanContext(Geometry.point(*ORIGIN), [near, far], PARAMS, zones=[zone]))
     arr = {a.vehicle_id: a for a in plan.arrivals}
     assert arr[near.vehicle_id].orbits > 0
     waits = [t for t in plan.tracks if t.kind == "wait"]
@@ -101,7 +102,7 @@ def test_autoland_picks_a_clear_approach_course(fleet: Fleet) -> None:
     vs = fleet(["fixed_wing", "multirotor"], [_pose(-1500, -1500, 0), _pose(1500, 800, 0)])
     # a zone around the default holding fix (600 m south of the base)
     zone = _zone(5, 0, -600, 150)
-    plan = plan_autoland(Geometry.point(*ORIGIN), vs, PARAMS, zones=[zone])
+    plan = plan_autoland(PlanContext(Geometry.point(*ORIGIN), vs, PARAMS, zones=[zone]))
     assert plan.approach_yaw_rad != pytest.approx(math.pi / 2)
     _check(plan, [zone])
     # the fixed-wing holds on an orbit it can fly: its turn radius, not its loiter radius
@@ -116,17 +117,19 @@ def test_autoland_picks_a_clear_approach_course(fleet: Fleet) -> None:
         assert abs(w.loiter_radius_m or 0) == pytest.approx(p.turn_radius_m(p.cruise_speed_m_s))
     with pytest.raises(TargetInZoneError, match="heading_deg"):
         plan_autoland(
-            Geometry.point(*ORIGIN),
-            vs,
-            MissionParams(altitude_rel_m=100, heading_deg=0.0),
-            zones=[zone],
+            PlanContext(
+                Geometry.point(*ORIGIN),
+                vs,
+                MissionParams(altitude_rel_m=100, heading_deg=0.0),
+                zones=[zone],
+            )
         )
 
 
 def test_autoland_transit_goes_around_a_zone(fleet: Fleet) -> None:
     vs = fleet(["multirotor"], [_pose(0, -2500, 0, 20.0)])
     zone = _zone(6, 0, -1500, 200)  # between the vehicle and the holding fix
-    plan = plan_autoland(Geometry.point(*ORIGIN), vs, PARAMS, zones=[zone])
+    plan = plan_autoland(PlanContext(Geometry.point(*ORIGIN), vs, PARAMS, zones=[zone]))
     _check(plan, [zone])
     assert len([w for w in plan.vehicles[0].waypoints if w.kind == ItemKind.WAYPOINT]) > 2
 
@@ -204,14 +207,18 @@ def test_no_planned_path_enters_a_zone(profiles: dict[str, VehicleProfile], kind
         try:
             if kind == "target":
                 plan: Any = plan_target(
-                    Geometry.point(*ORIGIN), vs, PARAMS, zones=zones, frame=FRAME
+                    PlanContext(Geometry.point(*ORIGIN), vs, PARAMS, zones=zones, frame=FRAME)
                 )
             elif kind == "route":
-                plan = plan_route(line, vs, PARAMS, zones=zones, frame=FRAME, max_alt_rel_m=200)
+                plan = plan_route(
+                    PlanContext(line, vs, PARAMS, zones=zones, frame=FRAME), max_alt_rel_m=200
+                )
             elif kind == "autoland":
-                plan = plan_autoland(Geometry.point(*ORIGIN), vs, PARAMS, zones=zones, frame=FRAME)
+                plan = plan_autoland(
+                    PlanContext(Geometry.point(*ORIGIN), vs, PARAMS, zones=zones, frame=FRAME)
+                )
             elif kind == "perimeter":
-                plan = plan_perimeter(SQUARE, vs, PARAMS, zones=zones, frame=FRAME)
+                plan = plan_perimeter(PlanContext(SQUARE, vs, PARAMS, zones=zones, frame=FRAME))
             else:
                 lead = LeadState(*_ll(0, 0), 100.0, course_deg=30.0, speed_m_s=20.0)
                 plan = plan_mumt(lead, vs, PARAMS, zones=zones, frame=FRAME)

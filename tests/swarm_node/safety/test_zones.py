@@ -98,5 +98,5 @@ def test_the_node_monitoring_fences_and_planners_share_one_book(fleet_profiles: 
     node.handle(Received(zone), 1.0)
     assert isinstance(node.monitor.zones, ZoneBook)
     held = msgspec.structs.replace(zone, time_unix_s=1.0)  # unstamped: stamped on receipt
-    assert node.planning_zones(1.0) == [held] == node.monitor.zones.no_fly(1.0)
+    assert node.zones.no_fly(1.0) == [held] == node.monitor.zones.no_fly(1.0)
     assert node.monitor.zones.breach(LAT, LON, 10.0, 1.0) == "in no-fly zone 4"

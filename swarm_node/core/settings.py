@@ -1,0 +1,20 @@
+"""The node core's settings (NodeCore's; the runtime reads them from its configuration)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .fences import FENCE_MAX_ITEMS
+from .monitoring import Thresholds
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    status_period_s: float = 0.2  # 5 Hz
+    info_period_s: float = 1.0  # 1 Hz
+    plan_timeout_s: float = 60.0
+    stale_after_s: float = 2.0
+    info_stale_after_s: float = 5.0  # peers that send only VehicleInfo (ground stations)
+    thresholds: Thresholds | None = None  # default: from the profile
+    fence_max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
+    avoidance: bool = True  # collision avoidance (safety/module.py); off: compare without it

@@ -1,0 +1,101 @@
+"""Reasons in full from the node: a refusal names who refused (the node's arbiter or
+the autopilot), a plan the batteries cannot fly raises PLAN_FAILED with its numbers
+(what each vehicle needs against what it has), and a collision alert carries the other
+vehicle, the distance and the time, its text cut at a word with "…"."""
+
+from __future__ import annotations
+
+import msgspec
+
+from swarm_node.core.autopilot.requests import ApResult, Land
+from swarm_node.core.commands import CommandTracker
+from swarm_node.core.mission.share import Member, PlanRequest, run_plan
+from swarm_node.database import seed_profiles
+from swarm_proto import (
+    AckReason,
+    Alert,
+    AlertCode,
+    Command,
+    CommandArgs,
+    CommandKind,
+    DetailCode,
+    Geometry,
+    GeoPoint,
+    Mission,
+    MissionParams,
+    MissionType,
+    Selector,
+    lan,
+    radio,
+)
+from swarm_proto.text import ELLIPSIS
+from tests.swarm_node.test_node_core import GCS, HOME, activate, fleet, send
+
+QUAD = seed_profiles()["Generic Quadcopter"]
+
+
+def square(side_m: float) -> Geometry:
+    d_lat, d_lon = side_m / 111_320.0, side_m / (111_320.0 * 0.7943)
+    lat, lon = HOME.lat_deg + 0.0005, HOME.lon_deg
+    return Geometry.polygon(
+        [(lat, lon), (lat, lon + d_lon), (lat + d_lat, lon + d_lon), (lat + d_lat, lon)]
+    )
+
+
+def test_a_refusal_names_who_refused_the_node_or_the_autopilot() -> None:
+    """`land` refused during avoidance read "AUTOPILOT_REJECTED: the autopilot refused
+    it: preempted by AVOIDANCE" when the node's arbiter had refused it."""
+    tracker = CommandTracker(7)
+    cmd = Command(GCS, 5, CommandKind.LAND, Selector(), CommandArgs())
+    (sent,) = tracker.start(cmd, (Land(),), 0.0)
+    _, (ack,) = tracker.on_result(ApResult(sent.request_id, False, "preempted by AVOIDANCE"), 0.1)
+    assert (ack.accepted, ack.reason) == (False, AckReason.PREEMPTED)
+    assert ack.text == "preempted by AVOIDANCE"
+    (sent,) = tracker.start(msgspec.structs.replace(cmd, seq=6), (Land(),), 1.0)
+    _, (ack,) = tracker.on_result(ApResult(sent.request_id, False, "COMMAND_ACK DENIED"), 1.1)
+    assert ack.reason == AckReason.AUTOPILOT_REJECTED
+
+
+def test_a_plan_the_batteries_cannot_fly_says_by_how_much() -> None:
+    """The planner's refusal carries the budgets: each vehicle needs more at cruise
+    than its battery allows (the figures the text had to cut)."""
+    m = Mission(9, GCS, MissionType.AREA, square(1000.0), MissionParams(altitude_rel_m=50.0))
+    members = tuple(
+        Member(
+            msgspec.structs.replace(QUAD, vehicle_id=v), GeoPoint(HOME.lat_deg, HOME.lon_deg, 10)
+        )
+        for v in (7, 8, 9)
+    )
+    out = run_plan(PlanRequest(1, m, members, (), 1.75e9, 10.0))
+    assert out.plan is None and "endurance" in out.error
+    d = out.detail
+    assert d is not None and d.code == DetailCode.ENDURANCE and d.vehicle_id == 0
+    assert d.needed_s > 2 * d.available_s > 0.0, d
+    alone = run_plan(PlanRequest(2, m, members[:1], (), 1.75e9, 10.0)).detail
+    assert alone is not None and alone.vehicle_id == 7 and alone.needed_s > d.needed_s
+
+
+def test_plan_failed_reaches_the_ground_with_its_numbers() -> None:
+    f = fleet(2)
+    activate(f)
+    m = Mission(
+        31,
+        GCS,
+        MissionType.AREA,
+        square(1200.0),
+        MissionParams(altitude_rel_m=50.0),
+        Selector.ids(1, 2),
+    )
+    send(f, m)
+    f.run_until(f.now + 10.0)
+    failed = [a for a in f.messages(Alert) if a.code == AlertCode.PLAN_FAILED]
+    assert failed, [a.text for a in f.messages(Alert)]
+    for a in failed:
+        assert a.detail is not None and a.detail.code == DetailCode.ENDURANCE
+        assert a.detail.needed_s > a.detail.available_s > 0.0
+        assert len(a.text) <= 64 and (a.text.endswith(ELLIPSIS) or len(a.text) < 64)
+        # both encodings carry the numbers
+        assert lan.decode(lan.encode(a), Alert) == a
+        back = radio.decode(radio.encode(a), now_unix_s=a.time_unix_s)
+        assert isinstance(back, Alert) and back.detail is not None
+        assert abs(back.detail.needed_s - a.detail.needed_s) < 0.01
