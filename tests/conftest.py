@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib
 import os
+import pkgutil
 import socket
 from collections.abc import Iterator
 from pathlib import Path
@@ -45,6 +47,24 @@ def examples(n: int) -> int:
     """A property test's own example count: `n` under the default profile, scaled as the
     loaded profile scales DEFAULT_EXAMPLES (FUZZ_FACTOR times `n` in `make fuzz`)."""
     return max(1, n * settings.default.max_examples // DEFAULT_EXAMPLES)
+
+
+PACKAGES = ("swarm_proto", "swarm_node", "radio_gateway", "gcs_cli", "swarm_sim", "bench")
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Before any property test runs, import every module of the project. Hypothesis
+    draws now and then from the constants of the project's modules imported so far
+    (sys.modules), so without this a test's examples depended on which tests ran before
+    it in its process (xdist's schedule varies from run to run) and on whether it ran
+    alone: the same commit could pass and fail, and a failure did not reproduce."""
+    if not any(item.get_closest_marker("hypothesis") for item in session.items):
+        return
+    for package in PACKAGES:
+        module = importlib.import_module(package)
+        for info in pkgutil.walk_packages(module.__path__, f"{package}."):
+            if not info.name.endswith(".__main__"):
+                importlib.import_module(info.name)
 
 
 def free_tcp_port() -> int:

@@ -56,6 +56,7 @@ def airborne_report(fleet: FastFleet, t0: float, tmp_path) -> object:  # type: i
     return analyze(read_trajectory(path))
 
 
+@pytest.mark.soak  # eight head on in fast time: test_avoidance.py
 def test_four_aircraft_head_on_keep_apart_with_avoidance_and_meet_without(
     fleet_profiles: dict,
 ) -> None:
@@ -127,6 +128,7 @@ def analyze_min(rows: list) -> float:
         return analyze(read_trajectory(Path(tmp) / "w.csv")).min_sep_m
 
 
+@pytest.mark.soak  # take-off in turn: three VTOLs below; six on the demo's pads: test_demo_story.py
 def test_six_vtols_on_30_m_pads_take_off_in_turn_and_keep_clear(fleet_profiles: dict) -> None:
     """Experiment 1's start, short: six VTOLs on the paper's pads 30 m apart (inside the
     40 m risk band: neighbours) released for one route at once take off in id order,

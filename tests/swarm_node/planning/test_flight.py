@@ -240,7 +240,7 @@ def _square(cx: float, cy: float, w: float, h: float) -> Geometry:
     )
 
 
-@settings(max_examples=examples(12), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(5), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     zx=st.floats(-120, 120),
     zy=st.floats(-100, 100),
