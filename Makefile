@@ -55,7 +55,7 @@ typecheck: $(STAMP)
 TEST_WORKERS ?= 2
 ## tests marked `timing` (real-time TDM on pseudo-terminals) run alone, after the others
 unit: $(STAMP) browser
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope -m "not soak and not scale and not timing" $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not soak and not scale and not timing" $(PYTEST_ARGS)
 	$(BIN)/python -m pytest -q -m "timing and not soak and not scale" $(PYTEST_ARGS)
 
 ## fuzz: the property tests exploring (hypothesis profile `fuzz`, tests/conftest.py): random

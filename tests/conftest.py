@@ -49,6 +49,30 @@ def examples(n: int) -> int:
     return max(1, n * settings.default.max_examples // DEFAULT_EXAMPLES)
 
 
+# The longest modules of `make test` (real processes, whole flights in fast time), started
+# first so that the two workers finish together instead of one waiting on a long tail.
+LONGEST_FIRST = (
+    "swarm_sim/test_demo_story.py",
+    "gcs_cli/test_map_browser.py",
+    "swarm_node/test_voting_processes.py",
+    "swarm_sim/test_demo_radio.py",
+    "swarm_node/test_node_processes.py",
+    "swarm_node/autopilot/test_behaviour_replay.py",
+    "swarm_sim/test_fast_fleet.py",
+    "swarm_sim/test_autoland_mumt.py",
+    "swarm_sim/test_faults_smoke.py",
+    "test_netns.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        path = item.nodeid.split("::")[0].removeprefix("tests/")
+        return LONGEST_FIRST.index(path) if path in LONGEST_FIRST else len(LONGEST_FIRST)
+
+    items.sort(key=rank)  # stable: the others keep their order
+
+
 PACKAGES = ("swarm_proto", "swarm_node", "radio_gateway", "gcs_cli", "swarm_sim", "bench")
 
 

@@ -38,6 +38,7 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
 )
+from tests.conftest import examples
 
 FIELD = [(37.410, -5.990), (37.410, -5.980), (37.418, -5.980), (37.418, -5.990)]
 HOLE = [(37.412, -5.987), (37.412, -5.985), (37.414, -5.985)]
@@ -519,8 +520,7 @@ def same_shape(a: Geometry, b: Geometry, tol: float) -> bool:
 
 
 @settings(
-    derandomize=True,
-    max_examples=60,
+    max_examples=examples(20),
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )
