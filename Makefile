@@ -8,13 +8,13 @@ STAMP  := $(VENV)/.bandada-installed
 BENCH  ?=
 PYTEST_ARGS ?=
 
-.PHONY: all demo test lint typecheck unit bench soak scale docs clean install sitl-check faults browser
+.PHONY: all demo test lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check faults browser
 
 all: test
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -e '.[test]'
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -58,11 +58,22 @@ unit: $(STAMP) browser
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not soak and not scale and not timing" $(PYTEST_ARGS)
 	$(BIN)/python -m pytest -q -m "timing and not soak and not scale" $(PYTEST_ARGS)
 
+## fuzz: the property tests exploring (hypothesis profile `fuzz`, tests/conftest.py): random
+## examples, 20 times as many, an example database in .hypothesis/ that replays what it
+## found. A failure it finds goes back to its test as an @example (make test never explores)
+fuzz: $(STAMP)
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) -m "hypothesis and not soak and not scale" --hypothesis-profile=fuzz $(PYTEST_ARGS)
+
+## test-stress: the stress gate, run before resolving an issue: `make test` five times from
+## a fresh clone of HEAD with one core kept busy; writes bench/results/test_stress.json
+test-stress:
+	$(PYTHON) -m bench test_stress
+
 ## bench: every benchmark, or one with BENCH=<topic>; writes bench/results/<topic>.json
 bench: $(STAMP) browser
 	$(BIN)/python -m bench $(BENCH)
 
-## faults: the fault campaign (issue 16; docs/reliability.md): faults x missions in
+## faults: the fault campaign (docs/reliability.md): faults x missions in
 ## FastFleet and over real processes, writes bench/results/faults.json (about 20 min).
 ## BANDADA_FAULTS=fast runs only the FastFleet part; the smoke subset is in `make test`.
 faults: $(STAMP)

@@ -164,7 +164,9 @@ def peers(
     node: int = typer.Argument(..., min=1, max=65534, help="node id"),
     as_json: JsonOption = False,
 ) -> None:
-    """A node's own view of the swarm (its live peers), as its peers queryable answers.
+    """A node's own view of the swarm (its live peers, the untrusted ones marked), its
+    identity conflict if any, and what it dropped of its input (by topic and reason),
+    as its peers queryable answers.
 
     Example: gcs peers 7
     """
@@ -176,10 +178,17 @@ def peers(
         if as_json:
             typer.echo(json.dumps(msgspec.to_builtins(view), indent=2))
             return
+        if view.identity_conflict:
+            console.print(f"[red]identity conflict: {view.identity_conflict}[/]", highlight=False)
         for p in view.peers:
             console.print(
                 f"{p.node_id:>5} {p.vehicle_type.name:<7} fleet {p.fleet_id:<3} {p.fsm_state.name:<10} heard {p.heard_age_s:.1f} s ago"
+                + (" UNTRUSTED (two sources)" if p.untrusted else ""),
+                style="red" if p.untrusted else None,
+                highlight=False,
             )
+        for d in view.dropped:
+            console.print(f"dropped {d.count} on {d.key_expr}: {d.reason}", style="yellow")
 
 
 # --------------------------------------------------------------------------- commands

@@ -640,7 +640,15 @@ def _plan(data: Any) -> list[Feature]:
             ctype = str(item.get("complexItemType", "")).lower()
             if ctype == "survey" or "polygon" in item:
                 found, seen = _camera(item, f"survey {i}")
-                props = {**_props(_dict(ours.get("params"), f"{EXT} params"), EXT), **found}
+                exact = _props(_dict(ours.get("params"), f"{EXT} params"), EXT)
+                # QGroundControl's overlap is a percentage, and x * 100 / 100 is not
+                # always x in floating point: where the survey still has the one written
+                # for bandada's own value (not edited since), that exact value
+                if "side_overlap" in found and math.isclose(
+                    found["side_overlap"], exact.get("side_overlap", math.nan), rel_tol=1e-12
+                ):
+                    found["side_overlap"] = exact["side_overlap"]
+                props = {**exact, **found}
                 holes = [_pairs(h, f"{EXT} hole") for h in _list(ours.get("holes"), EXT)]
                 props.update(_mission_ext(ours))
                 out.append(

@@ -4,6 +4,9 @@ line and the demo are thin layers over it.
 
 The ground station is a swarm node too (paper section 3): it declares its liveliness
 token and publishes a VehicleInfo of type GCS, so vehicles list it among their peers.
+It checks who speaks in each vehicle's name as the nodes do (swarm_node core/identity.py):
+a vehicle heard from two sources is `untrusted` in its view, and only the source first
+heard is shown for it.
 """
 
 from __future__ import annotations
@@ -19,10 +22,13 @@ from typing import Any, TypeVar
 
 import msgspec
 
+from swarm_node.core.identity import IdentityBook
 from swarm_proto import (
     Ack,
     AckRef,
     Alert,
+    AlertCode,
+    AlertFlag,
     Command,
     CommandArgs,
     CommandKind,
@@ -40,6 +46,7 @@ from swarm_proto import (
     validate,
 )
 from swarm_proto.errors import DecodeError
+from swarm_proto.intake import Source
 from swarm_proto.session import SwarmBus, ZenohSettings
 from swarm_proto.topics import ACK, ALERT, ALIVE, DECLARED, INFO, MISSIONS, PEERS, STATUS, ZONES
 
@@ -91,6 +98,7 @@ class FleetView:
     alerts: deque[Alert] = field(default_factory=lambda: deque(maxlen=200))
     acks: list[Ack] = field(default_factory=list)
     arrivals: dict[int, deque[float]] = field(default_factory=dict)  # monotonic, per vehicle
+    untrusted: dict[int, str] = field(default_factory=dict)  # heard from two sources: why
 
     def packets_per_s(self, vid: int, now: float) -> float:
         """Messages heard from a vehicle per second over the last RATE_WINDOW_S (the
@@ -133,8 +141,9 @@ class GroundStation:
         self._changed = threading.Condition(self._lock)
         self._feeds: list[queue.SimpleQueue[VehicleStatus]] = []
         self.bus = SwarmBus.open(settings, swarm)
-        self.bus.subscribe(STATUS, self._on_status)
-        self.bus.subscribe(INFO, self._on_info)
+        self.identity = IdentityBook(gcs_id, self.bus.zid)
+        self.bus.subscribe_sourced(STATUS, self._on_status)
+        self.bus.subscribe_sourced(INFO, self._on_info)
         self.bus.subscribe(ALERT, self._on_alert)
         self.bus.subscribe(ACK, self._on_ack)
         self.bus.watch_alive(self._on_alive)
@@ -153,8 +162,30 @@ class GroundStation:
         times.append(now)
         self._changed.notify_all()
 
-    def _on_status(self, msg: VehicleStatus, key: str) -> None:
+    def _trusted(
+        self, msg: VehicleStatus | VehicleInfo, source: Source, now: float, *, sysid: int = 0
+    ) -> bool:
+        """The identity book's verdict on a vehicle's telemetry (under the lock)."""
+        book = self.identity
+        if isinstance(msg, VehicleStatus):
+            conflict = bool(msg.alerts & AlertFlag.IDENTITY_CONFLICT)
+            ground = False
+        else:
+            conflict = AlertCode.IDENTITY_CONFLICT in msg.errors
+            ground = msg.vehicle_type == VehicleType.GCS
+        due = book.next_deadline()
+        if due is not None and now >= due:
+            book.on_timer(now)
+        keep, _ = book.heard(
+            msg.vehicle_id, source, now, sysid=sysid, reports_conflict=conflict, ground=ground
+        )
+        self.view.untrusted = {v: book.why(v) for v in book.untrusted}
+        return keep
+
+    def _on_status(self, msg: VehicleStatus, key: str, source: Source) -> None:
         with self._lock:
+            if not self._trusted(msg, source, time.monotonic()):
+                return
             self.view.status[msg.vehicle_id] = msg
             self._touch(msg.vehicle_id)
             for feed in self._feeds:
@@ -167,8 +198,10 @@ class GroundStation:
             self._feeds.append(feed)
         return feed
 
-    def _on_info(self, msg: VehicleInfo, key: str) -> None:
+    def _on_info(self, msg: VehicleInfo, key: str, source: Source) -> None:
         with self._lock:
+            if not self._trusted(msg, source, time.monotonic(), sysid=msg.mav_sysid):
+                return
             self.view.info[msg.vehicle_id] = msg
             self._touch(msg.vehicle_id)
 
@@ -222,6 +255,7 @@ class GroundStation:
                 deque(self.view.alerts, maxlen=200),
                 list(self.view.acks),
                 {v: deque(t, maxlen=200) for v, t in self.view.arrivals.items()},
+                dict(self.view.untrusted),
             )
 
     # ------------------------------------------------------------------ the fleet known

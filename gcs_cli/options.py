@@ -13,8 +13,10 @@ from typing import Annotated, TypeVar
 import msgspec
 import typer
 
-from swarm_proto import Geometry, GeometryKind, LatLon, Selector, SelectorKind, validate
+from swarm_proto import Geometry, GeometryKind, LatLon, Selector, SelectorKind, lan, validate
 from swarm_proto.errors import EncodeError
+from swarm_proto.intake import too_large
+from swarm_proto.topics import TOPIC_OF_TYPE
 
 M = TypeVar("M", bound=msgspec.Struct)
 
@@ -181,9 +183,14 @@ def geometry_from(
 
 
 def checked(msg: M) -> M:
-    """A message the vehicles will accept, or exit 2 naming the field (nothing sent)."""
+    """A message the vehicles will accept, or exit 2 naming the field or the size cap
+    (nothing sent)."""
     try:
         validate(msg)
     except EncodeError as exc:
         raise typer.BadParameter(str(exc)) from exc
+    topic = TOPIC_OF_TYPE.get(type(msg))
+    problem = too_large(topic, len(lan.encode(msg))) if topic is not None else None
+    if problem:
+        raise typer.BadParameter(f"{type(msg).__name__} is {problem} (docs/security.md)")
     return msg

@@ -53,6 +53,8 @@ def fleet_rows(view: FleetView) -> list[dict[str, Any]]:
         mismatch = autopilot_mismatch(vt, info.mav_type) if info is not None else None
         if mismatch:
             row["autopilot_mismatch"] = mismatch
+        if vid in view.untrusted:  # heard from two sources: why (what the map can show)
+            row["untrusted"] = view.untrusted[vid] or "identity in doubt"
         if st is not None:
             row.update(
                 mode=mode_name(vt, st.ap_mode) if vt != VehicleType.OTHER else str(st.ap_mode),
@@ -139,7 +141,8 @@ FLAG_SHORT = {
     AlertFlag.COLLISION_RISK: "coll",
     AlertFlag.SWARM_LINK_LOSS: "swarm",
     AlertFlag.NO_FLY_ZONE: "nfz",
-    AlertFlag.AUTOPILOT_MISMATCH: "AP≠type",
+    AlertFlag.AUTOPILOT_MISMATCH: "AP≠db",
+    AlertFlag.IDENTITY_CONFLICT: "ID!",
 }
 
 
@@ -159,8 +162,8 @@ def _cells(row: dict[str, Any]) -> list[str]:
         mission = short if mission == "IDLE" else f"{short} {g('progress_pct')}%"
     lat, lon = g("lat"), g("lon")
     alerts = _short_flags(AlertFlag(g("alert_bits") or 0))
-    if g("autopilot_mismatch") and "AP≠type" not in alerts:
-        alerts = ",".join(x for x in (alerts, "AP≠type") if x)
+    if g("autopilot_mismatch") and "AP≠db" not in alerts:
+        alerts = ",".join(x for x in (alerts, "AP≠db") if x)
     data = g("data_age_s")
     cells = {
         "id": str(g("id")),
@@ -218,11 +221,13 @@ def fleet_table(
         *cells, names = _cells(row)
         if rates:
             cells.append(f"{view.packets_per_s(row['id'], now):.1f}")
-        bad = row.get("alert_bits") or row.get("autopilot_mismatch")
+        bad = row.get("alert_bits") or row.get("autopilot_mismatch") or row.get("untrusted")
         style = "red" if bad else ("dim" if not row["alive"] else None)
         table.add_row(*cells, style=style)
         if names:
             notes.append(Text(f"{row['id']:>5} ! {names}", style="red"))
+        if row.get("untrusted"):
+            notes.append(Text(f"{row['id']:>5} ! untrusted: {row['untrusted']}", style="red"))
     return Group(table, *notes)
 
 

@@ -68,7 +68,8 @@ class AlertFlag(IntFlag):
     COLLISION_RISK = 1 << 7
     SWARM_LINK_LOSS = 1 << 8
     NO_FLY_ZONE = 1 << 9
-    AUTOPILOT_MISMATCH = 1 << 10  # the autopilot is not the vehicle type the node is
+    AUTOPILOT_MISMATCH = 1 << 10  # the autopilot is not the vehicle the database says
+    IDENTITY_CONFLICT = 1 << 11  # another source publishes in this vehicle's name
 
 
 class Severity(IntEnum):
@@ -102,8 +103,9 @@ class AlertCode(IntEnum):
     MALFORMED_INPUT = 16  # a peer sent something we could not decode
     CONDITION_CLEARED = 17
     MISSION_CANCELLED = 18  # the operator cancelled the mission (not a failure)
-    AUTOPILOT_MISMATCH = 19  # the autopilot's HEARTBEAT type is not the node's vehicle type
+    AUTOPILOT_MISMATCH = 19  # the autopilot's HEARTBEAT type or system id is not the database's
     ROSTER_MISMATCH = 20  # a member flies the mission with another roster (members hash)
+    IDENTITY_CONFLICT = 21  # another Zenoh session or airframe speaks in this vehicle's name
 
 
 class CommandKind(IntEnum):

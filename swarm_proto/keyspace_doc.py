@@ -58,13 +58,23 @@ with zenoh.open(conf) as session:
 ```
 
 Publishing works the same way: `session.put(key, msgspec.msgpack.encode(dict_or_struct))`.
-A node that receives a payload it cannot decode, or that breaks a constraint below
-(a field's range, or one of a message's **rules**), logs it, counts it and drops it.
-The example above is run by `tests/swarm_proto/test_zenoh.py`.
+A node drops, counts (by topic and reason: `gcs peers`) and reports with a
+MALFORMED_INPUT alert at most once a minute per topic every payload that is larger than
+its key's **max bytes** below (checked before it is copied), that it cannot decode, that
+breaks a constraint below (a field's range, or one of a message's **rules**), or whose
+key names another id than its payload (`vehicle/7/status` carrying vehicle 8, `cmd/555`
+whose `issuer_id` is 901). Fields it does not know are accepted (senders append
+fields). The example above is run by `tests/swarm_proto/test_zenoh.py`.
+
+Every bandada publisher attaches `bandada-src:<zenoh session id>:<MAVLink system id>`
+to what it puts (a radio gateway `bandada-radio:<its id>` to what it relays); a
+vehicle's telemetry heard from two sources makes it untrusted (docs/security.md).
 
 Liveliness: every running node declares the liveliness token `{ROOT}/<swarm>/alive/<id>`;
 `session.liveliness().declare_subscriber("{ROOT}/<swarm>/alive/*", cb, history=True)`
-lists the live nodes and reports joins and leaves.
+lists the live nodes and reports joins and leaves. Vehicle nodes also declare
+`{ROOT}/<swarm>/id/<id>/<zenoh session id>` and follow those, not `alive/`: a token
+alone makes nobody alive, and two sessions holding one id are an identity conflict.
 
 ## Encoding on the radio
 
@@ -294,7 +304,7 @@ def _topic_row(t: Topic) -> str:
     msg = (
         t.msg_type.__name__
         if t.msg_type
-        else ("liveliness token" if t.name == "alive" else "see its doc")
+        else ("liveliness token" if t.name in ("alive", "holder") else "see its doc")
     )
     qos = f"{t.reliability.value}, {t.congestion.value}, {t.priority.name.lower()}" + (
         ", express" if t.express else ""
@@ -312,13 +322,20 @@ def _topic_row(t: Topic) -> str:
     else:
         radio_txt = "not on air"
     tag = radio.TAG_OF.get(t.msg_type, "") if t.msg_type else ""
-    return f"| {key} | {msg} | {tag} | {qos} | {radio_txt} | {t.doc} |"
+    cap = _bytes(t.max_bytes) if t.max_bytes else ""
+    return f"| {key} | {msg} | {tag} | {qos} | {radio_txt} | {cap} | {t.doc} |"
+
+
+def _bytes(n: int) -> str:
+    if n % (1024 * 1024) == 0:
+        return f"{n // (1024 * 1024)} MiB"
+    return f"{n // 1024} KiB" if n % 1024 == 0 else f"{n} B"
 
 
 def render() -> str:
     out = [_INTRO, "## Keys", ""]
-    out.append("| key | message | radio tag | Zenoh QoS | radio policy | what |")
-    out.append("|---|---|---|---|---|---|")
+    out.append("| key | message | radio tag | Zenoh QoS | radio policy | max bytes | what |")
+    out.append("|---|---|---|---|---|---|---|")
     out += [_topic_row(t) for t in TOPICS]
     out.append("")
     out.append("## Messages")

@@ -522,6 +522,19 @@ class PeerEntry(Struct, frozen=True):
     fleet_id: FleetId = 0
     fsm_state: FsmState = FsmState.INACTIVE
     heard_age_s: DurationS = 0.0  # since the last telemetry or liveliness news
+    # appended: its telemetry comes from two sources (two Zenoh sessions, or two
+    # MAVLink system ids) or it reports an identity conflict itself: kept out of voting
+    # and planning (docs/security.md)
+    untrusted: bool = False
+
+
+class DroppedInput(Struct, frozen=True):
+    """What a node dropped before any logic saw it: on one topic, for one reason
+    (swarm_proto.intake), since it started."""
+
+    key_expr: Name  # the topic's key expression under the swarm, e.g. "vehicle/*/status"
+    reason: Name  # too_large, malformed, invalid, key_mismatch, bad_key, identity
+    count: Count
 
 
 class SwarmView(Struct, frozen=True):
@@ -530,6 +543,9 @@ class SwarmView(Struct, frozen=True):
     vehicle_id: VehicleId
     time_unix_s: UnixTimeS
     peers: tuple[PeerEntry, ...] = ()
+    # appended: what it dropped, and its own identity conflict ("" = none)
+    dropped: tuple[DroppedInput, ...] = ()
+    identity_conflict: ShortText = ""
 
 
 class DeclaredMission(Struct, frozen=True):

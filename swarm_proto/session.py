@@ -3,9 +3,14 @@ typed publish/subscribe layer over one session that uses the topic registry for 
 and QoS and the LAN encoding for payloads.
 
 Callbacks run on Zenoh's threads: keep them short (hand the message to a queue).
-Payloads that do not decode are counted per topic and reported to `on_bad_input`,
-never raised. `SwarmBus.close()` undeclares everything it declared (a process that
-exits with a callback subscriber still declared hangs).
+Every sample goes through `swarm_proto.intake` first: a payload larger than its topic's
+cap is dropped before it is copied out of Zenoh, then it is decoded and its key checked
+against its payload; what is dropped is counted per topic and reported to
+`on_bad_input` (logged at DEBUG only: the node alerts, rate-limited), never raised.
+Everything published carries the source attachment (intake.source_tag: this session's
+id and the autopilot's MAVLink system id); `subscribe_sourced` hands it to the callback.
+`SwarmBus.close()` undeclares everything it declared (a process that exits with a
+callback subscriber still declared hangs).
 """
 
 from __future__ import annotations
@@ -21,9 +26,10 @@ from typing import Any, Literal
 import msgspec
 import zenoh
 
-from . import lan
-from .errors import DecodeError
-from .topics import ALIVE, Congestion, Reliability, Topic, prefix, topic_of
+from . import intake, lan
+from .errors import DecodeError, EncodeError
+from .intake import Source
+from .topics import ALIVE, HOLDER, Congestion, Reliability, Topic, prefix, topic_of
 from .warm import warm_decoders
 
 log = logging.getLogger(__name__)
@@ -106,6 +112,21 @@ def zenoh_config(s: ZenohSettings) -> zenoh.Config:
         conf.insert_json5("transport/link/tx/lease", str(int(s.lease_ms)))
     if given("keep_alive"):
         conf.insert_json5("transport/link/tx/keep_alive", str(int(s.keep_alive)))
+    # Nothing larger than the registry's largest cap is reassembled, and no shared
+    # memory: on one host Zenoh 1.10 passes payloads over 3 KiB through a 16 MiB shared
+    # pool by default (transport_optimization), which neither limit applies to and which
+    # stays mapped in the receiver (docs/security.md, "Input size caps")
+    conf.insert_json5("transport/link/rx/max_message_size", str(intake.max_message_bytes()))
+    conf.insert_json5("transport/shared_memory/enabled", "false")
+    if json.loads(conf.get_json("mode")) == "router":
+        # a router enforces the registry's size caps itself (intake.size_filters): what
+        # exceeds them never reaches the nodes behind it (a node still drops, counts and
+        # reports what a peer sends it directly); a config file's own rules are kept
+        own = json.loads(conf.get_json("low_pass_filter"))
+        ours = intake.size_filters()
+        names = {r["id"] for r in ours}
+        kept = [r for r in own if isinstance(r, dict) and r.get("id") not in names]
+        conf.insert_json5("low_pass_filter", json.dumps(kept + ours))
     return conf
 
 
@@ -164,8 +185,10 @@ def put_options(topic: Topic) -> dict[str, Any]:
 
 
 MessageCallback = Callable[[Any, str], None]  # (message, key)
+SourcedCallback = Callable[[Any, str, Source], None]  # (message, key, who says it sent it)
 BadInputCallback = Callable[[str, DecodeError], None]  # (key, error)
 AliveCallback = Callable[[int, bool], None]  # (node_id, alive)
+HolderCallback = Callable[[int, str, bool], None]  # (node_id, Zenoh session id, alive)
 
 
 class SwarmBus:
@@ -185,6 +208,9 @@ class SwarmBus:
         self.prefix = prefix(swarm)
         self.on_bad_input = on_bad_input
         self.bad_input: Counter[str] = Counter()  # topic name -> payloads dropped
+        zid = getattr(session, "zid", None)  # (a test's stand-in session may have none)
+        self.zid = str(zid()) if zid is not None else ""
+        self._tag = intake.source_tag(self.zid)
         self._owns_session = owns_session
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._declared: list[Any] = []
@@ -202,11 +228,20 @@ class SwarmBus:
         return cls(open_session(settings), swarm, on_bad_input=on_bad_input, owns_session=True)
 
     # ------------------------------------------------------------------ publishing
+    def set_sysid(self, sysid: int) -> None:
+        """The MAVLink system id of this node's autopilot, from now on in the source
+        attachment of everything published (0: none)."""
+        self._tag = intake.source_tag(self.zid, sysid)
+
     def publish(self, msg: msgspec.Struct) -> str:
-        """Encode and publish a message on its key; returns the key."""
+        """Encode and publish a message on its key; returns the key. EncodeError for a
+        message larger than its topic takes (the receivers would drop it)."""
         topic = topic_of(msg)
         key = topic.key_of(self.swarm, msg)
         payload = lan.encode(msg)
+        problem = intake.too_large(topic, len(payload))
+        if problem:
+            raise EncodeError(f"{type(msg).__name__} not sent: {problem}")
         with self._lock:
             if self._closed:
                 raise RuntimeError("SwarmBus is closed")
@@ -214,7 +249,7 @@ class SwarmBus:
             if pub is None:
                 pub = self.session.declare_publisher(key, **_qos(topic))
                 self._publishers[key] = pub
-        pub.put(payload)
+        pub.put(payload, attachment=self._tag)
         return key
 
     def put_raw(
@@ -235,31 +270,84 @@ class SwarmBus:
     ) -> zenoh.Subscriber:
         """Subscribe to every key of `topic` (or to `key`, a narrower expression);
         `callback(message, key)` gets decoded, validated messages only."""
+        return self._subscribe(topic, lambda msg, k, _att: callback(msg, k), key, sourced=False)
+
+    def subscribe_sourced(
+        self,
+        topic: Topic,
+        callback: SourcedCallback,
+        key: str | None = None,
+        *,
+        remote_only: bool = False,
+        quiet: bool = False,
+    ) -> zenoh.Subscriber:
+        """As `subscribe`, and `callback(message, key, source)` gets who the sample says
+        published it (intake.parse_source). `remote_only`: not what this session
+        publishes itself. `quiet`: what it drops is not counted nor reported (another
+        subscription of this bus hears the same samples and does)."""
+        return self._subscribe(
+            topic,
+            lambda msg, k, att: callback(msg, k, intake.parse_source(att)),
+            key,
+            sourced=True,
+            remote_only=remote_only,
+            quiet=quiet,
+        )
+
+    def _subscribe(
+        self,
+        topic: Topic,
+        deliver: Callable[[Any, str, bytes | None], None],
+        key: str | None,
+        *,
+        sourced: bool,
+        remote_only: bool = False,
+        quiet: bool = False,
+    ) -> zenoh.Subscriber:
         if topic.msg_type is None:
             raise ValueError(f"topic {topic.name} carries no messages")
-        msg_type = topic.msg_type
         expr = key or topic.wildcard(self.swarm)
+        swarm = self.swarm
 
         def handler(sample: zenoh.Sample) -> None:
             k = str(sample.key_expr)
-            try:
-                msg: Any = lan.decode(sample.payload.to_bytes(), msg_type)
-            except DecodeError as exc:
-                self._bad(topic.name, k, exc)
+            payload = sample.payload
+            # the size before the bytes: an oversized payload is never copied out of Zenoh
+            problem = intake.too_large(topic, len(payload))
+            if problem:
+                if not quiet:
+                    self._bad(topic.name, k, DecodeError(problem, reason=intake.TOO_LARGE))
                 return
             try:
-                callback(msg, k)
+                msg: Any = intake.decode(topic, swarm, k, payload.to_bytes())
+            except DecodeError as exc:
+                if not quiet:
+                    self._bad(topic.name, k, exc)
+                return
+            att = None
+            if sourced:
+                a = sample.attachment
+                if a is not None and len(a) <= intake.MAX_ATTACHMENT_BYTES:
+                    att = a.to_bytes()
+            try:
+                deliver(msg, k, att)
             except Exception:  # a bug in our handler must not kill Zenoh's thread
                 log.exception("handler for %s failed", k)
 
-        sub = self.session.declare_subscriber(expr, handler)
+        if remote_only:
+            sub = self.session.declare_subscriber(
+                expr, handler, allowed_origin=zenoh.Locality.REMOTE
+            )
+        else:
+            sub = self.session.declare_subscriber(expr, handler)
         with self._lock:
             self._declared.append(sub)
         return sub
 
     def _bad(self, topic_name: str, key: str, exc: DecodeError) -> None:
         self.bad_input[topic_name] += 1
-        log.warning("dropped malformed payload on %s: %s", key, exc)
+        # one line per drop would be a log flood: the node alerts (rate-limited) instead
+        log.debug("dropped %s payload on %s: %s", exc.reason, key[:200], exc)
         if self.on_bad_input is not None:
             try:
                 self.on_bad_input(key, exc)
@@ -279,7 +367,11 @@ class SwarmBus:
         def handler(sample: zenoh.Sample) -> None:
             params = ALIVE.parse(self.swarm, str(sample.key_expr))
             if params is None or not params["node_id"].isdigit():
-                self._bad(ALIVE.name, str(sample.key_expr), DecodeError("bad liveliness key"))
+                self._bad(
+                    ALIVE.name,
+                    str(sample.key_expr),
+                    DecodeError("bad liveliness key", reason=intake.BAD_KEY),
+                )
                 return
             try:
                 callback(int(params["node_id"]), sample.kind == zenoh.SampleKind.PUT)
@@ -288,6 +380,45 @@ class SwarmBus:
 
         sub = self.session.liveliness().declare_subscriber(
             ALIVE.wildcard(self.swarm), handler, history=True
+        )
+        with self._lock:
+            self._declared.append(sub)
+        return sub
+
+    def declare_holder(self, node_id: int) -> zenoh.LivelinessToken:
+        """The token that says this session holds `node_id` (HOLDER: a vehicle node's;
+        two sessions holding one id are an identity conflict)."""
+        key = HOLDER.key(self.swarm, node_id=node_id, zid=self.zid)
+        token = self.session.liveliness().declare_token(key)
+        with self._lock:
+            self._declared.append(token)
+        return token
+
+    def watch_holders(self, callback: HolderCallback) -> zenoh.Subscriber:
+        """callback(node_id, zid, alive) for every holder token there and every change."""
+
+        def handler(sample: zenoh.Sample) -> None:
+            k = str(sample.key_expr)
+            params = HOLDER.parse(self.swarm, k)
+            if (
+                params is None
+                or not params["node_id"].isdigit()
+                or not 0 < int(params["node_id"]) < 65535
+                or len(params["zid"]) > 32
+            ):
+                self._bad(HOLDER.name, k, DecodeError("bad holder key", reason=intake.BAD_KEY))
+                return
+            try:
+                callback(
+                    int(params["node_id"]),
+                    params["zid"].lower(),
+                    sample.kind == zenoh.SampleKind.PUT,
+                )
+            except Exception:
+                log.exception("holder handler failed")
+
+        sub = self.session.liveliness().declare_subscriber(
+            HOLDER.wildcard(self.swarm), handler, history=True
         )
         with self._lock:
             self._declared.append(sub)

@@ -102,6 +102,9 @@ class Topic(msgspec.Struct, frozen=True):
     priority: Priority = Priority.DATA
     express: bool = False
     radio: RadioPolicy = RadioPolicy(on_air=False)
+    #: the largest payload a receiver takes, checked before it is copied or decoded
+    #: (swarm_proto.intake); None: no payload (liveliness) or not capped
+    max_bytes: int | None = None
 
     @property
     def params(self) -> tuple[str, ...]:
@@ -130,6 +133,12 @@ class Topic(msgspec.Struct, frozen=True):
         return m.groupdict() if m else None
 
 
+KIB = 1024
+#: Missions and zones: a polygon of about 13,000 vertices (19 bytes a vertex on the LAN),
+#: three times the 4,000-vertex GIS boundary the planners are benchmarked on; over the
+#: radio a mission carries far fewer (docs/security.md, "Input size caps").
+POLYGON_BYTES = 256 * KIB
+
 _TELEMETRY = dict(reliability=Reliability.BEST_EFFORT, congestion=Congestion.DROP)
 
 STATUS = Topic(
@@ -141,6 +150,7 @@ STATUS = Topic(
     express=True,
     radio=RadioPolicy(True, RadioClass.STATUS, max_rate_hz=5.0, latest_only=True),
     **_TELEMETRY,  # type: ignore[arg-type]
+    max_bytes=1 * KIB,
 )
 INFO = Topic(
     "info",
@@ -150,6 +160,7 @@ INFO = Topic(
     priority=Priority.DATA,
     radio=RadioPolicy(True, RadioClass.INFO, max_rate_hz=1.0, latest_only=True),
     **_TELEMETRY,  # type: ignore[arg-type]
+    max_bytes=2 * KIB,
 )
 ACK = Topic(
     "ack",
@@ -158,6 +169,7 @@ ACK = Topic(
     "Answers to commands, missions, zones and fleet assignments.",
     priority=Priority.INTERACTIVE_HIGH,
     radio=RadioPolicy(True, RadioClass.CONTROL, acked=True),
+    max_bytes=1 * KIB,
 )
 ALERT = Topic(
     "alert",
@@ -166,6 +178,7 @@ ALERT = Topic(
     "Alerts raised by vehicle monitoring and the swarm logic.",
     priority=Priority.DATA_HIGH,
     radio=RadioPolicy(True, RadioClass.ALERT, acked=True),
+    max_bytes=1 * KIB,
 )
 COMMAND = Topic(
     "command",
@@ -174,6 +187,7 @@ COMMAND = Topic(
     "Operator or peer commands; the Selector inside says who is addressed.",
     priority=Priority.INTERACTIVE_HIGH,
     radio=RadioPolicy(True, RadioClass.CONTROL, acked=True),
+    max_bytes=16 * KIB,  # a selector of about 5,000 ids
 )
 MISSION = Topic(
     "mission",
@@ -182,6 +196,7 @@ MISSION = Topic(
     "Missions for the swarm.",
     priority=Priority.INTERACTIVE_LOW,
     radio=RadioPolicy(True, RadioClass.CONTROL, acked=True),
+    max_bytes=POLYGON_BYTES,
 )
 VOTE = Topic(
     "vote",
@@ -190,6 +205,7 @@ VOTE = Topic(
     "Voting for QUANTITY missions.",
     priority=Priority.INTERACTIVE_LOW,
     radio=RadioPolicy(True, RadioClass.CONTROL, acked=True),
+    max_bytes=16 * KIB,
 )
 FLEET = Topic(
     "fleet",
@@ -198,6 +214,7 @@ FLEET = Topic(
     "Which vehicles fly a mission together.",
     priority=Priority.INTERACTIVE_LOW,
     radio=RadioPolicy(True, RadioClass.CONTROL, acked=True),
+    max_bytes=16 * KIB,
 )
 ZONE = Topic(
     "zone",
@@ -206,6 +223,7 @@ ZONE = Topic(
     "No-fly zones.",
     priority=Priority.INTERACTIVE_LOW,
     radio=RadioPolicy(True, RadioClass.CONTROL, acked=True),
+    max_bytes=POLYGON_BYTES,
 )
 TARGET = Topic(
     "target",
@@ -214,6 +232,7 @@ TARGET = Topic(
     "Targets detected by payloads or marked by the operator.",
     priority=Priority.DATA_HIGH,
     radio=RadioPolicy(True, RadioClass.ALERT, acked=True),
+    max_bytes=1 * KIB,
 )
 LINEAGE = Topic(
     "lineage",
@@ -223,12 +242,20 @@ LINEAGE = Topic(
     "taking over an emptied fleet's mission; published by the fleet's members.",
     priority=Priority.INTERACTIVE_LOW,
     radio=RadioPolicy(True, RadioClass.CONTROL, acked=True),
+    max_bytes=2 * POLYGON_BYTES,  # its mission, and a few bytes per member and replan
 )
 ALIVE = Topic(
     "alive",
     "alive/{node_id}",
     None,
-    "Liveliness token of every running node (vehicle, ground station, gateway).",
+    "Liveliness token of every running node (vehicle, ground station).",
+)
+HOLDER = Topic(
+    "holder",
+    "id/{node_id}/{zid}",
+    None,
+    "Liveliness token of every vehicle node: its id and its Zenoh session id. Two "
+    "sessions holding one id are an identity conflict (docs/security.md).",
 )
 
 PEERS = Topic(
@@ -236,6 +263,7 @@ PEERS = Topic(
     "vehicle/{vehicle_id}/peers",
     SwarmView,
     "Queryable: the node's view of the swarm (its live peers); LAN only.",
+    max_bytes=256 * KIB,
 )
 ZONES = Topic(
     "zones",
@@ -244,6 +272,7 @@ ZONES = Topic(
     "Queryable: the no-fly zones and operating areas the node holds (withdrawn ones "
     "too), one NoFlyZone reply per zone on its own key; a (re)started node and the "
     "ground station ask it (`vehicle/*/zones/*`). LAN only.",
+    max_bytes=POLYGON_BYTES,  # one NoFlyZone per reply
 )
 MISSIONS = Topic(
     "missions",
@@ -252,6 +281,7 @@ MISSIONS = Topic(
     "Queryable: the missions the node accepted (the one in force is VehicleInfo's "
     "`mission_id`), one Mission reply per mission on its own key; the ground station's "
     "`gcs save` asks it (`vehicle/*/missions/*`). LAN only.",
+    max_bytes=POLYGON_BYTES,  # one Mission per reply
 )
 DECLARED = Topic(
     "declared",
@@ -260,6 +290,7 @@ DECLARED = Topic(
     "Queryable: what the operator declared, as the node holds it (zones, bases, fleets, "
     "missions, each with its stamp; the newest wins). A (re)started node asks each peer "
     "that comes alive and merges; `gcs declared` asks any node. LAN only.",
+    max_bytes=4 * KIB * KIB,  # a swarm's zones and missions
 )
 DATABASE = Topic(
     "database",
@@ -274,6 +305,7 @@ RADIO_STATS = Topic(
     "radio/{node_id}/stats",
     RadioStats,
     "Radio gateway statistics per peer (LAN only).",
+    max_bytes=64 * KIB,
 )
 
 # MAVLink passthrough (`gcs mavlink`, docs/ground-station.md): a session's frames travel
@@ -346,6 +378,7 @@ TOPICS: tuple[Topic, ...] = (
     TARGET,
     LINEAGE,
     ALIVE,
+    HOLDER,
     PEERS,
     ZONES,
     MISSIONS,

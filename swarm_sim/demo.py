@@ -318,24 +318,15 @@ def start(
     nodes = {}
     for spec, vid in zip(specs, members, strict=True):
         nodes[vid] = _spawn(
-            [
-                sys.executable,
-                "-m",
-                "swarm_node.cli",
-                "run",
-                "--id",
-                str(vid),
-                "--autopilot",
-                f"tcp:127.0.0.1:{spec.tcp_port}",
-                "--connect",
+            node_argv(
+                vid,
+                spec.tcp_port,
                 lans[vid],
-                *zenoh_role(radio),
-                "--link-timeout",
-                str(link_timeout_s(speedup)),
-                "--plan-timeout",
-                str(plan_timeout_s(speedup, len(members))),
-                "--avoidance" if avoidance else "--no-avoidance",
-            ],
+                radio=radio,
+                speedup=speedup,
+                fleet_size=len(members),
+                avoidance=avoidance,
+            ),
             tmp / f"node-{vid}.log",
             env,
             nice=YIELD_TO_RADIO if radio else 0,
@@ -362,6 +353,38 @@ def start(
         crashes,
         lans,
     )
+
+
+def node_argv(
+    vid: int,
+    autopilot_port: int,
+    connect: str,
+    *,
+    radio: bool,
+    speedup: float,
+    fleet_size: int,
+    avoidance: bool,
+) -> list[str]:
+    """The command line of the demo's node for vehicle `vid` (its autopilot simulated on
+    `autopilot_port`, its Zenoh network at `connect`)."""
+    return [
+        sys.executable,
+        "-m",
+        "swarm_node.cli",
+        "run",
+        "--id",
+        str(vid),
+        "--autopilot",
+        f"tcp:127.0.0.1:{autopilot_port}",
+        "--connect",
+        connect,
+        *zenoh_role(radio),
+        "--link-timeout",
+        str(link_timeout_s(speedup)),
+        "--plan-timeout",
+        str(plan_timeout_s(speedup, fleet_size)),
+        "--avoidance" if avoidance else "--no-avoidance",
+    ]
 
 
 def zenoh_role(radio: bool) -> tuple[str, ...]:

@@ -372,6 +372,8 @@ class Harness:
                 spec.sim_model,
                 "--instance",
                 str(spec.instance),
+                "--sysid",  # the database's mav_sysid: the node checks it
+                str(spec.node_id),
                 "--speedup",
                 str(self.args.speedup),
                 "--home",
@@ -386,7 +388,8 @@ class Harness:
             if not parm.is_file():
                 raise SystemExit(f"sitl-check: {parm} not found (set ARDUPILOT_HOME)")
             defaults = [str(parm)]
-            extra = EXTRA_PARAMS.get(spec.kind) or {}
+            # SYSID_THISMAV: the database's mav_sysid for the node, which the node checks
+            extra = {**(EXTRA_PARAMS.get(spec.kind) or {}), "SYSID_THISMAV": spec.node_id}
             if extra:
                 path = self.tmp / f"{spec.kind}-extra.parm"
                 path.write_text("".join(f"{k} {v}\n" for k, v in extra.items()))

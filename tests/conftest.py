@@ -2,25 +2,93 @@
 
 from __future__ import annotations
 
+import importlib
 import os
+import pkgutil
 import socket
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
+from hypothesis.database import DirectoryBasedExampleDatabase
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("BANDADA_SHARED", REPO.parent / "shared"))
 
-# Shared, noisy 2-core machines: no per-example deadlines; derandomized on CI.
+# Property tests in `make test` run the same examples on every run of a commit
+# (derandomized: seeded by each test's own code; no example database), so a verdict
+# never depends on what an earlier run happened to find. No per-example deadline: the
+# machines are shared. `make fuzz` (--hypothesis-profile=fuzz) explores instead: random
+# examples, FUZZ_FACTOR times as many, and a database that replays what it found; a
+# failure it finds comes back to its test as an @example.
+DEFAULT_EXAMPLES = 50
+FUZZ_FACTOR = 20
 settings.register_profile(
-    "default", deadline=None, suppress_health_check=[HealthCheck.too_slow], max_examples=100
+    "default",
+    derandomize=True,
+    database=None,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    print_blob=True,
+    max_examples=DEFAULT_EXAMPLES,
 )
 settings.register_profile(
-    "ci", parent=settings.get_profile("default"), derandomize=True, print_blob=True
+    "fuzz",
+    parent=settings.get_profile("default"),
+    derandomize=False,
+    database=DirectoryBasedExampleDatabase(REPO / ".hypothesis" / "examples"),
+    max_examples=DEFAULT_EXAMPLES * FUZZ_FACTOR,
 )
-settings.load_profile("ci" if os.environ.get("CI") else "default")
+settings.load_profile("default")
+
+
+def examples(n: int) -> int:
+    """A property test's own example count: `n` under the default profile, scaled as the
+    loaded profile scales DEFAULT_EXAMPLES (FUZZ_FACTOR times `n` in `make fuzz`)."""
+    return max(1, n * settings.default.max_examples // DEFAULT_EXAMPLES)
+
+
+# The longest modules of `make test` (real processes, whole flights in fast time), started
+# first so that the two workers finish together instead of one waiting on a long tail.
+LONGEST_FIRST = (
+    "swarm_sim/test_demo_story.py",
+    "gcs_cli/test_map_browser.py",
+    "swarm_node/test_voting_processes.py",
+    "swarm_sim/test_demo_radio.py",
+    "swarm_node/test_node_processes.py",
+    "swarm_node/autopilot/test_behaviour_replay.py",
+    "swarm_sim/test_fast_fleet.py",
+    "swarm_sim/test_autoland_mumt.py",
+    "swarm_sim/test_faults_smoke.py",
+    "test_netns.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        path = item.nodeid.split("::")[0].removeprefix("tests/")
+        return LONGEST_FIRST.index(path) if path in LONGEST_FIRST else len(LONGEST_FIRST)
+
+    items.sort(key=rank)  # stable: the others keep their order
+
+
+PACKAGES = ("swarm_proto", "swarm_node", "radio_gateway", "gcs_cli", "swarm_sim", "bench")
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Before any property test runs, import every module of the project. Hypothesis
+    draws now and then from the constants of the project's modules imported so far
+    (sys.modules), so without this a test's examples depended on which tests ran before
+    it in its process (xdist's schedule varies from run to run) and on whether it ran
+    alone: the same commit could pass and fail, and a failure did not reproduce."""
+    if not any(item.get_closest_marker("hypothesis") for item in session.items):
+        return
+    for package in PACKAGES:
+        module = importlib.import_module(package)
+        for info in pkgutil.walk_packages(module.__path__, f"{package}."):
+            if not info.name.endswith(".__main__"):
+                importlib.import_module(info.name)
 
 
 def free_tcp_port() -> int:

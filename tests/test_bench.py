@@ -113,6 +113,16 @@ NAMED: dict[str, tuple[str, ...]] = {
         "split_imbalance",
         "gis_4000/full_plan_ms",
     ),
+    "identity": (
+        "conflict_detect_ms",
+        "untrusted_detect_ms",
+        "rss_growth_pct",
+        "malformed_alerts/node_7",
+        "malformed_alerts/node_8",
+        "dropped_by_reason/invalid",
+        "dropped_by_reason/key_mismatch",
+        "status_hz_during/node_7",
+    ),
     "demo": ("wall_s", "sim_s", "coverage", "near", "danger", "min_sep_m", "missions_completed"),
     "faults": ("faults", "recovered", "declared_state_lost", "false_emergencies", "coverage_min"),
     "mission": (

@@ -41,7 +41,8 @@ def _lab(tmp_path: Path, topology: str, env: dict[str, str]) -> Iterator[SwarmLa
         yield SwarmLab(lab, topology, env)
 
 
-@pytest.fixture(params=["a", "b"])
+# b, where only Zenoh crosses between the subnets, in make test; a in soak
+@pytest.fixture(params=[pytest.param("a", marks=pytest.mark.soak), "b"])
 def lab(request: pytest.FixtureRequest, tmp_path: Path, env: dict[str, str]) -> Iterator[SwarmLab]:
     yield from _lab(tmp_path, request.param, env)
 
@@ -111,6 +112,7 @@ def test_discovery_and_a_command_with_its_acks(lab: SwarmLab) -> None:
         assert probe.stdout.strip() == "unreachable", probe.stdout + probe.stderr
 
 
+@pytest.mark.soak  # the same certificates and ACL on 127.0.0.1: test_security.py
 def test_tls_only_the_ground_station_commands(tls_lab: SwarmLab) -> None:
     s = tls_lab
     s.start_router(log_denied=True)

@@ -53,13 +53,16 @@ ALERT_CODES: dict[AlertCode, str] = {
     AlertCode.MISSION_FAILED: "the mission failed",
     AlertCode.MISSION_COMPLETE: "mission complete",
     AlertCode.AUTOPILOT_TEXT: "autopilot message",
-    AlertCode.MALFORMED_INPUT: "a peer sent something the node could not decode",
+    AlertCode.MALFORMED_INPUT: "the node dropped input it could not take (too large, "
+    "undecodable, or its key and payload disagree); counted in `gcs peers`",
     AlertCode.CONDITION_CLEARED: "condition cleared",
     AlertCode.MISSION_CANCELLED: "the operator cancelled the mission",
-    AlertCode.AUTOPILOT_MISMATCH: "the autopilot is not the vehicle type the swarm "
-    "database says: missions are refused until they match",
+    AlertCode.AUTOPILOT_MISMATCH: "the autopilot is not the vehicle the swarm database "
+    "says (type or MAVLink system id): missions are refused until they match",
     AlertCode.ROSTER_MISMATCH: "a fleet member flies the mission with another roster "
     "(members hash): the fleet re-synchronises before it flies a replan",
+    AlertCode.IDENTITY_CONFLICT: "another node or publisher speaks in this vehicle's name: "
+    "missions are refused until it has been silent 10 s (stop it, or give it its own id)",
 }
 
 WHAT: dict[AckRef, str] = {

@@ -19,10 +19,11 @@ import msgspec
 import serial
 import zenoh
 
+from swarm_proto import intake
 from swarm_proto.clock import Clock, clock_from_env
 from swarm_proto.radio import STATUS_BYTES
 from swarm_proto.session import SwarmBus, ZenohSettings, open_session, put_options
-from swarm_proto.topics import check_swarm_name, prefix
+from swarm_proto.topics import check_swarm_name, match, prefix
 
 from ..core.airtime import LinkTiming
 from ..core.auth import parse_key
@@ -191,9 +192,15 @@ class Gateway:
 
     # ------------------------------------------------------------------ LAN -> air
     def _on_lan(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        found = match(self.config.swarm, key)
+        if found is not None and intake.too_large(found[0], len(sample.payload)):
+            with self._lock:  # never copied out of Zenoh: nothing that large is sent
+                self.bridge.counts["lan_too_large"] += 1
+            return
         att = sample.attachment
         from_gw = att is not None and att.to_bytes().startswith(RADIO_ATTACHMENT)
-        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        payload = sample.payload.to_bytes()
         now = self.time_source.now()
         with self._lock:  # Zenoh calls back on several threads
             out = self.bridge.from_lan(key, payload, now, from_gateway=from_gw)

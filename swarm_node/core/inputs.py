@@ -11,6 +11,7 @@ from swarm_proto import DeclaredState
 from .autopilot.requests import ApResult
 from .autopilot.state import AutopilotState
 from .declared import SortieRecord
+from .identity import IdentityNews
 from .mission.share import PlanOutcome
 
 
@@ -84,4 +85,5 @@ Input = (
     | PlanDone
     | Learned
     | StoreResult
+    | IdentityNews
 )

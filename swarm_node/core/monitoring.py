@@ -17,7 +17,14 @@ FS_LONG_TIMEOUT: both 5 s by default; docs/reliability.md), and the node's own s
 (`note_stall`: its loop not served, a loaded host) do not count toward it.
 A link that never came up is not a loss: "no autopilot yet" is a WARNING after
 `link_grace_s`, never an emergency (a slow start on a loaded host raised it CRITICAL
-91 ms after the link opened).
+91 ms after the link opened); its text says why, as the link reports it.
+
+The vehicle's identity: an autopilot that is not the vehicle the swarm database says
+(another HEARTBEAT type, or another MAVLink system id than `mav_sysid`) is
+AUTOPILOT_MISMATCH, and another source speaking in this vehicle's name
+(`on_identity`, from core/identity.py) is a CRITICAL IDENTITY_CONFLICT. Either makes
+the vehicle not ready (missions are refused with the reason); neither is an emergency
+(an impostor on the LAN must not be able to bring a flying vehicle down).
 """
 
 from __future__ import annotations
@@ -147,8 +154,10 @@ class VehicleMonitor:
     stalled_s: float = 0.0  # the node's own stalls, seconds (not counted as link loss)
     ready: bool = False
     vehicle_type: VehicleType | None = None  # the node's identity (None: not checked)
+    mav_sysid: int = 0  # the autopilot's MAVLink system id, from the database (0: not checked)
     _mismatch_text: str | None = None
     state: AutopilotState = field(default_factory=AutopilotState)  # the latest reported
+    _identity: str = ""  # another source speaks in this vehicle's name ("": none)
 
     def note_stall(self, seconds: float) -> None:
         """The node was not served for `seconds` (its own stall, a loaded host): a link
@@ -175,7 +184,7 @@ class VehicleMonitor:
             return seen  # everything else is stale while the link is down
         self._mismatch_text = (
             autopilot_mismatch(self.vehicle_type, s.mav_type) if self.vehicle_type else None
-        )
+        ) or self._sysid_mismatch(s)
         if self._mismatch_text:
             seen.add(AlertCode.AUTOPILOT_MISMATCH)
         if 0 <= s.battery_pct <= t.battery_critical_pct:
@@ -199,6 +208,27 @@ class VehicleMonitor:
         if self._breach_text:
             seen.add(AlertCode.GEOFENCE_BREACH)
         return seen
+
+    def _sysid_mismatch(self, s: AutopilotState) -> str | None:
+        if self.mav_sysid and s.sysid and s.sysid != self.mav_sysid:
+            return f"autopilot is MAVLink system {s.sysid}, the database says {self.mav_sysid}"
+        return None
+
+    def on_identity(self, conflict: str, now: float) -> list[Alert]:
+        """Another source speaks in this vehicle's name (`conflict` names it; "": no
+        longer): raised CRITICAL at once (again when another source is named), cleared
+        at once; not ready meanwhile."""
+        was, self._identity = self._identity, conflict
+        if conflict == was:
+            return []
+        if conflict:
+            self.ready = False
+            return [self._alert(now, Severity.CRITICAL, AlertCode.IDENTITY_CONFLICT, conflict)]
+        return [
+            self._alert(
+                now, Severity.INFO, AlertCode.CONDITION_CLEARED, "IDENTITY_CONFLICT cleared"
+            )
+        ]
 
     def _breach(self, s: AutopilotState, now: float) -> str | None:
         """What is breached ("left operating area 2", "in no-fly zone 3"), or None
@@ -226,6 +256,7 @@ class VehicleMonitor:
             and s.ekf_ok
             and s.home is not None
             and AlertCode.AUTOPILOT_MISMATCH not in seen
+            and not self._identity
             and all(tr.severity < Severity.CRITICAL for tr in tracked.values() if tr.active)
         )
         return out
@@ -279,6 +310,8 @@ class VehicleMonitor:
     def not_ready_text(self, s: AutopilotState) -> str:
         """Why the vehicle is not ready (the first reason, for people: the text of a
         NOT_READY answer), or "" when it is."""
+        if self._identity:
+            return f"identity conflict: {self._identity}"
         if not s.link_ok:
             return "autopilot link down"
         if self._mismatch_text:
@@ -306,11 +339,16 @@ class VehicleMonitor:
         for code, tr in self._tracked.items():
             if tr.active:
                 f |= SPECS[code].flag
+        if self._identity:
+            f |= AlertFlag.IDENTITY_CONFLICT
         return f
 
     @property
     def active_codes(self) -> tuple[AlertCode, ...]:
-        return tuple(sorted(c for c, tr in self._tracked.items() if tr.active))
+        codes = {c for c, tr in self._tracked.items() if tr.active}
+        if self._identity:
+            codes.add(AlertCode.IDENTITY_CONFLICT)
+        return tuple(sorted(codes))
 
     @property
     def emergency(self) -> Emergency | None:
@@ -333,7 +371,9 @@ def _describe(code: AlertCode, s: AutopilotState) -> str:
     if code == AlertCode.ATTITUDE_ABNORMAL:
         return f"roll {s.roll_deg:.0f} pitch {s.pitch_deg:.0f} deg"
     if code == AlertCode.AUTOPILOT_LINK_LOSS:
-        return "no HEARTBEAT from the autopilot" if s.last_message_s else "no autopilot yet"
+        if s.last_message_s:
+            return "no HEARTBEAT from the autopilot"
+        return f"no autopilot yet: {s.link_problem}" if s.link_problem else "no autopilot yet"
     if code == AlertCode.EKF_FAILURE:
         return "EKF position/velocity estimate bad"
     if code == AlertCode.GEOFENCE_BREACH:

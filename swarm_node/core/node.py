@@ -48,6 +48,7 @@ from .inputs import AutopilotResult as AutopilotResult
 from .inputs import (
     AutopilotUpdate,
     BadInput,
+    IdentityNews,
     Input,
     Learned,
     MavlinkUp,
@@ -98,7 +99,9 @@ class NodeCore:
         d = self.declarations = Declarations(vid)  # zones, base, fleet: what was declared
         limits = s.thresholds or Thresholds.from_profile(p)
         # the vehicle's latest state; reads the zone book; flags an autopilot of another type
-        mon = self.monitor = VehicleMonitor(vid, limits, d.zones, vehicle_type=p.vehicle_type)
+        mon = self.monitor = VehicleMonitor(
+            vid, limits, d.zones, vehicle_type=p.vehicle_type, mav_sysid=s.mav_sysid
+        )
         m = self.members = SwarmMembership(vid, s.stale_after_s, s.info_stale_after_s)
         ids = itertools.count(1)  # the operator's request ids: commands and passthrough
         op = self.operator = OperatorDesk(VehicleTransit(p), md, ids=ids)
@@ -194,6 +197,9 @@ class NodeCore:
                     self.mission.restored(sortie, now)
             case StoreResult(ok, error):
                 outs = self.declarations.stored(ok, error, now)
+            case IdentityNews(conflict, untrusted):  # from the shell's identity book
+                outs = [Publish(a) for a in self.monitor.on_identity(conflict, now)]
+                self.mission.distrust(untrusted)
             case _:
                 assert_never(event)
         self._route(outs, now, sink)

@@ -18,3 +18,4 @@ class NodeSettings:
     thresholds: Thresholds | None = None  # default: from the profile
     fence_max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
     avoidance: bool = True  # collision avoidance (safety/module.py); off: compare without it
+    mav_sysid: int = 0  # the autopilot's MAVLink system id, from the database (0: not checked)

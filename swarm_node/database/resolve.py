@@ -43,6 +43,19 @@ LEFT JOIN gimbal_configs gc ON gc.id = pl.gimbal_id
 IMAGING_SENSORS = ("camera", "thermal")
 
 
+def mav_sysid_of(params: Mapping[str, str], vehicle_id: int) -> int:
+    """A system's MAVLink system id, from its `system_params` (`mav_sysid`; 0: none
+    given). ProfileError when it is not one (1-255)."""
+    text = str(params.get("mav_sysid", "")).strip()
+    if not text:
+        return 0
+    if not text.isdigit() or not 1 <= int(text) <= 255:
+        raise ProfileError(
+            f"system {vehicle_id}: mav_sysid {text[:20]!r} is not a MAVLink system id (1-255)"
+        )
+    return int(text)
+
+
 def profile_from_row(row: Mapping[str, Any]) -> VehicleProfile:
     """The VehicleProfile of one PROFILE_SQL row. Raises ProfileError when the model
     has no parameters or the subtype names an unknown vehicle type."""

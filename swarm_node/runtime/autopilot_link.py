@@ -29,6 +29,8 @@ from collections.abc import Callable, Mapping
 from concurrent.futures import Future
 from typing import Any
 
+import msgspec
+
 from swarm_node.core.autopilot.events import ApEvent, HostStalled, LinkLost, LinkRestored
 from swarm_node.core.autopilot.framing import MAVLinkMessage
 from swarm_node.core.autopilot.link import Complete, Emit, LinkCore, LinkSettings, Output, Transmit
@@ -101,6 +103,7 @@ class AutopilotLink:
         self._closed = False
         self._reopen_at = 0.0  # monotonic wall time
         self._lost_since: float | None = None
+        self._problem = ""  # why nothing is heard yet (AutopilotState.link_problem)
         # passthrough (core/passthrough.py): sessions' frames to write, the autopilot's
         # frames for them (`on_frames`, on this link's thread, while tapped)
         self._relay_out: queue.SimpleQueue[bytes] = queue.SimpleQueue()
@@ -251,9 +254,11 @@ class AutopilotLink:
             try:
                 t.open()
                 log.info("%s: opened %s", self.name, t.description)
+                self._problem = f"{t.description} open, nothing heard"
             except OSError as exc:
                 self._reopen_at = time.monotonic() + self.reopen_interval_s
                 log.debug("%s: cannot open %s: %s", self.name, t.description, exc)
+                self._problem = f"{t.description}: {exc.strerror or exc}"
         now = self.clock.now()
         wait = self._wait_s(now)
         link_fds = t.filenos()
@@ -306,7 +311,11 @@ class AutopilotLink:
         if now >= self._core.next_deadline():
             out += self._core.on_timer(now)
         self._execute(out)
-        self._state = self._core.state
+        state = self._core.state
+        if self._problem and state.last_message_s is None:
+            # nothing heard yet: the state carries why, for the node's alert
+            state = msgspec.structs.replace(state, link_problem=self._problem)
+        self._state = state
         tapped = self._core.take_tapped()
         if tapped and self.on_frames is not None:
             self._call(self.on_frames, tapped)

@@ -68,6 +68,10 @@ def open_database(cfg: NodeConfig) -> SwarmDatabase | None:
 
 
 def build_node(cfg: NodeConfig, clock: Clock) -> NodeRuntime:
+    if cfg.autopilot:
+        from .mavlink_transport import check_address
+
+        check_address(cfg.autopilot)  # ValueError before anything opens: exit 2
     db = open_database(cfg)
     profile = resolve_profile(cfg, db)
     log.info(

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import ipaddress
 import os
 import socket
 from dataclasses import dataclass
@@ -84,6 +85,34 @@ def parse_url(url: str, baud: int = 57600) -> Endpoint:
         host, port = _host_port(text, url)  # mavutil treats HOST:PORT as udp input
         return Endpoint("udpin", host, port)
     return Endpoint("serial", device=text, baud=baud)
+
+
+def check_address(url: str, baud: int = 57600) -> Endpoint:
+    """`parse_url`, and what can be known before opening: a serial device that exists,
+    a host that is an address or a name that resolves. ValueError in one line
+    otherwise (a node refuses to start rather than retry for ever what cannot work).
+    An address that passes may still not answer: the link retries it."""
+    endpoint = parse_url(url, baud)
+    if endpoint.kind == "serial":
+        device = endpoint.device
+        if not device.upper().startswith("COM") and not os.path.exists(device):
+            raise ValueError(
+                f"autopilot {url!r}: no such device {device!r} (a serial device, or "
+                "tcp:HOST:PORT, udpin:HOST:PORT, udpout:HOST:PORT)"
+            )
+        return endpoint
+    host = endpoint.host
+    if host.replace(".", "").isdigit():  # looks like an IPv4 address: it must be one
+        try:
+            ipaddress.ip_address(host)
+        except ValueError:
+            raise ValueError(f"autopilot {url!r}: {host!r} is not an IP address") from None
+        return endpoint
+    try:
+        socket.getaddrinfo(host, endpoint.port)
+    except (OSError, UnicodeError) as exc:
+        raise ValueError(f"autopilot {url!r}: cannot resolve host {host!r}") from exc
+    return endpoint
 
 
 def _host_port(text: str, url: str) -> tuple[str, int]:

@@ -20,10 +20,21 @@ the loop (a node starting its first plan job left `gcs peers` unanswered).
 Declared state: restored from the node's database at start (`Learned` from
 "database"), asked of every peer that comes alive (its DECLARED queryable), stored on
 every change by `StateWriter` off the loop.
+
+The input boundary (docs/security.md): every sample was size-checked, decoded and its
+key checked against its payload by the bus (swarm_proto.intake); what the bus dropped
+comes here as `Dropped` and goes to the `InputAlarm` (counts for the peers queryable, a
+MALFORMED_INPUT alert at most once a minute per topic). Peers' statuses and infos come
+with their source and pass the `IdentityBook` (core/identity.py) first; so do the
+holder tokens (`id/<id>/<session>`) and anything in this vehicle's own name published
+by another session (`Own`): its news goes to the core as `IdentityNews` and
+`PeerAlive`. Nodes do not read `alive/<id>` tokens (a foreign one cannot be told from
+ours).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import multiprocessing
 import os
@@ -32,6 +43,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Protocol, TypeGuard
 
 import msgspec
@@ -41,8 +53,10 @@ from swarm_proto import (
     Ack,
     Alert,
     AlertCode,
+    AlertFlag,
     Clock,
     DeclaredState,
+    DroppedInput,
     FsmState,
     Mission,
     MissionType,
@@ -50,11 +64,15 @@ from swarm_proto import (
     PeerEntry,
     Severity,
     SwarmView,
+    VehicleInfo,
+    VehicleStatus,
     VehicleType,
+    intake,
     lan,
 )
 from swarm_proto.clock import SteadyClock
 from swarm_proto.errors import DecodeError
+from swarm_proto.intake import InputAlarm, Source
 from swarm_proto.session import SwarmBus
 from swarm_proto.text import short_text
 from swarm_proto.topics import (
@@ -77,12 +95,13 @@ from swarm_proto.topics import (
 
 from ..core.autopilot.requests import ApRequest, ApResult, RelayCommand
 from ..core.autopilot.state import AutopilotState
+from ..core.identity import HolderAlive, IdentityBook
+from ..core.identity import Output as IdentityOutput
 from ..core.mission.share import PlanOutcome, PlanRequest, run_plan, warm
 from ..core.mission.tasking import RETASK_MODULE, VOTING_MODULE, TaskingSettings
 from ..core.node import (
     AutopilotResult,
     AutopilotUpdate,
-    BadInput,
     Input,
     Learned,
     NodeCore,
@@ -101,6 +120,7 @@ from ..core.outputs import Sessions, StreamWish, ToAutopilot, ToClient
 from ..core.profile import VehicleProfile
 from ..database import ProfileError, SwarmDatabase
 from ..database.queryable import DatabaseQueryable
+from ..database.resolve import mav_sysid_of
 from ..database.state import NodeStateStore
 from .config import NodeConfig
 from .parent_watch import exit_with_parent
@@ -173,10 +193,51 @@ def _relays(autopilot: object) -> TypeGuard[RelayPort]:
 class _Snapshot(msgspec.Struct, frozen=True):
     """What the queryables answer, refreshed by the loop (no lock in Zenoh callbacks)."""
 
-    peers: tuple[tuple[int, int, int, int, float], ...] = ()  # id, type, fleet, fsm, heard
+    # id, type, fleet, fsm, heard, untrusted
+    peers: tuple[tuple[int, int, int, int, float, bool], ...] = ()
     zones: tuple[NoFlyZone, ...] = ()
     declared: DeclaredState | None = None
     missions: tuple[Mission, ...] = ()
+    dropped: tuple[DroppedInput, ...] = ()
+    conflict: str = ""
+
+
+# What the bus and Zenoh hand the loop besides the core's inputs (the input boundary)
+@dataclass(frozen=True)
+class Heard:
+    """A peer's VehicleStatus or VehicleInfo, with its source (for the identity book)."""
+
+    msg: VehicleStatus | VehicleInfo
+    source: Source
+
+
+@dataclass(frozen=True)
+class Own:
+    """A VehicleStatus or VehicleInfo in this vehicle's name from another session."""
+
+    msg: VehicleStatus | VehicleInfo
+    source: Source
+
+
+@dataclass(frozen=True)
+class Holder:
+    """A holder token `id/<node_id>/<zid>` appeared or went."""
+
+    node_id: int
+    zid: str
+    alive: bool
+
+
+@dataclass(frozen=True)
+class Dropped:
+    """A sample the bus dropped (swarm_proto.intake reasons)."""
+
+    key: str
+    reason: str
+    text: str
+
+
+Boundary = Heard | Own | Holder | Dropped
 
 
 SNAPSHOT_PERIOD_S = 0.2  # wall seconds
@@ -254,9 +315,16 @@ class NodeRuntime:
         self.config = config
         self.clock = clock
         self.autopilot: AutopilotPort = autopilot or NoAutopilot()
+        settings = node_settings(config)
+        if database is not None:  # the autopilot must be the system the database says
+            try:
+                sysid = mav_sysid_of(database.system_params(profile.vehicle_id), profile.vehicle_id)
+            except ProfileError as exc:  # refused at start, in one line (exit 2)
+                raise ValueError(str(exc)) from exc
+            settings = dataclasses.replace(settings, mav_sysid=sysid)
         self.core = NodeCore(
             profile,
-            node_settings(config),
+            settings,
             now=clock.now(),
             # the planners need every fleet member's airframe: the database knows them all
             fleet_profiles=(
@@ -269,12 +337,16 @@ class NodeRuntime:
                 tasking_settings_of(database) if database is not None else TaskingSettings()
             ),
         )
-        self.inbox: queue.SimpleQueue[Input] = queue.SimpleQueue()
+        self.inbox: queue.SimpleQueue[Input | Boundary] = queue.SimpleQueue()
         self.planner = PlanWorker(self.inbox.put, planner)
         self._plan_jobs: list[PlanRequest] = []  # handed to the worker after the loop step
         self.bus = bus or SwarmBus.open(config.zenoh, config.swarm, on_bad_input=self._bad_input)
         if bus is not None:
             bus.on_bad_input = self._bad_input
+        self.alarm = InputAlarm(config.swarm)  # what the bus dropped: counts, alerts
+        self.identity = IdentityBook(profile.vehicle_id, self.bus.zid)
+        self._sysid = 0  # the autopilot's MAVLink system id, as last told to the bus
+        self._untrusted: frozenset[int] = frozenset()  # as last logged
         # MAVLink passthrough sessions (ground stations' QGroundControl, MAVProxy), when the
         # autopilot is a link that relays (core/passthrough.py decides): made at start,
         # the link may be given after the node is built (launch.py)
@@ -301,10 +373,20 @@ class NodeRuntime:
 
     # ------------------------------------------------------------------ wiring
     def _bad_input(self, key: str, exc: Exception) -> None:
-        self.inbox.put(BadInput(key, str(exc)))
+        reason = exc.reason if isinstance(exc, DecodeError) else intake.MALFORMED
+        self.inbox.put(Dropped(key[:200], reason, str(exc)[:200]))
 
     def _received(self, msg: msgspec.Struct, key: str) -> None:
         self.inbox.put(Received(msg))
+
+    def _heard(self, msg: VehicleStatus | VehicleInfo, key: str, source: Source) -> None:
+        self.inbox.put(Heard(msg, source))
+
+    def _own(self, msg: VehicleStatus | VehicleInfo, key: str, source: Source) -> None:
+        self.inbox.put(Own(msg, source))
+
+    def _holder(self, node_id: int, zid: str, alive: bool) -> None:
+        self.inbox.put(Holder(node_id, zid, alive))
 
     def on_autopilot_event(self, event: object) -> None:
         """Link events (on the link's thread): state changes that matter now (link lost
@@ -321,10 +403,103 @@ class NodeRuntime:
         if isinstance(event, LinkLost | LinkRestored | ArmedChanged | ModeChanged | LandedChanged):
             self.inbox.put(AutopilotUpdate(self.autopilot.state))
 
-    def _alive(self, node_id: int, alive: bool) -> None:
-        self.inbox.put(PeerAlive(node_id, alive))
-        if alive and node_id != self.core.self_id:
-            self._ask_peers.put(node_id)  # learn what it holds (off Zenoh's thread)
+    # ------------------------------------------------------------------ the input boundary
+    def _handle(self, event: Input | Boundary, now: float) -> list[Output]:
+        """One input: the boundary's own (identity, drops), or the core's."""
+        if isinstance(event, Heard):
+            return self._on_heard(event, now)
+        if isinstance(event, Own):
+            msg = event.msg
+            sysid = msg.mav_sysid if isinstance(msg, VehicleInfo) else 0
+            return self._identity_news(self.identity.heard_own(event.source, now, sysid=sysid), now)
+        if isinstance(event, Holder):
+            news = self.identity.holder(event.node_id, event.zid, event.alive, now)
+            return self._identity_news(news, now)
+        if isinstance(event, Dropped):
+            return self._dropped(event, now)
+        return self.core.handle(event, now)
+
+    def _on_heard(self, event: Heard, now: float) -> list[Output]:
+        msg = event.msg
+        if isinstance(msg, VehicleInfo):
+            keep, news = self.identity.heard(
+                msg.vehicle_id,
+                event.source,
+                now,
+                sysid=msg.mav_sysid,
+                reports_conflict=AlertCode.IDENTITY_CONFLICT in msg.errors,
+                ground=msg.vehicle_type == VehicleType.GCS,
+            )
+        else:
+            keep, news = self.identity.heard(
+                msg.vehicle_id,
+                event.source,
+                now,
+                reports_conflict=bool(msg.alerts & AlertFlag.IDENTITY_CONFLICT),
+            )
+        out = self._identity_news(news, now)
+        if keep:
+            return out + self.core.handle(Received(msg), now)
+        kind = "status" if isinstance(msg, VehicleStatus) else "info"
+        self.alarm.counts[(f"vehicle/*/{kind}", intake.IDENTITY)] += 1
+        return out
+
+    def _identity_news(self, news: list[IdentityOutput], now: float) -> list[Output]:
+        out: list[Output] = []
+        for n in news:
+            if isinstance(n, HolderAlive):
+                out += self.core.handle(PeerAlive(n.node_id, n.alive), now)
+                if n.alive:
+                    self._ask_peers.put(n.node_id)  # learn what it holds (off the loop)
+                continue
+            before, self._untrusted = self._untrusted, n.untrusted
+            for vid in sorted(n.untrusted - before):
+                log.warning(
+                    "node %d: vehicle %d untrusted: %s",
+                    self.core.self_id,
+                    vid,
+                    self.identity.why(vid),
+                )
+            for vid in sorted(before - n.untrusted):
+                log.info("node %d: vehicle %d trusted again", self.core.self_id, vid)
+            out += self.core.handle(n, now)
+        return out
+
+    def _dropped(self, event: Dropped, now: float) -> list[Output]:
+        alarm = self.alarm.dropped(event.key, event.reason, event.text, now)
+        if alarm is None:
+            return []
+        return [self._malformed(alarm, now)]
+
+    def _malformed(self, alarm: intake.Alarm, now: float) -> Publish:
+        return Publish(
+            Alert(
+                self.core.self_id,
+                max(0.0, now),
+                Severity.WARNING,
+                AlertCode.MALFORMED_INPUT,
+                alarm.text,
+            )
+        )
+
+    def _boundary_timer(self, now: float) -> list[Output]:
+        out: list[Output] = [self._malformed(a, now) for a in self.alarm.on_timer(now)]
+        due = self.identity.next_deadline()
+        if due is not None and now >= due:
+            out += self._identity_news(self.identity.on_timer(now), now)
+        return out
+
+    def _boundary_deadline(self) -> float:
+        due = [d for d in (self.alarm.next_deadline(), self.identity.next_deadline()) if d]
+        return min(due) if due else float("inf")
+
+    def _note_sysid(self, state: AutopilotState) -> None:
+        """The autopilot's MAVLink system id goes into what we publish (and is what our
+        own name must not be heard with from another airframe)."""
+        if state.sysid and state.sysid != self._sysid:
+            self._sysid = state.sysid
+            self.bus.set_sysid(state.sysid)
+            self.identity.set_own_sysid(state.sysid)
 
     # ------------------------------------------------------------------ declared state
     def _refresh_snapshot(self, now: float, *, force: bool = False) -> None:
@@ -334,14 +509,27 @@ class NodeRuntime:
             return
         self._snap_at = wall
         core = self.core
+        untrusted = self.identity.untrusted
         self._snap = _Snapshot(
             peers=tuple(
-                (p.node_id, int(p.vehicle_type), p.fleet_id, int(p.fsm_state), p.last_heard_s)
+                (
+                    p.node_id,
+                    int(p.vehicle_type),
+                    p.fleet_id,
+                    int(p.fsm_state),
+                    p.last_heard_s,
+                    p.node_id in untrusted,
+                )
                 for p in core.members.live()
             ),
             zones=tuple(core.monitor.zones.values()),
             declared=core.declared_state(now),
             missions=tuple(core.missions.values()),
+            dropped=tuple(
+                DroppedInput(expr, reason, min(n, 2**32 - 1))
+                for (expr, reason), n in sorted(self.alarm.counts.items())
+            ),
+            conflict=self.identity.conflict,
         )
 
     def _answer_zones(self, query: zenoh.Query) -> None:
@@ -385,10 +573,14 @@ class NodeRuntime:
             for reply in replies:
                 if reply.ok is None:
                     continue
+                key, payload = str(reply.ok.key_expr), reply.ok.payload
+                problem = intake.too_large(DECLARED, len(payload))  # before the copy
                 try:
-                    state = lan.decode(reply.ok.payload.to_bytes(), DeclaredState)
+                    if problem:
+                        raise DecodeError(problem, reason=intake.TOO_LARGE)
+                    state = intake.decode(DECLARED, self.config.swarm, key, payload.to_bytes())
                 except DecodeError as exc:
-                    self._bad_input(str(reply.ok.key_expr), exc)
+                    self._bad_input(key, exc)
                     continue
                 self.inbox.put(Learned(state, None, f"peer {state.vehicle_id}"))
 
@@ -450,6 +642,7 @@ class NodeRuntime:
 
     def _answer_peers(self, query: zenoh.Query) -> None:
         now = self.clock.now()
+        snap = self._snap
         view = SwarmView(
             vehicle_id=self.core.self_id,
             time_unix_s=max(0.0, now),
@@ -460,9 +653,12 @@ class NodeRuntime:
                     fleet_id=fleet,
                     fsm_state=FsmState(fsm),
                     heard_age_s=min(max(0.0, now - heard), 1e7),
+                    untrusted=untrusted,
                 )
-                for nid, vt, fleet, fsm, heard in self._snap.peers
+                for nid, vt, fleet, fsm, heard, untrusted in snap.peers
             ),
+            dropped=snap.dropped,
+            identity_conflict=snap.conflict[:64],
         )
         query.reply(query.key_expr, lan.encode(view))
 
@@ -472,10 +668,16 @@ class NodeRuntime:
         if self.writer is not None:
             self.writer.start()
         # ACK: the peers' answers to missions make the roster (core/swarm/roster.py)
-        for topic in (STATUS, INFO, COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET, LINEAGE):
+        for topic in (COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET, LINEAGE):
             self.bus.subscribe(topic, self._received)
+        swarm, me = self.config.swarm, self.core.self_id
+        for topic in (STATUS, INFO):  # telemetry passes the identity book first
+            self.bus.subscribe_sourced(topic, self._heard)
+            # our own name from another session (never our own publications)
+            own = topic.key(swarm, vehicle_id=me)
+            self.bus.subscribe_sourced(topic, self._own, own, remote_only=True, quiet=True)
         # radio passthrough sessions' commands to this vehicle (core/passthrough.py)
-        key = MAVLINK_COMMAND.key(self.config.swarm, target_id=self.core.self_id)
+        key = MAVLINK_COMMAND.key(swarm, target_id=me)
         self.bus.subscribe(MAVLINK_COMMAND, self._received, key=key)
         self._asker = threading.Thread(
             target=self._asking, name=f"declared-{self.core.self_id}", daemon=True
@@ -495,8 +697,9 @@ class NodeRuntime:
                 self.bus, self.core.self_id, self.autopilot, self.inbox.put
             )
             self.passthrough.start()
-        self.bus.watch_alive(self._alive)
-        self.bus.declare_alive(self.core.self_id)
+        self.bus.watch_holders(self._holder)
+        self.bus.declare_holder(self.core.self_id)
+        self.bus.declare_alive(self.core.self_id)  # for ground stations (discovery)
         # the planner's worker process starts once the node is active (the run loop),
         # or with the first plan job: a node that never plans does not pay for it
         key = PEERS.key(self.config.swarm, vehicle_id=self.core.self_id)
@@ -514,25 +717,29 @@ class NodeRuntime:
         try:
             while not stop.is_set():
                 now = self.clock.now()
-                deadline = min(self.core.next_deadline(), next_ap)
+                deadline = min(self.core.next_deadline(), next_ap, self._boundary_deadline())
                 wait = min(self.clock.to_wall(deadline - now), 0.25)
                 try:
-                    event: Input | None = self.inbox.get(timeout=max(0.0, wait))
+                    event: Input | Boundary | None = self.inbox.get(timeout=max(0.0, wait))
                 except queue.Empty:
                     event = None
                 now = self.clock.now()
                 if event is not None:
-                    self._execute(self.core.handle(event, now))
+                    self._execute(self._handle(event, now))
                     while True:  # drain what arrived meanwhile
                         try:
-                            self._execute(self.core.handle(self.inbox.get_nowait(), now))
+                            self._execute(self._handle(self.inbox.get_nowait(), now))
                         except queue.Empty:
                             break
                 if now >= next_ap:
                     next_ap = max(next_ap + self._ap_period_s, now)
-                    self._execute(self.core.handle(AutopilotUpdate(self.autopilot.state), now))
+                    state = self.autopilot.state
+                    self._note_sysid(state)
+                    self._execute(self.core.handle(AutopilotUpdate(state), now))
                 if now >= self.core.next_deadline():
                     self._execute(self.core.on_timer(now))
+                if now >= self._boundary_deadline():
+                    self._execute(self._boundary_timer(now))
                 self._refresh_snapshot(now)
                 self._check_clock(now)
                 jobs, self._plan_jobs = self._plan_jobs, []

@@ -271,14 +271,38 @@ def test_status_fits_100_columns_with_positions() -> None:
             mission_state=MissionState.REPLAN,
             mission_progress_pct=100,
             fleet_id=255,
-            alerts=AlertFlag(0x7FF),
+            alerts=AlertFlag(0xFFF),
         )
         view.info[vid] = VehicleInfo(vid, vt, "Albatross 250 VTOL", "U", mav_type=2)
         view.heard_at[vid] = _time.monotonic() - 123.4
+    view.untrusted[7] = "heard from session 3f2a9c1d and a foreign publisher"
     console = Console(width=100, record=True)
     console.print(fleet_table(view, title="swarm default"))
     text = console.export_text()
     assert max(len(line.rstrip()) for line in text.splitlines()) <= 100, text
     assert "-37.41235,-125.98765" in text and "LOITERALTQLAND"[:9] in text, text
     assert "…" not in text, text  # no cell cut
-    assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠type" in text, text
+    assert "7 ! untrusted: heard from session 3f2a9c1d and a foreign publisher" in text, text
+    assert "65534 ! batt,BATT!,gps,ekf,aplink,fence,att,coll,swarm,nfz,AP≠db,ID!" in text, text
+
+
+def test_a_mission_over_the_size_cap_is_refused_before_sending() -> None:
+    import math
+
+    import typer
+
+    from gcs_cli.options import checked
+    from swarm_proto import Geometry, Mission, MissionType
+
+    def ring(n: int) -> list[tuple[float, float]]:
+        return [
+            (
+                37.4 + 0.01 * math.sin(2 * math.pi * i / n),
+                -5.9 + 0.01 * math.cos(2 * math.pi * i / n),
+            )
+            for i in range(n)
+        ]
+
+    assert checked(Mission(5, 900, MissionType.AREA, Geometry.polygon(ring(4000))))
+    with pytest.raises(typer.BadParameter, match="more than the 262144 mission takes"):
+        checked(Mission(5, 900, MissionType.AREA, Geometry.polygon(ring(15000))))

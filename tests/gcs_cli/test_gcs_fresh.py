@@ -55,6 +55,7 @@ def two_nodes(
         assert all(c == 0 for c in codes.values()), codes
 
 
+@pytest.mark.soak  # test_ground_repeats.py and test_exchange.py wait for the addressed the same way
 def test_mission_for_one_id_waits_for_that_vehicle(
     zenoh_router: str, swarm: str, two_nodes: dict[int, subprocess.Popen[bytes]]
 ) -> None:

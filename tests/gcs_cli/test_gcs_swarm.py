@@ -98,6 +98,8 @@ def rows(out: str) -> dict[int, dict]:
     return {r["id"]: r for r in json.loads(out)["vehicles"]}
 
 
+# addressing and late joiners: test_exchange.py; gcs against a node: test_gcs_commands.py
+@pytest.mark.soak
 def test_six_vehicles_every_command_and_answer(
     swarm: Swarm, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import msgspec
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from gcs_cli.app import run
@@ -38,6 +38,7 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
 )
+from tests.conftest import examples
 
 FIELD = [(37.410, -5.990), (37.410, -5.980), (37.418, -5.980), (37.418, -5.990)]
 HOLE = [(37.412, -5.987), (37.412, -5.985), (37.414, -5.985)]
@@ -519,12 +520,23 @@ def same_shape(a: Geometry, b: Geometry, tol: float) -> bool:
 
 
 @settings(
-    derandomize=True,
-    max_examples=60,
+    max_examples=examples(20),
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )
 @given(m=missions(), zones=zone_lists())
+# a survey's overlap as QGroundControl's percentage: 0.4773198971981235 * 100 / 100 is
+# 0.47731989719812357
+@example(
+    m=Mission(
+        1,
+        900,
+        MissionType.AREA,
+        Geometry.polygon([(20.0, 0.015625), (20.0135, -0.0078), (19.9865, -0.0078)]),
+        MissionParams(altitude_rel_m=1.0, side_overlap=0.4773198971981235),
+    ),
+    zones=[NoFlyZone(1, Geometry.circle(20.0, 0.0, 50.0))],
+)
 def test_every_format_round_trips_what_it_carries(
     tmp_path: Path, m: Mission, zones: list[NoFlyZone]
 ) -> None:

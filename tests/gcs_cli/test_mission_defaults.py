@@ -95,8 +95,8 @@ def test_count_and_payload_set_the_quantity_selector(zenoh_router: str, swarm_db
     node wiring lands they answer UNSUPPORTED, docs/node.md). The responder holds no
     liveliness token and says nothing of itself (a vehicle heard without the payload
     is not addressed: nobody would be), so the ground station knows nobody it must wait
-    for and listens for its whole --timeout: 1 s here (what is sent is checked, not the
-    waiting)."""
+    for and listens for its whole --timeout: 1 s here; the responder accepts, and no vote
+    follows: --vote-wait 0 (what is sent is checked, not the waiting)."""
     m, _ = send_mission(
         zenoh_router,
         "md5",
@@ -109,6 +109,8 @@ def test_count_and_payload_set_the_quantity_selector(zenoh_router: str, swarm_db
         "EO 1080p 2-axis gimbal",
         "--timeout",
         "1",
+        "--vote-wait",
+        "0",
         announce=False,
     )
     sel = m.selection
@@ -130,6 +132,8 @@ def test_count_and_payload_set_the_quantity_selector(zenoh_router: str, swarm_db
         "3",
         "--timeout",
         "1",
+        "--vote-wait",
+        "0",
         announce=False,
     )
     assert (m.selection.kind, m.selection.quantity, m.selection.fleet_id) == (

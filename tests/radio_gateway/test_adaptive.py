@@ -15,6 +15,7 @@ from radio_gateway.core.membership import Membership, Phase
 from radio_gateway.core.slots import MAX_LEVEL, SlotLayout, TdmConfig, table_hash
 from swarm_sim.radio_channel.harness import Fleet
 from swarm_sim.radio_channel.model import XTEND_DATASHEET, ChannelParams
+from tests.conftest import examples
 
 from .helpers import KEY, TIMING, status_producer
 
@@ -26,7 +27,7 @@ members_and_levels = st.dictionaries(
 )
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(members_and_levels, st.randoms(), st.sampled_from([0.002, 0.005, 0.010]))
 def test_every_node_derives_the_same_schedule_from_the_same_inputs(
     levels: dict[int, int], rnd: object, guard: float
@@ -45,7 +46,7 @@ def test_every_node_derives_the_same_schedule_from_the_same_inputs(
     ]
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(members_and_levels)
 def test_the_weighted_table_never_gives_a_slot_twice_and_follows_need(
     levels: dict[int, int],

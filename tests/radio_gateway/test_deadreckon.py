@@ -20,6 +20,7 @@ from radio_gateway.core.deadreckon import (
     encode_kinematics,
     predict,
 )
+from tests.conftest import examples
 
 finite = st.floats(-1e3, 1e3, allow_nan=False)
 speed = st.floats(-25, 25, allow_nan=False)
@@ -87,7 +88,7 @@ def _track(t: float) -> Kinematics:
     return predict(Kinematics(10.0, 180, 0, 100, 18, 0, 0, 18 / 80 * 1.0), t)
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=examples(30), deadline=None)
 @given(st.floats(1.0, 10.0), st.floats(0.3, 2.0))
 def test_the_peers_error_stays_within_the_threshold(threshold: float, heartbeat: float) -> None:
     """Checked every 100 ms against a horizon of one step, the sender keeps the peers'
@@ -111,7 +112,7 @@ def test_the_peers_error_stays_within_the_threshold(threshold: float, heartbeat:
     assert len(sent_at) < 300 / 2
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(st.lists(st.booleans(), min_size=5, max_size=40), st.floats(0.05, 1.0))
 def test_the_bound_holds_whatever_is_lost(delivered: list[bool], step: float) -> None:
     """The peer's error bound holds with any pattern of lost messages."""

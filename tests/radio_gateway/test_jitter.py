@@ -21,6 +21,7 @@ from radio_gateway.core.membership import Membership, Phase
 from radio_gateway.core.slots import TdmConfig
 from swarm_sim.radio_channel.harness import Fleet
 from swarm_sim.radio_channel.model import ChannelParams
+from tests.conftest import examples
 
 from .helpers import KEY, status_producer
 
@@ -61,7 +62,10 @@ def _stale_events(f: Fleet, start: float, end: float) -> list[tuple[int, int, fl
     return out
 
 
-@pytest.mark.parametrize("jitter_ms", [40, 60, 100])
+@pytest.mark.parametrize(  # 60 ms, several slots, in make test; the others in soak
+    "jitter_ms",
+    [pytest.param(40, marks=pytest.mark.soak), 60, pytest.param(100, marks=pytest.mark.soak)],
+)
 def test_slot_tables_stay_put_under_io_jitter_of_several_slots(jitter_ms: int) -> None:
     f = _jittered(jitter_ms / 1000)
     t0 = f.t
@@ -119,7 +123,7 @@ def test_the_silence_limit_follows_the_members_loss(missed: int, limit: int) -> 
     assert m.silence_limit(1, c) == limit
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(st.lists(st.booleans(), min_size=0, max_size=120), st.lists(st.booleans(), max_size=40))
 def test_the_silence_limit_is_bounded_and_grows_with_the_loss(
     heard: list[bool], extra_misses: list[bool]

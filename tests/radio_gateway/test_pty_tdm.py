@@ -5,10 +5,10 @@ Timing on a shared 2-core machine is noisy, so the simulated clock runs slower t
 wall clock here (every millisecond of slot margin is two of wall time); what is asserted
 is what the protocol guarantees: no collisions, 5 Hz, convergence within 3 cycles.
 
-The default run keeps the hardest steady state (14 nodes, 1 ms of spare per slot) and the
-leave/join convergence; 4 and 8 nodes and the 30 % loss run (10 s of wall time) are
-`soak` here: the same properties are checked for 4, 8 and 14 nodes in simulated time by
-test_tdm_fleet.py, which runs the same node cores on the same channel model."""
+The default run keeps the hardest steady state (14 nodes, 1 ms of spare per slot); 4 and
+8 nodes, the leave/join convergence and the 30 % loss run (10 s of wall time) are `soak`
+here: the same properties are checked in simulated time by test_tdm_fleet.py, which runs
+the same node cores on the same channel model."""
 
 from __future__ import annotations
 
@@ -70,6 +70,7 @@ def test_nodes_keep_5_hz_status_with_no_collisions(n: int) -> None:
     assert late <= n, "the host was too busy to keep the slots: see late_writes"
 
 
+@pytest.mark.soak  # the same in simulated time: test_tdm_fleet.py
 def test_a_node_leaving_and_one_joining_converge_within_3_cycles() -> None:
     with PtyFleet(7, speed=0.5) as fleet:
         members = (1, 2, 3, 4, 5, 6)

@@ -22,6 +22,7 @@ from radio_gateway.core.telemetry import (
     error_bound,
 )
 from swarm_proto import AlertFlag, FsmState, VehicleStatus, radio
+from tests.conftest import examples
 
 LAT0, LON0 = 37.4112, -5.9889
 MLAT = 111_132.0
@@ -161,7 +162,7 @@ def test_a_node_that_stops_publishing_still_sends_its_heartbeat() -> None:
 vel = st.floats(-25.0, 25.0)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(
     vx=vel,
     vy=vel,

@@ -25,6 +25,7 @@ from swarm_proto import (
     SelectorKind,
 )
 from swarm_proto.messages import DeclaredMission
+from tests.conftest import examples
 
 GCS = 900
 T = 1.8e9
@@ -140,7 +141,7 @@ def offer(book: DeclaredBook, d: object) -> None:
         book.offer_command(d, T)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(st.lists(declaration, min_size=1, max_size=12), st.randoms(use_true_random=False))
 def test_any_order_and_any_split_converge_to_the_same_book(
     decls: list[object], rnd: random.Random

@@ -49,6 +49,7 @@ def info_of(view: FleetView, vid: int, mid: int) -> bool:
     return vid in view.info and view.info[vid].mission_id == mid
 
 
+@pytest.mark.soak  # split, again, inherit: test_mission_layer.py, test_faults_smoke.py (FastFleet)
 @pytest.mark.timeout(240)
 def test_fleet_missions_split_fly_again_and_inherit_quickly(tmp_path: Path, swarm_db: Path) -> None:
     """The default run's shorter check, two quadcopters on their node processes: a

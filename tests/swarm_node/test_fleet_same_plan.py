@@ -23,6 +23,7 @@ from swarm_proto import (
     MissionType,
     Selector,
 )
+from tests.conftest import examples
 from tests.swarm_node.test_roster import ack, info, peers_of
 
 MID = 77
@@ -55,7 +56,7 @@ def fleets(draw: st.DrawFn) -> tuple[list[int], dict[int, bool], list[list[int]]
     return ids, accepts, orders
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(12), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(fleets(), st.sampled_from(sorted(GEOMETRY)), st.randoms(use_true_random=False))
 def test_every_node_computes_the_same_roster_plan_and_replan(
     fleet_profiles: dict, data: tuple, kind: MissionType, rnd: random.Random

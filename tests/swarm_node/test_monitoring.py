@@ -276,3 +276,56 @@ def test_a_changed_model_parameter_reaches_the_monitor() -> None:
         profile = db.vehicle_profile(vehicle_id=10)  # ROVER-01
     t = NodeCore(profile).monitor.thresholds
     assert (t.battery_low_pct, t.max_tilt_deg) == (42, 22.0)
+
+
+# ---------------------------------------------------------------- identity
+
+
+def test_an_autopilot_of_another_mavlink_system_id_is_a_mismatch_and_not_ready() -> None:
+    mon = VehicleMonitor(8, mav_sysid=8)
+    alerts = mon.update(healthy(sysid=10), 0.0)
+    assert [(a.code, a.severity) for a in alerts] == [
+        (AlertCode.AUTOPILOT_MISMATCH, Severity.WARNING)
+    ]
+    assert "MAVLink system 10" in alerts[0].text and "says 8" in alerts[0].text
+    assert not mon.ready and mon.emergency is None
+    assert mon.not_ready_text(healthy(sysid=10)).startswith("autopilot is MAVLink system 10")
+    assert mon.flags & AlertFlag.AUTOPILOT_MISMATCH
+    mon.update(healthy(sysid=8), 1.0)  # the right autopilot: ready
+    assert mon.ready
+    unchecked = VehicleMonitor(8)  # no sysid in the database: not compared
+    unchecked.update(healthy(sysid=10), 0.0)
+    assert unchecked.ready
+
+
+def test_an_identity_conflict_is_critical_not_ready_and_never_an_emergency() -> None:
+    mon = VehicleMonitor(7)
+    mon.update(healthy(), 0.0)
+    assert mon.ready
+    raised = mon.on_identity("id 7 also used by session 3f2a9c1d", 1.0)
+    assert [(a.code, a.severity, a.text) for a in raised] == [
+        (AlertCode.IDENTITY_CONFLICT, Severity.CRITICAL, "id 7 also used by session 3f2a9c1d")
+    ]
+    assert mon.on_identity("id 7 also used by session 3f2a9c1d", 1.2) == []  # once
+    mon.update(healthy(), 2.0)
+    assert not mon.ready and mon.emergency is None  # flying vehicles go on
+    assert mon.not_ready_text(healthy()) == "identity conflict: id 7 also used by session 3f2a9c1d"
+    assert mon.flags & AlertFlag.IDENTITY_CONFLICT
+    assert AlertCode.IDENTITY_CONFLICT in mon.active_codes
+    cleared = mon.on_identity("", 12.0)
+    assert [(a.code, a.text) for a in cleared] == [
+        (AlertCode.CONDITION_CLEARED, "IDENTITY_CONFLICT cleared")
+    ]
+    mon.update(healthy(), 12.2)
+    assert mon.ready and not mon.flags & AlertFlag.IDENTITY_CONFLICT
+
+
+def test_no_autopilot_yet_says_why() -> None:
+    mon = VehicleMonitor(7, Thresholds(link_grace_s=10.0))
+    why = "tcp:127.0.0.1:5799: Connection refused"
+    assert mon.update(AutopilotState(link_problem=why), 0.0) == []
+    alerts = mon.update(AutopilotState(link_problem=why), 10.0)
+    assert [(a.code, a.severity) for a in alerts] == [
+        (AlertCode.AUTOPILOT_LINK_LOSS, Severity.WARNING)
+    ]
+    assert alerts[0].text.startswith("no autopilot yet: tcp:127.0.0.1:5799")

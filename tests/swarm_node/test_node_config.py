@@ -266,6 +266,18 @@ def test_avoidance_is_on_by_default_and_can_be_switched_off(tmp_path: Path) -> N
     assert runner.invoke(app, ["run", "--id", "0", "--avoidance=maybe"]).exit_code == 2
 
 
+@pytest.mark.parametrize("address", ["garbage", "tcp:999.0.0.1:5760", "/dev/nonexistent"])
+def test_an_autopilot_address_that_cannot_work_stops_the_node_at_start(address: str) -> None:
+    from typer.testing import CliRunner
+
+    from swarm_node.cli import app
+
+    result = CliRunner().invoke(app, ["run", "--id", "7", "--autopilot", address])
+    assert result.exit_code == 2
+    assert result.output.startswith(f"swarm-node: autopilot {address!r}: ")
+    assert len(result.output.strip().splitlines()) == 1, result.output
+
+
 def test_a_client_whose_router_is_not_there_gets_a_clear_error(swarm_db: Path) -> None:
     """`--mode client` with the router down: exit 2 and a sentence, no traceback (the
     service unit restarts the node until the router is up)."""

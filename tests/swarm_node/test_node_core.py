@@ -17,6 +17,7 @@ from swarm_node.core.autopilot.requests import (
 )
 from swarm_node.core.autopilot.state import AutopilotState
 from swarm_node.core.commands import AnswerCache
+from swarm_node.core.identity import IdentityNews
 from swarm_node.core.node import AutopilotResult, BadInput, NodeCore, NodeSettings, Received
 from swarm_node.core.profile import VehicleProfile
 from swarm_node.database import SwarmDatabase, seed_profiles
@@ -40,6 +41,7 @@ from swarm_proto import (
     MissionType,
     Selector,
     SelectorKind,
+    Severity,
 )
 
 HOME = GeoPoint(37.4112, -5.9889, 10.0)
@@ -456,3 +458,29 @@ def test_a_target_mission_derived_from_a_report_gets_the_database_altitude_step(
     )
     f.run_until(f.now + 0.5)
     assert f.nodes[1].missions[95].params.altitude_step_m == 25.0
+
+
+def test_an_identity_conflict_refuses_missions_and_untrusted_peers_are_not_members() -> None:
+
+    f = fleet(2)
+    f.run_until(0.5)
+    send(f, command(40, CommandKind.SET_BASE, point=HOME))
+    f.run_until(1.0)
+    f.deliver(1, IdentityNews("id 1 also used by session 3f2a9c1d", frozenset()))
+    f.deliver(2, IdentityNews("", frozenset({1})))
+    f.run_until(1.5)
+    alerts = [a for a in f.messages(Alert, 1) if a.code == AlertCode.IDENTITY_CONFLICT]
+    assert [(a.severity, a.text) for a in alerts] == [
+        (Severity.CRITICAL, "id 1 also used by session 3f2a9c1d")
+    ]
+    send(f, mission(41, (1, 2)))
+    f.run_until(3.0)
+    answers = {a.vehicle_id: a for a in f.messages(Ack) if a.ref == AckRef.MISSION}
+    assert answers[1].reason == AckReason.NOT_READY
+    assert answers[1].text.startswith("identity conflict: id 1 also used")
+    assert answers[2].accepted
+    assert f.nodes[1].fsm.state != FsmState.EMERGENCY
+    assert f.nodes[2].roster.accepted(f.nodes[2].members.peers) == (2,)  # 1 is not a member
+    f.deliver(1, IdentityNews("", frozenset()))  # the other source went silent
+    f.run_until(3.5)
+    assert f.nodes[1].monitor.ready

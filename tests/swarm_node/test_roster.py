@@ -236,3 +236,17 @@ def test_mission_ids_past_2_31_hash_and_earlier_hashes_are_unchanged() -> None:
     assert members_hash(3_000_000_000, (1, 2)) == ballot_hash(3_000_000_000, (1, 2)) > 0
     assert members_hash(2**32 - 1, (1,)) == members_hash(-1, (1,))  # the same 4 bytes
     assert members_hash(41, (1, 2, 3)) == 0xB823  # as before the fix
+
+
+def test_an_untrusted_vehicle_is_neither_a_member_nor_waited_for_nor_joined() -> None:
+    r = Roster(1)
+    r.open(MID, Selector())
+    peers = peers_of([2, 3], {2: info(2), 3: info(3)})
+    r.distrust(frozenset({3}))
+    r.on_ack(ack(2, True))
+    r.on_ack(ack(3, True))  # its answer may be an impostor's
+    assert r.pending(peers) == () and r.ready(peers)
+    assert r.freeze(peers) == (1, 2)
+    assert r.on_info(info(3)) == []  # in PLAN for our mission: not joined while untrusted
+    r.distrust(frozenset())
+    assert [type(e).__name__ for e in r.on_info(info(3))] == ["MemberJoined"]

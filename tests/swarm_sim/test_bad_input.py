@@ -16,7 +16,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from swarm_proto.clock import ScaledClock
 from swarm_sim.core import SITL_HOME, VehicleEndpoint
 from swarm_sim.runtime import VehicleServer, VehicleSpec
-from tests.conftest import free_tcp_port
+from tests.conftest import examples, free_tcp_port
 from tests.swarm_sim.conftest import make_pilot
 
 T0 = 1_700_000_000.0
@@ -138,7 +138,7 @@ def test_nan_and_out_of_range_fields() -> None:
     assert p.set_mode("GUIDED") == 0  # still answering
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(st.binary(min_size=0, max_size=600), st.integers(0, 2**32 - 1))
 def test_random_bytes_never_raise(data: bytes, seed: int) -> None:
     ep = VehicleEndpoint.create("vtol", home=SITL_HOME, now=T0)
@@ -153,7 +153,7 @@ def test_random_bytes_never_raise(data: bytes, seed: int) -> None:
 FLOATS = st.floats(allow_nan=True, allow_infinity=True, width=32)
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(
     st.sampled_from(
         [

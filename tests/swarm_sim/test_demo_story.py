@@ -41,6 +41,9 @@ from swarm_sim.demo_report import fast_report, replan_rows
 from swarm_sim.narrator import Narrator
 from swarm_sim.story import AREA_ID, Record, StoryPlan
 
+# the story is flown once (a module fixture): every test here on one worker
+pytestmark = pytest.mark.xdist_group("demo-story")
+
 MEMBERS = (1, 2, 3, 4, 5, 6)  # the seed database's six Albatross 250 VTOLs
 SCALE = 0.7
 STEPS = [

@@ -8,6 +8,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import pytest
+
 from swarm_proto import (
     Ack,
     Alert,
@@ -128,6 +130,7 @@ def _fly_demo_survey(
     return fleet, closest, radius
 
 
+@pytest.mark.soak  # the demo's field flown clear of its zone: test_demo_story.py
 def test_the_demo_survey_flies_around_its_no_fly_zone(fleet_profiles: dict) -> None:
     """The demo's scenario in fast time: three VTOLs and two quadcopters cover the field,
     none ever enters the no-fly zone inside it (lanes, approach legs and the way home),
@@ -149,6 +152,7 @@ def test_the_demo_survey_flies_around_its_no_fly_zone(fleet_profiles: dict) -> N
     assert completed == set(members)
 
 
+@pytest.mark.soak  # the uploads predicted clear of the zone: test_flight.py (the demo's surveys)
 def test_one_albatross_with_many_lanes_flies_around_the_demo_zone(fleet_profiles: dict) -> None:
     """The demo's survey for one Albatross and two quadcopters: the VTOL gets many lanes
     cut by the zone, joined around it; before the flyable stage its autopilot turned to

@@ -19,9 +19,10 @@ SHORT = MissionSpec("survey, 2 VTOLs (smoke)", (1, 2), 150.0, 2)
     "fault",
     [
         "kill -9 a node (restarted after 5 s)",
-        "restart an autopilot (empty stores)",
+        # in fast time, fence and rally point checked: test_backstop.py
+        pytest.param("restart an autopilot (empty stores)", marks=pytest.mark.soak),
         "ground station lost",
-    ],  # a SIGSTOP: test_busy_host.py, test_reliability_processes.py
+    ],  # a SIGSTOP: test_busy_host.py, test_node_processes.py
 )
 def test_smoke(fleet_profiles: dict, fault: str) -> None:
     row = run_fast(fault, SHORT, fleet_profiles)

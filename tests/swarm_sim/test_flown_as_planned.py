@@ -7,9 +7,13 @@ benchmark's (bench/mission.py `survey`)."""
 
 from __future__ import annotations
 
+import pytest
+
 from bench.mission import survey
 
 
+# the split within the batteries: test_endurance.py; the makespan: make bench BENCH=mission
+@pytest.mark.soak
 def test_the_fleet_1_7_8_lands_above_critical_and_flies_its_planned_makespan(
     fleet_profiles: dict,
 ) -> None:
@@ -22,6 +26,7 @@ def test_the_fleet_1_7_8_lands_above_critical_and_flies_its_planned_makespan(
     assert 0.85 <= got["makespan_planned_vs_flown"] <= 1.15, got
 
 
+@pytest.mark.soak  # arrivals within 2 s: test_premission_flown.py
 def test_premission_legs_bring_scattered_vtols_to_their_entries_together(
     fleet_profiles: dict,
 ) -> None:

@@ -34,6 +34,7 @@ NO_RESERVE = pytest.mark.xfail(
 )
 
 
+@pytest.mark.soak  # inheritance: test_demo_story.py, test_faults_smoke.py (kill -9 a node)
 def test_two_quadcopters_and_a_rover_with_shares_inherit_the_share_of_a_quadcopter(
     fleet_profiles: dict,
 ) -> None:

@@ -29,6 +29,7 @@ from swarm_sim.core.kinematics import (
     VtolModel,
     VtolState,
 )
+from tests.conftest import examples
 
 DT = 0.1
 coords = st.floats(-3000, 3000)
@@ -40,7 +41,7 @@ def flying_body(airspeed: float, alt: float = 100.0) -> Body:
     return Body(alt=alt, ground_alt=0.0, airspeed=airspeed, vn=airspeed, on_ground=False)
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(
     coords,
     coords,
@@ -83,7 +84,7 @@ def test_fixed_wing_turn_radius_is_bank_limited() -> None:
     assert diameter >= 2 * r_min * 0.95
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(coords, coords, st.floats(5, 120), winds, directions)
 def test_multirotor_reaches_any_point_and_stops_there(
     n: float, e: float, alt: float, wind: float, frm: float
@@ -117,7 +118,7 @@ def test_multirotor_landing_speed_and_touchdown() -> None:
     assert events[0].value <= p.land_speed_m_s + 0.01
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=examples(30), deadline=None)
 @given(st.floats(-500, 500), st.floats(-500, 500), st.sampled_from([GENERIC_ROVER, GENERIC_BOAT]))
 def test_ground_vehicles_stay_on_the_ground(n: float, e: float, params: object) -> None:
     p = params  # type: ignore[assignment]
@@ -170,7 +171,7 @@ def test_battery_voltage_falls_with_charge() -> None:
     assert abs(bat.consumed_mah - 30.0 * 180.0 / 3.6) < 1e-6
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(st.floats(-60, 60), st.floats(-179, 179), coords, coords)
 def test_local_frame_round_trip(lat: float, lon: float, n: float, e: float) -> None:
     frame = LocalFrame(lat, lon)

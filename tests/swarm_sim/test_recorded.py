@@ -16,6 +16,9 @@ from pymavlink import mavutil
 
 from tests.swarm_sim.conftest import Pilot, make_pilot
 
+# the recordings are read and flown once (module fixtures): every test here on one worker
+pytestmark = pytest.mark.xdist_group("recorded")
+
 REL = 3
 # What the recording script asked for (the copter stream has exactly these periodic
 # messages; their rates at SITL speed-up 4 give the sim-time intervals).

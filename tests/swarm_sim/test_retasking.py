@@ -143,6 +143,8 @@ def test_a_vtol_whose_home_is_far_from_the_base_lands_at_the_base(fleet_profiles
     ]
 
 
+# a join re-splits: test_regroup_node.py, test_replan_on_air.py; over processes: test_voting_processes.py
+@pytest.mark.soak
 def test_a_quadcopter_joins_a_surveying_fleet_and_the_area_is_covered(fleet_profiles: dict) -> None:
     """Add in fast time over real MAVLink bytes: quadcopters 7 and 8 survey an area, at
     a third of their shares quadcopter 9 is told to join (JOIN_MISSION); the fleet

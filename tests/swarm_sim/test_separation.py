@@ -56,6 +56,7 @@ def airborne_report(fleet: FastFleet, t0: float, tmp_path) -> object:  # type: i
     return analyze(read_trajectory(path))
 
 
+@pytest.mark.soak  # eight head on in fast time: test_avoidance.py
 def test_four_aircraft_head_on_keep_apart_with_avoidance_and_meet_without(
     fleet_profiles: dict,
 ) -> None:
@@ -127,6 +128,7 @@ def analyze_min(rows: list) -> float:
         return analyze(read_trajectory(Path(tmp) / "w.csv")).min_sep_m
 
 
+@pytest.mark.soak  # take-off in turn: three VTOLs below; six on the demo's pads: test_demo_story.py
 def test_six_vtols_on_30_m_pads_take_off_in_turn_and_keep_clear(fleet_profiles: dict) -> None:
     """Experiment 1's start, short: six VTOLs on the paper's pads 30 m apart (inside the
     40 m risk band: neighbours) released for one route at once take off in id order,
@@ -309,11 +311,12 @@ def test_the_papers_experiments_and_the_stress_case(fleet_profiles: dict, run) -
 
 def test_the_demo_takes_avoidance_as_an_option() -> None:
     """`swarm-sim demo --avoidance/--no-avoidance` parses (a bad --vehicles stops it
-    before anything starts) and reaches the nodes' command line."""
-    import inspect
-
+    before anything starts) and reaches the nodes: their command line, as `swarm-node
+    run` parses it, carries the choice."""
+    import typer
     from typer.testing import CliRunner
 
+    from swarm_node.cli import app as node_app
     from swarm_sim import demo
     from swarm_sim.cli import app
 
@@ -322,4 +325,19 @@ def test_the_demo_takes_avoidance_as_an_option() -> None:
         result = runner.invoke(app, ["demo", flag, "--vehicles", "one,two"])
         assert result.exit_code == 2 and "vehicles" in result.output, result.output
     assert runner.invoke(app, ["demo", "--avoidance=maybe"]).exit_code == 2
-    assert '"--avoidance" if avoidance else "--no-avoidance"' in inspect.getsource(demo.start)
+    run = typer.main.get_command(node_app).commands["run"]
+    for radio in (False, True):
+        for avoidance in (False, True):
+            argv = demo.node_argv(
+                3,
+                5760,
+                "tcp/127.0.0.1:7447",
+                radio=radio,
+                speedup=5.0,
+                fleet_size=4,
+                avoidance=avoidance,
+            )
+            assert argv[1:4] == ["-m", "swarm_node.cli", "run"]
+            params = run.make_context("run", argv[4:]).params
+            assert params["avoidance"] is avoidance
+            assert params["node_id"] == 3 and params["autopilot"] == "tcp:127.0.0.1:5760"

@@ -83,6 +83,9 @@ class AutopilotState(msgspec.Struct, frozen=True):
     link_gap_s: float = 0.0  # the last link loss as the autopilot's own clock shows it
     host_stalls: int = 0  # times the node read the link late (its own stall, not the link's)
     host_stall_s: float = 0.0  # the last such stall, seconds
+    # appended by the link's shell: why nothing is heard ("" while it is, or not known):
+    # the connection cannot be opened, or it is open and silent
+    link_problem: str = ""
 
     @property
     def has_position(self) -> bool:

@@ -801,6 +801,11 @@ class MissionCoordinator:
         out = self.manager.on_autopilot(ap, now, self.roster, base=base)
         return out + self.reattach.on_autopilot(ap, now)
 
+    def distrust(self, ids: frozenset[int]) -> None:
+        """Vehicles whose identity is in doubt (two sources in one name): the roster
+        keeps them out of new rosters, so out of voting and planning."""
+        self.roster.distrust(ids)
+
     def on_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[ModuleOutput]:
         return self.manager.on_plan(outcome, ap, now, self.roster)
 

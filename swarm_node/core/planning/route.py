@@ -101,6 +101,11 @@ def _options(leg: Leg, t: float) -> tuple[int, float, float] | None:
             continue
         if v > leg.max_speed_m_s + 1e-9:
             break
+        # `t` may be another leg's candidate time, a rounding error short of what this leg
+        # needs at its limit: within the tolerance, fly the limit itself (arriving a
+        # nanosecond late) rather than a speed a hair outside the range, whose turn would
+        # be wider than the radius the path was planned with
+        v = min(max(v, leg.min_speed_m_s), leg.max_speed_m_s)
         if best is None or abs(v - leg.cruise_speed_m_s) < abs(best[2] - leg.cruise_speed_m_s):
             best = (k, 0.0, v)
     return best

@@ -24,6 +24,10 @@ Inputs (what `handle` takes):
                                 member that left the mission -> MemberLost;
                                 a different members_hash -> RosterMismatch
     PeerLeft                 -> a frozen member lost -> MemberLost
+    distrust(ids)            -> vehicles whose identity is in doubt (core/identity.py):
+                                neither members nor waited for while the roster is
+                                open, and never joined to a frozen one (a frozen
+                                member stays: its share is flown, by it or nobody)
 
 Pure: no I/O, no clock.
 """
@@ -112,6 +116,8 @@ class Roster:
     _agreed: tuple[tuple[int, ...], int, int] = ((), 0, 0)
     _reported: set[tuple[int, int]] = field(default_factory=set)  # (vehicle, hash) alerted
     _answers: OrderedDict[int, dict[int, bool]] = field(default_factory=OrderedDict)
+    #: vehicles heard from two sources (core/identity.py): kept out of voting and planning
+    untrusted: frozenset[int] = frozenset()
 
     # ------------------------------------------------------------------ lifecycle
     def open(self, mission_id: int, selection: Selector) -> None:
@@ -149,6 +155,10 @@ class Roster:
     def flying(self) -> tuple[int, ...]:
         """Frozen members that have not left nor finished their share."""
         return tuple(m for m in self.members if m not in self.lost and m not in self.finished)
+
+    def distrust(self, ids: frozenset[int]) -> None:
+        """The vehicles whose identity is in doubt now (all of them, every time)."""
+        self.untrusted = frozenset(ids)
 
     # ------------------------------------------------------------------ answers
     def _answer(self, mission_id: int, vid: int, accepted: bool) -> None:
@@ -189,6 +199,7 @@ class Roster:
             and info.fsm_state == FsmState.PLAN
             and vid not in self.flying
             and vid not in self.finished  # done with it (nothing to fly): still in PLAN
+            and vid not in self.untrusted
         ):
             return [MemberJoined(mid, vid)]  # a vehicle joining (or a lost one back)
         if (
@@ -251,7 +262,11 @@ class Roster:
         ids = {self.self_id} | {
             v
             for v, ok in answers.items()
-            if ok and v in peers and peers[v].present and (named is None or v in named)
+            if ok
+            and v in peers
+            and peers[v].present
+            and v not in self.untrusted
+            and (named is None or v in named)
         }
         return tuple(sorted(ids))
 
@@ -274,7 +289,10 @@ class Roster:
             sorted(
                 vid
                 for vid, p in peers.items()
-                if vid != self.self_id and vid not in answers and self.may_be_addressed(p)
+                if vid != self.self_id
+                and vid not in answers
+                and vid not in self.untrusted
+                and self.may_be_addressed(p)
             )
         )
 

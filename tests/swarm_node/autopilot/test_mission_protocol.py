@@ -24,6 +24,7 @@ from swarm_node.core.autopilot.mission_protocol import (
 )
 from swarm_node.core.autopilot.requests import ApError, MissionKind
 from swarm_proto import VehicleType
+from tests.conftest import examples
 
 from .fake_autopilot import FakeAutopilot, Harness
 
@@ -214,7 +215,7 @@ def run_transfer(
     return up, down, h
 
 
-@settings(max_examples=40)
+@settings(max_examples=examples(40))
 @given(
     loss=st.sampled_from([0.0, 0.05, 0.2, 0.4, 0.7]),
     seed=st.integers(0, 10_000),

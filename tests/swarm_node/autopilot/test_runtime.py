@@ -13,7 +13,7 @@ import pytest
 from swarm_node.core.autopilot import requests as rq
 from swarm_node.core.autopilot.events import ApEvent, LinkLost, LinkRestored
 from swarm_node.runtime.autopilot_link import AutopilotLink, InvalidRequest
-from swarm_node.runtime.mavlink_transport import Endpoint, parse_url
+from swarm_node.runtime.mavlink_transport import Endpoint, check_address, parse_url
 from swarm_proto import ScaledClock, SystemClock, VehicleType
 from tests.conftest import free_tcp_port
 
@@ -186,6 +186,47 @@ def test_link_loss_within_one_second_and_restoration_without_restart(clock: Scal
         ep.close()
 
 
+@pytest.mark.parametrize(
+    ("url", "problem"),
+    [
+        ("garbage", "no such device 'garbage'"),
+        ("/dev/nonexistent", "no such device '/dev/nonexistent'"),
+        ("tcp:999.0.0.1:5760", "'999.0.0.1' is not an IP address"),
+        ("tcp:no-such-host.invalid:5760", "cannot resolve host 'no-such-host.invalid'"),
+        ("udp:127.0.0.1:x", "expected HOST:PORT"),
+    ],
+)
+def test_an_address_that_cannot_work_is_refused_before_opening(url: str, problem: str) -> None:
+    with pytest.raises(ValueError, match=problem):
+        check_address(url)
+
+
+def test_addresses_that_may_work_pass(tmp_path: Path) -> None:
+    device = tmp_path / "ttyACM0"
+    device.touch()
+    for url in ("tcp:127.0.0.1:5760", "tcp:localhost:5760", "udpin:0.0.0.0:14550", "COM3"):
+        check_address(url)
+    assert check_address(f"{device},921600").baud == 921600
+
+
+def test_the_link_says_why_nothing_is_heard(clock: ScaledClock) -> None:
+    """Refused, then open and silent: what the node's "no autopilot yet" alert says."""
+    import socket
+
+    port = free_tcp_port()
+    link = AutopilotLink(f"tcp:127.0.0.1:{port}", clock, reopen_interval_s=0.1)
+    link.start()
+    try:
+        assert wait_for(lambda: "refused" in link.state.link_problem), link.state.link_problem
+        with socket.socket() as server:  # a listener that never speaks
+            server.bind(("127.0.0.1", port))
+            server.listen()
+            assert wait_for(lambda: link.state.link_problem.endswith("open, nothing heard"))
+        assert link.state.link_problem.startswith(f"tcp:127.0.0.1:{port}")
+    finally:
+        link.close()
+
+
 def test_the_autopilot_may_start_after_the_link(clock: ScaledClock) -> None:
     port = free_tcp_port()
     events = Events()
@@ -198,6 +239,7 @@ def test_the_autopilot_may_start_after_the_link(clock: ScaledClock) -> None:
         try:
             assert wait_for(lambda: link.state.link_ok)
             assert link.state.vehicle_type == VehicleType.ROVER
+            assert link.state.link_problem == ""  # heard: nothing to explain
         finally:
             ep.close()
     finally:

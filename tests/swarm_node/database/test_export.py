@@ -20,6 +20,7 @@ from swarm_node.database import (
     UnknownReferenceError,
 )
 from swarm_node.database.document import decode_json, encode_json
+from tests.conftest import examples
 
 from .conftest import snapshot
 
@@ -137,7 +138,7 @@ def _additions(draw: st.DrawFn) -> list[tuple[str, dict[str, Any]]]:
     return out
 
 
-@settings(max_examples=40, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(20), suppress_health_check=[HealthCheck.too_slow])
 @given(additions=_additions())
 def test_export_import_round_trip_is_lossless_for_any_records(
     additions: list[tuple[str, dict[str, Any]]],

@@ -23,6 +23,7 @@ from swarm_node.database import (
     UnusableDatabaseError,
     inspect_file,
 )
+from tests.conftest import examples
 
 from .conftest import snapshot
 
@@ -46,7 +47,7 @@ def test_random_bytes_are_refused(tmp_path: Path, seed: int) -> None:
     _assert_refused(path, CorruptDatabaseError, "not an SQLite database file")
 
 
-@settings(max_examples=30)
+@settings(max_examples=examples(30))
 @given(data=st.binary(min_size=1, max_size=5000))
 def test_any_bytes_are_refused_or_opened_never_crash(
     tmp_path_factory: pytest.TempPathFactory, data: bytes

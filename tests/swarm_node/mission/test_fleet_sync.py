@@ -20,6 +20,7 @@ from swarm_node.core.planning import PlanVehicle, VehiclePose
 from swarm_node.core.planning.fleet_plan import FleetPlan, plan_fleet
 from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Geometry, GeoPoint, Mission, MissionParams, MissionType, VehicleType
+from tests.conftest import examples
 
 LA, LO = 40.4168, -3.7038
 AREA = Geometry.polygon(
@@ -73,7 +74,7 @@ def test_the_switch_turns_the_meet_off(
     assert sync_group(plan(fleet_profiles, [1, 2])) == ()
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(
     st.dictionaries(st.integers(1, 6), st.floats(1.0e9, 1.0e9 + 500.0), min_size=5, max_size=5),
     st.randoms(use_true_random=False),

@@ -20,6 +20,7 @@ from swarm_node.core.mission.voting import (
     score_key,
 )
 from swarm_proto import Vote, VoteScore, radio
+from tests.conftest import examples
 
 MID = 7
 
@@ -140,7 +141,7 @@ def test_re_sending_is_bounded() -> None:
     seed=st.integers(0, 2**16),
     encoding=st.sampled_from(["lan", "radio"]),
 )
-@settings(max_examples=60, derandomize=True)
+@settings(max_examples=examples(60))
 def test_same_inputs_same_winners_on_every_vehicle(
     scores: dict[int, float], quantity: int, seed: int, encoding: str
 ) -> None:
@@ -158,7 +159,7 @@ def test_same_inputs_same_winners_on_every_vehicle(
     quantity=st.integers(1, 4),
     seed=st.integers(0, 2**16),
 )
-@settings(max_examples=40, derandomize=True)
+@settings(max_examples=examples(40))
 def test_under_loss_the_winners_are_still_the_papers(
     scores: dict[int, float], quantity: int, seed: int
 ) -> None:
@@ -274,7 +275,7 @@ def test_a_vote_round_for_six_over_the_emulated_tdm_channel() -> None:
         max_size=30,
     )
 )
-@settings(max_examples=150, derandomize=True)
+@settings(max_examples=examples(150))
 def test_bad_votes_never_crash_nor_corrupt_the_table(
     votes: list[tuple[int, list[tuple[int, float]], bool, str]],
 ) -> None:

@@ -37,6 +37,7 @@ from swarm_node.core.planning.checks import coverage_problems, path_problems
 from swarm_node.core.planning.coverage import Leg
 from swarm_node.core.planning.dubins import Pose
 from swarm_node.core.planning.turns import TurnModel
+from tests.conftest import examples
 
 R_REF = 30.0
 
@@ -114,7 +115,7 @@ def _transition_samples(a: Pose, b: Pose, leg: Leg, turns: TurnModel) -> list[tu
     return list(leg.points)
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(20), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     star_polygons(),
     zone_specs,

@@ -31,11 +31,12 @@ from swarm_node.core.planning.endurance import (
     stop_and_go_s,
 )
 from swarm_node.core.profile import VehicleProfile
+from tests.conftest import examples
 
 TURNS = PointTurns()
 
 
-@settings(max_examples=200)
+@settings(max_examples=examples(200))
 @given(st.floats(0.0, 2000.0), st.floats(0.0, 500.0), st.floats(1.0, 30.0), st.floats(0.3, 5.0))
 def test_a_braked_leg_takes_longer_than_at_speed_and_grows_with_its_length(
     d: float, more: float, v: float, a: float

@@ -44,6 +44,7 @@ from swarm_proto import (
     MissionParams,
     MissionType,
 )
+from tests.conftest import examples
 
 from .conftest import ORIGIN
 
@@ -131,7 +132,7 @@ def test_progress_is_the_last_reached_item_plus_the_projection_on_the_next_leg()
     assert s.progress_m(1, math.nan, LO) == 0.0  # a bad fix counts nothing beyond the item
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(
     st.lists(
         st.tuples(st.floats(-0.003, 0.003), st.floats(-0.003, 0.003), st.booleans()),
@@ -254,7 +255,9 @@ def test_a_vtol_lost_at_40_percent_leaves_its_lanes_to_the_others_flown_once(
 
 
 @settings(
-    max_examples=4, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=examples(4),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(st.integers(0, 5), st.lists(st.floats(0.05, 0.95), min_size=6, max_size=6), st.randoms())
 def test_area_replan_covers_what_is_left_once_and_ignores_input_order(

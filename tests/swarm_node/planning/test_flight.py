@@ -56,6 +56,7 @@ from swarm_proto import (
     NoFlyZone,
     Selector,
 )
+from tests.conftest import examples
 
 from .conftest import ORIGIN
 
@@ -239,7 +240,7 @@ def _square(cx: float, cy: float, w: float, h: float) -> Geometry:
     )
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(5), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     zx=st.floats(-120, 120),
     zy=st.floats(-100, 100),
@@ -289,7 +290,7 @@ def test_area_plans_around_a_random_zone_are_flown_clear_of_it(
     _fixed_wing_checks(plan, vehicles, zones)
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(12), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     pts=st.lists(st.tuples(st.floats(-600, 600), st.floats(-600, 600)), min_size=2, max_size=5),
     zone=st.tuples(st.floats(-400, 400), st.floats(-400, 400), st.floats(30, 120)),

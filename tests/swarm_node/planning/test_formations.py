@@ -34,6 +34,7 @@ from swarm_node.core.planning.checks import arrival_spread_s
 from swarm_node.core.planning.context import PlanContext
 from swarm_node.core.profile import G_M_S2, VehicleProfile
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
+from tests.conftest import examples
 
 from .conftest import ORIGIN, make_fleet
 
@@ -123,13 +124,14 @@ def _bank_radius(v: PlanVehicle, speed: float) -> float:
     return speed * speed / (G_M_S2 * math.tan(math.radians(p.max_bank_deg)))
 
 
+@pytest.mark.hypothesis  # a property inside: `make fuzz` explores it too
 def test_respace_orbit_gives_equal_phases_and_speeds_the_orbit_allows(
     profiles: dict[str, VehicleProfile],
 ) -> None:
     albatross = profiles["fixed_wing"]
     r_min = albatross.turn_radius_m()  # the orbit at cruise speed
 
-    @settings(max_examples=60, deadline=None)
+    @settings(max_examples=examples(60), deadline=None)
     @given(
         st.lists(st.floats(0, 2 * math.pi, exclude_max=True), min_size=1, max_size=8),
         st.floats(r_min, 3 * r_min),
@@ -223,9 +225,12 @@ def _entry(waypoints: tuple[Waypoint, ...]) -> tuple[float, float]:
     return waypoints[k - 1].lat_deg, waypoints[k - 1].lon_deg
 
 
+@pytest.mark.hypothesis  # a property inside: `make fuzz` explores it too
 @pytest.mark.parametrize("role", ["fixed_wing", "multirotor"])
 def test_perimeter_entry_is_timed(profiles: dict[str, VehicleProfile], role: str) -> None:
-    @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @settings(
+        max_examples=examples(15), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+    )
     @given(
         st.lists(
             st.tuples(

@@ -20,6 +20,7 @@ from swarm_node.core.planning import (
     plan_mumt,
 )
 from swarm_proto import VehicleStatus
+from tests.conftest import examples
 
 from .conftest import ORIGIN
 
@@ -87,7 +88,7 @@ def test_from_adsb_decodes_a_real_adsb_vehicle_message(fleet: Fleet) -> None:
     assert all(s.alt_rel_m > 300.0 for s in aged.slots)
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(
     st.integers(-900_000_000, 900_000_000),
     st.integers(-1_800_000_000, 1_800_000_000),

@@ -27,6 +27,7 @@ from swarm_node.core.planning.premission import (
     sync_speed,
 )
 from swarm_proto import Geometry, Mission, MissionParams, MissionType
+from tests.conftest import examples
 
 from .conftest import ORIGIN
 
@@ -65,7 +66,9 @@ def _posed(vs: list[PlanVehicle], rnd: random.Random) -> list[PlanVehicle]:
 
 
 @settings(
-    max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=examples(12),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(st.integers(0, 10_000))
 def test_the_fleet_arrives_at_its_entries_together_within_its_speed_ranges(
@@ -145,7 +148,7 @@ def test_a_vehicle_behind_the_fleet_speeds_up_and_one_ahead_slows_down() -> None
         sync_speed(math.nan, others, 26.0, rng)
 
 
-@settings(max_examples=200)
+@settings(max_examples=examples(200))
 @given(
     st.floats(-300, 300),
     st.dictionaries(st.integers(2, 9), st.floats(-300, 300), max_size=5),

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from swarm_node.core.autopilot.items import ItemKind
@@ -27,6 +27,7 @@ from swarm_node.core.planning.context import PlanContext
 from swarm_node.core.planning.route import leg_for
 from swarm_node.core.profile import G_M_S2, VehicleProfile
 from swarm_proto import Geometry, GeometryKind, LatLon, MissionParams, NoFlyZone
+from tests.conftest import examples
 
 from .conftest import ORIGIN, make_fleet
 
@@ -50,15 +51,26 @@ def bank_radius(profile: VehicleProfile, speed: float) -> float:
     return speed * speed / (G_M_S2 * math.tan(math.radians(profile.max_bank_deg)))
 
 
+@pytest.mark.hypothesis  # a property inside: `make fuzz` explores it too
 def test_simultaneous_arrivals_within_one_second(profiles: dict[str, VehicleProfile]) -> None:
-    @settings(max_examples=200, deadline=None)
+    # found by exploration: the fixed-wing that needs an orbit to make the time of the one
+    # at its top speed needs 2e-8 m more than that, inside synchronize's tolerance; its
+    # speed came out 5e-10 m/s over the cap, so its bank radius over the 60 m planned
+    fw1, fw2, fw3, quad = make_fleet(profiles, ["fixed_wing"] * 3 + ["multirotor"])
+    slow = fw1.speed_range()[0]
+    at_top = leg_for(fw1, 1000.0, slow)
+    one_orbit_more = leg_for(fw2, 1000.0 - at_top.orbit_m + 2e-8, slow)
+    overshoot = [at_top, one_orbit_more, leg_for(fw3, 10.0, slow), leg_for(quad, 50.0, 5.0)]
+
+    @settings(max_examples=examples(200))
     @given(legs(profiles))
+    @example(overshoot)
     def check(ls: list[Leg]) -> None:
         arr = synchronize(ls)
         assert arrival_spread_s(ls, arr) <= 1.0
         for leg in ls:
             a = arr[leg.vehicle_id]
-            assert leg.min_speed_m_s - 1e-9 <= a.speed_m_s <= leg.max_speed_m_s + 1e-9
+            assert leg.min_speed_m_s <= a.speed_m_s <= leg.max_speed_m_s
             assert a.orbits == int(a.orbits) and a.orbits >= 0
             assert a.hold_s == 0.0 or leg.hover  # only hover-capable vehicles wait
             if leg.radius_m > 0.0:  # fixed-wing: the trim never needs a tighter turn
@@ -180,10 +192,13 @@ def _check_arrivals(legs: tuple[Leg, ...], arrivals: dict[int, Any], vs: list[Pl
             assert bank_radius(p, a.speed_m_s) <= leg.radius_m * (1 + 1e-9)
 
 
+@pytest.mark.hypothesis  # a property inside: `make fuzz` explores it too
 def test_target_and_route_plans_fly_every_leg_within_its_radius(
     profiles: dict[str, VehicleProfile],
 ) -> None:
-    @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @settings(
+        max_examples=examples(25), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+    )
     @given(fleets(profiles), st.sampled_from([None, 20.0, 32.0]))
     def check(vs: list[PlanVehicle], speed: float | None) -> None:
         params = MissionParams(altitude_rel_m=100, altitude_step_m=10, speed_m_s=speed)

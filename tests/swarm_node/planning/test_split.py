@@ -25,6 +25,7 @@ from swarm_node.core.planning import (
     replan,
     split_lanes,
 )
+from tests.conftest import examples
 
 R = 30.0
 TURNS = DubinsTurns(R)
@@ -70,7 +71,7 @@ def _base_plan() -> tuple[Any, Any]:
     return lp, split_lanes(lp.lanes, workers)
 
 
-@settings(max_examples=12)
+@settings(max_examples=examples(12))
 @given(
     st.dictionaries(st.sampled_from([1, 2, 3]), st.floats(0.0, 100.0), min_size=0, max_size=3),
     st.sampled_from([[1, 2], [2, 3], [1, 2, 3, 4], [4]]),

@@ -19,6 +19,7 @@ from swarm_node.core.planning import (
     visibility_path,
 )
 from swarm_proto import Geometry, NoFlyZone
+from tests.conftest import examples
 
 BOX = Polygon([(400, -100), (600, -100), (600, 100), (400, 100)])
 
@@ -81,7 +82,7 @@ def test_zones_from_messages_use_validity_and_msl() -> None:
     assert zone.polygon.contains(Point(0, 0).buffer(99.9, quad_segs=64))
 
 
-@settings(max_examples=40)
+@settings(max_examples=examples(40))
 @given(
     st.lists(
         st.tuples(st.floats(-800, 800), st.floats(-800, 800), st.floats(20, 150)),

@@ -27,6 +27,7 @@ from swarm_node.core.safety.avoidance import (
 )
 from swarm_proto import Alert, AlertCode, Severity, VehicleInfo, VehicleStatus, VehicleType
 from swarm_sim.core.pointmass import Start, run, stress_eight_headon
+from tests.conftest import examples
 
 LAT0, LON0, HOME = 40.4168, -3.7038, 650.0
 T = 1_700_000_000.0
@@ -316,7 +317,7 @@ def test_bad_input_is_counted_not_raised() -> None:
     assert feed(av, head_on()[1:]) == []
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(
     st.floats(-800, 800),
     st.floats(-800, 800),
@@ -433,7 +434,7 @@ def test_a_band_cycle_falls_back_to_altitude_then_id() -> None:
     assert targets[1] == pytest.approx(130.0, abs=0.01)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(
     st.lists(
         st.tuples(st.integers(1, 60), st.floats(95, 112), st.floats(300, 700)),
@@ -651,7 +652,7 @@ def test_two_hovering_vtols_30_m_apart_do_not_hold_each_other_for_good() -> None
         assert not [m for m in manoeuvres(out) if m.kind is ManoeuvreKind.RESUME]
 
 
-@settings(max_examples=120, deadline=None)
+@settings(max_examples=examples(120), deadline=None)
 @given(
     n=st.integers(min_value=9, max_value=40),
     spread=st.sampled_from([300.0, 2000.0, 8000.0]),

@@ -20,6 +20,7 @@ from swarm_node.core.safety.ttc import (
     entry_time,
     route_approach,
 )
+from tests.conftest import examples
 
 LAT0, LON0, H0 = 40.4168, -3.7038, 650.0
 
@@ -116,7 +117,7 @@ vec = st.tuples(*[st.floats(-2000, 2000, allow_nan=False)] * 3)
 vel = st.tuples(*[st.floats(-60, 60, allow_nan=False)] * 3)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(vec, vel, st.floats(0.0, 120.0))
 def test_cpa_is_the_minimum_over_the_horizon(
     p: tuple[float, ...], v: tuple[float, ...], horizon: float
@@ -134,7 +135,7 @@ def test_cpa_is_the_minimum_over_the_horizon(
     assert a.miss_m == pytest.approx(float(np.linalg.norm(rp + rv * a.t_cpa_s)), abs=1e-9)
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 @given(
     st.floats(-1500, 1500),
     st.floats(-1500, 1500),
