@@ -8,8 +8,7 @@ simulations join several NodeCores and jump from deadline to deadline).
     core.hear(inputs, now)  (handle, for a batch)   core.next_deadline() -> float
 
     input                       to
-    AutopilotUpdate             monitoring (the latest state), the mission coordinator,
-                                the fences
+    AutopilotUpdate             monitoring (the latest state), mission coordinator, fences
     AutopilotResult             the arbiter, then the request's owner (arbiter.py)
     PeerAlive                   membership -> peers joined and lost (stalls.py)
     Received(VehicleStatus)     membership, avoidance, the mission manager (peer_traffic.py)
@@ -17,8 +16,7 @@ simulations join several NodeCores and jump from deadline to deadline).
     Received(Command | Mission) the operator desk (operator.py); missions to regroup too
     Received(NoFlyZone | FleetAssignment), Learned, StoreResult
                                 the declarations (declarations.py); new zones: the fences
-    Received(MavlinkSession | MavlinkCommand), MavlinkUp
-                                the ground stations' MAVLink sessions (passthrough.py)
+    Received(Mavlink*), MavlinkUp  the ground stations' MAVLink sessions (passthrough.py)
     Received(Ack | Vote | TargetReport | PlanLineage), PlanDone
                                 the mission coordinator (mission/coordinator.py)
     BadInput, anything else     counted (`bad_input`, `unhandled`), never dropped silently
@@ -36,14 +34,13 @@ from typing import assert_never
 
 import msgspec
 
-import swarm_proto as proto
 from swarm_proto import DeclaredState, MissionType, VehicleInfo, VehicleStatus
-from swarm_proto.messages import MavlinkCommand, MavlinkSession
 
 from .arbiter import AutopilotArbiter
 from .declarations import Declarations
 from .emergency import EmergencyProcedure
 from .fences import Fences
+from .inbound import Inbound
 from .inputs import AutopilotResult as AutopilotResult
 from .inputs import (
     AutopilotUpdate,
@@ -117,13 +114,15 @@ class NodeCore:
         self.beacon = Beacon(s.status_period_s, s.info_period_s, now, now)  # status, info
         views = self.views = Views(p, mon, d, m, op, mi, av)  # what modules read of others
         # each module's outputs, as it returns them, to the module that takes it
-        self.routes = Routes(arb, mi, d, op, av, em, fen, mon, views, self._on_message, pt)
+        self.routes = Routes(arb, mi, d, op, av, em, fen, mon, views, self._message, pt)
         self._route = self.routes.route
         # peers' telemetry, the hot path, to the modules that keep it (peer_traffic.py)
         self._manager = mi.manager
         self.traffic = PeerTraffic(m, av, mi.manager, mi.roster)
         self.bad_input: Counter[str] = Counter()
-        self.unhandled: Counter[str] = Counter()  # inputs no route takes (counted, logged once)
+        # each swarm message to the module that owns what it says (inbound.py)
+        self.inbound = Inbound(m, self.traffic, self.stalls, av, mi, op, d, pt, views)
+        self.unhandled = self.inbound.unhandled  # inputs no route takes (counted, logged once)
         self._due: float | None = None  # the deadline this core last declared
         # every module's deadline but the membership's, as last computed; fresh while
         # only peers' telemetry that changed nothing came in since (handle's fast path)
@@ -170,7 +169,7 @@ class NodeCore:
         outs: list[ModuleOutput] = []
         match event:
             case Received(msg):
-                outs = self._on_message(msg, now)
+                outs = self.inbound.message(msg, now)
             case AutopilotUpdate(state):
                 d, ceiling = self.declarations, self.mission.fly_ceiling_rel_m()
                 outs = [Publish(a) for a in self.monitor.update(state, now)]
@@ -180,7 +179,9 @@ class NodeCore:
                 routed = self.arbiter.on_result(result)
                 what = f"autopilot result {result.request_id}"
                 outs = (
-                    self.routes.result(routed, now) if routed else self._unhandled("result", what)
+                    self.routes.result(routed, now)
+                    if routed
+                    else self.inbound.no_route("result", what)
                 )
             case PeerAlive(node_id, alive):
                 outs = self.stalls.peer_events(self.members.on_alive(node_id, alive, now), now)
@@ -254,45 +255,8 @@ class NodeCore:
         self.routes.persist(sink, now)
         return sink
 
-    def _on_message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
-        match msg:
-            case VehicleStatus():
-                return self.stalls.peer_events(self.traffic.one(msg, now) or [], now)
-            case VehicleInfo():  # (with a mission: the roster hears it too)
-                self.avoid.on_peer(msg, now)
-                out = self.stalls.peer_events(self.members.on_info(msg, now), now)
-                return out + self.mission.on_info(msg, self.views.context, now)
-            case proto.Command():
-                return self.operator.on_command(
-                    msg, self.views.node_view(), self.declarations.zones.no_fly(now), now
-                )
-            case proto.Mission():
-                self.mission.heard_mission(msg)  # a vehicle may be told to join it later
-                return self.operator.on_mission(msg, self.views.node_view())
-            case proto.NoFlyZone():  # (a new zone: fenced once routed)
-                return self.declarations.on_zone(msg, now)
-            case proto.FleetAssignment():
-                return self.declarations.on_assignment(msg, now)
-            case (
-                proto.Ack() | proto.Vote() | proto.TargetReport() | proto.PlanLineage()
-            ):  # roster, tasking, regroup
-                return self.mission.on_message(msg, self.views.context, now)
-            case MavlinkSession():
-                return self.passthrough.on_session(msg, now)
-            case MavlinkCommand():  # a radio passthrough session's
-                return self.passthrough.on_radio(msg, self.views.node_view(), now)
-            case proto.Alert() | proto.SwarmView():
-                self.unhandled[type(msg).__name__] += 1  # declared: not for the node yet
-                return []
-            case _:
-                kind = type(msg).__name__
-                return self._unhandled(kind, f"message {kind}")
-
-    def _unhandled(self, kind: str, what: str) -> list[ModuleOutput]:
-        self.unhandled[kind] += 1
-        if self.unhandled[kind] == 1:
-            return [Note(logging.WARNING, f"no route for {what} (counted in unhandled)")]
-        return []
+    def _message(self, msg: msgspec.Struct, now: float) -> list[ModuleOutput]:
+        return self.inbound.message(msg, now)  # a message a module hands back (Heard)
 
     # ------------------------------------------------------------------ time
     def next_deadline(self) -> float:
@@ -345,14 +309,14 @@ class NodeCore:
         due = self.avoid.next_deadline()
         if due is None or now < due:
             return []
-        m, ap, a = self._manager, self.monitor.state, self.arbiter
+        m, ap, a, z = self._manager, self.monitor.state, self.arbiter, self.declarations.zones
         climb = m.takeoff_alt_m if m.phase == Phase.CLIMBING else None
         out = self.mission.pads_tick(ap, now)
         return out + self.avoid.tick(
             now,
             self.status(now),
             ap,
-            zones=self.declarations.zones,
+            zones=z,
             climb_target_rel_m=climb,
             holder=a.holder,
             items=m.uploaded,
