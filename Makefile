@@ -8,6 +8,12 @@ STAMP  := $(VENV)/.bandada-installed
 BENCH  ?=
 PYTEST_ARGS ?=
 
+# Python caches the bytecode of what it imports; an environment that turns that off
+# (PYTHONDONTWRITEBYTECODE, set on some CI images) makes every process of the suite, each
+# node and gcs it starts among them, compile numpy, pymavlink's dialect and the project
+# from source again: 0.9 s of CPU per process, several minutes over the suite
+unexport PYTHONDONTWRITEBYTECODE
+
 .PHONY: all demo test lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check faults browser
 
 all: test

@@ -41,7 +41,9 @@ from swarm_sim.demo_report import fast_report, replan_rows
 from swarm_sim.narrator import Narrator
 from swarm_sim.story import AREA_ID, Record, StoryPlan
 
-# the story is flown once (a module fixture): every test here on one worker
+# the story is flown once per worker (a session fixture: a module fixture is flown again
+# whenever the scheduler runs another module's test between two of these), and every test
+# here is on one worker
 pytestmark = pytest.mark.xdist_group("demo-story")
 
 MEMBERS = (1, 2, 3, 4, 5, 6)  # the seed database's six Albatross 250 VTOLs
@@ -69,7 +71,7 @@ def _plan(scale: float = SCALE) -> StoryPlan:
     return StoryPlan.experiment_one(MEMBERS, (SITL_HOME.lat_deg, SITL_HOME.lon_deg), scale=scale)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def flown(tmp_path_factory: pytest.TempPathFactory, fleet_profiles: dict) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("demo-out")
     fast_report(_plan(FAST_SCALE), {v: fleet_profiles[v] for v in MEMBERS}, out)
