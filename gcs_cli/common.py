@@ -5,8 +5,12 @@ import this module; `app.py` assembles them."""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import msgspec
@@ -206,3 +210,26 @@ def ask(gs: GroundStation, what: str, sel: Selector, yes: bool) -> None:
             if k.alive and sel.addresses(k.vehicle_id, k.fleet_id or 0)
         )
     confirm(f"{what} to {describe(sel, alive)}?", yes)
+
+
+@contextlib.contextmanager
+def quit_on_signal() -> Iterator[threading.Event]:
+    """An event set by Ctrl-C (SIGINT) or SIGTERM while a long-running command loops:
+    the loop waits on it instead of relying on KeyboardInterrupt, which a native library
+    checking signals inside its own call (Zenoh's bindings) can take and drop; then a
+    Ctrl-C was lost and `gcs watch` ran on. Outside the main thread (a test's runner)
+    nothing is installed and the event is never set by a signal."""
+    quit_ = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield quit_
+        return
+
+    def _set(signum: int, frame: object) -> None:
+        quit_.set()
+
+    before = {sig: signal.signal(sig, _set) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield quit_
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)

@@ -18,7 +18,7 @@ from rich.text import Text
 from swarm_proto import Selector, VehicleType
 from swarm_proto.ardupilot import autopilot_mismatch, mode_name
 
-from .common import console, read_filter, wait_option
+from .common import console, quit_on_signal, read_filter, wait_option
 from .core.reasons import alert_text
 from .ground import FleetView, GroundStation
 from .options import AllOption, FleetOption, IdsOption, JsonOption, finite
@@ -60,15 +60,19 @@ def live_watch(
     duration_s: float | None = None,
 ) -> None:
     end = None if duration_s is None else time.monotonic() + duration_s
-    with Live(
-        watch_screen(gs.snapshot(), gs.swarm, shown),
-        console=out,
-        refresh_per_second=4,
-        screen=False,
-    ) as live:
+    with (
+        quit_on_signal() as quit_,
+        Live(
+            watch_screen(gs.snapshot(), gs.swarm, shown),
+            console=out,
+            refresh_per_second=4,
+            screen=False,
+        ) as live,
+    ):
         try:
             while end is None or time.monotonic() < end:
-                time.sleep(period_s)
+                if quit_.wait(period_s):
+                    break
                 live.update(watch_screen(gs.snapshot(), gs.swarm, shown))
         except KeyboardInterrupt:
             pass
@@ -100,9 +104,10 @@ def watch(
             live_watch(gs, console, shown, period_s=period, duration_s=duration)
             return
         end = None if duration is None else time.monotonic() + duration
-        try:
+        with quit_on_signal() as quit_:
             while end is None or time.monotonic() < end:
-                time.sleep(period)
+                if quit_.wait(period):
+                    break
                 view = gs.snapshot()
                 now = time.monotonic()
                 rows = [
@@ -111,8 +116,6 @@ def watch(
                     if shown.addresses(r["id"], r.get("fleet") or 0)
                 ]
                 typer.echo(json.dumps({"time_unix_s": round(time.time(), 3), "vehicles": rows}))
-        except KeyboardInterrupt:
-            pass
 
 
 # MAV_SYS_STATUS_SENSOR bits the flight display shows (what calibration makes healthy)

@@ -26,7 +26,7 @@ import typer
 from swarm_proto import GeometryKind, Mission, NoFlyZone, VehicleStatus
 from swarm_proto.trajectory import Trajectory, TrajectoryError, TrajectoryWriter, read_trajectory
 
-from .common import console, read_filter
+from .common import console, quit_on_signal, read_filter
 from .options import AllOption, FleetOption, IdsOption, finite
 from .recovery import StateFileError, SwarmState, collect, read_state
 
@@ -469,8 +469,8 @@ def record(
             f"recording to {out} ({'Ctrl-C stops' if end is None else f'{duration:g} s'})",
             style="dim",
         )
-        try:
-            while end is None or time.monotonic() < end:
+        with quit_on_signal() as quit_:
+            while (end is None or time.monotonic() < end) and not quit_.is_set():
                 left = 0.5 if end is None else max(0.0, min(0.5, end - time.monotonic()))
                 try:
                     s = statuses.get(timeout=left)
@@ -483,8 +483,6 @@ def record(
                 last[s.vehicle_id] = s.time_unix_s
                 write_status(writer, s)
                 rows += 1
-        except KeyboardInterrupt:
-            pass
     console.print(
         f"{out}: {rows} row(s) from vehicle(s) {', '.join(map(str, sorted(last))) or 'none'}"
     )
