@@ -56,9 +56,9 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-## the suite mostly waits (processes, Zenoh, simulated radios): two workers halve its wall
-## time on 2 cores (measured 5:18 against 9:25 in one process); TEST_WORKERS=0 runs it in one
-TEST_WORKERS ?= 2
+## the suite mostly waits (processes, Zenoh, simulated radios): three workers keep 2 cores
+## busy while one waits (4:30 against 5:36 with two); TEST_WORKERS=0 runs it in one process
+TEST_WORKERS ?= 3
 ## tests marked `timing` (real-time TDM on pseudo-terminals) run alone, after the others
 unit: $(STAMP) browser
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not soak and not scale and not timing" $(PYTEST_ARGS)

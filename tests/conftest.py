@@ -50,7 +50,7 @@ def examples(n: int) -> int:
 
 
 # The longest modules of `make test` (real processes, whole flights in fast time), started
-# first so that the two workers finish together instead of one waiting on a long tail.
+# first so that the workers finish together instead of one waiting on a long tail.
 LONGEST_FIRST = (
     "swarm_sim/test_demo_story.py",
     "gcs_cli/test_map_browser.py",
