@@ -28,10 +28,11 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("BANDADA_SHARED", REPO.parent / "shared"))
 BUSY = "while True: pass"
-# make test's steps, each known by the command line make echoes when it starts it
+# make test's steps, each known by the command line make echoes when it starts it (whole
+# lines: pip's own output names the packages it installs, ruff and mypy among them)
 STEPS = (
-    ("lint", b"/ruff check "),
-    ("typecheck", b"/mypy"),
+    ("lint", b"/bin/ruff check "),
+    ("typecheck", b"/bin/mypy\n"),
     ("suite", b'-m "not soak and not scale and not timing"'),
     ("timing", b'-m "timing and not soak and not scale"'),
 )

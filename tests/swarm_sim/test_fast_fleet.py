@@ -199,24 +199,32 @@ def _mission_run(
     return fleet
 
 
-def test_nodes_hearing_a_batch_together_give_the_same_run(fleet_profiles: dict) -> None:
+@pytest.mark.parametrize(
+    ("latency_s", "tokens"),
+    [
+        # in one process and without tokens: the same rule, `make soak`
+        pytest.param(0.0, False, marks=pytest.mark.soak),
+        pytest.param(0.010, False, marks=pytest.mark.soak),
+        (0.010, True),
+    ],
+)
+def test_nodes_hearing_a_batch_together_give_the_same_run(
+    fleet_profiles: dict, latency_s: float, tokens: bool
+) -> None:
     """FastFleet hands each node what it hears at one time in one call: the
     same messages published at the same times, the same notes and autopilot requests
     as hearing entry by entry, in one process (latency 0) and in a split fleet's
     windows (10 ms), with peers known by their telemetry and (the sim bench's LAN swarm)
     by their liveliness tokens; a run of known peers' statuses is taken at once."""
-    for latency_s, tokens in ((0.0, False), (0.010, False), (0.010, True)):
-        together = _mission_run(fleet_profiles, together=True, latency_s=latency_s, tokens=tokens)
-        one_by_one = _mission_run(
-            fleet_profiles, together=False, latency_s=latency_s, tokens=tokens
-        )
-        assert together.batches_heard > 100 and one_by_one.batches_heard == 0
-        phases = {vid: v.node.manager.phase.value for vid, v in together.vehicles.items()}
-        # the rover's split share of this field is empty: it stays on its pad
-        assert phases == {1: "flying", 7: "flying", 8: "flying", 10: "idle"}
-        assert together.published == one_by_one.published
-        assert together.notes == one_by_one.notes
-        assert together.submitted == one_by_one.submitted
+    together = _mission_run(fleet_profiles, together=True, latency_s=latency_s, tokens=tokens)
+    one_by_one = _mission_run(fleet_profiles, together=False, latency_s=latency_s, tokens=tokens)
+    assert together.batches_heard > 100 and one_by_one.batches_heard == 0
+    phases = {vid: v.node.manager.phase.value for vid, v in together.vehicles.items()}
+    # the rover's split share of this field is empty: it stays on its pad
+    assert phases == {1: "flying", 7: "flying", 8: "flying", 10: "idle"}
+    assert together.published == one_by_one.published
+    assert together.notes == one_by_one.notes
+    assert together.submitted == one_by_one.submitted
 
 
 def test_a_lan_swarm_knows_its_peers_by_liveliness_token(fleet_profiles: dict) -> None:

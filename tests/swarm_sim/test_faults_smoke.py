@@ -21,7 +21,8 @@ SHORT = MissionSpec("survey, 2 VTOLs (smoke)", (1, 2), 150.0, 2)
         "kill -9 a node (restarted after 5 s)",
         # in fast time, fence and rally point checked: test_backstop.py
         pytest.param("restart an autopilot (empty stores)", marks=pytest.mark.soak),
-        "ground station lost",
+        # the whole campaign flies it (`make faults`); a node restart: the row above
+        pytest.param("ground station lost", marks=pytest.mark.soak),
     ],  # a SIGSTOP: test_busy_host.py, test_node_processes.py
 )
 def test_smoke(fleet_profiles: dict, fault: str) -> None:

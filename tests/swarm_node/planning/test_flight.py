@@ -346,7 +346,11 @@ def _demo_inputs(
     return mission, members, zone
 
 
-@pytest.mark.parametrize("members_ids", [[1, 7, 8], [1, 2, 3, 7, 8]])
+@pytest.mark.parametrize(
+    "members_ids",
+    # five members: the same uploads with two more VTOLs, `make soak`
+    [[1, 7, 8], pytest.param([1, 2, 3, 7, 8], marks=pytest.mark.soak)],
+)
 def test_the_demo_surveys_fixed_wing_uploads_are_flown_clear_of_the_zone(
     seed: dict[str, VehicleProfile], members_ids: list[int]
 ) -> None:
