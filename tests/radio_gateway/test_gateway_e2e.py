@@ -184,6 +184,8 @@ def test_gateways_bridge_lans_over_the_air_once_each(world: World) -> None:
     assert world.gateways[900].bridge.counts["to_air"] == 5
 
 
+# send on error in simulated time, 14 to 50 vehicles: tests/radio_gateway/test_radio_scale.py
+@pytest.mark.soak
 def test_send_on_error_gateways_show_radio_peers_predicted_at_5_hz(world_on_error: World) -> None:
     """Vehicle 1 flies an 18 m/s orbit of 90 m (its node publishes at 10 Hz); its gateway
     sends a status only when the peers' dead reckoning of it would be 5 m off, or once a
