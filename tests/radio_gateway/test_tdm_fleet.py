@@ -9,7 +9,7 @@ import os
 from collections import Counter
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from radio_gateway.core.membership import Phase, Trigger
@@ -354,6 +354,12 @@ def test_a_channel_outage_for_everyone_removes_nobody(phase_s: float, outage_s: 
     outage_s=st.floats(0.5, 2.5),
     stalled=st.sampled_from([0, 1, 4, 7]),
     stall_s=st.floats(0.0, 2.5),
+)
+# Found by `make fuzz`, not yet understood: a 0.5 s outage with gateway 1 descheduled
+# for 1.0 s from the same moment keeps every table whole, but gateway 1 learns a LEAVE of
+# itself (and contests it), which the 0.8 s allowance says should not even be scheduled
+@example(phase_s=0.03125, outage_s=0.5, stalled=1, stall_s=1.0).xfail(
+    raises=AssertionError, reason="a LEAVE of a gateway stalled 1.0 s is scheduled"
 )
 def test_no_outage_up_to_2_5_s_shrinks_a_table(
     phase_s: float, outage_s: float, stalled: int, stall_s: float
