@@ -101,11 +101,22 @@ class Run:
     gcs_alive: bool = True
     mission_sent_at: float | None = None
     _next_gcs: float = 0.0
+    # arms of a vehicle whose autopilot rebooted, with no mission or command declared
+    # since the reboot: nothing may arm it but the operator (docs/reliability.md)
+    unexpected_arms: int = 0
+    declared_at: float = -math.inf  # the operator's last declaration
+    rebooted_at: dict[int, float] = field(default_factory=dict)
+    _armed: dict[int, bool] = field(default_factory=dict)
 
     def tick(self) -> None:
         """Per step: sample tracks, note emergencies, the ground station's 1 Hz info."""
         f = self.fleet
         for vid, v in f.vehicles.items():
+            armed = v.endpoint.autopilot.armed
+            if armed and not self._armed.get(vid, False):
+                since = self.rebooted_at.get(vid)
+                self.unexpected_arms += since is not None and self.declared_at < since
+            self._armed[vid] = armed
             e = v.node.fsm.emergency
             if v.node.fsm.state == FsmState.EMERGENCY and e is not None:
                 self.emergencies.add((vid, e.code.name))
@@ -180,6 +191,7 @@ def declare(run: Run, msg: msgspec.Struct, to: Sequence[int] | None = None) -> m
     """The ground station declares (stamped with its clock), to the live nodes."""
     f = run.fleet
     msg = msgspec.structs.replace(msg, time_unix_s=f.now)
+    run.declared_at = f.now
     f.broadcast(msg, to=[v for v in (to or f.vehicles) if not f.vehicles[v].down])
     return msg
 
@@ -336,6 +348,39 @@ def fault_autopilot_restart(run: Run) -> Injected:
     return Injected(recover if ok else None, note, ok=ok)
 
 
+def fault_autopilot_reboot_in_flight(run: Run) -> Injected:
+    """Reboot an autopilot at 40 % of its share (it comes back disarmed where it stood,
+    `SimAutopilot.rebooted`), then lose another member 20 s later (an unrelated replan):
+    the rebooted vehicle leaves its fleet at once (recovered when every peer's roster
+    lost it) and nothing arms it again."""
+    vid = run.spec.victim
+    if not _at_progress(run):
+        return Injected(None, "never reached 40 %", ok=False)
+    t0 = run.fleet.now
+    run.fleet.reboot_autopilot(vid)
+    run.rebooted_at[vid] = t0
+    peers = [p for p in run.spec.members if p != vid]
+
+    def handed_on() -> bool:
+        return run.fleet.vehicles[vid].node.fsm.mission_id != MISSION_ID and all(
+            vid not in run.fleet.vehicles[p].node.roster.flying for p in peers
+        )
+
+    ok = run.run_until(handed_on, 60)
+    recover = run.fleet.now - t0
+    run.run_for(20.0)
+    other = max(peers)
+    run.fleet.kill_node(other)  # its aircraft flies its share on (FastFleet's model)
+    run.run_for(5.0)
+    run.fleet.restart_node(other)
+    return Injected(
+        recover if ok else None,
+        f"share handed on {recover:.1f} s after the reboot; node {other} killed and "
+        f"restarted 20 s later; {run.unexpected_arms} unexpected arm(s)",
+        ok=ok and run.unexpected_arms == 0,
+    )
+
+
 def fault_loss(run: Run) -> Injected:
     """30 % of every swarm message between nodes lost, the whole flight (seeded)."""
     run.fleet.loss = 0.3
@@ -447,6 +492,7 @@ FAST_FAULTS: dict[str, Callable[[Run], Injected]] = {
     "kill -9 a node (restarted after 5 s)": fault_kill,
     "SIGSTOP a node 3 s": fault_sigstop,
     "restart an autopilot (empty stores)": fault_autopilot_restart,
+    "reboot an autopilot in flight": fault_autopilot_reboot_in_flight,
     "drop 30 % of swarm messages": fault_loss,
     "partition the swarm in two for 20 s": fault_partition,
     "disk full on the database": fault_disk_full,
@@ -489,6 +535,7 @@ def run_fast(
         and coverage >= 0.95
         and lost == 0
         and false == 0
+        and run.unexpected_arms == 0
     )
     note = injected.note + ("" if finished else "; not all landed in time")
     return FaultRow(
@@ -501,6 +548,7 @@ def run_fast(
         mission_completed=completed,
         declared_state_lost=lost,
         false_emergencies=false,
+        unexpected_arms=run.unexpected_arms,
         emergencies=dict(sorted(emergencies.items())),
         alerts=dict(sorted(alerts.items())),
         note=note,

@@ -154,6 +154,7 @@ class MissionCoordinator:
         self.reattach = Reattacher(vid)  # a start with the vehicle flying (reattach.py)
         self._record_changed = False
         self._replanning = False  # in PLAN for a replan of the current mission
+        self._reboots = 0  # the autopilot's reboots when last seen
 
     # ------------------------------------------------------------------ views
     @property
@@ -798,8 +799,24 @@ class MissionCoordinator:
     def on_autopilot(
         self, ap: AutopilotState, base: GeoPoint | None, now: float
     ) -> list[ModuleOutput]:
-        out = self.manager.on_autopilot(ap, now, self.roster, base=base)
+        out = self._rebooted(ap)
+        out += self.manager.on_autopilot(ap, now, self.roster, base=base)
         return out + self.reattach.on_autopilot(ap, now)
+
+    def _rebooted(self, ap: AutopilotState) -> list[ModuleOutput]:
+        """A reboot while planning or flying a mission: the autopilot forgot what it was
+        told and boots disarmed. Nothing the mission manager still holds (a share, a
+        take-off queued, a replan to come) may arm it again: it stops at once, and the
+        state machine takes the vehicle out of its fleet and the mission (`Rebooted`)."""
+        seen, self._reboots = self._reboots, ap.reboots
+        if ap.reboots <= seen:
+            return []
+        if self.fsm.state not in (FsmState.PLAN, FsmState.GO_MISSION):
+            return []
+        self.manager.stop()
+        self.fsm.post(fsm.Rebooted())
+        text = f"autopilot rebooted in {self.fsm.state.name}: leaving the fleet"
+        return [Release(Owner.MISSION), Note(logging.WARNING, text)]
 
     def distrust(self, ids: frozenset[int]) -> None:
         """Vehicles whose identity is in doubt (two sources in one name): the roster

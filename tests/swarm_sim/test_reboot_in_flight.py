@@ -1,0 +1,25 @@
+"""A rebooted autopilot never flies by itself (docs/reliability.md): three quadcopters
+survey an area in FastFleet; vehicle 8's autopilot reboots at 40 % of its share (it
+comes back disarmed where it stood). Its node leaves the fleet at once, every peer's
+roster loses it within the 5 s the rule allows, and when another member's node dies
+and comes back 20 s later (a replan of the fleet), nothing arms vehicle 8 again: it
+stays on the ground until the operator sends it something."""
+
+from __future__ import annotations
+
+from swarm_proto import FsmState
+from swarm_sim.faults import MissionSpec, run_fast
+
+COPTERS = MissionSpec("survey, 3 quadcopters", (7, 8, 9), 30.0, 8)
+
+
+def test_a_rebooted_autopilot_hands_its_share_on_and_is_never_armed_again(
+    fleet_profiles: dict,
+) -> None:
+    row = run_fast("reboot an autopilot in flight", COPTERS, fleet_profiles)
+    print(row)
+    assert row.unexpected_arms == 0, row
+    assert row.recover_s is not None and row.recover_s <= 5.0, row
+    assert row.recovered, row
+    assert row.mission_completed and row.coverage >= 0.95, row
+    assert FsmState.EMERGENCY.name not in str(row.emergencies)
