@@ -107,6 +107,10 @@ class Run:
     declared_at: float = -math.inf  # the operator's last declaration
     rebooted_at: dict[int, float] = field(default_factory=dict)
     _armed: dict[int, bool] = field(default_factory=dict)
+    # the closest two aircraft came, from the simulator's true positions (not the
+    # nodes' telemetry), over every step with at least one of the pair in the air;
+    # a dead node's aircraft counts (it flies on)
+    min_true_sep_m: float = math.inf
 
     def tick(self) -> None:
         """Per step: sample tracks, note emergencies, the ground station's 1 Hz info."""
@@ -131,9 +135,22 @@ class Run:
                 and abs((s.alt_rel_m or 0.0) - ALT_M) < 15.0
             ):
                 self.points.setdefault(vid, []).append(self.frame.to_local(s.lat_deg, s.lon_deg))
+        self._separation()
         if self.gcs_alive and f.now >= self._next_gcs:
             self._next_gcs = f.now + 1.0
             f.broadcast(VehicleInfo(GCS, VehicleType.GCS, "ground station", "gcs"))
+
+    def _separation(self) -> None:
+        at = []
+        for v in self.fleet.vehicles.values():
+            sim = v.endpoint.autopilot
+            n, e = self.frame.to_local(*sim.latlon)
+            at.append((n, e, sim.body.alt, not sim.body.on_ground))
+        for i, (n1, e1, a1, up1) in enumerate(at):
+            for n2, e2, a2, up2 in at[i + 1 :]:
+                if up1 or up2:
+                    d = math.sqrt((n1 - n2) ** 2 + (e1 - e2) ** 2 + (a1 - a2) ** 2)
+                    self.min_true_sep_m = min(self.min_true_sep_m, d)
 
     def run_until(self, pred: Callable[[], bool], timeout_s: float) -> bool:
         def check() -> bool:
@@ -297,6 +314,28 @@ def fault_kill(run: Run, send: bool = True) -> Injected:
     return Injected(
         run.fleet.now - t0 if ok else None,
         f"restarted 5 s later: {d.value if d else 'no decision'} ({node.reattach.why})",
+        ok=ok,
+    )
+
+
+def fault_node_down_10s(run: Run) -> Injected:
+    """A node dead for 10 s at 40 % of its share (SIGTERM, started again 10 s later on
+    its database): its aircraft flies on, unseen by its peers, until its failsafe or
+    its node's return."""
+    vid = run.spec.victim
+    if not _at_progress(run):
+        return Injected(None, "never reached 40 %", ok=False)
+    t0 = run.fleet.now
+    run.fleet.kill_node(vid)
+    run.run_for(10.0)
+    node = run.fleet.restart_node(vid)
+    ok = run.run_until(lambda: node.reattach.decision is not None, 60)
+    d = node.reattach.decision
+    mode = run.fleet.vehicles[vid].endpoint.autopilot.mode_name
+    return Injected(
+        run.fleet.now - t0 if ok else None,
+        f"restarted 10 s later: {d.value if d else 'no decision'} ({node.reattach.why}); "
+        f"its autopilot in {mode}",
         ok=ok,
     )
 
@@ -490,6 +529,7 @@ def fault_ground_station_lost(run: Run) -> Injected:
 FAST_FAULTS: dict[str, Callable[[Run], Injected]] = {
     "none": fault_none,
     "kill -9 a node (restarted after 5 s)": fault_kill,
+    "node down 10 s (its aircraft flies on)": fault_node_down_10s,
     "SIGSTOP a node 3 s": fault_sigstop,
     "restart an autopilot (empty stores)": fault_autopilot_restart,
     "reboot an autopilot in flight": fault_autopilot_reboot_in_flight,
@@ -549,6 +589,7 @@ def run_fast(
         declared_state_lost=lost,
         false_emergencies=false,
         unexpected_arms=run.unexpected_arms,
+        min_true_sep_m=None if math.isinf(run.min_true_sep_m) else round(run.min_true_sep_m, 1),
         emergencies=dict(sorted(emergencies.items())),
         alerts=dict(sorted(alerts.items())),
         note=note,

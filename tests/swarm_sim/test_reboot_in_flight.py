@@ -22,4 +22,6 @@ def test_a_rebooted_autopilot_hands_its_share_on_and_is_never_armed_again(
     assert row.recover_s is not None and row.recover_s <= 5.0, row
     assert row.recovered, row
     assert row.mission_completed and row.coverage >= 0.95, row
+    # from the simulator's true positions, the rebooted aircraft on the ground included
+    assert row.min_true_sep_m is not None and row.min_true_sep_m >= 10.0, row
     assert FsmState.EMERGENCY.name not in str(row.emergencies)
