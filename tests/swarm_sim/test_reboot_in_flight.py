@@ -1,5 +1,6 @@
-"""A rebooted autopilot never flies by itself (docs/reliability.md): three quadcopters
-survey an area in FastFleet; vehicle 8's autopilot reboots at 40 % of its share (it
+"""A rebooted autopilot never flies by itself (docs/reliability.md): two quadcopters
+and a VTOL survey an area in FastFleet (the campaign's mission); vehicle 8's autopilot
+reboots at 40 % of its share (it
 comes back disarmed where it stood). Its node leaves the fleet at once, every peer's
 roster loses it within the 5 s the rule allows, and when another member's node dies
 and comes back 20 s later (a replan of the fleet), nothing arms vehicle 8 again: it
@@ -8,15 +9,15 @@ stays on the ground until the operator sends it something."""
 from __future__ import annotations
 
 from swarm_proto import FsmState
-from swarm_sim.faults import MissionSpec, run_fast
+from swarm_sim.faults import MISSIONS, run_fast
 
-COPTERS = MissionSpec("survey, 3 quadcopters", (7, 8, 9), 30.0, 8)
+MIXED = MISSIONS[1]  # 7, 8 (the victim) and the VTOL 1
 
 
 def test_a_rebooted_autopilot_hands_its_share_on_and_is_never_armed_again(
     fleet_profiles: dict,
 ) -> None:
-    row = run_fast("reboot an autopilot in flight", COPTERS, fleet_profiles)
+    row = run_fast("reboot an autopilot in flight", MIXED, fleet_profiles)
     print(row)
     assert row.unexpected_arms == 0, row
     assert row.recover_s is not None and row.recover_s <= 5.0, row

@@ -246,6 +246,11 @@ class Roster:
             return self._lose(vid, why)
         return []
 
+    def back(self, vid: int) -> None:
+        """A member lost by silence heard again, flying this roster, before any replan
+        without it: a member again (mission/coordinator.py holds its share meanwhile)."""
+        self.lost.pop(vid, None)
+
     def _lose(self, vid: int, why: str) -> list[RosterEvent]:
         assert self.mission_id is not None
         self.lost[vid] = why
