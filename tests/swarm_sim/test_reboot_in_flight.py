@@ -26,3 +26,18 @@ def test_a_rebooted_autopilot_hands_its_share_on_and_is_never_armed_again(
     # from the simulator's true positions, the rebooted aircraft on the ground included
     assert row.min_true_sep_m is not None and row.min_true_sep_m >= 10.0, row
     assert FsmState.EMERGENCY.name not in str(row.emergencies)
+
+
+def test_a_reboot_of_an_idle_vehicle_changes_nothing_but_the_backstop(
+    fleet_profiles: dict,
+) -> None:
+    """On the ground with no mission: no fleet to leave, no alert of a left mission."""
+    from swarm_proto import Alert, AlertCode
+    from swarm_sim.faults import start_run
+
+    run = start_run(fleet_profiles, MIXED)
+    v = run.fleet.vehicles[8]
+    run.fleet.reboot_autopilot(8)
+    run.run_for(20.0)
+    assert v.node.fsm.state == FsmState.GO_MISSION and v.node.fsm.mission_id is None
+    assert not [a for a in run.fleet.messages(Alert) if a.code == AlertCode.MISSION_FAILED]

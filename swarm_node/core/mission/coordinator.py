@@ -878,8 +878,11 @@ class MissionCoordinator:
         seen, self._reboots = self._reboots, ap.reboots
         if ap.reboots <= seen:
             return []
-        if self.fsm.state not in (FsmState.PLAN, FsmState.GO_MISSION):
-            return []
+        if (
+            self.fsm.state not in (FsmState.PLAN, FsmState.GO_MISSION)
+            or self.fsm.mission_id is None
+        ):
+            return []  # idle: nothing planned or flown to leave
         self.manager.stop()
         self.fsm.post(fsm.Rebooted())
         text = f"autopilot rebooted in {self.fsm.state.name}: leaving the fleet"
