@@ -6,7 +6,7 @@ home."""
 
 from __future__ import annotations
 
-from swarm_sim.faults import MISSIONS, MISSION_ID, _at_progress, start_run
+from swarm_sim.faults import MISSION_ID, MISSIONS, _at_progress, start_run
 
 
 def test_a_node_stalled_3_s_flies_its_share_on_and_nobody_replans(fleet_profiles: dict) -> None:
