@@ -15,7 +15,7 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from swarm_proto import Selector, VehicleType
+from swarm_proto import Selector, VehicleInfo, VehicleType
 from swarm_proto.ardupilot import autopilot_mismatch, mode_name
 
 from .common import console, quit_on_signal, read_filter, wait_option
@@ -283,6 +283,28 @@ def vehicle(
 
 
 @app.command()
+def rosters_of(infos: list[VehicleInfo]) -> list[dict[str, Any]]:
+    """What each node believes its mission's fleet is: the vehicles flying or planning
+    a mission grouped by the roster hash they publish; a mission flown under more than
+    one roster is `split` (its fleet replanned apart, e.g. across a partition)."""
+    groups: dict[tuple[int, int], list[int]] = {}
+    for i in infos:
+        if i.mission_id > 0 and i.members_hash:
+            groups.setdefault((i.mission_id, i.members_hash), []).append(i.vehicle_id)
+    per_mission: dict[int, int] = {}
+    for mid, _ in groups:
+        per_mission[mid] = per_mission.get(mid, 0) + 1
+    return [
+        {
+            "mission": mid,
+            "roster": f"{h:#06x}",
+            "vehicles": sorted(vids),
+            "split": per_mission[mid] > 1,
+        }
+        for (mid, h), vids in sorted(groups.items())
+    ]
+
+
 def fleets(
     ctx: typer.Context,
     wait: float = typer.Option(2.0, help="seconds to listen"),
@@ -297,7 +319,8 @@ def fleets(
     with ctx.obj.open() as gs:
         alive = gs.discover(min(wait, 2.0))
         gs.wait_for(lambda v: all(i in v.status and i in v.info for i in alive), wait)
-        rows = fleet_rows(gs.snapshot())
+        view = gs.snapshot()
+        rows = fleet_rows(view)
     by: dict[int, list[dict[str, Any]]] = {}
     for r in rows:
         by.setdefault(int(r.get("fleet") or 0), []).append(r)
@@ -308,6 +331,7 @@ def fleets(
             "types": sorted({r["type"] for r in members}),
             "states": sorted({r["fsm"] for r in members}),
             "missions": sorted({r["mission_id"] for r in members if r["mission_id"]}),
+            "rosters": rosters_of([view.info[r["id"]] for r in members if r["id"] in view.info]),
         }
         for f, members in sorted(by.items())
     ]
@@ -315,7 +339,7 @@ def fleets(
         typer.echo(json.dumps(data, indent=2))
         return
     t = Table(title="fleets", box=box.SIMPLE_HEAD, title_justify="left")
-    for col in ("fleet", "vehicles", "types", "states", "missions"):
+    for col in ("fleet", "vehicles", "types", "states", "missions", "rosters (per node)"):
         t.add_column(col)
     for d in data:
         t.add_row(
@@ -324,5 +348,10 @@ def fleets(
             ", ".join(d["types"]),
             ", ".join(d["states"]),
             ", ".join(map(str, d["missions"])) or "-",
+            "; ".join(
+                f"{r['mission']}:{r['roster']} {r['vehicles']}" + (" SPLIT" if r["split"] else "")
+                for r in d["rosters"]
+            )
+            or "-",
         )
     console.print(t if data else "no vehicle heard")

@@ -336,12 +336,12 @@ def run(
 
 def _fail(fleet: demo.Fleet, vid: int) -> None:
     """The vehicle fails: its companion computer dies (SIGKILL: no goodbye on Zenoh),
-    its radio too, and its aircraft is taken out of the simulator (a crash)."""
+    its radio too; its aircraft flies on in the simulator, as told, until its
+    autopilot's GCS failsafe takes it home."""
     for procs in (fleet.nodes, fleet.gateways):
         p = procs.get(vid)
         if p is not None and p.poll() is None:
             p.send_signal(signal.SIGKILL)
-    fleet.crash(vid)
 
 
 def _radio_figures(

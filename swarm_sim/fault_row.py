@@ -17,6 +17,11 @@ class FaultRow:
     mission_completed: bool
     declared_state_lost: int
     false_emergencies: int  # emergencies whose condition did not hold (a link loss judged)
+    # arms of a vehicle after its autopilot rebooted, with no operator declaration since
+    unexpected_arms: int = 0
+    # the closest two aircraft came, from the simulator's true positions (None: not
+    # measured)
+    min_true_sep_m: float | None = None
     emergencies: dict[str, int] = field(
         default_factory=dict
     )  # every STATE_EMERGENCY: code (vehicle)

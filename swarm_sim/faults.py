@@ -101,11 +101,26 @@ class Run:
     gcs_alive: bool = True
     mission_sent_at: float | None = None
     _next_gcs: float = 0.0
+    # arms of a vehicle whose autopilot rebooted, with no mission or command declared
+    # since the reboot: nothing may arm it but the operator (docs/reliability.md)
+    unexpected_arms: int = 0
+    declared_at: float = -math.inf  # the operator's last declaration
+    rebooted_at: dict[int, float] = field(default_factory=dict)
+    _armed: dict[int, bool] = field(default_factory=dict)
+    # the closest two aircraft came, from the simulator's true positions (not the
+    # nodes' telemetry), over every step with at least one of the pair in the air;
+    # a dead node's aircraft counts (it flies on)
+    min_true_sep_m: float = math.inf
 
     def tick(self) -> None:
         """Per step: sample tracks, note emergencies, the ground station's 1 Hz info."""
         f = self.fleet
         for vid, v in f.vehicles.items():
+            armed = v.endpoint.autopilot.armed
+            if armed and not self._armed.get(vid, False):
+                since = self.rebooted_at.get(vid)
+                self.unexpected_arms += since is not None and self.declared_at < since
+            self._armed[vid] = armed
             e = v.node.fsm.emergency
             if v.node.fsm.state == FsmState.EMERGENCY and e is not None:
                 self.emergencies.add((vid, e.code.name))
@@ -120,9 +135,22 @@ class Run:
                 and abs((s.alt_rel_m or 0.0) - ALT_M) < 15.0
             ):
                 self.points.setdefault(vid, []).append(self.frame.to_local(s.lat_deg, s.lon_deg))
+        self._separation()
         if self.gcs_alive and f.now >= self._next_gcs:
             self._next_gcs = f.now + 1.0
             f.broadcast(VehicleInfo(GCS, VehicleType.GCS, "ground station", "gcs"))
+
+    def _separation(self) -> None:
+        at = []
+        for v in self.fleet.vehicles.values():
+            sim = v.endpoint.autopilot
+            n, e = self.frame.to_local(*sim.latlon)
+            at.append((n, e, sim.body.alt, not sim.body.on_ground))
+        for i, (n1, e1, a1, up1) in enumerate(at):
+            for n2, e2, a2, up2 in at[i + 1 :]:
+                if up1 or up2:
+                    d = math.sqrt((n1 - n2) ** 2 + (e1 - e2) ** 2 + (a1 - a2) ** 2)
+                    self.min_true_sep_m = min(self.min_true_sep_m, d)
 
     def run_until(self, pred: Callable[[], bool], timeout_s: float) -> bool:
         def check() -> bool:
@@ -180,6 +208,7 @@ def declare(run: Run, msg: msgspec.Struct, to: Sequence[int] | None = None) -> m
     """The ground station declares (stamped with its clock), to the live nodes."""
     f = run.fleet
     msg = msgspec.structs.replace(msg, time_unix_s=f.now)
+    run.declared_at = f.now
     f.broadcast(msg, to=[v for v in (to or f.vehicles) if not f.vehicles[v].down])
     return msg
 
@@ -289,6 +318,28 @@ def fault_kill(run: Run, send: bool = True) -> Injected:
     )
 
 
+def fault_node_down_10s(run: Run) -> Injected:
+    """A node dead for 10 s at 40 % of its share (SIGTERM, started again 10 s later on
+    its database): its aircraft flies on, unseen by its peers, until its failsafe or
+    its node's return."""
+    vid = run.spec.victim
+    if not _at_progress(run):
+        return Injected(None, "never reached 40 %", ok=False)
+    t0 = run.fleet.now
+    run.fleet.kill_node(vid)
+    run.run_for(10.0)
+    node = run.fleet.restart_node(vid)
+    ok = run.run_until(lambda: node.reattach.decision is not None, 60)
+    d = node.reattach.decision
+    mode = run.fleet.vehicles[vid].endpoint.autopilot.mode_name
+    return Injected(
+        run.fleet.now - t0 if ok else None,
+        f"restarted 10 s later: {d.value if d else 'no decision'} ({node.reattach.why}); "
+        f"its autopilot in {mode}",
+        ok=ok,
+    )
+
+
 def fault_sigstop(run: Run) -> Injected:
     """SIGSTOP a node for 3 s at 40 % of its share (its autopilot flies on)."""
     vid = run.spec.victim
@@ -334,6 +385,39 @@ def fault_autopilot_restart(run: Run) -> Injected:
     )
     send_mission(run)
     return Injected(recover if ok else None, note, ok=ok)
+
+
+def fault_autopilot_reboot_in_flight(run: Run) -> Injected:
+    """Reboot an autopilot at 40 % of its share (it comes back disarmed where it stood,
+    `SimAutopilot.rebooted`), then lose another member 20 s later (an unrelated replan):
+    the rebooted vehicle leaves its fleet at once (recovered when every peer's roster
+    lost it) and nothing arms it again."""
+    vid = run.spec.victim
+    if not _at_progress(run):
+        return Injected(None, "never reached 40 %", ok=False)
+    t0 = run.fleet.now
+    run.fleet.reboot_autopilot(vid)
+    run.rebooted_at[vid] = t0
+    peers = [p for p in run.spec.members if p != vid]
+
+    def handed_on() -> bool:
+        return run.fleet.vehicles[vid].node.fsm.mission_id != MISSION_ID and all(
+            vid not in run.fleet.vehicles[p].node.roster.flying for p in peers
+        )
+
+    ok = run.run_until(handed_on, 60)
+    recover = run.fleet.now - t0
+    run.run_for(20.0)
+    other = max(peers)
+    run.fleet.kill_node(other)  # its aircraft flies its share on (FastFleet's model)
+    run.run_for(5.0)
+    run.fleet.restart_node(other)
+    return Injected(
+        recover if ok else None,
+        f"share handed on {recover:.1f} s after the reboot; node {other} killed and "
+        f"restarted 20 s later; {run.unexpected_arms} unexpected arm(s)",
+        ok=ok and run.unexpected_arms == 0,
+    )
 
 
 def fault_loss(run: Run) -> Injected:
@@ -445,8 +529,10 @@ def fault_ground_station_lost(run: Run) -> Injected:
 FAST_FAULTS: dict[str, Callable[[Run], Injected]] = {
     "none": fault_none,
     "kill -9 a node (restarted after 5 s)": fault_kill,
+    "node down 10 s (its aircraft flies on)": fault_node_down_10s,
     "SIGSTOP a node 3 s": fault_sigstop,
     "restart an autopilot (empty stores)": fault_autopilot_restart,
+    "reboot an autopilot in flight": fault_autopilot_reboot_in_flight,
     "drop 30 % of swarm messages": fault_loss,
     "partition the swarm in two for 20 s": fault_partition,
     "disk full on the database": fault_disk_full,
@@ -489,6 +575,7 @@ def run_fast(
         and coverage >= 0.95
         and lost == 0
         and false == 0
+        and run.unexpected_arms == 0
     )
     note = injected.note + ("" if finished else "; not all landed in time")
     return FaultRow(
@@ -501,6 +588,8 @@ def run_fast(
         mission_completed=completed,
         declared_state_lost=lost,
         false_emergencies=false,
+        unexpected_arms=run.unexpected_arms,
+        min_true_sep_m=None if math.isinf(run.min_true_sep_m) else round(run.min_true_sep_m, 1),
         emergencies=dict(sorted(emergencies.items())),
         alerts=dict(sorted(alerts.items())),
         note=note,

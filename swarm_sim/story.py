@@ -225,7 +225,8 @@ class Send:
 
 @dataclass(frozen=True)
 class Fail:
-    """Make a vehicle fail: its node and its aircraft vanish (a crash)."""
+    """Make a vehicle's node fail (its companion computer dies): its aircraft flies on as
+    it was told, then its autopilot's GCS failsafe takes it home (docs/reliability.md)."""
 
     vehicle_id: int
 
@@ -715,8 +716,9 @@ class Story:
                 self._go(Phase.INHERIT, now)
                 return [
                     Say(
-                        f"vehicle {victim} fails: its companion computer and aircraft are "
-                        f"lost; {', '.join(map(str, rec.survivors))} inherit its share"
+                        f"vehicle {victim} fails: its companion computer is lost, its "
+                        f"failsafe flies it home; {', '.join(map(str, rec.survivors))} "
+                        "inherit its share"
                     ),
                     Fail(victim),
                 ]
@@ -875,7 +877,7 @@ def fly_fast(
             if isinstance(a, Send):
                 fleet.broadcast(a.msg)
             elif isinstance(a, Fail):
-                fleet.kill(a.vehicle_id)
+                fleet.kill_node(a.vehicle_id)
         if on_step is not None:
             on_step(fleet, story, actions)  # type: ignore[operator]
     return FastRun(story, fleet, fleet.now - t_start)

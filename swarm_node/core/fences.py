@@ -45,6 +45,7 @@ from .arbiter import Owner
 from .autopilot.requests import ApRequest, ApResult, SetParam, UploadFence
 from .autopilot.state import AutopilotState
 from .backstop import BackstopKeeper, rally_point
+from .failsafe import FailsafeKeeper
 from .outputs import ModuleOutput, Note, Publish, Submit
 from .planning.geo import LocalFrame
 from .safety.zones import ZoneBook
@@ -262,11 +263,15 @@ class Fences:
     keeper: FenceKeeper = field(default_factory=FenceKeeper)
     plan: FencePlan | None = None  # the last plan (what is fenced, overflown, left out)
     backstop: BackstopKeeper = field(init=False)  # the fence and rally point checked
+    failsafe: FailsafeKeeper = field(init=False)  # the lost-companion failsafe set
     _key: object = None
     _version: int = 0  # the zone book's version the fence was last planned for
 
     def __post_init__(self) -> None:
         self.backstop = BackstopKeeper(self.vehicle_id, self.keeper)
+        # both answer to BACKSTOP: the failsafe's request ids are its own range, each
+        # result goes to the one that asked
+        self.failsafe = FailsafeKeeper(self.vehicle_id, self.vehicle_type)
 
     def on_autopilot(
         self,
@@ -278,12 +283,14 @@ class Fences:
     ) -> list[ModuleOutput]:
         rally = rally_point(self.vehicle_type, base, ap.home)
         out = self.keep(zones, ap.home, ceiling_rel_m, now)
+        out += self.failsafe.on_autopilot(ap, now)
         return out + self.backstop.on_autopilot(ap, rally, now)
 
     def on_timer(
         self, ap: AutopilotState, zones: ZoneBook, ceiling_rel_m: float, now: float
     ) -> list[ModuleOutput]:
         out = self.keep(zones, ap.home, ceiling_rel_m, now)
+        out += self.failsafe.on_timer(ap, now)
         return out + self.backstop.on_timer(ap, now)
 
     def recheck(self, why: str, restore: bool, now: float) -> list[ModuleOutput]:
@@ -334,6 +341,8 @@ class Fences:
         self, owner: Owner, result: ApResult, ap: AutopilotState, now: float
     ) -> list[ModuleOutput]:
         """A result of ours (owner FENCE) or of the backstop (BACKSTOP)."""
+        if owner == Owner.BACKSTOP and self.failsafe.expects(result.request_id):
+            return self.failsafe.on_result(result, ap, now)
         if owner == Owner.BACKSTOP:
             return self.backstop.on_result(result, ap, now)
         reqs, problem = self.keeper.on_result(result, now)
@@ -346,8 +355,9 @@ class Fences:
         return out
 
     def next_deadline(self) -> float | None:
-        a, b = self.keeper.next_deadline(), self.backstop.next_deadline()
-        return b if a is None else a if b is None else min(a, b)
+        due = (self.keeper.next_deadline(), self.backstop.next_deadline())
+        times = [t for t in (*due, self.failsafe.next_deadline()) if t is not None]
+        return min(times) if times else None
 
     def _alert(self, now: float, text: str) -> Publish:
         alert = Alert(

@@ -110,6 +110,7 @@ class NodeCore:
         av = self.avoid = AvoidanceModule(p, enabled=s.avoidance, next_tick=now)
         pads = PadSequence(p, s.avoidance, peers=m.statuses_and_homes, pads=m.homes, types=m.types)
         mi = self.mission = MissionCoordinator(p, s.plan_timeout_s, fp, md, ts, pads, now)
+        mi.silent_hold_s = s.silent_hold_s
         self.stalls = StallGuard(vid, s.stale_after_s)  # our own stalls (stalls.py)
         self.beacon = Beacon(s.status_period_s, s.info_period_s, now, now)  # status, info
         views = self.views = Views(p, mon, d, m, op, mi, av)  # what modules read of others

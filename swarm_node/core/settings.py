@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .failsafe import COMPANION_TIMEOUT_S
 from .fences import FENCE_MAX_ITEMS
 from .monitoring import Thresholds
 
@@ -19,3 +20,6 @@ class NodeSettings:
     fence_max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
     avoidance: bool = True  # collision avoidance (safety/module.py); off: compare without it
     mav_sysid: int = 0  # the autopilot's MAVLink system id, from the database (0: not checked)
+    # a member fallen silent keeps its share this long (its aircraft may fly it on
+    # until its failsafe takes it home): docs/reliability.md
+    silent_hold_s: float = COMPANION_TIMEOUT_S + 5.0

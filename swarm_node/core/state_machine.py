@@ -130,6 +130,14 @@ class Recalled:
 
 
 @dataclass(frozen=True)
+class Rebooted:
+    """The autopilot rebooted while this vehicle planned or flew a mission: it boots
+    disarmed with no fix, and what it was told is gone. The vehicle leaves its fleet at
+    once (its share handed on) and the mission; nothing arms it again but the operator
+    or a mission accepted after the reboot."""
+
+
+@dataclass(frozen=True)
 class Unassigned:
     """The vote of a QUANTITY mission this vehicle synchronised for (idle, in PLAN) did
     not choose it, or failed: it stands down (mission/tasking.py)."""
@@ -157,6 +165,7 @@ Event = (
     | LeftFleet
     | Cancelled
     | Recalled
+    | Rebooted
     | Unassigned
 )
 
@@ -456,6 +465,24 @@ RULES: tuple[Rule, ...] = (
                 short_text(f"left the mission: {getattr(c.event, 'reason', '')}"),
             ),
             FollowOperator(c.mission_id, getattr(c.event, "reason", "")),
+        ),
+    ),
+    Rule(
+        "autopilot rebooted",
+        (G, P),
+        "the autopilot rebooted",
+        Action.READY,
+        event=Rebooted,
+        outputs=lambda c: (
+            LeaveFleet("autopilot rebooted"),
+            RaiseAlert(
+                AlertCode.MISSION_FAILED, Severity.WARNING, "autopilot rebooted: left the fleet"
+            ),
+            # a return home the reboot cut short is not a mission to end
+            FollowOperator(
+                c.mission_id if c.mission_id not in (None, RETURN_MISSION) else None,
+                "autopilot rebooted",
+            ),
         ),
     ),
     Rule(

@@ -364,7 +364,7 @@ class SimAutopilot:
         self.battery.step(current_draw(self.airframe, b, arming.armed), dt)
         if arming.armed:
             arming.auto_disarm_check(t)
-            self.failsafes.check()
+            self.failsafes.check(t)
 
     def _model_event(self, ev: ModelEvent) -> None:
         if ev.kind == EventKind.TOUCHDOWN:

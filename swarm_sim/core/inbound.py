@@ -43,6 +43,13 @@ def on_set_mode(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     )
 
 
+def on_heartbeat(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
+    """Any HEARTBEAT of system SYSID_MYGCS keeps the GCS failsafe off (ArduPilot's
+    GCS_MAVLINK::handle_heartbeat)."""
+    if "SYSID_MYGCS" in v.params and src.sysid == int(v.params.value("SYSID_MYGCS")):
+        v.failsafes.gcs_heartbeat(now)
+
+
 def on_position_target_global(v: Vehicle, msg: Any, src: Peer, now: float) -> None:
     if v.modes.behaviour != Behaviour.GUIDED:
         v.counters["position_target_not_guided"] += 1
@@ -299,14 +306,14 @@ HANDLERS: dict[str, Callable[[Vehicle, Any, Peer, float], None]] = {
     "PARAM_REQUEST_LIST": on_param_request_list,
     "PARAM_REQUEST_READ": on_param_request_read,
     "PARAM_SET": on_param_set,
+    "HEARTBEAT": on_heartbeat,
     "TIMESYNC": on_timesync,
     "FILE_TRANSFER_PROTOCOL": on_ftp,
 }
 
-# Received and deliberately ignored (a GCS heartbeat, acks of our own messages, ...)
+# Received and deliberately ignored (acks of our own messages, ...)
 IGNORED = frozenset(
     {
-        "HEARTBEAT",
         "MISSION_ACK",
         "COMMAND_ACK",
         "SYSTEM_TIME",

@@ -75,6 +75,7 @@ def defaults(
             "SIM_WIND_SPD": (wind[0], 9),
             "SIM_WIND_DIR": (wind[1], 9),
             "MIS_TOTAL": (0.0, 4),
+            "SYSID_MYGCS": (255.0, 4),
         }
     )
     if fw == Firmware.COPTER:
@@ -87,6 +88,10 @@ def defaults(
             "RTL_ALT": (af.rtl_alt_m * 100, 9),
             "LAND_SPEED": (af.land_speed_m_s * 100, 4),
             "DISARM_DELAY": (10.0, 2),
+            # the GCS failsafe (failsafes.py), ArduCopter's defaults: off, 5 s
+            "FS_GCS_ENABLE": (0.0, 2),
+            "FS_GCS_TIMEOUT": (5.0, 9),
+            "FS_OPTIONS": (0.0, 6),
         }
     elif fw == Firmware.PLANE:
         p |= {
@@ -98,6 +103,13 @@ def defaults(
             "RTL_ALTITUDE": (af.rtl_alt_m, 9),
             "TKOFF_ALT": (af.takeoff_alt_m, 9),
             "RTL_AUTOLAND": (0.0, 2),
+            # the GCS failsafe (failsafes.py), ArduPlane's defaults: off, 5 s long,
+            # 1.5 s short, no change in AUTO
+            "FS_GCS_ENABL": (0.0, 2),
+            "FS_LONG_ACTN": (0.0, 2),
+            "FS_LONG_TIMEOUT": (5.0, 9),
+            "FS_SHORT_ACTN": (0.0, 2),
+            "FS_SHORT_TIMEOUT": (1.5, 9),
             "Q_ENABLE": (1.0 if model == VehicleModel.VTOL else 0.0, 2),
         }
         if model == VehicleModel.VTOL:

@@ -49,8 +49,10 @@ GCS = 900
 
 
 # every vehicle at one synthetic position (`flying()`): collision avoidance, which would
-# rightly climb them apart, is off here (its own tests: tests/swarm_node/safety)
-SETTINGS = NodeSettings(plan_timeout_s=20.0, avoidance=False)
+# rightly climb them apart, is off here (its own tests: tests/swarm_node/safety); a lost
+# member's share is replanned at once, as if its aircraft were known out of the way
+# (the hold of a silent member's share: test_silent_member.py)
+SETTINGS = NodeSettings(plan_timeout_s=20.0, avoidance=False, silent_hold_s=0.0)
 
 
 def profile(vid: int, model: str = "Generic Quadcopter") -> VehicleProfile:

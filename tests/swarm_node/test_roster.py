@@ -119,6 +119,20 @@ def test_a_different_members_hash_is_reported() -> None:
     assert ev == [RosterMismatch(MID, 2, r.members_hash ^ 1, r.members_hash)]
 
 
+def test_a_member_lost_by_silence_back_with_another_roster_is_reported_once() -> None:
+    """The two sides of a partition replanned apart: heard again, a mismatch (the same
+    roster back: `back`, a member again)."""
+    r = frozen_with_2_and_3()
+    r.on_peer_left(2, "stale")
+    theirs = members_hash(MID, [2], 1)
+    ev = r.on_info(info(2, state=FsmState.GO_MISSION, members_hash=theirs))
+    assert ev == [RosterMismatch(MID, 2, theirs, r.members_hash)]
+    assert r.on_info(info(2, state=FsmState.GO_MISSION, members_hash=theirs)) == []
+    assert r.on_info(info(2, state=FsmState.GO_MISSION, members_hash=r.members_hash)) == []
+    r.back(2)
+    assert 2 in r.flying and not r.lost
+
+
 @st.composite
 def fleets(draw: st.DrawFn) -> tuple[list[int], dict[int, bool], list[list[int]]]:
     ids = draw(st.lists(st.integers(1, 40), min_size=2, max_size=8, unique=True))

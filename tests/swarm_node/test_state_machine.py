@@ -31,6 +31,7 @@ from swarm_node.core.state_machine import (
     PlanSucceeded,
     RaiseAlert,
     Reattached,
+    Rebooted,
     Recalled,
     ReleaseMission,
     Replan,
@@ -145,6 +146,20 @@ CASES = [
         "recalled",
         P,
         events=[Recalled("operator LAND")],
+        expect=G,
+        outputs=(LeaveFleet, RaiseAlert, FollowOperator),
+    ),
+    Case(
+        "autopilot rebooted",
+        G,
+        events=[Rebooted()],
+        expect=G,
+        outputs=(LeaveFleet, RaiseAlert, FollowOperator),
+    ),
+    Case(
+        "autopilot rebooted",
+        P,
+        events=[Rebooted()],
         expect=G,
         outputs=(LeaveFleet, RaiseAlert, FollowOperator),
     ),
@@ -305,6 +320,30 @@ def test_an_operator_recall_ends_the_mission_with_the_landing() -> None:
     t = fsm.tick(0.4, OK)
     assert t is not None and t.rule == "landed" and fsm.state == INACT
     assert t.outputs[0] == MissionFinished(RETURN_MISSION)  # mission 7 never completed
+
+
+def test_a_rebooted_autopilot_leaves_the_mission_and_nothing_replans_it() -> None:
+    """Out of the fleet and the mission at once; a later replan of the mission (a peer
+    lost) is stale, and only a new mission plans again."""
+    fsm = machine(G, mission=7, released=True)
+    fsm.post(Rebooted())
+    t = fsm.tick(0.2, OK)
+    assert t is not None and t.rule == "autopilot rebooted"
+    assert t.outputs[0] == LeaveFleet("autopilot rebooted")
+    assert t.outputs[-1] == FollowOperator(7, "autopilot rebooted")
+    assert (fsm.state, fsm.mission_id, fsm.released) == (G, RETURN_MISSION, False)
+    fsm.post(Replan(7))
+    assert fsm.tick(0.4, OK) is None and fsm.state == G
+    fsm.post(NewMission(9))
+    t = fsm.tick(0.6, OK)
+    assert t is not None and t.rule == "new mission" and fsm.mission_id == 9
+
+
+def test_a_reboot_on_the_way_home_ends_no_mission() -> None:
+    fsm = machine(G, mission=RETURN_MISSION, released=True)
+    fsm.post(Rebooted())
+    t = fsm.tick(0.2, OK)
+    assert t is not None and t.outputs[-1] == FollowOperator(None, "autopilot rebooted")
 
 
 def test_emergency_holds_until_shutdown() -> None:

@@ -112,6 +112,8 @@ from .voting import VoterLost
 
 # what a replan takes over from a lost member: its fleet plans or flies the mission
 REPLANNING = (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
+# a member lost by these (membership.py) fell silent: its aircraft may fly on
+SILENT = frozenset({"liveliness", "stale"})
 
 
 @dataclass(frozen=True)
@@ -140,6 +142,7 @@ class MissionCoordinator:
     tasking_settings: TaskingSettings = field(default_factory=TaskingSettings)
     pads: PadSequence | None = None  # the mission manager's close pads
     now: float = 0.0
+    silent_hold_s: float = 0.0  # a silent member's share held this long (0: replan at once)
 
     def __post_init__(self) -> None:
         vid = self.self_id = self.profile.vehicle_id
@@ -154,6 +157,9 @@ class MissionCoordinator:
         self.reattach = Reattacher(vid)  # a start with the vehicle flying (reattach.py)
         self._record_changed = False
         self._replanning = False  # in PLAN for a replan of the current mission
+        self._reboots = 0  # the autopilot's reboots when last seen
+        # members fallen silent whose share is held: vehicle -> (mission, held until)
+        self.held: dict[int, tuple[int, float]] = {}
 
     # ------------------------------------------------------------------ views
     @property
@@ -189,7 +195,8 @@ class MissionCoordinator:
 
     def next_deadline(self) -> float:
         t = self.fsm.next_deadline()
-        for due in (self.tasking.next_deadline(), self.reattach.next_deadline()):
+        held = min((until for _, until in self.held.values()), default=None)
+        for due in (self.tasking.next_deadline(), self.reattach.next_deadline(), held):
             if due is not None and due < t:
                 t = due
         return t
@@ -543,6 +550,7 @@ class MissionCoordinator:
         due, out = self.tasking.next_deadline(), []
         if due is not None and now >= due:
             out = self._tasked(self.tasking.on_timer(now), read(), now)
+        out += self._hold_over(now)
         if not self.reattach.active:
             return out
         ctx = read()
@@ -672,7 +680,68 @@ class MissionCoordinator:
     # ------------------------------------------------------------------ the roster
     def on_info(self, info: VehicleInfo, read: Read, now: float) -> list[ModuleOutput]:
         events = self.roster.on_info(info)
-        return self._roster_events(events, read(), now) if events else []
+        back = self._back(info)
+        return back + (self._roster_events(events, read(), now) if events else [])
+
+    def _replans(self, mission_id: int) -> bool:
+        """A member lost now makes this vehicle replan `mission_id`."""
+        f = self.fsm
+        return (
+            self.roster.frozen
+            and f.mission_id == mission_id
+            and f.state in (FsmState.GO_MISSION, FsmState.PLAN)
+            and self.mission_state in REPLANNING
+        )
+
+    def _hold(self, ev: MemberLost, now: float) -> list[ModuleOutput]:
+        """A member fallen silent (its node's liveliness or telemetry gone) is still an
+        aircraft: its autopilot flies its share on until its GCS failsafe takes it home
+        (failsafe.py). Its share is held, not handed out, for `silent_hold_s`; the
+        others fly their own meanwhile. Heard again in its mission with our roster
+        within the hold, it is a member again and flies on (`_back`)."""
+        self.held[ev.vehicle_id] = (ev.mission_id, now + self.silent_hold_s)
+        text = (
+            f"mission {ev.mission_id}: member {ev.vehicle_id} silent ({ev.why}); "
+            f"its share held {self.silent_hold_s:g} s"
+        )
+        return [Note(logging.WARNING, text)]
+
+    def _hold_over(self, now: float) -> list[ModuleOutput]:
+        """Held shares whose hold ran out: the member did not come back, its failsafe
+        has taken its aircraft off its lanes; the fleet replans them."""
+        out: list[ModuleOutput] = []
+        for vid, (mid, until) in list(self.held.items()):
+            if now < until:
+                continue
+            del self.held[vid]
+            if vid in self.roster.lost and self._replans(mid):
+                text = f"mission {mid}: member {vid} still silent; its share handed out"
+                out += [Note(logging.WARNING, text), Post(fsm.Replan(mid))]
+        return out
+
+    def _back(self, info: VehicleInfo) -> list[ModuleOutput]:
+        """A held member heard again: flying our roster, a member again; left the
+        mission (its node handed the share on, or took it home), its share is the
+        fleet's now; restarting (no mission yet), still held."""
+        vid = info.vehicle_id
+        held = self.held.get(vid)
+        if held is None:
+            return []
+        mid = held[0]
+        if info.fsm_state == FsmState.INACTIVE or not info.mission_id:
+            return []  # a node restarting: its reattach decides (reattach.py), then says
+        if info.mission_id != mid or info.fsm_state not in (FsmState.GO_MISSION, FsmState.PLAN):
+            del self.held[vid]
+            if not self._replans(mid):
+                return []
+            text = f"mission {mid}: member {vid} back, out of the mission; its share handed out"
+            return [Note(logging.WARNING, text), Post(fsm.Replan(mid))]
+        if info.fsm_state != FsmState.GO_MISSION or info.members_hash != self.roster.members_hash:
+            return []
+        del self.held[vid]
+        self.roster.back(vid)
+        text = f"mission {held[0]}: member {vid} back within the hold; it flies its share on"
+        return [Note(logging.INFO, text)]
 
     def peer_lost(self, vid: int, why: str, read: Read, now: float) -> list[ModuleOutput]:
         events = self.roster.on_peer_left(vid, why)
@@ -690,12 +759,11 @@ class MissionCoordinator:
                 text = f"mission {ev.mission_id}: member {ev.vehicle_id} lost ({ev.why})"
                 out.append(Note(logging.WARNING, text))
                 out += self._tasked(self.tasking.handle(VoterLost(ev.vehicle_id), now), ctx, now)
-                if (
-                    self.roster.frozen
-                    and f.mission_id == ev.mission_id
-                    and f.state in (FsmState.GO_MISSION, FsmState.PLAN)
-                    and self.mission_state in REPLANNING
-                ):
+                if not self._replans(ev.mission_id):
+                    continue
+                if ev.why in SILENT and self.silent_hold_s > 0 and f.state == FsmState.GO_MISSION:
+                    out += self._hold(ev, now)
+                else:
                     out.append(Post(fsm.Replan(ev.mission_id)))  # inherit its share
             elif isinstance(ev, MemberJoined):
                 if (
@@ -798,8 +866,27 @@ class MissionCoordinator:
     def on_autopilot(
         self, ap: AutopilotState, base: GeoPoint | None, now: float
     ) -> list[ModuleOutput]:
-        out = self.manager.on_autopilot(ap, now, self.roster, base=base)
+        out = self._rebooted(ap)
+        out += self.manager.on_autopilot(ap, now, self.roster, base=base)
         return out + self.reattach.on_autopilot(ap, now)
+
+    def _rebooted(self, ap: AutopilotState) -> list[ModuleOutput]:
+        """A reboot while planning or flying a mission: the autopilot forgot what it was
+        told and boots disarmed. Nothing the mission manager still holds (a share, a
+        take-off queued, a replan to come) may arm it again: it stops at once, and the
+        state machine takes the vehicle out of its fleet and the mission (`Rebooted`)."""
+        seen, self._reboots = self._reboots, ap.reboots
+        if ap.reboots <= seen:
+            return []
+        if (
+            self.fsm.state not in (FsmState.PLAN, FsmState.GO_MISSION)
+            or self.fsm.mission_id is None
+        ):
+            return []  # idle: nothing planned or flown to leave
+        self.manager.stop()
+        self.fsm.post(fsm.Rebooted())
+        text = f"autopilot rebooted in {self.fsm.state.name}: leaving the fleet"
+        return [Release(Owner.MISSION), Note(logging.WARNING, text)]
 
     def distrust(self, ids: frozenset[int]) -> None:
         """Vehicles whose identity is in doubt (two sources in one name): the roster

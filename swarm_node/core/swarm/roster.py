@@ -22,7 +22,8 @@ Inputs (what `handle` takes):
     Ack (ref MISSION)        -> an answer of a peer (any mission, kept for a while)
     VehicleInfo              -> an answer (in PLAN/GO_MISSION for the mission); a
                                 member that left the mission -> MemberLost;
-                                a different members_hash -> RosterMismatch
+                                a different members_hash -> RosterMismatch (a
+                                member lost by silence too: a partition healed)
     PeerLeft                 -> a frozen member lost -> MemberLost
     distrust(ids)            -> vehicles whose identity is in doubt (core/identity.py):
                                 neither members nor waited for while the roster is
@@ -204,6 +205,20 @@ class Roster:
             return [MemberJoined(mid, vid)]  # a vehicle joining (or a lost one back)
         if (
             self.frozen
+            and vid in self.lost
+            and in_mission
+            and info.fsm_state == FsmState.GO_MISSION
+            and info.members_hash
+            and info.members_hash not in (self.members_hash, self._previous_hash)
+            and (vid, info.members_hash) not in self._reported
+        ):
+            # a member lost by silence flies the mission with another roster: the two
+            # sides of a partition replanned apart (once per member and hash)
+            self.mismatches += 1
+            self._reported.add((vid, info.members_hash))
+            return [RosterMismatch(mid, vid, info.members_hash, self.members_hash)]
+        if (
+            self.frozen
             and vid in self.members
             and vid not in self.lost
             and vid not in self.finished
@@ -245,6 +260,11 @@ class Roster:
         if self._answers.get(self.mission_id, {}).get(vid):
             return self._lose(vid, why)
         return []
+
+    def back(self, vid: int) -> None:
+        """A member lost by silence heard again, flying this roster, before any replan
+        without it: a member again (mission/coordinator.py holds its share meanwhile)."""
+        self.lost.pop(vid, None)
 
     def _lose(self, vid: int, why: str) -> list[RosterEvent]:
         assert self.mission_id is not None
