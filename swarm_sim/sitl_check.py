@@ -403,6 +403,10 @@ class Harness:
                 "--speedup",
                 str(self.args.speedup),
                 f"-I{spec.instance}",
+                # the node's id as the autopilot's MAVLink system id (MAV_SYSID on master,
+                # SYSID_THISMAV before; the defaults file names the old one)
+                "--sysid",
+                str(spec.node_id),
                 "-w",
                 "--defaults",
                 ",".join(defaults),

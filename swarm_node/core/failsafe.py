@@ -40,6 +40,10 @@ from .outputs import ModuleOutput, Note, Owner, Publish, Submit
 COMPANION_TIMEOUT_S = 10.0
 RETRY_S = 5.0
 NODE_SYSID = 255  # the node link's MAVLink system id (autopilot/link.py)
+# ArduPilot renamed its MAVLink ids after 4.6 (SYSID_MYGCS is MAV_GCS_SYSID on master,
+# SYSID_THISMAV MAV_SYSID); an autopilot ignores a PARAM_SET of a name it does not have,
+# so a name that is not confirmed is tried under its other name before it is refused
+RENAMED = {"SYSID_MYGCS": "MAV_GCS_SYSID", "MAV_GCS_SYSID": "SYSID_MYGCS"}
 
 
 def failsafe_params(
@@ -82,6 +86,8 @@ class FailsafeKeeper:
     _epoch: tuple[int, int] | None = None  # (reboots, link losses) last attached at
     _in_flight: int | None = None  # the request id
     _why: str = "node start"
+    _renamed: set[str] = field(default_factory=set)  # names tried under their other name
+    _known_as: dict[str, str] = field(default_factory=dict)  # a renamed name: the one it has
 
     @property
     def params(self) -> tuple[tuple[str, float], ...]:
@@ -106,7 +112,8 @@ class FailsafeKeeper:
                 if epoch[0] != before[0]
                 else "link back"
             )
-            self._todo, self._due = list(self.params), now
+            self._todo = [(self._known_as.get(n, n), v) for n, v in self.params]
+            self._due = now
         return self._next(ap, now)
 
     def on_result(self, result: ApResult, ap: AutopilotState, now: float) -> list[ModuleOutput]:
@@ -116,6 +123,8 @@ class FailsafeKeeper:
         name, value = self._todo[0]
         if result.ok:
             self._todo.pop(0)
+            if name in RENAMED:  # the name this autopilot knows, asked first next time
+                self._known_as[name] = self._known_as[RENAMED[name]] = name
             self.verified += 1
             out: list[ModuleOutput] = []
             if self.failures:
@@ -125,6 +134,12 @@ class FailsafeKeeper:
                 text = f"autopilot failsafe set and verified ({self._why})"
                 out.append(Note(logging.INFO, text))
             return out + self._next(ap, now)
+        other = RENAMED.get(name)
+        if other is not None and other not in self._renamed:
+            self._renamed.add(name)  # this autopilot may know it by its other name
+            self._todo[0] = (other, value)
+            return self._next(ap, now)
+        self._renamed.discard(other or "")
         self.failures += 1
         self._due = now + self.retry_s
         text = f"autopilot failsafe {name}={value:g} not set: {result.reason}"

@@ -208,7 +208,7 @@ DO_SET_MODE, DO_FENCE_ENABLE, DO_SET_HOME = 176, 207, 179
 #: cannot tell, so the fence is uploaded again)
 REPORTED_COMMANDS = {DO_FENCE_ENABLE: True, DO_SET_HOME: False}
 #: parameters bandada relies on (prefixes): its fence, its rally point, the failsafes
-BANDADA_PARAMS = ("FENCE_", "RALLY_", "FS_", "BATT_FS_", "SYSID_MYGCS")
+BANDADA_PARAMS = ("FENCE_", "RALLY_", "FS_", "BATT_FS_", "SYSID_MYGCS", "MAV_GCS_SYSID")
 #: FTP opcodes that only read (MAVLink FTP: payload[3])
 FTP_READS = frozenset({0, 1, 2, 3, 4, 5, 14, 15})
 

@@ -41,9 +41,29 @@ def test_each_parameter_is_set_in_turn_and_again_after_a_reboot() -> None:
     assert req.name == "SYSID_MYGCS" and not k.done
 
 
+def test_a_renamed_parameter_is_set_under_the_name_the_autopilot_has() -> None:
+    """ArduPilot after 4.6 calls SYSID_MYGCS MAV_GCS_SYSID and ignores a PARAM_SET of the
+    old name: the other name is asked at once, no alert, and first after a reboot."""
+    k = FailsafeKeeper(8, VehicleType.COPTER)
+    (req,) = _asked(k.on_autopilot(READY, 0.0))
+    assert req.name == "SYSID_MYGCS"
+    out = _answer(k, req, False, 0.0)
+    assert not [o for o in out if isinstance(o, Publish)]
+    (req,) = _asked(out)
+    assert (req.name, req.value) == ("MAV_GCS_SYSID", 255.0)
+    out = _answer(k, req, True, 0.0)
+    while reqs := _asked(out):
+        out = _answer(k, reqs[0], True, 0.0)
+    assert k.done
+    (req,) = _asked(k.on_autopilot(msgspec.structs.replace(READY, reboots=1), 1.0))
+    assert req.name == "MAV_GCS_SYSID"
+
+
 def test_a_refusal_is_alerted_once_and_retried() -> None:
     k = FailsafeKeeper(8, VehicleType.PLANE)
     (req,) = _asked(k.on_autopilot(READY, 0.0))
+    (req,) = _asked(_answer(k, req, False, 0.0))  # under its other name: refused too
+    assert req.name == "MAV_GCS_SYSID"
     out = _answer(k, req, False, 0.0)
     alerts = [o.msg for o in out if isinstance(o, Publish) and isinstance(o.msg, Alert)]
     assert [a.severity for a in alerts] == [Severity.CRITICAL]
@@ -52,6 +72,9 @@ def test_a_refusal_is_alerted_once_and_retried() -> None:
     assert again.name == req.name
     out = _answer(k, again, False, 5.0)
     assert not [o for o in out if isinstance(o, Publish)]  # alerted once per run
+    (again,) = _asked(out)  # each retry asks both names
+    out = _answer(k, again, False, 5.0)
+    assert not [o for o in out if isinstance(o, Publish)]
     (again,) = _asked(k.on_timer(READY, 10.0))
     out = _answer(k, again, True, 10.0)
     assert [o.msg.severity for o in out if isinstance(o, Publish)] == [Severity.INFO]
