@@ -282,7 +282,6 @@ def vehicle(
         console.print(pfd_table(d))
 
 
-@app.command()
 def rosters_of(infos: list[VehicleInfo]) -> list[dict[str, Any]]:
     """What each node believes its mission's fleet is: the vehicles flying or planning
     a mission grouped by the roster hash they publish; a mission flown under more than
@@ -305,6 +304,7 @@ def rosters_of(infos: list[VehicleInfo]) -> list[dict[str, Any]]:
     ]
 
 
+@app.command()
 def fleets(
     ctx: typer.Context,
     wait: float = typer.Option(2.0, help="seconds to listen"),

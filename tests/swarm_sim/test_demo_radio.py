@@ -112,8 +112,12 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
     assert all(p.packets_per_s > 3.0 for p in radio.peers if p.node_id in MEMBERS)
     assert radio.dropped_forged == 0 and radio.dropped_corrupt == 0
     # no TDM fault; a collision with a packet the emulator read late (descheduled by a
-    # loaded machine) is the emulator's host, counted apart (docs/radio.md)
-    assert channel.get("collisions_tdm", 0) == 0
+    # loaded machine) is the emulator's host, counted apart (docs/radio.md). A slot
+    # table at fault collides every cycle (5 a second); one collision in the run is a
+    # gateway process descheduled between its slot check and its write, which a loaded
+    # 2-core host does (seen beside a SITL run). Simulated time asks for 0:
+    # tests/radio_gateway/test_tdm_fleet.py
+    assert channel.get("collisions_tdm", 0) <= 1, channel
     # nothing but the radio joins the islands: each node learnt of the other by its
     # telemetry (heard over the air), never by a Zenoh liveliness token
     for vid, other in ((7, 8), (8, 7)):
