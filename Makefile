@@ -14,7 +14,7 @@ PYTEST_ARGS ?=
 # from source again: 0.9 s of CPU per process, several minutes over the suite
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: all demo test lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check faults browser
+.PHONY: all demo test checks lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check faults browser
 
 all: test
 
@@ -47,8 +47,15 @@ browser:
 demo: $(STAMP)
 	$(BIN)/swarm-sim demo
 
-## test: lint, type check and the test suite (CI runs exactly this)
-test: lint typecheck unit
+## test: lint, type check and the test suite (CI runs exactly this). The checks run beside
+## the suite (mypy takes a core for half a minute while the suite's first tests wait on
+## their processes): their few lines may fall among the suite's progress dots
+test: $(STAMP) browser
+	@$(MAKE) --no-print-directory -j2 checks unit
+
+checks: $(STAMP)
+	@$(MAKE) --no-print-directory lint typecheck
+	@echo "checks passed"
 
 SOURCES := swarm_proto swarm_node radio_gateway gcs_cli swarm_sim bench tests
 
@@ -62,8 +69,11 @@ typecheck: $(STAMP)
 ## the suite mostly waits (processes, Zenoh, simulated radios): three workers keep 2 cores
 ## busy while one waits (4:30 against 5:36 with two); TEST_WORKERS=0 runs it in one process
 TEST_WORKERS ?= 3
-## tests marked `timing` (real-time TDM on pseudo-terminals) run alone, after the others
+## tests marked `timing` (real-time TDM on pseudo-terminals) run alone, after the others.
+## The test modules are collected once first: pytest caches each module with its asserts
+## rewritten, which a fresh clone's three workers would otherwise each do (10 s of CPU each)
 unit: $(STAMP) browser
+	$(BIN)/python -m pytest -qq --collect-only -p no:cacheprovider $(PYTEST_ARGS) >/dev/null
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not soak and not scale and not timing" $(PYTEST_ARGS)
 	$(BIN)/python -m pytest -q -m "timing and not soak and not scale" $(PYTEST_ARGS)
 

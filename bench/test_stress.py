@@ -28,11 +28,13 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("BANDADA_SHARED", REPO.parent / "shared"))
 BUSY = "while True: pass"
-# make test's steps, each known by the command line make echoes when it starts it (whole
-# lines: pip's own output names the packages it installs, ruff and mypy among them)
-STEPS = (
+# make test's milestones, each known by the line make echoes for it (whole lines: pip's own
+# output names the packages it installs, ruff and mypy among them). The checks (ruff,
+# mypy) run beside the suite, from "lint" to "checked"; the suite waits for nothing
+MARKS = (
     ("lint", b"/bin/ruff check "),
-    ("typecheck", b"/bin/mypy\n"),
+    ("checked", b"checks passed\n"),
+    ("collect", b"--collect-only"),
     ("suite", b'-m "not soak and not scale and not timing"'),
     ("timing", b'-m "timing and not soak and not scale"'),
 )
@@ -42,6 +44,19 @@ FAILED = re.compile(r"^(?:FAILED|ERROR) (\S+)", re.MULTILINE)
 def _children_cpu_s() -> float:
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
     return r.ru_utime + r.ru_stime
+
+
+def _steps(at: dict[str, float], wall: float) -> dict[str, float]:
+    """Each step's wall time from the milestones seen (a step whose ends were not both
+    seen, as in a run that failed early, is left out)."""
+    spans = {
+        "install": (0.0, min(at.get("lint", wall), at.get("collect", wall))),
+        "checks": (at.get("lint"), at.get("checked")),  # beside the collection and suite
+        "collect": (at.get("collect"), at.get("suite")),
+        "suite": (at.get("suite"), at.get("timing")),
+        "timing": (at.get("timing"), wall if "timing" in at else None),
+    }
+    return {k: round(b - a, 1) for k, (a, b) in spans.items() if a is not None and b is not None}
 
 
 def _one_run(commit: str, base: Path, i: int) -> dict[str, Any]:
@@ -59,7 +74,7 @@ def _one_run(commit: str, base: Path, i: int) -> dict[str, Any]:
         k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "MAKEFLAGS", "MAKELEVEL")
     }
     cpu0, t0 = _children_cpu_s(), time.monotonic()
-    started: dict[str, float] = {"install": 0.0}
+    at: dict[str, float] = {}
     with log.open("wb") as out:
         proc = subprocess.Popen(
             ["make", "test"],
@@ -69,18 +84,14 @@ def _one_run(commit: str, base: Path, i: int) -> dict[str, Any]:
             env=env,
         )
         assert proc.stdout is not None
-        for line in proc.stdout:  # each step's start: the line make echoes for it
+        for line in proc.stdout:  # each milestone: the line make echoes for it
             out.write(line)
-            for step, marker in STEPS:
-                if step not in started and marker in line:
-                    started[step] = time.monotonic() - t0
+            for name, marker in MARKS:
+                if name not in at and marker in line:
+                    at[name] = time.monotonic() - t0
         code = proc.wait()
     wall, cpu = time.monotonic() - t0, _children_cpu_s() - cpu0
-    marks = sorted(started.items(), key=lambda kv: kv[1])
-    steps_s = {
-        step: round((marks[i + 1][1] if i + 1 < len(marks) else wall) - t, 1)
-        for i, (step, t) in enumerate(marks)
-    }
+    steps_s = _steps(at, wall)
     load = os.getloadavg()
     text = log.read_text(errors="replace")
     shutil.rmtree(work, ignore_errors=True)  # its .venv is over a gigabyte
@@ -139,7 +150,7 @@ def run() -> dict[str, Any]:
         "cpu_s": [r["cpu_s"] for r in rows],
         "median_steps_s": {
             step: statistics.median(r["steps_s"].get(step, 0.0) for r in rows)
-            for step in ("install", *(name for name, _ in STEPS))
+            for step in ("install", "checks", "collect", "suite", "timing")
         },
         "load_1_5_15": [r["load_1_5_15"] for r in rows],
         "per_run": rows,
