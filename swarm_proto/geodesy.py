@@ -48,8 +48,37 @@ def mean_radius_m(lat_deg: float) -> float:
 
 
 def ecef(lat_deg: float, lon_deg: float, h_m: float = 0.0) -> tuple[float, float, float]:
-    x, y, z = pymap3d.geodetic2ecef(lat_deg, lon_deg, h_m)
-    return float(x), float(y), float(z)
+    """One point's ECEF metres: pymap3d's `geodetic2ecef` formula on Python floats (the
+    avoidance and the planners call it hundreds of thousands of times a flight, where
+    numpy's per-call cost was most of its time); tests/swarm_proto/test_geodesy.py holds
+    it to pymap3d's answer."""
+    lat, lon = math.radians(lat_deg), math.radians(lon_deg)
+    sin_lat, cos_lat = math.sin(lat), math.cos(lat)
+    n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * sin_lat * sin_lat)
+    return (
+        (n + h_m) * cos_lat * math.cos(lon),
+        (n + h_m) * cos_lat * math.sin(lon),
+        (n * (1.0 - WGS84_E2) + h_m) * sin_lat,
+    )
+
+
+def enu_of(
+    lat_deg: float, lon_deg: float, h_m: float, lat0_deg: float, lon0_deg: float, h0_m: float
+) -> tuple[float, float, float]:
+    """One point's East, North, Up metres in the frame tangent at (lat0, lon0, h0): `enu`
+    for one point, on Python floats (pymap3d's `geodetic2enu`: the ECEF difference turned
+    into the tangent frame)."""
+    x, y, z = ecef(lat_deg, lon_deg, h_m)
+    x0, y0, z0 = ecef(lat0_deg, lon0_deg, h0_m)
+    dx, dy, dz = x - x0, y - y0, z - z0
+    lat0, lon0 = math.radians(lat0_deg), math.radians(lon0_deg)
+    sin_lat, cos_lat = math.sin(lat0), math.cos(lat0)
+    sin_lon, cos_lon = math.sin(lon0), math.cos(lon0)
+    t = cos_lon * dx + sin_lon * dy
+    east = -sin_lon * dx + cos_lon * dy
+    up = cos_lat * t + sin_lat * dz
+    north = -sin_lat * t + cos_lat * dz
+    return east, north, up
 
 
 def ecef_many(lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, h_m: npt.ArrayLike) -> FloatArray:

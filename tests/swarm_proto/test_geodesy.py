@@ -54,6 +54,19 @@ def test_3d_distance_is_the_ecef_chord(la: float, lo: float, n: float, e: float,
     assert d == pytest.approx(math.sqrt(n * n + e * e + up * up), abs=1e-6)
 
 
+@given(lat, lon, st.floats(-500, 5000), st.floats(-5000, 5000), st.floats(-5000, 5000))
+def test_one_point_formulas_are_pymap3ds(
+    la: float, lo: float, h: float, n: float, e: float
+) -> None:
+    """`ecef` and `enu_of`, on Python floats for speed, give pymap3d's answers."""
+    want = pymap3d.geodetic2ecef(la, lo, h)
+    assert geodesy.ecef(la, lo, h) == pytest.approx(tuple(map(float, want)), abs=1e-6)
+    la2, lo2, h2 = (float(x) for x in pymap3d.enu2geodetic(e, n, 30.0, la, lo, h))
+    want_enu = pymap3d.geodetic2enu(la2, lo2, h2, la, lo, h)
+    got = geodesy.enu_of(la2, lo2, h2, la, lo, h)
+    assert got == pytest.approx(tuple(map(float, want_enu)), abs=1e-6)
+
+
 @given(lat, lon, st.floats(-10_000, 10_000), st.floats(-10_000, 10_000))
 def test_offset_lands_at_the_distance_and_bearing_asked(
     la: float, lo: float, n: float, e: float

@@ -18,7 +18,7 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.validation import explain_validity
 
-from swarm_proto import Geometry, GeometryKind, LatLon, VehicleStatus
+from swarm_proto import Geometry, GeometryKind, LatLon, VehicleStatus, geodesy
 
 from .errors import EmptyAreaError, InvalidGeometryError
 
@@ -92,8 +92,8 @@ class LocalFrame:
     def to_local(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
         if not _finite(lat_deg, lon_deg):
             raise InvalidGeometryError("coordinates must be finite (got NaN or infinity)")
-        e, n, _u = pymap3d.geodetic2enu(lat_deg, lon_deg, 0.0, self.lat0_deg, self.lon0_deg, 0.0)
-        return float(e), float(n)
+        e, n, _u = geodesy.enu_of(lat_deg, lon_deg, 0.0, self.lat0_deg, self.lon0_deg, 0.0)
+        return e, n
 
     def to_local_many(self, lat_lon: Sequence[tuple[float, float]]) -> np.ndarray:
         arr = np.asarray(lat_lon, dtype=np.float64).reshape(-1, 2)
