@@ -193,9 +193,11 @@ def peers(
 
 # --------------------------------------------------------------------------- commands
 
-#: commands that move or arm vehicles: a selector is required and they are confirmed
+#: commands that move or arm vehicles, or take them out of the swarm's control: a selector
+#: is required and they are confirmed (the map asks the same, map/commands.py)
 MOVING = frozenset(
     {
+        CommandKind.SHUTDOWN,
         CommandKind.ARM,
         CommandKind.DISARM,
         CommandKind.TAKEOFF,
@@ -256,11 +258,12 @@ def cmd(
     """Send an operator command and show every addressed vehicle's answer: accepted,
     rejected with its full reason, or silent. Exit 1 unless all accepted.
 
-    Commands that move or arm vehicles (arm, disarm, takeoff, set-mode, goto, set-speed,
-    set-altitude, rtl, land, emergency-land, abort-landing, parachute, cancel-mission,
-    join-mission, swap-mission) need --id, --fleet or --all and are confirmed unless
-    --yes; the others (set-base, calibrate, set-fleet, activate, shutdown) go to every
-    vehicle when no selector is given.
+    Commands that move or arm vehicles or take them out of the swarm's control (arm,
+    disarm, takeoff, set-mode, goto, set-speed, set-altitude, rtl, land, emergency-land,
+    abort-landing, parachute, cancel-mission, join-mission, swap-mission, shutdown) need
+    --id, --fleet or --all and are confirmed unless --yes; the others (set-base,
+    calibrate, set-fleet, activate) go to every vehicle when no selector is given. A
+    vehicle refuses shutdown while armed: bring it down first (rtl, land).
 
     Example: gcs cmd rtl --fleet 2 --yes
     """

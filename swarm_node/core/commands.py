@@ -187,6 +187,13 @@ def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
     if k == CommandKind.ACTIVATE:
         return done(SetActive(True))
     if k == CommandKind.SHUTDOWN:
+        # the swarm logic stops: an armed vehicle would be left with no owner (an
+        # aircraft loitering where it was, no avoidance, nobody bringing it home). It is
+        # refused until the operator has brought it down (rtl, land) or disarmed it
+        if ap.armed:
+            return reject(
+                AckReason.BUSY, "armed: bring it down (rtl, land) or disarm, then shut down"
+            )
         return done(SetActive(False))
     if k == CommandKind.CANCEL_MISSION:
         if view.mission_id is None or a.mission_id != view.mission_id:

@@ -127,6 +127,13 @@ def test_a_command_that_moves_vehicles_is_not_sent_unconfirmed(
     code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "arm", "--all"])
     err = capsys.readouterr().err
     assert code == 2 and "add --yes to confirm" in err and "every vehicle alive" in err, err
+    # shutdown takes vehicles out of the swarm's control: a selector, then a confirmation
+    code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "shutdown"])
+    err = capsys.readouterr().err
+    assert code == 2 and "say which vehicles" in err, err
+    code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "shutdown", "--id", "3"])
+    err = capsys.readouterr().err
+    assert code == 2 and "add --yes to confirm" in err, err
     assert listener == []
 
 

@@ -309,3 +309,29 @@ def test_emergency_procedures_of_a_plane() -> None:
     ]  # a plane cannot land where it is: home
     assert emergency_requests(AlertCode.GPS_LOSS, plane) == ()  # ArduPlane's own failsafe
     assert emergency_requests(AlertCode.ATTITUDE_ABNORMAL, plane) == ()
+
+
+def test_shutdown_is_refused_while_armed_and_taken_on_the_ground() -> None:
+    """SHUTDOWN stops the swarm logic: an airborne vehicle would be left loitering with
+    no owner (no avoidance, nobody bringing it home). It is refused with the way out
+    while the vehicle is armed, and taken once it is down and disarmed."""
+    f = fleet_of(QUAD, QUAD)
+    on_mission(f)
+    t = f.now
+    send(f, command(70, CommandKind.SHUTDOWN, Selector.ids(1)))
+    f.run_until(f.now + 1.0)
+    node = f.nodes[1]
+    ack = acks(f, 70)[1]
+    assert not ack.accepted and ack.reason == AckReason.BUSY
+    assert "rtl, land" in ack.text
+    assert node.active and node.fsm.mission_id == 50  # it flies its share on
+    assert requests(f, 1, t) == []  # nothing asked of the autopilot
+    send(f, command(71, CommandKind.RTL, Selector.ids(1)))
+    f.run_until(f.now + 1.0)
+    land(f, 1)  # down and disarmed: the sortie ended (the paper's shutdown)
+    send(f, command(72, CommandKind.ACTIVATE, Selector.ids(1)))
+    f.run_until(f.now + 1.0)
+    assert node.active
+    send(f, command(73, CommandKind.SHUTDOWN, Selector.ids(1)))
+    f.run_until(f.now + 1.0)
+    assert acks(f, 73)[1].accepted and not node.active
