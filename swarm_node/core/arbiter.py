@@ -52,6 +52,7 @@ from typing import assert_never
 import msgspec
 
 from .autopilot.requests import (
+    ApError,
     ApRequest,
     ApResult,
     Calibrate,
@@ -267,7 +268,8 @@ class AutopilotArbiter:
         if self.holder is not None and self.holder > rank:
             self.refused[owner] += 1
             reason = f"preempted by {self.holder.name}"
-            return [Routed(owner, ApResult(request.request_id, False, reason))]
+            refusal = ApResult(request.request_id, False, reason, error=ApError.PREEMPTED)
+            return [Routed(owner, refusal)]
         out = self._preempt(rank)
         self.holder = rank
         return [*out, self._send(owner, request)]

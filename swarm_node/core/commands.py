@@ -44,6 +44,7 @@ from swarm_proto.text import short_text
 
 from .autopilot.plans import CALIBRATIONS
 from .autopilot.requests import (
+    ApError,
     ApRequest,
     ApResult,
     Arm,
@@ -435,7 +436,7 @@ class CommandTracker:
             # the autopilot's
             who = (
                 AckReason.PREEMPTED
-                if result.reason.startswith("preempted by")
+                if result.error == ApError.PREEMPTED
                 else AckReason.AUTOPILOT_REJECTED
             )
             return [], [self._ack(run.cmd, False, who, result.reason)]

@@ -658,7 +658,7 @@ class NodeRuntime:
                 for nid, vt, fleet, fsm, heard, untrusted in snap.peers
             ),
             dropped=snap.dropped,
-            identity_conflict=snap.conflict[:64],
+            identity_conflict=short_text(snap.conflict),
         )
         query.reply(query.key_expr, lan.encode(view))
 

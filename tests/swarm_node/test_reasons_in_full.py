@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import msgspec
 
-from swarm_node.core.autopilot.requests import ApResult, Land
+from swarm_node.core.autopilot.requests import ApError, ApResult, Land
 from swarm_node.core.commands import CommandTracker
 from swarm_node.core.mission.share import Member, PlanRequest, run_plan
 from swarm_node.database import seed_profiles
@@ -48,11 +48,16 @@ def test_a_refusal_names_who_refused_the_node_or_the_autopilot() -> None:
     tracker = CommandTracker(7)
     cmd = Command(GCS, 5, CommandKind.LAND, Selector(), CommandArgs())
     (sent,) = tracker.start(cmd, (Land(),), 0.0)
-    _, (ack,) = tracker.on_result(ApResult(sent.request_id, False, "preempted by AVOIDANCE"), 0.1)
+    refusal = ApResult(sent.request_id, False, "preempted by AVOIDANCE", error=ApError.PREEMPTED)
+    _, (ack,) = tracker.on_result(refusal, 0.1)
     assert (ack.accepted, ack.reason) == (False, AckReason.PREEMPTED)
     assert ack.text == "preempted by AVOIDANCE"
     (sent,) = tracker.start(msgspec.structs.replace(cmd, seq=6), (Land(),), 1.0)
     _, (ack,) = tracker.on_result(ApResult(sent.request_id, False, "COMMAND_ACK DENIED"), 1.1)
+    assert ack.reason == AckReason.AUTOPILOT_REJECTED
+    # the words alone are the autopilot's (a STATUSTEXT may say anything): not PREEMPTED
+    (sent,) = tracker.start(msgspec.structs.replace(cmd, seq=7), (Land(),), 2.0)
+    _, (ack,) = tracker.on_result(ApResult(sent.request_id, False, "preempted by X"), 2.1)
     assert ack.reason == AckReason.AUTOPILOT_REJECTED
 
 
