@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import msgspec
 import typer
@@ -30,6 +31,7 @@ from swarm_proto import (
     Selector,
 )
 
+from . import _clickx, lost_store
 from .answers import progress, report
 from .common import (
     Link,
@@ -42,9 +44,10 @@ from .common import (
     wait_option,
 )
 from .core.exchange import Verdict
+from .core.lost import NotLostError, finite_id
 from .core.reasons import alert_text
 from .db import DbOption
-from .ground import new_seq
+from .ground import FleetView, new_seq
 from .options import (
     AllOption,
     FleetOption,
@@ -85,20 +88,56 @@ def status(
     shown = read_filter(ids, fleet, all_)
     with ctx.obj.open() as gs:
         time.sleep(wait)
+        view = gs.snapshot()
+        lost = kept_lost(gs.swarm, view)
         if as_json:
-            rows = [r for r in fleet_rows(gs.snapshot()) if _in(shown, r)]
+            rows = [r for r in fleet_rows(view, lost) if _in(shown, r)]
             typer.echo(json.dumps(rows, indent=2))
             return
         if not watch:
-            view = gs.snapshot()
-            if not view.vehicle_ids():
+            if not view.vehicle_ids() and not lost:
                 console.print(f"no vehicle heard in {wait:g} s", style="yellow")
                 return
-            show(fleet_table(view, title=f"swarm {gs.swarm}", shown=shown))
+            show(fleet_table(view, title=f"swarm {gs.swarm}", shown=shown, lost=lost))
             return
         from .monitor import live_watch
 
         live_watch(gs, console, shown)
+
+
+def kept_lost(swarm: str, view: FleetView) -> dict[int, dict[str, Any]]:
+    """The kept lost list (lost_store.py) updated with what this run heard: the
+    vehicles lost and not heard now, by id."""
+    now, now_unix = time.monotonic(), time.time()
+    book = lost_store.load(swarm)
+    for vid, st in view.status.items():
+        at = now_unix - (now - view.heard_at.get(vid, now))
+        book.heard(st, view.info.get(vid), at)
+    lost_store.save(swarm, book)
+    return {v: f for v, f in book.lost(now_unix).items() if v not in view.status}
+
+
+@app.command()
+def dismiss(
+    ctx: typer.Context,
+    vehicle: str = typer.Argument(..., help="the lost vehicle's id"),
+) -> None:
+    """Take a LOST vehicle off the ground station's list (`gcs status`, the map) once
+    it is accounted for (found on the ground, recovered). A vehicle heard again, or
+    whose last report says it landed, leaves the list by itself.
+
+    Example: gcs dismiss 8
+    """
+    swarm = ctx.obj.swarm
+    book = lost_store.load(swarm)
+    try:
+        book.dismiss(finite_id(vehicle), time.time())
+    except NotLostError as exc:
+        err = _clickx.ClickException(str(exc))
+        err.exit_code = 2  # type: ignore[attr-defined]  # bad input: usage
+        raise err from None
+    lost_store.save(swarm, book)
+    console.print(f"vehicle {vehicle.strip()} dismissed from the lost list")
 
 
 def show(renderable: object) -> None:

@@ -13,6 +13,7 @@ from rich.text import Text
 from swarm_proto import Ack, AlertFlag, Selector, VehicleStatus, VehicleType
 from swarm_proto.ardupilot import autopilot_mismatch, mode_name
 
+from .core.lost import lost_fields
 from .core.reasons import ack_text
 from .ground import FleetView
 
@@ -31,12 +32,25 @@ def data_age_s(status: VehicleStatus, now_unix_s: float) -> float:
     return round(max(0.0, now_unix_s - status.time_unix_s) + status.predicted_s, 1)
 
 
-def fleet_rows(view: FleetView) -> list[dict[str, Any]]:
-    """One plain dict per vehicle (also the --json output)."""
+def fleet_rows(
+    view: FleetView, lost: dict[int, dict[str, Any]] | None = None
+) -> list[dict[str, Any]]:
+    """One plain dict per vehicle (also the --json output); a vehicle not heard for
+    5 s that was flying is LOST (its last position and age, its predicted position:
+    core/lost.py), and so is each of `lost` (the kept list's, unheard in this run)."""
     now = time.monotonic()
     now_unix = time.time()
     rows = []
-    for vid in view.vehicle_ids():
+    for vid in sorted(set(view.vehicle_ids()) | set(lost or ())):
+        if vid not in view.status and vid not in view.info and vid not in view.alive:
+            kept = (lost or {})[vid]
+            last = kept["last"]
+            rows.append(
+                {"id": vid, "type": "OTHER", "alive": False, "fsm": "LOST", **kept}
+                | {"lat": last["lat"], "lon": last["lon"], "alt_rel_m": last["alt_rel_m"]}
+                | {"age_s": last["age_s"]}
+            )
+            continue
         st, info = view.status.get(vid), view.info.get(vid)
         vt = info.vehicle_type if info else VehicleType.OTHER
         row: dict[str, Any] = {
@@ -75,6 +89,9 @@ def fleet_rows(view: FleetView) -> list[dict[str, Any]]:
                 alert_bits=int(st.alerts),
                 data_age_s=data_age_s(st, now_unix),
             )
+            gone = lost_fields(st, info, row["age_s"])
+            if gone:
+                row.update(gone, fsm="LOST")
         rows.append(row)
     return rows
 
@@ -191,7 +208,12 @@ def _cells(row: dict[str, Any]) -> list[str]:
 
 
 def fleet_table(
-    view: FleetView, title: str = "fleet", shown: Selector | None = None, *, rates: bool = False
+    view: FleetView,
+    title: str = "fleet",
+    shown: Selector | None = None,
+    *,
+    rates: bool = False,
+    lost: dict[int, dict[str, Any]] | None = None,
 ) -> Group:
     """The fleet, one line per vehicle, in 100 columns (with `rates`, the packets per
     second heard from each vehicle too: `gcs watch`), and under it one line per vehicle
@@ -215,7 +237,7 @@ def fleet_table(
         table.add_column("pkt/s", justify="right", no_wrap=True)
     now = time.monotonic()
     notes: list[Text] = []
-    for row in fleet_rows(view):
+    for row in fleet_rows(view, lost):
         if shown is not None and not shown.addresses(row["id"], row.get("fleet") or 0):
             continue
         *cells, names = _cells(row)
@@ -228,7 +250,24 @@ def fleet_table(
             notes.append(Text(f"{row['id']:>5} ! {names}", style="red"))
         if row.get("untrusted"):
             notes.append(Text(f"{row['id']:>5} ! untrusted: {row['untrusted']}", style="red"))
+        if row.get("lost"):
+            notes.append(Text(f"{row['id']:>5} ! {lost_note(row)}", style="red"))
     return Group(table, *notes)
+
+
+def lost_note(row: dict[str, Any]) -> str:
+    """A lost vehicle's line: its last position, how long ago, where it is predicted."""
+    last, p = row["last"], row.get("predicted")
+    text = (
+        f"LOST {last['age_s']:.0f} s: last {last['lat']:.5f},{last['lon']:.5f} "
+        f"{last['alt_rel_m']:.0f} m"
+    )
+    if p:
+        text += (
+            f"; predicted {p['lat']:.5f},{p['lon']:.5f} {p['alt_rel_m']:.0f} m "
+            f"±{p['error_m']:.0f} m ({p['phase']})"
+        )
+    return text
 
 
 def ack_table(acks: list[Ack], title: str) -> Table:

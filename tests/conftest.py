@@ -147,6 +147,15 @@ def swarm_db(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     return path
 
 
+@pytest.fixture(autouse=True)
+def _gcs_lost_list(
+    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each test's ground station keeps its lost list (gcs_cli/lost_store.py) in a file
+    of its own, for it and its children: never the user's, never another test's."""
+    monkeypatch.setenv("BANDADA_GCS_STATE", str(tmp_path_factory.mktemp("gcs") / "lost.db"))
+
+
 @pytest.fixture
 def zenoh_router() -> Iterator[str]:
     """A router-mode Zenoh session on a free 127.0.0.1 port; yields its endpoint."""

@@ -147,6 +147,19 @@ def _selection(
     return selector_from(ids, fleet, count, payload, bool(sel.get("all")), required=required)
 
 
+def dismissal(req: Any) -> int:
+    """The page's {"id": N}: a LOST vehicle to take off the list (as `gcs dismiss
+    N`; nothing is sent). PageError (one line) for anything but a vehicle id."""
+    from ..core.lost import NotLostError, finite_id
+
+    if not isinstance(req, dict) or "id" not in req:
+        raise PageError('a dismissal is {"id": VEHICLE}')
+    try:
+        return finite_id(req["id"])
+    except NotLostError as exc:
+        raise PageError(str(exc)) from None
+
+
 def prepare(
     req: Any,
     *,

@@ -9,12 +9,18 @@ sends what it returns; the tests feed it messages and times.
     model.on_timer(now)      -> [PlanJob]   (a mission's roster settled: plan its shares)
     model.next_deadline()    -> when to call on_timer again
     model.frame(cursor, now) -> (frame, cursor)   what changed since `cursor`, JSON-able
+    model.dismiss(vid, now)                    a LOST vehicle off the map (the operator's)
 
 `now` is any monotonic time in seconds (the server's `time.monotonic()`, the replay's
 time): link age, packets per second and trails are counted on it. A frame carries the
 vehicles that changed, every vehicle's link (age, packets/s, lost), the trail points
 and alerts that are new, and the zones, missions, vote and commands when they changed;
 cursor 0 gives everything (a page that just connected).
+
+A vehicle heard flying and not heard for `HEARD_ALIVE_S` is LOST: its link carries its
+last position, its age and its predicted position (gcs_cli/core/lost.py) until it is
+heard again, its last report says it landed, or the operator dismisses it (`dismiss`:
+off the map, listed in the frame's `dismissed`, back if it is heard again).
 
 Each mission's shares are each member's part of the plan, as the members plan it: when
 a mission's roster (the vehicles whose VehicleInfo says they fly it) has stood still
@@ -31,6 +37,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from gcs_cli.core.lost import NotLostError, finite_id, landed, lost_fields
 from gcs_cli.core.reasons import alert_text, reason_text
 from swarm_node.core.mission.voting import rank, score_key
 from swarm_node.core.monitoring import SPECS
@@ -275,6 +282,7 @@ class MapModel:
         self.acks: deque[Ack] = deque(maxlen=500)  # to us, lately: a ref made after them
         self.swarm_time = 0.0  # the newest status time heard (the swarm's clock)
         self.changed = {"zones": 0, "missions": 0, "vote": 0, "commands": 0}
+        self.dismissed: dict[int, int] = {}  # vehicle -> the seq it was dismissed at
 
     # ------------------------------------------------------------------ inputs
     def _bump(self, section: str | None = None) -> int:
@@ -287,7 +295,20 @@ class MapModel:
         v = self.vehicles.get(vid)
         if v is None:
             v = self.vehicles[vid] = _Vehicle(vid)
+            self.dismissed.pop(vid, None)  # heard again
         return v
+
+    def dismiss(self, vehicle_id: Any, now: float) -> int:
+        """The operator takes a LOST vehicle off the map (it is accounted for): the
+        vehicle's id. NotLostError (one line): not an id, or not a lost vehicle."""
+        vid = finite_id(vehicle_id)
+        v = self.vehicles.get(vid)
+        if v is None or not self.link(v, now)["lost"]:
+            lost = [str(i) for i, w in sorted(self.vehicles.items()) if self.link(w, now)["lost"]]
+            raise NotLostError(f"vehicle {vid} is not lost (lost: {', '.join(lost) or 'none'})")
+        del self.vehicles[vid]
+        self.dismissed[vid] = self._bump()
+        return vid
 
     def _heard(self, v: _Vehicle, now: float) -> None:
         v.heard_at = now
@@ -464,12 +485,18 @@ class MapModel:
     def link(self, v: _Vehicle, now: float) -> dict[str, Any]:
         age = None if v.heard_at is None else max(0.0, now - v.heard_at)
         pps = sum(now - t <= RATE_WINDOW_S for t in v.arrivals) / RATE_WINDOW_S
-        return {
+        out = {
             "age_s": None if age is None else _r(age),
             "pps": _r(pps),
             "alive": v.alive,
             "lost": age is None or age > HEARD_ALIVE_S,
         }
+        if out["lost"] and v.status is not None:
+            # heard flying: last position, its age and where it is predicted now
+            gone = lost_fields(v.status, v.info, age)
+            out.update(landed=landed(v.status), last=gone.get("last"))
+            out["predicted"] = gone.get("predicted")
+        return out
 
     def vehicle(self, v: _Vehicle) -> dict[str, Any]:
         """One vehicle as the page shows it: the icon, the list's row and the paper's
@@ -710,6 +737,7 @@ class MapModel:
                 if v.trail and v.trail[-1][0] > cursor
             },
             "alerts": [self.alert_json(t, a) for s, t, a in self.alerts if s > cursor],
+            "dismissed": sorted(v for v, s in self.dismissed.items() if s > cursor),
             "summary": self.summary(now),
         }
         if self.changed["zones"] > cursor:

@@ -44,7 +44,16 @@ from swarm_proto.topics import ACK, ALERT, INFO, MISSION, VOTE, ZONE
 
 from ..answers import outcome_json, summary
 from ..core.exchange import Exchange
-from .commands import PageError, Prepared, geometry_preview, prepare, question, send
+from ..core.lost import NotLostError
+from .commands import (
+    PageError,
+    Prepared,
+    dismissal,
+    geometry_preview,
+    prepare,
+    question,
+    send,
+)
 from .model import (
     Alive,
     CommandDone,
@@ -239,8 +248,14 @@ class Hub:
             return {"ok": False, "error": "refused: no token, or not this map's (see its URL)"}
         if op == "replay":
             return self._replay(body.get("req"))
+        if op == "dismiss":  # the ground station's own list: nothing sent
+            try:
+                vid = self.model.dismiss(dismissal(body.get("req")), self.now())
+            except (PageError, NotLostError) as exc:
+                return {"ok": False, "error": str(exc)}
+            return {"ok": True, "dismissed": vid}
         if op not in ("check", "send"):
-            return {"ok": False, "error": f"unknown op {op!r}: check, send, replay"}
+            return {"ok": False, "error": f"unknown op {op!r}: check, send, replay, dismiss"}
         if self.gs is None:
             return {"ok": False, "error": "a replay sends no commands"}
         loop = asyncio.get_running_loop()

@@ -269,7 +269,14 @@
     p.sensors = el("div", "sensors"); p.state = el("div"); p.alerts = el("div"); p.mismatch = el("div", "bad");
     p.trail = el("button");
     p.trail.addEventListener("click", () => { v.trailOn = !v.trailOn; trimTrail(v); renderPfd(); renderList(); });
-    box.append(head, grid, p.sensors, p.state, p.alerts, p.trail, p.mismatch);
+    // a LOST vehicle accounted for: off the ground station's list (as `gcs dismiss ID`)
+    p.dismiss = el("button", "", "Dismiss (accounted for)");
+    p.dismiss.addEventListener("click", async () => {
+      if (!confirm(`vehicle ${v.id} is accounted for: take it off the map?`)) return;
+      const r = await send("dismiss", { id: v.id });
+      if (!r.ok) showError(r.error);
+    });
+    box.append(head, grid, p.sensors, p.state, p.alerts, p.trail, p.dismiss, p.mismatch);
     return p;
   }
 
@@ -307,6 +314,13 @@
     setText(p.state, `${d.fsm || "-"} / ${d.mission_state || "-"} ${d.progress_pct ?? ""}% · ${d.mode || "-"} ${d.armed ? "ARMED" : "disarmed"} · fleet ${d.fleet ?? "-"} · mission ${d.mission_id || "-"} · link ${link.lost ? "LOST" : f(link.age_s, " s")} ${f(link.pps, "/s")}`);
     setText(p.alerts, (d.alerts && d.alerts.length) ? `alerts: ${d.alerts.join(", ")}` : "no active alert", d.worst ? "bad" : "dim");
     setText(p.trail, v.trailOn ? "Hide trajectory" : "Show trajectory");
+    p.dismiss.classList.toggle("hidden", !link.lost);
+    const pr = link.predicted, last = link.last;
+    if (link.lost && last) {
+      const where = pr ? `; predicted ${pr.lat.toFixed(5)}, ${pr.lon.toFixed(5)} ${pr.alt_rel_m.toFixed(0)} m ±${pr.error_m.toFixed(0)} m (${pr.phase})` : "";
+      setText(p.mismatch, `LOST ${last.age_s.toFixed(0)} s: last ${last.lat.toFixed(5)}, ${last.lon.toFixed(5)} ${last.alt_rel_m.toFixed(0)} m${where}`);
+      return;
+    }
     setText(p.mismatch, d.autopilot_mismatch ? `autopilot: ${d.autopilot_mismatch}` : "");
   }
 
@@ -742,6 +756,21 @@
       const was = v.link && v.link.lost;
       v.link = link;
       if (was !== link.lost) styleMarker(v);
+      // a lost vehicle heard flying: where it is predicted now, within error_m
+      const pr = link.predicted;
+      if (pr && !v.hidden) {
+        if (!v.predCircle) v.predCircle = L.circle([pr.lat, pr.lon], { radius: pr.error_m, color: "#c00", weight: 1, dashArray: "2 4", fill: false, interactive: false }).addTo(layers.errors);
+        v.predCircle.setLatLng([pr.lat, pr.lon]); v.predCircle.setRadius(pr.error_m);
+      } else if (v.predCircle) { v.predCircle.remove(); v.predCircle = null; }
+    }
+    for (const id of f.dismissed || []) {
+      const v = state.vehicles.get(id);
+      if (!v) continue;
+      for (const m of [v.marker, v.errCircle, v.predCircle, v.home, v.trailLine]) if (m) m.remove();
+      if (v.row) v.row.row.remove();
+      state.sel.delete(id);
+      state.vehicles.delete(id); state.order = state.order.filter((x) => x !== id);
+      if (state.focused === id) state.focused = null;
     }
     for (const [id, pts] of Object.entries(f.trails)) addTrail(Number(id), pts);
     for (const v of state.vehicles.values()) if (v.trail.length) trimTrail(v);
