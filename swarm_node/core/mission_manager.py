@@ -648,6 +648,7 @@ class MissionManager:
         ap: AutopilotState,
         now: float,
         battery_pct: Mapping[int, float] | None = None,
+        merge: tuple[tuple[Replay, Mapping[int, tuple[float, float]]], ...] = (),
     ) -> list[Out]:
         """What is left of the fleet plan (every old member's `progress_m` along its
         share) shared among `survivors`, posed where their progress puts them (and, for
@@ -670,6 +671,7 @@ class MissionManager:
             base=base,
             progress_m=dict(progress_m),
             battery_pct=dict(battery_pct or {}),
+            merge=merge,
         )
         ids = sorted(m.profile.vehicle_id for m in survivors)
         done = {v: round(p) for v, p in sorted(progress_m.items())}

@@ -101,12 +101,13 @@ from ..reattach import Decision, Reattacher, dropped, same_share, sortie_record
 from ..reports import MissionReport
 from ..safety.pad_sequence import PadSequence
 from ..safety.zones import ZoneBook
-from ..swarm.regroup import Regroup
+from ..swarm.heal import Heal
+from ..swarm.regroup import Lineage, Regroup
 from ..swarm.roster import MemberJoined, MemberLost, Roster, RosterEvent, RosterMismatch
 from .phases import Phase
 from .published import along_share, lineage_battery, published_home, published_progress
 from .scoring import Candidate
-from .share import PlanOutcome, heading_on, pose_on
+from .share import PlanOutcome, Replay, heading_on, pose_on
 from .tasking import Derived, Elected, Standing, Tasking, TaskingOutput, TaskingSettings, VoteFailed
 from .voting import VoterLost
 
@@ -151,6 +152,8 @@ class MissionCoordinator:
         self.roster = Roster(vid)  # the members of the current mission, agreed by all
         self.tasking = Tasking(vid, self.tasking_settings, self.fleet_profiles)
         self.regroup = Regroup(vid)  # add and swap: lineages of the fleets flown in
+        self.heal = Heal(vid)  # a partition healed: the other parts' lineages
+        self._merging: dict[int, tuple[PlanLineage, ...]] = {}  # mission -> parts to merge
         self.missions: dict[int, Mission] = {}  # the missions in force, by id
         self.lost_members: list[MemberLost] = []  # roster events (replanning picks them up)
         self.record: SortieRecord | None = None  # the share flown (restored or kept)
@@ -413,7 +416,12 @@ class MissionCoordinator:
             mission.mission_id, [m.profile.vehicle_id for m in members], progress, battery
         )
         zones = ctx.zones.no_fly(now)
-        out = self.manager.replan(mission, members, progress, zones, ctx.autopilot, now, battery)
+        merge = self._merge_inputs(mission.mission_id)
+        if merge:  # a healed partition: every part's plan in one (battery: not modelled)
+            battery = {}
+        out = self.manager.replan(
+            mission, members, progress, zones, ctx.autopilot, now, battery, merge=merge
+        )
         lineage = self.regroup.lineages.get(mission.mission_id)
         if took_in and lineage is not None:  # a vehicle joins: it needs how the plan came to be
             out.append(Publish(lineage.message(self.self_id, self.roster.members_hash)))
@@ -539,6 +547,8 @@ class MissionCoordinator:
                 return []
             case PlanLineage():
                 self.regroup.on_lineage(msg)
+                if self.heal.on_lineage(msg, self.roster.members_hash):  # a healed partition
+                    return self._heal(msg.mission.mission_id, read(), now)
                 return []
             case Vote() | TargetReport():
                 return self._tasked(self.tasking.handle(msg, now), read(), now)
@@ -783,6 +793,7 @@ class MissionCoordinator:
                     ]
             elif isinstance(ev, RosterMismatch):  # an alert, once per member and hash
                 out += self._mismatch(ev, now)
+                out += self._meet(ev, ctx, now)
         return out
 
     def _mismatch(self, ev: RosterMismatch, now: float) -> list[ModuleOutput]:
@@ -809,6 +820,85 @@ class MissionCoordinator:
             short_text(text),
         )
         return [Note(logging.ERROR, text), Publish(alert)]
+
+    # ------------------------------------------------------------------ a partition heals
+    def _healable(self, mid: int) -> bool:
+        f, mission = self.fsm, self.missions.get(mid)
+        return (
+            mission is not None
+            and mission.mission_type == MissionType.AREA
+            and f.state == FsmState.GO_MISSION
+            and f.mission_id == mid
+            and self.roster.frozen
+            and mid in self.regroup.lineages
+            and self.mission_state in REPLANNING
+        )
+
+    def _meet(self, ev: RosterMismatch, ctx: Context, now: float) -> list[ModuleOutput]:
+        """A member lost by silence flies our mission under another roster: the parts
+        of a partition meet again (swarm/heal.py). Our part's lineage for theirs, once."""
+        mid = ev.mission_id
+        if ev.vehicle_id not in self.roster.lost or not self._healable(mid):
+            return []
+        out: list[ModuleOutput] = []
+        if self.heal.meet(mid, ev.theirs):
+            lineage = self.regroup.lineages[mid]
+            out.append(Publish(lineage.message(self.self_id, self.roster.members_hash)))
+        return out + self._heal(mid, ctx, now)
+
+    def _heal(self, mid: int, ctx: Context, now: float) -> list[ModuleOutput]:
+        """Every other part's lineage held: their members join again and the fleet
+        replans one plan of what none of the parts flew."""
+        r = self.roster
+        if mid in self._merging and not r.merging:
+            del self._merging[mid]  # the last heal was agreed
+        if mid in self._merging or not self._healable(mid):
+            return []
+        live = [
+            v
+            for v in r.lost
+            if v in ctx.peers
+            and ctx.peers[v].present
+            and ctx.peers[v].info is not None
+            and ctx.peers[v].info.mission_id == mid  # type: ignore[union-attr]
+        ]
+        hashes = {v: h for v, h in r.hashes.items() if h not in (0, r.members_hash)}
+        parts = self.heal.parts(mid, hashes, live)
+        if parts is None:
+            return []
+        others = {v for p in parts for v in Lineage.of(p).members}
+        own = self.regroup.lineages[mid]
+        generation = max(len(own.steps), *(len(p.replans) for p in parts))
+        r.merge(others, generation, (p.members_hash for p in parts))
+        self._merging[mid] = parts
+        text = (
+            f"mission {mid}: partition healed; merging with {sorted(others)} "
+            f"(rosters {', '.join(f'{p.members_hash:#06x}' for p in parts)})"
+        )
+        return [Note(logging.WARNING, text), Post(fsm.Replan(mid))]
+
+    def _merge_inputs(
+        self, mid: int
+    ) -> tuple[tuple[Replay, Mapping[int, tuple[float, float]]], ...]:
+        """The other parts to merge with: each one's lineage made into planning inputs
+        and its members' published progress (empty: nothing to merge)."""
+        parts = self._merging.get(mid, ())
+        if not parts:
+            return ()
+        if not self.roster.merging:  # agreed (roster.settle): merged
+            del self._merging[mid]
+            return ()
+        profiles = {**self.fleet_profiles, self.self_id: self.profile}
+        out = []
+        for p in parts:
+            lineage = Lineage.of(p)
+            try:
+                replay = lineage.replay(profiles)
+            except KeyError:
+                return ()  # a member with no profile: the parts keep their plans
+            out.append((replay, {v: self.roster.progress_of(v) for v in lineage.members}))
+        self.heal.done(mid)
+        return tuple(out)
 
     # ------------------------------------------------------------------ a restart in flight
     def restored(self, record: SortieRecord | None, now: float) -> None:

@@ -132,7 +132,14 @@ def replay(
     posed by `pose_on`)."""
     plan = plan_fleet(mission, lineage.first, zones, now, home_alt_msl_m)
     for profiles, progress, battery in lineage.steps:
-        members = [Member(p, pose_on(plan, p.vehicle_id, progress)) for p in profiles]
+        members = [
+            Member(
+                p,
+                pose_on(plan, p.vehicle_id, progress),
+                heading_deg=heading_on(plan, p.vehicle_id, progress),
+            )
+            for p in profiles
+        ]
         plan = plan.replan(
             progress,
             _vehicles(members),
@@ -142,6 +149,48 @@ def replay(
             battery_pct=dict(battery) or None,
         )
     return plan
+
+
+def merge(req: PlanRequest) -> FleetPlan:
+    """A healed partition's plan (`FleetPlan.merged`): every other part's plan made
+    again from its lineage, its members' progress along their shares of it (as they
+    published it), and every member posed where its progress puts it on its part's
+    plan."""
+    from .published import along_share
+
+    assert req.base is not None
+    others: list[tuple[FleetPlan, dict[int, float]]] = []
+    for lineage, published in req.merge:
+        plan = replay(req.mission, lineage, req.zones, req.now, req.home_alt_msl_m)
+        prog = {
+            v: along_share(plan.shares[v].length_m, p, path)[0]
+            for v, (p, path) in sorted(published.items())
+            if v in plan.shares
+        }
+        others.append((plan, prog))
+    parts = [(req.base, dict(req.progress_m)), *others]
+    members = []
+    for m in req.members:
+        vid = m.profile.vehicle_id
+        part = next(((p, g) for p, g in parts if vid in p.shares), None)
+        if part is None:
+            members.append(m)
+            continue
+        members.append(
+            Member(
+                m.profile,
+                pose_on(part[0], vid, part[1]),
+                heading_deg=heading_on(part[0], vid, part[1]),
+            )
+        )
+    return req.base.merged(
+        req.progress_m,
+        others,
+        _vehicles(members),
+        zones=req.zones,
+        now_unix_s=req.now,
+        home_alt_msl_m=req.home_alt_msl_m,
+    )
 
 
 @dataclass(frozen=True)
@@ -162,6 +211,9 @@ class PlanRequest:
     #: a replan's survivors' battery left by the model (`Endurance.left_pct`): an area
     #: replan gives none more than its charge flies home
     battery_pct: Mapping[int, float] = field(default_factory=dict)
+    #: a healed partition: each other part's lineage and its members' published
+    #: (progress_m, path_m); `base` and `progress_m` are this part's (`merge`)
+    merge: tuple[tuple[Replay, Mapping[int, tuple[float, float]]], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -201,7 +253,9 @@ def warm() -> bool:
 def run_plan(req: PlanRequest) -> PlanOutcome:
     """Run a plan job; a planning error is an outcome, never an exception."""
     try:
-        if req.lineage is not None:
+        if req.merge and req.base is not None:
+            plan = merge(req)
+        elif req.lineage is not None:
             plan = replay(req.mission, req.lineage, req.zones, req.now, req.home_alt_msl_m)
         elif req.base is None:
             plan = plan_fleet(req.mission, req.members, req.zones, req.now, req.home_alt_msl_m)

@@ -10,12 +10,20 @@ from dataclasses import dataclass
 from swarm_proto import GeometryKind, MissionParams
 
 from .context import PlanContext
-from .coverage import LanePlan, check_flyable, decompose, lane_spacing_m, plan_lanes
+from .coverage import Lane, LanePlan, check_flyable, decompose, lane_spacing_m, plan_lanes
 from .dubins import Pose, shortest_path
 from .endurance import Endurance, accel_m_s2
 from .errors import InvalidGeometryError, InvalidParameterError
 from .geo import LocalFrame
-from .split import MakespanCost, SplitPlan, Worker, replan, split_lanes
+from .split import (
+    MakespanCost,
+    SplitPlan,
+    Worker,
+    common_lanes,
+    remaining_lanes,
+    replan,
+    split_lanes,
+)
 from .turns import DubinsTurns, TurnModel
 from .vehicles import DEFAULT_PARAMS, PlanVehicle, VehiclePlan, require_vehicles, to_waypoints
 from .zones import ARC_STEP_M, Obstacles, Track, ZoneSet
@@ -248,6 +256,48 @@ def replan_area(
         plan.lanes,
         split,
         _vehicle_plans(split, plan.frame, alts),
+        tuple(alts.items()),
+        _tracks(split, workers, alts),
+    )
+
+
+def merge_area(
+    plans: Sequence[tuple[AreaPlan, Mapping[int, float]]],
+    vehicles: Sequence[PlanVehicle],
+    params: MissionParams = DEFAULT_PARAMS,
+) -> AreaPlan:
+    """One plan again from the plans of a fleet split in parts (a partition, each part
+    replanned from the same first plan without the others), each with its members'
+    completion percentages: what none of them flew (the lanes left in every part's
+    plan) shared among `vehicles` from where they are now. The result does not depend
+    on the order of `plans`. Their frame, zones and lane grid are the first plan's."""
+    require_vehicles(vehicles)
+    first = plans[0][0]
+    left: list[Lane] | None = None
+    alts: dict[int, float] = {}
+    for plan, pct in plans:
+        for vid, p in pct.items():
+            if not (math.isfinite(p) and 0.0 <= p <= 100.0):
+                raise InvalidParameterError(f"vehicle {vid}: progress {p} % is not in [0, 100]")
+        rest = remaining_lanes(plan.split, pct)
+        left = rest if left is None else common_lanes(left, rest)
+        for vid, alt in plan.altitudes_m:
+            alts[vid] = max(alts.get(vid, alt), alt)  # the same whichever part came first
+    top = max(alts.values(), default=params.altitude_rel_m)
+    for v in sorted(vehicles, key=lambda v: v.vehicle_id):
+        if v.vehicle_id not in alts:
+            top += params.altitude_step_m
+            alts[v.vehicle_id] = top
+    workers = _workers(vehicles, params, first.frame)
+    split = split_lanes(left or [], workers, obstacles=first.obstacles)
+    alts = {v.vehicle_id: alts[v.vehicle_id] for v in vehicles}
+    return AreaPlan(
+        first.frame,
+        first.zones,
+        first.obstacles,
+        first.lanes,
+        split,
+        _vehicle_plans(split, first.frame, alts),
         tuple(alts.items()),
         _tracks(split, workers, alts),
     )

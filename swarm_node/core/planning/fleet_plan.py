@@ -48,7 +48,7 @@ from swarm_node.core.margins import track_margin_m
 from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Mission, MissionType, NoFlyZone
 
-from .area import AreaPlan, plan_area, replan_area
+from .area import AreaPlan, merge_area, plan_area, replan_area
 from .autoland import plan_autoland
 from .context import PlanContext
 from .endurance import launch_s, transition_s
@@ -344,6 +344,50 @@ class FleetPlan:
                 vs, zones=zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
             )
         raise PlanningError(f"{kind.name} missions are not replanned")
+
+    def merged(
+        self,
+        progress_m: Mapping[int, float],
+        others: Sequence[tuple[FleetPlan, Mapping[int, float]]],
+        vehicles: Sequence[PlanVehicle],
+        *,
+        zones: Sequence[NoFlyZone],
+        now_unix_s: float,
+        home_alt_msl_m: float,
+    ) -> FleetPlan:
+        """A fleet split apart meets again (a partition healed): this plan with its
+        members' `progress_m` and the `others` parts' plans with theirs (each part
+        replanned from the same first plan without the rest) make one plan of what
+        none of them flew, shared among `vehicles` (everyone, each posed where its
+        progress puts it on its part's plan). AREA only; the same whichever part is
+        `self` (`merge_area`)."""
+        if self.mission.mission_type != MissionType.AREA:
+            raise PlanningError(f"{self.mission.mission_type.name} plans are not merged")
+        # in one order on every node, whichever part it flew in: by each part's roster
+        parts = sorted([(self, progress_m), *others], key=lambda p: p[0].roster)
+        for plan, prog in parts:
+            if (
+                not isinstance(plan.detail, AreaPlan)
+                or plan.mission.mission_id != self.mission.mission_id
+            ):
+                raise PlanningError("plans of another mission are not merged")
+            for vid, m in prog.items():
+                if not math.isfinite(m):
+                    raise InvalidParameterError(f"vehicle {vid}: progress {m} m is not finite")
+        vs = _sorted_flyable(vehicles)
+        pcts = [
+            (plan.detail, {v: plan.area_percent(v, m) for v, m in sorted(prog.items())})
+            for plan, prog in parts
+        ]
+        detail = merge_area(pcts, vs, self.mission.params)  # type: ignore[arg-type]
+        detail = flyable_plan(
+            detail, vs, zones, now_unix_s=now_unix_s, home_alt_msl_m=home_alt_msl_m
+        )
+        homes: dict[int, VehiclePose] = {}
+        for plan, _prog in parts:
+            homes.update({v: h for v, h in plan.homes.items() if v not in homes})
+        plan = _fleet_plan(self.mission, vs, detail, homes)
+        return dataclasses.replace(plan, launch_battery_pct=self.launch_battery_pct)
 
     # -- area
 

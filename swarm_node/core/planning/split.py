@@ -605,6 +605,46 @@ def remaining_lanes(plan: SplitPlan, progress_pct: Mapping[int, float]) -> list[
     return out
 
 
+def common_lanes(a: Sequence[Lane], b: Sequence[Lane], tol_m: float = 0.5) -> list[Lane]:
+    """The parts of the lanes of `a` that `b` holds too (each a piece of the same sweep
+    line): what neither of two partial records says was flown, when `a` and `b` are
+    what is left of one area by two of them (pieces under 1 m dropped, as
+    `remaining_lanes` drops them)."""
+    out: list[Lane] = []
+    for la in a:
+        n = la.length_m
+        if n <= 1e-9:
+            continue
+        ux, uy = (la.b[0] - la.a[0]) / n, (la.b[1] - la.a[1]) / n
+        spans: list[tuple[float, float]] = []
+        for lb in b:
+            if lb.line != la.line or lb.gap != la.gap:
+                continue
+            # the same straight line: both ends of lb within tol of la's line
+            off = [(p[0] - la.a[0]) * -uy + (p[1] - la.a[1]) * ux for p in (lb.a, lb.b)]
+            if max(abs(off[0]), abs(off[1])) > tol_m:
+                continue
+            s0 = (lb.a[0] - la.a[0]) * ux + (lb.a[1] - la.a[1]) * uy
+            s1 = (lb.b[0] - la.a[0]) * ux + (lb.b[1] - la.a[1]) * uy
+            lo, hi = max(min(s0, s1), 0.0), min(max(s0, s1), n)
+            if hi - lo > 1.0:
+                spans.append((lo, hi))
+        for lo, hi in _union(spans):
+            start, end = la.cut(lo / n)[1], la.cut(hi / n)[0]
+            out.append(Lane(la.line, start.a, end.b, la.gap))
+    return out
+
+
+def _union(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    merged: list[tuple[float, float]] = []
+    for lo, hi in sorted(spans):
+        if merged and lo <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], hi))
+        else:
+            merged.append((lo, hi))
+    return merged
+
+
 def replan(
     plan: SplitPlan,
     progress_pct: Mapping[int, float],

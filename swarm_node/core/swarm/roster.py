@@ -111,6 +111,9 @@ class Roster:
     #: VehicleInfo every node hears alike): what the plan gives it work for
     plan_battery: dict[int, int] = field(default_factory=dict)
     mismatches: int = 0
+    #: the rosters of the parts merging back (swarm/heal.py): a member still flying one
+    #: has not replanned yet, as one flying our previous roster
+    merging: frozenset[int] = frozenset()
     _previous_hash: int = 0
     #: the last roster every member flew (planned, generation, previous hash): a replan
     #: is made from it and, without agreement, rolled back to it (`rollback`)
@@ -138,6 +141,7 @@ class Roster:
         self.entry_at = {}
         self.hashes = {}
         self.plan_battery = {}
+        self.merging = frozenset()
         self._previous_hash = 0
         self._agreed = ((), 0, 0)
         self._reported = set()
@@ -387,13 +391,14 @@ class Roster:
             h = self.hashes.get(vid, 0)
             if h != ours:
                 all_in = False
-                if h not in (0, agreed_hash, self._previous_hash):
+                if h not in (0, agreed_hash, self._previous_hash) and h not in self.merging:
                     other.append((vid, h))
         return all_in, tuple(other)
 
     def settle(self) -> None:
         """Every member flies the current roster: the next replan starts from it."""
         self._agreed = (self.planned, self.generation, self._previous_hash)
+        self.merging = frozenset()
 
     def rollback(self) -> None:
         """Back to the last roster every member flew (a replan not agreed is dropped:
@@ -433,6 +438,22 @@ class Roster:
             self.members = tuple(sorted({*self.members, vid}))
             self.lost.pop(vid, None)
             self.finished.discard(vid)
+
+    def merge(self, others: Iterable[int], generation: int, rosters: Iterable[int] = ()) -> None:
+        """The parts of a partition meet again (swarm/heal.py): their members are
+        members again, and the next replan is generation `generation` + 1 on every
+        node (kept through a rollback)."""
+        if not self.frozen:
+            return
+        others = set(others) - {self.self_id}
+        self.members = tuple(sorted({*self.members, *others}))
+        for v in others:
+            self.lost.pop(v, None)
+            self.finished.discard(v)
+        g = max(self.generation, generation)
+        self.generation = g
+        self.merging = frozenset({*rosters, self.members_hash})
+        self._agreed = (self._agreed[0], max(self._agreed[1], g), self._agreed[2])
 
     def adopt(
         self, mission_id: int, members: Iterable[int], planned: Iterable[int], generation: int
