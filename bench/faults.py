@@ -37,4 +37,10 @@ def run() -> dict[str, Any]:
         "declared_state_lost": sum(r["declared_state_lost"] for r in table),
         "false_emergencies": sum(r["false_emergencies"] for r in table),
         "coverage_min": min((r["coverage"] for r in table), default=0.0),
+        # from the simulator's true positions: the closest two vehicles came in any row
+        "min_true_sep_m": min(
+            (r["min_true_sep_m"] for r in table if r["min_true_sep_m"] is not None),
+            default=None,
+        ),
+        "unexpected_arms": sum(r["unexpected_arms"] for r in table),
     }

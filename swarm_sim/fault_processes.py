@@ -10,6 +10,13 @@ a kill and a restart),
 and its database file corrupted while it was down (the node refuses it with a one-line
 error; started again on a new file). Partitions and message loss need a network
 namespace with netem and are measured in FastFleet only.
+
+Truth is the simulator's (it runs in this process): every 0.2 s a sampler reads each
+simulated vehicle's true position, its arming and its node's last reported mission
+state; the closest two vehicles came (`min_true_sep_m`, a pair with at least one in
+the air), the coverage (true positions while its node says MISSION) and the arms of a
+rebooted autopilot with no operator declaration since (`unexpected_arms`) come from
+it, not from the nodes' telemetry.
 """
 
 from __future__ import annotations
@@ -148,6 +155,56 @@ class Rig:
     infos: list[VehicleInfo] = field(default_factory=list)
     alerts: list[Alert] = field(default_factory=list)
     lock: threading.Lock = field(default_factory=threading.Lock)
+    # the truth, from the simulator (`sample_truth`)
+    min_true_sep_m: float = math.inf
+    unexpected_arms: int = 0
+    declared_at: float = -math.inf  # monotonic: the operator's last declaration
+    rebooted_at: dict[int, float] = field(default_factory=dict)  # monotonic, by vehicle
+    true_tracks: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
+    _armed: dict[int, bool] = field(default_factory=dict)
+    _stop: threading.Event = field(default_factory=threading.Event)
+
+    # -------------------------------------------------------------- the truth
+    def sample_truth(self) -> None:
+        """One sample of every simulated vehicle (the sampler thread's step)."""
+        at = []
+        for e in self.server.endpoints:
+            sim = e.autopilot
+            vid = sim.sysid
+            n, east = self.frame.to_local(*sim.latlon)
+            up = not sim.body.on_ground
+            at.append((n, east, sim.body.alt, up))
+            armed = bool(sim.armed)
+            if armed and not self._armed.get(vid, False):
+                since = self.rebooted_at.get(vid)
+                self.unexpected_arms += since is not None and self.declared_at < since
+            self._armed[vid] = armed
+            st = self.status(vid)
+            if (
+                st is not None
+                and st.mission_state == MissionState.MISSION
+                and abs(sim.body.height - ALT_M) < 6.0
+            ):
+                with self.lock:
+                    self.true_tracks.setdefault(vid, []).append((n, east))
+        for i, (n1, e1, a1, up1) in enumerate(at):
+            for n2, e2, a2, up2 in at[i + 1 :]:
+                if up1 or up2:
+                    d = math.sqrt((n1 - n2) ** 2 + (e1 - e2) ** 2 + (a1 - a2) ** 2)
+                    self.min_true_sep_m = min(self.min_true_sep_m, d)
+
+    def watch_truth(self) -> None:
+        """Sample the truth every 0.2 s until `close`."""
+
+        def loop() -> None:
+            while not self._stop.wait(0.2):
+                with contextlib.suppress(Exception):  # a vehicle rebooting under us
+                    self.sample_truth()
+
+        threading.Thread(target=loop, name="truth", daemon=True).start()
+
+    def declared(self) -> None:
+        self.declared_at = time.monotonic()
 
     # -------------------------------------------------------------- observation
     def info(self, vid: int) -> VehicleInfo | None:
@@ -182,16 +239,12 @@ class Rig:
         )
 
     def coverage(self) -> float:
+        """The share of the area the cameras saw, from the true tracks."""
         cam = seed_profiles()["Generic Quadcopter"].camera
         hfov = cam.hfov_deg if cam is not None else 60.0
         swath = 2.0 * ALT_M * math.tan(math.radians(hfov) / 2.0)
-        tracks: dict[int, list[tuple[float, float]]] = {}
         with self.lock:
-            for s in self.statuses:
-                if s.mission_state == MissionState.MISSION and abs(s.alt_rel_m - ALT_M) < 6.0:
-                    tracks.setdefault(s.vehicle_id, []).append(
-                        self.frame.to_local(s.lat_deg, s.lon_deg)
-                    )
+            tracks = {v: list(p) for v, p in self.true_tracks.items()}
         poly = Polygon([self.frame.to_local(p.lat_deg, p.lon_deg) for p in self.area.points])
         lines = [LineString(p).buffer(swath / 2.0) for p in tracks.values() if len(p) > 1]
         return float(unary_union(lines).intersection(poly).area / poly.area) if lines else 0.0
@@ -215,6 +268,7 @@ class Rig:
         return lost
 
     def close(self) -> None:
+        self._stop.set()
         for n in self.nodes.values():
             n.stop()
         self.gs.close()  # type: ignore[attr-defined]
@@ -349,6 +403,7 @@ def start_rig(
     bus.subscribe(STATUS, lambda m, k: keep(rig.statuses, m, k))
     bus.subscribe(INFO, lambda m, k: keep(rig.infos, m, k))
     bus.subscribe(ALERT, lambda m, k: keep(rig.alerts, m, k))
+    rig.watch_truth()
     return rig
 
 
@@ -366,6 +421,7 @@ def declare_all(rig: Rig) -> None:
     )
     if not ok:
         raise RuntimeError("vehicles never got a position")
+    rig.declared()
     gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=rig.base), timeout_s=15.0)  # type: ignore[attr-defined]
     gs.command(  # type: ignore[attr-defined]
         CommandKind.SET_FLEET,
@@ -403,6 +459,7 @@ def send_mission(rig: Rig) -> float:
         Selector.fleet(4),
         time_unix_s=time.time(),
     )
+    rig.declared()
     rig.gs.mission(m, timeout_s=15.0)  # type: ignore[attr-defined]
     return time.monotonic()
 
@@ -504,6 +561,7 @@ def p_autopilot(rig: Rig) -> Outcome:
     time.sleep(3.0)  # and the node's own check of the new base's rally point
     before = stores()
     t0 = time.monotonic()
+    rig.rebooted_at[VICTIM] = t0
     rig.server.reboot(VICTIM)
     rig.wait(lambda: not stores()[0], 10)
     ok = rig.wait(lambda: stores() == before and sim_of().fence_present(), 90)
@@ -558,6 +616,7 @@ def p_disk_full(rig: Rig) -> Outcome:
     mast = NoFlyZone(
         3, Geometry.circle(SITL_HOME.lat_deg - 0.003, SITL_HOME.lon_deg - 0.003, 25.0), name="mast"
     )
+    rig.declared()
     gs.declare_zone(mast, timeout_s=10.0)  # type: ignore[attr-defined]
     held = gs.zones_held(3, timeout_s=2.0)  # type: ignore[attr-defined]
     rig.zones[3] = next(iter(held.values()))
@@ -716,6 +775,8 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
         alerts=dict(sorted(counts.items())),
         note=note,
         wall_s=round(time.perf_counter() - t_wall, 2),
+        unexpected_arms=rig.unexpected_arms,
+        min_true_sep_m=round(rig.min_true_sep_m, 1) if math.isfinite(rig.min_true_sep_m) else None,
     )
 
 

@@ -448,12 +448,15 @@ def fault_partition(run: Run) -> Injected:
         )
 
     ok = run.run_until(all_see_all, 60)
+    seen = run.fleet.now - heal
+    one = ok and run.run_until(lambda: _hashes_agree(run), 60)  # the parts merged back
     return Injected(
-        run.fleet.now - t0 if ok else None,
+        run.fleet.now - t0 if one else None,
         f"cut {sorted(m for m, g in groups.items() if g == 0)} | "
         f"{sorted(m for m, g in groups.items() if g == 1)} for 20 s; "
-        f"every node saw every other {run.fleet.now - heal:.1f} s after",
-        ok=ok,
+        f"every node saw every other {seen:.1f} s after, "
+        + (f"one roster {run.fleet.now - heal:.1f} s after" if one else "the rosters stayed apart"),
+        ok=one,
     )
 
 
@@ -643,9 +646,10 @@ def markdown(rows: Sequence[dict[str, object]]) -> str:
     """The fault table of docs/reliability.md from bench/results/faults.json's rows."""
     head = (
         "| fault | mission | where | recovered | recover s | coverage | declared lost "
-        "| false emergencies | emergencies | alerts (WARNING+) |"
+        "| false emergencies | closest m (true) | unexpected arms | emergencies "
+        "| alerts (WARNING+) |"
     )
-    lines = [head, "|" + "---|" * 10]
+    lines = [head, "|" + "---|" * 12]
     for r in rows:
         alerts = ", ".join(f"{k} x{v}" for k, v in dict(r["alerts"]).items()) or "-"  # type: ignore[call-overload]
         emerg = ", ".join(f"{k} x{v}" for k, v in dict(r["emergencies"]).items()) or "-"  # type: ignore[call-overload]
@@ -654,6 +658,7 @@ def markdown(rows: Sequence[dict[str, object]]) -> str:
             f"| {r['fault']} | {r['mission']} | {'FastFleet' if r['env'] == 'fast' else 'processes'} "
             f"| {'yes' if r['recovered'] else 'NO'} | {'-' if rec is None else rec} "
             f"| {r['coverage']} | {r['declared_state_lost']} | {r['false_emergencies']} "
-            f"| {emerg} | {alerts} |"
+            f"| {'-' if r.get('min_true_sep_m') is None else r['min_true_sep_m']} "
+            f"| {r.get('unexpected_arms', 0)} | {emerg} | {alerts} |"
         )
     return "\n".join(lines) + "\n"
