@@ -695,7 +695,18 @@ class MissionCoordinator:
     def on_info(self, info: VehicleInfo, read: Read, now: float) -> list[ModuleOutput]:
         events = self.roster.on_info(info)
         back = self._back(info)
-        return back + (self._roster_events(events, read(), now) if events else [])
+        out = back + (self._roster_events(events, read(), now) if events else [])
+        r = self.roster
+        if (
+            info.vehicle_id in r.lost
+            and info.mission_id == r.mission_id
+            and info.fsm_state == FsmState.GO_MISSION
+            and info.members_hash not in (0, r.members_hash)
+            and not events
+        ):  # a part met while we could not heal yet (replanning): met again now
+            ev = RosterMismatch(info.mission_id, info.vehicle_id, info.members_hash, r.members_hash)
+            out += self._meet(ev, read(), now)
+        return out
 
     def _replans(self, mission_id: int) -> bool:
         """A member lost now makes this vehicle replan `mission_id`."""
@@ -837,9 +848,11 @@ class MissionCoordinator:
     def _meet(self, ev: RosterMismatch, ctx: Context, now: float) -> list[ModuleOutput]:
         """A member lost by silence flies our mission under another roster: the parts
         of a partition meet again (swarm/heal.py). Our part's lineage for theirs, once."""
-        mid = ev.mission_id
-        if ev.vehicle_id not in self.roster.lost or not self._healable(mid):
+        mid, r = ev.mission_id, self.roster
+        if ev.vehicle_id not in r.lost or not self._healable(mid):
             return []
+        if dropped(self.self_id, mid, r.planned, r.generation, ev.theirs):
+            return []  # they replanned our share away: we hand it on (`_mismatch`)
         out: list[ModuleOutput] = []
         if self.heal.meet(mid, ev.theirs):
             lineage = self.regroup.lineages[mid]
