@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import itertools
 import os
 import pkgutil
 import socket
@@ -147,13 +148,18 @@ def swarm_db(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     return path
 
 
+_LOST_LISTS = itertools.count()
+
+
 @pytest.fixture(autouse=True)
 def _gcs_lost_list(
     tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Each test's ground station keeps its lost list (gcs_cli/lost_store.py) in a file
-    of its own, for it and its children: never the user's, never another test's."""
-    monkeypatch.setenv("BANDADA_GCS_STATE", str(tmp_path_factory.mktemp("gcs") / "lost.db"))
+    of its own, for it and its children: never the user's, never another test's (made
+    only by a test that stores one: no directory per test)."""
+    name = f"gcs-lost-{next(_LOST_LISTS)}-{os.getpid()}.db"
+    monkeypatch.setenv("BANDADA_GCS_STATE", str(tmp_path_factory.getbasetemp() / name))
 
 
 @pytest.fixture
