@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import Any
 
 import msgspec
 import typer
@@ -47,7 +46,7 @@ from .core.exchange import Verdict
 from .core.lost import NotLostError, finite_id
 from .core.reasons import alert_text
 from .db import DbOption
-from .ground import FleetView, new_seq
+from .ground import new_seq
 from .options import (
     AllOption,
     FleetOption,
@@ -89,7 +88,7 @@ def status(
     with ctx.obj.open() as gs:
         time.sleep(wait)
         view = gs.snapshot()
-        lost = kept_lost(gs.swarm, view)
+        lost = lost_store.update(gs.swarm, view)
         if as_json:
             rows = [r for r in fleet_rows(view, lost) if _in(shown, r)]
             typer.echo(json.dumps(rows, indent=2))
@@ -103,18 +102,6 @@ def status(
         from .monitor import live_watch
 
         live_watch(gs, console, shown)
-
-
-def kept_lost(swarm: str, view: FleetView) -> dict[int, dict[str, Any]]:
-    """The kept lost list (lost_store.py) updated with what this run heard: the
-    vehicles lost and not heard now, by id."""
-    now, now_unix = time.monotonic(), time.time()
-    book = lost_store.load(swarm)
-    for vid, st in view.status.items():
-        at = now_unix - (now - view.heard_at.get(vid, now))
-        book.heard(st, view.info.get(vid), at)
-    lost_store.save(swarm, book)
-    return {v: f for v, f in book.lost(now_unix).items() if v not in view.status}
 
 
 @app.command()

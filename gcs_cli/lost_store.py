@@ -10,14 +10,19 @@ from __future__ import annotations
 import logging
 import os
 import sqlite3
+import time
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import msgspec
 
 from swarm_proto import VehicleInfo, VehicleStatus
 
 from .core.lost import LostBook, Seen
+
+if TYPE_CHECKING:
+    from .ground import FleetView
 
 ENV_VAR = "BANDADA_GCS_STATE"
 FILE_NAME = "gcs-lost.db"
@@ -89,3 +94,15 @@ def save(swarm: str, book: LostBook, path: Path | None = None) -> None:
             )
     except (sqlite3.Error, OSError) as exc:
         log.warning("lost vehicles not kept in %s: %s", p, exc)
+
+
+def update(swarm: str, view: FleetView, path: Path | None = None) -> dict[int, dict[str, Any]]:
+    """The kept list updated with what `view` heard (a `gcs status` run, a `gcs watch`
+    ending): the vehicles lost and not heard in it, by id (`LostBook.lost`)."""
+    now, now_unix = time.monotonic(), time.time()
+    book = load(swarm, path)
+    for vid, st in view.status.items():
+        at = now_unix - (now - view.heard_at.get(vid, now))
+        book.heard(st, view.info.get(vid), at)
+    save(swarm, book, path)
+    return {v: f for v, f in book.lost(now_unix).items() if v not in view.status}

@@ -18,6 +18,7 @@ from rich.text import Text
 from swarm_proto import Selector, VehicleInfo, VehicleType
 from swarm_proto.ardupilot import autopilot_mismatch, mode_name
 
+from . import lost_store
 from .common import console, quit_on_signal, read_filter, wait_option
 from .core.reasons import alert_text
 from .ground import FleetView, GroundStation
@@ -29,8 +30,14 @@ app = typer.Typer()  # watch, vehicle, fleets: app.py puts them at the top level
 ALERT_LINES = 8  # the latest alerts under the live table
 
 
-def watch_screen(view: FleetView, swarm: str, shown: Selector | None) -> Group:
-    """The live table and, below it, the latest alerts with their full meaning."""
+def watch_screen(
+    view: FleetView,
+    swarm: str,
+    shown: Selector | None,
+    lost: dict[int, dict[str, Any]] | None = None,
+) -> Group:
+    """The live table (with `lost`: the kept lost list's vehicles not heard) and,
+    below it, the latest alerts with their full meaning."""
     now = time.time()
     lines = [
         Text(
@@ -43,7 +50,8 @@ def watch_screen(view: FleetView, swarm: str, shown: Selector | None) -> Group:
     ]
     title = f"swarm {swarm}  {time.strftime('%H:%M:%S', time.gmtime(now))} UTC  (Ctrl-C quits)"
     alerts = lines or [Text("no alert yet", style="dim")]
-    return Group(fleet_table(view, title=title, shown=shown, rates=True), Text("alerts:"), *alerts)
+    table = fleet_table(view, title=title, shown=shown, rates=True, lost=lost)
+    return Group(table, Text("alerts:"), *alerts)
 
 
 def _fleet(view: FleetView, vid: int) -> int:
@@ -60,10 +68,18 @@ def live_watch(
     duration_s: float | None = None,
 ) -> None:
     end = None if duration_s is None else time.monotonic() + duration_s
+    # the vehicles lost before this watch began (lost_store.py), shown until heard
+    kept = lost_store.load(gs.swarm)
+
+    def screen() -> Group:
+        view = gs.snapshot()
+        lost = {v: f for v, f in kept.lost(time.time()).items() if v not in view.status}
+        return watch_screen(view, gs.swarm, shown, lost)
+
     with (
         quit_on_signal() as quit_,
         Live(
-            watch_screen(gs.snapshot(), gs.swarm, shown),
+            screen(),
             console=out,
             refresh_per_second=4,
             screen=False,
@@ -73,9 +89,10 @@ def live_watch(
             while end is None or time.monotonic() < end:
                 if quit_.wait(period_s):
                     break
-                live.update(watch_screen(gs.snapshot(), gs.swarm, shown))
+                live.update(screen())
         except KeyboardInterrupt:
             pass
+    lost_store.update(gs.swarm, gs.snapshot())  # what this watch heard, kept
 
 
 @app.command()

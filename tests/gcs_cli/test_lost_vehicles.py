@@ -153,3 +153,20 @@ def test_gcs_status_lists_a_vehicle_lost_before_it_ran(
     assert run(["--connect", zenoh_router, "status", "--wait", "0"]) == 0
     out = capsys.readouterr().out
     assert re.search(r"8 ! LOST 6\d s: last 37.41120,-5.98890 40 m; predicted 37.40", out), out
+
+
+def test_gcs_watch_shows_the_kept_list_and_keeps_what_it_heard() -> None:
+    from rich.console import Console
+
+    from gcs_cli.monitor import watch_screen
+
+    book = LostBook()
+    book.heard(flying(9, 0.0), info(9), time.time() - 30.0)
+    console = Console(width=100, record=True)
+    console.print(watch_screen(FleetView(), "s", None, book.lost(time.time())))
+    assert re.search(r"9 ! LOST 3\d s: last", console.export_text())
+    view = FleetView()
+    view.status[7] = flying(7, 0.0)
+    view.heard_at[7] = time.monotonic() - 20.0  # flying, unheard 20 s when the watch ends
+    assert set(lost_store.update("s", view)) == set()  # 7 is in the view (its row says LOST)
+    assert set(lost_store.load("s").lost(time.time())) == {7}
