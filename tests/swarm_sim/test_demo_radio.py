@@ -110,7 +110,10 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
     assert voted == set(MEMBERS), f"votes heard from {voted} (logs in {tmp_path})"
     assert radio.phase == "member" and set(radio.members) == {*MEMBERS, GCS_ID}
     assert all(p.packets_per_s > 3.0 for p in radio.peers if p.node_id in MEMBERS)
-    assert radio.dropped_forged == 0 and radio.dropped_corrupt == 0
+    # a frame garbled by one of the collisions counted below reaches a gateway corrupt:
+    # dropped, and counted; nothing else may arrive corrupt, nothing forged at all
+    assert radio.dropped_forged == 0
+    assert radio.dropped_corrupt <= channel.get("collisions", 0), (radio, channel)
     # no TDM fault; a collision with a packet the emulator read late (descheduled by a
     # loaded machine) is the emulator's host, counted apart (docs/radio.md). A slot
     # table at fault collides every cycle (5 a second); one collision in the run is a

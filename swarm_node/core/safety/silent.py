@@ -2,8 +2,9 @@
 
 A member whose node fell silent (its liveliness token gone, its telemetry stale) is
 still an aircraft: its autopilot flies on what it was last told, then its GCS failsafe
-takes it home (failsafe.py, docs/reliability.md). Avoidance keeps it as a contact at
-the position predicted here, which nobody reports any more:
+takes it home (failsafe.py, docs/reliability.md). The ground station and the map show
+a LOST vehicle at the position predicted here, which nobody reports any more (avoidance
+does not use it yet: docs/reliability.md, known limits):
 
     from its last report, for the failsafe's timeout (from that report: its node's
     last HEARTBEAT went with it)
@@ -20,8 +21,7 @@ The prediction is only as good as the model: the error bound (`error_m`) starts 
 `base_error_m` and grows with the time since the report (`growth_m_s` plus
 `growth_fraction` of its speed: timing along the route, wind, the turns), up to
 `max_error_m`; a fixed-wing circling its rally point adds its loiter radius. The
-caller makes it a contact that never manoeuvres (avoidance.py) until the member is
-heard again, seen landed or dismissed.
+caller keeps it until the member is heard again, seen landed or dismissed.
 
 Pure: no I/O, no clock; `now` is passed in, on the clock of the last report's time.
 """
