@@ -44,6 +44,7 @@ from swarm_proto.text import short_text
 
 from .autopilot.plans import CALIBRATIONS
 from .autopilot.requests import (
+    ApError,
     ApRequest,
     ApResult,
     Arm,
@@ -424,11 +425,10 @@ class CommandTracker:
         if run is None:
             return [], []  # not ours (emergency or mission requests), or already timed out
         if not result.ok:
-            # the arbiter's own refusal ("preempted by AVOIDANCE") is the node's, not
-            # the autopilot's
+            # the arbiter's own refusal is the node's, not the autopilot's
             who = (
                 AckReason.PREEMPTED
-                if result.reason.startswith("preempted by")
+                if result.error == ApError.PREEMPTED
                 else AckReason.AUTOPILOT_REJECTED
             )
             return [], [self._ack(run.cmd, False, who, result.reason)]

@@ -39,6 +39,7 @@ from swarm_proto import (
     NoFlyZone,
     Severity,
 )
+from swarm_proto.text import short_text
 
 from . import state_machine as fsm
 from .declared import DeclaredBook
@@ -178,7 +179,7 @@ class Declarations:
         self._store_failing = True
         text = f"declared state not stored: {error}"
         alert = Alert(
-            self.vehicle_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC, text[:64]
+            self.vehicle_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC, short_text(text)
         )
         return [
             Note(logging.WARNING, f"{text} (held in memory and by the peers; retried)"),

@@ -334,7 +334,9 @@ class MissionManager:
     def _alert(
         self, severity: Severity, text: str, now: float, code: AlertCode = AlertCode.ROSTER_MISMATCH
     ) -> Publish:
-        return Publish(Alert(self.profile.vehicle_id, max(now, 0.0), severity, code, text[:64]))
+        return Publish(
+            Alert(self.profile.vehicle_id, max(now, 0.0), severity, code, short_text(text))
+        )
 
     def _take_plan(
         self, outcome: PlanOutcome, ap: AutopilotState, now: float, fleet: Roster | None = None
@@ -605,8 +607,8 @@ class MissionManager:
         confirmed = self._confirmed
         self.stop(Trigger.FAILED)
         if confirmed:
-            return [Post(fsm.LeftFleet(reason[:64]))]
-        return [Post(fsm.PlanFailed(mid, reason[:64]))]
+            return [Post(fsm.LeftFleet(short_text(reason)))]
+        return [Post(fsm.PlanFailed(mid, short_text(reason)))]
 
     def reattach(
         self, mission_id: int, items: int, last_item: int, path_m: float, progress_m: float

@@ -73,6 +73,7 @@ from swarm_proto.text import short_text
 
 from .autopilot.framing import BadFrame, MavEncoder, MavFramer, MAVLinkMessage
 from .autopilot.requests import (
+    ApError,
     ApRequest,
     ApResult,
     Arm,
@@ -529,7 +530,7 @@ class Passthrough:
                     del s.uploads[mt]
             code = (
                 mavlink.MAV_RESULT_TEMPORARILY_REJECTED
-                if result.reason.startswith("preempted by")
+                if result.error == ApError.PREEMPTED
                 else mavlink.MAV_RESULT_FAILED
             )
             text = f"bandada: {result.reason}: {v.what} refused"  # the why first: 50 characters
@@ -617,7 +618,7 @@ class Passthrough:
         who, v = f"ground station {p.radio_issuer} (radio)", p.verdict
         if result.ok:
             code, text = mavlink.MAV_RESULT_ACCEPTED, ""
-        elif result.reason.startswith("preempted by"):
+        elif result.error == ApError.PREEMPTED:
             code, text = mavlink.MAV_RESULT_TEMPORARILY_REJECTED, f"bandada: {result.reason}"
         else:
             code = result.mav_result if result.mav_result is not None else mavlink.MAV_RESULT_FAILED

@@ -23,6 +23,7 @@ import logging
 from dataclasses import dataclass, field
 
 from swarm_proto import Alert, AlertCode, Severity
+from swarm_proto.text import short_text
 
 from .membership import PeerEvent, PeerJoined, PeerLeft
 from .outputs import ModuleOutput, Note, PeerLost, Publish, Stalled
@@ -122,7 +123,7 @@ class StallGuard:
             return out
         text = f"node stalled {worst:.1f} s (host busy), not a link loss"
         alert = Alert(
-            self.vehicle_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC, text[:64]
+            self.vehicle_id, max(0.0, now), Severity.WARNING, AlertCode.GENERIC, short_text(text)
         )
         return [*out, Note(logging.WARNING, text), Publish(alert)]
 

@@ -16,6 +16,7 @@ from swarm_node.core.arbiter import (
     Suspended,
 )
 from swarm_node.core.autopilot.requests import (
+    ApError,
     ApRequest,
     ApResult,
     ChangeAltitude,
@@ -66,7 +67,11 @@ def test_a_lower_owner_is_refused_while_a_higher_one_holds_control() -> None:
     a = AutopilotArbiter()
     a.take(Owner.EMERGENCY)
     refused = a.submit(Owner.OPERATOR, ReturnToLaunch(request_id=3))
-    assert refused == [Routed(Owner.OPERATOR, ApResult(3, False, "preempted by EMERGENCY"))]
+    assert refused == [
+        Routed(
+            Owner.OPERATOR, ApResult(3, False, "preempted by EMERGENCY", error=ApError.PREEMPTED)
+        )
+    ]
     # fence work does not fly the vehicle: never refused
     assert isinstance(sent(a.submit(Owner.FENCE, UploadFence(request_id=1))), UploadFence)
     # the emergency's own requests go out and their results come back to it
@@ -136,7 +141,10 @@ def test_a_held_request_the_holder_before_outranks_does_not_steer() -> None:
     assert not a.will_steer()
     out = a.release(Owner.AVOIDANCE)
     assert a.holder == Owner.OPERATOR
-    assert Routed(Owner.MISSION, ApResult(3, False, "preempted by OPERATOR")) in out
+    assert (
+        Routed(Owner.MISSION, ApResult(3, False, "preempted by OPERATOR", error=ApError.PREEMPTED))
+        in out
+    )
 
 
 def test_an_emergency_ends_the_suspension_and_drops_what_was_held() -> None:

@@ -15,6 +15,7 @@ from swarm_node.core.arbiter import AutopilotArbiter, Owner, flies
 from swarm_node.core.autopilot.framing import MavFramer
 from swarm_node.core.autopilot.link import LinkCore, LinkSettings, Transmit, for_passthrough
 from swarm_node.core.autopilot.requests import (
+    ApError,
     ApResult,
     Arm,
     ChangeSpeed,
@@ -210,7 +211,9 @@ def test_a_refusal_is_answered_as_the_autopilot_would_and_says_who_holds_it(
     pt = opened()
     (sub,) = pt.on_frames(SID, frame(command(400, 1)), view(fleet_profiles), 1.0)
     outs = pt.on_result(
-        ApResult(sub.request.request_id, False, "preempted by EMERGENCY"), view(fleet_profiles), 1.0
+        ApResult(sub.request.request_id, False, "preempted by EMERGENCY", error=ApError.PREEMPTED),
+        view(fleet_profiles),
+        1.0,
     )
     ack, text = decoded(outs)
     assert ack.get_type() == "COMMAND_ACK" and ack.command == 400

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import msgspec
 
-from swarm_node.core.autopilot.requests import ApResult, Land
+from swarm_node.core.arbiter import AutopilotArbiter, Claim, Owner, Routed, Submit
+from swarm_node.core.autopilot.requests import ApError, ApResult, Land
 from swarm_node.core.commands import CommandTracker
 from swarm_node.core.mission.share import Member, PlanRequest, run_plan
 from swarm_node.database import seed_profiles
@@ -44,15 +45,22 @@ def square(side_m: float) -> Geometry:
 
 def test_a_refusal_names_who_refused_the_node_or_the_autopilot() -> None:
     """`land` refused during avoidance read "AUTOPILOT_REJECTED: the autopilot refused
-    it: preempted by AVOIDANCE" when the node's arbiter had refused it."""
+    it: preempted by AVOIDANCE" when the node's arbiter had refused it. The arbiter
+    marks its refusal (`ApError.PREEMPTED`); no text is read to tell them apart."""
+    arbiter = AutopilotArbiter()
+    arbiter.rule(Claim(Owner.AVOIDANCE))
     tracker = CommandTracker(7)
     cmd = Command(GCS, 5, CommandKind.LAND, Selector(), CommandArgs())
     (sent,) = tracker.start(cmd, (Land(),), 0.0)
-    _, (ack,) = tracker.on_result(ApResult(sent.request_id, False, "preempted by AVOIDANCE"), 0.1)
+    (refused,) = arbiter.rule(Submit(sent, Owner.OPERATOR))
+    assert isinstance(refused, Routed) and refused.result.error == ApError.PREEMPTED
+    _, (ack,) = tracker.on_result(refused.result, 0.1)
     assert (ack.accepted, ack.reason) == (False, AckReason.PREEMPTED)
     assert ack.text == "preempted by AVOIDANCE"
     (sent,) = tracker.start(msgspec.structs.replace(cmd, seq=6), (Land(),), 1.0)
-    _, (ack,) = tracker.on_result(ApResult(sent.request_id, False, "COMMAND_ACK DENIED"), 1.1)
+    # the autopilot's own words never pass for the arbiter's, whatever they say
+    words = ApResult(sent.request_id, False, "preempted by the pilot", error=ApError.DENIED)
+    _, (ack,) = tracker.on_result(words, 1.1)
     assert ack.reason == AckReason.AUTOPILOT_REJECTED
 
 

@@ -474,7 +474,9 @@ class MissionCoordinator:
         reason, text = self.tasking.answer(mission, st)
         ok = reason == AckReason.OK
         mid = mission.mission_id
-        ack = Ack(self.self_id, mission.issuer_id, AckRef.MISSION, mid, ok, reason, text[:64])
+        ack = Ack(
+            self.self_id, mission.issuer_id, AckRef.MISSION, mid, ok, reason, short_text(text)
+        )
         out: list[ModuleOutput] = [Answer(ack) if ok else Publish(ack)]
         if not ok:
             return out
@@ -605,7 +607,7 @@ class MissionCoordinator:
                     max(0.0, now),
                     Severity.WARNING,
                     AlertCode.MISSION_FAILED,
-                    text[:64],
+                    short_text(text),
                 )
                 out.append(Publish(alert))
             return out
@@ -634,7 +636,9 @@ class MissionCoordinator:
         else:
             reason, text, to = self.regroup.answer(cmd, st.flying, st.idle)
         ok = reason == AckReason.OK
-        ack = Ack(self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, text[:64])
+        ack = Ack(
+            self.self_id, cmd.issuer_id, AckRef.COMMAND, cmd.seq, ok, reason, short_text(text)
+        )
         out: list[ModuleOutput] = [Answer(ack)]
         if not ok:
             return out
@@ -668,7 +672,7 @@ class MissionCoordinator:
         try:
             msg, lineage, replay = self.regroup.join(mid, self.fleet_profiles)
         except KeyError as exc:
-            self.fsm.post(fsm.PlanFailed(mid, f"no profile for fleet member {exc}"[:64]))
+            self.fsm.post(fsm.PlanFailed(mid, short_text(f"no profile for fleet member {exc}")))
             return []
         self.missions[mid] = msg.mission
         self.roster.adopt(mid, lineage.everyone, lineage.members, len(lineage.steps))
@@ -802,7 +806,7 @@ class MissionCoordinator:
             max(0.0, now),
             Severity.WARNING,
             AlertCode.ROSTER_MISMATCH,
-            text[:64],
+            short_text(text),
         )
         return [Note(logging.ERROR, text), Publish(alert)]
 

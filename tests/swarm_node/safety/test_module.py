@@ -13,6 +13,7 @@ import pytest
 from swarm_node.core.arbiter import AutopilotArbiter, Routed, Send
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_node.core.autopilot.requests import (
+    ApError,
     ApResult,
     ChangeAltitude,
     ChangeSpeed,
@@ -302,7 +303,9 @@ def test_an_emergency_pre_empts_the_manoeuvre() -> None:
     m2, state = flying_vtol()
     m2.on_peer(head_on_peer(T), T)
     (goto,) = requests(tick(m2, state, T))
-    out = m2.on_result(ApResult(goto.request_id, False, "preempted by EMERGENCY"), T)
+    out = m2.on_result(
+        ApResult(goto.request_id, False, "preempted by EMERGENCY", error=ApError.PREEMPTED), T
+    )
     assert not m2.active and not released(out)
 
 
@@ -434,4 +437,7 @@ def test_a_held_mission_request_the_arbiter_will_refuse_does_not_replace_the_res
     assert released(out)
     assert any(isinstance(r, Goto) and r.alt_rel_m == 60.0 for r in resume), resume
     refused = arb.release(Owner.AVOIDANCE)  # still ruled on: refused by the operator
-    assert Routed(Owner.MISSION, ApResult(3, False, "preempted by OPERATOR")) in refused
+    assert (
+        Routed(Owner.MISSION, ApResult(3, False, "preempted by OPERATOR", error=ApError.PREEMPTED))
+        in refused
+    )
