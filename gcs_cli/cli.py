@@ -193,7 +193,8 @@ def peers(
 
 # --------------------------------------------------------------------------- commands
 
-#: commands that move or arm vehicles: a selector is required and they are confirmed
+#: commands that move or arm vehicles, or take them out of the swarm logic (shutdown,
+#: cancel-mission): a selector is required and they are confirmed
 MOVING = frozenset(
     {
         CommandKind.ARM,
@@ -211,6 +212,7 @@ MOVING = frozenset(
         CommandKind.CANCEL_MISSION,
         CommandKind.JOIN_MISSION,
         CommandKind.SWAP_MISSION,
+        CommandKind.SHUTDOWN,
     }
 )
 COMMAND_NAMES = [k.name.lower().replace("_", "-") for k in CommandKind]
@@ -256,11 +258,12 @@ def cmd(
     """Send an operator command and show every addressed vehicle's answer: accepted,
     rejected with its full reason, or silent. Exit 1 unless all accepted.
 
-    Commands that move or arm vehicles (arm, disarm, takeoff, set-mode, goto, set-speed,
-    set-altitude, rtl, land, emergency-land, abort-landing, parachute, cancel-mission,
-    join-mission, swap-mission) need --id, --fleet or --all and are confirmed unless
-    --yes; the others (set-base, calibrate, set-fleet, activate, shutdown) go to every
-    vehicle when no selector is given.
+    Commands that move or arm vehicles or take them out of the swarm logic (arm, disarm,
+    takeoff, set-mode, goto, set-speed, set-altitude, rtl, land, emergency-land,
+    abort-landing, parachute, cancel-mission, join-mission, swap-mission, shutdown) need
+    --id, --fleet or --all and are confirmed unless --yes; the others (set-base,
+    calibrate, set-fleet, activate) go to every vehicle when no selector is given. A
+    vehicle shut down in the air is sent home first (RTL) and shuts down once landed.
 
     Example: gcs cmd rtl --fleet 2 --yes
     """

@@ -188,7 +188,19 @@ def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
     if k == CommandKind.ACTIVATE:
         return done(SetActive(True))
     if k == CommandKind.SHUTDOWN:
-        return done(SetActive(False))
+        if not ap.armed:
+            return done(SetActive(False))
+        # an aircraft never leaves the swarm's control with no owner: home first, as the
+        # operator's RTL (the arbiter rules on it); on a mission the landing ends the
+        # sortie and shuts the node down (the state machine's "landed")
+        if not ap.link_ok:
+            return reject(AckReason.NOT_READY, "flying, autopilot link down: cannot send it home")
+        if view.on_mission:
+            return CommandPlan(
+                requests=(ReturnToLaunch(),),
+                effects=(TakeOver("operator SHUTDOWN", Phase.RETURNING),),
+            )
+        return CommandPlan(requests=(ReturnToLaunch(),), effects=(SetActive(False),))
     if k == CommandKind.CANCEL_MISSION:
         if view.mission_id is None or a.mission_id != view.mission_id:
             return reject(AckReason.NOT_FOUND, f"not flying mission {a.mission_id}")
