@@ -13,7 +13,9 @@ from swarm_node.core.commands import CommandTracker
 from swarm_node.core.mission.share import Member, PlanRequest, run_plan
 from swarm_node.database import seed_profiles
 from swarm_proto import (
+    Ack,
     AckReason,
+    AckRef,
     Alert,
     AlertCode,
     Command,
@@ -83,6 +85,33 @@ def test_a_plan_the_batteries_cannot_fly_says_by_how_much() -> None:
     assert alone is not None and alone.vehicle_id == 7 and alone.needed_s > d.needed_s
 
 
+def test_the_fleet_accepts_one_plan_and_a_member_left_nothing_says_so() -> None:
+    """Accepted once the plan is made, by every member with the same plan digest; a
+    member the split leaves nothing stays on its pad, says so, and raises no
+    MISSION_COMPLETE (it flew nothing)."""
+    f = fleet(3)
+    activate(f)
+    m = Mission(
+        32,
+        GCS,
+        MissionType.AREA,
+        square(12.0),
+        MissionParams(altitude_rel_m=30.0),
+        Selector.ids(1, 2, 3),
+    )
+    send(f, m)
+    f.run_until(f.now + 10.0)
+    answers = [a for a in f.messages(Ack) if a.ref == AckRef.MISSION and a.ref_id == 32]
+    assert sorted(a.vehicle_id for a in answers) == [1, 2, 3]
+    assert all(a.accepted and a.reason == AckReason.OK for a in answers)
+    assert len({a.text.split(":")[0] for a in answers}) == 1  # "plan <digest>" alike
+    idle = [a.vehicle_id for a in answers if "stays on its pad" in a.text]
+    assert idle, [a.text for a in answers]
+    f.run_until(f.now + 5.0)
+    complete = {a.vehicle_id for a in f.messages(Alert) if a.code == AlertCode.MISSION_COMPLETE}
+    assert not complete & set(idle)
+
+
 def test_plan_failed_reaches_the_ground_with_its_numbers() -> None:
     f = fleet(2)
     activate(f)
@@ -98,6 +127,17 @@ def test_plan_failed_reaches_the_ground_with_its_numbers() -> None:
     f.run_until(f.now + 10.0)
     failed = [a for a in f.messages(Alert) if a.code == AlertCode.PLAN_FAILED]
     assert failed, [a.text for a in f.messages(Alert)]
+    # one fleet, one verdict: the mission's answer comes with the plan, refused by every
+    # addressed vehicle alike, the endurance budget in it; nobody completes anything
+    answers = [a for a in f.messages(Ack) if a.ref == AckRef.MISSION and a.ref_id == 31]
+    assert sorted(a.vehicle_id for a in answers) == [1, 2]
+    assert {(a.accepted, a.reason, a.text, a.detail) for a in answers} == {
+        (False, AckReason.PLAN_FAILED, answers[0].text, answers[0].detail)
+    }
+    d = answers[0].detail
+    assert "endurance" in answers[0].text and d is not None and d.code == DetailCode.ENDURANCE
+    assert d.needed_s > d.available_s > 0.0
+    assert not [a for a in f.messages(Alert) if a.code == AlertCode.MISSION_COMPLETE]
     for a in failed:
         assert a.detail is not None and a.detail.code == DetailCode.ENDURANCE
         assert a.detail.needed_s > a.detail.available_s > 0.0
