@@ -215,6 +215,10 @@ MOVING = frozenset(
         CommandKind.SHUTDOWN,
     }
 )
+#: a mission's answer is the fleet's verdict on its plan: the members synchronise and
+#: plan first (a large area takes seconds on a loaded companion computer); a vehicle's
+#: plan timeout is 60 s
+MISSION_TIMEOUT_S = 60.0
 COMMAND_NAMES = [k.name.lower().replace("_", "-") for k in CommandKind]
 #: --value of the commands that need one: (lowest, highest, lowest allowed, what)
 VALUE_RANGES: dict[CommandKind, tuple[float, float, bool, str]] = {
@@ -355,7 +359,10 @@ def mission(
     duration: float | None = typer.Option(None, help="target/objective: how long to hold, s"),
     name: str | None = typer.Option(None, help="a name for people (default: the file's)"),
     mission_id: int = typer.Option(0, min=0, max=2**32 - 1, help="default: a fresh id"),
-    timeout: float = typer.Option(5.0, help="seconds to wait for every answer"),
+    timeout: float = typer.Option(
+        MISSION_TIMEOUT_S,
+        help="seconds to wait for every answer (the fleet answers once its plan is made)",
+    ),
     save: Path | None = typer.Option(
         None,
         "--save",
