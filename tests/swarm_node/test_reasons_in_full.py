@@ -147,3 +147,23 @@ def test_plan_failed_reaches_the_ground_with_its_numbers() -> None:
         back = radio.decode(radio.encode(a), now_unix_s=a.time_unix_s)
         assert isinstance(back, Alert) and back.detail is not None
         assert abs(back.detail.needed_s - a.detail.needed_s) < 0.01
+
+
+def test_a_mission_replaced_before_its_plan_is_answered_so() -> None:
+    """Every mission the fleet took up gets an answer: one replaced by a newer before
+    its plan was made is refused, naming the newer; the newer is accepted."""
+    f = fleet(2)
+    activate(f)
+    first, second = (
+        Mission(n, GCS, MissionType.AREA, square(30.0), MissionParams(altitude_rel_m=30.0))
+        for n in (41, 42)
+    )
+    send(f, msgspec.structs.replace(first, selection=Selector.ids(1, 2)))
+    send(f, msgspec.structs.replace(second, selection=Selector.ids(1, 2)))
+    f.run_until(f.now + 10.0)
+    answers = {(a.ref_id, a.vehicle_id): a for a in f.messages(Ack) if a.ref == AckRef.MISSION}
+    for v in (1, 2):
+        old, new = answers[(41, v)], answers[(42, v)]
+        assert (old.accepted, old.reason) == (False, AckReason.BUSY)
+        assert "replaced by mission 42" in old.text
+        assert new.accepted, new

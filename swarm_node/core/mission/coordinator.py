@@ -223,8 +223,9 @@ class MissionCoordinator:
                 # answered with the fleet's plan; a plan that never comes (the state
                 # machine's plan timeout, a cancel) is answered at the latest then
                 due = now + self.plan_timeout_s + VERDICT_GRACE_S
+                replaced = self._replaced(mission.mission_id)
                 self.unanswered[mission.mission_id] = (mission, due)
-                return []
+                return replaced
             case Candidacy(mission):
                 return self._candidate(mission, ctx(), now)
             case Regrouping(cmd):
@@ -950,6 +951,20 @@ class MissionCoordinator:
             short_text(text),
             None if ok else outcome.detail,
         )
+
+    def _replaced(self, mid: int) -> list[ModuleOutput]:
+        """A newer mission replaces one not answered yet (the state machine plans the
+        newest): that one is refused, naming the newer."""
+        out: list[ModuleOutput] = []
+        for old, (mission, _) in list(self.unanswered.items()):
+            if old == mid:
+                continue
+            del self.unanswered[old]
+            text = f"replaced by mission {mid} before its plan"
+            out.append(
+                Answer(self._verdict(mission, False, AckReason.BUSY, text, PlanOutcome(0, None)))
+            )
+        return out
 
     def _unanswered_due(self, now: float) -> list[ModuleOutput]:
         """Missions whose plan never came: refused, with what became of them."""
