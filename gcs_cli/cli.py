@@ -219,11 +219,10 @@ def peers(
 
 # --------------------------------------------------------------------------- commands
 
-#: commands that move or arm vehicles, or take them out of the swarm's control: a selector
-#: is required and they are confirmed (the map asks the same, map/commands.py)
+#: commands that move or arm vehicles, or take them out of the swarm logic (shutdown,
+#: cancel-mission): a selector is required and they are confirmed
 MOVING = frozenset(
     {
-        CommandKind.SHUTDOWN,
         CommandKind.ARM,
         CommandKind.DISARM,
         CommandKind.TAKEOFF,
@@ -239,8 +238,13 @@ MOVING = frozenset(
         CommandKind.CANCEL_MISSION,
         CommandKind.JOIN_MISSION,
         CommandKind.SWAP_MISSION,
+        CommandKind.SHUTDOWN,
     }
 )
+#: a mission's answer is the fleet's verdict on its plan: the members synchronise and
+#: plan first (a large area takes seconds on a loaded companion computer); a vehicle's
+#: plan timeout is 60 s
+MISSION_TIMEOUT_S = 60.0
 COMMAND_NAMES = [k.name.lower().replace("_", "-") for k in CommandKind]
 #: --value of the commands that need one: (lowest, highest, lowest allowed, what)
 VALUE_RANGES: dict[CommandKind, tuple[float, float, bool, str]] = {
@@ -284,12 +288,12 @@ def cmd(
     """Send an operator command and show every addressed vehicle's answer: accepted,
     rejected with its full reason, or silent. Exit 1 unless all accepted.
 
-    Commands that move or arm vehicles or take them out of the swarm's control (arm,
-    disarm, takeoff, set-mode, goto, set-speed, set-altitude, rtl, land, emergency-land,
+    Commands that move or arm vehicles or take them out of the swarm logic (arm, disarm,
+    takeoff, set-mode, goto, set-speed, set-altitude, rtl, land, emergency-land,
     abort-landing, parachute, cancel-mission, join-mission, swap-mission, shutdown) need
     --id, --fleet or --all and are confirmed unless --yes; the others (set-base,
     calibrate, set-fleet, activate) go to every vehicle when no selector is given. A
-    vehicle refuses shutdown while armed: bring it down first (rtl, land).
+    vehicle shut down in the air is sent home first (RTL) and shuts down once landed.
 
     Example: gcs cmd rtl --fleet 2 --yes
     """
@@ -381,7 +385,10 @@ def mission(
     duration: float | None = typer.Option(None, help="target/objective: how long to hold, s"),
     name: str | None = typer.Option(None, help="a name for people (default: the file's)"),
     mission_id: int = typer.Option(0, min=0, max=2**32 - 1, help="default: a fresh id"),
-    timeout: float = typer.Option(5.0, help="seconds to wait for every answer"),
+    timeout: float = typer.Option(
+        MISSION_TIMEOUT_S,
+        help="seconds to wait for every answer (the fleet answers once its plan is made)",
+    ),
     save: Path | None = typer.Option(
         None,
         "--save",

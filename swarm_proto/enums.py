@@ -187,6 +187,7 @@ class AckReason(IntEnum):
     DUPLICATE = 12
     IN_NO_FLY_ZONE = 13
     PREEMPTED = 14  # the node refused it: a module of higher priority holds the autopilot
+    PLAN_FAILED = 15  # the fleet's plan cannot be flown: every addressed vehicle refuses it
 
 
 class DetailCode(IntEnum):

@@ -34,6 +34,8 @@ ACK_REASONS: dict[AckReason, str] = {
     AckReason.IN_NO_FLY_ZONE: "it would enter a no-fly zone",
     AckReason.PREEMPTED: "the node refused it: a module of higher priority holds the "
     "autopilot (collision avoidance, an emergency or a landing)",
+    AckReason.PLAN_FAILED: "the fleet's plan cannot be flown (every addressed vehicle "
+    "refuses the mission for the same reason)",
 }
 
 ALERT_CODES: dict[AlertCode, str] = {

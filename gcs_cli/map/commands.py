@@ -40,14 +40,14 @@ from swarm_proto import (
 )
 
 from .. import _clickx
-from ..cli import MOVING, check_payload_model, mission_defaults
+from ..cli import MISSION_TIMEOUT_S, MOVING, check_payload_model, mission_defaults
 from ..common import selector_from
 from ..core.exchange import Exchange, Outcome
 from ..ground import GroundStation, new_seq
 from ..options import checked, describe, finite, geometry_from, parse_geopoint
 
 MAX_FILE_BYTES = 2_000_000  # a mission file sent from the page
-TIMEOUTS_S = {"command": 5.0, "mission": 5.0, "zone": 10.0}  # as `gcs cmd / mission / zone`
+TIMEOUTS_S = {"command": 5.0, "mission": MISSION_TIMEOUT_S, "zone": 10.0}  # as `gcs`
 
 
 class PageError(ValueError):

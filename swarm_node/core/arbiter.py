@@ -19,8 +19,9 @@ Precedence, highest first (`PRECEDENCE`, the one table; docs/node.md):
 
 A request that flies the vehicle (everything but fence, rally, parameter and calibration
 work, and downloads) takes control for its owner; while a higher owner holds control, a
-lower owner's flight request is refused at once with a failed result ("preempted by
-..."), routed back to it like any other. The holder keeps control until it releases it
+lower owner's flight request is refused at once with a failed result marked as the
+arbiter's own (`ApError.PREEMPTED`, "preempted by ..."), routed back to it like any
+other. The holder keeps control until it releases it
 (`release`); a higher owner may always take it (`take`: an emergency begins).
 
 Suspension (`suspend`, `release`): AVOIDANCE takes control for a manoeuvre and suspends
@@ -268,8 +269,8 @@ class AutopilotArbiter:
         if self.holder is not None and self.holder > rank:
             self.refused[owner] += 1
             reason = f"preempted by {self.holder.name}"
-            refusal = ApResult(request.request_id, False, reason, error=ApError.PREEMPTED)
-            return [Routed(owner, refusal)]
+            refused = ApResult(request.request_id, False, reason, error=ApError.PREEMPTED)
+            return [Routed(owner, refused)]
         out = self._preempt(rank)
         self.holder = rank
         return [*out, self._send(owner, request)]

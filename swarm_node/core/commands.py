@@ -188,14 +188,19 @@ def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
     if k == CommandKind.ACTIVATE:
         return done(SetActive(True))
     if k == CommandKind.SHUTDOWN:
-        # the swarm logic stops: an armed vehicle would be left with no owner (an
-        # aircraft loitering where it was, no avoidance, nobody bringing it home). It is
-        # refused until the operator has brought it down (rtl, land) or disarmed it
-        if ap.armed:
-            return reject(
-                AckReason.BUSY, "armed: bring it down (rtl, land) or disarm, then shut down"
+        if not ap.armed:
+            return done(SetActive(False))
+        # an aircraft never leaves the swarm's control with no owner: home first, as the
+        # operator's RTL (the arbiter rules on it); on a mission the landing ends the
+        # sortie and shuts the node down (the state machine's "landed")
+        if not ap.link_ok:
+            return reject(AckReason.NOT_READY, "flying, autopilot link down: cannot send it home")
+        if view.on_mission:
+            return CommandPlan(
+                requests=(ReturnToLaunch(),),
+                effects=(TakeOver("operator SHUTDOWN", Phase.RETURNING),),
             )
-        return done(SetActive(False))
+        return CommandPlan(requests=(ReturnToLaunch(),), effects=(SetActive(False),))
     if k == CommandKind.CANCEL_MISSION:
         if view.mission_id is None or a.mission_id != view.mission_id:
             return reject(AckReason.NOT_FOUND, f"not flying mission {a.mission_id}")
@@ -432,8 +437,7 @@ class CommandTracker:
         if run is None:
             return [], []  # not ours (emergency or mission requests), or already timed out
         if not result.ok:
-            # the arbiter's own refusal ("preempted by AVOIDANCE") is the node's, not
-            # the autopilot's
+            # the arbiter's own refusal is the node's, not the autopilot's
             who = (
                 AckReason.PREEMPTED
                 if result.error == ApError.PREEMPTED

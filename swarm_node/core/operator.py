@@ -10,7 +10,8 @@ active flag (ACTIVATE / SHUTDOWN).
                                 the command's effects: SetBase, SetFleet, TakeOver
                                 (with Delegate: the mission manager lands the vehicle
                                 for the operator), StopLanding, Post(Cancelled)
-    Mission                     Answer / Publish(ack); Accepted + Declared(mission), or
+    Mission                     Publish(ack) (refused); Accepted + Declared(mission) (the
+                                coordinator answers once the fleet's plan is made), or
                                 Candidacy (a QUANTITY mission: tasking answers it)
     results (owner OPERATOR)    Submits, Answer
     Answer(ack) (any module's)  remembered as the answer to repeats
@@ -185,7 +186,10 @@ class OperatorDesk:
         mission = with_defaults(mission, self.mission_defaults.get(mission.mission_type, {}))
         if quantity:  # whether we are a candidate is tasking's (mission/tasking.py)
             return [Candidacy(mission)]
-        return [Answer(self._ack(view, mission, reason, why)), Accepted(mission), Declared(mission)]
+        # the fleet's verdict (accepted, or refused by all with the reason) comes once the
+        # fleet's plan is made: the mission coordinator answers it
+        self.answers.taken(answer_key(mission))
+        return [Accepted(mission), Declared(mission)]
 
     def _ack(self, view: NodeView, mission: Mission, reason: AckReason, why: str) -> Ack:
         ok = reason == AckReason.OK

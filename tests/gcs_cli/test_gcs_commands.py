@@ -209,3 +209,26 @@ def test_status_shows_how_old_the_autopilot_data_is() -> None:
     assert 29.0 <= row["data_age_s"] <= 31.0  # ...about 30 s old data
     assert row["alerts"] == "autopilot_link_loss"
     assert ("data_age_s", "data") in COLUMNS
+
+
+def test_a_mission_the_fleet_cannot_fly_is_refused_with_its_budget(
+    node7: tuple[str, str],
+) -> None:
+    """The mission's answer is the fleet's verdict on its plan: a 1.2 km square is
+    beyond the seed quadcopter's battery, so the node refuses it (PLAN_FAILED) with the
+    budget in full, and `gcs mission` exits 1 (it said "1 accepted", exit 0)."""
+    router, swarm = node7
+    for _ in range(30):  # the autopilot's home first (the simulated EKF's few seconds)
+        r = gcs(router, swarm, "cmd", "set-base", "--point", "37.4112,-5.9889,10")
+        if r.exit_code == 0:  # type: ignore[attr-defined]
+            break
+    d_lat, d_lon = 1200.0 / 111_320.0, 1200.0 / (111_320.0 * 0.7943)
+    lat, lon = 37.4117, -5.9889
+    square = f"{lat},{lon} {lat},{lon + d_lon} {lat + d_lat},{lon + d_lon} {lat + d_lat},{lon}"
+    for _ in range(10):  # HOME_NOT_SET / NOT_READY pass as the simulated autopilot settles
+        r = gcs(router, swarm, "mission", "area", "--polygon", square, "--id", "7", "--yes")
+        out = r.stdout  # type: ignore[attr-defined]
+        if "PLAN_FAILED" in out or "plan cannot be flown" in out:
+            break
+    assert r.exit_code == 1, out  # type: ignore[attr-defined]
+    assert "plan cannot be flown" in out and "needs" in out and "has" in out, out

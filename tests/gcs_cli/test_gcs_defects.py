@@ -33,6 +33,8 @@ BAD = [
     (["cmd", "rtl", "--fleet", "0"], "--fleet"),
     (["cmd", "rtl", "--id", "3", "--all"], "exclude each other"),
     (["cmd", "arm"], "say which vehicles"),  # it armed the whole swarm
+    (["cmd", "shutdown"], "say which vehicles"),  # it stopped the swarm logic everywhere
+    (["cmd", "cancel-mission", "--mission-id", "5"], "say which vehicles"),
     (["cmd", "warp-drive", "--all"], "unknown command 'warp-drive'"),
     (["cmd", "rtl", "--all", "--timeout", "nan"], "--timeout"),
     (["cmd", "rtl", "--all", "--timeout", "-1"], "--timeout"),
@@ -127,13 +129,10 @@ def test_a_command_that_moves_vehicles_is_not_sent_unconfirmed(
     code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "arm", "--all"])
     err = capsys.readouterr().err
     assert code == 2 and "add --yes to confirm" in err and "every vehicle alive" in err, err
-    # shutdown takes vehicles out of the swarm's control: a selector, then a confirmation
-    code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "shutdown"])
+    # shutdown takes vehicles out of the swarm logic: asked too
+    code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "shutdown", "--all"])
     err = capsys.readouterr().err
-    assert code == 2 and "say which vehicles" in err, err
-    code = run(["--connect", zenoh_router, "--swarm", "bad", "cmd", "shutdown", "--id", "3"])
-    err = capsys.readouterr().err
-    assert code == 2 and "add --yes to confirm" in err, err
+    assert code == 2 and "shutdown to every vehicle alive" in err and "--yes" in err, err
     assert listener == []
 
 

@@ -116,6 +116,12 @@ def test_an_unknown_id_or_a_bad_selection_is_refused() -> None:
         {"type": "command", "kind": "rtl", "select": {"ids": [1], "all": True}}
     )
     assert "unknown request" in page_error({"type": "launch"})
+    # what stops the swarm logic names its vehicles and is confirmed, as on the command line
+    assert "say which vehicles" in page_error({"type": "command", "kind": "shutdown"})
+    p = prepare(
+        {"type": "command", "kind": "shutdown", "select": {"ids": [1]}}, gcs_id=900, known=KNOWN
+    )
+    assert p.moving
     with pytest.raises(PageError):
         prepare(["not", "an", "object"], gcs_id=900, known=KNOWN)
 

@@ -67,9 +67,11 @@ def test_a_lower_owner_is_refused_while_a_higher_one_holds_control() -> None:
     a = AutopilotArbiter()
     a.take(Owner.EMERGENCY)
     refused = a.submit(Owner.OPERATOR, ReturnToLaunch(request_id=3))
-    # marked as the arbiter's own refusal: nobody reads it from the text
-    want = ApResult(3, False, "preempted by EMERGENCY", error=ApError.PREEMPTED)
-    assert refused == [Routed(Owner.OPERATOR, want)]
+    assert refused == [
+        Routed(
+            Owner.OPERATOR, ApResult(3, False, "preempted by EMERGENCY", error=ApError.PREEMPTED)
+        )
+    ]
     # fence work does not fly the vehicle: never refused
     assert isinstance(sent(a.submit(Owner.FENCE, UploadFence(request_id=1))), UploadFence)
     # the emergency's own requests go out and their results come back to it

@@ -311,27 +311,51 @@ def test_emergency_procedures_of_a_plane() -> None:
     assert emergency_requests(AlertCode.ATTITUDE_ABNORMAL, plane) == ()
 
 
-def test_shutdown_is_refused_while_armed_and_taken_on_the_ground() -> None:
-    """SHUTDOWN stops the swarm logic: an airborne vehicle would be left loitering with
-    no owner (no avoidance, nobody bringing it home). It is refused with the way out
-    while the vehicle is armed, and taken once it is down and disarmed."""
+def test_shutdown_in_the_air_sends_the_vehicle_home_and_shuts_down_once_landed() -> None:
+    """SHUTDOWN during a mission left vehicle 9 INACTIVE, loitering at 40 m with no
+    owner: now it leaves the mission as RTL does, flies home, and the landing shuts the
+    node down."""
     f = fleet_of(QUAD, QUAD)
     on_mission(f)
     t = f.now
-    send(f, command(70, CommandKind.SHUTDOWN, Selector.ids(1)))
+    send(f, command(63, CommandKind.SHUTDOWN, Selector.ids(1)))
     f.run_until(f.now + 1.0)
     node = f.nodes[1]
-    ack = acks(f, 70)[1]
-    assert not ack.accepted and ack.reason == AckReason.BUSY
-    assert "rtl, land" in ack.text
-    assert node.active and node.fsm.mission_id == 50  # it flies its share on
-    assert requests(f, 1, t) == []  # nothing asked of the autopilot
-    send(f, command(71, CommandKind.RTL, Selector.ids(1)))
+    assert acks(f, 63)[1].accepted
+    assert len(requests(f, 1, t, ReturnToLaunch)) == 1
+    assert (node.fsm.state, node.manager.phase) == (FsmState.GO_MISSION, Phase.RETURNING)
+    assert node.active  # still the swarm's until it is down
+    assert f.nodes[2].fsm.mission_id == 50  # the other vehicle flies on
+    land(f, 1)
+    assert node.fsm.state == FsmState.INACTIVE and not node.active
+    assert not [a for a in f.messages(Alert, sender=1) if a.code == AlertCode.MISSION_COMPLETE]
+
+
+def test_shutdown_in_the_air_outside_a_mission_sends_it_home_first() -> None:
+    f = fleet_of(QUAD)
+    send(f, command(64, CommandKind.SHUTDOWN, Selector.ids(1)))
     f.run_until(f.now + 1.0)
-    land(f, 1)  # down and disarmed: the sortie ended (the paper's shutdown)
-    send(f, command(72, CommandKind.ACTIVATE, Selector.ids(1)))
+    assert acks(f, 64)[1].accepted and requests(f, 1, 0.0, ReturnToLaunch)
+    assert not f.nodes[1].active
+
+
+def test_shutdown_on_the_ground_only_shuts_down() -> None:
+    f = fleet_of(QUAD)
+    land(f, 1)
+    t = f.now
+    send(f, command(65, CommandKind.SHUTDOWN, Selector.ids(1)))
     f.run_until(f.now + 1.0)
-    assert node.active
-    send(f, command(73, CommandKind.SHUTDOWN, Selector.ids(1)))
+    assert acks(f, 65)[1].accepted and not requests(f, 1, t, ReturnToLaunch)
+    assert not f.nodes[1].active and f.nodes[1].fsm.state == FsmState.INACTIVE
+
+
+def test_shutdown_in_the_air_without_the_autopilot_link_is_refused() -> None:
+    """It could not be sent home: refused with the reason, the node stays active."""
+    f = fleet_of(QUAD)
+    f.set_autopilot(1, flying(link_ok=False))
+    f.run_until(f.now + 0.5)
+    send(f, command(66, CommandKind.SHUTDOWN, Selector.ids(1)))
     f.run_until(f.now + 1.0)
-    assert acks(f, 73)[1].accepted and not node.active
+    ack = acks(f, 66)[1]
+    assert (ack.accepted, ack.reason) == (False, AckReason.NOT_READY)
+    assert "home" in ack.text and f.nodes[1].active

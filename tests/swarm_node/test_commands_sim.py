@@ -68,3 +68,20 @@ def test_a_released_parachute_ends_the_sortie(fleet_profiles: dict) -> None:
     assert v.node.mission_state.name == "PARACHUTE"
     assert fleet.run_until(lambda: v.node.fsm.state == FsmState.INACTIVE, 300)
     assert not v.link.state.armed and (v.link.state.alt_rel_m or 0.0) < 2.0
+
+
+def test_shutdown_mid_mission_brings_the_vehicle_down_at_its_base(fleet_profiles: dict) -> None:
+    """SHUTDOWN during a mission left the vehicle INACTIVE, loitering at 40 m with no
+    owner: now it flies home and lands, and the node shuts down on the ground."""
+    fleet, op = flying_a_mission(fleet_profiles, 7)  # a seed quadcopter
+    v = fleet.vehicles[7]
+    assert op(CommandKind.SHUTDOWN).accepted
+    assert fleet.run_until(lambda: v.node.fsm.state == FsmState.INACTIVE, 600)
+    s = v.link.state
+    assert not s.armed and (s.alt_rel_m or 0.0) < 1.0 and not v.node.active
+    assert s.lat_deg is not None and s.lon_deg is not None
+    k = 111_320.0 * math.cos(math.radians(SITL_HOME.lat_deg))
+    off = math.hypot(
+        (s.lat_deg - SITL_HOME.lat_deg) * 111_320.0, (s.lon_deg - SITL_HOME.lon_deg) * k
+    )
+    assert off < 10.0, off  # at its base (the home the simulator starts on)

@@ -146,7 +146,7 @@ class ApError(IntEnum):
     UNKNOWN_VEHICLE = 11  # vehicle type not configured and not known from a HEARTBEAT
     IN_PROGRESS = 12  # still MAV_RESULT_IN_PROGRESS when the time ran out
     NOT_STARTED = 13  # accepted, but the autopilot did not start the mission
-    PREEMPTED = 14  # refused by the node's arbiter: a higher owner holds the autopilot
+    PREEMPTED = 14  # refused by the node's arbiter (a higher owner holds control), never sent
 
 
 class ApResult(msgspec.Struct, frozen=True):

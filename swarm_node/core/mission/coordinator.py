@@ -40,7 +40,7 @@ Pure: no I/O; `now` is passed in.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import assert_never
 
@@ -70,6 +70,7 @@ from swarm_proto.text import short_text
 
 from .. import state_machine as fsm
 from ..arbiter import Owner
+from ..autopilot.items import ItemKind, Waypoint
 from ..autopilot.requests import ApResult
 from ..autopilot.state import AutopilotState
 from ..declared import SortieRecord
@@ -110,6 +111,9 @@ from .scoring import Candidate
 from .share import PlanOutcome, Replay, heading_on, pose_on
 from .tasking import Derived, Elected, Standing, Tasking, TaskingOutput, TaskingSettings, VoteFailed
 from .voting import VoterLost
+
+#: past the state machine's plan timeout, a mission not answered yet is answered TIMEOUT
+VERDICT_GRACE_S = 5.0
 
 # what a replan takes over from a lost member: its fleet plans or flies the mission
 REPLANNING = (MissionState.PREMISSION, MissionState.MISSION, MissionState.REPLAN)
@@ -163,6 +167,10 @@ class MissionCoordinator:
         self._reboots = 0  # the autopilot's reboots when last seen
         # members fallen silent whose share is held: vehicle -> (mission, held until)
         self.held: dict[int, tuple[int, float]] = {}
+        # the operator's missions not answered yet (the fleet's verdict comes with its
+        # plan): mission id -> (mission, answered by then at the latest)
+        self.unanswered: dict[int, tuple[Mission, float]] = {}
+        self.idle_in: set[int] = set()  # missions whose plan left us nothing to fly
 
     # ------------------------------------------------------------------ views
     @property
@@ -199,7 +207,8 @@ class MissionCoordinator:
     def next_deadline(self) -> float:
         t = self.fsm.next_deadline()
         held = min((until for _, until in self.held.values()), default=None)
-        for due in (self.tasking.next_deadline(), self.reattach.next_deadline(), held):
+        verdict = min((due for _, due in self.unanswered.values()), default=None)
+        for due in (self.tasking.next_deadline(), self.reattach.next_deadline(), held, verdict):
             if due is not None and due < t:
                 t = due
         return t
@@ -214,7 +223,12 @@ class MissionCoordinator:
             case Accepted(mission):
                 self.missions[mission.mission_id] = mission  # in force
                 self.fsm.post(fsm.NewMission(mission.mission_id))
-                return []
+                # answered with the fleet's plan; a plan that never comes (the state
+                # machine's plan timeout, a cancel) is answered at the latest then
+                due = now + self.plan_timeout_s + VERDICT_GRACE_S
+                replaced = self._replaced(mission.mission_id)
+                self.unanswered[mission.mission_id] = (mission, due)
+                return replaced
             case Candidacy(mission):
                 return self._candidate(mission, ctx(), now)
             case Regrouping(cmd):
@@ -320,6 +334,9 @@ class MissionCoordinator:
             self.missions[handed.mission.mission_id] = handed.mission
             self.fsm.post(fsm.NewMission(handed.mission.mission_id))
         out: list[ModuleOutput] = [Ended(mid)]
+        if mid in self.idle_in:  # no share flown: not a MISSION_COMPLETE of ours
+            self.idle_in.discard(mid)
+            return [*out, Note(logging.INFO, f"mission {mid}: done; we had nothing to fly")]
         if mission is not None:
             alert = Alert(
                 self.self_id,
@@ -559,9 +576,9 @@ class MissionCoordinator:
 
     def on_timer(self, read: Read, now: float) -> list[ModuleOutput]:
         """Tasking's deadlines (a vote's, a target's gathering) and reattach's."""
-        due, out = self.tasking.next_deadline(), []
+        due, out = self.tasking.next_deadline(), self._unanswered_due(now)
         if due is not None and now >= due:
-            out = self._tasked(self.tasking.on_timer(now), read(), now)
+            out += self._tasked(self.tasking.on_timer(now), read(), now)
         out += self._hold_over(now)
         if not self.reattach.active:
             return out
@@ -1001,7 +1018,68 @@ class MissionCoordinator:
         self.roster.distrust(ids)
 
     def on_plan(self, outcome: PlanOutcome, ap: AutopilotState, now: float) -> list[ModuleOutput]:
-        return self.manager.on_plan(outcome, ap, now, self.roster)
+        """The fleet's plan: the verdict on an operator's mission first (the same on
+        every node: each plans the whole fleet from the same inputs), then our share."""
+        mid = self.fsm.mission_id
+        pending = None if self._replanning or mid is None else self.unanswered.get(mid)
+        if pending is None or mid is None:
+            return self.manager.on_plan(outcome, ap, now, self.roster)
+        outcome = fleet_verdict(outcome)
+        out = self.manager.on_plan(outcome, ap, now, self.roster)
+        if not out:  # an abandoned job's outcome: not this mission's plan
+            return out
+        del self.unanswered[mid]
+        mission = pending[0]
+        plan = outcome.plan
+        if plan is None:
+            ack = self._verdict(mission, False, AckReason.PLAN_FAILED, outcome.error, outcome)
+            return [Answer(ack), *out]
+        text = f"plan {plan.digest()}"
+        if self.self_id in plan.roster and not _flies(plan.share(self.self_id).waypoints):
+            # the split left us nothing (docs/paper-choices.md): we stay on our pad
+            self.idle_in.add(mid)
+            text += ": nothing to fly here, stays on its pad"
+        return [Answer(self._verdict(mission, True, AckReason.OK, text, outcome)), *out]
+
+    def _verdict(
+        self, mission: Mission, ok: bool, reason: AckReason, text: str, outcome: PlanOutcome
+    ) -> Ack:
+        return Ack(
+            self.self_id,
+            mission.issuer_id,
+            AckRef.MISSION,
+            mission.mission_id,
+            ok,
+            reason,
+            short_text(text),
+            None if ok else outcome.detail,
+        )
+
+    def _replaced(self, mid: int) -> list[ModuleOutput]:
+        """A newer mission replaces one not answered yet (the state machine plans the
+        newest): that one is refused, naming the newer."""
+        out: list[ModuleOutput] = []
+        for old, (mission, _) in list(self.unanswered.items()):
+            if old == mid:
+                continue
+            del self.unanswered[old]
+            text = f"replaced by mission {mid} before its plan"
+            out.append(
+                Answer(self._verdict(mission, False, AckReason.BUSY, text, PlanOutcome(0, None)))
+            )
+        return out
+
+    def _unanswered_due(self, now: float) -> list[ModuleOutput]:
+        """Missions whose plan never came: refused, with what became of them."""
+        out: list[ModuleOutput] = []
+        for mid, (mission, due) in list(self.unanswered.items()):
+            if now < due:
+                continue
+            del self.unanswered[mid]
+            text = f"no fleet plan after {self.plan_timeout_s:g} s"
+            ack = self._verdict(mission, False, AckReason.TIMEOUT, text, PlanOutcome(0, None))
+            out.append(Answer(ack))
+        return out
 
     def on_result(self, owner: Owner, result: ApResult, now: float) -> list[ModuleOutput]:
         """A result of the mission manager's request (MISSION) or reattach's (REATTACH)."""
@@ -1017,6 +1095,24 @@ class MissionCoordinator:
 
     def on_peer_status(self, status: VehicleStatus, now: float) -> None:
         self.manager.on_peer_status(status, now)  # MUM-T: the lead's telemetry
+
+
+def fleet_verdict(outcome: PlanOutcome) -> PlanOutcome:
+    """The fleet's plan as every member judges it: flyable only when every member's
+    share is (a share with nothing to fly is one only where the split may leave a member
+    on its pad: an AREA). Every node holds the same plan, so every node refuses the same
+    way, naming the member."""
+    plan = outcome.plan
+    if plan is None or plan.mission.mission_type == MissionType.AREA:
+        return outcome
+    for vid in plan.roster:
+        if not _flies(plan.share(vid).waypoints):
+            return PlanOutcome(outcome.job_id, None, f"planning: nothing to fly for vehicle {vid}")
+    return outcome
+
+
+def _flies(waypoints: Sequence[Waypoint]) -> bool:
+    return any(w.kind == ItemKind.WAYPOINT for w in waypoints)
 
 
 def _candidate(profile: VehicleProfile, ap: AutopilotState) -> Candidate:
