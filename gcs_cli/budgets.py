@@ -39,7 +39,6 @@ class Budget:
     has_s: float  # what its battery allows at cruise (inf: no battery figures)
     home_known: bool
     battery_pct: float | None
-    wait_s: float = 0.0  # taken off has_s: its worst turn to land at close pads
 
     @property
     def short(self) -> bool:
@@ -84,7 +83,7 @@ def budgets(
     """Plan `m` for `ids` as the nodes do; PlanningError when the fleet would refuse."""
     from swarm_node.core.mission.share import Member, plan_fleet
     from swarm_node.core.planning import PlanVehicle
-    from swarm_node.core.planning.endurance import Endurance, landing_queue_s
+    from swarm_node.core.planning.endurance import Endurance
     from swarm_node.core.planning.geo import LocalFrame
 
     homes = swarm.homes if swarm else {}
@@ -96,11 +95,6 @@ def budgets(
     ]
     first = next((homes[v] for v in ids if v in homes), None)
     plan = plan_fleet(m, members, zones, now, first.alt_msl_m if first else 0.0)
-    pads = {}
-    if first is not None:
-        frame = LocalFrame(first.lat_deg, first.lon_deg)
-        pads = {v: frame.to_local(homes[v].lat_deg, homes[v].lon_deg) for v in ids if v in homes}
-    wait = landing_queue_s({v: profiles[v] for v in pads}, pads)  # type: ignore[misc]
     out = []
     for v in ids:
         share = plan.shares.get(v)
@@ -117,10 +111,7 @@ def budgets(
         e = Endurance.of(prof, m.params.altitude_rel_m)  # type: ignore[arg-type]
         pct = battery.get(v)
         has = e.cruise_budget_s if pct is None else e.ground_budget_s(pct, prof)  # type: ignore[arg-type]
-        queue = wait.get(v, 0.0)
-        has = max(has - queue, 0.0)
-        row = Budget(v, share.length_m, share.time_s + back_s, has, home is not None, pct, queue)
-        out.append(row)
+        out.append(Budget(v, share.length_m, share.time_s + back_s, has, home is not None, pct))
     return out
 
 
@@ -231,7 +222,6 @@ def budget_table(found: list[Budget], title: str) -> Table:
         )
     t.caption = (
         "needs: its share and the way home at its mission speed; has: what its "
-        "battery allows at cruise after the climb, the landing and its worst wait to land "
-        "(pads closer than 40 m land one at a time)"
+        "battery allows at cruise after the climb and the landing"
     )
     return t

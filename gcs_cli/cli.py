@@ -46,7 +46,7 @@ from .core.exchange import Verdict
 from .core.lost import NotLostError, finite_id
 from .core.reasons import alert_text
 from .db import DbOption
-from .ground import new_seq
+from .ground import MISSION_TIMEOUT_S, new_seq
 from .options import (
     AllOption,
     FleetOption,
@@ -241,10 +241,6 @@ MOVING = frozenset(
         CommandKind.SHUTDOWN,
     }
 )
-#: a mission's answer is the fleet's verdict on its plan: the members synchronise and
-#: plan first (a large area takes seconds on a loaded companion computer); a vehicle's
-#: plan timeout is 60 s
-MISSION_TIMEOUT_S = 60.0
 COMMAND_NAMES = [k.name.lower().replace("_", "-") for k in CommandKind]
 #: --value of the commands that need one: (lowest, highest, lowest allowed, what)
 VALUE_RANGES: dict[CommandKind, tuple[float, float, bool, str]] = {

@@ -87,6 +87,12 @@ def new_seq() -> int:
     return int((time.time() - 1_704_067_200) * 1000) % (1 << 32)
 
 
+#: a mission's answer is the fleet's verdict on its plan: the members synchronise and
+#: plan first (a large area takes seconds on a loaded companion computer); a vehicle's
+#: plan timeout is 60 s. The exchange ends as soon as every addressed vehicle answered.
+MISSION_TIMEOUT_S = 60.0
+
+
 @dataclass
 class FleetView:
     """The latest of everything heard from each vehicle."""
@@ -431,7 +437,7 @@ class GroundStation:
         out = self.send_command(kind, target, args, timeout_s=timeout_s)
         return [r.ack for r in out.rows if r.ack is not None]
 
-    def mission(self, mission: Mission, *, timeout_s: float = 5.0) -> list[Ack]:
+    def mission(self, mission: Mission, *, timeout_s: float = MISSION_TIMEOUT_S) -> list[Ack]:
         """Publish a mission and return every answer (NOT_ADDRESSED ones too)."""
         self.send_mission(mission, timeout_s=timeout_s)
         return self._acks(AckRef.MISSION, mission.mission_id)

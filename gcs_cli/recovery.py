@@ -25,7 +25,7 @@ from swarm_proto import (
 
 from .answers import progress, report
 from .common import Link, ask, console, selector_from, timeout_option
-from .ground import GroundStation, new_seq
+from .ground import MISSION_TIMEOUT_S, GroundStation, new_seq
 from .options import AllOption, FleetOption, IdsOption, JsonOption, YesOption, checked
 
 app = typer.Typer()  # save, load: app.py puts them at the top level
@@ -247,7 +247,9 @@ def load(
         elif missions:
             for m in missions:
                 with progress(not as_json) as show:
-                    out = gs.send_mission(m, timeout_s=timeout, progress=show)
+                    # the fleet answers once its plan is made
+                    wait = max(timeout, MISSION_TIMEOUT_S)
+                    out = gs.send_mission(m, timeout_s=wait, progress=show)
                 failed |= _step(out, as_json)
     if failed:
         raise typer.Exit(1)

@@ -40,10 +40,10 @@ from swarm_proto import (
 )
 
 from .. import _clickx
-from ..cli import MISSION_TIMEOUT_S, MOVING, check_payload_model, mission_defaults
+from ..cli import MOVING, check_payload_model, mission_defaults
 from ..common import selector_from
 from ..core.exchange import Exchange, Outcome
-from ..ground import GroundStation, new_seq
+from ..ground import MISSION_TIMEOUT_S, GroundStation, new_seq
 from ..options import checked, describe, finite, geometry_from, parse_geopoint
 
 MAX_FILE_BYTES = 2_000_000  # a mission file sent from the page

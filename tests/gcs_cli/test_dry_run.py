@@ -49,7 +49,6 @@ def test_the_plan_files_survey_is_within_every_battery() -> None:
     assert [b.vehicle_id for b in found] == list(IDS)
     for b in found:
         assert 0.0 < b.needs_s < b.has_s and not b.short, b
-        assert round(b.wait_s) == 56  # its worst turn to land, taken off what it has
     # a battery half used leaves less
     half = budgets(m, list(IDS), PROFILES, Swarm(dict.fromkeys(IDS, 0), HOMES, {7: 50.0}, []), 0.0)
     assert half[0].has_s < found[0].has_s and half[0].battery_pct == 50.0
@@ -61,9 +60,7 @@ def test_a_field_too_big_is_refused_with_the_budgets() -> None:
         budgets(m, list(IDS), PROFILES, Swarm(dict.fromkeys(IDS, 0), HOMES, {}, []), 0.0)
     d = info.value.detail
     assert d is not None and d.code == DetailCode.ENDURANCE and d.vehicle_id == 0
-    # 148 s at cruise after the climb to 100 m and the landing, less the worst wait to
-    # land: pads 10 m apart land one at a time, two others first (56 s at cruise)
-    assert round(d.available_s) == 92 and d.needed_s > 2 * d.available_s
+    assert round(d.available_s) == 148 and d.needed_s > 2 * d.available_s
 
 
 @pytest.fixture
@@ -94,8 +91,7 @@ def test_dry_run_prints_each_vehicles_budget_and_sends_nothing(
     assert "planned as the nodes plan it" in out and "needs s" in out and "has s" in out, out
     rows = [line.split() for line in out.splitlines() if line.strip()[:1] in ("7", "8", "9")]
     assert [r[0] for r in rows] == ["7", "8", "9"] and all(r[-1] == "ok" for r in rows), out
-    # has: 192 s at 50 m on a full battery, less the worst wait to land (56 s)
-    assert all(r[3] == "136" for r in rows), out
+    assert all(r[3] == "192" for r in rows), out  # has: 192 s at 50 m on a full battery
     assert "the fleet's checks pass; nothing sent" in out, out
     # an option given overrides the file's altitude: less battery left after a climb to 100 m
     code, out, _ = gcs(
@@ -111,7 +107,7 @@ def test_dry_run_prints_each_vehicles_budget_and_sends_nothing(
         "--dry-run",
     )
     rows = [line.split() for line in out.splitlines() if line.strip()[:1] in ("7", "8", "9")]
-    assert code == 0 and rows and all(r[3] == "92" for r in rows), out  # 148 s less 56 s
+    assert code == 0 and rows and all(r[3] == "148" for r in rows), out
     # a fleet nobody is in: nothing to plan with, said
     code, out, _ = gcs(
         zenoh_router, capsys, "mission", "area", "--file", str(PLAN), "--fleet", "1", "--dry-run"
@@ -145,5 +141,5 @@ def test_dry_run_refuses_what_the_fleet_would_refuse(
     assert code == 1, out
     line = " ".join(out.split())
     assert "the fleet would refuse it: needs" in line and "s per vehicle at cruise" in line, out
-    assert "has 92 s" in line, out  # 148 s less the worst wait to land (56 s)
+    assert "has 148 s" in line, out
     assert all(v.got == [] for v in quads.values())

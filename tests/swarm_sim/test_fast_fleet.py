@@ -12,6 +12,7 @@ import pytest
 
 from swarm_proto import (
     Ack,
+    AckRef,
     Alert,
     AlertCode,
     Command,
@@ -262,7 +263,8 @@ def test_a_member_the_split_gives_nothing_stays_on_its_pad(fleet_profiles: dict)
     cruise after its climb and landing): the endurance-aware split gives the quadcopter
     no lanes. It does not take off (before, it climbed, hovered at its take-off altitude
     with an empty mission and reached BATTERY_CRITICAL: the mixed demo's failure), says
-    its share is done, and its leaving the mission is not a loss the others replan for."""
+    so in its answer (no MISSION_COMPLETE: it flew nothing), and its leaving the mission
+    is not a loss the others replan for."""
     from swarm_node.core.node import NodeSettings
 
     members = [1, 2, 7]  # two Albatross VTOLs and a quadcopter
@@ -294,7 +296,9 @@ def test_a_member_the_split_gives_nothing_stays_on_its_pad(fleet_profiles: dict)
     completed = {
         a.vehicle_id for a in fleet.messages(Alert) if a.code == AlertCode.MISSION_COMPLETE
     }
-    assert completed == set(members)
+    assert completed == {1, 2}  # 7 flew nothing: no MISSION_COMPLETE of its own
+    (answer,) = [a for a in fleet.messages(Ack) if a.ref == AckRef.MISSION and a.vehicle_id == 7]
+    assert answer.accepted and "stays on its pad" in answer.text, answer
     others = [s for s in fleet.messages(VehicleStatus) if s.vehicle_id != 7]
     assert max(s.mission_progress_pct for s in others) == 100
     assert not any(s.mission_state.name == "REPLAN" for s in others)  # 7 was not lost

@@ -12,7 +12,7 @@ from swarm_proto import GeometryKind, MissionParams
 from .context import PlanContext
 from .coverage import Lane, LanePlan, check_flyable, decompose, lane_spacing_m, plan_lanes
 from .dubins import Pose, shortest_path
-from .endurance import Endurance, accel_m_s2, landing_queue_s
+from .endurance import Endurance, accel_m_s2
 from .errors import InvalidGeometryError, InvalidParameterError
 from .geo import LocalFrame
 from .split import (
@@ -75,23 +75,11 @@ def _workers(
     stopping on waypoints, and with `altitudes` the time at cruise its battery allows
     for its block and the way home: a sortie from where it is (its home) with a full
     battery, or, for a vehicle in `battery_pct`, what that charge leaves in the air
-    (the way home to `homes`, else to where it is), less the wait for its turn to
-    land on close pads (`landing_queue_s`)."""
+    (the way home to `homes`, else to where it is)."""
     out = []
-    starts = {
-        v.vehicle_id: Pose(*frame.pose(v.pose)) if v.pose is not None else None for v in vehicles
-    }
-    pads: dict[int, tuple[float, float]] = {}
-    for vid, start in starts.items():
-        home = (homes or {}).get(vid)
-        if home is not None:
-            pads[vid] = home
-        elif start is not None:
-            pads[vid] = (start.x, start.y)
-    queue = landing_queue_s({v.vehicle_id: v.profile for v in vehicles}, pads)
     for v in vehicles:
         speed = v.speed(params)
-        start = starts[v.vehicle_id]
+        start = Pose(*frame.pose(v.pose)) if v.pose is not None else None
         budget = math.inf
         if altitudes is not None:
             e = Endurance.of(v.profile, altitudes[v.vehicle_id])
@@ -102,7 +90,6 @@ def _workers(
                 )
             elif v.vehicle_id in battery_pct:
                 budget = e.airborne_budget_s(battery_pct[v.vehicle_id], v.profile)
-            budget = max(budget - queue.get(v.vehicle_id, 0.0), 0.0)
         out.append(
             Worker(
                 v.vehicle_id,

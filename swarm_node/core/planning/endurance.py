@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from swarm_node.core.profile import VehicleProfile
@@ -207,42 +207,3 @@ class Endurance:
             return 0.0
         mah = (self.cruise_a * cruise_s + self.hover_a * (self.climb_s + self.land_s)) / 3.6
         return 100.0 * mah / capacity_mah
-
-
-#: pads closer than this land one after another (safety/pads.py `PadConfig.near_m`)
-PAD_QUEUE_NEAR_M = 40.0
-#: the lowest holding layer over a pad, where a vehicle waits for its turn to land
-#: (`PadConfig.hold_alt_rel_m`)
-PAD_HOLD_ALT_M = 30.0
-
-
-def landing_queue_s(
-    profiles: Mapping[int, VehicleProfile], pads: Mapping[int, tuple[float, float]]
-) -> dict[int, float]:
-    """Seconds at cruise current each vehicle's battery spends waiting for its turn to
-    land: pads closer than PAD_QUEUE_NEAR_M (and pads linked through such neighbours)
-    land one at a time, and the order is who arrives first, so the budget counts the
-    worst: every other vehicle of its cluster lands first, each from the holding layer,
-    while it hovers (a multirotor or VTOL at hover current) or circles (at cruise).
-    `pads`: local x, y in metres."""
-    ids = sorted(pads)
-    cluster = {vid: vid for vid in ids}
-
-    def root(v: int) -> int:
-        while cluster[v] != v:
-            v = cluster[v]
-        return v
-
-    for i, a in enumerate(ids):
-        for b in ids[i + 1 :]:
-            (ax, ay), (bx, by) = pads[a], pads[b]
-            if math.hypot(ax - bx, ay - by) < PAD_QUEUE_NEAR_M:
-                cluster[root(b)] = root(a)
-    slot = {vid: Endurance.of(profiles[vid], PAD_HOLD_ALT_M).land_s for vid in ids}
-    out = {}
-    for vid in ids:
-        wait = sum(slot[o] for o in ids if o != vid and root(o) == root(vid))
-        e = Endurance.of(profiles[vid], PAD_HOLD_ALT_M)
-        rate = e.hover_a / e.cruise_a if e.hover_a > 0.0 else 1.0
-        out[vid] = wait * rate
-    return out

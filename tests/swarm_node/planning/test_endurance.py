@@ -24,18 +24,13 @@ from swarm_node.core.planning import (
     split_lanes,
 )
 from swarm_node.core.planning.endurance import (
-    PAD_HOLD_ALT_M,
-    PAD_QUEUE_NEAR_M,
     RESERVE_FRACTION,
     Endurance,
     accel_m_s2,
-    landing_queue_s,
     leg_s,
     stop_and_go_s,
 )
 from swarm_node.core.profile import VehicleProfile
-from swarm_node.core.safety.pads import PadConfig
-from swarm_node.database import seed_profiles
 from tests.conftest import examples
 
 TURNS = PointTurns()
@@ -169,24 +164,3 @@ def test_the_demo_survey_split_keeps_1_7_8_within_their_batteries(fleet_profiles
         if stop_go.path_time_s + back > Endurance.of(v.profile, 60.0).cruise_budget_s:
             over.append(v.vehicle_id)
     assert over, "the baseline split no longer overruns: this test shows nothing"
-
-
-def test_the_budget_counts_the_wait_for_the_landing_order_at_close_pads() -> None:
-    """Pads closer than 40 m land one at a time, in the order the vehicles arrive: with
-    the simulator's 10 m spacing the third seed quadcopter hovered for its turn until
-    BATTERY_CRITICAL. Each vehicle's budget counts the worst turn (every other of its
-    cluster first, each landing from the holding layer, at hover current); a pad 200 m
-    away waits for nobody."""
-    assert (PadConfig().near_m, PadConfig().hold_alt_rel_m) == (PAD_QUEUE_NEAR_M, PAD_HOLD_ALT_M)
-    quad = seed_profiles()["Generic Quadcopter"]
-    profiles = {v: msgspec.structs.replace(quad, vehicle_id=v) for v in (1, 2, 3, 4)}
-    # 1-2-3 in a line 10 m apart (1 and 3 are 20 m apart); 4 alone
-    q = landing_queue_s(profiles, {1: (0.0, 0.0), 2: (10.0, 0.0), 3: (20.0, 0.0), 4: (200.0, 0)})
-    e = Endurance.of(quad, PAD_HOLD_ALT_M)
-    two_turns = 2 * e.land_s * quad.hover_current_a / quad.cruise_current_a
-    assert q[1] == q[2] == q[3] == pytest.approx(two_turns) and q[4] == 0.0
-    assert q[1] > 0.25 * Endurance.of(quad, 50.0).cruise_budget_s  # no small part of it
-    # a chain links pads: 1 and 3 are 70 m apart but 2 is within 40 m of each
-    q = landing_queue_s(profiles, {1: (0.0, 0.0), 2: (35.0, 0.0), 3: (70.0, 0.0)})
-    assert q[1] == q[3] == pytest.approx(two_turns)
-    assert landing_queue_s(profiles, {1: (0.0, 0.0)}) == {1: 0.0}
