@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -222,13 +223,18 @@ def test_a_mission_the_fleet_cannot_fly_is_refused_with_its_budget(
         r = gcs(router, swarm, "cmd", "set-base", "--point", "37.4112,-5.9889,10")
         if r.exit_code == 0:  # type: ignore[attr-defined]
             break
+        time.sleep(1.0)
     d_lat, d_lon = 1200.0 / 111_320.0, 1200.0 / (111_320.0 * 0.7943)
     lat, lon = 37.4117, -5.9889
     square = f"{lat},{lon} {lat},{lon + d_lon} {lat + d_lat},{lon + d_lon} {lat + d_lat},{lon}"
-    for _ in range(10):  # HOME_NOT_SET / NOT_READY pass as the simulated autopilot settles
+    # HOME_NOT_SET / NOT_READY pass as the simulated autopilot settles: asked again each
+    # second for up to a minute (its EKF takes longer on a loaded host)
+    t_end = time.monotonic() + 60.0
+    while True:
         r = gcs(router, swarm, "mission", "area", "--polygon", square, "--id", "7", "--yes")
         out = r.stdout  # type: ignore[attr-defined]
-        if "PLAN_FAILED" in out or "plan cannot be flown" in out:
+        if "PLAN_FAILED" in out or "plan cannot be flown" in out or time.monotonic() > t_end:
             break
+        time.sleep(1.0)
     assert r.exit_code == 1, out  # type: ignore[attr-defined]
     assert "plan cannot be flown" in out and "needs" in out and "has" in out, out
