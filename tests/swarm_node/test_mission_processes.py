@@ -20,6 +20,7 @@ from swarm_proto import (
     Command,
     CommandArgs,
     CommandKind,
+    DetailCode,
     FsmState,
     Geometry,
     GeoPoint,
@@ -27,6 +28,7 @@ from swarm_proto import (
     MissionParams,
     MissionState,
     MissionType,
+    Selector,
     VehicleStatus,
 )
 from swarm_sim.core import SITL_HOME
@@ -184,6 +186,64 @@ def test_planning_does_not_stall_status_or_commands(
             print(f"statuses while planning: {len(planning)} in {window:.1f} s (ratio {ratio:.2f})")
             assert ratio > 0.5
             assert acked_while_planning
+    finally:
+        watch.close()
+        client.close()
+
+
+@pytest.mark.parametrize("vehicles", [{7: "copter", 8: "copter"}], indirect=True)
+def test_a_mission_the_fleet_cannot_fly_is_refused_by_every_member_alike(
+    zenoh_router: str, swarm: str, vehicles: dict[int, str], swarm_db: object
+) -> None:
+    """Two quadcopters sent a field far beyond their batteries: each answers only once
+    the fleet's plan is made, both refuse it with the same reason and the endurance
+    numbers, and neither takes off."""
+    client = plain_session(zenoh_router)
+    watch = Watch(client, swarm)
+    try:
+        with nodes([7, 8], zenoh_router, swarm, autopilots=vehicles):
+            activate(client, swarm, watch, [7, 8])
+            side = 1500.0
+            lat0, lon0 = SITL_HOME.lat_deg + 0.001, SITL_HOME.lon_deg
+            d_lat, d_lon = side / 111_320.0, side / (111_320.0 * math.cos(math.radians(lat0)))
+            area = Geometry.polygon(
+                [
+                    (lat0, lon0),
+                    (lat0, lon0 + d_lon),
+                    (lat0 + d_lat, lon0 + d_lon),
+                    (lat0 + d_lat, lon0),
+                ]
+            )
+            m = Mission(
+                70,
+                GCS,
+                MissionType.AREA,
+                area,
+                MissionParams(altitude_rel_m=40.0),
+                Selector.ids(7, 8),
+            )
+            answers: dict[int, Ack] = {}
+            t_end = time.monotonic() + 90  # two planners on a loaded 2-core host
+            sent_at = 0.0
+            while len(answers) < 2 and time.monotonic() < t_end:
+                if not answers and time.monotonic() - sent_at > 15.0:
+                    send(client, swarm, m)  # again: a put lost to a router still learning
+                    sent_at = time.monotonic()
+                try:
+                    ack = watch.acks.get(timeout=1)
+                except queue.Empty:
+                    continue
+                if ack.ref == AckRef.MISSION and ack.ref_id == 70:
+                    answers[ack.vehicle_id] = ack
+            assert set(answers) == {7, 8}, answers
+            a7, a8 = answers[7], answers[8]
+            assert (a7.accepted, a7.reason) == (False, AckReason.PLAN_FAILED), a7
+            assert (a7.text, a7.detail) == (a8.text, a8.detail)
+            assert a7.detail is not None and a7.detail.code == DetailCode.ENDURANCE
+            assert a7.detail.needed_s > a7.detail.available_s > 0.0
+            while not watch.statuses.empty():
+                _, st = watch.statuses.get()
+                assert not st.armed, st
     finally:
         watch.close()
         client.close()
