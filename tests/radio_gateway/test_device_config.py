@@ -40,6 +40,7 @@ def test_settings_map_to_at_registers() -> None:
     ]
 
 
+@pytest.mark.timing  # AT guard times in real time on an emulator thread: run alone
 def test_configure_a_factory_module_then_verify_it() -> None:
     clock = ScaledClock(FAST)
     settings = xtend.RadioSettings(address=12, channel=4, power_level=2)
