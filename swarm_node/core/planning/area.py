@@ -248,7 +248,13 @@ def replan_area(
         homes=homes,
     )
     split = replan(plan.split, progress_pct, workers, obstacles=plan.obstacles)
-    alts = {v.vehicle_id: alts[v.vehicle_id] for v in vehicles}
+    return _resplit(plan, split, workers, {v.vehicle_id: alts[v.vehicle_id] for v in vehicles})
+
+
+def _resplit(
+    plan: AreaPlan, split: SplitPlan, workers: Sequence[Worker], alts: dict[int, float]
+) -> AreaPlan:
+    """`plan`'s frame, zones, obstacles and lanes with a new split among `workers`."""
     return AreaPlan(
         plan.frame,
         plan.zones,
@@ -290,14 +296,4 @@ def merge_area(
             alts[v.vehicle_id] = top
     workers = _workers(vehicles, params, first.frame)
     split = split_lanes(left or [], workers, obstacles=first.obstacles)
-    alts = {v.vehicle_id: alts[v.vehicle_id] for v in vehicles}
-    return AreaPlan(
-        first.frame,
-        first.zones,
-        first.obstacles,
-        first.lanes,
-        split,
-        _vehicle_plans(split, first.frame, alts),
-        tuple(alts.items()),
-        _tracks(split, workers, alts),
-    )
+    return _resplit(first, split, workers, {v.vehicle_id: alts[v.vehicle_id] for v in vehicles})
