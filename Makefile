@@ -14,7 +14,7 @@ PYTEST_ARGS ?=
 # from source again: 0.9 s of CPU per process, several minutes over the suite
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: all demo test checks lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check faults browser
+.PHONY: all demo test checks lint typecheck unit fuzz test-stress bench soak scale docs clean install sitl-check sitl-fleet faults browser
 
 all: test
 
@@ -111,6 +111,12 @@ scale: $(STAMP)
 SITL_ARGS ?=
 sitl-check: $(STAMP)
 	$(BIN)/python -m swarm_sim.sitl_check $(SITL_ARGS)
+
+## sitl-fleet: the paper's experiment flown by several SITL vehicles at once (docs/sitl.md);
+## not part of `make test`. Same ARDUPILOT_SITL_BIN; SITL_ARGS=--sim flies swarm-sim
+## vehicles instead. Writes bench/results/sitl_fleet.json.
+sitl-fleet: $(STAMP)
+	$(BIN)/python -m swarm_sim.sitl_fleet $(SITL_ARGS)
 
 ## docs: regenerate the generated documents (keyspace, state diagrams)
 docs: $(STAMP)

@@ -144,7 +144,8 @@ def survey(
                 if a.code == AlertCode.MISSION_COMPLETE:
                     t_done.setdefault(a.vehicle_id, fleet.now)
             seen = len(alerts)
-            return len(landed) == len(members)
+            # every member landed, or completed on the ground (the plan gave it nothing)
+            return all(v in landed or (v in t_done and v not in t_fly) for v in members)
 
         finished = fleet.run_until(step, timeout_s)
         homes = {vid: fleet.vehicles[vid].link.state.home for vid in members}

@@ -106,6 +106,9 @@ class AlertCode(IntEnum):
     AUTOPILOT_MISMATCH = 19  # the autopilot's HEARTBEAT type or system id is not the database's
     ROSTER_MISMATCH = 20  # a member flies the mission with another roster (members hash)
     IDENTITY_CONFLICT = 21  # another Zenoh session or airframe speaks in this vehicle's name
+    DATABASE_MISMATCH = 22  # the swarm database disagrees with the autopilot's own figures
+    CLOCK_SKEW = 23  # the autopilot's GPS time and the node's clock differ
+    AUTOPILOT_REFUSED = 24  # the autopilot refused a step of a mission (with its reason)
 
 
 class CommandKind(IntEnum):

@@ -276,6 +276,12 @@ class VehicleInfo(Struct, frozen=True):
     # appended: the battery now; what a member published on entering PLAN for
     # a mission is what every node plans its share with (swarm_node roster.py)
     battery_pct: Annotated[int, Meta(ge=-1, le=100, description="remaining %, -1 unknown")] = -1
+    # appended: the battery the autopilot itself says it has (its BATT_CAPACITY, read
+    # at link-up): what every node plans this vehicle's endurance with, not its own
+    # database's figure for the model (0 = not known: the database's)
+    battery_capacity_mah: Annotated[
+        int, Meta(ge=0, le=1_000_000, description="the autopilot's battery, mAh, 0 unknown")
+    ] = 0
 
 
 # --------------------------------------------------------------------------- control

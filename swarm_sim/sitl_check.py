@@ -8,7 +8,7 @@ checks, per vehicle type, against what ArduPilot itself reports on a second and 
 MAVLink port of each SITL (SERIAL1 +2: telemetry, SERIAL2 +3: mission downloads):
 
 - status: the node's VehicleStatus matches SITL (type, mode, armed, position)
-- rally: SET_BASE -> the rally point ArduPilot holds, at a safe altitude
+- rally: SET_BASE -> the rally point ArduPilot holds: its own pad, at a safe altitude
 - fence: a zone -> ArduPilot's fence holds it, enabled, with no failed enable
 - survey: an area survey around the zone flown with no breach (least clearance from
   the track ArduPilot reports at 10 Hz)
@@ -18,8 +18,8 @@ MAVLink port of each SITL (SERIAL1 +2: telemetry, SERIAL2 +3: mission downloads)
   SIGCONT
 
 It prints a PASS/FAIL table and writes bench/results/sitl.json. `--sim` runs the same
-against swarm-sim vehicles (no ArduPilot needed; the simulator accepts several clients
-on one port, so every link uses the vehicle's port). Times (`*_s`) are wall seconds
+against swarm-sim vehicles (no ArduPilot needed). The processes, the observers and the
+downloaders are sitl_rig.py's (shared with `make sitl-fleet`). Times (`*_s`) are wall seconds
 (SITL runs `--speedup` times faster than real time). docs/sitl.md tells how to build
 SITL.
 """
@@ -28,16 +28,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import functools
 import json
 import os
 import signal
-import socket
-import subprocess
 import sys
-import tempfile
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -47,8 +42,7 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
-from gcs_cli.ground import GroundStation
-from swarm_node.database import SwarmDatabase
+from swarm_node.core.margins import FIXED_WING_FLOWN_CLEARANCE_M, MULTIROTOR_FLOWN_CLEARANCE_M
 from swarm_proto import (
     Ack,
     AlertCode,
@@ -61,14 +55,16 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
     Selector,
-    VehicleType,
-    geodesy,
 )
-from swarm_proto.session import ZenohSettings
 
-HOME = (37.4112, -5.9889, 10.0, 0.0)  # lat, lon, alt MSL, heading: as the recordings
-SWARM = "sitl"
-GEOFENCE_BIT = 1 << 20  # MAV_SYS_STATUS_GEOFENCE
+from .sitl_rig import HOME, SWARM, Rig, Vehicle, copter, distance_m, quadplane
+from .sitl_rig import opt as _opt
+
+# what each vehicle type keeps from the zone as ArduPilot flies it (swarm_node margins)
+ZONE_CLEARANCE_M = {
+    "copter": MULTIROTOR_FLOWN_CLEARANCE_M,
+    "quadplane": FIXED_WING_FLOWN_CLEARANCE_M,
+}
 WAY_HOME_WAIT_S = 120.0  # wall: a vehicle not home-bound this long after its survey is stuck
 SAFE_RALLY_ALT_M = 15.0
 SURVEY_ALT_M = {
@@ -79,7 +75,7 @@ RESULTS = Path(__file__).resolve().parent.parent / "bench" / "results" / "sitl.j
 CHECKS = ("status", "rally", "fence", "survey", "way home", "rtl/land", "link loss", "passthrough")
 CHECK_TEXT = {
     "status": "status matches SITL",
-    "rally": "base -> rally point, safe altitude",
+    "rally": "base -> rally point on its pad, safe altitude",
     "fence": "zone -> fence enabled first try",
     "survey": "survey around the zone, no breach",
     "way home": "way home flown, landed, disarmed",
@@ -89,212 +85,8 @@ CHECK_TEXT = {
 }
 
 
-@dataclass(frozen=True)
-class VehicleSpec:
-    kind: str  # "copter" / "quadplane": the row in the results
-    node_id: int  # the seed database's system (7: quadcopter, 1: Albatross VTOL)
-    instance: int
-    binary: str
-    model: str
-    parm: str
-    vehicle_type: VehicleType
-    sim_model: str
-    home_east_m: float = 0.0
-
-    @property
-    def port(self) -> int:
-        return 5760 + 10 * self.instance
-
-
-VEHICLES = (
-    VehicleSpec("copter", 7, 0, "arducopter", "+", "copter.parm", VehicleType.COPTER, "copter"),
-    VehicleSpec(
-        "quadplane",
-        1,
-        1,
-        "arduplane",
-        "quadplane",
-        "quadplane.parm",
-        VehicleType.VTOL,
-        "vtol",
-        home_east_m=30.0,
-    ),
-)
-# Extra parameters (a user's own parm file would carry them): the copter's default
-# 3.3 Ah battery drains in a few minutes of SITL (behaviours.md).
-EXTRA_PARAMS = {"copter": {"BATT_CAPACITY": 20000}, "quadplane": {}}
-
-
-offset = geodesy.offset  # the one geodesy (swarm_proto.geodesy)
-distance_m = geodesy.distance_m
-
-
-def _opt(x: float | None, fmt: str, none: str) -> str:
-    return none if x is None else fmt.format(x)
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-# --------------------------------------------------------------------------- MAVLink
-
-
-@dataclass
-class Sample:
-    t: float  # wall, monotonic
-    lat: float
-    lon: float
-    alt_rel: float
-
-
-class Observer:
-    """What ArduPilot itself says, on a MAVLink port of its own: HEARTBEAT (mode, armed),
-    GLOBAL_POSITION_INT at 10 Hz, SYS_STATUS (fence enabled), STATUSTEXT."""
-
-    def __init__(self, url: str) -> None:
-        from pymavlink import mavutil
-
-        self.conn: Any = mavutil.mavlink_connection(
-            url, source_system=250, source_component=191, retries=60
-        )
-        self.lock = threading.Lock()
-        self.track: list[Sample] = []
-        self.mode = -1
-        self.armed = False
-        self.fence_enabled_at: float | None = None
-        self.fence_enabled = False
-        self.texts: list[tuple[float, str]] = []
-        self.last_heard = 0.0
-        self.version = ""
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True, name=f"observer-{url}")
-        self._thread.start()
-
-    def _run(self) -> None:
-        asked = 0.0
-        while not self._stop.is_set():
-            try:
-                msg = self.conn.recv_match(blocking=True, timeout=0.3)
-            except Exception:  # SITL gone (or frozen and the socket reset)
-                time.sleep(0.2)
-                continue
-            now = time.monotonic()
-            if now - asked > 5.0 and getattr(self.conn, "target_system", None):
-                asked = now
-                self._ask_streams()
-            if msg is None:
-                continue
-            kind = msg.get_type()
-            if msg.get_srcComponent() != 1:
-                continue  # the autopilot's messages only
-            with self.lock:
-                self.last_heard = now
-                if kind == "HEARTBEAT" and msg.type != 6:
-                    self.mode = int(msg.custom_mode)
-                    self.armed = bool(msg.base_mode & 128)
-                elif kind == "GLOBAL_POSITION_INT":
-                    self.track.append(
-                        Sample(now, msg.lat / 1e7, msg.lon / 1e7, msg.relative_alt / 1000.0)
-                    )
-                elif kind == "SYS_STATUS":
-                    on = bool(msg.onboard_control_sensors_enabled & GEOFENCE_BIT)
-                    if on and not self.fence_enabled:
-                        self.fence_enabled_at = now
-                    self.fence_enabled = on
-                elif kind == "AUTOPILOT_VERSION" and not self.version:
-                    v = int(msg.flight_sw_version)
-                    kinds = {0: "dev", 64: "alpha", 128: "beta", 192: "rc", 255: "official"}
-                    raw = bytes(msg.flight_custom_version)
-                    git = raw.decode("ascii") if raw.isascii() and raw.isalnum() else raw.hex()
-                    self.version = (
-                        f"{v >> 24 & 255}.{v >> 16 & 255}.{v >> 8 & 255}-"
-                        f"{kinds.get(v & 255, v & 255)} ({git})"
-                    )
-                elif kind == "STATUSTEXT":
-                    text = str(msg.text)
-                    self.texts.append((now, text))
-                    if text.startswith(("ArduCopter V", "ArduPlane V")) and not self.version:
-                        self.version = text
-
-    def _ask_streams(self) -> None:
-        ts, tc = self.conn.target_system, 1
-        if not self.version:  # MAV_CMD_REQUEST_MESSAGE AUTOPILOT_VERSION
-            self.conn.mav.command_long_send(ts, tc, 512, 0, 148, 0, 0, 0, 0, 0, 0)
-        for msg_id, hz in ((33, 10.0), (1, 2.0), (0, 1.0)):  # GLOBAL_POSITION_INT, SYS_STATUS, HB
-            self.conn.mav.command_long_send(ts, tc, 511, 0, msg_id, 1e6 / hz, 0, 0, 0, 0, 0)
-        self.conn.mav.heartbeat_send(6, 8, 0, 0, 0)
-
-    def here(self) -> Sample | None:
-        with self.lock:
-            return self.track[-1] if self.track else None
-
-    def since(self, t0: float) -> list[Sample]:
-        with self.lock:
-            return [s for s in self.track if s.t >= t0]
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(2.0)
-        with contextlib.suppress(Exception):
-            self.conn.close()
-
-
-class Downloader:
-    """Reads ArduPilot's mission, fence or rally items on a MAVLink port of its own."""
-
-    def __init__(self, url: str) -> None:
-        from pymavlink import mavutil
-
-        self.conn: Any = mavutil.mavlink_connection(
-            url, source_system=251, source_component=191, retries=60
-        )
-
-    def download(self, mission_type: int, timeout_s: float = 15.0) -> list[Any] | None:
-        c = self.conn
-        if not getattr(c, "target_system", None) and c.wait_heartbeat(timeout=timeout_s) is None:
-            return None
-        ts = c.target_system
-        end = time.monotonic() + timeout_s
-        while c.recv_match(blocking=False) is not None:  # drain
-            pass
-        count = None
-        while count is None and time.monotonic() < end:
-            c.mav.mission_request_list_send(ts, 1, mission_type)
-            m = c.recv_match(type="MISSION_COUNT", blocking=True, timeout=1.0)
-            if m is not None and m.mission_type == mission_type:
-                count = m.count
-        if count is None:
-            return None
-        items: list[Any] = []
-        while len(items) < count and time.monotonic() < end:
-            c.mav.mission_request_int_send(ts, 1, len(items), mission_type)
-            m = c.recv_match(type="MISSION_ITEM_INT", blocking=True, timeout=1.0)
-            if m is not None and m.mission_type == mission_type and m.seq == len(items):
-                items.append(m)
-        c.mav.mission_ack_send(ts, 1, 0, mission_type)
-        return items if len(items) == count else None
-
-    def set_param(self, name: str, value: float, timeout_s: float = 15.0) -> bool:
-        c = self.conn
-        if not getattr(c, "target_system", None) and c.wait_heartbeat(timeout=timeout_s) is None:
-            return False
-        end = time.monotonic() + timeout_s
-        while time.monotonic() < end:
-            c.mav.param_set_send(c.target_system, 1, name.encode(), float(value), 9)
-            m = c.recv_match(type="PARAM_VALUE", blocking=True, timeout=1.0)
-            if m is not None and m.param_id == name and abs(m.param_value - value) < 1e-3:
-                return True
-        return False
-
-    def close(self) -> None:
-        with contextlib.suppress(Exception):
-            self.conn.close()
-
-
-# --------------------------------------------------------------------------- processes
+# the seed database's quadcopter (7) and Albatross VTOL (1), the QuadPlane 30 m east
+VEHICLES = (copter(7, 0), quadplane(1, 1, home_east_m=30.0))
 
 
 @dataclass
@@ -314,212 +106,40 @@ class Result:
 
 
 @dataclass
-class Run:
-    spec: VehicleSpec
-    proc: subprocess.Popen[bytes]  # SITL (or swarm-sim vehicle)
-    node: subprocess.Popen[bytes] | None = None
-    observer: Observer | None = None
-    downloader: Downloader | None = None
+class Run(Vehicle):
     result: Result = field(default_factory=Result)
-    home: tuple[float, float] = (0.0, 0.0)
 
 
-class Harness:
+class Harness(Rig):
     def __init__(self, args: argparse.Namespace, console: Console) -> None:
-        self.args = args
-        self.console = console
-        self.tmp = Path(tempfile.mkdtemp(prefix="bandada-sitl-"))
-        self.procs: list[subprocess.Popen[bytes]] = []
+        super().__init__(args, console)
         self.runs: list[Run] = []
-        self.router_port = free_port()
-        self.gs: GroundStation | None = None
-
-    # ----------------------------------------------------------------- start
-    def log(self, text: str) -> None:
-        self.console.print(f"[bold cyan]>[/] {text}")
-
-    def _spawn(self, cmd: list[str], name: str, cwd: Path | None = None) -> subprocess.Popen[bytes]:
-        out = open(self.tmp / f"{name}.log", "ab")  # noqa: SIM115
-        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-        env.pop("BANDADA_CLOCK", None)
-        p = subprocess.Popen(
-            cmd,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            cwd=cwd or self.tmp,
-            env=env,
-            start_new_session=True,
-        )
-        self.procs.append(p)
-        return p
-
-    def defaults_dir(self) -> Path:
-        home = os.environ.get("ARDUPILOT_HOME")
-        if home:
-            return Path(home) / "Tools" / "autotest" / "default_params"
-        return Path(self.args.bin).resolve().parent.parent.parent / "Tools/autotest/default_params"
-
-    def start_vehicle(self, spec: VehicleSpec) -> Run:
-        lat, lon = offset(HOME[0], HOME[1], 0.0, spec.home_east_m)
-        home = f"{lat:.7f},{lon:.7f},{HOME[2]:g},{HOME[3]:g}"
-        if self.args.sim:
-            cmd = [
-                sys.executable,
-                "-c",
-                "from swarm_sim.cli import main; main()",
-                "vehicle",
-                "--model",
-                spec.sim_model,
-                "--instance",
-                str(spec.instance),
-                "--sysid",  # the database's mav_sysid: the node checks it
-                str(spec.node_id),
-                "--speedup",
-                str(self.args.speedup),
-                "--home",
-                home,
-            ]
-            proc = self._spawn(cmd, f"sim-{spec.kind}")
-        else:
-            binary = Path(self.args.bin) / spec.binary
-            if not binary.is_file():
-                raise SystemExit(f"sitl-check: {binary} not found (ARDUPILOT_SITL_BIN)")
-            parm = self.defaults_dir() / spec.parm
-            if not parm.is_file():
-                raise SystemExit(f"sitl-check: {parm} not found (set ARDUPILOT_HOME)")
-            defaults = [str(parm)]
-            # SYSID_THISMAV: the database's mav_sysid for the node, which the node checks
-            extra = {**(EXTRA_PARAMS.get(spec.kind) or {}), "SYSID_THISMAV": spec.node_id}
-            if extra:
-                path = self.tmp / f"{spec.kind}-extra.parm"
-                path.write_text("".join(f"{k} {v}\n" for k, v in extra.items()))
-                defaults.append(str(path))
-            wd = self.tmp / f"sitl-{spec.kind}"
-            wd.mkdir(exist_ok=True)
-            cmd = [
-                str(binary),
-                "--model",
-                spec.model,
-                "--speedup",
-                str(self.args.speedup),
-                f"-I{spec.instance}",
-                # the node's id as the autopilot's MAVLink system id (MAV_SYSID on master,
-                # SYSID_THISMAV before; the defaults file names the old one)
-                "--sysid",
-                str(spec.node_id),
-                "-w",
-                "--defaults",
-                ",".join(defaults),
-                "--home",
-                home,
-            ]
-            proc = self._spawn(cmd, f"sitl-{spec.kind}", cwd=wd)
-        run = Run(spec, proc, home=(lat, lon))
-        self.runs.append(run)
-        return run
 
     def start(self) -> None:
-        py = sys.executable
-        self.log(f"router on tcp/127.0.0.1:{self.router_port}; logs in {self.tmp}")
-        self._spawn(
-            [py, "-m", "swarm_node.cli", "router", "--listen", f"tcp/127.0.0.1:{self.router_port}"],
-            "router",
-        )
+        import dataclasses
+
+        self.start_router()
         for base in VEHICLES:
             spec = dataclasses.replace(base, instance=base.instance + self.args.first_instance)
-            what = f"swarm-sim {spec.sim_model}" if self.args.sim else f"SITL {spec.binary}"
-            self.log(f"{what} -I{spec.instance} on tcp:127.0.0.1:{spec.port}")
-            self.start_vehicle(spec)
+            v = self.start_vehicle(spec)
+            self.runs.append(Run(v.spec, v.proc, v.home))
+        if self.args.sim:  # the simulator's battery set before its node reads it
+            for run in self.runs:
+                self.attach(run)
         time.sleep(2.0)
         for run in self.runs:
-            s = run.spec
-            url = f"tcp:127.0.0.1:{s.port}"
-            self._match_battery(self.tmp / f"node{s.node_id}.db", s)
-            run.node = self._spawn(
-                [
-                    py,
-                    "-m",
-                    "swarm_node.cli",
-                    "run",
-                    "--id",
-                    str(s.node_id),
-                    "--autopilot",
-                    url,
-                    "--swarm",
-                    SWARM,
-                    "--db",
-                    str(self.tmp / f"node{s.node_id}.db"),
-                    "--connect",
-                    f"tcp/127.0.0.1:{self.router_port}",
-                    "--mode",
-                    "client",
-                ],
-                f"node{s.node_id}",
-            )
+            self.start_node(run)
         time.sleep(1.0)
-        for run in self.runs:
-            p = run.spec.port
-            obs, dl = (p, p) if self.args.sim else (p + 2, p + 3)
-            run.observer = Observer(f"tcp:127.0.0.1:{obs}")
-            run.downloader = Downloader(f"tcp:127.0.0.1:{dl}")
-            if self.args.sim:  # SITL reads them from a parm file
-                for name, value in EXTRA_PARAMS.get(run.spec.kind, {}).items():
-                    run.downloader.set_param(name, value)
-        # nodes and ground station are clients of the router, as in the demo (demo.zenoh_role)
-        self.gs = GroundStation(
-            ZenohSettings(mode="client", connect=(f"tcp/127.0.0.1:{self.router_port}",)), SWARM
-        )
+        if not self.args.sim:  # SITL runs once its first client (the node) is there
+            for run in self.runs:
+                self.attach(run)
+        self.connect_ground()
 
     def close(self) -> None:
-        if self.gs is not None:
-            self.gs.close()
-        for run in self.runs:
-            if run.observer is not None:
-                run.observer.close()
-            if run.downloader is not None:
-                run.downloader.close()
-        for p in reversed(self.procs):  # nodes before SITL, the router last
-            if p.poll() is None:
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(p.pid, signal.SIGCONT)
-                    p.send_signal(signal.SIGINT)
-        for p in reversed(self.procs):
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-
-    # ----------------------------------------------------------------- helpers
-    @property
-    def ground(self) -> GroundStation:
-        assert self.gs is not None
-        return self.gs
-
-    def wait(self, pred: Callable[[], bool], timeout_s: float, period: float = 0.2) -> bool:
-        end = time.monotonic() + timeout_s
-        while time.monotonic() < end:
-            if pred():
-                return True
-            time.sleep(period)
-        return pred()
-
-    def alerts(self, vid: int, code: AlertCode, since_unix: float) -> list[Any]:
-        view = self.ground.snapshot()
-        return [
-            a
-            for a in view.alerts
-            if a.vehicle_id == vid and a.code == code and a.time_unix_s >= since_unix
-        ]
+        self.close_vehicles(list(self.runs))
 
     def command(self, kind: CommandKind, run: Run, **args: Any) -> tuple[bool, str]:
-        acks = self.ground.command(
-            kind, Selector.ids(run.spec.node_id), CommandArgs(**args), timeout_s=15.0
-        )
-        if not acks:
-            return False, f"{kind.name}: no answer"
-        a = acks[0]
-        return a.accepted, f"{kind.name}: {a.reason.name} {a.text}".strip()
+        return self.command_ids(kind, run.spec.node_id, **args)
 
     # ----------------------------------------------------------------- checks
     def check_status(self) -> bool:
@@ -592,19 +212,20 @@ class Harness:
             alt = float(item.z)
             if item.frame in (0, 5):  # GLOBAL (MSL): relative to home
                 alt -= HOME[2]
-            d = distance_m(item.x / 1e7, item.y / 1e7, base.lat_deg, base.lon_deg)
+            # its own pad (its home): ArduPilot's RTL must never land it on another's
+            d = distance_m(item.x / 1e7, item.y / 1e7, *run.home)
             run.result.figures["rally_alt_rel_m"] = round(alt, 2)
             ok = d < 2.0 and alt >= SAFE_RALLY_ALT_M
             run.result.set(
                 "rally",
                 ok,
-                f"{len(items)} item(s), {d:.1f} m from the base, "
+                f"{len(items)} item(s), {d:.1f} m from its pad, "
                 f"{alt:.1f} m above home (safe: >= {SAFE_RALLY_ALT_M:g})",
             )
 
     def check_fence(self, zone: NoFlyZone) -> None:
         self.log("declare the no-fly zone (35 m circle) in the survey field")
-        t0, t0_unix = time.monotonic(), time.time()
+        t0, t0_unix = time.monotonic(), self.node_now()
         held = self.ground.declare_zone(zone, timeout_s=15.0)
         self.wait(
             lambda: all(r.observer is not None and r.observer.fence_enabled for r in self.runs),
@@ -640,26 +261,11 @@ class Harness:
                 detail += f"; node alert: {refused[0].text}"
             run.result.set("fence", ok, detail)
 
-    @staticmethod
-    def _match_battery(path: Path, spec: VehicleSpec) -> None:
-        """The node's database holds the battery the vehicle is given (EXTRA_PARAMS'
-        BATT_CAPACITY): the endurance-aware split plans each share with it."""
-        mah = EXTRA_PARAMS.get(spec.kind, {}).get("BATT_CAPACITY")
-        if mah is None:
-            return
-        with SwarmDatabase.open(path) as db:
-            model = db.vehicle_profile(spec.node_id).model
-            doc = db.export(["systems"])
-            rows = [r for r in doc["groups"]["systems"]["model-params"] if r["model"] == model]
-            for r in rows:
-                r["battery_capacity_mah"] = float(mah)
-            db.import_document({**doc, "groups": {"systems": {"model-params": rows}}})
-
     def check_survey(self, area: Any, zone: NoFlyZone) -> None:
         """Each vehicle surveys the field alone (at the same time), so that each plan
         keeps its own vehicle type's margin from the zone (a mixed fleet's plan keeps
         the largest, the fixed-wing's)."""
-        t0, t0_unix = time.monotonic(), time.time()
+        t0, t0_unix = time.monotonic(), self.node_now()
         acks: dict[int, Ack] = {}
         for run in self.runs:
             vid = run.spec.node_id
@@ -672,7 +278,7 @@ class Harness:
                 MissionParams(altitude_rel_m=alt, side_overlap=0.6),
                 Selector.ids(vid),
                 f"sitl-check {run.spec.kind}",
-                time.time(),
+                self.node_now(),
             )
             self.log(f"{run.spec.kind}: area survey around the zone, {alt:g} m above home")
             for answer in self.ground.mission(mission, timeout_s=15.0):
@@ -692,7 +298,7 @@ class Harness:
         def stuck(run: Run) -> bool:
             """Its survey completed WAY_HOME_WAIT_S ago and it is still not home-bound."""
             done = self.alerts(run.spec.node_id, AlertCode.MISSION_COMPLETE, t0_unix)
-            if not done or time.time() - done[0].time_unix_s < WAY_HOME_WAIT_S:
+            if not done or self.node_now() - done[0].time_unix_s < WAY_HOME_WAIT_S:
                 return False
             obs = run.observer
             here = obs.here() if obs is not None else None
@@ -730,14 +336,14 @@ class Harness:
                 a is not None
                 and a.accepted
                 and clearance is not None
-                and clearance > 0
+                and clearance >= ZONE_CLEARANCE_M[run.spec.kind]
                 and not breaches
                 and not fence_texts
                 and bool(complete)
             )
             detail = (
                 f"ack {a.reason.name if a else 'none'}; least clearance "
-                f"{_opt(clearance, '{:.1f} m', '-')}; "
+                f"{_opt(clearance, '{:.1f} m', '-')} (>= {ZONE_CLEARANCE_M[run.spec.kind]:g}); "
                 f"{len(breaches)} breach alerts; "
                 f"{'complete' if complete else 'not complete'}"
             )
@@ -748,7 +354,7 @@ class Harness:
             if not complete:
                 run.result.set("way home", False, "the survey did not complete")
                 continue
-            t_done = time.monotonic() - (time.time() - complete[0].time_unix_s)
+            t_done = time.monotonic() - (self.node_now() - complete[0].time_unix_s)
             after = [s for s in track if s.t >= t_done]
             started = None
             if after:
@@ -812,7 +418,7 @@ class Harness:
 
     def check_link_loss(self, run: Run) -> None:
         vid = run.spec.node_id
-        t0_unix = time.time()
+        t0_unix = self.node_now()
         os.kill(run.proc.pid, signal.SIGSTOP)
         try:
             lost = self.wait(
@@ -928,6 +534,10 @@ def results(h: Harness) -> dict[str, Any]:
     return out
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m swarm_sim.sitl_check", description=__doc__.split("\n")[0]
@@ -955,6 +565,9 @@ def main(argv: list[str] | None = None) -> int:
         console.print("[red]sitl-check: set ARDUPILOT_SITL_BIN (see docs/sitl.md) or use --sim[/]")
         return 2
     h = Harness(args, console)
+    # a SIGTERM (a background job never gets SIGINT) stops it the same way: the
+    # processes stopped, what was measured written
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
         h.run_all()
     except KeyboardInterrupt:

@@ -65,6 +65,11 @@ ALERT_CODES: dict[AlertCode, str] = {
     "(members hash): the fleet re-synchronises before it flies a replan",
     AlertCode.IDENTITY_CONFLICT: "another node or publisher speaks in this vehicle's name: "
     "missions are refused until it has been silent 10 s (stop it, or give it its own id)",
+    AlertCode.DATABASE_MISMATCH: "the swarm database disagrees with the autopilot's own "
+    "figures: the autopilot's are used",
+    AlertCode.CLOCK_SKEW: "the autopilot's GPS time and the node's clock differ (ages are "
+    "measured on each receiver's own clock)",
+    AlertCode.AUTOPILOT_REFUSED: "the autopilot refused a step of the mission",
 }
 
 WHAT: dict[AckRef, str] = {

@@ -47,6 +47,7 @@ from .autopilot.mission_item import MissionItem
 from .autopilot.requests import ApResult, DownloadMission, MissionKind, UploadFence, UploadRally
 from .autopilot.state import AutopilotState
 from .commands import rally_alt_rel_m
+from .landing_point import landing_point
 from .outputs import ModuleOutput, Note, Owner, Publish, Submit
 
 if TYPE_CHECKING:
@@ -76,13 +77,15 @@ _CODE = {MissionKind.FENCE: AlertCode.NO_FLY_ZONE, MissionKind.RALLY: AlertCode.
 
 
 def rally_point(
-    vehicle_type: VehicleType, base: GeoPoint | None, home: GeoPoint | None
+    vehicle_id: int, vehicle_type: VehicleType, base: GeoPoint | None, home: GeoPoint | None
 ) -> UploadRally | None:
-    """The rally point the autopilot should hold: the base (commands.rally_alt_rel_m)."""
+    """The rally point the autopilot should hold: this vehicle's own landing point at
+    the base (landing_point.py; commands.rally_alt_rel_m)."""
     if base is None or home is None:
         return None
     alt = rally_alt_rel_m(vehicle_type, base.alt_msl_m - home.alt_msl_m)
-    return UploadRally(points=((base.lat_deg, base.lon_deg, alt),))
+    lat, lon = landing_point(vehicle_id, home, base)
+    return UploadRally(points=((lat, lon, alt),))
 
 
 def same_items(kind: MissionKind, held: tuple[MissionItem, ...], want: list[MissionItem]) -> bool:

@@ -61,6 +61,7 @@ from .autopilot.requests import (
     UploadRally,
 )
 from .autopilot.state import AutopilotState
+from .landing_point import landing_point
 from .mission.phases import Phase
 from .outputs import SetActive, SetBase, SetFleet, StopLanding, TakeOver
 from .profile import VehicleProfile
@@ -146,7 +147,8 @@ SAFE_RALLY_ALT_REL_M: dict[VehicleType, float] = {
 
 
 def rally_alt_rel_m(vehicle_type: VehicleType, base_alt_rel_m: float) -> float:
-    """The rally point's altitude above home for the base: the operator's base altitude,
+    """The rally point's altitude above home (the point: `landing_point`, the vehicle's
+    own pad at the base or its slot there): the operator's base altitude,
     never below home (a base given without an altitude is 0 m above sea
     level, `gcs cmd set-base --point LAT,LON`; with home 10 m above sea level a rover's
     rally point went to -10 m) and never below the vehicle type's safe floor."""
@@ -177,9 +179,11 @@ def plan_command(cmd: Command, view: NodeView) -> CommandPlan | None:
         if a.point is None:
             return reject(AckReason.INVALID, "SET_BASE needs a point")
         reqs: tuple[ApRequest, ...] = ()
-        if ap.link_ok and ap.home is not None:  # RTL goes to the nearest rally point: the base
+        if ap.link_ok and ap.home is not None:
+            # RTL goes to the nearest rally point: this vehicle's own landing point
             alt = rally_alt_rel_m(p.vehicle_type, a.point.alt_msl_m - ap.home.alt_msl_m)
-            reqs = (UploadRally(points=((a.point.lat_deg, a.point.lon_deg, alt),)),)
+            lat, lon = landing_point(view.self_id, ap.home, a.point)
+            reqs = (UploadRally(points=((lat, lon, alt),)),)
         return CommandPlan(
             requests=reqs, effects=(SetBase(a.point),), ack=None if reqs else _ack(cmd, view, True)
         )

@@ -281,7 +281,7 @@ class Fences:
         ceiling_rel_m: float,
         now: float,
     ) -> list[ModuleOutput]:
-        rally = rally_point(self.vehicle_type, base, ap.home)
+        rally = rally_point(self.vehicle_id, self.vehicle_type, base, ap.home)
         out = self.keep(zones, ap.home, ceiling_rel_m, now)
         out += self.failsafe.on_autopilot(ap, now)
         return out + self.backstop.on_autopilot(ap, rally, now)

@@ -13,7 +13,15 @@ plans keep from no-fly zones, and the zone-safe way home in an emergency.
   32m` against 15 m): its plans keep `TURN_RADIUS_MARGIN` times its turn radius from
   zones and every corner is made flyable and checked with the flight predictor
   (`planning/flight.py`); that margin is the mission manager's (`flyable`), not this
-  module's.
+  module's. ArduPlane flies a planned turn's waypoints up to `FIXED_WING_CUT_M` on
+  their inside (a SITL QuadPlane, NAVL1_PERIOD 14: 24-37 m), so every turn a plan adds
+  keeps `FIXED_WING_KEEP_M` from a zone: what ArduPlane cuts, plus the clearance it
+  must keep as flown. A turn planned 26.7 m from the zone took the QuadPlane 0.2 m
+  into it ("Polygon fence breached").
+
+What each vehicle type must keep from every zone as ArduPilot flies it, measured from
+ArduPilot's own positions in `make sitl-check` and `make sitl-fleet`:
+`FLOWN_CLEARANCE_M`.
 """
 
 from __future__ import annotations
@@ -29,6 +37,17 @@ COPTER_WP_RADIUS_M = 2.0
 COPTER_CROSS_TRACK_M = 1.65
 #: ArduRover WP_RADIUS default (2 m); rovers and boats pivot or turn near the point.
 GROUND_WP_RADIUS_M = 2.0
+#: The clearance from every zone each kind of vehicle keeps as ArduPilot flies it.
+FIXED_WING_FLOWN_CLEARANCE_M = 10.0
+MULTIROTOR_FLOWN_CLEARANCE_M = 2.0
+#: How far inside a planned turn's waypoints ArduPlane flies (SITL QuadPlane: 24-37 m).
+FIXED_WING_CUT_M = 37.0
+#: The least clearance from a zone of a fixed-wing's planned turns (lanes keep more:
+#: their turn radius): less only where a point it must pass is nearer the zone.
+FIXED_WING_KEEP_M = FIXED_WING_CUT_M + FIXED_WING_FLOWN_CLEARANCE_M
+#: A fixed-wing's lanes end this much further from a zone than its turn radius, so that
+#: the turn at a lane's end keeps FIXED_WING_KEEP_M (planning/fleet_plan.py).
+FIXED_WING_LANE_EXTRA_M = 20.0
 
 
 def track_margin_m(profile: VehicleProfile) -> float:

@@ -600,15 +600,16 @@ class MissionManager:
         self._go(Step.FROM_HERE)
         return [note, *self._next(now)]
 
-    def _abandon(self, reason: str) -> list[Out]:
+    def _abandon(self, reason: str, code: AlertCode = AlertCode.PLAN_FAILED) -> list[Out]:
         """The share cannot be flown after all: a plan the state machine has not taken
-        yet failed; one it has (PREMISSION confirms at the take-off) is left."""
+        yet failed (`code`: planning, or the autopilot refusing a step); one it has
+        (PREMISSION confirms at the take-off) is left."""
         mid = self.mission_id if self.mission_id is not None else 0
         confirmed = self._confirmed
         self.stop(Trigger.FAILED)
         if confirmed:
             return [Post(fsm.LeftFleet(short_text(reason)))]
-        return [Post(fsm.PlanFailed(mid, short_text(reason)))]
+        return [Post(fsm.PlanFailed(mid, short_text(reason), code=code))]
 
     def reattach(
         self, mission_id: int, items: int, last_item: int, path_m: float, progress_m: float
@@ -884,7 +885,7 @@ class MissionManager:
                 self._steps = [ReturnToLaunch()]  # the zone-safe way home failed: plain RTL
                 return self._next(now)
             if phase in (Phase.STARTING, Phase.MEETING):
-                return self._abandon(f"autopilot: {result.reason}")
+                return self._abandon(result.reason, AlertCode.AUTOPILOT_REFUSED)
             self.stop()
             return []  # RTL/land refused: monitoring and the operator take it from here
         if (

@@ -25,6 +25,19 @@ AUTOPILOT_MISMATCH, and another source speaking in this vehicle's name
 (`on_identity`, from core/identity.py) is a CRITICAL IDENTITY_CONFLICT. Either makes
 the vehicle not ready (missions are refused with the reason); neither is an emergency
 (an impostor on the LAN must not be able to bring a flying vehicle down).
+
+The autopilot's own figures win (read from its parameters at link-up: AutopilotState
+`max_bank_deg`, `battery_capacity_mah`): the attitude alarm is its roll (ArduPlane
+ROLL_LIMIT_DEG) or lean (ArduCopter ANGLE_MAX) limit plus `tilt_margin_deg`, not the
+database's `max_tilt_deg` (a QuadPlane banked 61 degrees, within ArduPlane's 65, was
+declared abnormal at the database's 60); where the database disagrees (that alarm
+inside the autopilot's limit, a battery capacity more than `capacity_tolerance` off) a
+WARNING DATABASE_MISMATCH says so once per link-up.
+
+Clocks: the autopilot's GPS time (the time of its position samples, which the node
+publishes) and the node's clock may differ (SITL's ran 9.4-10.5 s behind the host's):
+a skew over `clock_skew_s` is a WARNING CLOCK_SKEW, once, not a reason to treat fresh
+data as stale (peers measure a report's age on their own clock: safety/avoidance.py).
 """
 
 from __future__ import annotations
@@ -63,6 +76,11 @@ class Thresholds:
     # a link loss lasting this long is an emergency: ArduPilot's FS_GCS_TIMEOUT (Copter)
     # and FS_LONG_TIMEOUT (Plane) default, 5 s (it was 2 s)
     link_emergency_after_s: float = 5.0
+    # the attitude alarm above the autopilot's own limit (it overshoots it briefly)
+    tilt_margin_deg: float = 10.0
+    database_capacity_mah: float = 0.0  # the swarm database's battery (0: unknown)
+    capacity_tolerance: float = 0.1  # the database's battery this far off is a mismatch
+    clock_skew_s: float = 2.0  # the autopilot's GPS time this far from the node's clock
 
     @classmethod
     def from_profile(cls, profile: VehicleProfile) -> Thresholds:
@@ -70,7 +88,14 @@ class Thresholds:
             battery_low_pct=profile.battery_low_pct,
             battery_critical_pct=profile.battery_critical_pct,
             max_tilt_deg=profile.max_tilt_deg,
+            database_capacity_mah=profile.battery_capacity_mah,
         )
+
+    def tilt_limit_deg(self, s: AutopilotState) -> float:
+        """The attitude alarm: the autopilot's limit plus the margin, else the database's."""
+        if s.max_bank_deg is not None:
+            return s.max_bank_deg + self.tilt_margin_deg
+        return self.max_tilt_deg
 
 
 @dataclass(frozen=True)
@@ -158,6 +183,8 @@ class VehicleMonitor:
     _mismatch_text: str | None = None
     state: AutopilotState = field(default_factory=AutopilotState)  # the latest reported
     _identity: str = ""  # another source speaks in this vehicle's name ("": none)
+    _figures_told: tuple[float | None, float | None] | None = None  # DATABASE_MISMATCH said
+    _skew_told = False
 
     def note_stall(self, seconds: float) -> None:
         """The node was not served for `seconds` (its own stall, a loaded host): a link
@@ -198,7 +225,8 @@ class VehicleMonitor:
         self._had_ekf |= s.ekf_ok
         if self._had_ekf and not s.ekf_ok:
             seen.add(AlertCode.EKF_FAILURE)
-        if s.armed and (abs(s.roll_deg) > t.max_tilt_deg or abs(s.pitch_deg) > t.max_tilt_deg):
+        tilt = t.tilt_limit_deg(s)
+        if s.armed and (abs(s.roll_deg) > tilt or abs(s.pitch_deg) > tilt):
             seen.add(AlertCode.ATTITUDE_ABNORMAL)
         self._breach_text = (
             self._breach(s, now)
@@ -242,14 +270,14 @@ class VehicleMonitor:
         (CONDITION_CLEARED) now."""
         self.state = s
         seen = self._observe(s, now)
-        out: list[Alert] = []
+        out: list[Alert] = self._figures(s, now) + self._clock(s, now)
         tracked = self._tracked
         if (
             seen
             or len(tracked) < len(SPECS)
             or any(tr.active or tr.since is not None for tr in tracked.values())
         ):
-            out = self._escalate(s, seen, now)
+            out += self._escalate(s, seen, now)
         self.ready = (
             s.link_ok
             and s.gps_fix >= GpsFix.FIX_3D
@@ -260,6 +288,41 @@ class VehicleMonitor:
             and all(tr.severity < Severity.CRITICAL for tr in tracked.values() if tr.active)
         )
         return out
+
+    def _figures(self, s: AutopilotState, now: float) -> list[Alert]:
+        """Once per new reading of the autopilot's figures: where the swarm database
+        disagrees with them (a WARNING; the autopilot's figures are used)."""
+        figures = (s.battery_capacity_mah, s.max_bank_deg)
+        if figures == (None, None) or figures == self._figures_told:
+            return []
+        self._figures_told = figures
+        t, said = self.thresholds, []
+        ap_mah, db_mah = s.battery_capacity_mah, t.database_capacity_mah
+        if ap_mah is not None and abs(ap_mah - db_mah) > t.capacity_tolerance * ap_mah:
+            db = f"{db_mah:.0f} mAh" if db_mah > 0 else "none"
+            said.append(f"BATT_CAPACITY {ap_mah:.0f} mAh, database {db}: planned with it")
+        if s.max_bank_deg is not None and t.max_tilt_deg < s.max_bank_deg:
+            said.append(
+                f"attitude limit {s.max_bank_deg:.0f} deg, database alarm "
+                f"{t.max_tilt_deg:.0f}: alarm at {t.tilt_limit_deg(s):.0f}"
+            )
+        return [self._alert(now, Severity.WARNING, AlertCode.DATABASE_MISMATCH, x) for x in said]
+
+    def _clock(self, s: AutopilotState, now: float) -> list[Alert]:
+        """Once: the autopilot's GPS time (of its latest position, just received) far
+        from the node's clock."""
+        sample, heard = s.position_time_unix_s, s.last_message_s
+        if self._skew_told or sample is None or heard is None or not s.link_ok:
+            return []
+        if now - heard > 0.5:
+            return []  # nothing fresh: the sample's age is not the clocks' skew
+        skew = now - sample
+        if abs(skew) <= self.thresholds.clock_skew_s:
+            return []
+        self._skew_told = True
+        ahead = "behind" if skew > 0 else "ahead of"
+        text = f"autopilot GPS time {abs(skew):.1f} s {ahead} this node's clock"
+        return [self._alert(now, Severity.WARNING, AlertCode.CLOCK_SKEW, text)]
 
     def _escalate(self, s: AutopilotState, seen: set[AlertCode], now: float) -> list[Alert]:
         """Each alert's escalation and clearing (nothing to do when nothing is seen and

@@ -86,3 +86,19 @@ class VehicleProfile(msgspec.Struct, frozen=True):
         v = self.cruise_speed_m_s if speed_m_s is None else speed_m_s
         r = v * v / (G_M_S2 * math.tan(math.radians(self.max_bank_deg)))
         return max(r, self.loiter_radius_m)
+
+
+def with_autopilot_battery(profile: VehicleProfile, capacity_mah: int) -> VehicleProfile:
+    """The profile planning uses: the battery the vehicle's autopilot says it has (its
+    BATT_CAPACITY, published in VehicleInfo.battery_capacity_mah) over the database's
+    figure for the model; unchanged when the autopilot has not said (0)."""
+    if capacity_mah <= 0 or float(capacity_mah) == profile.battery_capacity_mah:
+        return profile
+    return msgspec.structs.replace(profile, battery_capacity_mah=float(capacity_mah))
+
+
+def published_capacity_mah(capacity_mah: float | None) -> int:
+    """The autopilot's battery as VehicleInfo carries it (whole mAh; 0 = not known)."""
+    if capacity_mah is None or not math.isfinite(capacity_mah) or capacity_mah <= 0:
+        return 0
+    return min(1_000_000, round(capacity_mah))

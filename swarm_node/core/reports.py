@@ -14,7 +14,7 @@ from swarm_proto import AlertCode, FsmState, GeoPoint, VehicleInfo
 
 from .autopilot.state import AutopilotState
 from .mission.published import published_home
-from .profile import VehicleProfile
+from .profile import VehicleProfile, published_capacity_mah
 
 
 @dataclass(frozen=True)
@@ -92,6 +92,7 @@ def vehicle_info(
         mav_type=ap.mav_type & 0xFF,
         entry_unix_s=clamp(mission.entry_unix_s, 0.0, 4.0e9),
         battery_pct=mission.battery_pct,
+        battery_capacity_mah=published_capacity_mah(ap.battery_capacity_mah),
     )
 
 

@@ -93,6 +93,9 @@ class PlanFailed:
     mission_id: int
     reason: str = ""
     detail: ReasonDetail | None = None  # the reason's numbers, for the alert
+    # what failed, under its true name: planning, or the autopilot refusing a step of
+    # the start (an arm refusal is not a planning failure)
+    code: AlertCode = AlertCode.PLAN_FAILED
 
 
 @dataclass(frozen=True)
@@ -339,6 +342,13 @@ def _emergency_escalates(c: Context) -> bool:
     return new is not None and (old is None or new.severity > old.severity)
 
 
+def _failed_text(c: Context) -> str:
+    """Why a plan was given up, for LeaveFleet and ReturnHome."""
+    if getattr(c.event, "code", AlertCode.PLAN_FAILED) == AlertCode.AUTOPILOT_REFUSED:
+        return "the autopilot refused"
+    return "planning failed"
+
+
 def _mid(c: Context) -> int:
     return c.mission_id if c.mission_id is not None else 0
 
@@ -533,13 +543,13 @@ RULES: tuple[Rule, ...] = (
         guard=_is_current,
         outputs=lambda c: (
             RaiseAlert(
-                AlertCode.PLAN_FAILED,
+                getattr(c.event, "code", AlertCode.PLAN_FAILED),
                 Severity.WARNING,
                 short_text(getattr(c.event, "reason", "")),
                 getattr(c.event, "detail", None),
             ),
-            LeaveFleet("planning failed"),
-            ReturnHome("planning failed"),
+            LeaveFleet(_failed_text(c)),
+            ReturnHome(_failed_text(c)),
         ),
     ),
     Rule(

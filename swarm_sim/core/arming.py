@@ -65,9 +65,11 @@ class Arming:
         self.ground_since: float | None = timeline.t  # on the ground since (None: flying)
         self.prearm_next = timeline.t  # when failing pre-arm checks are sent again
 
-    def prearm_failure(self, mode: ModeSpec) -> str | None:
+    def prearm_failure(self, mode: ModeSpec, arming: bool = False) -> str | None:
         """The first failing arming check in `mode`, worded as ArduPilot's PreArm
-        messages; None when the vehicle may arm."""
+        messages; None when the vehicle may arm. ArduCopter checks the mode only when
+        asked to arm (`arming`: "Arm: LAND mode not armable"), ArduPlane in its pre-arm
+        checks too."""
         s = self.sensors
         if not s.ready:
             return "Initialising"  # booting (arming is refused without a text until ready)
@@ -81,7 +83,7 @@ class Arming:
                 if self.firmware == Firmware.PLANE
                 else "Need Position Estimate"
             )
-        if not mode.armable:
+        if not mode.armable and (arming or self.firmware != Firmware.COPTER):
             return f"{mode.name} mode not armable"
         if (
             self.fence.enabled
@@ -116,9 +118,10 @@ class Arming:
         if not self.sensors.ready:
             return False
         if not force and self.params.value("ARMING_CHECK") != 0:
-            reason = self.prearm_failure(mode)
+            reason = self.prearm_failure(mode, arming=True)
             if reason is not None:
-                self.out.text(SEV_CRITICAL, f"PreArm: {reason}")
+                mode_check = self.firmware == Firmware.COPTER and not mode.armable
+                self.out.text(SEV_CRITICAL, f"{'Arm' if mode_check else 'PreArm'}: {reason}")
                 return False
         b, t = self.body, self.timeline.t
         self.armed = True

@@ -73,7 +73,7 @@ class ModeSpec:
     name: str
     behaviour: Behaviour
     requires_position: bool = False
-    armable: bool = True
+    armable: bool = True  # ArduCopter allows_arming(), ArduPlane Mode::pre_arm_checks()
     vtol: bool = False  # QuadPlane Q-mode: flown on the lift motors
     selectable: bool = True
 
@@ -140,7 +140,7 @@ PLANE: dict[int, ModeSpec] = _table(
         "CRUISE": {"behaviour": _M},
         "AUTOTUNE": {"behaviour": _M},
         "AUTO": {"behaviour": _A, "requires_position": True},
-        "RTL": {"behaviour": _R, "requires_position": True},
+        "RTL": {"behaviour": _R, "requires_position": True, "armable": False},
         "LOITER": {"behaviour": Behaviour.LOITER, "requires_position": True},
         "TAKEOFF": {"behaviour": Behaviour.TAKEOFF, "requires_position": True},
         "AVOID_ADSB": {"behaviour": _G, "requires_position": True},
@@ -160,15 +160,10 @@ PLANE: dict[int, ModeSpec] = _table(
             "armable": False,
             "vtol": True,
         },
-        "QAUTOTUNE": {"behaviour": _H, "vtol": True, "armable": False},
+        "QAUTOTUNE": {"behaviour": _H, "vtol": True},
         "QACRO": {"behaviour": _H, "vtol": True},
         "THERMAL": {"behaviour": Behaviour.LOITER, "requires_position": True},
-        "LOITERALTQLAND": {
-            "behaviour": Behaviour.LAND,
-            "requires_position": True,
-            "armable": False,
-            "vtol": True,
-        },
+        "LOITERALTQLAND": {"behaviour": Behaviour.LAND, "requires_position": True, "vtol": True},
     },
 )
 

@@ -72,6 +72,7 @@ def defaults(
             "FENCE_TYPE": ({Firmware.COPTER: 7.0, Firmware.PLANE: 4.0}.get(fw, 6.0), 2),
             "CHUTE_ENABLED": (1.0 if af.has_parachute else 0.0, 2),
             "BATT_CAPACITY": (af.battery.capacity_mah, 6),
+            "BATT_MONITOR": (4.0, 2),  # analog voltage and current, as SITL's copter.parm
             "SIM_WIND_SPD": (wind[0], 9),
             "SIM_WIND_DIR": (wind[1], 9),
             "MIS_TOTAL": (0.0, 4),
@@ -88,6 +89,7 @@ def defaults(
             "RTL_ALT": (af.rtl_alt_m * 100, 9),
             "LAND_SPEED": (af.land_speed_m_s * 100, 4),
             "DISARM_DELAY": (10.0, 2),
+            "ANGLE_MAX": (3000.0, 4),  # ArduCopter's default lean limit, cdeg
             # the GCS failsafe (failsafes.py), ArduCopter's defaults: off, 5 s
             "FS_GCS_ENABLE": (0.0, 2),
             "FS_GCS_TIMEOUT": (5.0, 9),
@@ -111,6 +113,7 @@ def defaults(
             "FS_SHORT_ACTN": (0.0, 2),
             "FS_SHORT_TIMEOUT": (1.5, 9),
             "Q_ENABLE": (1.0 if model == VehicleModel.VTOL else 0.0, 2),
+            "ROLL_LIMIT_DEG": (af.max_bank_deg, 9),
         }
         if model == VehicleModel.VTOL:
             p |= {

@@ -13,6 +13,8 @@ import pytest
 from swarm_node.core.autopilot.items import ItemKind
 from swarm_node.core.autopilot.requests import (
     ApRequest,
+    ApResult,
+    Arm,
     Calibrate,
     Goto,
     Land,
@@ -42,6 +44,7 @@ from swarm_proto import (
     MissionType,
     NoFlyZone,
     Selector,
+    Severity,
     VehicleStatus,
     VehicleType,
 )
@@ -309,6 +312,29 @@ def test_emergency_procedures_of_a_plane() -> None:
     ]  # a plane cannot land where it is: home
     assert emergency_requests(AlertCode.GPS_LOSS, plane) == ()  # ArduPlane's own failsafe
     assert emergency_requests(AlertCode.ATTITUDE_ABNORMAL, plane) == ()
+
+
+def test_an_arm_refused_at_a_missions_start_is_reported_as_the_autopilots_refusal() -> None:
+    """Not as a planning failure: under its own code, with ArduPilot's reason."""
+    why = "Arm: COMMAND_ACK FAILED (PreArm: QLAND mode not armable)"
+
+    def refuse_arm(node_id: int, req: ApRequest) -> ApResult:
+        return ApResult(req.request_id, not isinstance(req, Arm), why)
+
+    profiles = {1: as_vehicle(seed_profiles()["Albatross 250 VTOL"], 1)}
+    f = Fleet({1: NodeCore(profiles[1], SETTINGS, fleet_profiles=profiles)}, autopilot=refuse_arm)
+    f.set_autopilot(1, flying(armed=False, alt_rel_m=0.0, alt_msl_m=HOME.alt_msl_m))
+    f.run_until(0.5)
+    send(f, command(100, CommandKind.SET_BASE, point=HOME))
+    f.run_until(1.5)
+    target = Geometry.point(HOME.lat_deg + 0.004, HOME.lon_deg)
+    send(f, Mission(51, GCS, MissionType.OBJECTIVE, target, MissionParams(altitude_rel_m=60.0)))
+    f.run_until(f.now + 5.0)
+    alerts = [a for a in f.messages(Alert, sender=1) if a.severity >= Severity.WARNING]
+    assert [(a.code, a.text) for a in alerts if a.code == AlertCode.AUTOPILOT_REFUSED] == [
+        (AlertCode.AUTOPILOT_REFUSED, "Arm: COMMAND_ACK FAILED (PreArm: QLAND mode not armable)")
+    ]
+    assert not [a for a in alerts if a.code == AlertCode.PLAN_FAILED]
 
 
 def test_shutdown_in_the_air_sends_the_vehicle_home_and_shuts_down_once_landed() -> None:

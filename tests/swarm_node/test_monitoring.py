@@ -278,6 +278,57 @@ def test_a_changed_model_parameter_reaches_the_monitor() -> None:
     assert (t.battery_low_pct, t.max_tilt_deg) == (42, 22.0)
 
 
+def test_the_autopilots_attitude_limit_sets_the_alarm() -> None:
+    """A QuadPlane banked 61 degrees, within ArduPlane's ROLL_LIMIT_DEG 65, is not
+    abnormal whatever the database says (60); past the limit and its margin it is."""
+    mon = VehicleMonitor(1, Thresholds(max_tilt_deg=60.0))
+    got = run(mon, [(t / 10, healthy(roll_deg=61.0, max_bank_deg=65.0)) for t in range(30)])
+    assert AlertCode.ATTITUDE_ABNORMAL not in [c for _, c, _ in got]
+    got = run(mon, [(3 + t / 10, healthy(roll_deg=76.0, max_bank_deg=65.0)) for t in range(30)])
+    assert (AlertCode.ATTITUDE_ABNORMAL, Severity.CRITICAL) in [(c, s) for _, c, s in got]
+
+
+def test_the_database_disagreeing_with_the_autopilot_is_a_warning_once() -> None:
+    mon = VehicleMonitor(7, Thresholds(max_tilt_deg=60.0, database_capacity_mah=3300.0))
+    s = healthy(battery_capacity_mah=20000.0, max_bank_deg=30.0)
+    alerts = [a for t in range(20) for a in mon.update(s, t / 10)]
+    mismatch = [a for a in alerts if a.code == AlertCode.DATABASE_MISMATCH]
+    assert len(mismatch) == 1 and mismatch[0].severity == Severity.WARNING  # 30 within 60
+    assert mismatch[0].text == "BATT_CAPACITY 20000 mAh, database 3300 mAh: planned with it"
+    agree = VehicleMonitor(7, Thresholds(max_tilt_deg=45.0, database_capacity_mah=20000.0))
+    assert not [
+        a
+        for a in agree.update(healthy(battery_capacity_mah=20500.0, max_bank_deg=30.0), 0.0)
+        if a.code == AlertCode.DATABASE_MISMATCH
+    ]
+    plane = VehicleMonitor(1, Thresholds(max_tilt_deg=60.0, database_capacity_mah=22000.0))
+    said = plane.update(healthy(max_bank_deg=65.0), 0.0)  # no battery monitor: no capacity
+    assert [a.text for a in said if a.code == AlertCode.DATABASE_MISMATCH] == [
+        "attitude limit 65 deg, database alarm 60: alarm at 75"
+    ]
+
+
+def test_a_skewed_autopilot_clock_is_a_warning_not_stale_data() -> None:
+    """SITL's GPS time ran about 10 s behind the host's clock: said once."""
+    mon = VehicleMonitor(8)
+    now = 1.8e9
+    alerts = [
+        a
+        for k in range(30)
+        for a in mon.update(
+            healthy(position_time_unix_s=now + k / 10 - 9.8, last_message_s=now + k / 10),
+            now + k / 10,
+        )
+    ]
+    skew = [a for a in alerts if a.code == AlertCode.CLOCK_SKEW]
+    assert len(skew) == 1 and skew[0].severity == Severity.WARNING
+    assert skew[0].text == "autopilot GPS time 9.8 s behind this node's clock"
+    assert mon.ready and not mon.flags
+    fine = VehicleMonitor(8)
+    ok = healthy(position_time_unix_s=now - 0.1, last_message_s=now)
+    assert not [a for a in fine.update(ok, now) if a.code == AlertCode.CLOCK_SKEW]
+
+
 # ---------------------------------------------------------------- identity
 
 

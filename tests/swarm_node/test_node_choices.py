@@ -1,5 +1,6 @@
-"""Two choices docs/paper-choices.md names, each held by a test: the base set by the operator is
-uploaded as the autopilot's rally point (so ArduPilot's own RTL goes to the base), and
+"""Two choices docs/paper-choices.md names, each held by a test: setting the base uploads the
+vehicle's own landing point at the base as the autopilot's rally point (its pad: so
+ArduPilot's own RTL brings it home to its pad, never onto another's), and
 every mission ends on an unlimited loiter (so a plane never RTLs by itself, through a
 no-fly zone, when its mission ends). Pure node cores first, then end to end in fast
 time (FastFleet: the simulated ArduPilot holds them)."""
@@ -43,7 +44,7 @@ NAV_RALLY_POINT, NAV_LOITER_UNLIM = 5100, 17
 BASE = GeoPoint(HOME.lat_deg + 0.001, HOME.lon_deg, HOME.alt_msl_m + 5.0)
 
 
-def test_set_base_uploads_the_base_as_the_rally_point_and_answers_after_it() -> None:
+def test_set_base_uploads_the_own_pad_as_the_rally_point_and_answers_after_it() -> None:
     node = NodeCore(seed_profiles()["Generic Quadcopter"], now=0.0)
     node.handle(AutopilotUpdate(flying()), 0.0)
     out = node.handle(
@@ -51,8 +52,9 @@ def test_set_base_uploads_the_base_as_the_rally_point_and_answers_after_it() -> 
     )
     (rally,) = [o.request for o in out if isinstance(o, Submit)]
     assert isinstance(rally, UploadRally)
-    # 5 m above home, raised to the quadcopter's safe floor (ArduCopter's RTL_ALT default)
-    assert rally.points == ((BASE.lat_deg, BASE.lon_deg, pytest.approx(15.0)),)
+    # its pad (home, 111 m from the base), at the base's altitude (5 m above home)
+    # raised to the quadcopter's safe floor (ArduCopter's RTL_ALT default)
+    assert rally.points == ((HOME.lat_deg, HOME.lon_deg, pytest.approx(15.0)),)
     assert not [o for o in out if isinstance(o, Publish) and isinstance(o.msg, Ack)]
     assert node.base == BASE  # the base is set at once, the Ack waits for the autopilot
     out = node.handle(AutopilotResult(ApResult(rally.request_id, True)), 0.1)
@@ -118,6 +120,28 @@ def test_set_base_without_an_altitude_never_puts_the_rally_point_below_home(
     assert rally.points[0][2] >= 0.0
 
 
+def test_each_vehicle_returns_to_its_own_landing_point_never_another_s() -> None:
+    """ArduPilot's RTL goes to the nearest rally point: with the base as every vehicle's
+    rally point, a copter whose node had died landed on another's pad. A vehicle based
+    at the base goes to its own pad; one from afar to a slot at the base of its own."""
+    from swarm_node.core.landing_point import PAD_AREA_M, landing_point
+    from swarm_proto.geodesy import distance_m, offset
+
+    base = GeoPoint(HOME.lat_deg, HOME.lon_deg, HOME.alt_msl_m)
+    pads = {
+        vid: GeoPoint(*offset(base.lat_deg, base.lon_deg, 0.0, 30.0 * vid), 10.0)
+        for vid in (1, 2, 7, 8)
+    }
+    for vid, pad in pads.items():
+        assert landing_point(vid, pad, base) == (pad.lat_deg, pad.lon_deg)
+    far = GeoPoint(*offset(base.lat_deg, base.lon_deg, 2 * PAD_AREA_M, 0.0), 10.0)
+    slots = [landing_point(vid, far, base) for vid in range(1, 60)]
+    for i, a in enumerate(slots):
+        assert distance_m(*a, base.lat_deg, base.lon_deg) < 250.0
+        for b in slots[i + 1 :]:
+            assert distance_m(*a, *b) > 15.0  # every vehicle its own
+
+
 def test_a_mission_ends_on_an_unlimited_loiter_over_its_last_waypoint() -> None:
     from tests.swarm_node.test_commands import VTOL, fleet_of, on_mission, requests
 
@@ -153,7 +177,9 @@ def test_the_simulated_autopilot_holds_the_base_and_the_final_loiter(fleet_profi
     # home (at 0 m ArduPlane's RTL flies into the ground)
     assert [(it.command, round(it.z, 3)) for it in sim.rally_items] == [(NAV_RALLY_POINT, 40.0)]
     rally = sim.rally_items[0]
-    assert math.isclose(rally.lat_deg, base.lat_deg, abs_tol=1e-7)
+    home = v.link.state.home
+    assert math.isclose(rally.lat_deg, home.lat_deg, abs_tol=1e-7)  # its pad, 30 m from base
+    assert math.isclose(rally.lon_deg, home.lon_deg, abs_tol=1e-7)
     assert fleet.run_until(lambda: v.node.fsm.state == FsmState.GO_MISSION, 30)
     target = Geometry.point(*north(800.0))
     fleet.broadcast(

@@ -83,7 +83,7 @@ def test_arming_checks_and_forced_arming() -> None:
     p.wait_ready()
     assert p.set_mode("AUTO") == ACCEPTED
     assert p.arm() == FAILED
-    assert "PreArm: AUTO mode not armable" in p.c.texts()
+    assert "Arm: AUTO mode not armable" in p.c.texts()  # ArduCopter: an arm check
     assert p.command(400, 1, 2989) == ACCEPTED  # forced
     assert p.ap.armed
     p2 = make_pilot("vtol")
@@ -93,6 +93,30 @@ def test_arming_checks_and_forced_arming() -> None:
     # failing checks are repeated every 30 s while disarmed
     p2.h.run_for(65)
     assert p2.c.texts().count("PreArm: QLAND mode not armable") >= 3
+
+
+@pytest.mark.parametrize(
+    ("model", "mode", "armable"),
+    [
+        ("vtol", "QLAND", False),
+        ("vtol", "QRTL", False),
+        ("vtol", "RTL", False),  # ArduPlane ModeRTL: _pre_arm_checks() false
+        ("vtol", "QAUTOTUNE", True),
+        ("vtol", "QLOITER", True),
+        ("vtol", "GUIDED", True),
+        ("copter", "LAND", False),
+        ("copter", "RTL", False),
+        ("copter", "GUIDED", True),
+        ("copter", "LOITER", True),
+    ],
+)
+def test_arming_is_refused_in_the_modes_ardupilot_refuses(
+    model: str, mode: str, armable: bool
+) -> None:
+    p = make_pilot(model)
+    p.wait_ready()
+    assert p.set_mode(mode) == ACCEPTED
+    assert (p.arm() == ACCEPTED) == armable, p.c.texts()
 
 
 def test_copter_disarms_itself_when_it_does_not_take_off() -> None:

@@ -21,6 +21,8 @@ def test_the_fleet_1_7_8_lands_above_critical_and_flies_its_planned_makespan(
     assert got["finished"], got
     assert got["battery_critical_alerts"] == [], got
     for vid, v in got["vehicles"].items():
+        if v["share_planned_s"] == 0.0:
+            continue  # the plan gave it nothing: it stayed down
         assert v["battery_at_landing_pct"] > v["critical_pct"], (vid, v)
         assert v["flown_s"] is not None, (vid, v)
     assert 0.85 <= got["makespan_planned_vs_flown"] <= 1.15, got

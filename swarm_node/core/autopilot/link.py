@@ -18,6 +18,7 @@ checks the source and validates; then
 | PARAM_VALUE, MISSION_* (tracker.PROTOCOL)| request runner (if addressed to us)      |
 | STATUSTEXT                               | tracker (event) and request runner (quoted in refusals) |
 | SYS_STATUS, MISSION_CURRENT              | tracker, then the request runner (fence enable waits, mission start check) |
+| HEARTBEAT                                | tracker, then the request runner (a mode change confirmed) |
 | tracker.IGNORED                          | nowhere (listed on purpose)              |
 | anything else                            | counted as unhandled                     |
 
@@ -40,7 +41,7 @@ from swarm_proto import VehicleType
 from .events import ApEvent, AutopilotFound, AutopilotRebooted, LinkRestored
 from .framing import BadFrame, MavEncoder, MavFramer, MAVLinkMessage
 from .plans import PlanContext, check_request
-from .requests import ApError, ApRequest, ApResult, MissionKind, RelayCommand
+from .requests import ApError, ApRequest, ApResult, MissionKind, ReadParam, RelayCommand
 from .runner import Finished, RequestRunner, RunnerSettings, mission_kind_of
 from .state import AutopilotState
 from .streams import DEFAULT_RATES_HZ, StreamRequester
@@ -50,7 +51,38 @@ MAV_TYPE_ONBOARD_CONTROLLER = 18
 MAV_AUTOPILOT_INVALID = 8
 MAV_STATE_ACTIVE = 4
 #: Telemetry the request runner also sees (after the tracker applied it).
-RUNNER_WATCHES = frozenset({"STATUSTEXT", "SYS_STATUS", "MISSION_CURRENT"})
+RUNNER_WATCHES = frozenset({"STATUSTEXT", "SYS_STATUS", "MISSION_CURRENT", "HEARTBEAT"})
+
+#: The autopilot's own figures, read from its parameters when it is found (and after a
+#: reboot), per vehicle type: what the node plans endurance and judges attitude with
+#: (the swarm database's values are only a fallback; monitoring warns when they differ).
+#: ArduPlane before 4.5 names its roll limit LIM_ROLL_CD (centidegrees): read if
+#: ROLL_LIMIT_DEG is not answered.
+_BATTERY = ("BATT_MONITOR", "BATT_CAPACITY")
+FIGURES: dict[VehicleType, tuple[str, ...]] = {
+    VehicleType.COPTER: (*_BATTERY, "ANGLE_MAX"),
+    VehicleType.PLANE: (*_BATTERY, "ROLL_LIMIT_DEG"),
+    VehicleType.VTOL: (*_BATTERY, "ROLL_LIMIT_DEG"),
+    VehicleType.ROVER: _BATTERY,
+    VehicleType.BOAT: _BATTERY,
+}
+FALLBACK = {"ROLL_LIMIT_DEG": "LIM_ROLL_CD"}
+
+
+def figures_of(values: Mapping[str, float]) -> dict[str, float | None]:
+    """AutopilotState's figure fields from the parameter values read so far."""
+    out: dict[str, float | None] = {}
+    monitor, capacity = values.get("BATT_MONITOR"), values.get("BATT_CAPACITY")
+    if monitor is not None and monitor == 0:
+        out["battery_capacity_mah"] = None  # no battery monitor: the autopilot does not know
+    elif capacity is not None and capacity > 0:
+        out["battery_capacity_mah"] = capacity
+    for name, scale in (("ANGLE_MAX", 0.01), ("ROLL_LIMIT_DEG", 1.0), ("LIM_ROLL_CD", 0.01)):
+        v = values.get(name)
+        if v is not None and 0 < v * scale <= 90:
+            out["max_bank_deg"] = v * scale
+            break
+    return out
 
 
 @dataclass(frozen=True)
@@ -65,6 +97,7 @@ class LinkSettings:
     heartbeat_period_s: float = 1.0  # our HEARTBEAT (GCS failsafe; udpout peers learn us)
     stream_rates_hz: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_RATES_HZ))
     runner: RunnerSettings = field(default_factory=RunnerSettings)
+    read_figures: bool = True  # read FIGURES when the autopilot is found
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,6 +147,9 @@ class LinkCore:
         self.streams = StreamRequester(s.stream_rates_hz)
         self.counters = LinkCounters()
         self._next_heartbeat = now
+        self._figure_tokens: dict[int, str] = {}  # our own reads (negative tokens) -> name
+        self._figure_values: dict[str, float] = {}
+        self._next_figure_token = -1
         self.tap = False  # keep the autopilot's frames for passthrough sessions
         self._tapped: list[bytes] = []
 
@@ -141,6 +177,10 @@ class LinkCore:
             if isinstance(e, AutopilotFound | LinkRestored | AutopilotRebooted):
                 force = not isinstance(e, LinkRestored)
                 out += self._send(self.streams.on_link_up(self._target(), now, force))
+            if isinstance(e, AutopilotFound | AutopilotRebooted) and self.settings.read_figures:
+                self._figure_values.clear()
+                names = FIGURES.get(self.state.vehicle_type, ())
+                out += self._read_figures(names, now)
         if verdict is not Verdict.ACCEPTED or isinstance(msg, BadFrame):
             return out
         self.counters.messages_in += 1
@@ -153,10 +193,10 @@ class LinkCore:
             if mtype == "COMMAND_ACK":
                 out += self._send(self.streams.handle_ack(msg, now))
             sent, done = self.runner.handle(msg, self._context(), now)
-            out += self._send(sent) + self._complete(done)
+            out += self._send(sent) + self._complete(done, now)
         elif mtype in RUNNER_WATCHES:
             sent, done = self.runner.handle(msg, self._context(), now)
-            out += self._send(sent) + self._complete(done)
+            out += self._send(sent) + self._complete(done, now)
         return out
 
     def submit(self, token: int, request: ApRequest, now: float) -> list[Output]:
@@ -174,7 +214,7 @@ class LinkCore:
         vt = self.tracker.state.vehicle_type
         check_request(request, vt if vt != VehicleType.OTHER else None)
         sent, done = self.runner.submit(token, request, self._context(), now)
-        return self._send(sent) + self._complete(done)
+        return self._send(sent) + self._complete(done, now)
 
     def on_timer(self, now: float) -> list[Output]:
         out: list[Output] = []
@@ -187,7 +227,7 @@ class LinkCore:
         if deadline is not None and now >= deadline:
             out += self._send(self.streams.on_timer(now, self.state.link_ok))
         sent, done = self.runner.on_timer(self._context(), now)
-        out += self._send(sent) + self._complete(done)
+        out += self._send(sent) + self._complete(done, now)
         return out
 
     def next_deadline(self) -> float:
@@ -268,9 +308,33 @@ class LinkCore:
             out.append(Transmit(data, m))
         return out
 
-    def _complete(self, done: list[Finished]) -> list[Output]:
+    def _read_figures(self, names: tuple[str, ...], now: float) -> list[Output]:
+        out: list[Output] = []
+        for name in names:
+            token = self._next_figure_token
+            self._next_figure_token -= 1
+            self._figure_tokens[token] = name
+            sent, done = self.runner.submit(token, ReadParam(name=name), self._context(), now)
+            out += self._send(sent) + self._complete(done, now)
+        return out
+
+    def _figure_read(self, name: str, result: ApResult, now: float | None) -> list[Output]:
+        if result.ok and result.value is not None:
+            self._figure_values[name] = result.value
+            self.tracker.set_figures(**figures_of(self._figure_values))
+            return []
+        fallback = FALLBACK.get(name)
+        if fallback is not None and now is not None and result.error != ApError.CANCELLED:
+            return self._read_figures((fallback,), now)
+        return []
+
+    def _complete(self, done: list[Finished], now: float | None = None) -> list[Output]:
         out: list[Output] = []
         for f in done:
+            name = self._figure_tokens.pop(f.token, None)
+            if name is not None:
+                out += self._figure_read(name, f.result, now)
+                continue
             if f.result.ok and mission_kind_of(f.request) == MissionKind.MISSION:
                 # uploads and downloads both carry the items the autopilot now holds
                 self.tracker.set_mission_count(len(f.result.items))

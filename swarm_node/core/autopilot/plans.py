@@ -3,8 +3,8 @@ built by pure functions and executed by `runner.RequestRunner`.
 
 | request        | COPTER                         | VTOL (QuadPlane)          | PLANE                          | ROVER / BOAT   |
 |----------------|--------------------------------|---------------------------|--------------------------------|----------------|
-| SetMode        | DO_SET_MODE (custom mode)      | same                      | same                           | same           |
-| Arm / Disarm   | COMPONENT_ARM_DISARM (force: 21196)                                                         ||||
+| SetMode        | DO_SET_MODE (custom mode), confirmed by HEARTBEAT | same   | same                           | same           |
+| Arm / Disarm   | COMPONENT_ARM_DISARM (force: 21196); PLANE, VTOL: DO_SET_MISSION_CURRENT 1 first (leaves "In landing sequence") ||||
 | Takeoff        | [GUIDED] + NAV_TAKEOFF (alt)   | [GUIDED] + NAV_TAKEOFF    | [PARAM TKOFF_ALT] + TAKEOFF mode | ok, nothing  |
 | Goto           | DO_REPOSITION (COMMAND_INT, change-mode flag: GUIDED)                                        ||||
 | ChangeSpeed    | DO_CHANGE_SPEED ground         | airspeed (or ground)      | airspeed (or ground)           | ground         |
@@ -15,6 +15,7 @@ built by pure functions and executed by `runner.RequestRunner`.
 | StartMission   | DO_SET_MISSION_CURRENT (first, at least 1) + [AUTO] + MISSION_START, then MISSION_CURRENT checked ||||
 | Upload*/Download | mission protocol (mission_protocol.py); UploadFence(enable=...) + DO_FENCE_ENABLE          ||||
 | SetParam       | PARAM_SET, confirmed by the PARAM_VALUE echo                                                 ||||
+| ReadParam      | PARAM_REQUEST_READ, answered by PARAM_VALUE (its own lane: never behind a command)           ||||
 | Calibrate      | PREFLIGHT_CALIBRATION (gyro p1, baro p3, accel level p5=2, airspeed p6=2); compass: DO_START_MAG_CAL ||||
 
 StartMission: ArduPilot accepts MISSION_START in AUTO while a mission runs and ignores
@@ -25,6 +26,12 @@ that item (else `ApError.NOT_STARTED`). UploadFence's DO_FENCE_ENABLE(1) waits u
 SYS_STATUS reports the geofence present: ArduPilot refuses the enable (FAILED) until it
 has loaded the uploaded fence (AC_Fence::present(); with FENCE_TYPE polygon-only, loading
 happens in the fence task after the upload and only once the EKF has an origin).
+
+A mode change (SetMode, and the mode steps of Takeoff, StartMission, ReturnToLaunch,
+Land) succeeds only once a HEARTBEAT after the COMMAND_ACK shows the mode taken (or the
+autopilot moved on from the mode it was in: a QuadPlane's RTL becomes QRTL at once), so
+the next step that depends on it (an Arm after SetMode) never runs in the old mode;
+the HEARTBEAT is asked for at once (REQUEST_MESSAGE), not waited for at 1 Hz.
 
 Take-off needs the vehicle armed (Arm first): the plan fails early with a clear reason
 rather than letting ArduPilot answer FAILED. [x] = a step skipped when already true.
@@ -65,8 +72,18 @@ TRANSFERS = (
     rq.UploadRally,
     rq.DownloadMission,
 )
+#: Requests that run in a lane of their own (reads: they neither wait behind a command
+#: nor hold one up, and a name the autopilot does not have costs only their own time).
+QUERIES = (rq.ReadParam,)
 #: Requests that do not depend on the vehicle type.
-TYPE_FREE = (rq.UploadMissionItems, rq.UploadFence, rq.UploadRally, rq.DownloadMission, rq.SetParam)
+TYPE_FREE = (
+    rq.UploadMissionItems,
+    rq.UploadFence,
+    rq.UploadRally,
+    rq.DownloadMission,
+    rq.SetParam,
+    rq.ReadParam,
+)
 CALIBRATIONS = ("gyro", "baro", "airspeed", "accel", "compass")
 FENCE_LOAD_WAIT_S = 5.0  # longest wait for SYS_STATUS to show the uploaded fence loaded
 FENCE_ENABLE_RETRIES = 3  # a FAILED enable (fence still not loaded) tried again
@@ -94,6 +111,8 @@ class CommandSpec:
     #                       after the step began) before sending; sent anyway after wait_s
     wait_s: float = 0.0
     failed_retries: int = 0  # FAILED answers retried (after retry_delay_s) this many times
+    confirm_mode: int | None = None  # DO_SET_MODE: wait for a HEARTBEAT showing it
+    optional: bool = False  # a refusal does not fail the plan (noted in the reason)
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,6 +131,7 @@ class ParamSpec:
     value: float
     label: str
     optional: bool = False  # failure does not fail the plan (noted in the reason)
+    read: bool = False  # PARAM_REQUEST_READ (value unused) instead of PARAM_SET
 
 
 @dataclass(frozen=True, slots=True)
@@ -170,10 +190,10 @@ def check_request(request: ApRequest, vehicle_type: VehicleType | None) -> None:
     elif isinstance(r, rq.StartMission):
         if not 0 <= r.first_item <= 65535:
             raise InvalidRequest(f"StartMission: first_item {r.first_item}")
-    elif isinstance(r, rq.SetParam):
+    elif isinstance(r, rq.SetParam | rq.ReadParam):
         if not (0 < len(r.name) <= 16 and r.name.isascii() and r.name.isprintable()):
-            raise InvalidRequest(f"SetParam: bad name {r.name!r}")
-        if not _finite(r.value):
+            raise InvalidRequest(f"{type(r).__name__}: bad name {r.name!r}")
+        if isinstance(r, rq.SetParam) and not _finite(r.value):
             raise InvalidRequest(f"SetParam {r.name}: value {r.value}")
     elif isinstance(r, rq.Calibrate):
         if r.what not in CALIBRATIONS:
@@ -215,6 +235,7 @@ def _mode(vt: VehicleType, name: str, label: str, skip_if_current: bool = False)
         (MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, float(number), 0, 0, 0, 0, 0),
         skip_if_mode=number if skip_if_current else None,
         mode_name=name,
+        confirm_mode=number,
     )
 
 
@@ -252,16 +273,18 @@ def plan_request(request: ApRequest, ctx: PlanContext) -> Plan | ApResult:
             return _done(r, False, str(exc), ApError.DENIED)
     if isinstance(r, rq.Arm | rq.Disarm):
         arm = isinstance(r, rq.Arm)
-        return Plan(
-            (
-                _long(
-                    MavCmd.COMPONENT_ARM_DISARM,
-                    name,
-                    1.0 if arm else 0.0,
-                    FORCE_MAGIC if r.force else 0.0,
-                ),
-            )
+        arming = _long(
+            MavCmd.COMPONENT_ARM_DISARM, name, 1.0 if arm else 0.0, FORCE_MAGIC if r.force else 0.0
         )
+        if arm and fixed_wing and not st.armed and not r.force:
+            # ArduPlane refuses to arm "In landing sequence" after a landing its mission
+            # flew (AP_Mission keeps the flag until its current item is set again, which
+            # clears it even when answered FAILED for want of a mission)
+            leave = _long(
+                MavCmd.DO_SET_MISSION_CURRENT, "Arm: out of the landing sequence", 1, optional=True
+            )
+            return Plan((leave, arming))
+        return Plan((arming,))
     if isinstance(r, rq.Takeoff):
         if ground:
             return _done(r, True, f"{vt.name} does not take off: nothing to do")
@@ -383,6 +406,8 @@ def plan_request(request: ApRequest, ctx: PlanContext) -> Plan | ApResult:
         return Plan((TransferSpec(r.kind, f"Download {r.kind.name.lower()}"),))
     if isinstance(r, rq.SetParam):
         return Plan((ParamSpec(r.name, r.value, f"SetParam {r.name}"),))
+    if isinstance(r, rq.ReadParam):
+        return Plan((ParamSpec(r.name, 0.0, f"ReadParam {r.name}", read=True),))
     if isinstance(r, rq.Calibrate):
         label = f"Calibrate {r.what}"
         slow = {"timeout_s": 15.0, "attempts": 1, "in_progress_timeout_s": 120.0}

@@ -114,6 +114,12 @@ class SetParam(ApRequest, frozen=True):
     value: float
 
 
+class ReadParam(ApRequest, frozen=True):
+    """PARAM_REQUEST_READ, answered by PARAM_VALUE: ApResult.value."""
+
+    name: str  # at most 16 characters, e.g. "BATT_CAPACITY"
+
+
 class RelayCommand(ApRequest, frozen=True):
     """MAVLink frames of a passthrough session's client (a ground station) that change
     what the vehicle does: written to the autopilot as they are, once the node's arbiter
@@ -147,6 +153,7 @@ class ApError(IntEnum):
     IN_PROGRESS = 12  # still MAV_RESULT_IN_PROGRESS when the time ran out
     NOT_STARTED = 13  # accepted, but the autopilot did not start the mission
     PREEMPTED = 14  # refused by the node's arbiter (a higher owner holds control), never sent
+    MODE_NOT_CONFIRMED = 15  # a mode change accepted, but no HEARTBEAT showed the mode
 
 
 class ApResult(msgspec.Struct, frozen=True):
@@ -157,3 +164,4 @@ class ApResult(msgspec.Struct, frozen=True):
     error: ApError = ApError.NONE
     items: tuple[MissionItem, ...] = ()  # DownloadMission: what the autopilot holds
     attempts: int = 0  # messages sent for the step that decided the result
+    value: float | None = None  # ReadParam: the autopilot's value

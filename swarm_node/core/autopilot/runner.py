@@ -1,9 +1,9 @@
 """Executes `ApRequest`s as plans (plans.py): COMMAND_ACK matching, timeouts, retries,
 PARAM_VALUE confirmation and mission transfers, as a pure state machine.
 
-Two lanes run side by side, each one job at a time in FIFO order: commands (and
-parameters), and mission transfers (so a long upload over a slow radio never delays an
-RTL). Urgent requests (Parachute, ReturnToLaunch, Land) go to the front of the command
+Three lanes run side by side, each one job at a time in FIFO order: commands (and
+parameter writes), mission transfers (so a long upload over a slow radio never delays an
+RTL), and parameter reads. Urgent requests (Parachute, ReturnToLaunch, Land) go to the front of the command
 lane and supersede a running non-urgent command, which then ends CANCELLED.
 
 COMMAND_ACK handling of a step (table below): ACCEPTED ends the step; IN_PROGRESS
@@ -13,6 +13,14 @@ within `timeout_s` resends (COMMAND_LONG with confirmation + 1) until `attempts`
 spent. A FAILED mode change while the EKF has no position reports NO_POSITION.
 A STATUSTEXT of severity WARNING or worse seen during the step is quoted in the reason
 (ArduPilot explains refusals that way: "PreArm: ...", "Mode change to GUIDED failed").
+ArduPilot sends that text after its COMMAND_ACK (the ACK goes out at once, texts from a
+queue on the next telemetry pass), so a refusal without one waits `explain_wait_s` for
+it before it is reported.
+
+A mode change (a step with `confirm_mode`) accepted by COMMAND_ACK is done only when a
+HEARTBEAT shows the mode, or shows that the autopilot left the mode it was in (asked
+for at once with REQUEST_MESSAGE); `mode_confirm_s` without that fails the request
+(ApError.MODE_NOT_CONFIRMED) and the steps after it are not sent.
 
 Real ArduPilot SITL: a command may wait for a SYS_STATUS sensor bit before it
 is sent (DO_FENCE_ENABLE waits for the fence to be loaded) and retry FAILED answers; a
@@ -33,6 +41,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from .framing import MAVLinkMessage
 from .mission_protocol import MissionDownload, MissionUpload
 from .plans import (
+    QUERIES,
     TRANSFERS,
     URGENT,
     CommandSpec,
@@ -56,6 +65,12 @@ MAV_RESULT_IN_PROGRESS = 5
 MAV_RESULT_CANCELLED = 6
 MAV_PARAM_TYPE_REAL32 = 9
 MAV_SEVERITY_WARNING = 4
+MAV_CMD_REQUEST_MESSAGE = 512
+MSG_ID_HEARTBEAT = 0
+#: refusals that ArduPilot explains with a STATUSTEXT (waited for, `explain_wait_s`)
+EXPLAINED = frozenset(
+    {ApError.FAILED, ApError.DENIED, ApError.TEMPORARILY_REJECTED, ApError.NO_POSITION}
+)
 
 #: MAV_RESULT -> (ApError when it ends the request, whether it is retried)
 ACK_TABLE: dict[int, tuple[ApError, bool]] = {
@@ -70,6 +85,7 @@ ACK_TABLE: dict[int, tuple[ApError, bool]] = {
 
 COMMAND_LANE = "command"
 TRANSFER_LANE = "transfer"
+QUERY_LANE = "query"
 
 
 def mav_result_name(code: int) -> str:
@@ -93,6 +109,8 @@ class RunnerSettings:
     mission_retries: int = 5
     ready_wait_s: float = 10.0  # longest wait for "ArduPilot Ready" before a transfer
     ready_poll_s: float = 0.2
+    explain_wait_s: float = 0.5  # after a refusal, the wait for ArduPilot's STATUSTEXT
+    mode_confirm_s: float = 3.0  # after an accepted mode change, the wait for a HEARTBEAT
 
 
 @dataclass(slots=True)
@@ -103,6 +121,7 @@ class StepOutcome:
     mav_result: int | None = None
     items: tuple = ()
     attempts: int = 0
+    value: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,6 +166,11 @@ class _CommandExec(_StepExec):
         self.last_result: int | None = None
         self.failed_left = spec.failed_retries
         self.wait_until: float | None = None  # waiting for spec.wait_sensor
+        self.explain_s = settings.explain_wait_s
+        self.confirm_s = settings.mode_confirm_s
+        self.refused: tuple[str, ApError, int | None] | None = None  # waiting for its text
+        self.confirming = False  # accepted: waiting for a HEARTBEAT with the mode
+        self.mode_before: int | None = None
 
     def _message(self) -> MAVLinkMessage:
         s, (ts, tc) = self.spec, self.target
@@ -171,6 +195,7 @@ class _CommandExec(_StepExec):
         if self.spec.skip_if_mode is not None and state.mode_number == self.spec.skip_if_mode:
             self.outcome = StepOutcome(True, f"already in {self.spec.mode_name}")
             return []
+        self.mode_before = state.mode_number
         if self.spec.wait_sensor and self.spec.wait_s > 0:
             self.wait_until = now + self.spec.wait_s  # until a fresh SYS_STATUS shows it
             return []
@@ -179,10 +204,54 @@ class _CommandExec(_StepExec):
     def _fail(self, reason: str, error: ApError, mav_result: int | None = None) -> None:
         if self.warning:
             reason = f"{reason} ({self.warning})"
+        if self.spec.optional:
+            self.outcome = StepOutcome(
+                True, f"{self.spec.label}: {reason}; carried on", attempts=self.attempts
+            )
+            self.deadline = self.resend_at = None
+            self.refused = None
+            return
         self.outcome = StepOutcome(
             False, f"{self.spec.label}: {reason}", error, mav_result, attempts=self.attempts
         )
         self.deadline = self.resend_at = None
+        self.refused = None
+
+    def _refuse(
+        self, reason: str, error: ApError, mav_result: int | None, now: float
+    ) -> list[MAVLinkMessage]:
+        """A refusal: reported with ArduPilot's explanation, waited for if not seen yet."""
+        if self.warning or error not in EXPLAINED or self.explain_s <= 0 or self.spec.optional:
+            self._fail(reason, error, mav_result)
+        else:
+            self.refused = (reason, error, mav_result)
+            self.deadline, self.resend_at = now + self.explain_s, None
+        return []
+
+    def _mode_shown(self, state: AutopilotState) -> bool:
+        """The HEARTBEAT shows the mode asked for, or that the autopilot left the mode
+        it was in (it took the mode and moved on: RTL -> QRTL)."""
+        mode = state.mode_number
+        return mode == self.spec.confirm_mode or (
+            self.mode_before is not None
+            and mode != self.mode_before
+            and self.spec.confirm_mode != self.mode_before
+        )
+
+    def _accepted(self, now: float, state: AutopilotState, result: int) -> list[MAVLinkMessage]:
+        self.last_result = result
+        if self.spec.confirm_mode is None or self._mode_shown(state):
+            self.outcome = StepOutcome(True, mav_result=result, attempts=self.attempts)
+            self.deadline = None
+            return []
+        self.confirming = True
+        self.deadline = now + self.confirm_s
+        ts, tc = self.target
+        return [
+            mavlink.MAVLink_command_long_message(
+                ts, tc, MAV_CMD_REQUEST_MESSAGE, 0, MSG_ID_HEARTBEAT, 0, 0, 0, 0, 0, 0
+            )
+        ]
 
     def handle(
         self, msg: MAVLinkMessage, now: float, state: AutopilotState
@@ -200,18 +269,24 @@ class _CommandExec(_StepExec):
         if mtype == "STATUSTEXT":
             if int(msg.severity) <= MAV_SEVERITY_WARNING:
                 self.warning = str(msg.text).rstrip("\x00")[:80]
+                if self.refused is not None:
+                    self._fail(*self.refused)
+            return []
+        if self.confirming:
+            if mtype == "HEARTBEAT" and self._mode_shown(state):
+                self.confirming = False
+                self.outcome = StepOutcome(True, mav_result=0, attempts=self.attempts)
+                self.deadline = None
             return []
         if mtype != "COMMAND_ACK" or int(msg.command) != self.spec.command:
             return []
-        if self.attempts == 0 or self.resend_at is not None:
-            return []  # not sent yet, or waiting to resend after TEMPORARILY_REJECTED
+        if self.attempts == 0 or self.resend_at is not None or self.refused is not None:
+            return []  # not sent yet, waiting to resend, or refused (waiting for its text)
         result = int(msg.result)
         self.last_result = result
         error, retried = ACK_TABLE.get(result, (ApError.FAILED, False))
         if result == MAV_RESULT_ACCEPTED:
-            self.outcome = StepOutcome(True, mav_result=result, attempts=self.attempts)
-            self.deadline = None
-            return []
+            return self._accepted(now, state, result)
         if result == MAV_RESULT_IN_PROGRESS:
             self.deadline = now + self.spec.in_progress_timeout_s
             return []
@@ -228,13 +303,12 @@ class _CommandExec(_StepExec):
             and self.spec.mode_name
             and not (state.ekf_has_position or state.ekf_ok)
         ):
-            self._fail(f"{name}: EKF has no position yet", ApError.NO_POSITION, result)
-            return []
+            return self._refuse(
+                f"{name}: EKF has no position yet", ApError.NO_POSITION, result, now
+            )
         if result == MAV_RESULT_FAILED and self.spec.needs_armed and not state.armed:
-            self._fail(f"{name}: not armed (send Arm first)", error, result)
-            return []
-        self._fail(name, error, result)
-        return []
+            return self._refuse(f"{name}: not armed (send Arm first)", error, result, now)
+        return self._refuse(name, error, result, now)
 
     def on_timer(self, now: float, state: AutopilotState) -> list[MAVLinkMessage]:
         if self.outcome is not None:
@@ -244,6 +318,21 @@ class _CommandExec(_StepExec):
                 return []
             self.wait_until = None  # not seen: send anyway (FAILED answers are retried)
             return self._send(now)
+        if self.refused is not None:
+            if self.deadline is not None and now >= self.deadline:
+                self._fail(*self.refused)  # no explanation came
+            return []
+        if self.confirming:
+            if self.deadline is not None and now >= self.deadline:
+                self.confirming = False
+                shown = state.mode_name or str(state.mode_number)
+                self._fail(
+                    f"accepted, but the HEARTBEAT still shows {shown} after "
+                    f"{self.confirm_s:g} s (not {self.spec.mode_name})",
+                    ApError.MODE_NOT_CONFIRMED if state.link_ok else ApError.LINK_DOWN,
+                    MAV_RESULT_ACCEPTED,
+                )
+            return []
         if self.resend_at is not None and now >= self.resend_at:
             return self._send(now)
         if self.deadline is None or now < self.deadline:
@@ -339,6 +428,12 @@ class _ParamExec(_StepExec):
     def _send(self, now: float) -> list[MAVLinkMessage]:
         self.attempts += 1
         self.deadline = now + self.timeout_s
+        if self.spec.read:
+            return [
+                mavlink.MAVLink_param_request_read_message(
+                    self.target[0], self.target[1], self.spec.name.encode("ascii"), -1
+                )
+            ]
         return [
             mavlink.MAVLink_param_set_message(
                 self.target[0],
@@ -352,12 +447,16 @@ class _ParamExec(_StepExec):
     def start(self, now: float, state: AutopilotState) -> list[MAVLinkMessage]:
         return self._send(now)
 
-    def _end(self, ok: bool, reason: str, error: ApError) -> None:
+    def _end(self, ok: bool, reason: str, error: ApError, value: float | None = None) -> None:
         if not ok and self.spec.optional:
             ok, error = True, ApError.NONE
             reason = f"{reason}; carried on with the autopilot's own value"
         self.outcome = StepOutcome(
-            ok, f"{self.spec.label}: {reason}" if reason else "", error, attempts=self.attempts
+            ok,
+            f"{self.spec.label}: {reason}" if reason else "",
+            error,
+            attempts=self.attempts,
+            value=value,
         )
         self.deadline = None
 
@@ -372,6 +471,12 @@ class _ParamExec(_StepExec):
         if str(name).rstrip("\x00") != self.spec.name:
             return []
         value = float(msg.param_value)
+        if self.spec.read:
+            if math.isfinite(value):
+                self._end(True, "", ApError.NONE, value)
+            else:
+                self._end(False, f"{self.spec.name} = {value:g}", ApError.FAILED)
+            return []
         want = float(self.spec.value)
         if math.isfinite(value) and abs(value - want) <= 1e-6 * max(1.0, abs(want)):
             self._end(True, "", ApError.NONE)
@@ -484,13 +589,15 @@ class _Job:
     items: tuple = ()
     seen_current: set[int] = field(default_factory=set)  # MISSION_CURRENT seqs since submitted
     current_before: int | None = None  # MISSION_CURRENT when its first step started
+    value: float | None = None  # a ReadParam's value
 
 
 class RequestRunner:
     def __init__(self, settings: RunnerSettings | None = None) -> None:
         self.settings = settings or RunnerSettings()
-        self._queues: dict[str, deque[_Job]] = {COMMAND_LANE: deque(), TRANSFER_LANE: deque()}
-        self._active: dict[str, _Job | None] = {COMMAND_LANE: None, TRANSFER_LANE: None}
+        lanes = (COMMAND_LANE, TRANSFER_LANE, QUERY_LANE)
+        self._queues: dict[str, deque[_Job]] = {lane: deque() for lane in lanes}
+        self._active: dict[str, _Job | None] = dict.fromkeys(lanes)
         self.last_goto: tuple[float, float, float] | None = None
         # (seq, command) of the mission last uploaded (None: not uploaded by us)
         self.mission_items: tuple[tuple[int, int], ...] | None = None
@@ -512,7 +619,13 @@ class RequestRunner:
     def submit(
         self, token: int, request: ApRequest, ctx: PlanContext, now: float
     ) -> tuple[list[MAVLinkMessage], list[Finished]]:
-        lane = TRANSFER_LANE if isinstance(request, TRANSFERS) else COMMAND_LANE
+        lane = (
+            TRANSFER_LANE
+            if isinstance(request, TRANSFERS)
+            else QUERY_LANE
+            if isinstance(request, QUERIES)
+            else COMMAND_LANE
+        )
         job = _Job(token, request, urgent=isinstance(request, URGENT))
         out: list[MAVLinkMessage] = []
         done: list[Finished] = []
@@ -601,6 +714,7 @@ class RequestRunner:
             error=error,
             items=job.items,
             attempts=attempts,
+            value=job.value,
         )
         return Finished(job.token, job.request, result)
 
@@ -627,6 +741,8 @@ class RequestRunner:
                 outcome = step.outcome
                 if outcome.items:
                     job.items = tuple(outcome.items)
+                if outcome.value is not None:
+                    job.value = outcome.value
                 if not outcome.ok:
                     done.append(
                         self._finish(

@@ -86,6 +86,10 @@ class AutopilotState(msgspec.Struct, frozen=True):
     # appended by the link's shell: why nothing is heard ("" while it is, or not known):
     # the connection cannot be opened, or it is open and silent
     link_problem: str = ""
+    # appended: the autopilot's own figures, read from its parameters at link-up
+    # (link.FIGURES); None = not read (yet), or the autopilot does not know it
+    battery_capacity_mah: float | None = None  # BATT_CAPACITY, None without a monitor
+    max_bank_deg: float | None = None  # ArduPlane ROLL_LIMIT_DEG, ArduCopter ANGLE_MAX
 
     @property
     def has_position(self) -> bool:

@@ -226,6 +226,10 @@ class StateTracker:
         """Another core rejected a message from our autopilot (e.g. a bad MISSION_ACK)."""
         self._count_bad(reason)
 
+    def set_figures(self, **figures: float | None) -> None:
+        """The autopilot's own figures, read from its parameters (the link's FIGURES)."""
+        self._state = msgspec.structs.replace(self._state, **figures)
+
     def set_mission_count(self, count: int) -> None:
         """After a successful mission upload or download."""
         self._state = msgspec.structs.replace(self._state, mission_count=count)

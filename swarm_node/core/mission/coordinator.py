@@ -97,7 +97,7 @@ from ..outputs import (
     TakeOver,
     ToMission,
 )
-from ..profile import VehicleProfile
+from ..profile import VehicleProfile, published_capacity_mah, with_autopilot_battery
 from ..reattach import Decision, Reattacher, dropped, same_share, sortie_record
 from ..reports import MissionReport
 from ..safety.pad_sequence import PadSequence
@@ -413,7 +413,7 @@ class MissionCoordinator:
         progress, flown = self.progress_now()
         members: list[Member] = []
         for vid in survivors:
-            profile = self.profile if vid == self.self_id else self.fleet_profiles.get(vid)
+            profile = self._profile_of(vid, ctx)
             if profile is None:
                 continue
             members.append(
@@ -472,7 +472,7 @@ class MissionCoordinator:
         would send two vehicles over the same ground)."""
         battery = self.roster.plan_battery
         home = published_home(ctx.autopilot.home)  # as the others hear it
-        out = [Member(self.profile, home, battery.get(self.self_id))]
+        out = [Member(self._own_profile(ctx), home, battery.get(self.self_id))]
         unknown = []
         for vid in self.roster.flying:
             if vid == self.self_id:
@@ -480,12 +480,30 @@ class MissionCoordinator:
             peer = ctx.peers.get(vid)
             if peer is None or not peer.present:
                 continue
-            profile = self.fleet_profiles.get(vid)
+            profile = self._profile_of(vid, ctx)
             if profile is None:
                 unknown.append(vid)
                 continue
             out.append(Member(profile, peer.info.home if peer.info else None, battery.get(vid)))
         return out, unknown
+
+    def _own_profile(self, ctx: Context) -> VehicleProfile:
+        """Our profile as every node plans with it: the battery our autopilot says it
+        has, as we publish it in VehicleInfo."""
+        own = published_capacity_mah(ctx.autopilot.battery_capacity_mah)
+        return with_autopilot_battery(self.profile, own)
+
+    def _profile_of(self, vid: int, ctx: Context) -> VehicleProfile | None:
+        """A member's profile as every node plans with it: the database's, with the
+        battery its autopilot says it has (published in VehicleInfo)."""
+        if vid == self.self_id:
+            return self._own_profile(ctx)
+        profile = self.fleet_profiles.get(vid)
+        if profile is None:
+            return None
+        peer = ctx.peers.get(vid)
+        capacity = peer.info.battery_capacity_mah if peer is not None and peer.info else 0
+        return with_autopilot_battery(profile, capacity)
 
     def _return(self, ctx: Context, now: float) -> list[ModuleOutput]:
         return self.manager.start_return(ctx.autopilot, ctx.zones.no_fly(now), now)

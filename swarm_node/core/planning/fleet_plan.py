@@ -44,7 +44,7 @@ import msgspec
 import numpy as np
 
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
-from swarm_node.core.margins import track_margin_m
+from swarm_node.core.margins import FIXED_WING_LANE_EXTRA_M, track_margin_m
 from swarm_node.core.profile import VehicleProfile
 from swarm_proto import Mission, MissionType, NoFlyZone
 
@@ -678,12 +678,22 @@ def _plan_mumt(
     return _fleet_plan(mission, followers, detail)
 
 
+def _turn_margin_m(profile: VehicleProfile) -> float:
+    """A fixed-wing's lanes end its planned turn radius and FIXED_WING_LANE_EXTRA_M
+    from a zone: the turn at a lane's end then keeps FIXED_WING_KEEP_M from it (at the
+    turn radius alone a U-turn kept 30-39 m, and ArduPlane flies up to 37 m inside it)."""
+    if not profile.is_fixed_wing:
+        return profile.turn_radius_m()
+    return profile.turn_radius_m() + FIXED_WING_LANE_EXTRA_M
+
+
 def zone_margin_m(vehicles: Sequence[PlanVehicle]) -> float:
     """How far a plan keeps from the zones: the widest planned turn radius of a
-    fixed-wing (`vehicles` are already `flyable`), or what ArduPilot flies off a
-    multirotor's or ground vehicle's legs around its corners (`margins.track_margin_m`)."""
+    fixed-wing (`vehicles` are already `flyable`) and the room its turns need
+    (`_turn_margin_m`), or what ArduPilot flies off a multirotor's or ground vehicle's
+    legs around its corners (`margins.track_margin_m`)."""
     return max(
-        (max(v.profile.turn_radius_m(), track_margin_m(v.profile)) for v in vehicles),
+        (max(_turn_margin_m(v.profile), track_margin_m(v.profile)) for v in vehicles),
         default=0.0,
     )
 

@@ -42,6 +42,7 @@ from shapely.geometry.base import BaseGeometry
 from swarm_node.core.autopilot.items import ItemKind, Waypoint
 from swarm_proto import NoFlyZone
 
+from ..margins import FIXED_WING_KEEP_M
 from .dubins import DubinsPath, FloatArray, Pose, Word, all_paths
 from .errors import InvalidParameterError, NoSafeRouteError
 from .geo import LocalFrame
@@ -58,8 +59,9 @@ FIXED_WING_ACCEPT_M = 15.0
 #: Least clearance from a zone of the turns this stage adds. ArduPlane does not fly
 #: them as planned: a SITL QuadPlane (quadplane.parm, NAVL1_PERIOD 14) passed their
 #: sampled waypoints 24-37 m on their inside ("Passed waypoint #92 dist 26m") and,
-#: with 20 m here, entered a 35 m zone by 4.9 m (`make sitl-check`).
-TURN_CLEARANCE_M = 45.0
+#: with 20 m here, entered a 35 m zone by 4.9 m (`make sitl-check`): what ArduPlane
+#: cuts, plus the clearance it must keep as flown (margins.FIXED_WING_KEEP_M).
+TURN_CLEARANCE_M = FIXED_WING_KEEP_M
 #: How far the flown path may leave the planned one at a corner it keeps.
 CORNER_TOL_M = 6.0
 #: The zone clearance the flown path (as `predict_flight` predicts it) is checked for.

@@ -30,6 +30,7 @@ from swarm_proto import GeoPoint, LatLon, NoFlyZone, geodesy
 
 from ..autopilot.items import ItemKind, Waypoint
 from ..autopilot.state import AutopilotState
+from ..margins import FIXED_WING_KEEP_M
 from ..profile import VehicleProfile
 from .dubins import Pose, all_paths
 from .errors import PlanningError
@@ -115,20 +116,23 @@ def safe_transit(
     home_alt_msl_m: float,
     margin_m: float,
     max_alt_rel_m: float = 120.0,
+    floor_m: float = 0.0,
 ) -> list[Waypoint]:
     """Waypoints (excluding `start`, including `end`) that fly from start to end keeping
     `margin_m` clear of every no-fly zone at that altitude: straight when the straight
     leg is clear, else the shortest way round the inflated zones (visibility graph);
-    if the ends are too close to a zone for the margin, the raw-zone avoidance of the
-    planners (over or around). The legs a plan does not cover (to the first waypoint,
-    back to base) go through here."""
+    if the ends are too close to a zone for the margin, a half or a quarter of it (never
+    less than `floor_m`), then the raw-zone avoidance of the planners (over or around).
+    The legs a plan does not cover (to the first waypoint, back to base) go through
+    here."""
     direct = [Waypoint(lat_deg=end[0], lon_deg=end[1], alt_rel_m=alt_rel_m)]
     if not zones:
         return direct
     frame = LocalFrame.at([LatLon(*start), LatLon(*end)])
     a, b = frame.to_local(*start), frame.to_local(*end)
     route: list[tuple[float, float, float]] | None = None
-    for m in (margin_m, margin_m / 2, margin_m / 4):  # an end close to a zone: less margin
+    margins = sorted({max(m, floor_m) for m in (margin_m, margin_m / 2, margin_m / 4)})
+    for m in reversed(margins):  # an end close to a zone: less margin
         zs = ZoneSet.from_messages(
             zones, frame, now_unix_s=now, home_alt_msl_m=home_alt_msl_m, margin_m=m
         )
@@ -174,7 +178,14 @@ def fixed_wing_transit(
     inside); only when no entry keeps that much, TRANSIT_MARGIN_M (an entry
     kept 20 m clear was flown 9.9 m from the demo's zone on the way home)."""
     legs = safe_transit(
-        start, end, alt_rel_m, zones, now=now, home_alt_msl_m=home_alt_msl_m, margin_m=radius_m
+        start,
+        end,
+        alt_rel_m,
+        zones,
+        now=now,
+        home_alt_msl_m=home_alt_msl_m,
+        margin_m=radius_m,
+        floor_m=FIXED_WING_KEEP_M,  # what ArduPlane cuts off a corner, and its clearance
     )
     if not zones or radius_m <= 0:
         return legs

@@ -56,14 +56,21 @@ within `horizon_s`. Manoeuvres are upward only:
   for each other for good). Nor does a still pair (both hovering) that is no conflict
   from the planned altitude: waiting cannot change it.
 
-The core never reads a clock: `now` is the caller's (the same clock as the contacts'
-`time_s`; VehicleStatus times are GPS UNIX seconds). A report is at least as old as
-the time since it was received.
+The core never reads a clock: `now` is the caller's. A report's age is measured on
+that clock, never by comparing the sender's time with ours (VehicleStatus times are the
+sender's autopilot's GPS time, which may run seconds off the receiver's clock: SITL's
+ran 10 s behind its host's, and every report read as 10 s stale grew the margins to
+hundreds of metres): when it was received, less how much later than usual it came
+(its `time_unix_s` to reception, over the least seen from that sender in the last
+`LATENCY_WINDOW_S`). A constant skew between the clocks cancels out; a report held up
+on the way, or a sender repeating an old position (its autopilot link down), shows
+its age. The own status is aged the same way.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
@@ -115,6 +122,9 @@ MAX_SPEED_M_S: dict[VehicleType, float] = {
     VehicleType.MANNED: 60.0,
 }
 TRAFFIC_MAX_SPEED_M_S = 60.0
+# how long a sender's least latency (its time to our reception) is remembered: a clock
+# that steps is followed within this
+LATENCY_WINDOW_S = 30.0
 PARKED_ALT_M = 2.0  # a disarmed aircraft lower than this above its home is on the ground
 
 
@@ -284,6 +294,9 @@ class CollisionAvoider:
     _active: _Active | None = None
     _next: float | None = None
     counters: dict[str, int] = field(default_factory=dict)
+    # per sender: (received, latency) with latencies increasing, the window's least first
+    _latency: dict[int, deque[tuple[float, float]]] = field(default_factory=dict)
+    _own_t: float = 0.0  # when the own status's position was true (our clock)
 
     # ------------------------------------------------------------------ inputs
     def handle(self, ev: Event, now: float) -> list[Output]:
@@ -374,8 +387,7 @@ class CollisionAvoider:
             # `min_active_alt_rel_m` (take-off and landing next to it: pads.py)
             self._contacts.pop(s.vehicle_id, None)
             return
-        # the sample's own time unless it is in the future (a skewed clock): then when heard
-        t = s.time_unix_s if 0.0 < s.time_unix_s <= now else now
+        t = self._sample_time(s.vehicle_id, s.time_unix_s, now)
         speed = MAX_SPEED_M_S.get(vtype or VehicleType.OTHER, 35.0)
         try:
             track = Track.from_status(s, time_s=t, max_speed_m_s=speed)
@@ -385,6 +397,23 @@ class CollisionAvoider:
         self._contacts[s.vehicle_id] = _Contact(
             track, now, True, vtype, armed=s.armed, alt_rel_m=s.alt_rel_m
         )
+
+    def _sample_time(self, sender: int, sent_s: float, received: float) -> float:
+        """When a report's position was true, on our clock: `received` less how much
+        later than the least seen from `sender` lately it came (a sliding-window
+        minimum of `received - sent_s`); `received` for a report without a time."""
+        if not (sent_s > 0.0 and math.isfinite(sent_s)):
+            return received
+        latency = received - sent_s
+        window = self._latency.get(sender)
+        if window is None:
+            window = self._latency[sender] = deque()
+        while window and window[-1][1] >= latency:
+            window.pop()
+        window.append((received, latency))
+        while received - window[0][0] > LATENCY_WINDOW_S:
+            window.popleft()
+        return received - (latency - window[0][1])
 
     def _traffic(self, tr: Traffic, now: float) -> None:
         t = tr.time_s if tr.time_s <= now else now
@@ -422,6 +451,7 @@ class CollisionAvoider:
                 return [self._alert(own, now, Severity.INFO, "avoidance: off (not flying)", True)]
             return []  # the statuses heard wait (the latest per peer) until it flies
         self._absorb()
+        self._own_t = self._sample_time(own.vehicle_id, own.time_unix_s, self._own_received)
         stale = [
             k for k, c in self._contacts.items() if now - c.received_s > self.config.forget_after_s
         ]
@@ -450,8 +480,7 @@ class CollisionAvoider:
 
     # ------------------------------------------------------------------ geometry
     def _own_track(self, own: VehicleStatus, now: float, planned: bool) -> Track:
-        t = min(own.time_unix_s, now) if own.time_unix_s > 0 else self._own_received
-        t = min(t, self._own_received)
+        t = self._own_t or self._own_received
         vn, ve, vd = own.vel_north_m_s, own.vel_east_m_s, own.vel_down_m_s
         alt = own.alt_msl_m
         if self._active is not None:

@@ -59,6 +59,10 @@ class FakeAutopilot:
         self.silent_commands: set[int] = set()  # never answered
         self.received: list = []
         self.statustexts: list[tuple[int, str]] = []  # to send before the next ACK
+        # to send after it (ArduPilot: the ACK at once, texts from a queue after it)
+        self.texts_after_ack: list[tuple[int, str]] = []
+        self.answer_heartbeat = True  # REQUEST_MESSAGE(HEARTBEAT) answered
+        self.modes_not_taken: set[int] = set()  # DO_SET_MODE accepted, the mode not taken
         self._next_hb = 0.0
         self._next_telemetry = 0.0
         self.telemetry_period_s = 0.1
@@ -75,19 +79,20 @@ class FakeAutopilot:
             self.boot_s = now
         return int((now - self.boot_s) * 1000)
 
+    def heartbeat(self) -> bytes:
+        base = 1 | (128 if self.armed else 0)
+        return self._pack(
+            mavlink.MAVLink_heartbeat_message(
+                self.mav_type, 3, base, self.custom_mode, 4 if self.armed else 3, 3
+            )
+        )
+
     def telemetry(self, now: float) -> list[bytes]:
         out = []
         boot = self._boot_ms(now)
         if now >= self._next_hb:
             self._next_hb = now + 1.0
-            base = 1 | (128 if self.armed else 0)
-            out.append(
-                self._pack(
-                    mavlink.MAVLink_heartbeat_message(
-                        self.mav_type, 3, base, self.custom_mode, 4 if self.armed else 3, 3
-                    )
-                )
-            )
+            out.append(self.heartbeat())
         if now >= self._next_telemetry:
             self._next_telemetry = now + self.telemetry_period_s
             out.append(
@@ -184,7 +189,7 @@ class FakeAutopilot:
         ]
         self.statustexts.clear()
         if result == 0:
-            if cmd == 176:
+            if cmd == 176 and int(msg.param2) not in self.modes_not_taken:
                 self.custom_mode = int(msg.param2)
             elif cmd == 400:
                 self.armed = msg.param1 == 1.0
@@ -193,6 +198,13 @@ class FakeAutopilot:
             elif cmd == 192 and int(msg.param2) & 1:
                 self.custom_mode = 4 if self.kind == "copter" else 15  # GUIDED
         out.append(self._ack(cmd, result, msg))
+        out += [
+            self._pack(mavlink.MAVLink_statustext_message(sev, text.encode()))
+            for sev, text in self.texts_after_ack
+        ]
+        self.texts_after_ack.clear()
+        if result == 0 and cmd == 512 and int(msg.param1) == 0 and self.answer_heartbeat:
+            out.append(self.heartbeat())  # REQUEST_MESSAGE HEARTBEAT: at once, as ArduPilot
         if (
             result == 0 and cmd == 224 and self.report_current
         ):  # DO_SET_MISSION_CURRENT: ArduPilot reports it at once
@@ -212,6 +224,18 @@ class FakeAutopilot:
             self._pack(
                 mavlink.MAVLink_param_value_message(
                     name.encode(), float(msg.param_value), 9, len(self.params), 0
+                )
+            )
+        ]
+
+    def _on_param_request_read(self, msg: object, now: float) -> list[bytes]:
+        name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
+        if name not in self.params:
+            return []  # ArduPilot does not answer a name it does not have
+        return [
+            self._pack(
+                mavlink.MAVLink_param_value_message(
+                    name.encode(), float(self.params[name]), 9, len(self.params), 0
                 )
             )
         ]

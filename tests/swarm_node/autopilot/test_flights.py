@@ -109,13 +109,13 @@ class SimFlight:
 
     def commands(self) -> list[tuple[str, int | str]]:
         """What the link sent, as (message, command or mode) in order, without the
-        stream requests and heartbeats."""
+        stream requests, heartbeats and the requests for one (a mode confirmed)."""
         out: list[tuple[str, int | str]] = []
         for m in self.sent:
             t = m.get_type()
             if t == "COMMAND_LONG" and m.command == 176:
                 out.append(("MODE", int(m.param2)))
-            elif t in ("COMMAND_LONG", "COMMAND_INT") and m.command != 511:
+            elif t in ("COMMAND_LONG", "COMMAND_INT") and m.command not in (511, 512):
                 out.append((t, int(m.command)))
             elif t in ("MISSION_COUNT", "PARAM_SET"):
                 out.append((t, int(m.count) if t == "MISSION_COUNT" else m.param_id))
@@ -231,6 +231,7 @@ def test_vtol_sortie() -> None:
     assert f.commands() == [
         ("MISSION_COUNT", 4),
         ("MODE", 15),
+        ("COMMAND_LONG", 224),  # ArduPlane: out of a landing sequence before arming
         ("COMMAND_LONG", 400),
         ("COMMAND_LONG", 22),
         ("COMMAND_LONG", 224),  # DO_SET_MISSION_CURRENT 1
@@ -273,8 +274,9 @@ def test_plane_sortie() -> None:
     assert land.ok, land
     f.wait(lambda: not f.state.armed or (f.state.alt_rel_m or 99) < 1.0, 900, "landing")
     sent = f.commands()
-    assert sent[:7] == [
+    assert sent[:8] == [
         ("MISSION_COUNT", 7),
+        ("COMMAND_LONG", 224),  # ArduPlane: out of a landing sequence before arming
         ("COMMAND_LONG", 400),
         ("PARAM_SET", "TKOFF_ALT"),
         ("MODE", 13),
@@ -282,7 +284,7 @@ def test_plane_sortie() -> None:
         ("MODE", 10),
         ("COMMAND_LONG", 300),
     ]
-    assert sent[7:9] == [("MODE", 11), ("COMMAND_LONG", 189)]
+    assert sent[8:10] == [("MODE", 11), ("COMMAND_LONG", 189)]
 
 
 @pytest.mark.parametrize("model", ["rover", "boat"])

@@ -205,7 +205,8 @@ KINDS = [MissionKind.MISSION, MissionKind.FENCE, MissionKind.RALLY]
 def run_transfer(
     loss: float, seed: int, n: int, kind: MissionKind, request_with_int: bool
 ) -> tuple[Any, Any, Harness]:
-    core = LinkCore(LinkSettings(vehicle_type=VehicleType.COPTER), 1000.0)
+    # no parameter reads at link-up: the seeded loss draws are the transfer's alone
+    core = LinkCore(LinkSettings(vehicle_type=VehicleType.COPTER, read_figures=False), 1000.0)
     fake = FakeAutopilot("copter", request_with_int=request_with_int)
     h = Harness(core, fake, loss=0.0, seed=seed)
     assert h.run_until(lambda: core.state.link_ok, 30)

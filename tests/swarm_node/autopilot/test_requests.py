@@ -20,6 +20,8 @@ from swarm_proto import VehicleType
 
 from .fake_autopilot import FakeAutopilot, Harness
 
+MAV_CMD_REQUEST_MESSAGE = 512
+
 KIND = {
     VehicleType.COPTER: "copter",
     VehicleType.PLANE: "plane",
@@ -39,7 +41,10 @@ def harness(vt: VehicleType, **fake_kw: Any) -> Harness:
 def commands_sent(h: Harness, since: int) -> list[tuple[str, int, tuple[float, ...]]]:
     out = []
     for m in h.sent[since:]:
-        if m.get_type() == "COMMAND_LONG" and m.command != MavCmd.SET_MESSAGE_INTERVAL:
+        if m.get_type() == "COMMAND_LONG" and m.command not in (
+            MavCmd.SET_MESSAGE_INTERVAL,
+            MAV_CMD_REQUEST_MESSAGE,  # a HEARTBEAT to confirm a mode change
+        ):
             out.append(
                 (
                     "long",
@@ -189,11 +194,136 @@ def test_mode_refused_without_ekf_position_is_no_position() -> None:
 
 
 def test_arming_refusal_quotes_the_prearm_text() -> None:
+    h = harness(VehicleType.COPTER)
+    h.fake.ack_script[400] = [4]
+    h.fake.statustexts.append((3, "Arm: LAND mode not armable"))
+    result, _ = run(h, rq.Arm())
+    assert result.error == ApError.FAILED and "Arm: LAND mode not armable" in result.reason
+
+
+def test_a_quadplane_leaves_a_landing_sequence_before_it_arms() -> None:
+    """After a landing its mission flew ArduPlane refuses to arm ("Arm: In landing
+    sequence") until the mission's current item is set again: DO_SET_MISSION_CURRENT 1
+    first, and a refusal of it (no mission) does not stop the arm."""
+    h = harness(VehicleType.VTOL)
+    h.fake.ack_script[224] = [4]  # no mission: FAILED (ArduPilot cleared the flag anyway)
+    result, sent = run(h, rq.Arm())
+    assert result.ok and [c for _, c, _ in sent] == [224, 400]
+    assert "out of the landing sequence" in result.reason and "carried on" in result.reason
+    run(h, rq.Disarm(force=True))
+    again, sent = run(h, rq.Arm(force=True))
+    assert again.ok and [c for _, c, _ in sent] == [400]  # forced: no checks to pass
+
+
+def test_a_refusal_waits_for_the_text_ardupilot_sends_after_its_ack() -> None:
+    """ArduPilot sends COMMAND_ACK at once and its STATUSTEXT from a queue after it: the
+    refusal carries the text, under its true name (an arm refusal, FAILED)."""
     h = harness(VehicleType.VTOL)
     h.fake.ack_script[400] = [4]
-    h.fake.statustexts.append((3, "PreArm: QLAND mode not armable"))
+    h.fake.texts_after_ack.append((2, "PreArm: QLAND mode not armable"))
     result, _ = run(h, rq.Arm())
-    assert result.error == ApError.FAILED and "PreArm: QLAND mode not armable" in result.reason
+    assert not result.ok and result.error == ApError.FAILED and result.mav_result == 4
+    assert result.reason == "Arm: COMMAND_ACK FAILED (PreArm: QLAND mode not armable)"
+
+
+def test_a_refusal_without_a_text_is_reported_after_the_wait() -> None:
+    h = harness(VehicleType.COPTER)
+    h.fake.ack_script[400] = [4]
+    start = h.now
+    result, _ = run(h, rq.Arm())
+    assert result.error == ApError.FAILED and result.reason == "Arm: COMMAND_ACK FAILED"
+    assert h.now - start == pytest.approx(0.5, abs=0.15)  # RunnerSettings.explain_wait_s
+
+
+def test_a_mode_change_is_done_when_a_heartbeat_shows_it() -> None:
+    """SetMode then Arm: the Arm is not sent before a HEARTBEAT shows the mode (the node
+    sent them 1 ms apart, and ArduPlane refused the Arm in the old mode)."""
+    h = harness(VehicleType.VTOL)
+    h.fake.answer_heartbeat = False  # only the 1 Hz HEARTBEAT
+    order: list[tuple[str, int]] = []
+    h.fake.on_command = lambda m: order.append(("cmd", int(m.command)))
+    result, _ = run(h, rq.SetMode(mode="QLOITER"))
+    assert result.ok and h.core.state.mode_name == "QLOITER"
+    run(h, rq.Arm())
+    # 224: ArduPlane's DO_SET_MISSION_CURRENT before an arm, out of a landing sequence
+    assert [c for _, c in order if c != 511] == [176, 512, 224, 400]
+
+
+def test_a_mode_change_the_heartbeat_never_shows_fails_and_says_so() -> None:
+    h = harness(VehicleType.VTOL)
+    assert h.core.state.mode_number == 0
+    h.fake.modes_not_taken.add(15)  # GUIDED accepted, but the autopilot stays where it was
+    start = h.now
+    result, _ = run(h, rq.SetMode(mode="GUIDED"))
+    assert not result.ok and result.error == ApError.MODE_NOT_CONFIRMED
+    assert "HEARTBEAT still shows MANUAL" in result.reason and "not GUIDED" in result.reason
+    assert h.now - start == pytest.approx(3.0, abs=0.2)  # RunnerSettings.mode_confirm_s
+
+
+def test_a_mode_the_autopilot_moves_on_from_at_once_is_confirmed() -> None:
+    """A QuadPlane's RTL becomes QRTL at once: a HEARTBEAT out of the old mode confirms."""
+    h = harness(VehicleType.VTOL)
+    h.fake.modes_not_taken.add(11)  # RTL ...
+    h.fake.on_command = lambda m: setattr(h.fake, "custom_mode", 21) if m.command == 176 else None
+    result, _ = run(h, rq.ReturnToLaunch())  # ... shown as QRTL
+    assert result.ok
+
+
+def test_read_param_answers_the_value_and_does_not_wait_behind_commands() -> None:
+    h = harness(VehicleType.COPTER)
+    assert h.run_until(lambda: h.core.pending_requests() == 0, 30)  # the link's own reads
+    h.fake.params["WPNAV_SPEED"] = 1000.0
+    h.fake.silent_commands.add(178)
+    h.submit(1, rq.ChangeSpeed(speed_m_s=5))
+    result = h.run_request(2, rq.ReadParam(name="WPNAV_SPEED"), max_s=10)
+    assert result is not None and result.ok and result.value == 1000.0
+    assert 1 not in h.results()  # the command still waits for its COMMAND_ACK
+    missing = h.run_request(3, rq.ReadParam(name="NO_SUCH_PARAM"), max_s=10)
+    assert missing is not None and missing.error == ApError.TIMEOUT and missing.value is None
+
+
+@pytest.mark.parametrize(
+    ("vt", "params", "capacity", "bank"),
+    [
+        (
+            VehicleType.COPTER,
+            {"BATT_MONITOR": 4, "BATT_CAPACITY": 20000, "ANGLE_MAX": 3000},
+            20000,
+            30,
+        ),
+        (
+            VehicleType.VTOL,
+            {"BATT_MONITOR": 0, "BATT_CAPACITY": 3300, "ROLL_LIMIT_DEG": 65},
+            None,
+            65,
+        ),
+        (
+            VehicleType.PLANE,
+            {"BATT_MONITOR": 4, "BATT_CAPACITY": 5000, "LIM_ROLL_CD": 4500},
+            5000,
+            45,
+        ),
+        (VehicleType.ROVER, {"BATT_CAPACITY": 10000}, 10000, None),
+    ],
+)
+def test_the_autopilots_own_figures_are_read_when_it_is_found(
+    vt: VehicleType, params: dict[str, float], capacity: float | None, bank: float | None
+) -> None:
+    """BATT_CAPACITY (None without a battery monitor: BATT_MONITOR 0) and the attitude
+    limit (ArduCopter ANGLE_MAX cdeg, ArduPlane ROLL_LIMIT_DEG, or LIM_ROLL_CD before it)."""
+    core = LinkCore(LinkSettings(vehicle_type=vt), 1000.0)
+    fake = FakeAutopilot(KIND[vt])
+    fake.params.update({k: float(v) for k, v in params.items()})
+    h = Harness(core, fake)
+    assert h.run_until(
+        lambda: (
+            core.state.battery_capacity_mah == capacity
+            and core.state.max_bank_deg == bank
+            and core.pending_requests() == 0
+        ),
+        30,
+    )
+    assert h.results() == {}  # the link's own reads are not results of anyone's request
 
 
 @pytest.mark.parametrize(

@@ -141,13 +141,28 @@ def test_three_way_targets_stack_by_rank() -> None:
 
 
 def test_stale_telemetry_widens_the_protection_volume() -> None:
+    """A report that reaches us 4 s later than this sender's reports usually do is 4 s
+    old (measured on our clock: its send time to our reception, over the least seen)."""
     fresh = [status(1, 0, 0, 100, ve=20), status(2, 800, 60, 100, ve=-20)]  # 60 m abeam
     assert feed(avoider(2), fresh) == []
-    old = status(1, 0, 0, 100, ve=20, t=T - 4.0)  # heard now, sampled 4 s ago
     av = avoider(2)
-    av.handle(old, T)
+    far = status(2, 880, 60, 100, ve=-20, t=T - 4.0)
+    feed(av, [far, status(1, -80, 0, 100, ve=20, t=T - 4.0)], T - 4.0)  # on time: the usual
+    av.handle(status(1, 0, 0, 100, ve=20, t=T - 4.0), T)  # its next report, 4 s late
     (m,) = manoeuvres(feed(av, [fresh[1]]))
     assert m.kind is ManoeuvreKind.CLIMB  # 60 m < 20 m + 0.5 * 10 m/s^2 * (4 s)^2
+
+
+def test_a_skewed_clock_is_not_stale_data() -> None:
+    """Every report of a peer whose clock runs 10 s behind ours (SITL's GPS time ran
+    9.4-10.5 s behind its host's) is fresh: the skew is constant, it cancels out."""
+    for skew in (0.0, 10.0, -10.0):
+        av = avoider(2)
+        for k in range(10):
+            t = T + k * 0.2
+            own = status(2, 800 - 20 * k * 0.2, 60, 100, ve=-20, t=t - skew)
+            peer = status(1, 20 * k * 0.2, 0, 100, ve=20, t=t - skew)
+            assert not manoeuvres(feed(av, [own, peer], t)), skew  # 60 m abeam, fresh
 
 
 def test_a_report_is_at_least_as_old_as_when_it_was_heard() -> None:
