@@ -14,8 +14,9 @@ router and the ground station library, as a script with a PASS/FAIL row per step
     finish      the survey completed; coverage from the tracks flown; the zones kept
                 clear by each vehicle type's margin (QuadPlane 10 m, copter 2 m);
                 no fence breached
-    dead node's aircraft  an operator's RTL straight to its autopilot: it lands on
-                its own pad
+    dead node's aircraft  the GCS failsafe its node set takes it home (RTL within
+                the failsafe's 10 s and a margin), it lands on its own pad, and no
+                peer came within 15 m of it from the kill to its landing
     landing     every vehicle landed on its own pad, neighbours in turn
     head-on     two vehicles at one altitude flown at each other (GOTO): avoidance
                 keeps them apart
@@ -103,7 +104,7 @@ ROW_TEXT = {
     "target": "target report: vote, winners fly to it, others re-split",
     "node kill": "a node SIGKILLed: its aircraft flies on, survivors inherit",
     "finish": "survey complete: coverage, zone margins, no breach",
-    "dead node's aircraft": "operator's RTL to the dead node's autopilot: its own pad",
+    "dead node's aircraft": "its failsafe takes it home to its own pad, no peer within 15 m",
     "landing": "landed on their own pads, in turn",
     "head-on": "head-on pair at one altitude: avoidance",
     "separation": "no airborne pair under 10 m (danger) / 5 m (near)",
@@ -126,6 +127,8 @@ SPLIT_MAX = 0.10  # of the survey track length flown over another's lanes
 HEAD_ON_ALT_M = 40.0
 HEAD_ON_BEYOND_M = 200.0  # each is sent this far beyond the other
 LANDED_ON_PAD_M = 10.0
+DEAD_CLEAR_M = 15.0  # no peer this close to a dead node's aircraft (issue: 15 m)
+FAILSAFE_MARGIN_S = 10.0  # beyond the node's FS timeout (10 s), simulated seconds
 SEED_ROLES = {"quadplane": range(1, 7), "copter": range(7, 10)}  # seed database systems
 
 
@@ -713,6 +716,11 @@ class FleetRun(Rig):
         return self.alerts(vid, code, since_unix)
 
     def step_dead_aircraft(self) -> None:
+        """The dead node's aircraft, from ArduPilot's own positions and modes: the GCS
+        failsafe its node set (docs/reliability.md: RTL 10 s after the node's last
+        HEARTBEAT) takes it home, it lands on its own pad, and no survivor comes within
+        15 m of it meanwhile. An operator's RTL straight to its autopilot brings it down
+        only when the failsafe did not (the row fails)."""
         vid = self.killed
         if vid is None:
             self.row("dead node's aircraft", False, "no node was killed")
@@ -720,18 +728,41 @@ class FleetRun(Rig):
         v = self.vehicles[vid]
         obs = v.observer
         assert obs is not None
-        t0 = self.mark("dead rtl")
-        self.log(f"operator: RTL straight to vehicle {vid}'s autopilot (its node is dead)")
-        down = self.bring_down(vid)
+        t_kill = self.marks["kill"]
+        vt = v.spec.vehicle_type
+        home_modes = {mode_number(vt, "RTL"), mode_number(vt, "LAND")}
+        if vt == VehicleType.VTOL:
+            home_modes |= {mode_number(vt, "QRTL"), mode_number(vt, "QLAND")}
+        down = self.wait(lambda: self.landed(vid), self.wall_s(900.0), 1.0)
+        t_down = time.monotonic()
+        fs = next(((t, m) for t, m in list(obs.modes) if t >= t_kill and m in home_modes), None)
+        fs_s = self.sim_s(fs[0] - t_kill) if fs else None
+        by_failsafe = fs_s is not None and fs_s <= 10.0 + FAILSAFE_MARGIN_S
+        if not down:
+            self.log(f"operator: RTL straight to vehicle {vid}'s autopilot (its failsafe did not)")
+            down = self.bring_down(vid)
+            t_down = time.monotonic()
         here = obs.here()
         d = distance_m(here.lat, here.lon, *v.home) if here else math.inf
-        ok = down and d < LANDED_ON_PAD_M
+        peers = {u: self.track(u) for u in self.vehicles if u != vid}
+        seps = [
+            s
+            for s in fig.separations({vid: self.track(vid)} | peers, t_kill, t_down)
+            if vid in (s.a, s.b)
+        ]
+        closest = min((s.min_m for s in seps), default=math.inf)
+        self.figures["dead_aircraft_failsafe_s"] = None if fs_s is None else round(fs_s, 1)
         self.figures["dead_aircraft_from_pad_m"] = round(d, 1)
+        self.figures["dead_aircraft_closest_peer_m"] = (
+            None if math.isinf(closest) else round(closest, 1)
+        )
+        ok = by_failsafe and down and d < LANDED_ON_PAD_M and closest >= DEAD_CLEAR_M
         self.row(
             "dead node's aircraft",
             ok,
-            f"{'landed' if down else 'not landed'} {d:.1f} m from its own pad, "
-            f"{self.sim_s(time.monotonic() - t0):.0f} s after the RTL",
+            (f"failsafe home {fs_s:.0f} s after the kill" if fs_s is not None else "no failsafe")
+            + f"; {'landed' if down else 'not landed'} {d:.1f} m from its own pad; closest "
+            + ("peer: none airborne" if math.isinf(closest) else f"peer {closest:.1f} m"),
         )
 
     def _near_pad(self, vid: int, r: float) -> bool:

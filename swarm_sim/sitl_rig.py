@@ -154,6 +154,7 @@ class Observer:
         self.lock = threading.Lock()
         self.track: list[Sample] = []
         self.mode = -1
+        self.modes: list[tuple[float, int]] = []  # (wall, custom_mode) at each change
         self.armed = False
         self.fence_enabled_at: float | None = None
         self.fence_enabled = False
@@ -186,6 +187,8 @@ class Observer:
             with self.lock:
                 self.last_heard = now
                 if kind == "HEARTBEAT" and msg.type != 6:
+                    if int(msg.custom_mode) != self.mode:
+                        self.modes.append((now, int(msg.custom_mode)))
                     self.mode = int(msg.custom_mode)
                     self.armed = bool(msg.base_mode & 128)
                 elif kind == "GLOBAL_POSITION_INT":
