@@ -15,6 +15,8 @@ once (CRITICAL) while one is refused.
                 FS_OPTIONS = 0 (no "continue in AUTO / pilot control on GCS failsafe")
     ArduPlane   SYSID_MYGCS = node, FS_GCS_ENABL = 1 (heartbeat), FS_SHORT_ACTN = 0
     (and VTOL)  (no change in AUTO), FS_LONG_ACTN = 1 (RTL), FS_LONG_TIMEOUT = T
+    QuadPlane   also Q_RTL_MODE = 1: at its RTL point (its own pad's rally point) it
+                switches to QRTL and lands there, instead of circling it for good
 
 Other vehicle types are left alone. `T` is `COMPANION_TIMEOUT_S`: longer than a stall
 or a node restart the fleet rides out (a 3 s SIGSTOP, a restart that reattaches), so
@@ -61,13 +63,14 @@ def failsafe_params(
             ("FS_GCS_ENABLE", 1.0),
         )
     if vehicle_type in (VehicleType.PLANE, VehicleType.VTOL):
-        return (
+        plane = (
             ("SYSID_MYGCS", float(node_sysid)),
             ("FS_SHORT_ACTN", 0.0),
             ("FS_LONG_ACTN", 1.0),
             ("FS_LONG_TIMEOUT", timeout_s),
             ("FS_GCS_ENABL", 1.0),
         )
+        return plane + ((("Q_RTL_MODE", 1.0),) if vehicle_type == VehicleType.VTOL else ())
     return ()
 
 

@@ -23,6 +23,7 @@ from .firmware import (
     Firmware,
     ModeSpec,
     base_mode,
+    mode_number,
 )
 from .kinematics import Body
 from .mission_runner import MissionRunner
@@ -229,6 +230,12 @@ class Modes:
         elif beh == Behaviour.RTL and self.firmware == Firmware.PLANE and isinstance(task, FlyTo):
             # RTL_AUTOLAND=1: home reached, land via the mission's DO_LAND_START
             if self.params.value("RTL_AUTOLAND") == 1 and self.mission.jump_to_landing_sequence():
+                return
+            # Q_RTL_MODE=1: a QuadPlane at its RTL point switches to QRTL and lands
+            # there vertically (ModeRTL::update, RTL_COMPLETE_SWITCHING_TO_VTOL_LAND_RTL);
+            # 0 (the default) circles it for good
+            if self.model == VehicleModel.VTOL and self.params.value("Q_RTL_MODE") == 1:
+                self.set_mode(mode_number(self.firmware, "QRTL"))
                 return
             nav.set(Loiter(task.n, task.e, task.alt))
         elif beh == Behaviour.TAKEOFF:

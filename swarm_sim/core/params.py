@@ -123,6 +123,7 @@ def defaults(
                 "Q_LAND_SPEED": (af.land_speed_m_s * 100, 4),
                 "Q_LAND_FINAL_ALT": (af.land_final_alt_m, 9),
                 "Q_TRANSITION_MS": (af.transition_time_s * 1000, 4),
+                "Q_RTL_MODE": (0.0, 2),  # 0: RTL circles its point; 1: then QRTL, lands
             }
     else:
         p |= {

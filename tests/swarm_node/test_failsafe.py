@@ -84,6 +84,8 @@ def test_the_parameters_per_vehicle_type() -> None:
     plane = dict(failsafe_params(VehicleType.VTOL))
     assert plane["FS_LONG_ACTN"] == 1.0 and plane["FS_GCS_ENABL"] == 1.0
     assert plane["FS_SHORT_ACTN"] == 0.0 and plane["FS_LONG_TIMEOUT"] == COMPANION_TIMEOUT_S
+    assert plane["Q_RTL_MODE"] == 1.0  # at its rally point it lands, not circles for good
+    assert "Q_RTL_MODE" not in dict(failsafe_params(VehicleType.PLANE))
     assert dict(failsafe_params(VehicleType.COPTER))["FS_OPTIONS"] == 0.0
     assert failsafe_params(VehicleType.ROVER) == ()
     assert _asked(FailsafeKeeper(4, VehicleType.ROVER).on_autopilot(READY, 0.0)) == []

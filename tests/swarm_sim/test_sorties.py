@@ -165,6 +165,28 @@ def test_ground_vehicle_sortie(model: str) -> None:
     assert [m.seq for m in p.c.seen("MISSION_ITEM_REACHED")] == [1, 2, 3, 4]
 
 
+@pytest.mark.parametrize(("q_rtl_mode", "lands"), [(0, False), (1, True)])
+def test_a_quadplanes_rtl_circles_its_point_or_lands_there_with_q_rtl_mode_1(
+    q_rtl_mode: int, lands: bool
+) -> None:
+    """ArduPlane's ModeRTL: a QuadPlane at its RTL point circles it for good
+    (Q_RTL_MODE 0, the default) or switches to QRTL and lands there (1: what the node
+    sets for its failsafe, failsafe.py)."""
+    p = make_pilot("vtol")
+    p.wait_ready()
+    p.c.mav.param_set_send(1, 1, b"Q_RTL_MODE", float(q_rtl_mode), 2)
+    fly_mission(p, [(WP, 0, 0, 0, 0), (VTOL_TAKEOFF, REL, 0, 0, 40), (WP, REL, 1200, 0, 60)])
+    assert p.set_mode("AUTO") == 0 and p.arm() == 0
+    assert p.h.run_until(lambda: p.ap.mission_seq == 2 and p.ap.rel_alt_m > 50, 300)
+    assert p.set_mode("RTL") == 0
+    p.h.run_for(400)
+    if lands:
+        assert p.ap.mode_name == "QRTL"
+        assert_landed_home(p, 10.0)
+    else:
+        assert p.ap.mode_name == "RTL" and p.ap.armed and p.ap.rel_alt_m > 20
+
+
 def test_plane_rtl_then_land_via_do_land_start() -> None:
     """ArduPlane's way home and down: RTL with RTL_AUTOLAND=1 flies home, then jumps to
     the mission's DO_LAND_START sequence and lands."""

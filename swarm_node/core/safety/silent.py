@@ -13,8 +13,9 @@ does not use it yet: docs/reliability.md, known limits):
         on with its last velocity
     then its RTL
         straight to its rally point (its base, else its home) at its speed, at its
-        altitude or the rally point's if higher; there a multirotor lands (descends at
-        `land_speed_m_s` to its home's height), a fixed-wing circles it
+        altitude or the rally point's if higher; there a multirotor or a QuadPlane
+        lands (descends at `land_speed_m_s` to its home's height: Q_RTL_MODE 1), a
+        plane circles it
     no failsafe (rovers, boats: left alone): the route, then held at its end
 
 The prediction is only as good as the model: the error bound (`error_m`) starts at
@@ -41,6 +42,9 @@ from ..failsafe import COMPANION_TIMEOUT_S, failsafe_params
 from .ttc import Track
 
 MULTIROTOR_TYPES = frozenset({VehicleType.COPTER})
+# what lands at its rally point when its RTL gets there: a multirotor, and a QuadPlane
+# (the node sets Q_RTL_MODE 1: RTL switches to QRTL there; failsafe.py); a plane circles
+LANDS_AT_RALLY = frozenset({VehicleType.COPTER, VehicleType.VTOL})
 LOITER_RADIUS_M = 60.0  # ArduPlane's WP_LOITER_RAD default: how wide it circles its rally point
 
 
@@ -174,7 +178,7 @@ class SilentAircraft:
         pos, vel, done = _walk([start, np.array([start[0], start[1], top]), over], self._speed(), d)
         if not done:
             return pos, vel, "rtl"
-        if self.vehicle_type not in MULTIROTOR_TYPES:
+        if self.vehicle_type not in LANDS_AT_RALLY:
             return over, np.zeros(3), "circling"
         # how long the way there took: the time spent on it, then the landing
         legs = float(np.linalg.norm(over[:2] - start[:2])) + (top - float(start[2]))

@@ -105,3 +105,14 @@ def test_no_route_straight_on_then_rtl_and_a_plane_circles_its_rally_point() -> 
 def test_rovers_and_boats_have_no_failsafe() -> None:
     assert failsafe_after_s(VehicleType.ROVER) is None
     assert failsafe_after_s(VehicleType.PLANE) == COMPANION_TIMEOUT_S
+
+
+def test_a_quadplane_lands_at_its_rally_point_where_a_plane_would_circle() -> None:
+    """The node sets Q_RTL_MODE 1 on a QuadPlane (failsafe.py): its failsafe's RTL
+    switches to QRTL at its rally point and lands there."""
+    last = Track.from_status(status(4, 0.0, 0.0, 100.0, vn=20.0), max_speed_m_s=35.0)
+    vtol = SilentAircraft(
+        last, VehicleType.VTOL, HOME, speed_m_s=20.0, rally=(*geo(0.0, -200.0, 0.0)[:2], HOME)
+    )
+    assert vtol.predict(T + 3600.0).phase == "landed"
+    assert enu(vtol.predict(T + 3600.0).track)[:2] == pytest.approx((0.0, -200.0), abs=1.0)
