@@ -39,6 +39,7 @@ Inside the node:
     TakeOver, StopLanding      the operator flies the vehicle: to the mission manager
     BeginEmergency             to the emergency procedure
     PeerLost(vid, why)         a peer left the swarm: avoidance, the roster
+    SilentShare(vid, points)   the rest of a silent member's held share: avoidance
     Stalled(seconds)           the node's own stall: vehicle monitoring (not a link loss)
     PublishInfo()              publish our VehicleInfo now, not at the next second
     Recheck(why, restore)      a ground station changed the backstop's settings: the fences
@@ -222,6 +223,16 @@ class PeerLost:
 
 
 @dataclass(frozen=True)
+class SilentShare:
+    """What is left of a silent member's share (its held lanes), for avoidance to
+    predict it along: (lat, lon, height above its home) in order, at `speed_m_s`."""
+
+    vehicle_id: int
+    points: tuple[tuple[float, float, float], ...]
+    speed_m_s: float = 0.0
+
+
+@dataclass(frozen=True)
 class Stalled:
     seconds: float
 
@@ -251,7 +262,7 @@ ToShell = Publish | Note | PlanJob | Persist | ToAutopilot | ToClient | Sessions
 ToMission = Post | Accepted | Candidacy | Regrouping | TakeOver | StopLanding  # the coordinator
 ToDeclarations = Declared | Ended | SetBase | SetFleet | LeftFleet
 ToOperator = Answer | SetActive  # the operator desk
-# and: PeerLost (avoidance and the roster), Stalled (monitoring), BeginEmergency (the
+# and: PeerLost (avoidance and the roster), SilentShare (avoidance), Stalled (monitoring), BeginEmergency (the
 # emergency procedure), Recheck (the fences), Heard, PublishInfo (NodeCore itself)
 ModuleOutput = (
     ToShell
@@ -260,6 +271,7 @@ ModuleOutput = (
     | ToDeclarations
     | ToOperator
     | PeerLost
+    | SilentShare
     | Stalled
     | BeginEmergency
     | Recheck

@@ -21,7 +21,7 @@ from .arbiter import AutopilotArbiter, Outcome, Owner, Routed, Send, Suspended
 from .declarations import Declarations
 from .emergency import EmergencyProcedure
 from .fences import Fences
-from .mission.coordinator import MissionCoordinator
+from .mission.coordinator import SILENT, MissionCoordinator
 from .monitoring import VehicleMonitor
 from .operator import OperatorDesk
 from .outputs import ModuleOutput, Output, Persist, Publish, Submit
@@ -61,10 +61,15 @@ class Routes:
                 self.declarations.take(o, now)
             elif isinstance(o, outputs.ToOperator):
                 back = self.operator.take(o)
+            elif isinstance(o, outputs.SilentShare):
+                self.avoid.silent_route(o, now)
             elif isinstance(o, outputs.Stalled):
                 self.monitor.note_stall(o.seconds)
             elif isinstance(o, outputs.PeerLost):
-                self.avoid.forget(o.vehicle_id, now)
+                if o.why in SILENT:  # still an aircraft: its predicted position
+                    self.avoid.silent(o.vehicle_id, now)
+                else:
+                    self.avoid.forget(o.vehicle_id, now)
                 back = self.mission.peer_lost(o.vehicle_id, o.why, self.views.context, now)
             elif isinstance(o, outputs.BeginEmergency):
                 ap, d = self.monitor.state, self.declarations

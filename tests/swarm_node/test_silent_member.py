@@ -66,3 +66,29 @@ def test_a_member_back_within_the_hold_flies_its_share_on() -> None:
         assert n.roster.lost == {} and not n.mission.held
         assert n.roster.generation == 0 and len(uploads(f, i)) == 1  # nobody replanned
         assert n.fsm.state == FsmState.GO_MISSION and n.fsm.mission_id == 41
+
+
+def test_avoidance_keeps_a_silent_member_until_heard_again() -> None:
+    """A member lost by silence reaches avoidance as silent (routes.py), not
+    forgotten: its predicted position is a contact until it is heard again."""
+    settings = dataclasses.replace(HOLD, avoidance=True)
+    profiles = {i: profile(i) for i in (1, 2, 3)}
+    nodes = {i: NodeCore(profiles[i], settings, fleet_profiles=profiles) for i in profiles}
+    f = Fleet(nodes)
+    for i in nodes:
+        f.set_autopilot(i, flying())
+    activate(f)
+    keep_polling(f, 0.2)
+    send(f, area(41))
+    keep_polling(f, 8.0, mission_reached=4, mission_current=5)
+    silent = True
+    f.drop = lambda sender, receiver, msg: silent and 3 in (sender, receiver)
+    keep_polling(f, 5.0, mission_reached=4, mission_current=5)
+    for i in (1, 2):
+        av = f.nodes[i].avoid.avoider
+        assert av.silent == (3,)
+        assert av.predicted(3, f.now) is not None
+        assert av.counters["silent"] == 1
+    silent = False
+    keep_polling(f, 3.0, mission_reached=4, mission_current=5)
+    assert all(f.nodes[i].avoid.avoider.silent == () for i in (1, 2))  # heard again

@@ -93,6 +93,7 @@ from ..outputs import (
     Regrouping,
     Release,
     SetActive,
+    SilentShare,
     StopLanding,
     TakeOver,
     ToMission,
@@ -108,7 +109,7 @@ from ..swarm.roster import MemberJoined, MemberLost, Roster, RosterEvent, Roster
 from .phases import Phase
 from .published import along_share, lineage_battery, published_home, published_progress
 from .scoring import Candidate
-from .share import PlanOutcome, Replay, heading_on, pose_on
+from .share import PlanOutcome, Replay, heading_on, pose_on, route_ahead
 from .tasking import Derived, Elected, Standing, Tasking, TaskingOutput, TaskingSettings, VoteFailed
 from .voting import VoterLost
 
@@ -764,7 +765,13 @@ class MissionCoordinator:
             f"mission {ev.mission_id}: member {ev.vehicle_id} silent ({ev.why}); "
             f"its share held {self.silent_hold_s:g} s"
         )
-        return [Note(logging.WARNING, text)]
+        out: list[ModuleOutput] = [Note(logging.WARNING, text)]
+        base = self.manager.fleet_plan
+        if base is not None:  # avoidance predicts it along what it still flies
+            points, speed = route_ahead(base, ev.vehicle_id, self.progress_now()[0])
+            if points:
+                out.append(SilentShare(ev.vehicle_id, points, speed))
+        return out
 
     def _hold_over(self, now: float) -> list[ModuleOutput]:
         """Held shares whose hold ran out: the member did not come back, its failsafe

@@ -111,6 +111,30 @@ def heading_on(base: FleetPlan, vehicle_id: int, progress_m: Mapping[int, float]
     return math.degrees(math.atan2(x, y)) % 360.0
 
 
+def route_ahead(
+    base: FleetPlan, vehicle_id: int, progress_m: Mapping[int, float]
+) -> tuple[tuple[tuple[float, float, float], ...], float]:
+    """What is left of a member's share of `base` from where its progress puts it:
+    (lat, lon, height above its home) of every waypoint ahead, in order, and the
+    share's speed (0: not given). Empty: no share, or nothing left."""
+    share = base.shares.get(vehicle_id)
+    if share is None or not share.waypoints:
+        return (), 0.0
+    try:
+        k, lat, lon = share.at(progress_m.get(vehicle_id, 0.0))
+    except (PlanningError, ValueError):
+        return (), 0.0
+    ahead = [w for w in share.waypoints[k + 1 :] if w.kind == ItemKind.WAYPOINT]
+    if not ahead:
+        return (), 0.0
+    points = (
+        (lat, lon, ahead[0].alt_rel_m),
+        *tuple((w.lat_deg, w.lon_deg, w.alt_rel_m) for w in ahead),
+    )
+    speed = next((w.speed_m_s for w in share.waypoints if w.speed_m_s), None) or 0.0
+    return points, float(speed)
+
+
 @dataclass(frozen=True)
 class Replay:
     """A fleet's plan as it came to be (swarm/regroup.py): the first plan's members at

@@ -9,7 +9,13 @@ peers' telemetry and non-cooperative traffic, ticking at 5 Hz.
     PlannedAltitude                          the altitude to come back to (None: where the
                                              manoeuvre started)
     Ceiling                                  the zones' ceiling above home (None: config's)
-    Forget                                   a contact lost (membership), dropped now
+    Forget                                   a contact gone for good (left the swarm,
+                                             dismissed by the operator): dropped now
+    Silent                                   a member fallen silent: kept as a contact at
+                                             its predicted position (silent.py) until heard
+                                             again, seen landed or forgotten
+    SilentRoute                              the rest of a silent member's share (the
+                                             mission coordinator's): its prediction follows it
     OwnRoute                                 a multirotor's mission items ahead (AUTO): its
                                              own motion is predicted along them
 
@@ -93,6 +99,7 @@ from swarm_proto.text import short_text
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
 from ..autopilot.state import AdsbReport
 from ..autopilot.tracker import parse_adsb
+from .silent import SilentAircraft, failsafe_after_s
 from .ttc import (
     BadTrackError,
     Frame,
@@ -207,7 +214,35 @@ class OwnRoute:
     speed_m_s: float = 0.0
 
 
-Event = VehicleStatus | VehicleInfo | Traffic | PlannedAltitude | Ceiling | Forget | OwnRoute
+@dataclass(frozen=True, slots=True)
+class Silent:
+    """A member lost by silence (its node's liveliness or telemetry gone): its aircraft
+    flies on without its node."""
+
+    vehicle_id: int
+
+
+@dataclass(frozen=True, slots=True)
+class SilentRoute:
+    """What is left of a silent member's share: (lat, lon, height above its home) in
+    order, flown at `speed_m_s` (0: its cruise speed)."""
+
+    vehicle_id: int
+    points: tuple[tuple[float, float, float], ...]
+    speed_m_s: float = 0.0
+
+
+Event = (
+    VehicleStatus
+    | VehicleInfo
+    | Traffic
+    | PlannedAltitude
+    | Ceiling
+    | Forget
+    | OwnRoute
+    | Silent
+    | SilentRoute
+)
 Output = Manoeuvre | Alert
 
 
@@ -288,6 +323,9 @@ class CollisionAvoider:
     # (many peers report more often than the tick runs, and most never conflict)
     _heard: dict[int, tuple[VehicleStatus, float]] = field(default_factory=dict)
     _types: dict[int, VehicleType] = field(default_factory=dict)
+    _infos: dict[int, VehicleInfo] = field(default_factory=dict)  # a peer's home, base, speed
+    # members fallen silent, predicted (silent.py): made contacts at every tick
+    _silent: dict[int, SilentAircraft] = field(default_factory=dict)
     _planned_rel: float | None = None
     _zone_ceiling_rel: float | None = None
     _route: OwnRoute | None = None
@@ -307,10 +345,7 @@ class CollisionAvoider:
                 self.heard(ev, now)
             case VehicleInfo():
                 if ev.vehicle_id != self.config.own_id:
-                    self._types[ev.vehicle_id] = ev.vehicle_type
-                    if ev.vehicle_type in NOT_TRAFFIC:
-                        self._contacts.pop(ev.vehicle_id, None)
-                        self._heard.pop(ev.vehicle_id, None)
+                    self._info(ev)
             case Traffic():
                 self._traffic(ev, now)
             case PlannedAltitude():
@@ -320,6 +355,11 @@ class CollisionAvoider:
             case Forget():
                 self._contacts.pop(ev.vehicle_id, None)
                 self._heard.pop(ev.vehicle_id, None)
+                self._silent.pop(ev.vehicle_id, None)
+            case Silent():
+                self._fell_silent(ev.vehicle_id)
+            case SilentRoute():
+                self._silent_route(ev)
             case OwnRoute():
                 self._route = ev if ev.points else None
         return []
@@ -359,10 +399,83 @@ class CollisionAvoider:
                 else:
                     heard[vid] = (m, now)
             elif vid != own:  # a VehicleInfo, as `handle` takes it
-                self._types[vid] = m.vehicle_type
-                if m.vehicle_type in NOT_TRAFFIC:
-                    self._contacts.pop(vid, None)
-                    heard.pop(vid, None)
+                self._info(m)
+
+    def _info(self, m: VehicleInfo) -> None:
+        vid = m.vehicle_id
+        self._types[vid] = m.vehicle_type
+        self._infos[vid] = m
+        if m.vehicle_type in NOT_TRAFFIC:
+            self._contacts.pop(vid, None)
+            self._heard.pop(vid, None)
+            self._silent.pop(vid, None)
+
+    # ------------------------------------------------------------------ silent members
+    def _fell_silent(self, vid: int) -> None:
+        """Its last report becomes a prediction (silent.py); nothing heard of it yet
+        (or parked, not an aircraft in the air): nothing to predict."""
+        late = self._heard.pop(vid, None)
+        if late is not None:
+            self._peer(*late)
+        c = self._contacts.get(vid)
+        if c is None or not c.cooperative or vid in self._silent or c.alt_rel_m < PARKED_ALT_M:
+            return  # never heard flying; on the ground its failsafe disarms it
+        info = self._infos.get(vid)
+        vtype = self._types.get(vid)
+        home_msl = c.track.alt_msl_m - c.alt_rel_m if math.isfinite(c.alt_rel_m) else 0.0
+        home = rally = None
+        if info is not None and info.home is not None:
+            home = (info.home.lat_deg, info.home.lon_deg)
+            home_msl = info.home.alt_msl_m
+        if info is not None and info.base is not None:
+            b = info.base
+            rally = (b.lat_deg, b.lon_deg, b.alt_msl_m)
+        self._silent[vid] = SilentAircraft(
+            c.track,
+            vtype,
+            home_msl,
+            None,
+            info.cruise_speed_m_s if info is not None else 0.0,
+            rally,
+            home,
+            failsafe_after_s(vtype),
+        )
+        self._count("silent")
+
+    def _silent_route(self, ev: SilentRoute) -> None:
+        a = self._silent.get(ev.vehicle_id)
+        if a is None or not ev.points:
+            return
+        speed = ev.speed_m_s if ev.speed_m_s > 0 else a.speed_m_s
+        try:
+            ok = all(math.isfinite(x) for p in ev.points for x in p)
+        except TypeError:
+            ok = False
+        if not ok or not (speed >= 0 and math.isfinite(speed)):
+            self._count("bad_track")
+            return
+        self._silent[ev.vehicle_id] = a.with_route(ev.points, speed)
+
+    @property
+    def silent(self) -> tuple[int, ...]:
+        """The silent members kept as contacts at their predicted positions."""
+        return tuple(sorted(self._silent))
+
+    def predicted(self, vehicle_id: int, now: float) -> Track | None:
+        """A silent member's predicted track at `now` (None: not silent)."""
+        a = self._silent.get(vehicle_id)
+        return a.predict(now).track if a is not None else None
+
+    def _predict_silent(self, now: float) -> None:
+        """Every silent member a contact at its predicted position, that never
+        manoeuvres; a multirotor predicted landed on its rally point is parked."""
+        for vid, a in list(self._silent.items()):
+            p = a.predict(now)
+            if p.phase == "landed" and self.config.own_type not in GROUND:
+                self._contacts.pop(vid, None)
+                continue
+            alt_rel = p.track.alt_msl_m - a.home_msl_m
+            self._contacts[vid] = _Contact(p.track, now, False, a.vehicle_type, True, alt_rel)
 
     def _count(self, what: str) -> None:
         self.counters[what] = self.counters.get(what, 0) + 1
@@ -371,6 +484,9 @@ class CollisionAvoider:
         """The statuses heard since the last tick become contacts (or drop them)."""
         heard, self._heard = self._heard, {}
         for s, received in heard.values():
+            if self._silent and s.vehicle_id in self._silent:
+                del self._silent[s.vehicle_id]  # heard again (or seen landed: parked)
+                self._count("silent_heard")
             self._peer(s, received)
 
     def _peer(self, s: VehicleStatus, now: float) -> None:
@@ -457,6 +573,8 @@ class CollisionAvoider:
         ]
         for k in stale:
             del self._contacts[k]
+        if self._silent:
+            self._predict_silent(now)
         decision = self._decide(own, now, planned=False)
         if self._active is None:
             return self._start(own, decision, now)

@@ -3,7 +3,11 @@ manoeuvres flown as owner AVOIDANCE, the mission suspended meanwhile by the arbi
 
     inputs (from NodeCore)                      what it does with them
     on_peer(VehicleStatus | VehicleInfo)        a cooperative contact (its type from info)
-    forget(vehicle_id)                          a peer lost (membership)
+    forget(vehicle_id)                          a peer gone (it left the swarm)
+    silent(vehicle_id)                          a peer lost by silence: kept as a contact
+                                                at its predicted position (silent.py)
+    silent_route(SilentShare)                   the rest of its share (the mission
+                                                coordinator's): the prediction follows it
     tick(now, own status, autopilot, ...)       feeds the own state, ADS-B traffic
                                                 (`AutopilotState.traffic`), the planned
                                                 altitude, the zones' ceiling and a
@@ -88,7 +92,7 @@ from ..autopilot.requests import (
     StartMission,
 )
 from ..autopilot.state import AutopilotState
-from ..outputs import ModuleOutput, Note, Owner, Publish, Release, Submit, Suspend
+from ..outputs import ModuleOutput, Note, Owner, Publish, Release, SilentShare, Submit, Suspend
 from ..profile import VehicleProfile
 from .avoidance import (
     GROUND,
@@ -100,6 +104,8 @@ from .avoidance import (
     ManoeuvreKind,
     OwnRoute,
     PlannedAltitude,
+    Silent,
+    SilentRoute,
     Traffic,
 )
 from .pads import hovering
@@ -197,6 +203,16 @@ class AvoidanceModule:
     def forget(self, vehicle_id: int, now: float) -> None:
         if self.enabled:
             self.avoider.handle(Forget(vehicle_id), now)
+
+    def silent(self, vehicle_id: int, now: float) -> None:
+        """A peer lost by silence is still an aircraft: its predicted position stays a
+        contact until it is heard again, seen landed or forgotten."""
+        if self.enabled and vehicle_id != self.profile.vehicle_id:
+            self.avoider.handle(Silent(vehicle_id), now)
+
+    def silent_route(self, share: SilentShare, now: float) -> None:
+        if self.enabled:
+            self.avoider.handle(SilentRoute(share.vehicle_id, share.points, share.speed_m_s), now)
 
     def _on_path(self, s: Suspension) -> bool:
         """The manoeuvre is an altitude flown on what the vehicle flies (a fixed-wing's
