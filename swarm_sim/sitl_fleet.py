@@ -730,9 +730,11 @@ class FleetRun(Rig):
         assert obs is not None
         t_kill = self.marks["kill"]
         vt = v.spec.vehicle_type
-        home_modes = {mode_number(vt, "RTL"), mode_number(vt, "LAND")}
-        if vt == VehicleType.VTOL:
-            home_modes |= {mode_number(vt, "QRTL"), mode_number(vt, "QLAND")}
+        names = {
+            VehicleType.COPTER: ("RTL", "LAND"),
+            VehicleType.VTOL: ("RTL", "QRTL", "QLAND"),
+        }.get(vt, ("RTL",))
+        home_modes = {mode_number(vt, n) for n in names}
         down = self.wait(lambda: self.landed(vid), self.wall_s(900.0), 1.0)
         t_down = time.monotonic()
         fs = next(((t, m) for t, m in list(obs.modes) if t >= t_kill and m in home_modes), None)
