@@ -123,6 +123,11 @@ class Arming:
                 mode_check = self.firmware == Firmware.COPTER and not mode.armable
                 self.out.text(SEV_CRITICAL, f"{'Arm' if mode_check else 'PreArm'}: {reason}")
                 return False
+            if self.firmware == Firmware.PLANE and self.progress.in_landing_sequence:
+                # AP_Arming_Plane::arm_checks: the mission's flag, until its current
+                # item is set again (DO_SET_MISSION_CURRENT)
+                self.out.text(SEV_CRITICAL, "Arm: In landing sequence")
+                return False
         b, t = self.body, self.timeline.t
         self.armed = True
         self.crashed = False

@@ -132,6 +132,7 @@ class MissionRunner:
             return False
         self.progress.seq = seq
         self.progress.complete = False
+        self.progress.in_landing_sequence = False
         if self.in_auto:
             self.progress.running = True
             self.run_from(seq)
@@ -240,6 +241,8 @@ class MissionRunner:
         elif cmd in (21, 85):  # LAND, VTOL_LAND
             if fw == Firmware.ROVER or (cmd == 85 and not nav.hover_capable):
                 return "done"
+            if fw == Firmware.PLANE:
+                self.progress.in_landing_sequence = True
             vertical = fw == Firmware.COPTER or cmd == 85
             tasks: list[NavTask] = []
             if item.has_location:
@@ -365,6 +368,7 @@ class MissionRunner:
             return False
         self.out.text(SEV_INFO, "Landing sequence start")
         self.progress.seq = idx
+        self.progress.in_landing_sequence = True
         self.progress.complete = False
         auto = mode_number(self.firmware, "AUTO")
         if self.modes.mode == auto:

@@ -24,12 +24,17 @@ class MissionProgress:
     running: bool = False
     complete: bool = False
     jumps: dict[int, int] = field(default_factory=dict)  # DO_JUMP index -> times taken
+    # AP_Mission's in_landing_sequence flag (ArduPlane): set when the mission lands or
+    # jumps to DO_LAND_START, cleared when the current item is set; ArduPlane refuses to
+    # arm while it is set ("Arm: In landing sequence"; seen against SITL)
+    in_landing_sequence: bool = False
 
     def rewind(self) -> None:
         """Back to the start: no current item, no jump taken."""
         self.seq = 0
         self.complete = False
         self.jumps.clear()
+        self.in_landing_sequence = False
 
     def current_fields(self, total: int, in_auto: bool) -> tuple[int, int, int, int]:
         """MISSION_CURRENT's seq, total, mission_state, mission_mode."""

@@ -218,6 +218,21 @@ def test_plane_rtl_then_land_via_do_land_start() -> None:
     assert p.ap.mission_seq == 5
 
 
+def test_a_quadplane_landed_by_its_mission_arms_only_once_its_current_item_is_set() -> None:
+    """Seen against SITL: after a landing its mission flew, ArduPlane refuses to arm
+    ("Arm: In landing sequence", AP_Mission's flag) until DO_SET_MISSION_CURRENT."""
+    p = make_pilot("vtol")
+    p.wait_ready()
+    fly_mission(p, [(WP, 0, 0, 0, 0), (VTOL_TAKEOFF, REL, 0, 0, 30), (VTOL_LAND, REL, 0, 0, 0)])
+    assert p.set_mode("AUTO") == 0 and p.arm() == 0
+    assert p.h.run_until(lambda: not p.ap.armed, 600)
+    assert p.set_mode("QLOITER") == 0
+    assert p.arm() != 0
+    assert "Arm: In landing sequence" in p.c.texts()
+    assert p.command(224, 1) == 0  # MAV_CMD_DO_SET_MISSION_CURRENT
+    assert p.arm() == 0
+
+
 def test_vtol_mission_ends_with_a_vertical_landing() -> None:
     p = make_pilot("vtol")
     p.wait_ready()
