@@ -31,3 +31,6 @@ class SimOptions:
     satellites: int = 10
     stream_defaults: dict[int, float] | None = None  # msg id -> interval s; None: defaults
     boot_texts: bool = True
+    # SYSTEM_TIME's UNIX time minus the simulation clock: SITL's GPS time ran 7.5-10.5 s
+    # behind the host's clock (seen by make sitl-fleet); 0: the shared clock
+    gps_time_offset_s: float = 0.0

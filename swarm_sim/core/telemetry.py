@@ -208,7 +208,7 @@ def battery_status(v: Vehicle) -> Any:
 
 
 def system_time(v: Vehicle, now: float) -> Any:
-    unix_us = int(now * 1e6) if v.sensors.gps_fix else 0
+    unix_us = int((now + v.options.gps_time_offset_s) * 1e6) if v.sensors.gps_fix else 0
     return mavlink.MAVLink_system_time_message(unix_us, v.timeline.boot_ms(now))
 
 

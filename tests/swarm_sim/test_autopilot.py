@@ -356,6 +356,16 @@ def test_system_time_is_the_injected_clock_once_locked() -> None:
     assert abs(st.time_unix_usec / 1e6 - p.h.now) < 1.0
 
 
+def test_system_time_can_run_behind_the_clock_as_sitls_gps_time_did() -> None:
+    """SITL's GPS time ran 7.5-10.5 s behind the host's clock (make sitl-fleet): the
+    simulator can do the same (the node warns CLOCK_SKEW once, test_monitoring)."""
+    p = make_pilot("copter", options=SimOptions(gps_time_offset_s=-9.8))
+    p.wait_ready()
+    p.c.clear()
+    st = p.h.wait_for(p.c, "SYSTEM_TIME")
+    assert st.time_unix_usec / 1e6 - p.h.now == pytest.approx(-9.8, abs=0.5)
+
+
 @pytest.mark.parametrize("model", MODELS)
 def test_battery_drains_faster_when_moving(model: str) -> None:
     p = make_pilot(model)
