@@ -105,10 +105,10 @@ def run_command(v: Vehicle, cmd: Cmd) -> None:
     ack = mavlink.MAVLink_command_ack_message(
         cmd.command, result, 0, 0, cmd.src.sysid, cmd.src.compid
     )
-    if result == ACCEPTED:
-        v.out.insert_at(mark, ack)  # ACK first, then what the command caused
-    else:
-        v.out.send(ack)  # the reason (STATUSTEXT) first, then the NAK
+    # the ACK first, then what the command caused; a refusal's reason (STATUSTEXT) too:
+    # ArduPilot answers at once and sends the text from its queue after (seen against
+    # SITL: "Arm: In landing sequence", "PreArm: QLAND mode not armable")
+    v.out.insert_at(mark, ack)
     v.counters[f"cmd:{cmd.command}:{result}"] += 1
 
 

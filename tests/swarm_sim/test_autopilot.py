@@ -119,6 +119,23 @@ def test_arming_is_refused_in_the_modes_ardupilot_refuses(
     assert (p.arm() == ACCEPTED) == armable, p.c.texts()
 
 
+def test_a_refusals_reason_comes_after_its_command_ack() -> None:
+    """As ArduPilot sends them (seen against SITL): the COMMAND_ACK at once, the
+    STATUSTEXT that explains a refusal from its queue after it."""
+    p = make_pilot("copter")
+    p.wait_ready()
+    assert p.set_mode("LAND") == ACCEPTED
+    p.c.clear()
+    p.c.mav.command_long_send(p.ap.sysid, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)  # arm
+    p.h.run_for(1.0)
+    kinds = [
+        m.get_type()
+        for m in p.c.inbox
+        if m.get_type() == "COMMAND_ACK" or (m.get_type() == "STATUSTEXT" and "Arm" in m.text)
+    ]
+    assert kinds[:2] == ["COMMAND_ACK", "STATUSTEXT"]
+
+
 def test_copter_disarms_itself_when_it_does_not_take_off() -> None:
     p = make_pilot("copter")
     p.wait_ready()
