@@ -81,14 +81,6 @@ def driver() -> Iterator[Any]:
         "--disable-dev-shm-usage",
         "--window-size=1400,900",
         "--force-device-scale-factor=1",
-        "--disable-extensions",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--no-first-run",
-        "--disable-default-apps",
-        "--mute-audio",
-        "--disable-features=Translate,MediaRouter,OptimizationHints,AutofillServerCommunication",
     ):
         options.add_argument(arg)
     d = webdriver.Chrome(options=options, service=Service(chromedriver))
