@@ -72,10 +72,13 @@ TEST_WORKERS ?= 3
 ## tests marked `timing` (real-time TDM on pseudo-terminals) run alone, after the others.
 ## The test modules are collected once first: pytest caches each module with its asserts
 ## rewritten, which a fresh clone's three workers would otherwise each do (10 s of CPU each)
+## the second part collects only the modules that mark tests `timing` (collecting the
+## whole suite again costs 4-5 s of CPU for five tests); with PYTEST_ARGS, what they say
+TIMING_FILES = $(shell grep -rlE 'mark\.timing' tests --include='*.py' | sort)
 unit: $(STAMP) browser
 	$(BIN)/python -m pytest -qq --collect-only -p no:cacheprovider $(PYTEST_ARGS) >/dev/null
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not soak and not scale and not timing" $(PYTEST_ARGS)
-	$(BIN)/python -m pytest -q -m "timing and not soak and not scale" $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -m "timing and not soak and not scale" $(or $(PYTEST_ARGS),$(TIMING_FILES))
 
 ## fuzz: the property tests exploring (hypothesis profile `fuzz`, tests/conftest.py): random
 ## examples, 20 times as many, an example database in .hypothesis/ that replays what it

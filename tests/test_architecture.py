@@ -16,7 +16,7 @@ import functools
 import itertools
 import sys
 import textwrap
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -155,6 +155,10 @@ def modules_under(root: Path, packages: tuple[str, ...] = PACKAGES) -> dict[str,
             name = ".".join(parts[:-1] if is_package else parts)
             out[name] = Module(name, path, is_package, ast.parse(path.read_text(), str(path)))
     return out
+
+
+#: the tests that read the whole repository's trees run on one worker, which parses them once
+ON_THE_REPO = pytest.mark.xdist_group("architecture")
 
 
 @functools.cache
@@ -300,6 +304,7 @@ def describe_circle(component: list[str], modules: dict[str, Module], root: Path
     return f"import circle of {len(component)} files: {files}\n    " + "\n    ".join(steps)
 
 
+@ON_THE_REPO
 def test_no_import_circle_in_the_packages() -> None:
     modules = repo_modules()
     circles = import_circles(modules)
@@ -434,6 +439,7 @@ def all_reach_ins(modules: dict[str, Module], root: Path = REPO) -> list[ReachIn
     return [r for m in modules.values() for r in reach_ins(m, modules, root)]
 
 
+@ON_THE_REPO
 def test_no_module_reaches_into_another_modules_private_names() -> None:
     found = all_reach_ins(repo_modules())
     allowed = LIBRARY_INTERNALS
@@ -461,27 +467,31 @@ STATE_MACHINES = {
 }
 
 
-def _creates(tree: ast.AST, cls: str) -> bool:
+def _called_name(f: ast.expr) -> str | None:
+    if isinstance(f, ast.Name):
+        return f.id
+    if isinstance(f, ast.Attribute):
+        return f.attr
+    return None
+
+
+def _created(tree: ast.AST, classes: Iterable[str]) -> set[str]:
+    """Which of `classes` the module creates (calls, or names as a default_factory), in
+    one walk of its tree."""
+    wanted = set(classes)
+    found: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Call):
-            f = node.func
-            if (isinstance(f, ast.Name) and f.id == cls) or (
-                isinstance(f, ast.Attribute) and f.attr == cls
-            ):
-                return True
-            for kw in node.keywords:
-                v = kw.value
-                if kw.arg == "default_factory" and (
-                    (isinstance(v, ast.Name) and v.id == cls)
-                    or (isinstance(v, ast.Attribute) and v.attr == cls)
-                ):
-                    return True
-    return False
+            names = [_called_name(node.func)]
+            names += [_called_name(kw.value) for kw in node.keywords if kw.arg == "default_factory"]
+            found.update(n for n in names if n in wanted)
+    return found
 
 
 def owners(modules: dict[str, Module]) -> dict[str, str]:
     """Each state machine's owner: the one module (other than its own) that creates it."""
     out: dict[str, str] = {}
+    created = {n: _created(m.tree, STATE_MACHINES) for n, m in modules.items()}
     for cls, (home, methods) in STATE_MACHINES.items():
         defined = [
             n for n in ast.walk(modules[home].tree) if isinstance(n, ast.ClassDef) and n.name == cls
@@ -489,17 +499,20 @@ def owners(modules: dict[str, Module]) -> dict[str, str]:
         assert defined, f"{home} defines no {cls}: update STATE_MACHINES"
         have = {f.name for f in defined[0].body if isinstance(f, ast.FunctionDef)}
         assert set(methods) <= have, f"{cls} has no {set(methods) - have}: update STATE_MACHINES"
-        creators = sorted(n for n, m in modules.items() if n != home and _creates(m.tree, cls))
+        creators = sorted(n for n in modules if n != home and cls in created[n])
         assert len(creators) == 1, f"{cls} must have one owner, created in {creators}"
         out[cls] = creators[0]
     return out
 
 
-def foreign_posts(modules: dict[str, Module], root: Path = REPO) -> list[ReachIn]:
+def foreign_posts(
+    modules: dict[str, Module], root: Path = REPO, owner: dict[str, str] | None = None
+) -> list[ReachIn]:
     """Calls of a state machine's input methods (`x.post(...)`) outside its owner."""
     found = []
     by_method = {meth: cls for cls, (_h, methods) in STATE_MACHINES.items() for meth in methods}
-    owner = owners(modules)
+    if owner is None:
+        owner = owners(modules)
     for name, m in modules.items():
         for node in ast.walk(m.tree):
             if (
@@ -515,9 +528,10 @@ def foreign_posts(modules: dict[str, Module], root: Path = REPO) -> list[ReachIn
     return sorted(found)
 
 
+@ON_THE_REPO
 def test_a_state_machine_is_fed_by_its_owner_only() -> None:
-    found = foreign_posts(repo_modules())
     owner = owners(repo_modules())
+    found = foreign_posts(repo_modules(), owner=owner)
     assert not found, (
         f"state machines fed outside their owner ({owner}): the owner posts, others "
         "send it outputs:\n  " + "\n  ".join(map(str, found))

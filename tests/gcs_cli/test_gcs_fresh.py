@@ -90,6 +90,10 @@ def test_mission_for_one_id_waits_for_that_vehicle(
     assert " 7 " in out or "│ 7" in out, out
 
 
+# a node restarted learns from its peer what was declared while it was down, over real
+# processes: test_declared_processes.py; `gcs zone add` and `remove` confirmed by a
+# running node: test_gcs_commands.py's test_status_commands_missions_and_zones
+@pytest.mark.soak
 def test_zone_confirmed_and_learned_by_a_node_started_later(
     zenoh_router: str,
     swarm: str,

@@ -36,6 +36,9 @@ from swarm_sim.recording import status_rows, write_trajectory
 GCS = 900
 IDS = (7, 8)
 
+# the tests share one flight (a module fixture): on one worker it is flown once
+pytestmark = pytest.mark.xdist_group("gcs-plot")
+
 
 @pytest.fixture(scope="module")
 def flight(

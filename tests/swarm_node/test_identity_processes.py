@@ -187,6 +187,9 @@ def test_an_impostor_is_noticed_and_bad_input_is_alerted(
         client.close()
 
 
+# another session with our id, named by its session and airframe: test_identity.py
+# (pure); identity over real processes and Zenoh: the impostor test above
+@pytest.mark.soak
 @pytest.mark.parametrize("vehicles", [[7, 8, 10]], indirect=True)
 def test_two_nodes_with_one_id_both_alert_and_neither_flies(
     zenoh_router: str, swarm: str, vehicles: dict[int, str], swarm_db: Path, tmp_path: Path

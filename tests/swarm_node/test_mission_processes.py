@@ -191,6 +191,10 @@ def test_planning_does_not_stall_status_or_commands(
         client.close()
 
 
+# the verdict and its numbers, the same on every member: test_reasons_in_full.py (the
+# fleet's plan, pure); a node refusing it over Zenoh: test_gcs_commands.py's
+# test_a_mission_the_fleet_cannot_fly_is_refused_with_its_budget
+@pytest.mark.soak
 @pytest.mark.parametrize("vehicles", [{7: "copter", 8: "copter"}], indirect=True)
 def test_a_mission_the_fleet_cannot_fly_is_refused_by_every_member_alike(
     zenoh_router: str, swarm: str, vehicles: dict[int, str], swarm_db: object

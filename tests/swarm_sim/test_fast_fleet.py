@@ -46,6 +46,10 @@ def square(center_lat: float, center_lon: float, half_m: float) -> Geometry:
     )
 
 
+# the same fleet (1, 7, 8) flies the same kind of survey to the end in
+# test_reboot_in_flight.py and test_stall_rejoins.py, and the demo's six VTOLs fly theirs
+# to the landing in test_demo_story.py
+@pytest.mark.soak
 def test_a_mixed_fleet_flies_an_area_mission_and_lands(fleet_profiles: dict) -> None:
     members = [1, 7, 8]  # an Albatross VTOL and two quadcopters from the seed
     fleet = FastFleet.build(members, fleet_profiles)

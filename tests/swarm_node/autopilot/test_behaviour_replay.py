@@ -21,6 +21,8 @@ from swarm_node.core.autopilot.status import to_vehicle_status
 from swarm_proto import VehicleType, validate
 
 SENSOR_GEOFENCE = 1 << 20  # MAV_SYS_STATUS_GEOFENCE
+# each recording is replayed once per process (`replay`'s cache): on one worker, once
+pytestmark = pytest.mark.xdist_group("behaviour-replay")
 RECORDINGS = (
     "fence-enable-after-upload",
     "mission-start-in-auto",

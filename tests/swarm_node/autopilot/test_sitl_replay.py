@@ -29,6 +29,8 @@ SORTIES = {
     "copter": ("arducopter-sortie", VehicleType.COPTER),
     "quadplane": ("arduplane-quadplane-sortie", VehicleType.VTOL),
 }
+# each sortie is replayed once per process (a module fixture): on one worker, once
+pytestmark = pytest.mark.xdist_group("sitl-replay")
 
 
 @dataclass
