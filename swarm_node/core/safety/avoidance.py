@@ -826,24 +826,30 @@ class CollisionAvoider:
                 frame = Frame(own_track.lat_deg, own_track.lon_deg, own_track.alt_msl_m)
             pts = np.array([(p.lat_deg, p.lon_deg, p.alt_msl_m) for p in it.legs], dtype=float)
             enu = frame.positions(pts[:, 0], pts[:, 1], pts[:, 2])
-            flat = enu.copy()
-            flat[:, 2] = level_k.pos[j, 2]
+            # its path is the intent's, its altitude its own: level, or keeping its
+            # vertical rate (a climb it gives way with is not in its legs)
+            enu[:, 2] = level_k.pos[j, 2]
             r = float(radius[j - 1])
             best = (math.inf, math.inf, math.inf)
-            for ki, pts_j, own_j in ((k, enu, 0), (level_k, flat, 1)):
-                theirs = along_intent(
-                    ki.pos[j],
-                    ki.vel[j],
-                    pts_j,
-                    it.speed_m_s,
-                    it.turn_radius_m,
-                    cfg.horizon_s,
-                    hold_at_end=it.hold_at_end,
-                )
+            level_legs = along_intent(
+                level_k.pos[j],
+                level_k.vel[j],
+                enu,
+                it.speed_m_s,
+                it.turn_radius_m,
+                cfg.horizon_s,
+                hold_at_end=it.hold_at_end,
+            )
+            vz = float(k.vel[j, 2])
+            times, starts, vels = level_legs
+            climbing = (times, starts + np.outer(times, [0.0, 0.0, vz]), vels + [0.0, 0.0, vz])
+            for ki, theirs, own_j in ((k, climbing, 0), (level_k, level_legs, 1)):
                 ours = own_legs[own_j] if own_legs is not None else straight(ki.pos[0], ki.vel[0])
                 t, m, e = legs_approach(ours, theirs, r, cfg.horizon_s)
                 best = (t if m < best[1] else best[0], min(m, best[1]), min(e, best[2]))
-            t_row[j - 1], miss_row[j - 1], loss_row[j - 1] = best
+            if best[1] < miss_row[j - 1]:
+                t_row[j - 1], miss_row[j - 1] = best[0], best[1]
+            loss_row[j - 1] = min(loss_row[j - 1], best[2])
             used = True
             self._count("intent_rows")
         return used
