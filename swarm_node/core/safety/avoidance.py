@@ -842,7 +842,8 @@ class CollisionAvoider:
             )
             vz = float(k.vel[j, 2])
             times, starts, vels = level_legs
-            climbing = (times, starts + np.outer(times, [0.0, 0.0, vz]), vels + [0.0, 0.0, vz])
+            up = np.array([0.0, 0.0, vz])
+            climbing = (times, starts + np.outer(times, up), vels + up)
             for ki, theirs, own_j in ((k, climbing, 0), (level_k, level_legs, 1)):
                 ours = own_legs[own_j] if own_legs is not None else straight(ki.pos[0], ki.vel[0])
                 t, m, e = legs_approach(ours, theirs, r, cfg.horizon_s)
