@@ -257,7 +257,7 @@ class AvoidanceModule:
                 av.handle(Traffic.from_report(r), now)
         self._count("ticks")
         blocked = holder is not None and holder > Owner.AVOIDANCE
-        out: list[ModuleOutput] = self._own_intent(own, ap, now)
+        out: list[ModuleOutput] = []
         for o in av.on_timer(now):
             if isinstance(o, Alert):
                 out.append(Publish(o))
@@ -294,7 +294,7 @@ class AvoidanceModule:
         ):
             out += self._submit(s.last, now)  # another request took the mode back
             self._count("reasserted")
-        return out
+        return out + self._own_intent(own, ap, now)  # (after: a manoeuvre drops it)
 
     def _route(self, ap: AutopilotState) -> OwnRoute:
         """A multirotor's way ahead in its mission (AUTO, not suspended): the items from
