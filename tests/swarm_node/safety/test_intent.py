@@ -154,3 +154,64 @@ def test_legs_approach_matches_the_straight_line_closest_approach() -> None:
     t, miss, entry = legs_approach(a, b, 20.0, 30.0)
     assert math.isclose(t, 20.0) and math.isclose(miss, 5.0)
     assert math.isclose(entry, 20.0 - math.sqrt(400 - 25) / 20.0)
+
+
+def test_the_module_publishes_its_next_legs_on_change_and_every_2_s() -> None:
+    """A VTOL in its mission publishes the items ahead (three at most, MSL, its turn
+    radius), again only when they change or 2 s on, and none while it gives way."""
+    import msgspec
+
+    from swarm_node.core.autopilot.items import ItemKind, Waypoint
+    from swarm_node.core.autopilot.state import AutopilotState
+    from swarm_node.core.outputs import Publish
+    from swarm_node.core.safety.module import AvoidanceModule
+    from swarm_node.database import seed_profiles
+    from swarm_proto import GeoPoint, geodesy
+
+    lat, lon, home_msl = 37.41, -5.99, 10.0
+    vtol = msgspec.structs.replace(seed_profiles()["Albatross 250 VTOL"], vehicle_id=2)
+    items = tuple(
+        Waypoint(ItemKind.WAYPOINT, *geodesy.offset(lat, lon, 0.0, 300.0 * k), 60.0)
+        for k in range(1, 6)
+    )
+    m = AvoidanceModule(vtol, items=items)
+
+    def state(current: int, mode: str = "AUTO") -> AutopilotState:
+        return AutopilotState(
+            sysid=2,
+            link_ok=True,
+            armed=True,
+            lat_deg=lat,
+            lon_deg=lon,
+            alt_msl_m=home_msl + 60.0,
+            alt_rel_m=60.0,
+            home=GeoPoint(lat, lon, home_msl),
+            mode_name=mode,
+            mission_current=current,
+            groundspeed_m_s=25.0,
+            vel_east_m_s=25.0,
+        )
+
+    def own(now: float) -> VehicleStatus:
+        return VehicleStatus(2, now, lat, lon, home_msl + 60.0, 60.0, vel_east_m_s=25.0, armed=True)
+
+    def intents(now: float, current: int, mode: str = "AUTO") -> list[VehicleIntent]:
+        out = m.tick(now, own(now), state(current, mode))
+        return [o.msg for o in out if isinstance(o, Publish) and isinstance(o.msg, VehicleIntent)]
+
+    (first,) = intents(T, 2)
+    assert [(p.lat_deg, p.lon_deg) for p in first.legs] == [
+        (w.lat_deg, w.lon_deg) for w in items[1:4]
+    ]
+    assert all(p.alt_msl_m == home_msl + 60.0 for p in first.legs)
+    assert first.turn_radius_m == round(vtol.turn_radius_m(), 1) > 0 and not first.hold_at_end
+    assert intents(T + 0.2, 2) == []  # unchanged: not again before 2 s
+    (moved,) = intents(T + 0.4, 3)  # the next item: at once
+    assert [(p.lat_deg, p.lon_deg) for p in moved.legs] == [
+        (w.lat_deg, w.lon_deg) for w in items[2:5]
+    ]
+    assert intents(T + 0.6, 3) == []
+    assert len(intents(T + 2.5, 3)) == 1  # every 2 s
+    (gone,) = intents(T + 2.7, 3, "LOITER")  # off its legs: once, empty
+    assert gone.legs == ()
+    assert intents(T + 5.0, 3, "LOITER") == []
