@@ -12,6 +12,8 @@ peers' telemetry and non-cooperative traffic, ticking at 5 Hz.
     Forget                                   a contact lost (membership), dropped now
     OwnRoute                                 a multirotor's mission items ahead (AUTO): its
                                              own motion is predicted along them
+    VehicleIntent                            a contact's next legs: it is predicted along
+                                             them as well as straight on (until stale)
 
     outputs (on_timer)                       meaning for the node
     Manoeuvre(CLIMB | LEVEL | STOP)          submit `requests` as owner AVOIDANCE, suspend the
@@ -47,7 +49,8 @@ within `horizon_s`. Manoeuvres are upward only:
   longer, plus `act_margin_s`): it can stop and climb in seconds, and a survey lane's
   end turns it long before a 30 s straight line would meet anyone. Climbing or
   descending it acts at once. In its mission its own motion is predicted along its
-  route (`OwnRoute`), the contacts' straight on.
+  route (`OwnRoute`), the contacts' straight on and, for those that publish their
+  next legs (`VehicleIntent`), along them too.
 - Hysteresis: the manoeuvre ends only when, from the planned altitude (ground
   vehicles: with the velocity they had), every predicted miss is above `release_m`
   (> `protect_m`) for `clear_hold_s`; then RESUME, back to the planned altitude. A
@@ -250,8 +253,8 @@ class AvoidanceConfig:
     # it needs (to climb to its target, or to stop: whichever is longer) plus this margin
     act_margin_s: float = 5.0
     stop_accel_m_s2: float = 2.5  # how hard a multirotor brakes (ArduCopter WPNAV_ACCEL)
-    # a contact that publishes its next legs (VehicleIntent) is predicted along them while
-    # its latest intent is younger than this (sent every 2 s); else straight on
+    # a contact that publishes its next legs (VehicleIntent) is predicted along them too
+    # while its latest intent is younger than this (sent every 2 s); else straight on only
     intent: bool = True
     intent_stale_s: float = 5.0
 
@@ -802,10 +805,12 @@ class CollisionAvoider:
         rows: tuple[np.ndarray, np.ndarray, np.ndarray],
     ) -> bool:
         """The own row's entries (t_cpa, miss, loss of separation; updated in place) for
-        the contacts that publish their next legs, predicted along them (their path at
-        their speed, turning no tighter than their turn radius) instead of straight on:
-        with the vertical rates and level, the own vehicle on its route or straight on.
-        A contact's intent older than `intent_stale_s` is not used. Whether any was."""
+        the contacts that publish their next legs, predicted along them as well (their
+        path at their speed, turning no tighter than their turn radius), with their
+        vertical rate and level, the own vehicle on its route or straight on: the closer
+        approach and the earlier loss of the two predictions count (a contact leaving
+        its legs before it says so is still seen straight on). A contact's intent older
+        than `intent_stale_s` is not used. Whether any was."""
         cfg = self.config
         if not cfg.intent or not self._intents:
             return False

@@ -3,6 +3,8 @@ manoeuvres flown as owner AVOIDANCE, the mission suspended meanwhile by the arbi
 
     inputs (from NodeCore)                      what it does with them
     on_peer(VehicleStatus | VehicleInfo)        a cooperative contact (its type from info)
+    on_intent(VehicleIntent)                    a peer's next legs (the avoider predicts
+                                                along them)
     forget(vehicle_id)                          a peer lost (membership)
     tick(now, own status, autopilot, ...)       feeds the own state, ADS-B traffic
                                                 (`AutopilotState.traffic`), the planned
@@ -11,7 +13,8 @@ manoeuvres flown as owner AVOIDANCE, the mission suspended meanwhile by the arbi
                                                 mission manager uploaded, `items`); runs
                                                 the avoider's 5 Hz tick; answers with
                                                 Suspend, Submits (owner AVOIDANCE),
-                                                Release and Alerts
+                                                Release, Alerts and the own next legs
+                                                (VehicleIntent, `_own_intent`)
     on_result(ApResult)                         results of its requests
 
 Suspending the mission. On the first manoeuvre the module remembers what the vehicle
