@@ -817,6 +817,10 @@ class CollisionAvoider:
         t_row, miss_row, loss_row = rows
         frame: Frame | None = None
         used = False
+        # how fast the own vehicle can close in over the horizon (its route's speed)
+        own_speed = float(np.hypot(k.vel[0, 0], k.vel[0, 1]))
+        if own_legs is not None:
+            own_speed = max(own_speed, float(np.hypot(*own_legs[0][2][:, :2].T).max()))
         for j, c in enumerate(contacts, start=1):
             vid = c.track.vehicle_id
             held = self._intents.get(vid)
@@ -827,6 +831,11 @@ class CollisionAvoider:
                 self._intents.pop(vid, None)
                 self._count("intent_stale")
                 continue
+            r = float(radius[j - 1])
+            speed = max(it.speed_m_s, float(np.hypot(k.vel[j, 0], k.vel[j, 1])))
+            gap = float(np.hypot(*(k.pos[j, :2] - k.pos[0, :2])))
+            if gap - cfg.horizon_s * (own_speed + speed) > cfg.release_m + r - cfg.protect_m:
+                continue  # beyond reach on any path: its legs cannot make it a conflict
             if frame is None:
                 frame = Frame(own_track.lat_deg, own_track.lon_deg, own_track.alt_msl_m)
             pts = np.array([(p.lat_deg, p.lon_deg, p.alt_msl_m) for p in it.legs], dtype=float)
@@ -834,7 +843,6 @@ class CollisionAvoider:
             # its path is the intent's, its altitude its own: level, or keeping its
             # vertical rate (a climb it gives way with is not in its legs)
             enu[:, 2] = level_k.pos[j, 2]
-            r = float(radius[j - 1])
             best = (math.inf, math.inf, math.inf)
             level_legs = along_intent(
                 level_k.pos[j],
