@@ -215,3 +215,17 @@ def test_the_module_publishes_its_next_legs_on_change_and_every_2_s() -> None:
     (gone,) = intents(T + 2.7, 3, "LOITER")  # off its legs: once, empty
     assert gone.legs == ()
     assert intents(T + 5.0, 3, "LOITER") == []
+
+
+def test_a_contact_beyond_reach_on_any_path_costs_no_intent_prediction() -> None:
+    av = CollisionAvoider(AvoidanceConfig(2, VehicleType.VTOL))
+    av.handle(VehicleInfo(1, VehicleType.PLANE, "plane", "p"), T)
+    av.handle(status(1, 0, 3000.0, vn=SPEED), T)  # 3 km off: 30 s at 20 m/s is 600 m
+    av.handle(VehicleIntent(1, T, SPEED, RADIUS, False, LEGS), T)
+    av.handle(status(2, 0, 0), T)
+    av.on_timer(T)
+    assert not av.counters.get("intent_rows")
+    av.handle(status(1, 0, 500.0, vn=SPEED, t=T + 0.2), T + 0.2)
+    av.handle(status(2, 0, 0, t=T + 0.2), T + 0.2)
+    av.on_timer(T + 0.2)
+    assert av.counters["intent_rows"] == 1
