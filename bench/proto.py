@@ -49,7 +49,13 @@ from swarm_proto import (
     lan,
     radio,
 )
-from swarm_proto.messages import MavlinkAnswer, MavlinkCommand, MavlinkSummary
+from swarm_proto.messages import (
+    IntentPoint,
+    MavlinkAnswer,
+    MavlinkCommand,
+    MavlinkSummary,
+    VehicleIntent,
+)
 
 NOW = 1.75e9
 
@@ -199,6 +205,19 @@ SAMPLES[MavlinkCommand] = MavlinkCommand(
 )
 SAMPLES[MavlinkAnswer] = MavlinkAnswer(
     12, 900, bytes(mavlink.MAVLink_command_ack_message(176, 0, 0, 0, 255, 190).pack(_mav()))
+)
+# three legs ahead: a lane's end, the next lane's start and end
+SAMPLES[VehicleIntent] = VehicleIntent(
+    12,
+    NOW,
+    22.0,
+    68.9,
+    False,
+    (
+        IntentPoint(37.4123456, -5.9912345, 112.25),
+        IntentPoint(37.4123456, -5.9905678, 112.25),
+        IntentPoint(37.4023456, -5.9905678, 112.25),
+    ),
 )
 
 

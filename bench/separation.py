@@ -1,4 +1,5 @@
-"""Separation figures, with avoidance on and off, analysed as the paper
+"""Separation figures, with avoidance on (members' next legs shared: VehicleIntent), on
+with straight-line prediction only (`on_no_intent`) and off, analysed as the paper
 does (risk 10-40 m, danger 5-10 m, near-collision < 5 m samples over the whole flight):
 
 - the paper's experiment 1 (`exp1_six_vtol`), experiment 2's simultaneous take-off
@@ -110,8 +111,11 @@ def fleet_scenario(name: str) -> dict[str, Any]:
 
     profiles = {p.vehicle_id: p for p in seed_fleet()}
     out: dict[str, Any] = {}
-    for side, avoid in (("on", True), ("off", False)):
-        r = RUNS[name](profiles, avoid=avoid)
+    # avoidance on with the members' next legs shared (the default), on with
+    # straight-line prediction only (no intent published or used), and off
+    sides = (("on", True, True), ("on_no_intent", True, False), ("off", False, False))
+    for side, avoid, intent in sides:
+        r = RUNS[name](profiles, avoid=avoid, intent=intent)
         out[side] = {**r.figures(), "wall_s": round(r.wall_s, 1)}
     if name in PAPER:
         out["paper"] = PAPER[name]

@@ -739,6 +739,35 @@ class MavlinkAnswer(Struct, frozen=True):
     frame: MavlinkFrames
 
 
+#: the most legs a VehicleIntent carries (a receiver ignores one with more, counted)
+MAX_INTENT_LEGS = 3
+
+
+class IntentPoint(Struct, frozen=True, array_like=True):
+    """A point of a vehicle's path ahead: WGS84 position (int32 1e-7 deg on the radio) and
+    altitude above mean sea level (int16, 0.25 m)."""
+
+    lat_deg: LatitudeDeg
+    lon_deg: LongitudeDeg
+    alt_msl_m: AltitudeM
+
+
+class VehicleIntent(Struct, frozen=True):
+    """Where a vehicle flies next (its mission's next legs), for the peers' collision
+    avoidance: published when the legs change and every 2 s while it flies them; no
+    legs: it follows no known path (a receiver falls back to straight-line prediction).
+    `speed_m_s` is the speed it flies them at; `turn_radius_m` its smallest turn at that
+    speed (0: it turns on the spot, a multirotor); `hold_at_end`: it stops at the last
+    point (a multirotor's hold or landing), else it goes on."""
+
+    vehicle_id: VehicleId
+    time_unix_s: UnixTimeS  # the sender's clock (its autopilot's GPS time)
+    speed_m_s: SpeedMS = 0.0
+    turn_radius_m: HeightM = 0.0
+    hold_at_end: bool = False
+    legs: Annotated[tuple[IntentPoint, ...], Meta(max_length=MAX_INTENT_LEGS)] = ()
+
+
 #: Every message type, in radio type-tag order (index + 1 is the tag). Append only.
 MESSAGE_TYPES: tuple[type[Struct], ...] = (
     VehicleStatus,
@@ -756,6 +785,7 @@ MESSAGE_TYPES: tuple[type[Struct], ...] = (
     MavlinkSummary,
     MavlinkCommand,
     MavlinkAnswer,
+    VehicleIntent,
 )
 
 

@@ -34,6 +34,7 @@ from .messages import (
     SwarmView,
     TargetReport,
     VehicleInfo,
+    VehicleIntent,
     VehicleStatus,
     Vote,
 )
@@ -161,6 +162,17 @@ INFO = Topic(
     radio=RadioPolicy(True, RadioClass.INFO, max_rate_hz=1.0, latest_only=True),
     **_TELEMETRY,  # type: ignore[arg-type]
     max_bytes=2 * KIB,
+)
+INTENT = Topic(
+    "intent",
+    "vehicle/{vehicle_id}/intent",
+    VehicleIntent,
+    "Where the vehicle flies next (its next legs), for the peers' collision avoidance; "
+    "when they change and every 2 s.",
+    priority=Priority.DATA_HIGH,
+    radio=RadioPolicy(True, RadioClass.STATUS, max_rate_hz=1.0, latest_only=True),
+    **_TELEMETRY,  # type: ignore[arg-type]
+    max_bytes=1 * KIB,
 )
 ACK = Topic(
     "ack",
@@ -391,6 +403,7 @@ TOPICS: tuple[Topic, ...] = (
     MAVLINK_SUMMARY,
     MAVLINK_COMMAND,
     MAVLINK_ANSWER,
+    INTENT,
 )
 TOPIC_OF_TYPE: dict[type, Topic] = {t.msg_type: t for t in TOPICS if t.msg_type is not None}
 

@@ -52,6 +52,7 @@ from swarm_proto import (
     MissionParams,
     MissionType,
     Selector,
+    VehicleIntent,
     VehicleType,
     geodesy,
 )
@@ -77,6 +78,8 @@ class SeparationRun:
     wall_s: float
     manoeuvres: int  # avoidance climbs/levels/stops alerted
     takeoff_waits: int  # launches held for a neighbour (pads.py)
+    intent: bool = True  # members published their next legs, avoidance predicted along them
+    intents: int = 0  # VehicleIntent messages published
     notes: list[tuple[float, int, str]] = field(default_factory=list)
 
     def figures(self) -> dict[str, Any]:
@@ -97,6 +100,7 @@ class SeparationRun:
             "landed": len(self.landed),
             "manoeuvres": self.manoeuvres,
             "takeoff_waits": self.takeoff_waits,
+            "intents": self.intents,
         }
 
 
@@ -144,6 +148,7 @@ def _fly(
     avoid: bool,
     timeout_s: float,
     record: Path | None = None,
+    intent: bool = True,
     done: Callable[[FastFleet, float], bool] | None = None,
 ) -> SeparationRun:
     """Set the base, then carry out `steps` in order (each when its condition holds)
@@ -177,7 +182,9 @@ def _fly(
             break
         fleet.run_until(next_or_done, min(30.0, end - fleet.now))
     whole = _analysed(
-        status_rows(fleet.published, t0=t0), record, f"{name}-{'on' if avoid else 'off'}"
+        status_rows(fleet.published, t0=t0),
+        record,
+        f"{name}-{'on' if avoid else 'off'}{'' if intent else '-no-intent'}",
     )
     airborne = _analysed(status_rows(fleet.published, t0=t0, airborne_only=True), None, "")
     alerts = [a for a in fleet.messages(Alert) if a.time_unix_s >= t0]
@@ -203,6 +210,8 @@ def _fly(
             and ("climb" in a.text or "level" in a.text or "stop" in a.text)
         ),
         takeoff_waits=sum(1 for _t, _v, n in fleet.notes if n.startswith("take-off: waiting")),
+        intent=intent,
+        intents=sum(1 for t, _v, m in fleet.published if t >= t0 and isinstance(m, VehicleIntent)),
         notes=[(t - t0, v, n) for t, v, n in fleet.notes if t >= t0],
     )
 
@@ -216,10 +225,10 @@ def _analysed(rows: list[Row], record: Path | None, stem: str) -> SeparationRepo
         return analyze(read_trajectory(path))
 
 
-def _settings(avoid: bool) -> NodeSettings:
+def _settings(avoid: bool, intent: bool = True) -> NodeSettings:
     # the take-off sequence of close pads is part of the launch, which the state machine
     # bounds with the plan timeout: 120 s covers a few neighbours (docs/avoidance.md)
-    return NodeSettings(avoidance=avoid, plan_timeout_s=180.0)
+    return NodeSettings(avoidance=avoid, plan_timeout_s=180.0, intent=intent)
 
 
 def _all_flying(ids: Sequence[int]) -> Callable[[FastFleet], bool]:
@@ -244,13 +253,14 @@ def exp2_takeoff_three_vtol(
     profiles: Mapping[int, VehicleProfile],
     *,
     avoid: bool = True,
+    intent: bool = True,
     timeout_s: float = 900.0,
     record: Path | None = None,
 ) -> SeparationRun:
     """Three Albatross VTOLs on pads 8 m apart in a line (east), one route mission
     released to all three in the same instant: they take off together."""
     members = [1, 2, 3]
-    fleet = FastFleet.build(members, profiles, spacing_m=8.0, settings=_settings(avoid))
+    fleet = FastFleet.build(members, profiles, spacing_m=8.0, settings=_settings(avoid, intent))
     route = Mission(
         201,
         GCS,
@@ -265,6 +275,7 @@ def exp2_takeoff_three_vtol(
         avoid=avoid,
         timeout_s=timeout_s,
         record=record,
+        intent=intent,
     )
 
 
@@ -272,6 +283,7 @@ def exp1_six_vtol(
     profiles: Mapping[int, VehicleProfile],
     *,
     avoid: bool = True,
+    intent: bool = True,
     timeout_s: float = 2400.0,
     record: Path | None = None,
 ) -> SeparationRun:
@@ -279,7 +291,7 @@ def exp1_six_vtol(
     it flies, a target orbit (1), a perimeter patrol (2, 3) and a route (4); 5 and 6
     inherit the rest of the area. Missions addressed to listed vehicles (no voting)."""
     members = [1, 2, 3, 4, 5, 6]
-    fleet = FastFleet.build(members, profiles, spacing_m=30.0, settings=_settings(avoid))
+    fleet = FastFleet.build(members, profiles, spacing_m=30.0, settings=_settings(avoid, intent))
     alt = 60.0
     area = Mission(
         101,
@@ -320,7 +332,15 @@ def exp1_six_vtol(
         (_after(60.0, since, "retask"), _send(perimeter)),
         (_after(80.0, since, "retask"), _send(route)),
     ]
-    return _fly("exp1_six_vtol", fleet, steps, avoid=avoid, timeout_s=timeout_s, record=record)
+    return _fly(
+        "exp1_six_vtol",
+        fleet,
+        steps,
+        avoid=avoid,
+        timeout_s=timeout_s,
+        record=record,
+        intent=intent,
+    )
 
 
 def circle_homes(n: int, radius_m: float, center: tuple[float, float]) -> list[Home]:
@@ -338,6 +358,7 @@ def stress_eight_headon(
     profiles: Mapping[int, VehicleProfile],
     *,
     avoid: bool = True,
+    intent: bool = True,
     timeout_s: float = 900.0,
     radius_m: float = 500.0,
     alt_m: float = 100.0,
@@ -353,7 +374,7 @@ def stress_eight_headon(
     planes = {vid: plane_profile(vid, like) for vid in members}
     center = _at(0.0, 0.0)
     homes = circle_homes(len(members), radius_m + 1000.0, center)
-    fleet = FastFleet.build(members, planes, homes=homes, settings=_settings(avoid))
+    fleet = FastFleet.build(members, planes, homes=homes, settings=_settings(avoid, intent))
     missions = []
     for k, vid in enumerate(members):
         b = math.radians(360.0 * k / len(members))
@@ -393,6 +414,7 @@ def stress_eight_headon(
         avoid=avoid,
         timeout_s=timeout_s,
         record=record,
+        intent=intent,
         done=routes_flown,
     )
 

@@ -102,7 +102,7 @@ NAMED: dict[str, tuple[str, ...]] = {
         *(
             f"{scenario}/{side}/{k}"
             for scenario in ("exp1_six_vtol", "exp2_takeoff_three_vtol", "stress_eight_headon")
-            for side in ("on", "off")
+            for side in ("on", "on_no_intent", "off")
             for k in ("min_sep_m", "risk", "danger", "near")
         ),
     ),

@@ -51,6 +51,9 @@ class Inbound:
                 self.avoid.on_peer(msg, now)
                 out = self.stalls.peer_events(self.members.on_info(msg, now), now)
                 return out + self.mission.on_info(msg, self.views.context, now)
+            case proto.VehicleIntent():  # a peer's next legs: its avoidance prediction
+                self.avoid.on_intent(msg, now)
+                return []
             case proto.Command():
                 return self.operator.on_command(
                     msg, self.views.node_view(), self.declarations.zones.no_fly(now), now

@@ -107,7 +107,7 @@ class NodeCore:
         fen = self.fences = Fences(vid, p.vehicle_type, s.fence_max_items)
         em = self.emergency = EmergencyProcedure(p)
         # its first tick at once: now, not at time 0 (a deadline of 0 reads as a stall)
-        av = self.avoid = AvoidanceModule(p, enabled=s.avoidance, next_tick=now)
+        av = self.avoid = AvoidanceModule(p, enabled=s.avoidance, next_tick=now, intent=s.intent)
         pads = PadSequence(p, s.avoidance, peers=m.statuses_and_homes, pads=m.homes, types=m.types)
         mi = self.mission = MissionCoordinator(p, s.plan_timeout_s, fp, md, ts, pads, now)
         mi.silent_hold_s = s.silent_hold_s

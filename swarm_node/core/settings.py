@@ -19,6 +19,9 @@ class NodeSettings:
     thresholds: Thresholds | None = None  # default: from the profile
     fence_max_items: int = FENCE_MAX_ITEMS  # what the autopilot's fence storage takes
     avoidance: bool = True  # collision avoidance (safety/module.py); off: compare without it
+    # publish the own next legs (VehicleIntent) and predict peers along theirs; off:
+    # straight-line prediction only (compare without it)
+    intent: bool = True
     mav_sysid: int = 0  # the autopilot's MAVLink system id, from the database (0: not checked)
     # a member fallen silent keeps its share this long (its aircraft may fly it on
     # until its failsafe takes it home): docs/reliability.md

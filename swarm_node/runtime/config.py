@@ -65,6 +65,7 @@ class NodeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     # loss -> STATE_EMERGENCY under 1 s. Fast-time simulations on a loaded machine raise it.
     link_timeout_s: float = 0.6
     avoidance: bool = True  # collision avoidance, take-off/landing sequencing (safety/)
+    intent: bool = True  # publish the next legs, predict peers along theirs (avoidance)
     zenoh: ZenohSettings = ZenohSettings()
     profile: ProfileOverride | None = None
 

@@ -81,6 +81,7 @@ from swarm_proto.topics import (
     DECLARED,
     FLEET,
     INFO,
+    INTENT,
     LINEAGE,
     MAVLINK_COMMAND,
     MISSION,
@@ -138,6 +139,7 @@ def node_settings(config: NodeConfig) -> NodeSettings:
         plan_timeout_s=config.plan_timeout_s,
         stale_after_s=config.stale_after_s,
         avoidance=config.avoidance,
+        intent=config.intent,
     )
 
 
@@ -668,7 +670,7 @@ class NodeRuntime:
         if self.writer is not None:
             self.writer.start()
         # ACK: the peers' answers to missions make the roster (core/swarm/roster.py)
-        for topic in (COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET, LINEAGE):
+        for topic in (COMMAND, MISSION, ZONE, FLEET, ACK, VOTE, TARGET, LINEAGE, INTENT):
             self.bus.subscribe(topic, self._received)
         swarm, me = self.config.swarm, self.core.self_id
         for topic in (STATUS, INFO):  # telemetry passes the identity book first

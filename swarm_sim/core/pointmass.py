@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -103,7 +104,7 @@ def run(
     adsb_period_s: float = 1.0,
     record_period_s: float = 0.2,
     origin: tuple[float, float, float] = ORIGIN,
-    config: dict[str, float] | None = None,
+    config: dict[str, Any] | None = None,
 ) -> Result:
     lat0, lon0, h0 = origin
     bodies = [

@@ -18,6 +18,8 @@ peers' telemetry and non-cooperative traffic, ticking at 5 Hz.
                                              mission coordinator's): its prediction follows it
     OwnRoute                                 a multirotor's mission items ahead (AUTO): its
                                              own motion is predicted along them
+    VehicleIntent                            a contact's next legs: it is predicted along
+                                             them as well as straight on (until stale)
 
     outputs (on_timer)                       meaning for the node
     Manoeuvre(CLIMB | LEVEL | STOP)          submit `requests` as owner AVOIDANCE, suspend the
@@ -53,7 +55,8 @@ within `horizon_s`. Manoeuvres are upward only:
   longer, plus `act_margin_s`): it can stop and climb in seconds, and a survey lane's
   end turns it long before a 30 s straight line would meet anyone. Climbing or
   descending it acts at once. In its mission its own motion is predicted along its
-  route (`OwnRoute`), the contacts' straight on.
+  route (`OwnRoute`), the contacts' straight on and, for those that publish their
+  next legs (`VehicleIntent`), along them too.
 - Hysteresis: the manoeuvre ends only when, from the planned altitude (ground
   vehicles: with the velocity they had), every predicted miss is above `release_m`
   (> `protect_m`) for `clear_hold_s`; then RESUME, back to the planned altitude. A
@@ -91,25 +94,32 @@ from swarm_proto import (
     ReasonDetail,
     Severity,
     VehicleInfo,
+    VehicleIntent,
     VehicleStatus,
     VehicleType,
 )
+from swarm_proto.messages import MAX_INTENT_LEGS
 from swarm_proto.text import short_text
 
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
 from ..autopilot.state import AdsbReport
 from ..autopilot.tracker import parse_adsb
+from ..landing_point import landing_point
 from .silent import SilentAircraft, failsafe_after_s
 from .ttc import (
     BadTrackError,
     Frame,
     Kinematic,
+    Legs,
     Track,
+    along_intent,
     along_route,
     entry_time,
     kinematic,
+    legs_approach,
     pairwise,
     route_approach,
+    straight,
 )
 
 GROUND = frozenset({VehicleType.ROVER, VehicleType.BOAT})
@@ -235,6 +245,7 @@ class SilentRoute:
 Event = (
     VehicleStatus
     | VehicleInfo
+    | VehicleIntent
     | Traffic
     | PlannedAltitude
     | Ceiling
@@ -270,6 +281,10 @@ class AvoidanceConfig:
     # it needs (to climb to its target, or to stop: whichever is longer) plus this margin
     act_margin_s: float = 5.0
     stop_accel_m_s2: float = 2.5  # how hard a multirotor brakes (ArduCopter WPNAV_ACCEL)
+    # a contact that publishes its next legs (VehicleIntent) is predicted along them too
+    # while its latest intent is younger than this (sent every 2 s); else straight on only
+    intent: bool = True
+    intent_stale_s: float = 5.0
 
     def __post_init__(self) -> None:
         if not (0 < self.protect_m < self.release_m):
@@ -335,6 +350,8 @@ class CollisionAvoider:
     # per sender: (received, latency) with latencies increasing, the window's least first
     _latency: dict[int, deque[tuple[float, float]]] = field(default_factory=dict)
     _own_t: float = 0.0  # when the own status's position was true (our clock)
+    # peers' latest intents with legs, and when each was received (our clock)
+    _intents: dict[int, tuple[VehicleIntent, float]] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ inputs
     def handle(self, ev: Event, now: float) -> list[Output]:
@@ -343,6 +360,8 @@ class CollisionAvoider:
         match ev:
             case VehicleStatus():
                 self.heard(ev, now)
+            case VehicleIntent():
+                self._intent(ev, now)
             case VehicleInfo():
                 if ev.vehicle_id != self.config.own_id:
                     self._info(ev)
@@ -356,6 +375,7 @@ class CollisionAvoider:
                 self._contacts.pop(ev.vehicle_id, None)
                 self._heard.pop(ev.vehicle_id, None)
                 self._silent.pop(ev.vehicle_id, None)
+                self._intents.pop(ev.vehicle_id, None)
             case Silent():
                 self._fell_silent(ev.vehicle_id)
             case SilentRoute():
@@ -428,8 +448,11 @@ class CollisionAvoider:
             home = (info.home.lat_deg, info.home.lon_deg)
             home_msl = info.home.alt_msl_m
         if info is not None and info.base is not None:
+            # its autopilot's rally point: its own landing point (its pad, or its slot
+            # at the base: landing_point.py, the same on every node)
             b = info.base
-            rally = (b.lat_deg, b.lon_deg, b.alt_msl_m)
+            at = landing_point(vid, info.home, b) if info.home is not None else None
+            rally = (*(at or (b.lat_deg, b.lon_deg)), b.alt_msl_m)
         self._silent[vid] = SilentAircraft(
             c.track,
             vtype,
@@ -476,6 +499,36 @@ class CollisionAvoider:
                 continue
             alt_rel = p.track.alt_msl_m - a.home_msl_m
             self._contacts[vid] = _Contact(p.track, now, False, a.vehicle_type, True, alt_rel)
+
+    def _intent(self, it: VehicleIntent, now: float) -> None:
+        """A peer's published next legs: kept (the latest) for its prediction; one that
+        cannot be used (too many legs, a non-finite value, a vehicle never heard) is
+        counted and ignored; one without legs drops the peer's intent (straight on)."""
+        vid = it.vehicle_id
+        if vid == self.config.own_id or not self.config.intent:
+            return
+        if vid not in self._contacts and vid not in self._heard and vid not in self._types:
+            self._count("intent_unknown")
+            return
+        if self._types.get(vid) in NOT_TRAFFIC:
+            return
+        if len(it.legs) > MAX_INTENT_LEGS:
+            self._count("intent_bad")
+            return
+        values = [it.speed_m_s, it.turn_radius_m]
+        values += [v for p in it.legs for v in (p.lat_deg, p.lon_deg, p.alt_msl_m)]
+        if not (
+            math.isfinite(sum(values))
+            and 0.0 <= it.speed_m_s <= 300.0
+            and 0.0 <= it.turn_radius_m <= 8000.0
+            and all(abs(p.lat_deg) <= 90.0 and abs(p.lon_deg) <= 180.0 for p in it.legs)
+        ):
+            self._count("intent_bad")
+            return
+        if not it.legs:
+            self._intents.pop(vid, None)
+            return
+        self._intents[vid] = (it, now)
 
     def _count(self, what: str) -> None:
         self.counters[what] = self.counters.get(what, 0) + 1
@@ -659,9 +712,26 @@ class CollisionAvoider:
                 entry_time(rel_p, k.vel[1:] - k.vel[0], radius, cfg.horizon_s),
                 entry_time(rel_p, level_k.vel[1:] - level_k.vel[0], radius, cfg.horizon_s),
             )
+            own_legs: tuple[Legs, Legs] | None = None
             if self._follows_route(own):
-                t_row, miss_row, loss_row = self._route_row(own, tracks[0], k, level_k, radius)
+                t_row, miss_row, loss_row, own_legs = self._route_row(
+                    own, tracks[0], k, level_k, radius
+                )
                 miss[0, 1:] = miss[1:, 0] = miss_row - a.margin_m[0, 1:]
+            self._intent_rows(
+                contacts, tracks[0], k, level_k, radius, own_legs, now, (t_row, miss_row, loss_row)
+            )
+            miss[0, 1:] = miss[1:, 0] = miss_row - a.margin_m[0, 1:]
+        else:
+            t_p, m_p, l_p = (
+                np.zeros(n - 1),
+                np.minimum(a.miss_m, a0.miss_m)[0, 1:],
+                np.zeros(n - 1),
+            )
+            if self._intent_rows(
+                contacts, tracks[0], k, level_k, radius, None, now, (t_p, m_p, l_p)
+            ):
+                miss[0, 1:] = miss[1:, 0] = m_p - a.margin_m[0, 1:]
         if planned:
             clear = miss[0, 1:] >= cfg.release_m
             if not clear.all():
@@ -819,7 +889,7 @@ class CollisionAvoider:
         k: Kinematic,
         level_k: Kinematic,
         radius: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[Legs, Legs]]:
         """The own row (t_cpa, miss, loss of separation against every contact) with
         the own vehicle flying its route's legs: ArduCopter flies to its item, turns
         there onto the next leg (a survey lane's end), holds at the last one; the
@@ -835,7 +905,82 @@ class CollisionAvoider:
         legs = along_route(k.pos[0], enu, speed, cfg.horizon_s)
         t1, m1, e1 = route_approach(legs, k.pos[1:], k.vel[1:], radius, cfg.horizon_s)
         t0, m0, e0 = route_approach(legs, level_k.pos[1:], level_k.vel[1:], radius, cfg.horizon_s)
-        return np.where(m0 < m1, t0, t1), np.minimum(m0, m1), np.minimum(e0, e1)
+        return np.where(m0 < m1, t0, t1), np.minimum(m0, m1), np.minimum(e0, e1), (legs, legs)
+
+    def _intent_rows(
+        self,
+        contacts: list[_Contact],
+        own_track: Track,
+        k: Kinematic,
+        level_k: Kinematic,
+        radius: np.ndarray,
+        own_legs: tuple[Legs, Legs] | None,
+        now: float,
+        rows: tuple[np.ndarray, np.ndarray, np.ndarray],
+    ) -> bool:
+        """The own row's entries (t_cpa, miss, loss of separation; updated in place) for
+        the contacts that publish their next legs, predicted along them as well (their
+        path at their speed, turning no tighter than their turn radius), with their
+        vertical rate and level, the own vehicle on its route or straight on: the closer
+        approach and the earlier loss of the two predictions count (a contact leaving
+        its legs before it says so is still seen straight on). A contact's intent older
+        than `intent_stale_s` is not used. Whether any was."""
+        cfg = self.config
+        if not cfg.intent or not self._intents:
+            return False
+        t_row, miss_row, loss_row = rows
+        frame: Frame | None = None
+        used = False
+        # how fast the own vehicle can close in over the horizon (its route's speed)
+        own_speed = float(np.hypot(k.vel[0, 0], k.vel[0, 1]))
+        if own_legs is not None:
+            own_speed = max(own_speed, float(np.hypot(*own_legs[0][2][:, :2].T).max()))
+        for j, c in enumerate(contacts, start=1):
+            vid = c.track.vehicle_id
+            held = self._intents.get(vid)
+            if held is None:
+                continue
+            it, received = held
+            if now - received > cfg.intent_stale_s:
+                self._intents.pop(vid, None)
+                self._count("intent_stale")
+                continue
+            r = float(radius[j - 1])
+            speed = max(it.speed_m_s, float(np.hypot(k.vel[j, 0], k.vel[j, 1])))
+            gap = float(np.hypot(*(k.pos[j, :2] - k.pos[0, :2])))
+            if gap - cfg.horizon_s * (own_speed + speed) > cfg.release_m + r - cfg.protect_m:
+                continue  # beyond reach on any path: its legs cannot make it a conflict
+            if frame is None:
+                frame = Frame(own_track.lat_deg, own_track.lon_deg, own_track.alt_msl_m)
+            pts = np.array([(p.lat_deg, p.lon_deg, p.alt_msl_m) for p in it.legs], dtype=float)
+            enu = frame.positions(pts[:, 0], pts[:, 1], pts[:, 2])
+            # its path is the intent's, its altitude its own: level, or keeping its
+            # vertical rate (a climb it gives way with is not in its legs)
+            enu[:, 2] = level_k.pos[j, 2]
+            best = (math.inf, math.inf, math.inf)
+            level_legs = along_intent(
+                level_k.pos[j],
+                level_k.vel[j],
+                enu,
+                it.speed_m_s,
+                it.turn_radius_m,
+                cfg.horizon_s,
+                hold_at_end=it.hold_at_end,
+            )
+            vz = float(k.vel[j, 2])
+            times, starts, vels = level_legs
+            up = np.array([0.0, 0.0, vz])
+            climbing = (times, starts + np.outer(times, up), vels + up)
+            for ki, theirs, own_j in ((k, climbing, 0), (level_k, level_legs, 1)):
+                ours = own_legs[own_j] if own_legs is not None else straight(ki.pos[0], ki.vel[0])
+                t, m, e = legs_approach(ours, theirs, r, cfg.horizon_s)
+                best = (t if m < best[1] else best[0], min(m, best[1]), min(e, best[2]))
+            if best[1] < miss_row[j - 1]:
+                t_row[j - 1], miss_row[j - 1] = best[0], best[1]
+            loss_row[j - 1] = min(loss_row[j - 1], best[2])
+            used = True
+            self._count("intent_rows")
+        return used
 
     def _stack(
         self,

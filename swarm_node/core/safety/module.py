@@ -3,6 +3,8 @@ manoeuvres flown as owner AVOIDANCE, the mission suspended meanwhile by the arbi
 
     inputs (from NodeCore)                      what it does with them
     on_peer(VehicleStatus | VehicleInfo)        a cooperative contact (its type from info)
+    on_intent(VehicleIntent)                    a peer's next legs (the avoider predicts
+                                                along them)
     forget(vehicle_id)                          a peer gone (it left the swarm)
     silent(vehicle_id)                          a peer lost by silence: kept as a contact
                                                 at its predicted position (silent.py)
@@ -15,7 +17,8 @@ manoeuvres flown as owner AVOIDANCE, the mission suspended meanwhile by the arbi
                                                 mission manager uploaded, `items`); runs
                                                 the avoider's 5 Hz tick; answers with
                                                 Suspend, Submits (owner AVOIDANCE),
-                                                Release and Alerts
+                                                Release, Alerts and the own next legs
+                                                (VehicleIntent, `_own_intent`)
     on_result(ApResult)                         results of its requests
 
 Suspending the mission. On the first manoeuvre the module remembers what the vehicle
@@ -71,13 +74,16 @@ import msgspec
 from swarm_proto import (
     Alert,
     AlertCode,
+    IntentPoint,
     NoFlyZone,
     Severity,
     VehicleInfo,
+    VehicleIntent,
     VehicleStatus,
     VehicleType,
 )
 from swarm_proto.geodesy import distance_m
+from swarm_proto.messages import MAX_INTENT_LEGS
 from swarm_proto.text import short_text
 
 from ..autopilot.items import ItemKind, Waypoint
@@ -111,6 +117,7 @@ from .avoidance import (
 from .pads import hovering
 from .zones import ceiling_msl
 
+INTENT_PERIOD_S = 2.0  # the own intent again this often while it has legs (else on change)
 REASSERT_S = 2.0  # a Goto manoeuvre's mode lost (another request won the race): asked again
 RESUME_TRIES = 3
 #: modes a vehicle is sent back to as they are
@@ -164,6 +171,9 @@ class AvoidanceModule:
     _blocked_noted: bool = False
     _ids: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
     _will_steer: Callable[[], bool] = bool  # the arbiter's: a held mission request steers
+    intent: bool = True  # publish the own next legs and predict peers along theirs
+    _intent_sent: tuple[object, ...] | None = None  # what the last intent said
+    _intent_at: float = -1e18
 
     def __post_init__(self) -> None:
         p = self.profile
@@ -171,6 +181,7 @@ class AvoidanceModule:
             own_id=p.vehicle_id,
             own_type=p.vehicle_type,
             climb_rate_m_s=p.climb_rate_m_s if p.climb_rate_m_s > 0 else 5.0,
+            intent=self.intent,
         )
         self.avoider = CollisionAvoider(self.cfg)
 
@@ -199,6 +210,11 @@ class AvoidanceModule:
         are VehicleStatus), at once."""
         if self.enabled:
             self.avoider.heard_all(msgs, now, statuses_only=statuses == len(msgs))
+
+    def on_intent(self, msg: VehicleIntent, now: float) -> None:
+        """A peer's next legs (the avoider keeps the latest, counts bad ones)."""
+        if self.enabled and msg.vehicle_id != self.profile.vehicle_id:
+            self.avoider.handle(msg, now)
 
     def forget(self, vehicle_id: int, now: float) -> None:
         if self.enabled:
@@ -297,7 +313,7 @@ class AvoidanceModule:
         ):
             out += self._submit(s.last, now)  # another request took the mode back
             self._count("reasserted")
-        return out
+        return out + self._own_intent(own, ap, now)  # (after: a manoeuvre drops it)
 
     def _route(self, ap: AutopilotState) -> OwnRoute:
         """A multirotor's way ahead in its mission (AUTO, not suspended): the items from
@@ -318,6 +334,59 @@ class AvoidanceModule:
             if w.kind != ItemKind.WAYPOINT:
                 break  # a loiter: it stays there
         return OwnRoute(tuple(points) or None, self.profile.cruise_speed_m_s)
+
+    def _own_intent(
+        self, own: VehicleStatus | None, ap: AutopilotState, now: float
+    ) -> list[ModuleOutput]:
+        """The own next legs for the peers' avoidance (VehicleIntent): while flying a
+        mission (AUTO, armed, airborne), up to MAX_INTENT_LEGS items from the one it
+        flies to, to a hold, a landing or a return; published when they change and every
+        INTENT_PERIOD_S; once empty when it stops following them."""
+        if not self.intent or own is None:
+            return []
+        points: list[IntentPoint] = []
+        stops = False
+        if (
+            own.armed
+            and ap.mode_name == "AUTO"
+            and own.alt_rel_m >= self.cfg.min_active_alt_rel_m
+            and self.suspension is None
+        ):
+            # (giving way, it flies what its legs do not say: its peers predict it
+            # straight on, with its climb)
+            home = own.alt_msl_m - own.alt_rel_m
+            for w in self.items[max(0, ap.mission_current - 1) :]:
+                if w.kind in (ItemKind.LAND, ItemKind.RTL, ItemKind.TAKEOFF):
+                    stops = True
+                    break
+                if w.kind == ItemKind.CHANGE_SPEED or (w.lat_deg == 0.0 and w.lon_deg == 0.0):
+                    continue
+                points.append(IntentPoint(w.lat_deg, w.lon_deg, w.alt_rel_m + home))
+                if w.kind != ItemKind.WAYPOINT:
+                    stops = True  # a loiter: it stays there
+                    break
+                if len(points) == MAX_INTENT_LEGS:
+                    break
+        if not points and not self._intent_sent:
+            return []  # nothing to say, and nothing said
+        p = self.profile
+        radius = 0.0 if self._hovering(ap) else p.turn_radius_m()
+        hold = stops and radius == 0.0  # a fixed-wing circles at its last point
+        said = (tuple(points), round(radius, 1), hold)
+        if said == self._intent_sent and (not points or now - self._intent_at < INTENT_PERIOD_S):
+            return []
+        self._intent_sent, self._intent_at = said, now
+        speed = p.cruise_speed_m_s if p.cruise_speed_m_s > 0 else ap.groundspeed_m_s
+        msg = VehicleIntent(
+            p.vehicle_id,
+            max(0.0, own.time_unix_s),
+            min(max(speed, 0.0), 300.0),
+            min(round(radius, 1), 8000.0),
+            hold,
+            tuple(points),
+        )
+        self._count("intents")
+        return [Publish(msg)]
 
     def _planned(self, ap: AutopilotState, climb_target: float | None) -> float | None:
         """The altitude to come back to: the mission item's (AUTO), the take-off

@@ -300,3 +300,119 @@ def pairwise(k: Kinematic, horizon_s: float) -> Approach:
     )
     margin = k.margin_m[:, None] + k.margin_m[None, :]
     return Approach(a.t_cpa_s, a.miss_m, a.horizontal_m, a.vertical_m, a.range_m, margin)
+
+
+Legs = tuple[FloatArray, FloatArray, FloatArray]  # each leg's start time, position, velocity
+
+
+def straight(pos: FloatArray, vel: FloatArray) -> Legs:
+    """One vehicle keeping its velocity, as legs."""
+    return np.zeros(1), np.asarray(pos, dtype=float)[None, :], np.asarray(vel, dtype=float)[None, :]
+
+
+def along_intent(
+    start: FloatArray,
+    vel: FloatArray,
+    points: FloatArray,
+    speed_m_s: float,
+    turn_radius_m: float,
+    horizon_s: float,
+    *,
+    hold_at_end: bool,
+    step_s: float = 0.5,
+) -> Legs:
+    """The legs of a contact flying its published path: from `start` (moving with `vel`)
+    through `points` ((M, 3), one frame) at `speed_m_s`. A leading point already behind
+    it (its newer intent not heard yet) is skipped. Turning on the spot
+    (`turn_radius_m` 0, a multirotor) this is `along_route`; otherwise it turns no
+    tighter than `turn_radius_m` (a fixed-wing): it steers towards each point and takes
+    the next once abeam of it (ArduPlane's waypoint passing), so a lane's end closer
+    than its turning circle is flown as the loop it is. After the last point it holds
+    there (`hold_at_end`) or goes on straight."""
+    pts = np.asarray(points, dtype=float)
+    p0 = np.asarray(start, dtype=float)
+    v0 = np.asarray(vel, dtype=float)
+    if len(pts) > 1 and float(np.dot(pts[0, :2] - p0[:2], v0[:2])) < 0.0:
+        pts = pts[1:]  # passed: the contact flies to the next one
+    speed = max(speed_m_s, float(np.hypot(v0[0], v0[1])))
+    if turn_radius_m <= 0.0 or speed <= 0.0:
+        times, starts, vels = along_route(p0, pts, speed, horizon_s)
+        if not hold_at_end and len(times) > 1:
+            vels[-1] = vels[-2]  # goes on as it flew the last leg
+        return times, starts, vels
+    omega = speed / turn_radius_m  # its fastest turn, rad/s
+    x, y, z = float(p0[0]), float(p0[1]), float(p0[2])
+    if math.hypot(v0[0], v0[1]) > 0.5:
+        heading = math.atan2(v0[1], v0[0])
+    else:
+        heading = math.atan2(pts[0, 1] - y, pts[0, 0] - x)
+    prev = (x, y)
+    i, n = 0, len(pts)
+    ts: list[float] = []
+    ss: list[tuple[float, float, float]] = []
+    vs: list[tuple[float, float, float]] = []
+    t = 0.0
+    while t < horizon_s:
+        vz = 0.0
+        if i < n:
+            tx, ty, tz = pts[i]
+            want = math.atan2(ty - y, tx - x)
+            turn = (want - heading + math.pi) % (2.0 * math.pi) - math.pi
+            heading += max(-omega * step_s, min(omega * step_s, turn))
+            vz = max(-5.0, min(5.0, (tz - z) / max(step_s, math.hypot(tx - x, ty - y) / speed)))
+        elif hold_at_end:
+            break
+        vx, vy = speed * math.cos(heading), speed * math.sin(heading)
+        ts.append(t)
+        ss.append((x, y, z))
+        vs.append((vx, vy, vz))
+        x, y, z, t = x + vx * step_s, y + vy * step_s, z + vz * step_s, t + step_s
+        if i < n:
+            tx, ty = pts[i, 0], pts[i, 1]
+            lx, ly = tx - prev[0], ty - prev[1]
+            if math.hypot(tx - x, ty - y) < speed * step_s or (lx * (tx - x) + ly * (ty - y)) < 0:
+                prev, i = (tx, ty), i + 1  # reached or abeam: on to the next
+    ts.append(t)  # from here: still (held) or on, straight (the horizon is reached)
+    ss.append((x, y, z))
+    vs.append((0.0, 0.0, 0.0) if hold_at_end else vs[-1] if vs else (0.0, 0.0, 0.0))
+    return np.array(ts), np.array(ss), np.array(vs)
+
+
+def legs_approach(
+    a: Legs, b: Legs, radius_m: float, horizon_s: float
+) -> tuple[float, float, float]:
+    """Closest approach and loss of separation (within `radius_m`) of two vehicles each
+    flying its legs, over [0, horizon]: exact, interval by interval. (t_cpa, miss,
+    entry; entry infinity if never within `radius_m` by the horizon)."""
+    cuts = np.unique(np.concatenate([a[0], b[0], [0.0]]))
+    cuts = cuts[(cuts >= 0.0) & (cuts < horizon_s)]
+    ends = np.append(cuts[1:], horizon_s)
+    spans = ends - cuts
+
+    def at(legs: Legs) -> tuple[FloatArray, FloatArray]:
+        times, starts, vels = legs
+        idx = np.clip(np.searchsorted(times, cuts, side="right") - 1, 0, len(times) - 1)
+        pos = starts[idx] + vels[idx] * (cuts - times[idx])[:, None]
+        return pos, vels[idx]
+
+    pa, va = at(a)
+    pb, vb = at(b)
+    rel_p, rel_v = pb - pa, vb - va
+    # each interval's closest approach and entry, clipped to its own span (vectorised)
+    v2 = np.einsum("ij,ij->i", rel_v, rel_v)
+    pv = np.einsum("ij,ij->i", rel_p, rel_v)
+    p2 = np.einsum("ij,ij->i", rel_p, rel_p)
+    moving = v2 > EPS_SPEED2
+    safe_v2 = np.where(moving, v2, 1.0)
+    t = np.clip(np.where(moving, -pv / safe_v2, 0.0), 0.0, spans)
+    miss = np.linalg.norm(rel_p + rel_v * t[:, None], axis=1)
+    k = int(np.argmin(miss))
+    r2 = radius_m * radius_m
+    disc = pv * pv - v2 * (p2 - r2)
+    te = np.where(moving & (disc >= 0.0), (-pv - np.sqrt(np.maximum(disc, 0.0))) / safe_v2, np.inf)
+    te = np.where(te < 0.0, np.inf, te)
+    te = np.where(p2 <= r2, 0.0, te)
+    te = np.where(te <= spans, te, np.inf)
+    hit = np.flatnonzero(np.isfinite(te))
+    entry = float(cuts[hit[0]] + te[hit[0]]) if hit.size else math.inf
+    return float(cuts[k] + t[k]), float(miss[k]), entry

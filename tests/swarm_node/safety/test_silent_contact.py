@@ -37,8 +37,8 @@ def enu(t: Track) -> tuple[float, float, float]:
 
 
 def info(vid: int, vtype: VehicleType = VehicleType.COPTER, base: bool = True) -> VehicleInfo:
-    home = GeoPoint(LAT0, LON0, HOME)
     lat, lon, _ = geo(0.0, -200.0)
+    home = GeoPoint(lat, lon, HOME)  # its pad, by the base: its RTL's rally point
     return VehicleInfo(
         vid,
         vtype,
@@ -191,3 +191,30 @@ def test_a_bad_route_is_counted_not_taken() -> None:
     av.handle(SilentRoute(3, ((math.nan, 0.0, 40.0),), 10.0), T + 2.0)
     assert av.counters.get("bad_track") == 1
     assert av.predicted(3, T + 5.0) == before
+
+
+def test_its_way_home_ends_on_its_own_pad_not_at_the_base() -> None:
+    """Its autopilot's rally point is its own landing point (landing_point.py): the pad
+    it took off from, 300 m from the base here, not the base."""
+    av = avoider(1, VehicleType.COPTER)
+    pad_lat, pad_lon, _ = geo(300.0, 0.0)
+    base_lat, base_lon, _ = geo(0.0, -200.0)
+    av.handle(
+        VehicleInfo(
+            3,
+            VehicleType.COPTER,
+            "m",
+            "u",
+            cruise_speed_m_s=10.0,
+            home=GeoPoint(pad_lat, pad_lon, HOME),
+            base=GeoPoint(base_lat, base_lon, HOME + 30.0),
+        ),
+        T,
+    )
+    av.handle(status(1, 60.0, 60.0, ALT), T)
+    av.handle(status(3, 0.0, 0.0, ALT, ve=10.0), T)
+    av.on_timer(T)
+    av.handle(Silent(3), T + 2.0)
+    p = av.predicted(3, T + 600.0)
+    assert p is not None
+    assert enu(p)[:2] == pytest.approx((300.0, 0.0), abs=2.0)
