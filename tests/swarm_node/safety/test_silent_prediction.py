@@ -13,7 +13,7 @@ import pytest
 from swarm_node.core.failsafe import COMPANION_TIMEOUT_S
 from swarm_node.core.safety.silent import SilentAircraft, failsafe_after_s
 from swarm_node.core.safety.ttc import Track
-from swarm_proto import GeoPoint, VehicleInfo, VehicleType
+from swarm_proto import VehicleType
 from tests.swarm_node.safety.test_avoidance import HOME, LAT0, LON0, T, status
 
 ALT = 40.0
@@ -27,20 +27,6 @@ def geo(e: float, n: float, up: float = ALT) -> tuple[float, float, float]:
 def enu(t: Track) -> tuple[float, float, float]:
     e, n, u = pymap3d.geodetic2enu(t.lat_deg, t.lon_deg, t.alt_msl_m, LAT0, LON0, HOME)
     return float(e), float(n), float(u)
-
-
-def info(vid: int, vtype: VehicleType = VehicleType.COPTER, base: bool = True) -> VehicleInfo:
-    home = GeoPoint(LAT0, LON0, HOME)
-    lat, lon, _ = geo(0.0, -200.0)
-    return VehicleInfo(
-        vid,
-        vtype,
-        "m",
-        "u",
-        cruise_speed_m_s=10.0,
-        home=home,
-        base=GeoPoint(lat, lon, HOME + 30.0) if base else None,
-    )
 
 
 def copter(route: bool = True) -> SilentAircraft:
