@@ -9,8 +9,8 @@ peers' telemetry and non-cooperative traffic, ticking at 5 Hz.
     PlannedAltitude                          the altitude to come back to (None: where the
                                              manoeuvre started)
     Ceiling                                  the zones' ceiling above home (None: config's)
-    Forget                                   a contact gone for good (left the swarm,
-                                             dismissed by the operator): dropped now
+    Forget                                   a contact gone for good (it left the
+                                             swarm): dropped now
     Silent                                   a member fallen silent: kept as a contact at
                                              its predicted position (silent.py) until heard
                                              again, seen landed or forgotten
