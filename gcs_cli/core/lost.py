@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from swarm_node.core.safety.avoidance import MAX_SPEED_M_S
-from swarm_node.core.safety.silent import SilentAircraft, failsafe_after_s
+from swarm_node.core.safety.silent import SilentAircraft, failsafe_after_s, rally_point
 from swarm_node.core.safety.ttc import BadTrackError, Track
 from swarm_proto import VehicleInfo, VehicleStatus, VehicleType
 
@@ -41,11 +41,10 @@ def predicted(status: VehicleStatus, info: VehicleInfo | None, age_s: float) -> 
     vtype = info.vehicle_type if info is not None else None
     speed = MAX_SPEED_M_S.get(vtype or VehicleType.OTHER, 35.0)
     home_msl = status.alt_msl_m - status.alt_rel_m
-    home = rally = None
+    home = None
     if info is not None and info.home is not None:
         home, home_msl = (info.home.lat_deg, info.home.lon_deg), info.home.alt_msl_m
-    if info is not None and info.base is not None:
-        rally = (info.base.lat_deg, info.base.lon_deg, info.base.alt_msl_m)
+    rally = rally_point(info)
     t = status.time_unix_s
     track = Track.from_status(status, time_s=t, max_speed_m_s=speed)
     a = SilentAircraft(

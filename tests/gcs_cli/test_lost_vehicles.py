@@ -36,9 +36,8 @@ def flying(vid: int, t: float, **kw: object) -> VehicleStatus:
 
 def info(vid: int) -> VehicleInfo:
     base = GeoPoint(LAT - 0.002, LON, 40.0)
-    return VehicleInfo(
-        vid, VehicleType.COPTER, "quad", f"Q-{vid}", home=GeoPoint(LAT, LON, 10.0), base=base
-    )
+    pad = GeoPoint(LAT - 0.002, LON + 0.0003, 10.0)  # its pad by the base: its RTL's end
+    return VehicleInfo(vid, VehicleType.COPTER, "quad", f"Q-{vid}", home=pad, base=base)
 
 
 def test_the_map_keeps_a_lost_vehicle_predicted_until_dismissed() -> None:

@@ -104,8 +104,7 @@ from swarm_proto.text import short_text
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
 from ..autopilot.state import AdsbReport
 from ..autopilot.tracker import parse_adsb
-from ..landing_point import landing_point
-from .silent import SilentAircraft, failsafe_after_s
+from .silent import SilentAircraft, failsafe_after_s, rally_point
 from .ttc import (
     BadTrackError,
     Frame,
@@ -443,16 +442,11 @@ class CollisionAvoider:
         info = self._infos.get(vid)
         vtype = self._types.get(vid)
         home_msl = c.track.alt_msl_m - c.alt_rel_m if math.isfinite(c.alt_rel_m) else 0.0
-        home = rally = None
+        home = None
         if info is not None and info.home is not None:
             home = (info.home.lat_deg, info.home.lon_deg)
             home_msl = info.home.alt_msl_m
-        if info is not None and info.base is not None:
-            # its autopilot's rally point: its own landing point (its pad, or its slot
-            # at the base: landing_point.py, the same on every node)
-            b = info.base
-            at = landing_point(vid, info.home, b) if info.home is not None else None
-            rally = (*(at or (b.lat_deg, b.lon_deg)), b.alt_msl_m)
+        rally = rally_point(info)
         self._silent[vid] = SilentAircraft(
             c.track,
             vtype,

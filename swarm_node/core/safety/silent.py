@@ -36,9 +36,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarm_proto import VehicleType, geodesy
+from swarm_proto import VehicleInfo, VehicleType, geodesy
 
 from ..failsafe import COMPANION_TIMEOUT_S, failsafe_params
+from ..landing_point import landing_point
 from .ttc import Track
 
 MULTIROTOR_TYPES = frozenset({VehicleType.COPTER})
@@ -46,6 +47,18 @@ MULTIROTOR_TYPES = frozenset({VehicleType.COPTER})
 # (the node sets Q_RTL_MODE 1: RTL switches to QRTL there; failsafe.py); a plane circles
 LANDS_AT_RALLY = frozenset({VehicleType.COPTER, VehicleType.VTOL})
 LOITER_RADIUS_M = 60.0  # ArduPlane's WP_LOITER_RAD default: how wide it circles its rally point
+
+
+def rally_point(info: VehicleInfo | None) -> tuple[float, float, float] | None:
+    """Where a member's RTL goes (lat, lon, alt MSL): its autopilot's rally point, which
+    its node set at its own landing point (its pad, or its slot at the base:
+    landing_point.py, the same on every node and the ground station), at the base's
+    height; None without a base (its RTL goes home)."""
+    if info is None or info.base is None:
+        return None
+    b = info.base
+    at = landing_point(info.vehicle_id, info.home, b) if info.home is not None else None
+    return (*(at or (b.lat_deg, b.lon_deg)), b.alt_msl_m)
 
 
 def failsafe_after_s(vehicle_type: VehicleType | None) -> float | None:

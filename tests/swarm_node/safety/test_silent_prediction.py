@@ -102,3 +102,20 @@ def test_a_quadplane_lands_at_its_rally_point_where_a_plane_would_circle() -> No
     )
     assert vtol.predict(T + 3600.0).phase == "landed"
     assert enu(vtol.predict(T + 3600.0).track)[:2] == pytest.approx((0.0, -200.0), abs=1.0)
+
+
+def test_its_rtl_ends_at_its_own_landing_point_on_every_node_and_the_ground_station() -> None:
+    """rally_point: where its node put its autopilot's rally point (landing_point.py):
+    its pad when based near the base, else its slot there; no base, no rally point."""
+    from swarm_node.core.landing_point import assigned_slot
+    from swarm_node.core.safety.silent import rally_point
+    from swarm_proto import GeoPoint, VehicleInfo
+
+    base = GeoPoint(*geo(0.0, -200.0)[:2], HOME + 30.0)
+    pad = GeoPoint(*geo(300.0, 0.0)[:2], HOME)
+    near = VehicleInfo(3, VehicleType.COPTER, "m", "u", home=pad, base=base)
+    assert rally_point(near) == (pad.lat_deg, pad.lon_deg, base.alt_msl_m)
+    far = GeoPoint(*geo(5000.0, 0.0)[:2], HOME)
+    away = VehicleInfo(3, VehicleType.COPTER, "m", "u", home=far, base=base)
+    assert rally_point(away) == (*assigned_slot(3, base), base.alt_msl_m)
+    assert rally_point(VehicleInfo(3, VehicleType.COPTER, "m", "u", home=pad)) is None
