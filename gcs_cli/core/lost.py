@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from swarm_node.core.safety.avoidance import MAX_SPEED_M_S
-from swarm_node.core.safety.silent import SilentAircraft, failsafe_after_s, rally_point
+from swarm_node.core.safety.silent import SilentAircraft
 from swarm_node.core.safety.ttc import BadTrackError, Track
 from swarm_proto import VehicleInfo, VehicleStatus, VehicleType
 
@@ -40,23 +40,10 @@ def predicted(status: VehicleStatus, info: VehicleInfo | None, age_s: float) -> 
     lat, lon, alt_msl_m, alt_rel_m, error_m (the bound of the prediction) and phase."""
     vtype = info.vehicle_type if info is not None else None
     speed = MAX_SPEED_M_S.get(vtype or VehicleType.OTHER, 35.0)
-    home_msl = status.alt_msl_m - status.alt_rel_m
-    home = None
-    if info is not None and info.home is not None:
-        home, home_msl = (info.home.lat_deg, info.home.lon_deg), info.home.alt_msl_m
-    rally = rally_point(info)
     t = status.time_unix_s
     track = Track.from_status(status, time_s=t, max_speed_m_s=speed)
-    a = SilentAircraft(
-        track,
-        vtype,
-        home_msl,
-        None,
-        info.cruise_speed_m_s if info is not None else 0.0,
-        rally,
-        home,
-        failsafe_after_s(vtype),
-    )
+    a = SilentAircraft.of(track, vtype, info, status.alt_msl_m - status.alt_rel_m)
+    home_msl = a.home_msl_m
     p = a.predict(t + max(0.0, age_s))
     return {
         "lat": round(p.track.lat_deg, 7),

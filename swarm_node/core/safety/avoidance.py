@@ -104,7 +104,7 @@ from swarm_proto.text import short_text
 from ..autopilot.requests import ApRequest, ChangeAltitude, Goto, SetMode
 from ..autopilot.state import AdsbReport
 from ..autopilot.tracker import parse_adsb
-from .silent import SilentAircraft, failsafe_after_s, rally_point
+from .silent import SilentAircraft
 from .ttc import (
     BadTrackError,
     Frame,
@@ -442,21 +442,7 @@ class CollisionAvoider:
         info = self._infos.get(vid)
         vtype = self._types.get(vid)
         home_msl = c.track.alt_msl_m - c.alt_rel_m if math.isfinite(c.alt_rel_m) else 0.0
-        home = None
-        if info is not None and info.home is not None:
-            home = (info.home.lat_deg, info.home.lon_deg)
-            home_msl = info.home.alt_msl_m
-        rally = rally_point(info)
-        self._silent[vid] = SilentAircraft(
-            c.track,
-            vtype,
-            home_msl,
-            None,
-            info.cruise_speed_m_s if info is not None else 0.0,
-            rally,
-            home,
-            failsafe_after_s(vtype),
-        )
+        self._silent[vid] = SilentAircraft.of(c.track, vtype, info, home_msl)
         self._count("silent")
 
     def _silent_route(self, ev: SilentRoute) -> None:

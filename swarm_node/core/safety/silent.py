@@ -105,6 +105,32 @@ class SilentAircraft:
     failsafe_s: float | None = COMPANION_TIMEOUT_S
     model: SilentModel = SilentModel()
 
+    @classmethod
+    def of(
+        cls,
+        last: Track,
+        vehicle_type: VehicleType | None,
+        info: VehicleInfo | None,
+        home_msl_m: float,
+    ) -> SilentAircraft:
+        """From its last report and what its VehicleInfo says: its home (and its
+        height, else `home_msl_m` from the report), its cruise speed, its rally point
+        (`rally_point`) and its type's failsafe. The avoider and the ground station
+        predict alike."""
+        home = None
+        if info is not None and info.home is not None:
+            home, home_msl_m = (info.home.lat_deg, info.home.lon_deg), info.home.alt_msl_m
+        return cls(
+            last,
+            vehicle_type,
+            home_msl_m,
+            None,
+            info.cruise_speed_m_s if info is not None else 0.0,
+            rally_point(info),
+            home,
+            failsafe_after_s(vehicle_type),
+        )
+
     def with_route(
         self, route: Sequence[tuple[float, float, float]], speed_m_s: float
     ) -> SilentAircraft:
