@@ -210,6 +210,9 @@ class Ceiling:
 
 @dataclass(frozen=True, slots=True)
 class Forget:
+    """A peer gone from the swarm: no contact any more. The own id: the own position is
+    unknown (its autopilot rebooted, no fix yet), nothing is flown until a status."""
+
     vehicle_id: int
 
 
@@ -370,6 +373,10 @@ class CollisionAvoider:
                 self._planned_rel = ev.alt_rel_m
             case Ceiling():
                 self._zone_ceiling_rel = ev.alt_rel_m
+            case Forget() if ev.vehicle_id == self.config.own_id:
+                # the own position is unknown (an autopilot rebooted: no fix yet): the
+                # last status is no ground to manoeuvre on
+                self._own = None
             case Forget():
                 self._contacts.pop(ev.vehicle_id, None)
                 self._heard.pop(ev.vehicle_id, None)

@@ -270,6 +270,8 @@ class AvoidanceModule:
             av.handle(PlannedAltitude(self._planned(ap, climb_target_rel_m)), now)
             av.handle(Ceiling(self._ceiling(own, zones, now)), now)
             av.handle(self._route(ap), now)
+        else:  # no own position (a rebooted autopilot has no fix yet): nothing to fly
+            av.handle(Forget(self.profile.vehicle_id), now)
         for r in ap.traffic:
             if self._traffic_seen.get(r.icao_address) != r.time_s:
                 self._traffic_seen[r.icao_address] = r.time_s

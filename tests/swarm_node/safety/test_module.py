@@ -441,3 +441,27 @@ def test_a_held_mission_request_the_arbiter_will_refuse_does_not_replace_the_res
         Routed(Owner.MISSION, ApResult(3, False, "preempted by OPERATOR", error=ApError.PREEMPTED))
         in refused
     )
+
+
+def test_with_no_own_position_nothing_is_flown_on_the_last_status() -> None:
+    """An autopilot rebooted in flight comes back with no fix (the node's status is
+    None): the avoider does not manoeuvre on the last status it had (armed, 60 m up),
+    and a manoeuvre under way ends; a fix back, it flies again (found over real
+    processes: a rebooted copter asked to climb)."""
+    m = AvoidanceModule(COPTER, items=MISSION_ITEMS)
+    state = ap(groundspeed_m_s=10.0, vel_east_m_s=10.0)
+    m.on_peer(head_on_peer(T, east_m=300.0, vid=7), T)
+    assert requests(m.tick(T, status(8, state, T), state))  # a manoeuvre
+    rebooted = AutopilotState(sysid=8, link_ok=True, armed=False, mode_name="STABILIZE")
+    now, out = T, []
+    for _ in range(10):
+        now += 0.2
+        m.on_peer(head_on_peer(now, east_m=300.0, vid=7), now)
+        out += m.tick(now, None, rebooted)
+    assert not requests(out)
+    assert m.avoider.manoeuvring is None and m.suspension is None
+    assert any(isinstance(o, Publish) and "off" in getattr(o.msg, "text", "") for o in out)
+    # a peer still head-on, nothing manoeuvres from an unknown position: a fix back, it does
+    now += 0.2
+    m.on_peer(head_on_peer(now, east_m=300.0, vid=7), now)
+    assert requests(m.tick(now, status(8, state, now), state))
