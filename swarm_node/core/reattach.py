@@ -16,9 +16,12 @@ without arming anything:
    - HAND_ON: a peer flies the mission with a newer roster without this vehicle (they
      noticed its loss and inherited its share), or the vehicle left AUTO:
      it leaves the fleet and flies the zone-safe way home (`LeftFleet`);
-   - with no share on record (a new database, a disk that was full), a share of ours
-     on the autopilot (it ends on the unlimited loiter every share ends on) in AUTO
-     while peers fly a mission: they took it over since the node vanished, HAND_ON;
+   - with no share on record (a new database, a disk that was full), or a share of ours
+     on the autopilot other than the one on record (a replan uploaded as the node
+     died), a share of ours on the autopilot (it ends on the unlimited loiter every
+     share ends on) in a mode the node flies it in (AUTO, or GUIDED: an avoidance
+     manoeuvre) while peers fly a mission: they took it over since the node vanished,
+     HAND_ON;
    - LEAVE: the vehicle is flying something that is not a share of ours (a different
      mission on the autopilot, no peer on a mission): nothing is commanded, the
      operator is told.
@@ -55,6 +58,9 @@ SETTLE_S = 2.5  # hear every peer's VehicleInfo (1 Hz) before deciding
 GIVE_UP_S = 60.0  # no state machine ready by then: leave the vehicle to the operator
 RETRY_S = 3.0
 AUTO_MODES = frozenset({"AUTO"})
+# the modes a node flies its share in: its mission, an avoidance manoeuvre (a pilot's
+# modes, LOITER or STABILIZE, are the operator's)
+OWN_MODES = frozenset({"AUTO", "GUIDED"})
 
 
 class Decision(Enum):
@@ -87,23 +93,29 @@ def decide(
 ) -> tuple[Decision, str]:
     """What to do with a vehicle found flying, and why (pure)."""
     peers = list(peers)
+    flying = [
+        i.vehicle_id
+        for i in peers
+        if i.vehicle_id != self_id
+        and i.mission_id
+        and i.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)
+    ]
+    # a share of ours on the autopilot, flown as the node flies it, while peers fly a
+    # mission: they have taken it over since we vanished
+    ours = ap.mode_name in OWN_MODES and ends_on_a_loiter(held) and bool(flying)
     if record is None:
-        # no share on record (a new database, a full disk): a share of ours in AUTO
-        # while peers fly a mission means they have taken it over since we vanished
-        flying = [
-            i.vehicle_id
-            for i in peers
-            if i.vehicle_id != self_id
-            and i.mission_id
-            and i.fsm_state in (FsmState.PLAN, FsmState.GO_MISSION)
-        ]
-        if ap.mode_name in AUTO_MODES and ends_on_a_loiter(held) and flying:
+        if ours:
             return Decision.HAND_ON, (
-                f"no share on record; its share's signature on the autopilot while "
-                f"{flying[0]} flies a mission"
+                f"no share on record; its share's signature on the autopilot "
+                f"({ap.mode_name}) while {flying[0]} flies a mission"
             )
         return Decision.LEAVE, "flying, with no share of ours on record"
     if len(held) != record.items:
+        if ours:
+            return Decision.HAND_ON, (
+                f"a share of ours on the autopilot ({len(held)} items, not the "
+                f"{record.items} on record) while {flying[0]} flies a mission"
+            )
         return Decision.LEAVE, (
             f"the autopilot holds {len(held)} mission items, not the share of mission "
             f"{record.mission_id} ({record.items})"

@@ -110,3 +110,32 @@ def test_in_a_fleet_that_took_its_share_it_hands_it_on(fleet_profiles: dict) -> 
         lambda: any(a.code == AlertCode.MISSION_COMPLETE for a in fleet.messages(Alert, sender=1)),
         900,
     )
+
+
+def test_a_replan_in_the_air_keeps_the_share_on_record_until_it_is_flown(
+    fleet_profiles: dict,
+) -> None:
+    """While a replan's share is not flown yet (its upload held by an avoidance
+    manoeuvre: the manager STARTING it in the air), the autopilot still holds the share
+    on record, and so does the database: a node killed then finds it and hands on (a
+    restart that found no share on record left its copter hovering until its battery
+    ran out: the campaign's reboot in flight over real processes)."""
+    from swarm_node.core.mission.phases import Phase
+
+    fleet = on_mission(fleet_profiles, [1, 3], 150.0)
+    v = fleet.vehicles[3]
+
+    def far_enough() -> bool:
+        m = v.node.manager
+        return m.share is not None and m.share_progress_m() >= 0.3 * m.share.length_m
+
+    assert fleet.run_until(far_enough, 900)
+    flown = v.node.mission.record
+    assert flown is not None and flown.mission_id == 70
+    m = v.node.manager
+    m.phase, m.items = Phase.STARTING, flown.items + 4  # the replan's share, uploading
+    v.node.mission.keep_record(fleet.now)
+    assert v.node.mission.record == flown
+    m.phase = Phase.FLYING  # flown: recorded
+    v.node.mission.keep_record(fleet.now)
+    assert v.node.mission.record is not None and v.node.mission.record.items == flown.items + 4

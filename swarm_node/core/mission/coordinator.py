@@ -973,6 +973,16 @@ class MissionCoordinator:
         flying = m.phase == Phase.FLYING
         if self.record is None and not flying:
             return changed  # no share flown, none recorded: nothing to keep (most inputs)
+        if (
+            not flying
+            and m.phase == Phase.STARTING
+            and self.record is not None
+            and m.mission_id == self.record.mission_id
+        ):
+            # a replan in the air, its share not flown yet (an avoidance manoeuvre may
+            # hold its upload): the autopilot still holds the share on record, the one
+            # a restart now must decide with (reattach.py)
+            return changed
         rec = sortie_record(
             mission_id=m.mission_id,
             flying=flying,
