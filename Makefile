@@ -96,7 +96,7 @@ bench: $(STAMP) browser
 	$(BIN)/python -m bench $(BENCH)
 
 ## faults: the fault campaign (docs/reliability.md): faults x missions in
-## FastFleet and over real processes, writes bench/results/faults.json (about 20 min).
+## FastFleet and over real processes, writes bench/results/faults.json (about 50 min).
 ## BANDADA_FAULTS=fast runs only the FastFleet part; the smoke subset is in `make test`.
 faults: $(STAMP)
 	$(BIN)/python -m bench faults

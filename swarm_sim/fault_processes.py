@@ -8,8 +8,15 @@ the ground (empty stores), the system clock stepped +1 h (`stepping:` clock), th
 full under its database (a tmpfs mounted for the run with no byte free: root only; then
 a kill and a restart),
 and its database file corrupted while it was down (the node refuses it with a one-line
-error; started again on a new file). Partitions and message loss need a network
-namespace with netem and are measured in FastFleet only.
+error; started again on a new file). Four rows fly three quadcopters (7, 8, 9), each
+node with its own database, as a field engineer tries them: node 8 SIGTERMed for 10 s
+while its aircraft flies on (no peer may come within 15 m of aircraft 8), the router
+closed and opened again on its endpoint 3 s later (within the silent hold) and 20 s
+later (every node replanned alone: the fleet must merge back), one fleet again within 10
+s of the nodes' reconnection, and autopilot 8 rebooted in flight (its share handed on
+within 5 s, then node 9 killed and restarted for an unrelated replan; it must not arm
+again). Message loss and a partition between nodes need a network namespace with netem
+and are measured in FastFleet only.
 
 Truth is the simulator's (it runs in this process): every 0.2 s a sampler reads each
 simulated vehicle's true position, its arming and its node's last reported mission
@@ -72,12 +79,22 @@ from .runtime import VehicleServer, VehicleSpec, spread_homes
 from .scenarios import square
 
 MEMBERS = (7, 8)
+THREE = (7, 8, 9)
 VICTIM = 8
+CLEAR_OF_VICTIM_M = 15.0  # no peer this close to a dead node's aircraft
+ONE_FLEET_S = 10.0  # one fleet again this soon after the nodes reconnect
+HANDED_ON_S = 5.0  # a rebooted autopilot's share handed on this soon
 ALT_M = 25.0
 HALF_M = 40.0
 MISSION_ID = 170
 GCS_ID = 900
-MISSION_NAME = "survey, 2 quadcopters (real processes, 1x)"
+
+
+def mission_name(members: tuple[int, ...]) -> str:
+    return f"survey, {len(members)} quadcopters (real processes, 1x)"
+
+
+MISSION_NAME = mission_name(MEMBERS)
 
 
 def _free_port() -> int:
@@ -149,8 +166,14 @@ class Rig:
     area: Geometry
     frame: LocalFrame
     base: GeoPoint
+    members: tuple[int, ...] = MEMBERS
+    router_endpoint: str = ""
     zones: dict[int, NoFlyZone] = field(default_factory=dict)
     fleets: dict[int, int] = field(default_factory=dict)
+    heard_at: dict[int, float] = field(default_factory=dict)  # monotonic: last INFO
+    # the closest any other vehicle came to the victim's aircraft since `watch_victim`
+    victim_closest_m: float = math.inf
+    victim_watched: bool = False
     statuses: list[VehicleStatus] = field(default_factory=list)
     infos: list[VehicleInfo] = field(default_factory=list)
     alerts: list[Alert] = field(default_factory=list)
@@ -173,7 +196,7 @@ class Rig:
             vid = sim.sysid
             n, east = self.frame.to_local(*sim.latlon)
             up = not sim.body.on_ground
-            at.append((n, east, sim.body.alt, up))
+            at.append((vid, n, east, sim.body.alt, up))
             armed = bool(sim.armed)
             if armed and not self._armed.get(vid, False):
                 since = self.rebooted_at.get(vid)
@@ -187,11 +210,13 @@ class Rig:
             ):
                 with self.lock:
                     self.true_tracks.setdefault(vid, []).append((n, east))
-        for i, (n1, e1, a1, up1) in enumerate(at):
-            for n2, e2, a2, up2 in at[i + 1 :]:
+        for i, (v1, n1, e1, a1, up1) in enumerate(at):
+            for v2, n2, e2, a2, up2 in at[i + 1 :]:
                 if up1 or up2:
                     d = math.sqrt((n1 - n2) ** 2 + (e1 - e2) ** 2 + (a1 - a2) ** 2)
                     self.min_true_sep_m = min(self.min_true_sep_m, d)
+                    if self.victim_watched and VICTIM in (v1, v2):
+                        self.victim_closest_m = min(self.victim_closest_m, d)
 
     def watch_truth(self) -> None:
         """Sample the truth every 0.2 s until `close`."""
@@ -205,6 +230,27 @@ class Rig:
 
     def declared(self) -> None:
         self.declared_at = time.monotonic()
+
+    def watch_victim(self) -> None:
+        """From now on, also the closest any vehicle comes to the victim's aircraft."""
+        self.victim_watched = True
+
+    def restart_router(self, down_s: float) -> float:
+        """Close the router and open it again `down_s` later on the same endpoint (what
+        a restarted lab router does); the monotonic time it is back."""
+        self.router.close()  # type: ignore[attr-defined]
+        time.sleep(down_s)
+        self.router = open_session(ZenohSettings(mode="router", listen=(self.router_endpoint,)))
+        return time.monotonic()
+
+    def fresh_infos(self, since: float) -> dict[int, VehicleInfo]:
+        """Each member's last VehicleInfo, if it came after `since` (monotonic)."""
+        out = {}
+        for vid in self.members:
+            i = self.info(vid)
+            if i is not None and self.heard_at.get(vid, -math.inf) > since:
+                out[vid] = i
+        return out
 
     # -------------------------------------------------------------- observation
     def info(self, vid: int) -> VehicleInfo | None:
@@ -235,7 +281,7 @@ class Rig:
             and not s.armed
             and s.alt_rel_m < 2.0
             and s.mission_state == MissionState.IDLE
-            for v in MEMBERS
+            for v in self.members
         )
 
     def coverage(self) -> float:
@@ -350,16 +396,18 @@ def start_rig(
     victim_env: dict[str, str] | None = None,
     victim_db: bool = False,
     victim_limit: bool = False,
+    members: tuple[int, ...] = MEMBERS,
+    own_dbs: bool = False,
 ) -> Rig:
     from gcs_cli.ground import GroundStation
 
     swarm = f"f{os.getpid()}{int(time.time()) % 10000}"
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
-    homes = spread_homes(SITL_HOME, len(MEMBERS), 30.0)
+    homes = spread_homes(SITL_HOME, len(members), 30.0)
     specs = [
         VehicleSpec("copter", instance=i, port=_free_port(), home=homes[i], sysid=vid)
-        for i, vid in enumerate(MEMBERS)
+        for i, vid in enumerate(members)
     ]
     server = VehicleServer(specs, SystemClock())
     server.start_thread()
@@ -368,8 +416,11 @@ def start_rig(
     env = {**os.environ, "BANDADA_DB": str(shared), "PYTHONUNBUFFERED": "1"}
     env.pop("BANDADA_CLOCK", None)
     nodes: dict[int, Node] = {}
-    for vid, spec in zip(MEMBERS, specs, strict=True):
+    for vid, spec in zip(members, specs, strict=True):
         own_db = None
+        if own_dbs:  # each node its own database, as on separate vehicles
+            own_db = tmp / f"node-{vid}.db"
+            shutil.copyfile(shared, own_db)
         if vid == VICTIM and (victim_db or victim_limit):
             own_db = tmp / "victim.db"
             shutil.copyfile(shared, own_db)
@@ -394,14 +445,21 @@ def start_rig(
         area,
         LocalFrame.at(list(area.points)),
         GeoPoint(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m),
+        members=members,
+        router_endpoint=endpoint,
     )
 
     def keep(into: list, msg: object, key: str) -> None:
         with rig.lock:
             into.append(msg)
 
+    def keep_info(msg: VehicleInfo, key: str) -> None:
+        with rig.lock:
+            rig.infos.append(msg)
+            rig.heard_at[msg.vehicle_id] = time.monotonic()
+
     bus.subscribe(STATUS, lambda m, k: keep(rig.statuses, m, k))
-    bus.subscribe(INFO, lambda m, k: keep(rig.infos, m, k))
+    bus.subscribe(INFO, keep_info)
     bus.subscribe(ALERT, lambda m, k: keep(rig.alerts, m, k))
     rig.watch_truth()
     return rig
@@ -415,7 +473,7 @@ def declare_all(rig: Rig) -> None:
             and v.status[i].gps_fix >= 3
             and i in v.info
             and v.info[i].home is not None
-            for i in MEMBERS
+            for i in rig.members
         ),
         120,
     )
@@ -425,11 +483,11 @@ def declare_all(rig: Rig) -> None:
     gs.command(CommandKind.SET_BASE, Selector(), CommandArgs(point=rig.base), timeout_s=15.0)  # type: ignore[attr-defined]
     gs.command(  # type: ignore[attr-defined]
         CommandKind.SET_FLEET,
-        Selector(SelectorKind.IDS, MEMBERS),
+        Selector(SelectorKind.IDS, rig.members),
         CommandArgs(fleet_id=4),
         timeout_s=15.0,
     )
-    rig.fleets = dict.fromkeys(MEMBERS, 4)
+    rig.fleets = dict.fromkeys(rig.members, 4)
     tower = NoFlyZone(
         1, Geometry.circle(SITL_HOME.lat_deg - 0.002, SITL_HOME.lon_deg + 0.002, 30.0), name="tower"
     )
@@ -445,7 +503,9 @@ def declare_all(rig: Rig) -> None:
     for z in (tower, field_):
         held = gs.zones_held(z.zone_id, timeout_s=2.0)  # type: ignore[attr-defined]
         rig.zones[z.zone_id] = next(iter(held.values()))
-    if not gs.wait_for(lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in MEMBERS), 60):  # type: ignore[attr-defined]
+    if not gs.wait_for(  # type: ignore[attr-defined]
+        lambda v: all(v.fsm_state(i) == FsmState.GO_MISSION for i in rig.members), 60
+    ):
         raise RuntimeError("vehicles never became ready")
 
 
@@ -671,6 +731,113 @@ def p_corrupt(rig: Rig) -> Outcome:
     )
 
 
+def _reattached(n: Node) -> str:
+    line = next(
+        (ln for ln in n.log.read_text(errors="replace").splitlines() if "reattached:" in ln), ""
+    )
+    return line.split(f"node {n.vid}: ")[-1][:120]
+
+
+def p_sigterm(rig: Rig) -> Outcome:
+    """Node 8 stopped (SIGTERM) for 10 s at 40 % of its share, then started again: its
+    aircraft flies on; no peer may come within 15 m of it (`run_process_fault` judges
+    that from the true positions to the end of the flight)."""
+    if not _at(rig):
+        return Outcome(None, "never reached 40 %", ok=False)
+    n = rig.nodes[VICTIM]
+    rig.watch_victim()
+    t0 = time.monotonic()
+    n.signal(signal.SIGTERM)
+    code = n.proc.wait(15)  # type: ignore[union-attr]
+    time.sleep(max(0.0, t0 + 10.0 - time.monotonic()))
+    n.start()
+    ok = rig.wait(lambda: "reattached:" in n.log.read_text(errors="replace"), 90)
+    return Outcome(
+        time.monotonic() - t0 if ok else None,
+        f"SIGTERM (exit {code}), started 10 s later: {_reattached(n)}",
+        ok,
+    )
+
+
+def p_router(rig: Rig, down_s: float = 3.0) -> Outcome:
+    """The router closed at 30 % of the victim's share and opened again `down_s` later
+    on its endpoint. Recovered when every member flying the mission reports one roster
+    hash, counted from the nodes' reconnection (each member heard again): at most 10 s.
+    Down 3 s, the members are back within the silent hold (nobody replans); down 20 s,
+    each node has replanned alone and the fleet must merge back."""
+    if not _at(rig, 0.3):
+        return Outcome(None, "never reached 30 %", ok=False)
+    with rig.lock:
+        before = {i.members_hash for i in rig.infos if i.mission_id == MISSION_ID}
+    up = rig.restart_router(down_s)
+    back = rig.wait(lambda: len(rig.fresh_infos(up)) == len(rig.members), 60, period_s=0.05)
+    if not back:
+        return Outcome(None, "the nodes never reconnected to the restarted router", ok=False)
+    reconnected = max(rig.heard_at[v] for v in rig.members)
+
+    def one_fleet() -> bool:
+        infos = rig.fresh_infos(reconnected)
+        flying = [i for i in infos.values() if i.mission_id == MISSION_ID]
+        return len(infos) == len(rig.members) and len({i.members_hash for i in flying}) <= 1
+
+    ok = rig.wait(one_fleet, 60, period_s=0.05)
+    merged = time.monotonic() - reconnected
+    with rig.lock:
+        hashes = {i.members_hash for i in rig.infos if i.mission_id == MISSION_ID}
+        mismatch = sum(a.code == AlertCode.ROSTER_MISMATCH for a in rig.alerts)
+    return Outcome(
+        merged if ok else None,
+        f"router down {down_s:.0f} s; every node heard {reconnected - up:.1f} s after it was back; "
+        f"one fleet {merged:.1f} s after that; {len(hashes - before)} roster(s) besides the "
+        f"first, {mismatch} ROSTER_MISMATCH alert(s)",
+        ok and merged <= ONE_FLEET_S,
+    )
+
+
+def p_reboot_in_flight(rig: Rig) -> Outcome:
+    """Autopilot 8 rebooted at 40 % of its share (it boots again disarmed where it
+    stands, `SimAutopilot.rebooted`); recovered when node 8 left the mission and every
+    peer flies under a new roster, one for all (at most 5 s). Then node 9 is killed and
+    restarted 5 s later, 20 s on (an unrelated replan): nothing may arm vehicle 8."""
+    if not _at(rig):
+        return Outcome(None, "never reached 40 %", ok=False)
+    peers = [v for v in rig.members if v != VICTIM]
+    before = {rig.info(v).members_hash for v in peers}  # type: ignore[union-attr]
+    t0 = time.monotonic()
+    rig.rebooted_at[VICTIM] = t0
+    rig.server.reboot(VICTIM)
+
+    def handed_on() -> bool:
+        infos = rig.fresh_infos(t0)
+        if len(infos) < len(rig.members):
+            return False
+        st = rig.status(VICTIM)
+        left = infos[VICTIM].mission_id != MISSION_ID or (
+            st is not None
+            and st.mission_state not in (MissionState.MISSION, MissionState.PREMISSION)
+        )
+        theirs = {infos[v].members_hash for v in peers if infos[v].mission_id == MISSION_ID}
+        return left and len(theirs) == 1 and not theirs & before
+
+    ok = rig.wait(handed_on, 60, period_s=0.05)
+    recover = time.monotonic() - t0
+    time.sleep(20.0)
+    other = max(peers)
+    n = rig.nodes[other]
+    n.signal(signal.SIGKILL)
+    n.proc.wait(10)  # type: ignore[union-attr]
+    time.sleep(5.0)
+    n.start()
+    rig.wait(lambda: "reattached:" in n.log.read_text(errors="replace"), 60)
+    rig.wait(rig.landed, 600, period_s=0.5)
+    return Outcome(
+        recover if ok else None,
+        f"share handed on {recover:.1f} s after the reboot; node {other} killed and "
+        f"restarted 20 s later ({_reattached(n)}); {rig.unexpected_arms} unexpected arm(s)",
+        ok and recover <= HANDED_ON_S and rig.unexpected_arms == 0,
+    )
+
+
 PROCESS_FAULTS: dict[str, Callable[[Rig], Outcome]] = {
     "none": p_none,
     "kill -9 a node (restarted after 5 s)": p_kill,
@@ -679,6 +846,17 @@ PROCESS_FAULTS: dict[str, Callable[[Rig], Outcome]] = {
     "clock jump +1 h on one node": p_clock,
     "disk full on the database": p_disk_full,
     "corrupted database at start (new one)": p_corrupt,
+    "node down 10 s (its aircraft flies on)": p_sigterm,
+    "restart the router (down 3 s)": p_router,
+    "restart the router (down 20 s)": lambda rig: p_router(rig, 20.0),
+    "reboot an autopilot in flight": p_reboot_in_flight,
+}
+# the faults flown by three quadcopters, each node with its own database
+ON_THREE = {
+    "node down 10 s (its aircraft flies on)",
+    "restart the router (down 3 s)",
+    "restart the router (down 20 s)",
+    "reboot an autopilot in flight",
 }
 
 
@@ -706,6 +884,9 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
         kw["victim_limit"] = True
     if name.startswith("corrupted"):
         kw["victim_db"] = True
+    members = THREE if name in ON_THREE else MEMBERS
+    if name in ON_THREE:
+        kw |= {"members": THREE, "own_dbs": True}
     rig = start_rig(tmp, **kw)  # type: ignore[arg-type]
     note, completed, coverage, lost, false, emerg = "", False, 0.0, 0, 0, Counter[str]()
     outcome = Outcome(None, "not run", ok=False)
@@ -739,6 +920,10 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
             if a.code == AlertCode.AUTOPILOT_LINK_LOSS and a.severity >= Severity.CRITICAL
         )
         note = outcome.note + ("" if finished else "; not all landed in time")
+        if rig.victim_watched:
+            closest = rig.victim_closest_m
+            note += f"; closest to aircraft {VICTIM} after the fault: {closest:.1f} m (true)"
+            outcome.ok = outcome.ok and closest >= CLEAR_OF_VICTIM_M
         counts = Counter(
             f"{a.severity.name} {a.code.name}" for a in alerts if a.severity >= Severity.WARNING
         )
@@ -763,7 +948,7 @@ def run_process_fault(name: str, keep: Path | None = None) -> FaultRow:
     )
     return FaultRow(
         fault=name,
-        mission=MISSION_NAME,
+        mission=mission_name(members),
         env="processes",
         recovered=recovered,
         recover_s=None if outcome.recover_s is None else round(outcome.recover_s, 2),

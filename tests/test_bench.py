@@ -290,11 +290,25 @@ def test_fault_campaign_rows() -> None:
         "corrupted database at start (new one)",
     }
     assert {r["env"] for r in rows} == {"fast", "processes"}
+    # a dead node, a router restart, a reboot in flight over real processes: three quadcopters, judged from true positions
+    over_processes = {r["fault"]: r for r in rows if r["env"] == "processes"}
+    for fault in (
+        "node down 10 s (its aircraft flies on)",
+        "restart the router (down 3 s)",
+        "restart the router (down 20 s)",
+        "reboot an autopilot in flight",
+    ):
+        row = over_processes[fault]
+        assert row["recovered"] and row["mission"].startswith("survey, 3 quadcopters"), row
+        assert row["unexpected_arms"] == 0 and row["min_true_sep_m"] >= 10.0, row
     for row in rows:
         assert all(k in row for k in FAULT_ROW), row
         assert isinstance(row["recovered"], bool)
         assert row["declared_state_lost"] == 0 and row["false_emergencies"] == 0, row
     assert data["baseline"] and all(r["fault"] == "none" for r in data["baseline"])
+    # README: every fault recovered, no two aircraft under 10 m, no rebooted autopilot armed
+    assert data["recovered"] == data["faults"] == sum(r["fault"] != "none" for r in rows)
+    assert data["min_true_sep_m"] >= 10.0 and data["unexpected_arms"] == 0
 
 
 def test_the_demo_figures_are_a_passing_run() -> None:
