@@ -10,6 +10,7 @@ import dataclasses
 
 from swarm_node.core.failsafe import COMPANION_TIMEOUT_S
 from swarm_node.core.node import NodeCore
+from swarm_node.core.settings import NodeSettings
 from swarm_node.testing import Fleet
 from swarm_proto import FsmState
 from tests.swarm_node.test_mission_defects import area, keep_polling, uploads
@@ -18,9 +19,9 @@ from tests.swarm_node.test_node_core import SETTINGS, activate, flying, profile,
 HOLD = dataclasses.replace(SETTINGS, silent_hold_s=COMPANION_TIMEOUT_S + 5.0)
 
 
-def _flying_fleet() -> Fleet:
+def _flying_fleet(settings: NodeSettings = HOLD) -> Fleet:
     profiles = {i: profile(i) for i in (1, 2, 3)}
-    nodes = {i: NodeCore(profiles[i], HOLD, fleet_profiles=profiles) for i in profiles}
+    nodes = {i: NodeCore(profiles[i], settings, fleet_profiles=profiles) for i in profiles}
     f = Fleet(nodes)
     for i in nodes:
         f.set_autopilot(i, flying())
@@ -71,16 +72,7 @@ def test_a_member_back_within_the_hold_flies_its_share_on() -> None:
 def test_avoidance_keeps_a_silent_member_until_heard_again() -> None:
     """A member lost by silence reaches avoidance as silent (routes.py), not
     forgotten: its predicted position is a contact until it is heard again."""
-    settings = dataclasses.replace(HOLD, avoidance=True)
-    profiles = {i: profile(i) for i in (1, 2, 3)}
-    nodes = {i: NodeCore(profiles[i], settings, fleet_profiles=profiles) for i in profiles}
-    f = Fleet(nodes)
-    for i in nodes:
-        f.set_autopilot(i, flying())
-    activate(f)
-    keep_polling(f, 0.2)
-    send(f, area(41))
-    keep_polling(f, 8.0, mission_reached=4, mission_current=5)
+    f = _flying_fleet(dataclasses.replace(HOLD, avoidance=True))
     silent = True
     f.drop = lambda sender, receiver, msg: silent and 3 in (sender, receiver)
     keep_polling(f, 5.0, mission_reached=4, mission_current=5)
