@@ -974,8 +974,7 @@ class MissionCoordinator:
         if self.record is None and not flying:
             return changed  # no share flown, none recorded: nothing to keep (most inputs)
         if (
-            not flying
-            and m.phase == Phase.STARTING
+            m.phase == Phase.STARTING
             and self.record is not None
             and m.mission_id == self.record.mission_id
         ):

@@ -9,6 +9,8 @@ peers' telemetry and non-cooperative traffic, ticking at 5 Hz.
     PlannedAltitude                          the altitude to come back to (None: where the
                                              manoeuvre started)
     Ceiling                                  the zones' ceiling above home (None: config's)
+    OwnUnknown                               no own position (a rebooted autopilot): no
+                                             manoeuvre until the next own status
     Forget                                   a contact gone for good (it left the
                                              swarm): dropped now
     Silent                                   a member fallen silent: kept as a contact at
@@ -210,10 +212,15 @@ class Ceiling:
 
 @dataclass(frozen=True, slots=True)
 class Forget:
-    """A peer gone from the swarm: no contact any more. The own id: the own position is
-    unknown (its autopilot rebooted, no fix yet), nothing is flown until a status."""
+    """A peer gone from the swarm: no contact any more."""
 
     vehicle_id: int
+
+
+@dataclass(frozen=True, slots=True)
+class OwnUnknown:
+    """The own position is unknown (its autopilot rebooted, no fix yet): the last own
+    status is no ground to manoeuvre on; nothing is flown until the next one."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -252,6 +259,7 @@ Event = (
     | PlannedAltitude
     | Ceiling
     | Forget
+    | OwnUnknown
     | OwnRoute
     | Silent
     | SilentRoute
@@ -373,9 +381,7 @@ class CollisionAvoider:
                 self._planned_rel = ev.alt_rel_m
             case Ceiling():
                 self._zone_ceiling_rel = ev.alt_rel_m
-            case Forget() if ev.vehicle_id == self.config.own_id:
-                # the own position is unknown (an autopilot rebooted: no fix yet): the
-                # last status is no ground to manoeuvre on
+            case OwnUnknown():
                 self._own = None
             case Forget():
                 self._contacts.pop(ev.vehicle_id, None)

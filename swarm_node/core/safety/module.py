@@ -109,6 +109,7 @@ from .avoidance import (
     Manoeuvre,
     ManoeuvreKind,
     OwnRoute,
+    OwnUnknown,
     PlannedAltitude,
     Silent,
     SilentRoute,
@@ -271,7 +272,7 @@ class AvoidanceModule:
             av.handle(Ceiling(self._ceiling(own, zones, now)), now)
             av.handle(self._route(ap), now)
         else:  # no own position (a rebooted autopilot has no fix yet): nothing to fly
-            av.handle(Forget(self.profile.vehicle_id), now)
+            av.handle(OwnUnknown(), now)
         for r in ap.traffic:
             if self._traffic_seen.get(r.icao_address) != r.time_s:
                 self._traffic_seen[r.icao_address] = r.time_s
