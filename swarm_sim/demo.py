@@ -32,6 +32,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -105,6 +106,21 @@ def free_tcp_port(rng: random.Random | None = None) -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def open_router(tries: int = 5) -> tuple[str, Any]:
+    """A router-mode Zenoh session listening on a free loopback port: its endpoint and
+    the session (another port while the one picked was taken before the bind)."""
+    import zenoh
+
+    for _ in range(tries - 1):
+        endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+        try:
+            return endpoint, open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+        except zenoh.ZError:
+            continue
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    return endpoint, open_session(ZenohSettings(mode="router", listen=(endpoint,)))
 
 
 def _ephemeral_low(path: str = "/proc/sys/net/ipv4/ip_local_port_range") -> int:
@@ -189,32 +205,64 @@ def start_radio(
     key = tmp / "swarm.key"
     key.write_text(secrets.token_hex(32) + "\n")
     key.chmod(0o600)
+    ports = dict(zip(ids, channel.ports, strict=True))
+
+    def spawn(nid: int) -> tuple[str, subprocess.Popen[bytes]]:
+        endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+        argv = [sys.executable, "-m", "radio_gateway.cli", "run", "--node-id", str(nid)]
+        argv += ["--port", ports[nid], "--key-file", str(key), "--listen", endpoint]
+        argv += ["--members", ",".join(map(str, ids)), "--configure"]
+        return endpoint, _spawn(argv, tmp / f"radio-{nid}.log", env)
+
+    started = {nid: spawn(nid) for nid in ids}
     endpoints: dict[int, str] = {}
     gateways: dict[int, subprocess.Popen[bytes]] = {}
-    for port, nid in zip(channel.ports, ids, strict=True):
-        endpoints[nid] = f"tcp/127.0.0.1:{free_tcp_port()}"
-        gateways[nid] = _spawn(
-            [
-                sys.executable,
-                "-m",
-                "radio_gateway.cli",
-                "run",
-                "--node-id",
-                str(nid),
-                "--port",
-                port,
-                "--key-file",
-                str(key),
-                "--listen",
-                endpoints[nid],
-                "--members",
-                ",".join(map(str, ids)),
-                "--configure",
-            ],
-            tmp / f"radio-{nid}.log",
-            env,
-        )
+    try:
+        for nid in ids:
+            endpoints[nid], gateways[nid] = _listening(nid, started[nid], spawn, tmp)
+    except BaseException:
+        for _, proc in started.values():
+            proc.kill()
+        for proc in gateways.values():
+            proc.kill()
+        channel.close()
+        raise
     return channel, endpoints, gateways
+
+
+def _listening(
+    nid: int,
+    started: tuple[str, subprocess.Popen[bytes]],
+    spawn: Callable[[int], tuple[str, subprocess.Popen[bytes]]],
+    tmp: Path,
+    timeout_s: float = 60.0,
+    tries: int = 5,
+) -> tuple[str, subprocess.Popen[bytes]]:
+    """The gateway of node `nid` once it listens on its endpoint (its log says "zenoh
+    session open"), started again on another port while the one picked for it was taken
+    before it could bind: between `free_tcp_port` and the gateway's bind another process
+    on a busy host may listen there, and a node connected to it would join a stranger's
+    network. SystemExit with the gateway's last words if it fails otherwise."""
+    from radio_gateway.runtime.gateway import EXIT_ZENOH
+
+    log = tmp / f"radio-{nid}.log"
+    endpoint, proc = started
+    for _ in range(tries):
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end and proc.poll() is None:
+            if b"zenoh session open" in log.read_bytes():
+                return endpoint, proc
+            time.sleep(0.05)
+        code = proc.poll()
+        if code != EXIT_ZENOH:
+            proc.kill()
+            tail = log.read_text(errors="replace").strip().splitlines()[-5:]
+            raise SystemExit(
+                f"radio gateway {nid} did not start (exit {code}):\n  " + "\n  ".join(tail)
+            )
+        started = spawn(nid)  # its endpoint was taken: another port
+        endpoint, proc = started
+    raise SystemExit(f"radio gateway {nid}: no free endpoint in {tries} tries")
 
 
 def serve_vehicles(
@@ -312,8 +360,7 @@ def start(
     if radio:  # each node on its own gateway's Zenoh network, the air between them
         channel, lans, gateways = start_radio(members, clock, tmp, env)
     else:  # every node and the ground station on one Zenoh network
-        endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
-        router = open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+        endpoint, router = open_router()
         lans = dict.fromkeys((*members, GCS_ID), endpoint)
     nodes = {}
     for spec, vid in zip(specs, members, strict=True):

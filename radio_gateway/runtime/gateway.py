@@ -253,37 +253,61 @@ class Gateway:
 
 
 def run_gateway(config: GatewayConfig, stop: threading.Event, clock: Clock | None = None) -> int:
-    """Verify the radio, then bridge until `stop` is set. Returns an exit code."""
+    """Join Zenoh, verify the radio, then bridge until `stop` is set. Returns an exit
+    code: 0 when stopped, 3 when the radio is not set up for bandada, 4 when the Zenoh
+    session cannot open (an endpoint already in use, a bad certificate).
+
+    The session opens first: a listener that cannot bind is told at once, not after the
+    seconds of AT guard times, and "zenoh session open" in the log says the gateway's
+    endpoints are its own (`swarm-sim demo --radio` starts its nodes after that line)."""
     clock = clock or clock_from_env()
     settings = msgspec.structs.replace(config.radio, address=config.node_id)
     key = parse_key(Path(config.key_file).read_bytes())
-    if config.configure_radio:
-        report = configure(config.port, settings, clock=clock, guard_s=config.at_guard_s)
-        log.info("radio configured at %d baud, changed %s", report.found_baud, report.changed)
-    if config.verify_radio:
-        problems = verify(config.port, settings, clock=clock, guard_s=config.at_guard_s)
-        if problems:
-            for p in problems:
-                log.error("radio %s: %s", config.port, p)
-            log.error(
-                "refusing to run: the radio is not set up for bandada "
-                "(run `radio-gateway configure` or pass --configure)"
-            )
-            return 3
-    source = time_source_from_spec(config.time_source, clock)
-    port = serial.Serial(config.port, settings.serial_baud, timeout=0.05)
-    session = open_session(config.zenoh)
-    gw = Gateway(config, session, port, source, clock, key)
     try:
-        gw.start()
-        log.info(
-            "radio gateway %d on %s, swarm %r: bridging", config.node_id, config.port, config.swarm
-        )
-        stop.wait()
+        session = open_session(config.zenoh)
+    except (zenoh.ZError, ValueError) as exc:
+        log.error("cannot open the Zenoh session (%s): %s", _endpoints(config.zenoh), exc)
+        return EXIT_ZENOH
+    log.info("zenoh session open (%s)", _endpoints(config.zenoh))
+    try:
+        if config.configure_radio:
+            report = configure(config.port, settings, clock=clock, guard_s=config.at_guard_s)
+            log.info("radio configured at %d baud, changed %s", report.found_baud, report.changed)
+        if config.verify_radio:
+            problems = verify(config.port, settings, clock=clock, guard_s=config.at_guard_s)
+            if problems:
+                for p in problems:
+                    log.error("radio %s: %s", config.port, p)
+                log.error(
+                    "refusing to run: the radio is not set up for bandada "
+                    "(run `radio-gateway configure` or pass --configure)"
+                )
+                return 3
+        source = time_source_from_spec(config.time_source, clock)
+        port = serial.Serial(config.port, settings.serial_baud, timeout=0.05)
+        gw = Gateway(config, session, port, source, clock, key)
+        try:
+            gw.start()
+            log.info(
+                "radio gateway %d on %s, swarm %r: bridging",
+                config.node_id,
+                config.port,
+                config.swarm,
+            )
+            stop.wait()
+        finally:
+            gw.close()
     finally:
-        gw.close()
         session.close()
     return 0
+
+
+EXIT_ZENOH = 4  # run_gateway's exit code when its Zenoh session cannot open
+
+
+def _endpoints(z: ZenohSettings) -> str:
+    said = [f"listen {e}" for e in z.listen] + [f"connect {e}" for e in z.connect]
+    return ", ".join(said) or (f"config {z.config_file}" if z.config_file else "no endpoints")
 
 
 def members_option(text: str | None) -> tuple[int, ...] | None:

@@ -70,6 +70,36 @@ def test_the_gateway_refuses_to_run_on_a_mismatch(tmp_path: Path) -> None:
         assert run_gateway(cfg, threading.Event(), clock) == 3
 
 
+def test_a_taken_endpoint_is_told_before_the_radio_is_touched(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Another process listens on the gateway's endpoint: exit 4 with the endpoint and
+    Zenoh's reason, at once (the serial port, which does not exist, is never opened)."""
+    import socket
+
+    from radio_gateway.runtime.gateway import EXIT_ZENOH
+    from swarm_proto.session import ZenohSettings
+
+    key = tmp_path / "swarm.key"
+    key.write_text("00" * 32)
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        endpoint = f"tcp/127.0.0.1:{taken.getsockname()[1]}"
+        cfg = GatewayConfig(
+            node_id=3,
+            port=str(tmp_path / "no-such-tty"),
+            key_file=str(key),
+            zenoh=ZenohSettings(listen=(endpoint,)),
+            configure_radio=True,
+        )
+        with caplog.at_level("ERROR"):
+            assert run_gateway(cfg, threading.Event(), ScaledClock(FAST)) == EXIT_ZENOH
+    said = caplog.text
+    assert f"cannot open the Zenoh session (listen {endpoint})" in said
+    assert "in use" in said and "no-such-tty" not in said
+
+
 def _env(**extra: str) -> dict[str, str]:
     env = dict(os.environ)
     env.update(extra)

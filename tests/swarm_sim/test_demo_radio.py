@@ -131,6 +131,41 @@ def test_the_fleet_comes_up_and_is_commanded_over_the_radio_only(tmp_path: Path)
         assert "radio configured" in (tmp_path / f"radio-{nid}.log").read_text()
 
 
+def test_a_gateway_whose_endpoint_was_taken_starts_again_on_another(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Between the demo's pick of a free port and the gateway's bind, another process on
+    the host listens there: the gateway says so and exits, and the demo starts it again
+    on another port before any node is sent to that endpoint (a node connected to it
+    would have joined a stranger's network)."""
+    import os
+    import socket
+
+    from swarm_proto.clock import ScaledClock
+    from swarm_sim import demo
+
+    picks = iter(range(3))
+    real = demo.free_tcp_port
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        monkeypatch.setattr(demo, "free_tcp_port", lambda: port if next(picks, 9) == 0 else real())
+        channel, endpoints, gateways = demo.start_radio(
+            (7,), ScaledClock(1.0), tmp_path, dict(os.environ)
+        )
+        try:
+            assert set(endpoints) == {7, GCS_ID}
+            assert f":{port}" not in endpoints[7] and endpoints[7].startswith("tcp/127.0.0.1:")
+            assert all(p.poll() is None for p in gateways.values())
+            assert "zenoh session open" in (tmp_path / "radio-7.log").read_text()
+        finally:
+            for p in gateways.values():
+                p.kill()
+                p.wait()
+            channel.close()
+
+
 @pytest.mark.soak
 def test_the_whole_demo_flies_over_the_radio() -> None:
     """`swarm-sim demo --radio`: the default fleet (three VTOLs, two quadcopters, six
