@@ -6,6 +6,7 @@ import importlib
 import itertools
 import os
 import pkgutil
+import socket
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -114,12 +115,9 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 
 
 def free_tcp_port() -> int:
-    """A free loopback port below the kernel's ephemeral range (swarm_sim.demo's pick):
-    a port the kernel picked (bind to 0) could become the source port of any outgoing
-    connection on the host before a subprocess binds it."""
-    from swarm_sim.demo import free_tcp_port as below_ephemeral
-
-    return below_ephemeral()
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
 
 
 @pytest.fixture
