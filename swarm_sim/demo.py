@@ -113,14 +113,14 @@ def open_router(tries: int = 5) -> tuple[str, Any]:
     the session (another port while the one picked was taken before the bind)."""
     import zenoh
 
-    for _ in range(tries - 1):
+    for attempt in range(tries):
         endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
         try:
             return endpoint, open_session(ZenohSettings(mode="router", listen=(endpoint,)))
         except zenoh.ZError:
-            continue
-    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
-    return endpoint, open_session(ZenohSettings(mode="router", listen=(endpoint,)))
+            if attempt == tries - 1:
+                raise
+    raise AssertionError("unreachable")
 
 
 def _ephemeral_low(path: str = "/proc/sys/net/ipv4/ip_local_port_range") -> int:

@@ -22,7 +22,7 @@ import zenoh
 from swarm_proto import intake
 from swarm_proto.clock import Clock, clock_from_env
 from swarm_proto.radio import STATUS_BYTES
-from swarm_proto.session import SwarmBus, ZenohSettings, open_session, put_options
+from swarm_proto.session import SwarmBus, ZenohSettings, open_session, put_options, zenoh_reason
 from swarm_proto.topics import check_swarm_name, match, prefix
 
 from ..core.airtime import LinkTiming
@@ -38,6 +38,9 @@ from .timesource import TimeSource, time_source_from_spec
 from .xtend_config import configure, verify
 
 log = logging.getLogger(__name__)
+
+EXIT_RADIO = 3  # run_gateway: the radio is not set up for bandada
+EXIT_ZENOH = 4  # run_gateway: its Zenoh session cannot open
 
 
 class GatewayConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -266,7 +269,9 @@ def run_gateway(config: GatewayConfig, stop: threading.Event, clock: Clock | Non
     try:
         session = open_session(config.zenoh)
     except (zenoh.ZError, ValueError) as exc:
-        log.error("cannot open the Zenoh session (%s): %s", _endpoints(config.zenoh), exc)
+        log.error(
+            "cannot open the Zenoh session (%s): %s", _endpoints(config.zenoh), zenoh_reason(exc)
+        )
         return EXIT_ZENOH
     log.info("zenoh session open (%s)", _endpoints(config.zenoh))
     try:
@@ -282,7 +287,7 @@ def run_gateway(config: GatewayConfig, stop: threading.Event, clock: Clock | Non
                     "refusing to run: the radio is not set up for bandada "
                     "(run `radio-gateway configure` or pass --configure)"
                 )
-                return 3
+                return EXIT_RADIO
         source = time_source_from_spec(config.time_source, clock)
         port = serial.Serial(config.port, settings.serial_baud, timeout=0.05)
         gw = Gateway(config, session, port, source, clock, key)
@@ -300,9 +305,6 @@ def run_gateway(config: GatewayConfig, stop: threading.Event, clock: Clock | Non
     finally:
         session.close()
     return 0
-
-
-EXIT_ZENOH = 4  # run_gateway's exit code when its Zenoh session cannot open
 
 
 def _endpoints(z: ZenohSettings) -> str:
